@@ -1,0 +1,87 @@
+//! The nine activity classes, in the order used everywhere (class index 0..8): model outputs,
+//! datasets, messages, metrics and reports.
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Activity {
+    Crawling = 0,
+    FallingDown = 1,
+    GettingUp = 2,
+    LyingDown = 3,
+    Running = 4,
+    SittingOnFloor = 5,
+    Standing = 6,
+    Walking = 7,
+    WalkingUnsteadily = 8,
+}
+
+impl Activity {
+    pub const COUNT: usize = 9;
+    pub const ALL: [Activity; Self::COUNT] = [
+        Activity::Crawling,
+        Activity::FallingDown,
+        Activity::GettingUp,
+        Activity::LyingDown,
+        Activity::Running,
+        Activity::SittingOnFloor,
+        Activity::Standing,
+        Activity::Walking,
+        Activity::WalkingUnsteadily,
+    ];
+
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    pub fn from_index(index: usize) -> Option<Self> {
+        Self::ALL.get(index).copied()
+    }
+
+    /// The snake_case label used in messages, datasets and reports.
+    pub const fn label(self) -> &'static str {
+        match self {
+            Activity::Crawling => "crawling",
+            Activity::FallingDown => "falling_down",
+            Activity::GettingUp => "getting_up",
+            Activity::LyingDown => "lying_down",
+            Activity::Running => "running",
+            Activity::SittingOnFloor => "sitting_on_floor",
+            Activity::Standing => "standing",
+            Activity::Walking => "walking",
+            Activity::WalkingUnsteadily => "walking_unsteadily",
+        }
+    }
+
+    pub fn from_label(label: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|a| a.label() == label)
+    }
+
+    /// On the floor: the postures after which a person who does not get up needs help.
+    pub const fn is_on_floor(self) -> bool {
+        matches!(self, Activity::LyingDown | Activity::SittingOnFloor | Activity::Crawling)
+    }
+}
+
+impl std::fmt::Display for Activity {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.label())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn index_and_label_round_trip() {
+        for (i, a) in Activity::ALL.into_iter().enumerate() {
+            assert_eq!(a.index(), i);
+            assert_eq!(Activity::from_index(i), Some(a));
+            assert_eq!(Activity::from_label(a.label()), Some(a));
+        }
+        assert_eq!(Activity::from_index(9), None);
+        assert_eq!(Activity::from_label("dancing"), None);
+    }
+}

@@ -1,0 +1,6 @@
+//! The ROS-free, I/O-free heart of lidar_har: geometry, scans, maps, the localiser and
+//! tracker, image representations, windows, fall-alert logic and metrics. Everything here is
+//! plain computation on plain data, tested without ROS, files or threads.
+
+pub mod activity;
+pub mod geometry;

@@ -1,0 +1,1 @@
+//! lidar_har infer crate.

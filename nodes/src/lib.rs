@@ -1,0 +1,1 @@
+//! Shared plumbing of the lidar_har node binaries.

@@ -1,0 +1,108 @@
+#!/usr/bin/env bash
+# Installs what cargo does not: the ONNX Runtime shared library (from the `onnxruntime`
+# wheel on PyPI) and a Python virtual environment with the external checkers.
+# Idempotent: rerunning it only re-checks what is already there.
+#
+#   scripts/setup.sh            everything
+#   scripts/setup.sh --no-python   only the ONNX Runtime library
+#
+# Everything lands inside the repository, in `.deps/` and `.venv/` (both git-ignored).
+set -euo pipefail
+
+ORT_VERSION="1.31.1"
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+DEPS="$ROOT/.deps"
+ORT_DIR="$DEPS/onnxruntime"
+ORT_LIB="$ORT_DIR/libonnxruntime.so.$ORT_VERSION"
+VENV="$ROOT/.venv"
+PY_REQUIREMENTS="$ROOT/scripts/requirements-checkers.txt"
+WITH_PYTHON=1
+
+for arg in "$@"; do
+    case "$arg" in
+        --no-python) WITH_PYTHON=0 ;;
+        -h | --help) sed -n '2,10p' "$0"; exit 0 ;;
+        *) echo "setup: unknown option '$arg' (try --help)" >&2; exit 2 ;;
+    esac
+done
+
+say() { printf '\033[1msetup:\033[0m %s\n' "$*"; }
+fail() {
+    printf '\033[31msetup: FAILED:\033[0m %s\n' "$1" >&2
+    printf '       fix: %s\n' "$2" >&2
+    exit 1
+}
+
+need() {
+    command -v "$1" >/dev/null 2>&1 || fail "'$1' is not installed" "$2"
+}
+
+need cargo "install Rust with rustup (https://rustup.rs), then rerun scripts/setup.sh"
+need python3 "apt-get install python3 python3-venv python3-pip"
+
+# Debian installs venv and pip separately; install them when we are root and they are missing.
+if ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        say "installing python3-venv and python3-pip from Debian"
+        apt-get update -qq && apt-get install -y -qq python3-venv python3-pip >/dev/null \
+            || fail "apt-get could not install python3-venv" "run 'apt-get install python3-venv python3-pip' as root"
+    else
+        fail "python3 has no 'venv' module" "run 'sudo apt-get install python3-venv python3-pip'"
+    fi
+fi
+
+# Tools the multi-process tests use: unshare (util-linux) and ip (iproute2).
+if ! command -v unshare >/dev/null || ! command -v ip >/dev/null; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        say "installing util-linux and iproute2 from Debian (private network namespaces for DDS tests)"
+        apt-get update -qq && apt-get install -y -qq util-linux iproute2 >/dev/null \
+            || fail "apt-get could not install util-linux/iproute2" "run 'apt-get install util-linux iproute2' as root"
+    else
+        say "warning: 'unshare' or 'ip' missing; DDS tests will skip (sudo apt-get install util-linux iproute2)"
+    fi
+fi
+
+# --- Python virtual environment (checkers; also the pip used to fetch the ONNX Runtime wheel)
+if [ ! -x "$VENV/bin/python" ]; then
+    say "creating the virtual environment $VENV"
+    python3 -m venv "$VENV" || fail "python3 -m venv $VENV failed" "apt-get install python3-venv, then rerun"
+fi
+PIP=("$VENV/bin/python" -m pip --disable-pip-version-check -q)
+
+# --- ONNX Runtime shared library, taken out of the PyPI wheel
+if [ -f "$ORT_LIB" ]; then
+    say "ONNX Runtime $ORT_VERSION already at $ORT_LIB"
+else
+    say "fetching the onnxruntime==$ORT_VERSION wheel from PyPI for its shared library"
+    tmp="$(mktemp -d)"
+    trap 'rm -rf "$tmp"' EXIT
+    "${PIP[@]}" download "onnxruntime==$ORT_VERSION" --no-deps --only-binary=:all: -d "$tmp" \
+        || fail "pip could not download onnxruntime==$ORT_VERSION from PyPI" \
+            "check that PyPI is reachable (pip config, proxy) and that a wheel exists for $(uname -m)"
+    wheel="$(ls "$tmp"/onnxruntime-*.whl | head -n1)"
+    mkdir -p "$ORT_DIR"
+    "$VENV/bin/python" - "$wheel" "$ORT_DIR" <<'PY' || fail "could not extract libonnxruntime from the wheel" "delete .deps/ and rerun scripts/setup.sh"
+import sys, zipfile, os, shutil
+wheel, dest = sys.argv[1], sys.argv[2]
+with zipfile.ZipFile(wheel) as z:
+    libs = [n for n in z.namelist() if os.path.basename(n).startswith("libonnxruntime.so")]
+    if not libs:
+        sys.exit("no libonnxruntime.so in " + wheel)
+    for name in libs:
+        with z.open(name) as src, open(os.path.join(dest, os.path.basename(name)), "wb") as dst:
+            shutil.copyfileobj(src, dst)
+PY
+    [ -f "$ORT_LIB" ] || fail "the wheel did not contain libonnxruntime.so.$ORT_VERSION" \
+        "update ORT_VERSION in scripts/setup.sh to the version in the wheel"
+    ln -sf "libonnxruntime.so.$ORT_VERSION" "$ORT_DIR/libonnxruntime.so"
+    say "ONNX Runtime installed at $ORT_LIB"
+fi
+
+# --- External checkers (rosbags, mcap, mcap-ros2-support, cyclonedds); pip skips what is there.
+if [ "$WITH_PYTHON" = 1 ]; then
+    say "installing Python checkers into $VENV from $PY_REQUIREMENTS"
+    "${PIP[@]}" install -r "$PY_REQUIREMENTS" || fail "pip install -r $PY_REQUIREMENTS failed" \
+        "check that PyPI is reachable; the failing package is named above"
+fi
+
+say "done. ONNX Runtime: $ORT_LIB"
