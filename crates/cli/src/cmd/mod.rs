@@ -1,0 +1,9 @@
+//! One module per subcommand. Each defines its clap arguments and a `run` function.
+
+pub mod bag;
+pub mod dataset;
+pub mod demo;
+pub mod evaluate;
+pub mod run;
+pub mod simulate;
+pub mod topic;
