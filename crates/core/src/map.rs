@@ -1,0 +1,319 @@
+//! The room's occupancy map with a precomputed distance field.
+//!
+//! The localiser asks, for every scan point, "is this within 0.2 m of a mapped obstacle?".
+//! Computing the exact Euclidean distance transform once when the map is loaded (Felzenszwalb
+//! and Huttenlocher's separable lower-envelope algorithm, linear in the number of cells) makes
+//! each question one array read, whatever the map's size or clutter.
+
+use glam::DVec2;
+
+use crate::geometry::Pose2;
+
+/// Where the grid lies in the map frame and how fine it is, as in `nav_msgs/MapMetaData`:
+/// cell `(col, row)` covers `[col, col+1) x [row, row+1)` times `resolution` in the grid frame,
+/// whose origin (the corner of cell (0, 0)) sits at `origin` in the map frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapGeometry {
+    pub resolution: f64,
+    pub origin: Pose2,
+    pub width: usize,
+    pub height: usize,
+}
+
+/// Why a map cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MapError {
+    #[error("map resolution {0} m/cell is not a positive finite number")]
+    Resolution(f64),
+    #[error("map origin {0:?} is not finite")]
+    Origin(Pose2),
+    #[error("map is empty ({width} x {height} cells)")]
+    Empty { width: usize, height: usize },
+    #[error("map of {width} x {height} cells is larger than the {MAX_CELLS} cells supported")]
+    TooLarge { width: usize, height: usize },
+    #[error("map has {got} cells but width x height is {width} x {height} = {expected}")]
+    CellCount { width: usize, height: usize, expected: usize, got: usize },
+    #[error("occupied threshold {0} is not in [0, 1]")]
+    Threshold(f64),
+}
+
+/// 400 million cells (a 1 km square at 5 cm): anything larger is a garbled header.
+pub const MAX_CELLS: usize = 400_000_000;
+
+/// An occupancy grid reduced to what the localiser needs: which cells hold an obstacle and,
+/// for every cell, the distance from its centre to the nearest obstacle cell's centre.
+#[derive(Debug, Clone)]
+pub struct OccupancyMap {
+    geometry: MapGeometry,
+    /// Map frame -> grid frame, kept to avoid recomputing `sin_cos` per point.
+    map_to_grid: Pose2,
+    occupied: Vec<bool>,
+    /// Metres to the nearest occupied cell, row-major; `f32::INFINITY` when there is none.
+    distance_m: Vec<f32>,
+}
+
+impl OccupancyMap {
+    /// Builds the map from one flag per cell (row-major, row 0 at the origin side).
+    pub fn new(geometry: MapGeometry, occupied: Vec<bool>) -> Result<Self, MapError> {
+        let MapGeometry { resolution, origin, width, height } = geometry;
+        if !(resolution.is_finite() && resolution > 0.0) {
+            return Err(MapError::Resolution(resolution));
+        }
+        if !origin.is_finite() {
+            return Err(MapError::Origin(origin));
+        }
+        if width == 0 || height == 0 {
+            return Err(MapError::Empty { width, height });
+        }
+        let expected = width.checked_mul(height).filter(|&n| n <= MAX_CELLS);
+        let Some(expected) = expected else {
+            return Err(MapError::TooLarge { width, height });
+        };
+        if occupied.len() != expected {
+            return Err(MapError::CellCount { width, height, expected, got: occupied.len() });
+        }
+        let squared = squared_distance_transform(&occupied, width, height);
+        let distance_m = squared.iter().map(|&d2| (d2.sqrt() * resolution) as f32).collect();
+        Ok(Self { geometry, map_to_grid: origin.inverse(), occupied, distance_m })
+    }
+
+    /// Builds the map from `nav_msgs/OccupancyGrid` values: 0..=100 is the occupancy
+    /// probability in percent, -1 (or anything outside 0..=100) unknown. A cell is an obstacle
+    /// when its probability exceeds `occupied_thresh` (map_server's meaning; 0.65 there).
+    pub fn from_grid_values(
+        geometry: MapGeometry,
+        values: &[i8],
+        occupied_thresh: f64,
+    ) -> Result<Self, MapError> {
+        if !(0.0..=1.0).contains(&occupied_thresh) {
+            return Err(MapError::Threshold(occupied_thresh));
+        }
+        let limit = occupied_thresh * 100.0;
+        let occupied = values.iter().map(|&v| (0..=100).contains(&v) && f64::from(v) > limit).collect();
+        Self::new(geometry, occupied)
+    }
+
+    pub fn geometry(&self) -> &MapGeometry {
+        &self.geometry
+    }
+
+    pub fn occupied_cells(&self) -> usize {
+        self.occupied.iter().filter(|&&o| o).count()
+    }
+
+    /// The `(col, row)` of the cell holding map-frame point `p`, if it is on the map.
+    pub fn cell_of(&self, p: DVec2) -> Option<(usize, usize)> {
+        let g = self.map_to_grid.transform_point(p) / self.geometry.resolution;
+        // Also false for NaN, so a bad point never indexes the grid.
+        let inside = g.x >= 0.0
+            && g.y >= 0.0
+            && g.x < self.geometry.width as f64
+            && g.y < self.geometry.height as f64;
+        inside.then(|| (g.x as usize, g.y as usize))
+    }
+
+    pub fn is_occupied(&self, col: usize, row: usize) -> bool {
+        col < self.geometry.width && row < self.geometry.height && self.occupied[row * self.geometry.width + col]
+    }
+
+    /// Metres from the cell holding `p` to the nearest obstacle (`INFINITY` on a map without
+    /// obstacles), or `None` when `p` is off the map. Accurate to half a cell diagonal.
+    pub fn distance_to_obstacle(&self, p: DVec2) -> Option<f32> {
+        self.cell_of(p).map(|(col, row)| self.distance_m[row * self.geometry.width + col])
+    }
+}
+
+/// Squared Euclidean distance (in cells) from every cell to the nearest `true` cell: a 1D
+/// transform down every column, then one along every row of the column results.
+fn squared_distance_transform(occupied: &[bool], width: usize, height: usize) -> Vec<f64> {
+    let mut grid: Vec<f64> = occupied.iter().map(|&o| if o { 0.0 } else { f64::INFINITY }).collect();
+    let longest = width.max(height);
+    let mut scratch = EnvelopeScratch::new(longest);
+    let mut line = vec![0.0; longest];
+    let mut out = vec![0.0; longest];
+    for col in 0..width {
+        for row in 0..height {
+            line[row] = grid[row * width + col];
+        }
+        scratch.transform(&line[..height], &mut out[..height]);
+        for row in 0..height {
+            grid[row * width + col] = out[row];
+        }
+    }
+    for row in grid.chunks_exact_mut(width) {
+        line[..width].copy_from_slice(row);
+        scratch.transform(&line[..width], row);
+    }
+    grid
+}
+
+/// Buffers of the lower envelope of parabolas, reused across lines.
+struct EnvelopeScratch {
+    /// Positions of the parabolas in the envelope.
+    apex: Vec<usize>,
+    /// Boundaries between consecutive envelope parabolas.
+    bound: Vec<f64>,
+}
+
+impl EnvelopeScratch {
+    fn new(n: usize) -> Self {
+        Self { apex: vec![0; n], bound: vec![0.0; n + 1] }
+    }
+
+    /// Where the parabola at `q` (with `fq = f[q] + q^2`) overtakes envelope parabola `k`.
+    fn intersection(&self, f: &[f64], fq: f64, q: usize, k: usize) -> f64 {
+        let p = self.apex[k];
+        (fq - (f[p] + (p * p) as f64)) / (2.0 * (q - p) as f64)
+    }
+
+    /// `out[q] = min_p (q - p)^2 + f[p]` over the finite `f[p]`; infinite where none is finite.
+    fn transform(&mut self, f: &[f64], out: &mut [f64]) {
+        let mut k: usize = 0;
+        let mut any = false;
+        for q in 0..f.len() {
+            if !f[q].is_finite() {
+                continue;
+            }
+            if !any {
+                any = true;
+                self.apex[0] = q;
+                self.bound[0] = f64::NEG_INFINITY;
+                self.bound[1] = f64::INFINITY;
+                continue;
+            }
+            let fq = f[q] + (q * q) as f64;
+            // `bound[0]` is -inf, so the envelope never empties.
+            let mut s = self.intersection(f, fq, q, k);
+            while s <= self.bound[k] {
+                k -= 1;
+                s = self.intersection(f, fq, q, k);
+            }
+            k += 1;
+            self.apex[k] = q;
+            self.bound[k] = s;
+            self.bound[k + 1] = f64::INFINITY;
+        }
+        if !any {
+            out.fill(f64::INFINITY);
+            return;
+        }
+        let mut k = 0;
+        for (q, o) in out.iter_mut().enumerate() {
+            while self.bound[k + 1] < q as f64 {
+                k += 1;
+            }
+            let p = self.apex[k];
+            let d = q as f64 - p as f64;
+            *o = d * d + f[p];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn geometry(width: usize, height: usize, resolution: f64) -> MapGeometry {
+        MapGeometry { resolution, origin: Pose2::IDENTITY, width, height }
+    }
+
+    fn brute_force(occupied: &[bool], width: usize, height: usize) -> Vec<f64> {
+        let cells: Vec<(i64, i64)> = (0..occupied.len())
+            .filter(|&i| occupied[i])
+            .map(|i| ((i % width) as i64, (i / width) as i64))
+            .collect();
+        (0..width * height)
+            .map(|i| {
+                let (c, r) = ((i % width) as i64, (i / width) as i64);
+                cells
+                    .iter()
+                    .map(|&(oc, or)| ((oc - c).pow(2) + (or - r).pow(2)) as f64)
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect()
+    }
+
+    proptest! {
+        #[test]
+        fn distance_transform_is_exact(
+            width in 1usize..14,
+            height in 1usize..14,
+            seed in proptest::collection::vec(any::<bool>(), 196),
+            density in 1u8..8,
+        ) {
+            let occupied: Vec<bool> = (0..width * height)
+                .map(|i| seed[i] && (i as u8 % density == 0))
+                .collect();
+            let fast = squared_distance_transform(&occupied, width, height);
+            let slow = brute_force(&occupied, width, height);
+            prop_assert_eq!(fast, slow);
+        }
+    }
+
+    #[test]
+    fn distance_is_measured_in_metres_from_the_point_cell() {
+        // A wall along column 10 of a 5 cm map: 2 m wide, 1 m tall.
+        let (w, h) = (40, 20);
+        let occupied = (0..w * h).map(|i| i % w == 10).collect();
+        let map = OccupancyMap::new(geometry(w, h, 0.05), occupied).unwrap();
+        let d = map.distance_to_obstacle(DVec2::new(0.5 + 0.025, 0.3)).unwrap();
+        assert!(d.abs() < 1e-6, "on the wall: {d}");
+        let d = map.distance_to_obstacle(DVec2::new(0.8 + 0.025, 0.3)).unwrap();
+        assert!((d - 0.3).abs() < 1e-5, "6 cells away: {d}");
+        assert!(map.distance_to_obstacle(DVec2::new(-0.01, 0.3)).is_none());
+        assert!(map.distance_to_obstacle(DVec2::new(f64::NAN, 0.3)).is_none());
+        assert_eq!(map.occupied_cells(), 20);
+    }
+
+    #[test]
+    fn rotated_origin_is_honoured() {
+        // Grid rotated by 90 degrees: grid +x is map +y; origin at (1, 1).
+        let origin = Pose2::new(1.0, 1.0, std::f64::consts::FRAC_PI_2);
+        let g = MapGeometry { resolution: 0.1, origin, width: 10, height: 10 };
+        let mut occupied = vec![false; 100];
+        occupied[3 * 10 + 2] = true; // col 2, row 3: grid (0.25, 0.35) -> map (1 - 0.35, 1 + 0.25)
+        let map = OccupancyMap::new(g, occupied).unwrap();
+        assert_eq!(map.cell_of(DVec2::new(0.65, 1.25)), Some((2, 3)));
+        assert_eq!(map.distance_to_obstacle(DVec2::new(0.65, 1.25)), Some(0.0));
+    }
+
+    #[test]
+    fn map_without_obstacles_is_infinitely_far() {
+        let map = OccupancyMap::new(geometry(3, 3, 1.0), vec![false; 9]).unwrap();
+        assert_eq!(map.distance_to_obstacle(DVec2::new(1.5, 1.5)), Some(f32::INFINITY));
+    }
+
+    #[test]
+    fn grid_values_follow_map_server_thresholds() {
+        let values = [0i8, 50, 65, 66, 100, -1, 127, -128, 99];
+        let map = OccupancyMap::from_grid_values(geometry(9, 1, 1.0), &values, 0.65).unwrap();
+        let occ: Vec<bool> = (0..9).map(|c| map.is_occupied(c, 0)).collect();
+        assert_eq!(occ, [false, false, false, true, true, false, false, false, true]);
+    }
+
+    #[test]
+    fn bad_maps_are_rejected_with_the_reason() {
+        assert_eq!(OccupancyMap::new(geometry(2, 2, 0.0), vec![false; 4]).unwrap_err(), MapError::Resolution(0.0));
+        assert!(matches!(
+            OccupancyMap::new(geometry(2, 2, f64::NAN), vec![false; 4]),
+            Err(MapError::Resolution(_))
+        ));
+        assert!(matches!(
+            OccupancyMap::new(geometry(2, 2, 0.1), vec![false; 3]),
+            Err(MapError::CellCount { expected: 4, got: 3, .. })
+        ));
+        assert!(matches!(OccupancyMap::new(geometry(0, 2, 0.1), vec![]), Err(MapError::Empty { .. })));
+        assert!(matches!(
+            OccupancyMap::new(geometry(usize::MAX, 2, 0.1), vec![]),
+            Err(MapError::TooLarge { .. })
+        ));
+        let mut g = geometry(1, 1, 0.1);
+        g.origin.theta = f64::INFINITY;
+        assert!(matches!(OccupancyMap::new(g, vec![true]), Err(MapError::Origin(_))));
+        assert!(matches!(
+            OccupancyMap::from_grid_values(geometry(1, 1, 0.1), &[0], 1.5),
+            Err(MapError::Threshold(_))
+        ));
+    }
+}

@@ -1,0 +1,182 @@
+//! One 2D Lidar rotation as plain data, and its points in the Lidar's own frame.
+//!
+//! The fields mirror `sensor_msgs/LaserScan` (without header and intensities) so a host can
+//! convert a message without loss; everything here tolerates the bad values real sensors
+//! produce (`NaN`, `inf`, ranges outside the valid interval).
+
+use glam::DVec2;
+
+/// A scan: beam `i` points at `angle_min + i * angle_increment` (radians, counter-clockwise
+/// from the Lidar's +x axis) and measured `ranges[i]` metres.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Scan {
+    /// Acquisition time of the first beam, nanoseconds (any epoch, monotonic per source).
+    pub stamp_ns: i64,
+    pub angle_min: f32,
+    pub angle_increment: f32,
+    pub range_min: f32,
+    pub range_max: f32,
+    pub ranges: Vec<f32>,
+}
+
+/// Why a scan's geometry cannot be used at all (its ranges may still be fine).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ScanError {
+    #[error("scan angle_min {0} is not finite")]
+    AngleMin(f32),
+    #[error("scan angle_increment {0} is not a finite non-zero angle")]
+    AngleIncrement(f32),
+    #[error("scan range interval [{min}, {max}] is not a finite interval with min >= 0 and max > min")]
+    RangeInterval { min: f32, max: f32 },
+    #[error("scan has {0} beams, more than the {MAX_BEAMS} a 2D Lidar can produce")]
+    TooManyBeams(usize),
+}
+
+/// More beams than any 2D Lidar delivers per rotation: a scan this long is garbage.
+pub const MAX_BEAMS: usize = 100_000;
+
+/// A usable beam: its index in `ranges`, its range and its point in the Lidar frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanPoint {
+    pub beam: usize,
+    pub range: f64,
+    pub point: DVec2,
+}
+
+impl Scan {
+    /// Checks the fields that every point depends on.
+    pub fn validate(&self) -> Result<(), ScanError> {
+        if !self.angle_min.is_finite() {
+            return Err(ScanError::AngleMin(self.angle_min));
+        }
+        if !self.angle_increment.is_finite() || self.angle_increment == 0.0 {
+            return Err(ScanError::AngleIncrement(self.angle_increment));
+        }
+        let (min, max) = (self.range_min, self.range_max);
+        if !(min.is_finite() && max.is_finite() && min >= 0.0 && max > min) {
+            return Err(ScanError::RangeInterval { min, max });
+        }
+        if self.ranges.len() > MAX_BEAMS {
+            return Err(ScanError::TooManyBeams(self.ranges.len()));
+        }
+        Ok(())
+    }
+
+    /// The direction of beam `beam` (radians, Lidar frame).
+    pub fn beam_angle(&self, beam: usize) -> f64 {
+        f64::from(self.angle_min) + beam as f64 * f64::from(self.angle_increment)
+    }
+
+    /// Whether `range` is a return: finite and inside `[range_min, range_max]`.
+    pub fn is_return(&self, range: f32) -> bool {
+        range.is_finite() && range >= self.range_min && range <= self.range_max
+    }
+
+    /// Number of ranges that are `NaN` or infinite (no return, or a sensor fault).
+    pub fn non_finite_count(&self) -> usize {
+        self.ranges.iter().filter(|r| !r.is_finite()).count()
+    }
+
+    /// The returns as points in the Lidar frame, skipping non-finite and out-of-range beams.
+    pub fn points(&self) -> impl Iterator<Item = ScanPoint> + '_ {
+        self.ranges.iter().enumerate().filter(|(_, r)| self.is_return(**r)).map(|(beam, &r)| {
+            let (s, c) = self.beam_angle(beam).sin_cos();
+            let range = f64::from(r);
+            ScanPoint { beam, range, point: DVec2::new(range * c, range * s) }
+        })
+    }
+}
+
+/// The unit direction of every beam of a scan geometry, cached so the localiser does not
+/// evaluate `sin_cos` per beam per scan (a sizeable part of a 50 µs budget).
+#[derive(Debug, Clone, Default)]
+pub struct BeamDirections {
+    key: (u32, u32, usize),
+    directions: Vec<DVec2>,
+}
+
+impl BeamDirections {
+    /// The directions for `scan`'s geometry, recomputed only when the geometry changes.
+    pub fn for_scan(&mut self, scan: &Scan) -> &[DVec2] {
+        let key = (scan.angle_min.to_bits(), scan.angle_increment.to_bits(), scan.ranges.len());
+        if key != self.key || self.directions.len() != scan.ranges.len() {
+            self.key = key;
+            self.directions.clear();
+            self.directions.extend((0..scan.ranges.len()).map(|beam| {
+                let (s, c) = scan.beam_angle(beam).sin_cos();
+                DVec2::new(c, s)
+            }));
+        }
+        &self.directions
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f32::consts::FRAC_PI_2;
+
+    fn scan(ranges: Vec<f32>) -> Scan {
+        Scan {
+            stamp_ns: 0,
+            angle_min: -FRAC_PI_2,
+            angle_increment: FRAC_PI_2,
+            range_min: 0.1,
+            range_max: 10.0,
+            ranges,
+        }
+    }
+
+    #[test]
+    fn points_lie_along_their_beams() {
+        let s = scan(vec![1.0, 2.0, 3.0]);
+        let pts: Vec<_> = s.points().collect();
+        assert_eq!(pts.len(), 3);
+        assert!((pts[0].point - DVec2::new(0.0, -1.0)).length() < 1e-6);
+        assert!((pts[1].point - DVec2::new(2.0, 0.0)).length() < 1e-6);
+        assert!((pts[2].point - DVec2::new(0.0, 3.0)).length() < 1e-6);
+    }
+
+    #[test]
+    fn bad_ranges_are_skipped() {
+        let s = scan(vec![f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.05, 11.0, 5.0]);
+        let pts: Vec<_> = s.points().collect();
+        assert_eq!(pts.len(), 1);
+        assert_eq!(pts[0].beam, 5);
+        assert_eq!(s.non_finite_count(), 3);
+    }
+
+    #[test]
+    fn empty_scan_has_no_points_and_is_valid() {
+        let s = scan(vec![]);
+        assert_eq!(s.points().count(), 0);
+        assert!(s.validate().is_ok());
+    }
+
+    #[test]
+    fn broken_geometry_is_rejected() {
+        let mut s = scan(vec![1.0]);
+        s.angle_increment = f32::NAN;
+        assert!(matches!(s.validate(), Err(ScanError::AngleIncrement(_))));
+        s.angle_increment = 0.0;
+        assert!(matches!(s.validate(), Err(ScanError::AngleIncrement(_))));
+        let mut s = scan(vec![1.0]);
+        s.range_max = f32::INFINITY;
+        assert!(matches!(s.validate(), Err(ScanError::RangeInterval { .. })));
+        let mut s = scan(vec![1.0]);
+        s.angle_min = f32::NAN;
+        assert!(matches!(s.validate(), Err(ScanError::AngleMin(_))));
+    }
+
+    #[test]
+    fn beam_directions_follow_geometry_changes() {
+        let mut cache = BeamDirections::default();
+        let a = scan(vec![1.0; 3]);
+        assert_eq!(cache.for_scan(&a).len(), 3);
+        let mut b = scan(vec![1.0; 5]);
+        b.angle_min = 0.0;
+        let dirs = cache.for_scan(&b).to_vec();
+        assert_eq!(dirs.len(), 5);
+        assert!((dirs[0] - DVec2::X).length() < 1e-12);
+    }
+}
