@@ -4,3 +4,5 @@
 
 pub mod activity;
 pub mod geometry;
+pub mod scan;
+pub mod map;
