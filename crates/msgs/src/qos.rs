@@ -34,16 +34,28 @@ pub struct QosProfile {
 impl QosProfile {
     /// rclcpp's `SensorDataQoS`: best effort, keep last 5.
     pub const fn sensor_data() -> Self {
-        Self { reliability: Reliability::BestEffort, durability: Durability::Volatile, history: History::KeepLast(5) }
+        Self {
+            reliability: Reliability::BestEffort,
+            durability: Durability::Volatile,
+            history: History::KeepLast(5),
+        }
     }
 
     /// Reliable, volatile, keep last `depth`.
     pub const fn reliable(depth: u32) -> Self {
-        Self { reliability: Reliability::Reliable, durability: Durability::Volatile, history: History::KeepLast(depth) }
+        Self {
+            reliability: Reliability::Reliable,
+            durability: Durability::Volatile,
+            history: History::KeepLast(depth),
+        }
     }
 
     /// Reliable, transient local ("latched"), keep last `depth`: late subscribers get the last messages.
     pub const fn latched(depth: u32) -> Self {
-        Self { reliability: Reliability::Reliable, durability: Durability::TransientLocal, history: History::KeepLast(depth) }
+        Self {
+            reliability: Reliability::Reliable,
+            durability: Durability::TransientLocal,
+            history: History::KeepLast(depth),
+        }
     }
 }

@@ -1,0 +1,91 @@
+//! The CDR codec: the encapsulation header ROS 2 puts before every payload, then plain CDR
+//! (alignment counted from after the header), via `cdr-encoding`.
+
+use crate::RosMessage;
+
+/// The 4-byte CDR encapsulation header ROS 2 puts before every message (CDR, little endian).
+pub const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
+/// The encapsulation header of big-endian plain CDR (accepted when decoding).
+pub const CDR_BE_HEADER: [u8; 4] = [0x00, 0x00, 0x00, 0x00];
+
+/// Trailing bytes accepted after a message: writers may pad a payload to a multiple of 4,
+/// and `rosbags` accepts exactly this much too.
+const MAX_TRAILING_PADDING: usize = 3;
+
+/// Why bytes could not be turned into a message, or a message into bytes.
+#[derive(Debug, thiserror::Error)]
+pub enum CdrError {
+    #[error(
+        "{type_name}: CDR payload of {len} bytes is shorter than the 4-byte encapsulation header"
+    )]
+    TooShort { type_name: &'static str, len: usize },
+    #[error(
+        "{type_name}: unsupported CDR encapsulation {header:02x?} (expected plain CDR, 00 01 little or 00 00 big endian)"
+    )]
+    Encapsulation {
+        type_name: &'static str,
+        header: [u8; 4],
+    },
+    #[error("{type_name}: malformed CDR payload: {source}")]
+    Malformed {
+        type_name: &'static str,
+        #[source]
+        source: cdr_encoding::Error,
+    },
+    #[error(
+        "{type_name}: {trailing} bytes left after the message ({len}-byte payload); wrong message type or corrupt length"
+    )]
+    TrailingBytes {
+        type_name: &'static str,
+        trailing: usize,
+        len: usize,
+    },
+}
+
+/// Serialises `msg` as ROS 2 does: encapsulation header, then little-endian CDR.
+pub fn encode<M: RosMessage>(msg: &M) -> Result<Vec<u8>, CdrError> {
+    let mut out = CDR_LE_HEADER.to_vec();
+    cdr_encoding::to_writer::<M, byteorder::LittleEndian, _>(&mut out, msg).map_err(|source| {
+        CdrError::Malformed {
+            type_name: M::TYPE_NAME,
+            source,
+        }
+    })?;
+    Ok(out)
+}
+
+/// Parses a CDR payload with its encapsulation header (either byte order).
+///
+/// Rejects payloads with more than 3 bytes after the message (padding), so a payload of
+/// another type is not silently half-read. A sequence or string length larger than the
+/// bytes left fails with "unexpected end of input" before much is allocated: the decoder
+/// grows vectors element by element, never from the declared length (see the tests).
+pub fn decode<M: RosMessage>(bytes: &[u8]) -> Result<M, CdrError> {
+    let type_name = M::TYPE_NAME;
+    let Some((header, body)) = bytes.split_first_chunk::<4>() else {
+        return Err(CdrError::TooShort {
+            type_name,
+            len: bytes.len(),
+        });
+    };
+    let decoded = match header {
+        [0x00, 0x01, _, _] => cdr_encoding::from_bytes::<M, byteorder::LittleEndian>(body),
+        [0x00, 0x00, _, _] => cdr_encoding::from_bytes::<M, byteorder::BigEndian>(body),
+        _ => {
+            return Err(CdrError::Encapsulation {
+                type_name,
+                header: *header,
+            });
+        }
+    };
+    let (msg, consumed) = decoded.map_err(|source| CdrError::Malformed { type_name, source })?;
+    let trailing = body.len().saturating_sub(consumed);
+    if trailing > MAX_TRAILING_PADDING {
+        return Err(CdrError::TrailingBytes {
+            type_name,
+            trailing,
+            len: bytes.len(),
+        });
+    }
+    Ok(msg)
+}

@@ -1,0 +1,18 @@
+//! `tf2_msgs`: transforms on `/tf` and `/tf_static`.
+
+use serde::{Deserialize, Serialize};
+
+use crate::geometry_msgs::TransformStamped;
+use crate::ros_message;
+
+/// `tf2_msgs/msg/TFMessage`: a batch of transforms.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct TFMessage {
+    pub transforms: Vec<TransformStamped>,
+}
+ros_message!(
+    TFMessage,
+    "tf2_msgs/msg/TFMessage",
+    "geometry_msgs/TransformStamped[] transforms\n",
+    [TransformStamped]
+);
