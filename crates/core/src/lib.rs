@@ -6,3 +6,6 @@ pub mod activity;
 pub mod geometry;
 pub mod scan;
 pub mod map;
+pub mod background;
+pub mod cluster;
+pub mod tracker;
