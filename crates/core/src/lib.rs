@@ -3,7 +3,11 @@
 //! plain computation on plain data, tested without ROS, files or threads.
 
 pub mod activity;
+pub mod classifier;
+pub mod fall;
 pub mod geometry;
+pub mod metrics;
+pub mod representation;
 pub mod scan;
 pub mod map;
 pub mod background;

@@ -1,0 +1,569 @@
+//! Streaming activity classification, one model step per scan and state (see
+//! `docs/model_contract.md`, "Windows and streaming").
+//!
+//! The model was trained on windows of `T` scans starting from a zero state and is right
+//! after `T/2..=T` frames of history. Two states ("lanes") are stepped in parallel, each reset
+//! every `T` scans, offset by `T/2`, and the prediction comes from the lane with the longer
+//! history. So every prediction after warm-up has seen between `T/2` and `T` frames, and the
+//! state never grows stale. A gap in the scans longer than `T` scan periods, or time going
+//! backwards, restarts both lanes.
+//!
+//! The model is behind the small [`StepModel`] trait: the real one runs ONNX Runtime
+//! (`lidar-har-infer`), tests use tiny deterministic ones.
+
+use std::str::FromStr;
+
+use glam::DVec2;
+use ndarray::{Array2, ArrayView2};
+
+use crate::activity::Activity;
+use crate::representation::{Framing, Renderer, RepresentationSpec, SpecError};
+
+/// One ConvLSTM step: consume a frame, update the state in place, return the class logits.
+pub trait StepModel {
+    type State;
+    type Error: std::error::Error + Send + Sync + 'static;
+
+    /// A fresh (zero) state.
+    fn initial_state(&self) -> Self::State;
+    /// Sets `state` back to the initial state without allocating.
+    fn reset_state(&self, state: &mut Self::State);
+    fn step(
+        &mut self,
+        frame: ArrayView2<'_, f32>,
+        state: &mut Self::State,
+    ) -> Result<[f32; Activity::COUNT], Self::Error>;
+}
+
+/// What the streaming classifier needs to know about a model: how its input is made and
+/// the window it was trained on. Carried by the model file's metadata.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StreamSpec {
+    pub representation: RepresentationSpec,
+    /// Training window length `T`, scans.
+    pub window: usize,
+    /// The scan rate the model was trained at, Hz.
+    pub scan_rate_hz: f64,
+}
+
+/// Why a stream spec (typically a model's metadata) is unusable.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StreamSpecError {
+    #[error("metadata key '{0}' is missing")]
+    Missing(&'static str),
+    #[error("metadata key '{key}' = '{value}' is not valid: {reason}")]
+    Invalid {
+        key: &'static str,
+        value: String,
+        reason: String,
+    },
+    #[error(transparent)]
+    Representation(#[from] SpecError),
+}
+
+impl StreamSpec {
+    pub const KEY_REPRESENTATION: &'static str = "lidar_har.representation";
+    pub const KEY_FRAMING: &'static str = "lidar_har.framing";
+    pub const KEY_SIZE: &'static str = "lidar_har.size";
+    pub const KEY_RESOLUTION: &'static str = "lidar_har.resolution_m";
+    pub const KEY_WINDOW: &'static str = "lidar_har.window";
+    pub const KEY_SCAN_RATE: &'static str = "lidar_har.scan_rate_hz";
+    /// Optional: the circle radius, metres (default [`RepresentationSpec::DEFAULT_MARK_RADIUS_M`]).
+    pub const KEY_MARK_RADIUS: &'static str = "lidar_har.mark_radius_m";
+    /// Optional: the ellipse semi-axes "along,across", metres.
+    pub const KEY_ELLIPSE_AXES: &'static str = "lidar_har.ellipse_axes_m";
+
+    /// Reads the spec from key/value metadata (the ONNX `metadata_props`).
+    pub fn from_metadata(get: impl Fn(&str) -> Option<String>) -> Result<Self, StreamSpecError> {
+        fn parse<T: FromStr>(
+            key: &'static str,
+            get: &impl Fn(&str) -> Option<String>,
+        ) -> Result<T, StreamSpecError>
+        where
+            T::Err: std::fmt::Display,
+        {
+            let value = get(key).ok_or(StreamSpecError::Missing(key))?;
+            value
+                .trim()
+                .parse()
+                .map_err(|e: T::Err| StreamSpecError::Invalid {
+                    key,
+                    value: value.clone(),
+                    reason: e.to_string(),
+                })
+        }
+        let mut representation = RepresentationSpec::new(
+            parse(Self::KEY_REPRESENTATION, &get)?,
+            parse(Self::KEY_FRAMING, &get)?,
+            parse(Self::KEY_SIZE, &get)?,
+            parse(Self::KEY_RESOLUTION, &get)?,
+        );
+        if get(Self::KEY_MARK_RADIUS).is_some() {
+            representation.mark_radius_m = parse(Self::KEY_MARK_RADIUS, &get)?;
+        }
+        if let Some(axes) = get(Self::KEY_ELLIPSE_AXES) {
+            let parsed: Vec<Result<f64, _>> =
+                axes.split(',').map(|a| a.trim().parse::<f64>()).collect();
+            match parsed.as_slice() {
+                [Ok(a), Ok(b)] => representation.ellipse_axes_m = [*a, *b],
+                _ => {
+                    return Err(StreamSpecError::Invalid {
+                        key: Self::KEY_ELLIPSE_AXES,
+                        value: axes,
+                        reason: "expected two numbers 'along,across'".into(),
+                    });
+                }
+            }
+        }
+        let spec = Self {
+            representation,
+            window: parse(Self::KEY_WINDOW, &get)?,
+            scan_rate_hz: parse(Self::KEY_SCAN_RATE, &get)?,
+        };
+        spec.validate()?;
+        Ok(spec)
+    }
+
+    pub fn validate(&self) -> Result<(), StreamSpecError> {
+        self.representation.validate()?;
+        if self.window < 2 {
+            return Err(StreamSpecError::Invalid {
+                key: Self::KEY_WINDOW,
+                value: self.window.to_string(),
+                reason: "the window must be at least 2 scans".into(),
+            });
+        }
+        if !(self.scan_rate_hz.is_finite() && self.scan_rate_hz > 0.0) {
+            return Err(StreamSpecError::Invalid {
+                key: Self::KEY_SCAN_RATE,
+                value: self.scan_rate_hz.to_string(),
+                reason: "the scan rate must be finite and positive".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// One scan's input: the person as the localiser found them.
+#[derive(Debug, Clone, Copy)]
+pub struct PersonScan<'a> {
+    pub stamp_s: f64,
+    /// The person's points in the map frame (ignored when not visible).
+    pub points: &'a [DVec2],
+    /// The track's position, map frame; `None` when the person is not visible in this scan.
+    pub position: Option<DVec2>,
+    /// The Lidar's position in the map (orients ellipse marks).
+    pub sensor: DVec2,
+}
+
+/// The classification of one scan.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prediction {
+    pub stamp_s: f64,
+    pub activity: Activity,
+    pub confidence: f32,
+    /// Class probabilities, class order, finite and summing to 1.
+    pub probabilities: [f32; Activity::COUNT],
+    /// Frames of history behind this prediction (1..=T).
+    pub history: usize,
+    /// At least `T/2` frames of history: what the model was trained for.
+    pub ready: bool,
+}
+
+/// Softmax that stays finite for any finite or saturated logits: the maximum is subtracted
+/// first; non-finite logits (a broken model) give a uniform distribution rather than NaN.
+pub fn softmax(logits: &[f32; Activity::COUNT]) -> [f32; Activity::COUNT] {
+    let uniform = [1.0 / Activity::COUNT as f32; Activity::COUNT];
+    if logits.iter().any(|l| l.is_nan()) {
+        return uniform;
+    }
+    let max = logits.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    if !max.is_finite() {
+        // All -inf, or some +inf: share among the maxima.
+        let winners = logits.iter().filter(|&&l| l == max).count() as f32;
+        return logits.map(|l| if l == max { 1.0 / winners } else { 0.0 });
+    }
+    let exp = logits.map(|l| (l - max).exp());
+    let sum: f32 = exp.iter().sum(); // >= 1: the maximum contributes exp(0)
+    exp.map(|e| e / sum)
+}
+
+struct Lane<S> {
+    state: S,
+    /// Frames since the last reset.
+    history: usize,
+    /// Room-fixed framing: the first visible position since the reset.
+    centre: Option<DVec2>,
+}
+
+/// Why classification failed: the model's step failed.
+#[derive(Debug, thiserror::Error)]
+#[error("model step failed: {0}")]
+pub struct StepError(#[source] pub Box<dyn std::error::Error + Send + Sync>);
+
+/// Two staggered lanes over one model, plus the renderer and image buffers.
+pub struct StreamingClassifier<M: StepModel> {
+    model: M,
+    spec: StreamSpec,
+    renderer: Renderer,
+    lanes: [Lane<M::State>; 2],
+    images: [Array2<f32>; 2],
+    /// Scans since the (re)start; lane 0 resets when `scans % T == 0`, lane 1 at `T/2`.
+    scans: usize,
+    last_stamp_s: Option<f64>,
+}
+
+impl<M: StepModel> StreamingClassifier<M> {
+    pub fn new(model: M, spec: StreamSpec) -> Result<Self, StreamSpecError> {
+        spec.validate()?;
+        let renderer = Renderer::new(spec.representation)?;
+        let lane = |model: &M| Lane {
+            state: model.initial_state(),
+            history: 0,
+            centre: None,
+        };
+        Ok(Self {
+            lanes: [lane(&model), lane(&model)],
+            images: [
+                spec.representation.blank_image(),
+                spec.representation.blank_image(),
+            ],
+            model,
+            spec,
+            renderer,
+            scans: 0,
+            last_stamp_s: None,
+        })
+    }
+
+    pub fn spec(&self) -> &StreamSpec {
+        &self.spec
+    }
+
+    pub fn model(&self) -> &M {
+        &self.model
+    }
+
+    /// The image the last prediction was made from.
+    pub fn last_image(&self) -> ArrayView2<'_, f32> {
+        self.images[self.predicting_lane()].view()
+    }
+
+    /// Restarts both lanes from zero state.
+    pub fn reset(&mut self) {
+        self.scans = 0;
+        for lane in &mut self.lanes {
+            self.model.reset_state(&mut lane.state);
+            lane.history = 0;
+            lane.centre = None;
+        }
+    }
+
+    fn predicting_lane(&self) -> usize {
+        if self.lanes[1].history > self.lanes[0].history {
+            1
+        } else {
+            0
+        }
+    }
+
+    /// Classifies one scan. Scans must come in time order; a gap over `T` scan periods or a
+    /// stamp going backwards restarts the lanes.
+    pub fn classify(&mut self, scan: &PersonScan<'_>) -> Result<Prediction, StepError> {
+        let window = self.spec.window;
+        let max_gap = window as f64 / self.spec.scan_rate_hz;
+        if let Some(last) = self.last_stamp_s {
+            let gap = scan.stamp_s - last;
+            if !(0.0..=max_gap).contains(&gap) {
+                self.reset();
+            }
+        }
+        if scan.stamp_s.is_finite() {
+            self.last_stamp_s = Some(scan.stamp_s);
+        }
+
+        let offsets = [0, window / 2];
+        for (lane, offset) in self.lanes.iter_mut().zip(offsets) {
+            if self.scans % window == offset {
+                self.model.reset_state(&mut lane.state);
+                lane.history = 0;
+                lane.centre = None;
+            }
+        }
+        self.scans += 1;
+
+        let position = scan.position.filter(|p| p.is_finite());
+        match (position, self.spec.representation.framing) {
+            (None, _) => {
+                for image in &mut self.images {
+                    image.fill(0.0);
+                }
+            }
+            (Some(p), Framing::PersonCentred) => {
+                let [first, second] = &mut self.images;
+                self.renderer.render(
+                    scan.points.iter().copied(),
+                    p,
+                    scan.sensor,
+                    first.view_mut(),
+                );
+                second.assign(first);
+            }
+            (Some(p), Framing::RoomFixed) => {
+                for (lane, image) in self.lanes.iter_mut().zip(&mut self.images) {
+                    let centre = *lane.centre.get_or_insert(p);
+                    self.renderer.render(
+                        scan.points.iter().copied(),
+                        centre,
+                        scan.sensor,
+                        image.view_mut(),
+                    );
+                }
+            }
+        }
+
+        let mut logits = [[0.0; Activity::COUNT]; 2];
+        for ((lane, image), out) in self.lanes.iter_mut().zip(&self.images).zip(&mut logits) {
+            *out = self
+                .model
+                .step(image.view(), &mut lane.state)
+                .map_err(|e| StepError(Box::new(e)))?;
+            lane.history += 1;
+        }
+        let chosen = self.predicting_lane();
+        let probabilities = softmax(&logits[chosen]);
+        let (activity, confidence) = crate::fall::argmax(&probabilities);
+        let history = self.lanes[chosen].history;
+        Ok(Prediction {
+            stamp_s: scan.stamp_s,
+            activity,
+            confidence,
+            probabilities,
+            history,
+            ready: history >= window / 2,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::representation::RepresentationKind;
+
+    /// A deterministic stand-in for the ConvLSTM: the state counts frames and accumulates the
+    /// lit pixels; the logits favour class `(frames seen) % 9` and record the lit count, so
+    /// tests can see which state and image produced a prediction.
+    #[derive(Default)]
+    struct CountingModel {
+        steps: usize,
+        images: Vec<Array2<f32>>,
+    }
+
+    #[derive(Debug, Clone, PartialEq)]
+    struct CountState {
+        frames: usize,
+        lit: f32,
+    }
+
+    impl StepModel for CountingModel {
+        type State = CountState;
+        type Error = std::io::Error;
+        fn initial_state(&self) -> CountState {
+            CountState {
+                frames: 0,
+                lit: 0.0,
+            }
+        }
+        fn reset_state(&self, state: &mut CountState) {
+            *state = self.initial_state();
+        }
+        fn step(
+            &mut self,
+            frame: ArrayView2<'_, f32>,
+            state: &mut CountState,
+        ) -> Result<[f32; 9], std::io::Error> {
+            self.steps += 1;
+            self.images.push(frame.to_owned());
+            state.frames += 1;
+            state.lit += frame.sum();
+            let mut logits = [0.0; 9];
+            logits[state.frames % 9] = 10.0;
+            Ok(logits)
+        }
+    }
+
+    fn spec(framing: Framing, window: usize) -> StreamSpec {
+        StreamSpec {
+            representation: RepresentationSpec::new(
+                RepresentationKind::BooleanGrid,
+                framing,
+                16,
+                0.1,
+            ),
+            window,
+            scan_rate_hz: 20.0,
+        }
+    }
+
+    fn scan(t: f64, position: Option<DVec2>, points: &[DVec2]) -> PersonScan<'_> {
+        PersonScan {
+            stamp_s: t,
+            points,
+            position,
+            sensor: DVec2::ZERO,
+        }
+    }
+
+    #[test]
+    fn lanes_are_staggered_and_history_stays_between_half_and_full_window() {
+        let mut c =
+            StreamingClassifier::new(CountingModel::default(), spec(Framing::PersonCentred, 8))
+                .unwrap();
+        let mut histories = vec![];
+        for k in 0..40 {
+            let p = c.classify(&scan(k as f64 * 0.05, None, &[])).unwrap();
+            histories.push(p.history);
+            // The winning class follows the chosen lane's frame count.
+            assert_eq!(p.activity.index(), p.history % 9);
+            assert_eq!(p.ready, p.history >= 4);
+        }
+        assert_eq!(&histories[..8], &[1, 2, 3, 4, 5, 6, 7, 8]);
+        assert!(
+            histories[8..].iter().all(|&h| (4..=8).contains(&h)),
+            "{histories:?}"
+        );
+        // Two steps per scan.
+        assert_eq!(c.model().steps, 80);
+    }
+
+    #[test]
+    fn long_gap_and_backwards_time_restart_both_lanes() {
+        let mut c =
+            StreamingClassifier::new(CountingModel::default(), spec(Framing::PersonCentred, 8))
+                .unwrap();
+        for k in 0..20 {
+            c.classify(&scan(k as f64 * 0.05, None, &[])).unwrap();
+        }
+        // 8 scans at 20 Hz = 0.4 s; a 0.5 s gap restarts.
+        let p = c.classify(&scan(0.95 + 0.5, None, &[])).unwrap();
+        assert_eq!(p.history, 1);
+        assert!(!p.ready);
+        let p = c.classify(&scan(1.5, None, &[])).unwrap();
+        assert_eq!(p.history, 2);
+        let p = c.classify(&scan(0.2, None, &[])).unwrap();
+        assert_eq!(p.history, 1, "time going backwards restarts");
+        // A short gap does not.
+        let p = c.classify(&scan(0.5, None, &[])).unwrap();
+        assert_eq!(p.history, 2);
+    }
+
+    #[test]
+    fn hidden_person_gives_empty_frames_and_valid_probabilities() {
+        let mut c = StreamingClassifier::new(CountingModel::default(), spec(Framing::RoomFixed, 8))
+            .unwrap();
+        let points = [DVec2::new(1.0, 1.0)];
+        for k in 0..30 {
+            let p = c.classify(&scan(k as f64 * 0.05, None, &points)).unwrap();
+            assert!((p.probabilities.iter().sum::<f32>() - 1.0).abs() < 1e-5);
+        }
+        assert!(c.model().images.iter().all(|img| img.sum() == 0.0));
+    }
+
+    #[test]
+    fn room_fixed_keeps_each_lanes_first_position_person_centred_follows() {
+        // Person moving 0.31 m per scan along x; one point 5 cm off the position (mid-pixel).
+        let walk = |framing| {
+            let mut c =
+                StreamingClassifier::new(CountingModel::default(), spec(framing, 4)).unwrap();
+            for k in 0..4 {
+                let p = DVec2::new(0.31 * k as f64, 0.0);
+                c.classify(&scan(k as f64 * 0.05, Some(p), &[p + DVec2::splat(0.05)]))
+                    .unwrap();
+            }
+            c.model().images.clone()
+        };
+        let fixed = walk(Framing::RoomFixed);
+        let lit = |img: &Array2<f32>| img.indexed_iter().find(|(_, v)| **v == 1.0).map(|(i, _)| i);
+        // Lane 0 (even entries): centred at x=0, the point moves 3 pixels per scan; lane 1
+        // restarts at scan 2 (T/2) and is centred there.
+        assert_eq!(lit(&fixed[0]), Some((8, 8)));
+        assert_eq!(lit(&fixed[2]), Some((8, 11)));
+        assert_eq!(lit(&fixed[4]), Some((8, 14)));
+        assert_eq!(lit(&fixed[5]), Some((8, 8)));
+        assert_eq!(
+            lit(&fixed[6]),
+            None,
+            "x = 0.98 is outside the 1.6 m image of lane 0"
+        );
+        let centred = walk(Framing::PersonCentred);
+        assert!(centred.iter().all(|img| lit(img) == Some((8, 8))));
+    }
+
+    #[test]
+    fn softmax_is_finite_and_normalised_at_the_extremes() {
+        let cases: [[f32; 9]; 6] = [
+            [0.0; 9],
+            [1e30, -1e30, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            [f32::MAX, f32::MAX, f32::MIN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            [f32::INFINITY, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            [f32::NEG_INFINITY; 9],
+            [f32::NAN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        ];
+        for logits in cases {
+            let p = softmax(&logits);
+            assert!(
+                p.iter().all(|v| v.is_finite() && *v >= 0.0),
+                "{logits:?} -> {p:?}"
+            );
+            assert!(
+                (p.iter().sum::<f32>() - 1.0).abs() < 1e-5,
+                "{logits:?} -> {p:?}"
+            );
+        }
+        let p = softmax(&[1e30, -1e30, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(p[0], 1.0);
+        let p = softmax(&[f32::MAX, f32::MAX, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!((p[0], p[1]), (0.5, 0.5));
+    }
+
+    #[test]
+    fn metadata_is_parsed_and_errors_name_the_key() {
+        let meta = |extra: &[(&str, &str)]| {
+            let mut m: Vec<(String, String)> = [
+                ("lidar_har.representation", "ellipses"),
+                ("lidar_har.framing", "room_fixed"),
+                ("lidar_har.size", "64"),
+                ("lidar_har.resolution_m", "0.05"),
+                ("lidar_har.window", "40"),
+                ("lidar_har.scan_rate_hz", "20"),
+            ]
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+            for (k, v) in extra {
+                m.retain(|(key, _)| key != k);
+                if !v.is_empty() {
+                    m.push((k.to_string(), v.to_string()));
+                }
+            }
+            move |key: &str| m.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone())
+        };
+        let spec =
+            StreamSpec::from_metadata(meta(&[("lidar_har.ellipse_axes_m", "0.1, 0.02")])).unwrap();
+        assert_eq!(spec.window, 40);
+        assert_eq!(spec.representation.kind, RepresentationKind::Ellipses);
+        assert_eq!(spec.representation.ellipse_axes_m, [0.1, 0.02]);
+        let e = StreamSpec::from_metadata(meta(&[("lidar_har.window", "")])).unwrap_err();
+        assert_eq!(e, StreamSpecError::Missing("lidar_har.window"));
+        let e = StreamSpec::from_metadata(meta(&[("lidar_har.size", "big")]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("lidar_har.size") && e.contains("big"), "{e}");
+        let e = StreamSpec::from_metadata(meta(&[("lidar_har.framing", "sideways")]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sideways") && e.contains("room_fixed"), "{e}");
+        assert!(StreamSpec::from_metadata(meta(&[("lidar_har.window", "1")])).is_err());
+        assert!(StreamSpec::from_metadata(meta(&[("lidar_har.scan_rate_hz", "NaN")])).is_err());
+    }
+}

@@ -1,0 +1,631 @@
+//! Fall alerts from the stream of per-scan activity probabilities.
+//!
+//! Two alerts, each raised once per incident:
+//! - `FallDetected`: `falling_down` is the most likely class with probability at least
+//!   `fall_probability` on `fall_min_scans` consecutive visible scans.
+//! - `PersonDown`: the person has been on the floor (lying, sitting on the floor or crawling,
+//!   [`Activity::is_on_floor`]) for `down_after_s` without being seen getting up. The clock
+//!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
+//!   not see still gives this alert once the robot finds the person down. Scans where the
+//!   person is hidden neither stop nor reset the clock: a person lying behind the sofa is still
+//!   down; only seeing them get up (or upright) ends the incident.
+//!
+//! Crawling counts as on the floor: a fallen person who crawls towards a phone still needs
+//! help, and a person who crawls for `down_after_s` on purpose is rare enough in a home to
+//! accept the alert (raise `down_after_s` where children crawl about).
+//!
+//! Hysteresis: postures change only after `confirm_scans` consecutive scans agree (one
+//! flickering scan changes nothing), and after an alert its kind is re-armed only once the
+//! person has been seen upright (standing, walking, running, walking unsteadily) for
+//! `rearm_upright_s`. Time going backwards (a replay restarting) clears everything.
+
+use glam::DVec2;
+use serde::{Deserialize, Serialize};
+
+use crate::activity::Activity;
+
+/// Thresholds of the fall alerts (`config/classifier.yaml`, section `fall_alert`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FallAlertConfig {
+    /// Minimum probability of `falling_down` on a scan that counts towards a fall.
+    pub fall_probability: f32,
+    /// Consecutive such scans needed for `FallDetected`.
+    pub fall_min_scans: u32,
+    /// Time on the floor without getting up before `PersonDown`, seconds.
+    pub down_after_s: f64,
+    /// Consecutive scans that must agree before the posture (on floor / getting up / upright)
+    /// is taken as changed.
+    pub confirm_scans: u32,
+    /// Time the person must be seen upright before a new incident can raise alerts, seconds.
+    pub rearm_upright_s: f64,
+}
+
+impl Default for FallAlertConfig {
+    fn default() -> Self {
+        Self {
+            fall_probability: 0.6,
+            fall_min_scans: 3,
+            down_after_s: 15.0,
+            confirm_scans: 5,
+            rearm_upright_s: 3.0,
+        }
+    }
+}
+
+/// Why a fall-alert configuration cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FallConfigError {
+    #[error("fall_alert.{name} = {value} is out of range ({expected})")]
+    OutOfRange {
+        name: &'static str,
+        value: f64,
+        expected: &'static str,
+    },
+}
+
+impl FallAlertConfig {
+    pub fn validate(&self) -> Result<(), FallConfigError> {
+        let check = |name, value: f64, ok: bool, expected| {
+            if ok {
+                Ok(())
+            } else {
+                Err(FallConfigError::OutOfRange {
+                    name,
+                    value,
+                    expected,
+                })
+            }
+        };
+        let p = self.fall_probability as f64;
+        check("fall_probability", p, (0.0..=1.0).contains(&p), "0..=1")?;
+        let n = self.fall_min_scans as f64;
+        check("fall_min_scans", n, self.fall_min_scans >= 1, ">= 1")?;
+        let n = self.confirm_scans as f64;
+        check("confirm_scans", n, self.confirm_scans >= 1, ">= 1")?;
+        let d = self.down_after_s;
+        check("down_after_s", d, d.is_finite() && d >= 0.0, "finite, >= 0")?;
+        let r = self.rearm_upright_s;
+        check(
+            "rearm_upright_s",
+            r,
+            r.is_finite() && r >= 0.0,
+            "finite, >= 0",
+        )
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "SCREAMING_SNAKE_CASE")]
+pub enum AlertKind {
+    FallDetected,
+    PersonDown,
+}
+
+impl AlertKind {
+    pub const fn name(self) -> &'static str {
+        match self {
+            AlertKind::FallDetected => "FALL_DETECTED",
+            AlertKind::PersonDown => "PERSON_DOWN",
+        }
+    }
+}
+
+/// One alert.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FallAlert {
+    pub kind: AlertKind,
+    /// When it happened, seconds (stream time): the first scan of the fall for
+    /// `FallDetected`, the moment `down_after_s` elapsed for `PersonDown`.
+    pub event_time_s: f64,
+    /// When the alert was raised (the scan that confirmed it), seconds.
+    pub raised_at_s: f64,
+    /// Since when the person has been down (`PersonDown`; for `FallDetected` the fall start).
+    pub down_since_s: f64,
+    /// The person's last seen position, map frame.
+    pub position: DVec2,
+    /// Mean probability of the evidence: `falling_down` over the fall's scans, or the summed
+    /// on-floor classes over the visible scans since the person went down.
+    pub confidence: f32,
+}
+
+/// One scan's input to the detector.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FallInput {
+    pub stamp_s: f64,
+    /// Where the person is (map frame); `None` when not visible in this scan.
+    pub position: Option<DVec2>,
+    /// Class probabilities (class order) from a classifier with enough history; ignored when
+    /// the person is not visible (the model then only sees an empty image).
+    pub probabilities: [f32; Activity::COUNT],
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Posture {
+    Upright,
+    OnFloor,
+    GettingUp,
+    Falling,
+}
+
+fn posture_of(activity: Activity) -> Posture {
+    match activity {
+        Activity::FallingDown => Posture::Falling,
+        Activity::GettingUp => Posture::GettingUp,
+        a if a.is_on_floor() => Posture::OnFloor,
+        _ => Posture::Upright,
+    }
+}
+
+/// The alert state machine. Feed it every scan in time order.
+#[derive(Debug, Clone)]
+pub struct FallDetector {
+    config: FallAlertConfig,
+    last_stamp_s: Option<f64>,
+    last_position: Option<DVec2>,
+    /// Current run of fall scans: start time, count, summed probability.
+    fall_run: Option<(f64, u32, f64)>,
+    /// Candidate posture, since when, how many consecutive scans.
+    candidate: Option<(Posture, f64, u32)>,
+    /// Confirmed posture and since when.
+    posture: Option<(Posture, f64)>,
+    /// Since when the person is down, with summed on-floor probability and scan count.
+    down: Option<(f64, f64, u32)>,
+    /// When each alert was last raised; `None` while armed.
+    fall_disarmed_at: Option<f64>,
+    down_disarmed_at: Option<f64>,
+}
+
+impl FallDetector {
+    pub fn new(config: FallAlertConfig) -> Result<Self, FallConfigError> {
+        config.validate()?;
+        Ok(Self::fresh(config))
+    }
+
+    fn fresh(config: FallAlertConfig) -> Self {
+        Self {
+            config,
+            last_stamp_s: None,
+            last_position: None,
+            fall_run: None,
+            candidate: None,
+            posture: None,
+            down: None,
+            fall_disarmed_at: None,
+            down_disarmed_at: None,
+        }
+    }
+
+    pub fn config(&self) -> &FallAlertConfig {
+        &self.config
+    }
+
+    /// Forgets everything: a new stream.
+    pub fn reset(&mut self) {
+        *self = Self::fresh(self.config);
+    }
+
+    /// Whether the person is currently considered down, and since when.
+    pub fn down_since_s(&self) -> Option<f64> {
+        self.down.map(|(since, _, _)| since)
+    }
+
+    /// Processes one scan; returns the alerts it raises (usually none, at most two).
+    pub fn update(&mut self, input: &FallInput) -> Vec<FallAlert> {
+        let mut alerts = Vec::new();
+        let t = input.stamp_s;
+        if !t.is_finite() {
+            return alerts;
+        }
+        if self.last_stamp_s.is_some_and(|last| t < last) {
+            self.reset();
+        }
+        self.last_stamp_s = Some(t);
+
+        let visible = input.position.filter(|p| p.is_finite());
+        let probabilities_ok = input.probabilities.iter().all(|p| p.is_finite());
+        if let (Some(position), true) = (visible, probabilities_ok) {
+            self.last_position = Some(position);
+            self.observe(t, &input.probabilities, &mut alerts);
+        }
+
+        if let (Some((since, sum, count)), Some(position)) = (self.down, self.last_position)
+            && self.down_disarmed_at.is_none()
+            && t - since >= self.config.down_after_s
+        {
+            self.down_disarmed_at = Some(t);
+            alerts.push(FallAlert {
+                kind: AlertKind::PersonDown,
+                event_time_s: since + self.config.down_after_s,
+                raised_at_s: t,
+                down_since_s: since,
+                position,
+                confidence: if count > 0 {
+                    (sum / count as f64) as f32
+                } else {
+                    0.0
+                },
+            });
+        }
+        alerts
+    }
+
+    fn observe(
+        &mut self,
+        t: f64,
+        probabilities: &[f32; Activity::COUNT],
+        alerts: &mut Vec<FallAlert>,
+    ) {
+        let (best, best_p) = argmax(probabilities);
+        let on_floor_p: f32 = Activity::ALL
+            .into_iter()
+            .filter(|a| a.is_on_floor())
+            .map(|a| probabilities[a.index()])
+            .sum();
+
+        // Fall: consecutive confident falling_down scans.
+        let p_fall = probabilities[Activity::FallingDown.index()];
+        if best == Activity::FallingDown && best_p >= self.config.fall_probability {
+            let (start, n, sum) = self.fall_run.unwrap_or((t, 0, 0.0));
+            let run = (start, n + 1, sum + p_fall as f64);
+            self.fall_run = Some(run);
+            if run.1 == self.config.fall_min_scans {
+                self.start_down(start);
+                if self.fall_disarmed_at.is_none() {
+                    self.fall_disarmed_at = Some(t);
+                    alerts.push(FallAlert {
+                        kind: AlertKind::FallDetected,
+                        event_time_s: start,
+                        raised_at_s: t,
+                        down_since_s: start,
+                        position: self.last_position.unwrap_or(DVec2::ZERO),
+                        confidence: (run.2 / run.1 as f64) as f32,
+                    });
+                }
+            }
+        } else {
+            self.fall_run = None;
+        }
+
+        // Posture with debouncing.
+        let seen = posture_of(best);
+        let (posture, since, n) = match self.candidate {
+            Some((p, since, n)) if p == seen => (p, since, n + 1),
+            _ => (seen, t, 1),
+        };
+        self.candidate = Some((posture, since, n));
+        if n >= self.config.confirm_scans && self.posture.map(|(p, _)| p) != Some(posture) {
+            self.posture = Some((posture, since));
+            match posture {
+                Posture::OnFloor => self.start_down(since),
+                Posture::Upright | Posture::GettingUp => self.down = None,
+                Posture::Falling => {}
+            }
+        }
+        if let Some((_, sum, count)) = self.down.as_mut() {
+            *sum += on_floor_p as f64;
+            *count += 1;
+        }
+        // Re-arm once upright long enough, counting only uprightness that began after the alert.
+        if let Some((Posture::Upright, since)) = self.posture
+            && t - since >= self.config.rearm_upright_s
+        {
+            for disarmed_at in [&mut self.fall_disarmed_at, &mut self.down_disarmed_at] {
+                if disarmed_at.is_some_and(|at| since >= at) {
+                    *disarmed_at = None;
+                }
+            }
+        }
+    }
+
+    fn start_down(&mut self, since: f64) {
+        if self.down.is_none() {
+            self.down = Some((since, 0.0, 0));
+        }
+    }
+}
+
+/// The most likely class; the first one on ties.
+pub fn argmax(probabilities: &[f32; Activity::COUNT]) -> (Activity, f32) {
+    let mut best = 0;
+    for (i, &p) in probabilities.iter().enumerate() {
+        if p > probabilities[best] {
+            best = i;
+        }
+    }
+    (Activity::ALL[best], probabilities[best])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use Activity::*;
+
+    const DT: f64 = 0.05; // 20 Hz
+
+    fn one_hot(a: Activity, p: f32) -> [f32; 9] {
+        let mut probs = [(1.0 - p) / 8.0; 9];
+        probs[a.index()] = p;
+        probs
+    }
+
+    /// Runs a script of (activity, seconds, visible) segments at 20 Hz; returns the alerts.
+    fn run(detector: &mut FallDetector, script: &[(Activity, f64, bool)]) -> Vec<FallAlert> {
+        let mut t = 0.0;
+        let mut alerts = Vec::new();
+        for &(activity, seconds, visible) in script {
+            let scans = (seconds / DT).round() as usize;
+            for _ in 0..scans {
+                alerts.extend(detector.update(&FallInput {
+                    stamp_s: t,
+                    position: visible.then_some(DVec2::new(1.0, 2.0)),
+                    probabilities: one_hot(activity, 0.9),
+                }));
+                t += DT;
+            }
+        }
+        alerts
+    }
+
+    fn kinds(alerts: &[FallAlert]) -> Vec<AlertKind> {
+        alerts.iter().map(|a| a.kind).collect()
+    }
+
+    fn detector() -> FallDetector {
+        FallDetector::new(FallAlertConfig::default()).unwrap()
+    }
+
+    #[test]
+    fn one_fall_then_staying_down_gives_one_fall_and_one_person_down() {
+        let mut d = detector();
+        let alerts = run(
+            &mut d,
+            &[
+                (Walking, 5.0, true),
+                (FallingDown, 1.0, true),
+                (LyingDown, 40.0, true),
+            ],
+        );
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::PersonDown]
+        );
+        let fall = alerts[0];
+        assert!((fall.event_time_s - 5.0).abs() < 1e-9, "{fall:?}");
+        // Raised after fall_min_scans scans: well within 1 s.
+        assert!(fall.raised_at_s - fall.event_time_s < 0.2);
+        assert_eq!(fall.position, DVec2::new(1.0, 2.0));
+        assert!((fall.confidence - 0.9).abs() < 1e-6);
+        let down = alerts[1];
+        assert!((down.down_since_s - 5.0).abs() < 1e-9);
+        assert!((down.event_time_s - 20.0).abs() < 1e-9);
+        assert!(down.raised_at_s - down.event_time_s <= DT + 1e-9);
+        assert!(down.confidence > 0.85 && down.confidence <= 1.0, "{down:?}");
+    }
+
+    #[test]
+    fn fall_then_getting_up_gives_only_the_fall_alert() {
+        let mut d = detector();
+        let alerts = run(
+            &mut d,
+            &[
+                (Walking, 3.0, true),
+                (FallingDown, 1.0, true),
+                (LyingDown, 5.0, true),
+                (GettingUp, 2.0, true),
+                (Walking, 30.0, true),
+            ],
+        );
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+    }
+
+    #[test]
+    fn flicker_does_not_retrigger() {
+        let mut d = detector();
+        // Fall, then lying with falling_down flickering back in, then a brief upright
+        // misclassification shorter than rearm_upright_s.
+        let alerts = run(
+            &mut d,
+            &[
+                (Walking, 3.0, true),
+                (FallingDown, 1.0, true),
+                (LyingDown, 2.0, true),
+                (FallingDown, 0.5, true),
+                (LyingDown, 2.0, true),
+                (Standing, 0.5, true),
+                (LyingDown, 1.0, true),
+                (FallingDown, 0.5, true),
+                (LyingDown, 30.0, true),
+            ],
+        );
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::PersonDown]
+        );
+    }
+
+    #[test]
+    fn single_scans_of_falling_do_not_alert() {
+        let mut d = detector();
+        let mut script = vec![];
+        for _ in 0..50 {
+            script.push((Walking, 0.5, true));
+            script.push((FallingDown, 0.1, true)); // two scans < fall_min_scans
+        }
+        assert!(run(&mut d, &script).is_empty());
+    }
+
+    #[test]
+    fn second_fall_after_recovery_alerts_again() {
+        let mut d = detector();
+        let alerts = run(
+            &mut d,
+            &[
+                (Walking, 3.0, true),
+                (FallingDown, 1.0, true),
+                (LyingDown, 3.0, true),
+                (GettingUp, 2.0, true),
+                (Walking, 10.0, true),
+                (FallingDown, 1.0, true),
+                (LyingDown, 3.0, true),
+            ],
+        );
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::FallDetected]
+        );
+    }
+
+    #[test]
+    fn hidden_fall_still_gives_person_down() {
+        let mut d = detector();
+        // Seen walking, hidden for the fall, found lying later.
+        let alerts = run(
+            &mut d,
+            &[
+                (Walking, 5.0, true),
+                (FallingDown, 1.0, false),
+                (Walking, 5.0, false),
+                (LyingDown, 20.0, true),
+            ],
+        );
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        // The clock starts when the person is first confirmed down (at 11 s).
+        assert!(
+            (alerts[0].down_since_s - 11.0).abs() < 1e-9,
+            "{:?}",
+            alerts[0]
+        );
+    }
+
+    #[test]
+    fn hiding_while_down_does_not_reset_the_clock() {
+        let mut d = detector();
+        let alerts = run(
+            &mut d,
+            &[
+                (Standing, 3.0, true),
+                (LyingDown, 5.0, true),
+                (LyingDown, 12.0, false),
+            ],
+        );
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!((alerts[0].event_time_s - 18.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn sitting_briefly_gives_no_alert() {
+        let mut d = detector();
+        let alerts = run(
+            &mut d,
+            &[
+                (Walking, 5.0, true),
+                (SittingOnFloor, 10.0, true),
+                (GettingUp, 2.0, true),
+                (Standing, 5.0, true),
+                (SittingOnFloor, 10.0, true),
+                (Standing, 5.0, true),
+            ],
+        );
+        assert!(alerts.is_empty(), "{alerts:?}");
+    }
+
+    #[test]
+    fn sitting_too_long_gives_person_down_once() {
+        let mut d = detector();
+        let alerts = run(
+            &mut d,
+            &[(Walking, 2.0, true), (SittingOnFloor, 60.0, true)],
+        );
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+    }
+
+    #[test]
+    fn person_down_rearms_only_after_standing_a_while() {
+        let mut d = detector();
+        let alerts = run(
+            &mut d,
+            &[
+                (LyingDown, 20.0, true),
+                (Standing, 1.0, true), // too short to re-arm
+                (LyingDown, 20.0, true),
+                (Standing, 5.0, true),
+                (LyingDown, 20.0, true),
+            ],
+        );
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::PersonDown, AlertKind::PersonDown]
+        );
+    }
+
+    #[test]
+    fn low_confidence_falls_are_ignored() {
+        let mut d = detector();
+        let mut t = 0.0;
+        for _ in 0..100 {
+            let alerts = d.update(&FallInput {
+                stamp_s: t,
+                position: Some(DVec2::ZERO),
+                probabilities: one_hot(FallingDown, 0.5),
+            });
+            assert!(alerts.is_empty());
+            t += DT;
+        }
+    }
+
+    #[test]
+    fn non_finite_input_is_ignored_and_time_going_back_resets() {
+        let mut d = detector();
+        let nan = [f32::NAN; 9];
+        assert!(
+            d.update(&FallInput {
+                stamp_s: 0.0,
+                position: Some(DVec2::ZERO),
+                probabilities: nan
+            })
+            .is_empty()
+        );
+        assert!(
+            d.update(&FallInput {
+                stamp_s: f64::NAN,
+                position: Some(DVec2::ZERO),
+                probabilities: one_hot(LyingDown, 0.9)
+            })
+            .is_empty()
+        );
+        run(&mut d, &[(LyingDown, 10.0, true)]);
+        assert!(d.down_since_s().is_some());
+        // A replay restarting from 0: the state is cleared.
+        d.update(&FallInput {
+            stamp_s: 0.0,
+            position: None,
+            probabilities: one_hot(Walking, 0.9),
+        });
+        assert!(d.down_since_s().is_none());
+    }
+
+    #[test]
+    fn bad_config_is_rejected_naming_the_field() {
+        let config = FallAlertConfig {
+            fall_probability: 1.5,
+            ..Default::default()
+        };
+        let e = FallDetector::new(config).unwrap_err().to_string();
+        assert!(e.contains("fall_probability"), "{e}");
+        let config = FallAlertConfig {
+            down_after_s: f64::NAN,
+            ..Default::default()
+        };
+        assert!(FallDetector::new(config).is_err());
+    }
+
+    #[test]
+    fn argmax_prefers_the_first_on_ties() {
+        assert_eq!(
+            argmax(&[0.5, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]).0,
+            Crawling
+        );
+        assert_eq!(argmax(&one_hot(Walking, 0.9)).0, Walking);
+    }
+}
