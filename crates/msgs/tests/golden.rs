@@ -22,15 +22,26 @@ fn check<M: RosMessage + PartialEq + std::fmt::Debug>() -> (&'static str, Option
         Err(e) => return (M::TYPE_NAME, Some(format!("encode: {e}"))),
     };
     if ours != golden {
-        let at = ours.iter().zip(&golden).position(|(a, b)| a != b).unwrap_or(ours.len().min(golden.len()));
+        let at = ours
+            .iter()
+            .zip(&golden)
+            .position(|(a, b)| a != b)
+            .unwrap_or(ours.len().min(golden.len()));
         return (
             M::TYPE_NAME,
-            Some(format!("bytes differ from rosbags at offset {at} (ours {} bytes, rosbags {})", ours.len(), golden.len())),
+            Some(format!(
+                "bytes differ from rosbags at offset {at} (ours {} bytes, rosbags {})",
+                ours.len(),
+                golden.len()
+            )),
         );
     }
     match decode::<M>(&golden) {
         Ok(decoded) if decoded == value => (M::TYPE_NAME, None),
-        Ok(decoded) => (M::TYPE_NAME, Some(format!("decoded {decoded:?}, expected {value:?}"))),
+        Ok(decoded) => (
+            M::TYPE_NAME,
+            Some(format!("decoded {decoded:?}, expected {value:?}")),
+        ),
         Err(e) => (M::TYPE_NAME, Some(format!("decode: {e}"))),
     }
 }
@@ -44,9 +55,17 @@ macro_rules! check_type {
 #[test]
 fn every_type_encodes_to_the_bytes_rosbags_writes_and_decodes_back() {
     let results = for_every_type!(check_type);
-    let failures: Vec<String> =
-        results.iter().filter_map(|(name, err)| err.as_ref().map(|e| format!("{name}: {e}"))).collect();
-    assert!(failures.is_empty(), "{} of {} types fail:\n{}", failures.len(), results.len(), failures.join("\n"));
+    let failures: Vec<String> = results
+        .iter()
+        .filter_map(|(name, err)| err.as_ref().map(|e| format!("{name}: {e}")))
+        .collect();
+    assert!(
+        failures.is_empty(),
+        "{} of {} types fail:\n{}",
+        failures.len(),
+        results.len(),
+        failures.join("\n")
+    );
     assert_eq!(results.len(), lidar_har_msgs::schema::ALL.len());
 }
 
@@ -68,15 +87,27 @@ macro_rules! round_trip_type {
 #[test]
 fn every_type_round_trips_its_sample_and_its_default() {
     let names = for_every_type!(round_trip_type);
-    let listed: Vec<&str> = lidar_har_msgs::schema::ALL.iter().map(|d| d.type_name).collect();
-    assert_eq!(names, listed, "the test list and schema::ALL name different types");
+    let listed: Vec<&str> = lidar_har_msgs::schema::ALL
+        .iter()
+        .map(|d| d.type_name)
+        .collect();
+    assert_eq!(
+        names, listed,
+        "the test list and schema::ALL name different types"
+    );
 }
 
 /// The scan of `sensor_msgs__LaserScan_nonfinite.cdr` (see make_golden_cdr.py).
 fn nonfinite_scan() -> LaserScan {
     let nan_with_payload = f32::from_bits(0x7FC0_0001);
     LaserScan {
-        header: Header::new(Time { sec: 1_700_000_123, nanosec: 456_789_012 }, "laser"),
+        header: Header::new(
+            Time {
+                sec: 1_700_000_123,
+                nanosec: 456_789_012,
+            },
+            "laser",
+        ),
         angle_min: -std::f32::consts::PI,
         angle_max: std::f32::consts::PI,
         angle_increment: 0.5,
@@ -84,7 +115,14 @@ fn nonfinite_scan() -> LaserScan {
         scan_time: 0.1,
         range_min: 0.15,
         range_max: f32::INFINITY,
-        ranges: vec![1.5, f32::INFINITY, f32::NEG_INFINITY, 0.25, 0.0, nan_with_payload],
+        ranges: vec![
+            1.5,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            0.25,
+            0.0,
+            nan_with_payload,
+        ],
         intensities: vec![f32::NAN],
     }
 }
@@ -96,13 +134,18 @@ fn bits(values: &[f32]) -> Vec<u32> {
 #[test]
 fn inf_and_nan_ranges_match_rosbags_and_keep_their_bits() {
     let scan = nonfinite_scan();
-    let golden = std::fs::read(golden_path("sensor_msgs/msg/LaserScan_nonfinite")).expect("golden file");
+    let golden =
+        std::fs::read(golden_path("sensor_msgs/msg/LaserScan_nonfinite")).expect("golden file");
     assert_eq!(encode(&scan).unwrap(), golden);
     let back: LaserScan = decode(&golden).unwrap();
     assert_eq!(bits(&back.ranges), bits(&scan.ranges));
     assert_eq!(bits(&back.intensities), bits(&scan.intensities));
     assert_eq!(back.range_max, f32::INFINITY);
-    assert_eq!(back.ranges[5].to_bits(), 0x7FC0_0001, "NaN payload survives");
+    assert_eq!(
+        back.ranges[5].to_bits(),
+        0x7FC0_0001,
+        "NaN payload survives"
+    );
 }
 
 #[test]

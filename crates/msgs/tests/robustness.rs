@@ -1,0 +1,148 @@
+//! Bad input gives a clear error naming the type, never a panic: short or truncated payloads,
+//! foreign encapsulations, trailing bytes, invalid booleans and strings.
+
+mod common;
+
+use common::sample;
+use lidar_har_msgs::{CdrError, RosMessage, decode, encode};
+
+/// Every strict prefix of a valid payload fails with an error naming the type.
+fn truncations<M: RosMessage>() -> usize {
+    let bytes = encode(&sample::<M>()).expect("encodes");
+    for len in 0..bytes.len() {
+        match decode::<M>(&bytes[..len]) {
+            Ok(_) => panic!(
+                "{}: a {len}-byte prefix of {} bytes decoded",
+                M::TYPE_NAME,
+                bytes.len()
+            ),
+            Err(e) => assert!(e.to_string().contains(M::TYPE_NAME), "{e}"),
+        }
+    }
+    bytes.len()
+}
+
+macro_rules! truncate {
+    ($ty:ty) => {
+        truncations::<$ty>()
+    };
+}
+
+#[test]
+fn every_truncated_payload_is_an_error() {
+    let lengths = for_every_type!(truncate);
+    assert!(
+        lengths.iter().sum::<usize>() > 1000,
+        "samples are non-trivial"
+    );
+}
+
+#[test]
+fn payload_shorter_than_the_header() {
+    for len in 0..4 {
+        let err =
+            decode::<lidar_har_msgs::sensor_msgs::LaserScan>(&[0, 1, 0][..len.min(3)]).unwrap_err();
+        assert!(matches!(err, CdrError::TooShort { .. }), "{err}");
+        assert!(err.to_string().contains("sensor_msgs/msg/LaserScan"));
+    }
+}
+
+#[test]
+fn foreign_encapsulations_are_refused_by_name() {
+    let mut bytes = encode(&sample::<lidar_har_msgs::nav_msgs::Odometry>()).unwrap();
+    // PL_CDR_LE (RTPS parameter list), XCDR2 little endian, and garbage.
+    for header in [
+        [0x00, 0x03, 0, 0],
+        [0x00, 0x07, 0, 0],
+        [0x00, 0x0b, 0, 0],
+        [0xff, 0x01, 0, 0],
+    ] {
+        bytes[..4].copy_from_slice(&header);
+        let err = decode::<lidar_har_msgs::nav_msgs::Odometry>(&bytes).unwrap_err();
+        assert!(matches!(err, CdrError::Encapsulation { .. }), "{err}");
+        assert!(err.to_string().contains("nav_msgs/msg/Odometry"), "{err}");
+    }
+}
+
+#[test]
+fn up_to_three_padding_bytes_are_accepted_more_are_refused() {
+    let scan = sample::<lidar_har_msgs::sensor_msgs::LaserScan>();
+    let bytes = encode(&scan).unwrap();
+    for pad in 1..=3 {
+        let mut padded = bytes.clone();
+        padded.extend(std::iter::repeat_n(0, pad));
+        assert_eq!(
+            decode::<lidar_har_msgs::sensor_msgs::LaserScan>(&padded).unwrap(),
+            scan
+        );
+    }
+    let mut long = bytes.clone();
+    long.extend([0, 0, 0, 0]);
+    let err = decode::<lidar_har_msgs::sensor_msgs::LaserScan>(&long).unwrap_err();
+    assert!(
+        matches!(err, CdrError::TrailingBytes { trailing: 4, .. }),
+        "{err}"
+    );
+    // A Point decoded from a Pose payload: bytes left over reveal the wrong type.
+    let pose = encode(&sample::<lidar_har_msgs::geometry_msgs::Pose>()).unwrap();
+    let err = decode::<lidar_har_msgs::geometry_msgs::Point>(&pose).unwrap_err();
+    assert!(
+        matches!(err, CdrError::TrailingBytes { trailing: 32, .. }),
+        "{err}"
+    );
+}
+
+#[test]
+fn invalid_bool_and_invalid_utf8_are_errors() {
+    use lidar_har_msgs::lidar_har_msgs::HumanObservation;
+    let observation = sample::<HumanObservation>();
+    let bytes = encode(&observation).unwrap();
+    // header: stamp (8) + frame_id "map" (4 + 4) + track_id (4) = offset 20 after the encapsulation.
+    let visible_at = 4 + 8 + 8 + 4;
+    assert_eq!(bytes[visible_at], 1, "layout assumed by this test");
+    let mut bad = bytes.clone();
+    bad[visible_at] = 2;
+    let err = decode::<HumanObservation>(&bad).unwrap_err();
+    assert!(err.to_string().contains("Boolean"), "{err}");
+    let mut bad = bytes.clone();
+    bad[4 + 8 + 4] = 0xff; // first byte of "map"
+    let err = decode::<HumanObservation>(&bad).unwrap_err();
+    assert!(err.to_string().contains("UTF-8"), "{err}");
+}
+
+#[test]
+fn non_finite_floats_survive_a_round_trip_bit_exactly() {
+    use lidar_har_msgs::geometry_msgs::{Point32, PoseWithCovariance};
+    let specials = [
+        f64::NAN,
+        -f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::from_bits(0x7ff0_0000_0000_0001),
+        -0.0,
+        f64::MIN_POSITIVE / 2.0,
+    ];
+    let mut pose = PoseWithCovariance::default();
+    for (i, v) in pose.covariance.iter_mut().enumerate() {
+        *v = specials[i % specials.len()];
+    }
+    pose.pose.position.x = f64::NAN;
+    let back: PoseWithCovariance = decode(&encode(&pose).unwrap()).unwrap();
+    let bits = |p: &PoseWithCovariance| p.covariance.map(f64::to_bits);
+    assert_eq!(bits(&back), bits(&pose));
+    assert_eq!(
+        back.pose.position.x.to_bits(),
+        pose.pose.position.x.to_bits()
+    );
+
+    let point = Point32 {
+        x: f32::from_bits(0xffc0_1234),
+        y: f32::NEG_INFINITY,
+        z: -0.0,
+    };
+    let back: Point32 = decode(&encode(&point).unwrap()).unwrap();
+    assert_eq!(
+        [back.x, back.y, back.z].map(f32::to_bits),
+        [point.x, point.y, point.z].map(f32::to_bits)
+    );
+}
