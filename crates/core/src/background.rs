@@ -27,7 +27,11 @@ pub struct BackgroundConfig {
 
 impl Default for BackgroundConfig {
     fn default() -> Self {
-        Self { learn_duration_s: 3.0, margin_m: 0.2, min_return_fraction: 0.2 }
+        Self {
+            learn_duration_s: 3.0,
+            margin_m: 0.2,
+            min_return_fraction: 0.2,
+        }
     }
 }
 
@@ -41,7 +45,11 @@ pub struct LearnedBackground {
 #[derive(Debug, Clone)]
 enum State {
     /// Collecting returns per beam since `start_ns`.
-    Learning { start_ns: Option<i64>, scans: usize, samples: Vec<Vec<f32>> },
+    Learning {
+        start_ns: Option<i64>,
+        scans: usize,
+        samples: Vec<Vec<f32>>,
+    },
     /// `threshold[i]`: a return on beam `i` closer than this is foreground.
     Ready { threshold: Vec<f32> },
 }
@@ -57,7 +65,14 @@ pub enum BackgroundStatus {
 
 impl LearnedBackground {
     pub fn new(config: BackgroundConfig) -> Self {
-        Self { config, state: State::Learning { start_ns: None, scans: 0, samples: Vec::new() } }
+        Self {
+            config,
+            state: State::Learning {
+                start_ns: None,
+                scans: 0,
+                samples: Vec::new(),
+            },
+        }
     }
 
     pub fn is_ready(&self) -> bool {
@@ -67,7 +82,12 @@ impl LearnedBackground {
     /// Learns from `scan` while in the learning period; afterwards does nothing. The scan that
     /// first falls after the period completes the background and is itself classifiable.
     pub fn observe(&mut self, scan: &Scan) -> BackgroundStatus {
-        let State::Learning { start_ns, scans, samples } = &mut self.state else {
+        let State::Learning {
+            start_ns,
+            scans,
+            samples,
+        } = &mut self.state
+        else {
             return BackgroundStatus::Ready;
         };
         let start = *start_ns.get_or_insert(scan.stamp_ns);
@@ -84,7 +104,9 @@ impl LearnedBackground {
             *scans += 1;
             return BackgroundStatus::Learning;
         }
-        let min_returns = (self.config.min_return_fraction * *scans as f64).ceil().max(1.0) as usize;
+        let min_returns = (self.config.min_return_fraction * *scans as f64)
+            .ceil()
+            .max(1.0) as usize;
         let margin = self.config.margin_m as f32;
         let background: Vec<f32> = samples
             .iter_mut()
@@ -100,7 +122,11 @@ impl LearnedBackground {
             .map(|i| {
                 let lo = i.saturating_sub(1);
                 let hi = (i + 1).min(background.len() - 1);
-                background[lo..=hi].iter().copied().fold(f32::INFINITY, f32::min) - margin
+                background[lo..=hi]
+                    .iter()
+                    .copied()
+                    .fold(f32::INFINITY, f32::min)
+                    - margin
             })
             .collect();
         self.state = State::Ready { threshold };
@@ -111,7 +137,9 @@ impl LearnedBackground {
     /// learning never saw (a longer scan than before) count as open space.
     pub fn is_foreground(&self, beam: usize, range: f32) -> bool {
         match &self.state {
-            State::Ready { threshold } => range < threshold.get(beam).copied().unwrap_or(f32::INFINITY),
+            State::Ready { threshold } => {
+                range < threshold.get(beam).copied().unwrap_or(f32::INFINITY)
+            }
             State::Learning { .. } => false,
         }
     }
@@ -135,9 +163,15 @@ mod tests {
     fn learned(ranges_over_time: impl Fn(usize) -> Vec<f32>) -> LearnedBackground {
         let mut bg = LearnedBackground::new(BackgroundConfig::default());
         for k in 0..30 {
-            assert_eq!(bg.observe(&scan(k as f64 * 0.1, ranges_over_time(k))), BackgroundStatus::Learning);
+            assert_eq!(
+                bg.observe(&scan(k as f64 * 0.1, ranges_over_time(k))),
+                BackgroundStatus::Learning
+            );
         }
-        assert_eq!(bg.observe(&scan(3.0, ranges_over_time(0))), BackgroundStatus::Ready);
+        assert_eq!(
+            bg.observe(&scan(3.0, ranges_over_time(0))),
+            BackgroundStatus::Ready
+        );
         assert!(bg.is_ready());
         bg
     }
@@ -145,7 +179,11 @@ mod tests {
     #[test]
     fn a_person_crossing_during_learning_is_not_background() {
         // Wall at 4 m on all 10 beams; a person at 1.5 m on beam 5 for 10 of the 30 scans.
-        let bg = learned(|k| (0..10).map(|b| if b == 5 && k < 10 { 1.5 } else { 4.0 }).collect());
+        let bg = learned(|k| {
+            (0..10)
+                .map(|b| if b == 5 && k < 10 { 1.5 } else { 4.0 })
+                .collect()
+        });
         assert!(bg.is_foreground(5, 1.5));
         assert!(!bg.is_foreground(5, 3.9), "within the margin of the wall");
         assert!(!bg.is_foreground(2, 4.0));
@@ -155,20 +193,34 @@ mod tests {
     fn open_space_beams_make_any_return_foreground() {
         // Beams 0..5 never return (inf or NaN), beams 5..10 see a wall at 3 m.
         let bg = learned(|k| {
-            (0..10).map(|b| if b < 5 { if k % 2 == 0 { f32::INFINITY } else { f32::NAN } } else { 3.0 }).collect()
+            (0..10)
+                .map(|b| {
+                    if b < 5 {
+                        if k % 2 == 0 { f32::INFINITY } else { f32::NAN }
+                    } else {
+                        3.0
+                    }
+                })
+                .collect()
         });
         assert!(bg.is_foreground(1, 4.5));
         assert!(!bg.is_foreground(7, 3.0));
         // Beam 4 borders the wall: its neighbour's background applies.
         assert!(!bg.is_foreground(4, 2.9));
         assert!(bg.is_foreground(4, 2.7));
-        assert!(bg.is_foreground(42, 1.0), "beams never learned are open space");
+        assert!(
+            bg.is_foreground(42, 1.0),
+            "beams never learned are open space"
+        );
     }
 
     #[test]
     fn nothing_is_foreground_while_learning() {
         let mut bg = LearnedBackground::new(BackgroundConfig::default());
-        assert_eq!(bg.observe(&scan(0.0, vec![1.0; 4])), BackgroundStatus::Learning);
+        assert_eq!(
+            bg.observe(&scan(0.0, vec![1.0; 4])),
+            BackgroundStatus::Learning
+        );
         assert!(!bg.is_foreground(0, 0.1));
     }
 

@@ -25,7 +25,11 @@ pub struct ClusterConfig {
 
 impl Default for ClusterConfig {
     fn default() -> Self {
-        Self { tolerance_m: 0.35, min_points: 3, max_extent_m: 2.2 }
+        Self {
+            tolerance_m: 0.35,
+            min_points: 3,
+            max_extent_m: 2.2,
+        }
     }
 }
 
@@ -69,7 +73,12 @@ impl Clusterer {
                     seg.min = seg.min.min(p);
                     seg.max = seg.max.max(p);
                 }
-                _ => self.segments.push(Segment { start: i, end: i + 1, min: p, max: p }),
+                _ => self.segments.push(Segment {
+                    start: i,
+                    end: i + 1,
+                    min: p,
+                    max: p,
+                }),
             }
         }
         let n = self.segments.len();
@@ -109,14 +118,20 @@ impl Clusterer {
             if cluster_points.len() < config.min_points || extent_m > config.max_extent_m {
                 continue;
             }
-            let centroid = cluster_points.iter().copied().sum::<DVec2>() / cluster_points.len() as f64;
-            out.push(Cluster { centroid, points: cluster_points, extent_m });
+            let centroid =
+                cluster_points.iter().copied().sum::<DVec2>() / cluster_points.len() as f64;
+            out.push(Cluster {
+                centroid,
+                points: cluster_points,
+                extent_m,
+            });
         }
     }
 }
 
 fn segments_touch(a: &[DVec2], b: &[DVec2], tol2: f64) -> bool {
-    a.iter().any(|p| b.iter().any(|q| p.distance_squared(*q) <= tol2))
+    a.iter()
+        .any(|p| b.iter().any(|q| p.distance_squared(*q) <= tol2))
 }
 
 fn find(parent: &mut [usize], mut i: usize) -> usize {
@@ -132,7 +147,11 @@ mod tests {
     use super::*;
 
     fn arc(center: DVec2, radius: f64, n: usize) -> Vec<DVec2> {
-        (0..n).map(|i| center + radius * DVec2::from_angle(std::f64::consts::PI * i as f64 / n as f64)).collect()
+        (0..n)
+            .map(|i| {
+                center + radius * DVec2::from_angle(std::f64::consts::PI * i as f64 / n as f64)
+            })
+            .collect()
     }
 
     fn run(points: &[DVec2]) -> Vec<Cluster> {

@@ -5,7 +5,7 @@
 //! and Huttenlocher's separable lower-envelope algorithm, linear in the number of cells) makes
 //! each question one array read, whatever the map's size or clutter.
 
-use glam::DVec2;
+use glam::{DAffine2, DVec2};
 
 use crate::geometry::Pose2;
 
@@ -32,7 +32,12 @@ pub enum MapError {
     #[error("map of {width} x {height} cells is larger than the {MAX_CELLS} cells supported")]
     TooLarge { width: usize, height: usize },
     #[error("map has {got} cells but width x height is {width} x {height} = {expected}")]
-    CellCount { width: usize, height: usize, expected: usize, got: usize },
+    CellCount {
+        width: usize,
+        height: usize,
+        expected: usize,
+        got: usize,
+    },
     #[error("occupied threshold {0} is not in [0, 1]")]
     Threshold(f64),
 }
@@ -45,8 +50,8 @@ pub const MAX_CELLS: usize = 400_000_000;
 #[derive(Debug, Clone)]
 pub struct OccupancyMap {
     geometry: MapGeometry,
-    /// Map frame -> grid frame, kept to avoid recomputing `sin_cos` per point.
-    map_to_grid: Pose2,
+    /// Map frame -> grid coordinates (in cells), precomputed so a lookup needs no `sin_cos`.
+    map_to_grid: DAffine2,
     occupied: Vec<bool>,
     /// Metres to the nearest occupied cell, row-major; `f32::INFINITY` when there is none.
     distance_m: Vec<f32>,
@@ -55,7 +60,12 @@ pub struct OccupancyMap {
 impl OccupancyMap {
     /// Builds the map from one flag per cell (row-major, row 0 at the origin side).
     pub fn new(geometry: MapGeometry, occupied: Vec<bool>) -> Result<Self, MapError> {
-        let MapGeometry { resolution, origin, width, height } = geometry;
+        let MapGeometry {
+            resolution,
+            origin,
+            width,
+            height,
+        } = geometry;
         if !(resolution.is_finite() && resolution > 0.0) {
             return Err(MapError::Resolution(resolution));
         }
@@ -70,11 +80,26 @@ impl OccupancyMap {
             return Err(MapError::TooLarge { width, height });
         };
         if occupied.len() != expected {
-            return Err(MapError::CellCount { width, height, expected, got: occupied.len() });
+            return Err(MapError::CellCount {
+                width,
+                height,
+                expected,
+                got: occupied.len(),
+            });
         }
         let squared = squared_distance_transform(&occupied, width, height);
-        let distance_m = squared.iter().map(|&d2| (d2.sqrt() * resolution) as f32).collect();
-        Ok(Self { geometry, map_to_grid: origin.inverse(), occupied, distance_m })
+        let distance_m = squared
+            .iter()
+            .map(|&d2| (d2.sqrt() * resolution) as f32)
+            .collect();
+        let map_to_grid = DAffine2::from_scale(DVec2::splat(1.0 / resolution))
+            * DAffine2::from_angle_translation(origin.theta, origin.position()).inverse();
+        Ok(Self {
+            geometry,
+            map_to_grid,
+            occupied,
+            distance_m,
+        })
     }
 
     /// Builds the map from `nav_msgs/OccupancyGrid` values: 0..=100 is the occupancy
@@ -89,7 +114,10 @@ impl OccupancyMap {
             return Err(MapError::Threshold(occupied_thresh));
         }
         let limit = occupied_thresh * 100.0;
-        let occupied = values.iter().map(|&v| (0..=100).contains(&v) && f64::from(v) > limit).collect();
+        let occupied = values
+            .iter()
+            .map(|&v| (0..=100).contains(&v) && f64::from(v) > limit)
+            .collect();
         Self::new(geometry, occupied)
     }
 
@@ -103,30 +131,36 @@ impl OccupancyMap {
 
     /// The `(col, row)` of the cell holding map-frame point `p`, if it is on the map.
     pub fn cell_of(&self, p: DVec2) -> Option<(usize, usize)> {
-        let g = self.map_to_grid.transform_point(p) / self.geometry.resolution;
+        let g = self.map_to_grid.transform_point2(p);
         // Also false for NaN, so a bad point never indexes the grid.
         let inside = g.x >= 0.0
             && g.y >= 0.0
             && g.x < self.geometry.width as f64
             && g.y < self.geometry.height as f64;
-        inside.then(|| (g.x as usize, g.y as usize))
+        inside.then_some((g.x as usize, g.y as usize))
     }
 
     pub fn is_occupied(&self, col: usize, row: usize) -> bool {
-        col < self.geometry.width && row < self.geometry.height && self.occupied[row * self.geometry.width + col]
+        col < self.geometry.width
+            && row < self.geometry.height
+            && self.occupied[row * self.geometry.width + col]
     }
 
     /// Metres from the cell holding `p` to the nearest obstacle (`INFINITY` on a map without
     /// obstacles), or `None` when `p` is off the map. Accurate to half a cell diagonal.
     pub fn distance_to_obstacle(&self, p: DVec2) -> Option<f32> {
-        self.cell_of(p).map(|(col, row)| self.distance_m[row * self.geometry.width + col])
+        self.cell_of(p)
+            .map(|(col, row)| self.distance_m[row * self.geometry.width + col])
     }
 }
 
 /// Squared Euclidean distance (in cells) from every cell to the nearest `true` cell: a 1D
 /// transform down every column, then one along every row of the column results.
 fn squared_distance_transform(occupied: &[bool], width: usize, height: usize) -> Vec<f64> {
-    let mut grid: Vec<f64> = occupied.iter().map(|&o| if o { 0.0 } else { f64::INFINITY }).collect();
+    let mut grid: Vec<f64> = occupied
+        .iter()
+        .map(|&o| if o { 0.0 } else { f64::INFINITY })
+        .collect();
     let longest = width.max(height);
     let mut scratch = EnvelopeScratch::new(longest);
     let mut line = vec![0.0; longest];
@@ -157,7 +191,10 @@ struct EnvelopeScratch {
 
 impl EnvelopeScratch {
     fn new(n: usize) -> Self {
-        Self { apex: vec![0; n], bound: vec![0.0; n + 1] }
+        Self {
+            apex: vec![0; n],
+            bound: vec![0.0; n + 1],
+        }
     }
 
     /// Where the parabola at `q` (with `fq = f[q] + q^2`) overtakes envelope parabola `k`.
@@ -215,7 +252,12 @@ mod tests {
     use proptest::prelude::*;
 
     fn geometry(width: usize, height: usize, resolution: f64) -> MapGeometry {
-        MapGeometry { resolution, origin: Pose2::IDENTITY, width, height }
+        MapGeometry {
+            resolution,
+            origin: Pose2::IDENTITY,
+            width,
+            height,
+        }
     }
 
     fn brute_force(occupied: &[bool], width: usize, height: usize) -> Vec<f64> {
@@ -243,7 +285,7 @@ mod tests {
             density in 1u8..8,
         ) {
             let occupied: Vec<bool> = (0..width * height)
-                .map(|i| seed[i] && (i as u8 % density == 0))
+                .map(|i| seed[i] && (i as u8).is_multiple_of(density))
                 .collect();
             let fast = squared_distance_transform(&occupied, width, height);
             let slow = brute_force(&occupied, width, height);
@@ -257,12 +299,19 @@ mod tests {
         let (w, h) = (40, 20);
         let occupied = (0..w * h).map(|i| i % w == 10).collect();
         let map = OccupancyMap::new(geometry(w, h, 0.05), occupied).unwrap();
-        let d = map.distance_to_obstacle(DVec2::new(0.5 + 0.025, 0.3)).unwrap();
+        let d = map
+            .distance_to_obstacle(DVec2::new(0.5 + 0.025, 0.3))
+            .unwrap();
         assert!(d.abs() < 1e-6, "on the wall: {d}");
-        let d = map.distance_to_obstacle(DVec2::new(0.8 + 0.025, 0.3)).unwrap();
+        let d = map
+            .distance_to_obstacle(DVec2::new(0.8 + 0.025, 0.3))
+            .unwrap();
         assert!((d - 0.3).abs() < 1e-5, "6 cells away: {d}");
         assert!(map.distance_to_obstacle(DVec2::new(-0.01, 0.3)).is_none());
-        assert!(map.distance_to_obstacle(DVec2::new(f64::NAN, 0.3)).is_none());
+        assert!(
+            map.distance_to_obstacle(DVec2::new(f64::NAN, 0.3))
+                .is_none()
+        );
         assert_eq!(map.occupied_cells(), 20);
     }
 
@@ -270,7 +319,12 @@ mod tests {
     fn rotated_origin_is_honoured() {
         // Grid rotated by 90 degrees: grid +x is map +y; origin at (1, 1).
         let origin = Pose2::new(1.0, 1.0, std::f64::consts::FRAC_PI_2);
-        let g = MapGeometry { resolution: 0.1, origin, width: 10, height: 10 };
+        let g = MapGeometry {
+            resolution: 0.1,
+            origin,
+            width: 10,
+            height: 10,
+        };
         let mut occupied = vec![false; 100];
         occupied[3 * 10 + 2] = true; // col 2, row 3: grid (0.25, 0.35) -> map (1 - 0.35, 1 + 0.25)
         let map = OccupancyMap::new(g, occupied).unwrap();
@@ -281,7 +335,10 @@ mod tests {
     #[test]
     fn map_without_obstacles_is_infinitely_far() {
         let map = OccupancyMap::new(geometry(3, 3, 1.0), vec![false; 9]).unwrap();
-        assert_eq!(map.distance_to_obstacle(DVec2::new(1.5, 1.5)), Some(f32::INFINITY));
+        assert_eq!(
+            map.distance_to_obstacle(DVec2::new(1.5, 1.5)),
+            Some(f32::INFINITY)
+        );
     }
 
     #[test]
@@ -289,28 +346,44 @@ mod tests {
         let values = [0i8, 50, 65, 66, 100, -1, 127, -128, 99];
         let map = OccupancyMap::from_grid_values(geometry(9, 1, 1.0), &values, 0.65).unwrap();
         let occ: Vec<bool> = (0..9).map(|c| map.is_occupied(c, 0)).collect();
-        assert_eq!(occ, [false, false, false, true, true, false, false, false, true]);
+        assert_eq!(
+            occ,
+            [false, false, false, true, true, false, false, false, true]
+        );
     }
 
     #[test]
     fn bad_maps_are_rejected_with_the_reason() {
-        assert_eq!(OccupancyMap::new(geometry(2, 2, 0.0), vec![false; 4]).unwrap_err(), MapError::Resolution(0.0));
+        assert_eq!(
+            OccupancyMap::new(geometry(2, 2, 0.0), vec![false; 4]).unwrap_err(),
+            MapError::Resolution(0.0)
+        );
         assert!(matches!(
             OccupancyMap::new(geometry(2, 2, f64::NAN), vec![false; 4]),
             Err(MapError::Resolution(_))
         ));
         assert!(matches!(
             OccupancyMap::new(geometry(2, 2, 0.1), vec![false; 3]),
-            Err(MapError::CellCount { expected: 4, got: 3, .. })
+            Err(MapError::CellCount {
+                expected: 4,
+                got: 3,
+                ..
+            })
         ));
-        assert!(matches!(OccupancyMap::new(geometry(0, 2, 0.1), vec![]), Err(MapError::Empty { .. })));
+        assert!(matches!(
+            OccupancyMap::new(geometry(0, 2, 0.1), vec![]),
+            Err(MapError::Empty { .. })
+        ));
         assert!(matches!(
             OccupancyMap::new(geometry(usize::MAX, 2, 0.1), vec![]),
             Err(MapError::TooLarge { .. })
         ));
         let mut g = geometry(1, 1, 0.1);
         g.origin.theta = f64::INFINITY;
-        assert!(matches!(OccupancyMap::new(g, vec![true]), Err(MapError::Origin(_))));
+        assert!(matches!(
+            OccupancyMap::new(g, vec![true]),
+            Err(MapError::Origin(_))
+        ));
         assert!(matches!(
             OccupancyMap::from_grid_values(geometry(1, 1, 0.1), &[0], 1.5),
             Err(MapError::Threshold(_))

@@ -26,7 +26,9 @@ pub enum ScanError {
     AngleMin(f32),
     #[error("scan angle_increment {0} is not a finite non-zero angle")]
     AngleIncrement(f32),
-    #[error("scan range interval [{min}, {max}] is not a finite interval with min >= 0 and max > min")]
+    #[error(
+        "scan range interval [{min}, {max}] is not a finite interval with min >= 0 and max > min"
+    )]
     RangeInterval { min: f32, max: f32 },
     #[error("scan has {0} beams, more than the {MAX_BEAMS} a 2D Lidar can produce")]
     TooManyBeams(usize),
@@ -79,11 +81,19 @@ impl Scan {
 
     /// The returns as points in the Lidar frame, skipping non-finite and out-of-range beams.
     pub fn points(&self) -> impl Iterator<Item = ScanPoint> + '_ {
-        self.ranges.iter().enumerate().filter(|(_, r)| self.is_return(**r)).map(|(beam, &r)| {
-            let (s, c) = self.beam_angle(beam).sin_cos();
-            let range = f64::from(r);
-            ScanPoint { beam, range, point: DVec2::new(range * c, range * s) }
-        })
+        self.ranges
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| self.is_return(**r))
+            .map(|(beam, &r)| {
+                let (s, c) = self.beam_angle(beam).sin_cos();
+                let range = f64::from(r);
+                ScanPoint {
+                    beam,
+                    range,
+                    point: DVec2::new(range * c, range * s),
+                }
+            })
     }
 }
 
@@ -98,7 +108,11 @@ pub struct BeamDirections {
 impl BeamDirections {
     /// The directions for `scan`'s geometry, recomputed only when the geometry changes.
     pub fn for_scan(&mut self, scan: &Scan) -> &[DVec2] {
-        let key = (scan.angle_min.to_bits(), scan.angle_increment.to_bits(), scan.ranges.len());
+        let key = (
+            scan.angle_min.to_bits(),
+            scan.angle_increment.to_bits(),
+            scan.ranges.len(),
+        );
         if key != self.key || self.directions.len() != scan.ranges.len() {
             self.key = key;
             self.directions.clear();
@@ -139,7 +153,14 @@ mod tests {
 
     #[test]
     fn bad_ranges_are_skipped() {
-        let s = scan(vec![f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.05, 11.0, 5.0]);
+        let s = scan(vec![
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            0.05,
+            11.0,
+            5.0,
+        ]);
         let pts: Vec<_> = s.points().collect();
         assert_eq!(pts.len(), 1);
         assert_eq!(pts[0].beam, 5);

@@ -78,7 +78,11 @@ struct AxisFilter {
 
 impl AxisFilter {
     fn new(pos: f64, pos_var: f64, vel_var: f64) -> Self {
-        Self { pos, vel: 0.0, cov: [[pos_var, 0.0], [0.0, vel_var]] }
+        Self {
+            pos,
+            vel: 0.0,
+            cov: [[pos_var, 0.0], [0.0, vel_var]],
+        }
     }
 
     fn predict(&mut self, dt: f64, accel_var: f64) {
@@ -86,7 +90,10 @@ impl AxisFilter {
         self.pos += self.vel * dt;
         let (dt2, dt3) = (dt * dt, dt * dt * dt);
         self.cov = [
-            [p00 + dt * (p10 + p01) + dt2 * p11 + accel_var * dt3 / 3.0, p01 + dt * p11 + accel_var * dt2 / 2.0],
+            [
+                p00 + dt * (p10 + p01) + dt2 * p11 + accel_var * dt3 / 3.0,
+                p01 + dt * p11 + accel_var * dt2 / 2.0,
+            ],
             [p10 + dt * p11 + accel_var * dt2 / 2.0, p11 + accel_var * dt],
         ];
     }
@@ -98,7 +105,10 @@ impl AxisFilter {
         let innovation = z - self.pos;
         self.pos += k0 * innovation;
         self.vel += k1 * innovation;
-        self.cov = [[(1.0 - k0) * p00, (1.0 - k0) * p01], [p10 - k1 * p00, p11 - k1 * p01]];
+        self.cov = [
+            [(1.0 - k0) * p00, (1.0 - k0) * p01],
+            [p10 - k1 * p00, p11 - k1 * p01],
+        ];
     }
 }
 
@@ -127,7 +137,8 @@ impl Track {
     }
 
     fn gate(&self, stamp_ns: i64, config: &TrackerConfig) -> f64 {
-        (config.gate_m + config.gate_growth_mps * self.unseen_s(stamp_ns)).min(config.max_gate_m.max(config.gate_m))
+        (config.gate_m + config.gate_growth_mps * self.unseen_s(stamp_ns))
+            .min(config.max_gate_m.max(config.gate_m))
     }
 }
 
@@ -162,7 +173,14 @@ pub struct Tracker {
 
 impl Tracker {
     pub fn new(config: TrackerConfig) -> Self {
-        Self { config, tracks: Vec::new(), person: None, next_id: 1, confirmed_total: 0, taken: Vec::new() }
+        Self {
+            config,
+            tracks: Vec::new(),
+            person: None,
+            next_id: 1,
+            confirmed_total: 0,
+            taken: Vec::new(),
+        }
     }
 
     /// How many tracks were ever confirmed (people, or persistent unmapped objects).
@@ -202,7 +220,12 @@ impl Tracker {
         let person = self.person;
         order.sort_by_key(|&i| {
             let t = &self.tracks[i];
-            (Some(t.id) != person, !t.confirmed, std::cmp::Reverse(t.hits), t.id)
+            (
+                Some(t.id) != person,
+                !t.confirmed,
+                std::cmp::Reverse(t.hits),
+                t.id,
+            )
         });
         let mut assigned: Vec<Option<DVec2>> = vec![None; self.tracks.len()];
         for &i in &order {
@@ -221,7 +244,9 @@ impl Tracker {
             let mut points = clusters[c].points.clone();
             if Some(track.id) == person {
                 for (other, cl) in clusters.iter().enumerate() {
-                    if !self.taken[other] && cl.centroid.distance(clusters[c].centroid) <= self.config.part_merge_m {
+                    if !self.taken[other]
+                        && cl.centroid.distance(clusters[c].centroid) <= self.config.part_merge_m
+                    {
                         self.taken[other] = true;
                         points.extend_from_slice(&cl.points);
                     }
@@ -269,7 +294,9 @@ impl Tracker {
         let pos_var = meas_var;
         let vel_var = self.config.initial_velocity_std_mps.powi(2);
         for (c, cl) in clusters.iter().enumerate() {
-            if self.taken[c] || person_pos.is_some_and(|p| p.distance(cl.centroid) <= self.config.gate_m) {
+            if self.taken[c]
+                || person_pos.is_some_and(|p| p.distance(cl.centroid) <= self.config.gate_m)
+            {
                 continue;
             }
             let id = self.next_id;
@@ -301,7 +328,8 @@ impl Tracker {
         // Tracks that sit on the person are pieces of them, not someone else.
         if let Some(p) = self.person_track().map(|t| t.position()) {
             let (person, merge) = (self.person, self.config.part_merge_m);
-            self.tracks.retain(|t| Some(t.id) == person || t.position().distance(p) > merge);
+            self.tracks
+                .retain(|t| Some(t.id) == person || t.position().distance(p) > merge);
         }
         self.person_track().map(|t| PersonEstimate {
             track_id: t.id,
@@ -315,7 +343,8 @@ impl Tracker {
     }
 
     fn person_track(&self) -> Option<&Track> {
-        self.person.and_then(|id| self.tracks.iter().find(|t| t.id == id))
+        self.person
+            .and_then(|id| self.tracks.iter().find(|t| t.id == id))
     }
 }
 
@@ -326,9 +355,15 @@ mod tests {
     const PERIOD_NS: i64 = 50_000_000;
 
     fn blob(center: DVec2) -> Cluster {
-        let points: Vec<DVec2> = (0..6).map(|i| center + 0.1 * DVec2::from_angle(i as f64)).collect();
+        let points: Vec<DVec2> = (0..6)
+            .map(|i| center + 0.1 * DVec2::from_angle(i as f64))
+            .collect();
         let centroid = points.iter().copied().sum::<DVec2>() / 6.0;
-        Cluster { centroid, points, extent_m: 0.2 }
+        Cluster {
+            centroid,
+            points,
+            extent_m: 0.2,
+        }
     }
 
     #[test]
@@ -344,7 +379,11 @@ mod tests {
         }
         let est = last.expect("tracked");
         assert!(est.visible);
-        assert!((est.velocity - DVec2::new(1.0, 0.0)).length() < 0.1, "{:?}", est.velocity);
+        assert!(
+            (est.velocity - DVec2::new(1.0, 0.0)).length() < 0.1,
+            "{:?}",
+            est.velocity
+        );
         assert!(est.covariance[0][0] > 0.0 && est.covariance[0][0] < 0.01);
         assert_eq!(est.points.len(), 6);
     }
@@ -355,16 +394,25 @@ mod tests {
         let pos = |k: i64| DVec2::new(0.05 * k as f64, 0.0);
         let mut id = None;
         for k in 0..20 {
-            id = tracker.update(k * PERIOD_NS, &[blob(pos(k))]).map(|e| e.track_id);
+            id = tracker
+                .update(k * PERIOD_NS, &[blob(pos(k))])
+                .map(|e| e.track_id);
         }
         // Hidden for 1 s (20 scans) while walking on.
         for k in 20..40 {
             let est = tracker.update(k * PERIOD_NS, &[]).expect("coasting");
             assert!(!est.visible);
             assert!(est.points.is_empty());
-            assert!((est.position - pos(k)).length() < 0.3, "prediction drifted: {:?} vs {:?}", est.position, pos(k));
+            assert!(
+                (est.position - pos(k)).length() < 0.3,
+                "prediction drifted: {:?} vs {:?}",
+                est.position,
+                pos(k)
+            );
         }
-        let est = tracker.update(40 * PERIOD_NS, &[blob(pos(40))]).expect("reacquired");
+        let est = tracker
+            .update(40 * PERIOD_NS, &[blob(pos(40))])
+            .expect("reacquired");
         assert!(est.visible);
         assert_eq!(Some(est.track_id), id, "same track after the occlusion");
     }
@@ -394,7 +442,10 @@ mod tests {
         for k in 0..10 {
             tracker.update(k * PERIOD_NS, &[blob(DVec2::ZERO)]);
         }
-        let first = tracker.update(10 * PERIOD_NS, &[blob(DVec2::ZERO)]).unwrap().track_id;
+        let first = tracker
+            .update(10 * PERIOD_NS, &[blob(DVec2::ZERO)])
+            .unwrap()
+            .track_id;
         // Gone for longer than max_coast_s, then someone appears far away.
         let far = DVec2::new(5.0, 5.0);
         let mut last = None;
@@ -413,10 +464,17 @@ mod tests {
         let mut tracker = Tracker::new(TrackerConfig::default());
         let mut est = None;
         for k in 0..5 {
-            est = tracker.update(k * PERIOD_NS, &[blob(DVec2::ZERO), blob(DVec2::new(0.45, 0.0))]);
+            est = tracker.update(
+                k * PERIOD_NS,
+                &[blob(DVec2::ZERO), blob(DVec2::new(0.45, 0.0))],
+            );
         }
         let est = est.unwrap();
         assert_eq!(est.points.len(), 12);
-        assert_eq!(tracker.live_tracks(), 1, "no ghost track from the second part");
+        assert_eq!(
+            tracker.live_tracks(),
+            1,
+            "no ghost track from the second part"
+        );
     }
 }

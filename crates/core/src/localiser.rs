@@ -1,0 +1,888 @@
+//! Finds and tracks the person in each scan (the paper's localisation step, made robust).
+//!
+//! Per scan: the Lidar's pose in the map at the scan's stamp (`map -> odom` correction, the
+//! odometry interpolated at the stamp, the `base_link -> laser` mount); each return moved
+//! into the map frame; returns within `obstacle_margin_m` of a mapped obstacle (or, without a
+//! map, not in front of the learned background) dropped as room; the rest clustered; the
+//! clusters handed to the tracker, which picks the person.
+//!
+//! Nothing here logs: every problem with the input comes back as a [`Warning`] for the host
+//! to count and report (rate-limited), and what cannot be used is skipped. No `NaN` from the
+//! input reaches an output.
+
+use std::collections::VecDeque;
+
+use glam::{DAffine2, DVec2};
+use serde::{Deserialize, Serialize};
+
+use crate::background::{BackgroundConfig, BackgroundStatus, LearnedBackground};
+use crate::cluster::{Cluster, ClusterConfig, Clusterer};
+use crate::geometry::Pose2;
+use crate::map::OccupancyMap;
+use crate::scan::{BeamDirections, Scan, ScanError};
+use crate::tracker::{PersonEstimate, Tracker, TrackerConfig};
+
+/// Every parameter of the localiser, with the paper's values as defaults
+/// (`config/localiser.yaml` holds the same values, documented).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LocaliserConfig {
+    /// Returns closer than this to a mapped obstacle belong to the room (m; paper: 0.2).
+    pub obstacle_margin_m: f64,
+    /// The Lidar sees only the near side of a person, so the centroid of their points lies
+    /// closer to it than their centre; clusters are moved this far away from the Lidar (m).
+    pub centroid_offset_m: f64,
+    pub cluster: ClusterConfig,
+    pub tracker: TrackerConfig,
+    pub background: BackgroundConfig,
+    pub odometry: OdometryConfig,
+    /// Lidar pose on the robot (`base_link -> laser`) until /tf_static gives one.
+    pub mount: Pose2,
+    pub frames: FrameConfig,
+}
+
+impl Default for LocaliserConfig {
+    fn default() -> Self {
+        Self {
+            obstacle_margin_m: 0.2,
+            centroid_offset_m: 0.0,
+            cluster: ClusterConfig::default(),
+            tracker: TrackerConfig::default(),
+            background: BackgroundConfig::default(),
+            odometry: OdometryConfig::default(),
+            mount: Pose2::IDENTITY,
+            frames: FrameConfig::default(),
+        }
+    }
+}
+
+/// Why a configuration cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("localiser configuration: `{key}` = {value} {why}")]
+pub struct ConfigError {
+    pub key: &'static str,
+    pub value: String,
+    pub why: &'static str,
+}
+
+impl LocaliserConfig {
+    /// Checks values that serde cannot: signs, ranges, finiteness.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let non_negative = [
+            ("obstacle_margin_m", self.obstacle_margin_m),
+            ("cluster.tolerance_m", self.cluster.tolerance_m),
+            ("tracker.gate_growth_mps", self.tracker.gate_growth_mps),
+            ("tracker.part_merge_m", self.tracker.part_merge_m),
+            ("tracker.max_coast_s", self.tracker.max_coast_s),
+            (
+                "background.learn_duration_s",
+                self.background.learn_duration_s,
+            ),
+            ("background.margin_m", self.background.margin_m),
+            (
+                "odometry.max_extrapolation_s",
+                self.odometry.max_extrapolation_s,
+            ),
+        ];
+        let positive = [
+            ("cluster.max_extent_m", self.cluster.max_extent_m),
+            ("tracker.gate_m", self.tracker.gate_m),
+            ("tracker.max_gate_m", self.tracker.max_gate_m),
+            ("tracker.accel_std_mps2", self.tracker.accel_std_mps2),
+            ("tracker.measurement_std_m", self.tracker.measurement_std_m),
+            (
+                "tracker.initial_velocity_std_mps",
+                self.tracker.initial_velocity_std_mps,
+            ),
+            ("tracker.max_speed_mps", self.tracker.max_speed_mps),
+            (
+                "odometry.max_interpolation_gap_s",
+                self.odometry.max_interpolation_gap_s,
+            ),
+            ("odometry.max_speed_mps", self.odometry.max_speed_mps),
+            (
+                "odometry.max_turn_rate_radps",
+                self.odometry.max_turn_rate_radps,
+            ),
+            ("odometry.buffer_s", self.odometry.buffer_s),
+        ];
+        for (key, value) in non_negative {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(ConfigError {
+                    key,
+                    value: value.to_string(),
+                    why: "must be finite and >= 0",
+                });
+            }
+        }
+        for (key, value) in positive {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(ConfigError {
+                    key,
+                    value: value.to_string(),
+                    why: "must be finite and > 0",
+                });
+            }
+        }
+        if !self.centroid_offset_m.is_finite() {
+            return Err(ConfigError {
+                key: "centroid_offset_m",
+                value: self.centroid_offset_m.to_string(),
+                why: "must be finite",
+            });
+        }
+        if !(0.0..=1.0).contains(&self.background.min_return_fraction) {
+            return Err(ConfigError {
+                key: "background.min_return_fraction",
+                value: self.background.min_return_fraction.to_string(),
+                why: "must be in [0, 1]",
+            });
+        }
+        if !self.mount.is_finite() {
+            return Err(ConfigError {
+                key: "mount",
+                value: format!("{:?}", self.mount),
+                why: "must be finite",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// How odometry is trusted.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OdometryConfig {
+    /// Odometry samples farther apart than this are a gap: scans inside it are skipped (s).
+    pub max_interpolation_gap_s: f64,
+    /// A scan may be this much newer (or older) than the newest (oldest) sample (s).
+    pub max_extrapolation_s: f64,
+    /// Motion between samples faster than this is a jump (a reset or a glitch), not driving.
+    pub max_speed_mps: f64,
+    pub max_turn_rate_radps: f64,
+    /// Samples older than this behind the newest are forgotten (s).
+    pub buffer_s: f64,
+}
+
+impl Default for OdometryConfig {
+    fn default() -> Self {
+        // The paper's robot drives at up to 0.2 m/s; 2 m/s leaves room for any cleaning robot.
+        Self {
+            max_interpolation_gap_s: 0.5,
+            max_extrapolation_s: 0.1,
+            max_speed_mps: 2.0,
+            max_turn_rate_radps: 6.0,
+            buffer_s: 5.0,
+        }
+    }
+}
+
+/// Frame names (REP-105) the host uses to pick transforms out of /tf and /tf_static.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FrameConfig {
+    pub map: String,
+    pub odom: String,
+    pub base: String,
+}
+
+impl Default for FrameConfig {
+    fn default() -> Self {
+        Self {
+            map: "map".into(),
+            odom: "odom".into(),
+            base: "base_link".into(),
+        }
+    }
+}
+
+/// Something wrong with the input; the host counts and reports these (rate-limited).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Warning {
+    #[error("scan skipped: {0}")]
+    InvalidScan(ScanError),
+    #[error("scan skipped: stamp {stamp_ns} ns is not after the previous scan's {previous_ns} ns")]
+    ScanNotAfterPrevious { stamp_ns: i64, previous_ns: i64 },
+    #[error("time jumped back by {back_s:.3} s: tracks and odometry were reset")]
+    TimeReset { back_s: f64 },
+    #[error("{count} NaN ranges ignored")]
+    NanRanges { count: usize },
+    #[error("scan skipped: no map received yet")]
+    NoMap,
+    #[error("scan skipped: no odometry at its stamp")]
+    NoOdometry,
+    #[error("scan skipped: odometry has a {gap_s:.3} s gap around its stamp")]
+    OdometryGap { gap_s: f64 },
+    #[error("scan skipped: the newest odometry is {age_s:.3} s older than the scan")]
+    OdometryStale { age_s: f64 },
+    #[error(
+        "scan skipped: odometry jumps around its stamp ({speed_mps:.2} m/s, {turn_rate_radps:.2} rad/s)"
+    )]
+    OdometryJump {
+        speed_mps: f64,
+        turn_rate_radps: f64,
+    },
+    #[error("odometry out of order: {stamp_ns} ns arrived after {latest_ns} ns")]
+    OdometryOutOfOrder { stamp_ns: i64, latest_ns: i64 },
+    #[error("odometry sample ignored: it is older than the buffer")]
+    OdometryTooOld,
+    #[error("ignored a non-finite {what}")]
+    NonFinite { what: &'static str },
+}
+
+impl Warning {
+    /// A short stable name per kind, for counters and rate limiting.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Warning::InvalidScan(_) => "invalid_scan",
+            Warning::ScanNotAfterPrevious { .. } => "scan_not_after_previous",
+            Warning::TimeReset { .. } => "time_reset",
+            Warning::NanRanges { .. } => "nan_ranges",
+            Warning::NoMap => "no_map",
+            Warning::NoOdometry => "no_odometry",
+            Warning::OdometryGap { .. } => "odometry_gap",
+            Warning::OdometryStale { .. } => "odometry_stale",
+            Warning::OdometryJump { .. } => "odometry_jump",
+            Warning::OdometryOutOfOrder { .. } => "odometry_out_of_order",
+            Warning::OdometryTooOld => "odometry_too_old",
+            Warning::NonFinite { .. } => "non_finite",
+        }
+    }
+}
+
+/// What the room is subtracted with.
+#[derive(Debug, Clone)]
+pub enum Reference {
+    /// The room's occupancy map (from /map, a map_server file or the simulator).
+    Map(OccupancyMap),
+    /// A background learned from the first scans of a stationary Lidar.
+    Background(LearnedBackground),
+    /// A map is expected but has not arrived: scans are skipped.
+    AwaitingMap,
+}
+
+/// Where the robot's pose comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Motion {
+    /// A moving robot: odometry (and the `map -> odom` correction) at each scan's stamp.
+    Odometry,
+    /// A Lidar that does not move: `base_link` sits at this pose in the map.
+    Stationary(Pose2),
+}
+
+/// The localiser's result for one scan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LocaliserOutput {
+    pub stamp_ns: i64,
+    /// The Lidar's pose in the map frame at the scan's stamp.
+    pub laser_pose: Pose2,
+    /// Returns that were not the room.
+    pub foreground_points: usize,
+    /// Clusters that could be a person.
+    pub clusters: usize,
+    /// The tracked person, if any (possibly predicted through an occlusion).
+    pub person: Option<PersonEstimate>,
+}
+
+/// What processing one scan gave: an output unless it was skipped or used for learning.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ScanResult {
+    pub output: Option<LocaliserOutput>,
+    /// The scan went into the learned background (no output yet, and nothing wrong).
+    pub learning: bool,
+    pub warnings: Vec<Warning>,
+}
+
+/// Time-stamped odometry poses (`odom -> base_link`) for interpolation at scan stamps.
+#[derive(Debug, Clone)]
+struct OdometryBuffer {
+    samples: VecDeque<(i64, Pose2)>,
+}
+
+impl OdometryBuffer {
+    fn insert(&mut self, stamp_ns: i64, pose: Pose2, config: &OdometryConfig) -> Option<Warning> {
+        if !pose.is_finite() {
+            return Some(Warning::NonFinite {
+                what: "odometry pose",
+            });
+        }
+        let Some(&(latest_ns, _)) = self.samples.back() else {
+            self.samples.push_back((stamp_ns, pose));
+            return None;
+        };
+        let buffer_ns = (config.buffer_s * 1e9) as i64;
+        if stamp_ns > latest_ns {
+            self.samples.push_back((stamp_ns, pose));
+            while self
+                .samples
+                .front()
+                .is_some_and(|&(t, _)| t < stamp_ns - buffer_ns)
+            {
+                self.samples.pop_front();
+            }
+            return None;
+        }
+        if stamp_ns < latest_ns - buffer_ns {
+            return Some(Warning::OdometryTooOld);
+        }
+        match self.samples.binary_search_by_key(&stamp_ns, |&(t, _)| t) {
+            Ok(i) => self.samples[i].1 = pose,
+            Err(i) => self.samples.insert(i, (stamp_ns, pose)),
+        }
+        (stamp_ns < latest_ns).then_some(Warning::OdometryOutOfOrder {
+            stamp_ns,
+            latest_ns,
+        })
+    }
+
+    /// The pose at `stamp_ns`: interpolated between the samples around it, or extrapolated a
+    /// little past either end.
+    fn pose_at(&self, stamp_ns: i64, config: &OdometryConfig) -> Result<Pose2, Warning> {
+        let (Some(&first), Some(&last)) = (self.samples.front(), self.samples.back()) else {
+            return Err(Warning::NoOdometry);
+        };
+        let max_extrapolation_ns = (config.max_extrapolation_s * 1e9) as i64;
+        let (a, b) = if stamp_ns < first.0 {
+            if first.0 - stamp_ns > max_extrapolation_ns {
+                return Err(Warning::NoOdometry);
+            }
+            return Ok(first.1);
+        } else if stamp_ns >= last.0 {
+            let age_ns = stamp_ns - last.0;
+            if age_ns > max_extrapolation_ns {
+                return Err(Warning::OdometryStale {
+                    age_s: age_ns as f64 * 1e-9,
+                });
+            }
+            match self.samples.len() {
+                1 => return Ok(last.1),
+                n => (self.samples[n - 2], last),
+            }
+        } else {
+            let i = self.samples.partition_point(|&(t, _)| t <= stamp_ns);
+            (self.samples[i - 1], self.samples[i])
+        };
+        let gap_s = (b.0 - a.0) as f64 * 1e-9;
+        if gap_s > config.max_interpolation_gap_s {
+            return Err(Warning::OdometryGap { gap_s });
+        }
+        let speed_mps = a.1.position().distance(b.1.position()) / gap_s;
+        let turn_rate_radps = crate::geometry::normalize_angle(b.1.theta - a.1.theta).abs() / gap_s;
+        if speed_mps > config.max_speed_mps || turn_rate_radps > config.max_turn_rate_radps {
+            return Err(Warning::OdometryJump {
+                speed_mps,
+                turn_rate_radps,
+            });
+        }
+        let t = (stamp_ns - a.0) as f64 * 1e-9 / gap_s;
+        Ok(a.1.lerp(&b.1, t))
+    }
+}
+
+/// Time going back by more than this is a restart (a replayed bag looping, a simulator
+/// reset), not jitter: the tracks and odometry are reset instead of skipping every scan.
+const TIME_RESET_S: f64 = 1.0;
+
+/// The localiser: feed it odometry, transforms, a map and scans in arrival order.
+#[derive(Debug)]
+pub struct Localiser {
+    config: LocaliserConfig,
+    reference: Reference,
+    motion: Motion,
+    odometry: OdometryBuffer,
+    map_to_odom: Pose2,
+    mount: Pose2,
+    tracker: Tracker,
+    last_scan_ns: Option<i64>,
+    directions: BeamDirections,
+    clusterer: Clusterer,
+    foreground: Vec<DVec2>,
+    clusters: Vec<Cluster>,
+}
+
+impl Localiser {
+    pub fn new(
+        config: LocaliserConfig,
+        reference: Reference,
+        motion: Motion,
+    ) -> Result<Self, ConfigError> {
+        config.validate()?;
+        Ok(Self {
+            reference,
+            motion,
+            odometry: OdometryBuffer {
+                samples: VecDeque::new(),
+            },
+            map_to_odom: Pose2::IDENTITY,
+            mount: config.mount,
+            tracker: Tracker::new(config.tracker.clone()),
+            last_scan_ns: None,
+            directions: BeamDirections::default(),
+            clusterer: Clusterer::default(),
+            foreground: Vec::new(),
+            clusters: Vec::new(),
+            config,
+        })
+    }
+
+    /// A localiser that learns its background from the first scans of a stationary Lidar.
+    pub fn with_learned_background(config: LocaliserConfig) -> Result<Self, ConfigError> {
+        let background = LearnedBackground::new(config.background.clone());
+        Self::new(
+            config,
+            Reference::Background(background),
+            Motion::Stationary(Pose2::IDENTITY),
+        )
+    }
+
+    pub fn config(&self) -> &LocaliserConfig {
+        &self.config
+    }
+
+    pub fn reference(&self) -> &Reference {
+        &self.reference
+    }
+
+    /// Tracks ever confirmed: the people (and persistent unmapped objects) seen so far.
+    pub fn confirmed_tracks(&self) -> u64 {
+        self.tracker.confirmed_total()
+    }
+
+    /// Replaces the map (a new /map message); a learned background is kept unless replaced.
+    pub fn set_map(&mut self, map: OccupancyMap) {
+        self.reference = Reference::Map(map);
+    }
+
+    /// An odometry sample: the pose of `base_link` in `odom` at `stamp_ns`.
+    pub fn add_odometry(&mut self, stamp_ns: i64, pose: Pose2) -> Option<Warning> {
+        self.odometry.insert(stamp_ns, pose, &self.config.odometry)
+    }
+
+    /// The latest `map -> odom` correction (from AMCL or SLAM on /tf).
+    pub fn set_map_to_odom(&mut self, pose: Pose2) -> Option<Warning> {
+        if !pose.is_finite() {
+            return Some(Warning::NonFinite {
+                what: "map -> odom transform",
+            });
+        }
+        self.map_to_odom = pose;
+        None
+    }
+
+    /// The Lidar's mount on the robot (`base_link -> laser`, from /tf_static).
+    pub fn set_mount(&mut self, pose: Pose2) -> Option<Warning> {
+        if !pose.is_finite() {
+            return Some(Warning::NonFinite {
+                what: "base_link -> laser transform",
+            });
+        }
+        self.mount = pose;
+        None
+    }
+
+    /// Localises the person in `scan`.
+    pub fn process_scan(&mut self, scan: &Scan) -> ScanResult {
+        let mut result = ScanResult::default();
+        if let Err(e) = scan.validate() {
+            result.warnings.push(Warning::InvalidScan(e));
+            return result;
+        }
+        if let Some(previous_ns) = self.last_scan_ns
+            && scan.stamp_ns <= previous_ns
+        {
+            let back_s = (previous_ns - scan.stamp_ns) as f64 * 1e-9;
+            if back_s <= TIME_RESET_S {
+                result.warnings.push(Warning::ScanNotAfterPrevious {
+                    stamp_ns: scan.stamp_ns,
+                    previous_ns,
+                });
+                return result;
+            }
+            result.warnings.push(Warning::TimeReset { back_s });
+            self.tracker.reset();
+            self.odometry.samples.clear();
+        }
+        let nan = scan.ranges.iter().filter(|r| r.is_nan()).count();
+        if nan > 0 {
+            result.warnings.push(Warning::NanRanges { count: nan });
+        }
+
+        let base_in_map = match self.motion {
+            Motion::Stationary(pose) => pose,
+            Motion::Odometry => match self.odometry.pose_at(scan.stamp_ns, &self.config.odometry) {
+                Ok(odom) => self.map_to_odom.compose(&odom),
+                Err(w) => {
+                    result.warnings.push(w);
+                    return result;
+                }
+            },
+        };
+        let laser_pose = base_in_map.compose(&self.mount);
+        let to_map = DAffine2::from_angle_translation(laser_pose.theta, laser_pose.position());
+
+        if let Reference::Background(background) = &mut self.reference
+            && background.observe(scan) == BackgroundStatus::Learning
+        {
+            self.last_scan_ns = Some(scan.stamp_ns);
+            result.learning = true;
+            return result;
+        }
+        self.foreground.clear();
+        let directions = self.directions.for_scan(scan);
+        match &self.reference {
+            Reference::AwaitingMap => {
+                result.warnings.push(Warning::NoMap);
+                return result;
+            }
+            Reference::Map(map) => {
+                let margin = self.config.obstacle_margin_m as f32;
+                for (&r, &dir) in scan.ranges.iter().zip(directions) {
+                    if !scan.is_return(r) {
+                        continue;
+                    }
+                    let p = to_map.transform_point2(dir * f64::from(r));
+                    // Off the map is outside the room: never the person.
+                    if map.distance_to_obstacle(p).is_some_and(|d| d >= margin) {
+                        self.foreground.push(p);
+                    }
+                }
+            }
+            Reference::Background(background) => {
+                for (beam, (&r, &dir)) in scan.ranges.iter().zip(directions).enumerate() {
+                    if scan.is_return(r) && background.is_foreground(beam, r) {
+                        self.foreground
+                            .push(to_map.transform_point2(dir * f64::from(r)));
+                    }
+                }
+            }
+        }
+        self.last_scan_ns = Some(scan.stamp_ns);
+
+        self.clusterer
+            .cluster(&self.foreground, &self.config.cluster, &mut self.clusters);
+        let offset = self.config.centroid_offset_m;
+        if offset != 0.0 {
+            let sensor = laser_pose.position();
+            for cluster in &mut self.clusters {
+                cluster.centroid += (cluster.centroid - sensor).normalize_or_zero() * offset;
+            }
+        }
+        let person = self.tracker.update(scan.stamp_ns, &self.clusters);
+        result.output = Some(LocaliserOutput {
+            stamp_ns: scan.stamp_ns,
+            laser_pose,
+            foreground_points: self.foreground.len(),
+            clusters: self.clusters.len(),
+            person,
+        });
+        result
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::map::MapGeometry;
+
+    const PERIOD_NS: i64 = 50_000_000;
+
+    /// A 10 m x 10 m room at 5 cm with walls on its border, origin at (-5, -5).
+    fn room() -> OccupancyMap {
+        let n = 200;
+        let occupied = (0..n * n)
+            .map(|i| i % n == 0 || i % n == n - 1 || i / n == 0 || i / n == n - 1)
+            .collect();
+        let geometry = MapGeometry {
+            resolution: 0.05,
+            origin: Pose2::new(-5.0, -5.0, 0.0),
+            width: n,
+            height: n,
+        };
+        OccupancyMap::new(geometry, occupied).unwrap()
+    }
+
+    /// Ray-casts a 720-beam scan from `laser` in the room with a round person of radius 0.2 m.
+    fn cast(stamp_ns: i64, laser: Pose2, person: Option<DVec2>) -> Scan {
+        let n = 720;
+        let inc = std::f64::consts::TAU / n as f64;
+        let ranges = (0..n)
+            .map(|i| {
+                let a = laser.theta + -std::f64::consts::PI + i as f64 * inc;
+                let d = DVec2::from_angle(a);
+                let o = laser.position();
+                // Walls at +-4.95 (inner face of the border cells).
+                let tx = if d.x > 0.0 {
+                    (4.95 - o.x) / d.x
+                } else {
+                    (-4.95 - o.x) / d.x
+                };
+                let ty = if d.y > 0.0 {
+                    (4.95 - o.y) / d.y
+                } else {
+                    (-4.95 - o.y) / d.y
+                };
+                let mut r = tx.min(ty);
+                if let Some(c) = person {
+                    let oc = o - c;
+                    let b = oc.dot(d);
+                    let disc = b * b - (oc.length_squared() - 0.04);
+                    if disc >= 0.0 {
+                        let t = -b - disc.sqrt();
+                        if t > 0.0 {
+                            r = r.min(t);
+                        }
+                    }
+                }
+                r as f32
+            })
+            .collect();
+        Scan {
+            stamp_ns,
+            angle_min: -std::f32::consts::PI,
+            angle_increment: inc as f32,
+            range_min: 0.05,
+            range_max: 12.0,
+            ranges,
+        }
+    }
+
+    fn map_localiser(motion: Motion) -> Localiser {
+        Localiser::new(LocaliserConfig::default(), Reference::Map(room()), motion).unwrap()
+    }
+
+    #[test]
+    fn a_person_walking_past_a_moving_robot_is_tracked_in_the_map_frame() {
+        let mut loc = map_localiser(Motion::Odometry);
+        let mount = Pose2::new(0.1, 0.0, 0.0);
+        loc.set_mount(mount);
+        let robot = |t: f64| Pose2::new(-2.0 + 0.2 * t, -1.0, 0.3 * t);
+        let person = |t: f64| DVec2::new(2.0 - 0.8 * t, 1.0 + 0.2 * t);
+        // Odometry at 50 Hz, scans at 20 Hz, both from t = 0.
+        for k in 0..=250 {
+            let t = k as f64 * 0.02;
+            assert!(loc.add_odometry((t * 1e9) as i64, robot(t)).is_none());
+        }
+        let mut errors = Vec::new();
+        for k in 0..100 {
+            let stamp = k * PERIOD_NS;
+            let t = stamp as f64 * 1e-9;
+            let scan = cast(stamp, robot(t).compose(&mount), Some(person(t)));
+            let result = loc.process_scan(&scan);
+            assert!(result.warnings.is_empty(), "{:?}", result.warnings);
+            let out = result.output.expect("localised");
+            assert!(
+                (out.laser_pose.position() - robot(t).compose(&mount).position()).length() < 1e-9
+            );
+            if k >= 3 {
+                let est = out.person.expect("person tracked");
+                assert!(est.visible);
+                errors.push(est.position.distance(person(t)));
+            }
+        }
+        errors.sort_by(f64::total_cmp);
+        let median = errors[errors.len() / 2];
+        // The visible arc's centroid sits ~0.16 m in front of the centre of a 0.2 m cylinder.
+        assert!(median < 0.2, "median error {median}");
+    }
+
+    #[test]
+    fn points_near_walls_are_room_and_an_empty_room_has_nobody() {
+        let mut loc = map_localiser(Motion::Stationary(Pose2::IDENTITY));
+        for k in 0..10 {
+            let out = loc
+                .process_scan(&cast(k * PERIOD_NS, Pose2::IDENTITY, None))
+                .output
+                .unwrap();
+            assert_eq!(out.foreground_points, 0);
+            assert!(out.person.is_none());
+        }
+    }
+
+    #[test]
+    fn nan_and_inf_ranges_are_skipped_and_reported() {
+        let mut loc = map_localiser(Motion::Stationary(Pose2::IDENTITY));
+        let mut scan = cast(0, Pose2::IDENTITY, Some(DVec2::new(1.0, 0.0)));
+        for (i, r) in scan.ranges.iter_mut().enumerate() {
+            match i % 3 {
+                0 => *r = f32::NAN,
+                1 => *r = f32::INFINITY,
+                _ => {}
+            }
+        }
+        let result = loc.process_scan(&scan);
+        assert_eq!(result.warnings, vec![Warning::NanRanges { count: 240 }]);
+        let out = result.output.unwrap();
+        assert!(out.foreground_points > 0);
+    }
+
+    #[test]
+    fn empty_and_broken_scans_never_panic() {
+        let mut loc = map_localiser(Motion::Stationary(Pose2::IDENTITY));
+        let mut scan = cast(0, Pose2::IDENTITY, None);
+        scan.ranges.clear();
+        let out = loc.process_scan(&scan).output.unwrap();
+        assert_eq!(out.foreground_points, 0);
+        let mut broken = cast(PERIOD_NS, Pose2::IDENTITY, None);
+        broken.angle_increment = f32::NAN;
+        let result = loc.process_scan(&broken);
+        assert!(result.output.is_none());
+        assert!(matches!(
+            result.warnings[..],
+            [Warning::InvalidScan(ScanError::AngleIncrement(_))]
+        ));
+    }
+
+    #[test]
+    fn backwards_stamps_are_skipped_and_a_restart_resets() {
+        let mut loc = map_localiser(Motion::Stationary(Pose2::IDENTITY));
+        let person = Some(DVec2::new(1.0, 1.0));
+        for k in 30..40 {
+            assert!(
+                loc.process_scan(&cast(k * PERIOD_NS, Pose2::IDENTITY, person))
+                    .output
+                    .is_some()
+            );
+        }
+        let result = loc.process_scan(&cast(35 * PERIOD_NS, Pose2::IDENTITY, person));
+        assert!(result.output.is_none());
+        assert!(matches!(
+            result.warnings[..],
+            [Warning::ScanNotAfterPrevious { .. }]
+        ));
+        let same = loc.process_scan(&cast(39 * PERIOD_NS, Pose2::IDENTITY, person));
+        assert!(same.output.is_none(), "a repeated stamp is skipped");
+        // Back to time zero: a restart, not jitter.
+        let result = loc.process_scan(&cast(0, Pose2::IDENTITY, person));
+        assert!(matches!(result.warnings[..], [Warning::TimeReset { .. }]));
+        let out = result.output.unwrap();
+        assert!(out.person.is_none(), "tracks were reset");
+    }
+
+    #[test]
+    fn odometry_gaps_staleness_and_jumps_skip_scans() {
+        let mut loc = map_localiser(Motion::Odometry);
+        let scan_at = |ns: i64| cast(ns, Pose2::IDENTITY, None);
+        let warning =
+            |loc: &mut Localiser, ns: i64| loc.process_scan(&scan_at(ns)).warnings.first().cloned();
+        assert_eq!(warning(&mut loc, 0), Some(Warning::NoOdometry));
+        loc.add_odometry(0, Pose2::IDENTITY);
+        loc.add_odometry(20_000_000, Pose2::IDENTITY);
+        assert_eq!(warning(&mut loc, 10_000_000), None);
+        assert!(matches!(
+            warning(&mut loc, 500_000_000),
+            Some(Warning::OdometryStale { .. })
+        ));
+        loc.add_odometry(1_000_000_000, Pose2::IDENTITY);
+        assert!(matches!(
+            warning(&mut loc, 600_000_000),
+            Some(Warning::OdometryGap { .. })
+        ));
+        loc.add_odometry(1_020_000_000, Pose2::new(3.0, 0.0, 0.0));
+        assert!(matches!(
+            warning(&mut loc, 1_010_000_000),
+            Some(Warning::OdometryJump { .. })
+        ));
+        loc.add_odometry(1_040_000_000, Pose2::new(3.0, 0.0, 0.0));
+        assert_eq!(
+            warning(&mut loc, 1_030_000_000),
+            None,
+            "after the jump, driving resumes"
+        );
+        assert!(matches!(
+            loc.add_odometry(1_030_000_000, Pose2::new(3.0, 0.0, 0.0)),
+            Some(Warning::OdometryOutOfOrder { .. })
+        ));
+        assert_eq!(
+            loc.add_odometry(-10_000_000_000, Pose2::IDENTITY),
+            Some(Warning::OdometryTooOld)
+        );
+        assert!(matches!(
+            loc.add_odometry(2_000_000_000, Pose2::new(f64::NAN, 0.0, 0.0)),
+            Some(Warning::NonFinite { .. })
+        ));
+        assert!(matches!(
+            loc.set_map_to_odom(Pose2::new(0.0, f64::INFINITY, 0.0)),
+            Some(Warning::NonFinite { .. })
+        ));
+    }
+
+    #[test]
+    fn odometry_is_interpolated_at_the_scan_stamp() {
+        let mut buffer = OdometryBuffer {
+            samples: VecDeque::new(),
+        };
+        let config = OdometryConfig::default();
+        buffer.insert(0, Pose2::new(0.0, 0.0, 0.0), &config);
+        buffer.insert(100_000_000, Pose2::new(0.1, 0.0, 0.2), &config);
+        let p = buffer.pose_at(25_000_000, &config).unwrap();
+        assert!((p.x - 0.025).abs() < 1e-12 && (p.theta - 0.05).abs() < 1e-12);
+        let p = buffer.pose_at(150_000_000, &config).unwrap();
+        assert!((p.x - 0.15).abs() < 1e-12, "extrapolated: {p:?}");
+    }
+
+    #[test]
+    fn map_to_odom_correction_moves_the_laser() {
+        let mut loc = map_localiser(Motion::Odometry);
+        loc.add_odometry(0, Pose2::new(1.0, 0.0, 0.0));
+        loc.set_map_to_odom(Pose2::new(0.0, 0.5, 0.0));
+        let out = loc
+            .process_scan(&cast(0, Pose2::new(1.0, 0.5, 0.0), None))
+            .output
+            .unwrap();
+        assert!((out.laser_pose.position() - DVec2::new(1.0, 0.5)).length() < 1e-12);
+    }
+
+    #[test]
+    fn without_a_map_scans_are_skipped() {
+        let mut loc = Localiser::new(
+            LocaliserConfig::default(),
+            Reference::AwaitingMap,
+            Motion::Stationary(Pose2::IDENTITY),
+        )
+        .unwrap();
+        assert_eq!(
+            loc.process_scan(&cast(0, Pose2::IDENTITY, None)).warnings,
+            vec![Warning::NoMap]
+        );
+        loc.set_map(room());
+        assert!(
+            loc.process_scan(&cast(PERIOD_NS, Pose2::IDENTITY, None))
+                .output
+                .is_some()
+        );
+    }
+
+    #[test]
+    fn learned_background_finds_a_person_who_walks_in() {
+        let mut loc = Localiser::with_learned_background(LocaliserConfig::default()).unwrap();
+        for k in 0..60 {
+            assert!(
+                loc.process_scan(&cast(k * PERIOD_NS, Pose2::IDENTITY, None))
+                    .learning
+            );
+        }
+        let mut last = None;
+        for k in 60..80 {
+            let r = loc.process_scan(&cast(
+                k * PERIOD_NS,
+                Pose2::IDENTITY,
+                Some(DVec2::new(2.0, -1.0)),
+            ));
+            last = r.output.unwrap().person;
+        }
+        let est = last.expect("found");
+        assert!(est.position.distance(DVec2::new(2.0, -1.0)) < 0.25);
+    }
+
+    #[test]
+    fn invalid_configs_name_the_key() {
+        let mut c = LocaliserConfig::default();
+        c.tracker.gate_m = -1.0;
+        assert_eq!(c.validate().unwrap_err().key, "tracker.gate_m");
+        let c = LocaliserConfig {
+            obstacle_margin_m: f64::NAN,
+            ..LocaliserConfig::default()
+        };
+        assert_eq!(c.validate().unwrap_err().key, "obstacle_margin_m");
+    }
+}
