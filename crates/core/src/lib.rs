@@ -13,3 +13,4 @@ pub mod map;
 pub mod background;
 pub mod cluster;
 pub mod tracker;
+pub mod localiser;
