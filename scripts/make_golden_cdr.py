@@ -14,6 +14,12 @@ Output, in crates/msgs/tests/golden/:
 
 Run with the project's venv:  .venv/bin/python scripts/make_golden_cdr.py
 (--check: compare with the committed files instead of writing; exit 1 on a difference).
+
+--check-schemas DIR: the other direction, used by the crate's `external_checkers` test. DIR
+holds, per type, `<pkg>__<Type>.msg` (the schema text our crate writes into MCAP files) and
+`<pkg>__<Type>.cdr` (our encoding of the same fixed value). Both `rosbags` (a type store built
+only from that schema text) and `mcap-ros2-support` (its dynamic decoder) must parse the schema
+and decode our bytes to the fixed value.
 """
 
 from __future__ import annotations
@@ -104,6 +110,11 @@ def transform_stamped(child="base_laser"):
     return t("geometry_msgs/msg/TransformStamped")(header=header("base"), child_frame_id=child, transform=transform())
 
 
+def f32(value: float) -> float:
+    """`value` rounded to float32, so the JSON holds exactly what the CDR holds."""
+    return float(np.float32(value))
+
+
 def f32s(*values):
     return np.array(values, dtype=np.float32)
 
@@ -162,7 +173,7 @@ def diagnostic_status():
 
 def map_meta_data():
     return t("nav_msgs/msg/MapMetaData")(
-        map_load_time=time(12, 34), resolution=0.05, width=3, height=2, origin=pose()
+        map_load_time=time(12, 34), resolution=f32(0.05), width=3, height=2, origin=pose()
     )
 
 
@@ -190,9 +201,9 @@ VALUES = {
         angle_min=-3.125,
         angle_max=3.0,
         angle_increment=0.0087890625,
-        time_increment=0.0000625,
-        scan_time=0.05,
-        range_min=0.15,
+        time_increment=f32(0.0000625),
+        scan_time=f32(0.05),
+        range_min=f32(0.15),
         range_max=12.0,
         ranges=f32s(1.5, 2.25, 0.75, 11.5, 3.0),
         intensities=f32s(47.0, 10.0, 0.0),
@@ -269,10 +280,16 @@ def nonfinite_scan():
     )
 
 
+def message_fields(value) -> list[str]:
+    """The field names of a rosbags message: its dataclass fields without `__msgtype__` and
+    the constants (ROS 2 field names are lower case, constant names upper case)."""
+    return [f.name for f in dataclasses.fields(value) if not f.name.startswith("__") and not f.name.isupper()]
+
+
 def to_json(value):
     """A message as serde_json reads the Rust mirror: nested objects, arrays as lists."""
     if dataclasses.is_dataclass(value):
-        return {f.name: to_json(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        return {name: to_json(getattr(value, name)) for name in message_fields(value)}
     if isinstance(value, np.ndarray):
         return [to_json(v) for v in value.tolist()]
     if isinstance(value, list):
@@ -301,10 +318,71 @@ def outputs() -> dict[str, bytes]:
     return files
 
 
+def plain(value):
+    """A decoded message (rosbags dataclass or mcap_ros2 namespace) as JSON-like data."""
+    if dataclasses.is_dataclass(value):
+        return {name: plain(getattr(value, name)) for name in message_fields(value)}
+    slots = getattr(type(value), "__slots__", None)
+    if slots and not isinstance(value, (str, bytes)):
+        return {name: plain(getattr(value, name)) for name in slots}
+    if isinstance(value, np.ndarray):
+        return [plain(v) for v in value.tolist()]
+    if isinstance(value, (bytes, bytearray)):
+        return list(value)
+    if isinstance(value, (list, tuple)) or type(value).__name__ == "array":
+        return [plain(v) for v in value]
+    return value
+
+
+def signed_time_seconds(value, type_name):
+    """mcap_ros2 reads builtin_interfaces Time/Duration `sec` as uint32 (ROS says int32)."""
+    if isinstance(value, dict):
+        out = {k: signed_time_seconds(v, type_name) for k, v in value.items()}
+        if set(out) == {"sec", "nanosec"} and out["sec"] >= 2**31:
+            out["sec"] -= 2**32
+        return out
+    if isinstance(value, list):
+        return [signed_time_seconds(v, type_name) for v in value]
+    return value
+
+
+def check_schemas(directory: Path) -> int:
+    from mcap_ros2._dynamic import generate_dynamic
+
+    failures = []
+    for type_name, make in VALUES.items():
+        stem = file_name(type_name)[: -len(".cdr")]
+        schema = (directory / f"{stem}.msg").read_text()
+        data = (directory / f"{stem}.cdr").read_bytes()
+        expected = to_json(make())
+        try:
+            store = get_typestore(Stores.EMPTY)
+            store.register(get_types_from_msg(schema, type_name))
+            got = plain(store.deserialize_cdr(data, type_name))
+            if got != expected:
+                failures.append(f"rosbags: {type_name}: decoded {got}, expected {expected}")
+        except Exception as exc:  # noqa: BLE001 - report every failure, not only the first
+            failures.append(f"rosbags: {type_name}: {type(exc).__name__}: {exc}")
+        try:
+            decoder = generate_dynamic(type_name, schema)[type_name]
+            got = signed_time_seconds(plain(decoder(data)), type_name)
+            if got != expected:
+                failures.append(f"mcap_ros2: {type_name}: decoded {got}, expected {expected}")
+        except Exception as exc:  # noqa: BLE001
+            failures.append(f"mcap_ros2: {type_name}: {type(exc).__name__}: {exc}")
+    for failure in failures:
+        print(failure, file=sys.stderr)
+    print(f"checked {len(VALUES)} schemas with rosbags and mcap_ros2: {len(failures)} failures")
+    return 1 if failures else 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="compare with the committed files, write nothing")
+    parser.add_argument("--check-schemas", type=Path, metavar="DIR", help="check our schema texts and CDR in DIR")
     args = parser.parse_args()
+    if args.check_schemas:
+        return check_schemas(args.check_schemas)
     files = outputs()
     if args.check:
         stale = [n for n, data in files.items() if not (GOLDEN / n).is_file() or (GOLDEN / n).read_bytes() != data]
