@@ -1,0 +1,2 @@
+//! Decode throughput and rotation-to-scan latency (filled in below).
+fn main() {}

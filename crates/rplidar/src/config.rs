@@ -1,0 +1,169 @@
+//! Driver configuration.
+
+use std::str::FromStr;
+use std::time::Duration;
+
+use crate::error::{Error, Result};
+use crate::scan::ScanGeometry;
+
+/// Which measurement mode to start.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ScanModeChoice {
+    /// `SCAN`: 5-byte nodes, every model and firmware.
+    Standard,
+    /// `EXPRESS_SCAN` capsules (firmware 1.17 and later), more samples per second.
+    Express,
+    /// The device's typical mode from its configuration; express or standard on firmware
+    /// without scan modes.
+    Auto,
+    /// A scan mode by the name the device gives it (e.g. `Sensitivity`, `Boost`, `DenseBoost`).
+    Named(String),
+}
+
+impl FromStr for ScanModeChoice {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        let t = s.trim();
+        match t.to_ascii_lowercase().as_str() {
+            "" => Err(Error::Config("scan_mode is empty; use standard, express, auto or a device mode name".into())),
+            "standard" => Ok(Self::Standard),
+            "express" => Ok(Self::Express),
+            "auto" | "typical" => Ok(Self::Auto),
+            _ => Ok(Self::Named(t.to_owned())),
+        }
+    }
+}
+
+/// Everything the [`crate::Driver`] needs. `Config::new(port)` gives working defaults for
+/// an A1/A2 on USB.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Config {
+    /// Serial device path, e.g. `/dev/ttyUSB0` or a udev symlink like `/dev/rplidar`.
+    pub port: String,
+    /// 115200 for A1/A2M8, 256000 for A2M12/A3/S1, 1000000 for S2/S3.
+    pub baud: u32,
+    /// `frame_id` of the published scans.
+    pub frame_id: String,
+    /// Beams per scan and valid range interval.
+    pub geometry: ScanGeometry,
+    pub scan_mode: ScanModeChoice,
+    /// Motor duty cycle 0..=1023 for A2/A3 through the accessory board (`SET_MOTOR_PWM`);
+    /// `None` leaves the board's default.
+    pub motor_pwm: Option<u16>,
+    /// Motor speed in rpm for time-of-flight models (`0xA8`); `None` leaves the default.
+    pub motor_rpm: Option<u16>,
+    /// How long to wait for the answer to a request.
+    pub request_timeout: Duration,
+    /// No valid sample for this long while scanning: reset the device and start again.
+    pub data_timeout: Duration,
+    /// Pause after `RESET` before talking to the device again (it reboots).
+    pub reset_wait: Duration,
+    /// First and longest wait between reconnection attempts (the wait doubles).
+    pub reconnect_min: Duration,
+    pub reconnect_max: Duration,
+    /// Period of the routine diagnostics report.
+    pub diagnostics_period: Duration,
+}
+
+impl Config {
+    pub fn new(port: impl Into<String>) -> Self {
+        Self {
+            port: port.into(),
+            baud: 115_200,
+            frame_id: "laser".into(),
+            geometry: ScanGeometry { beams: 720, range_min_m: 0.15, range_max_m: 12.0 },
+            scan_mode: ScanModeChoice::Auto,
+            motor_pwm: None,
+            motor_rpm: None,
+            request_timeout: Duration::from_millis(1000),
+            data_timeout: Duration::from_millis(1500),
+            reset_wait: Duration::from_millis(800),
+            reconnect_min: Duration::from_millis(250),
+            reconnect_max: Duration::from_secs(5),
+            diagnostics_period: Duration::from_secs(1),
+        }
+    }
+
+    /// Checks every field; the error names the field and what is wrong with it.
+    pub fn validate(&self) -> Result<()> {
+        if self.port.trim().is_empty() {
+            return Err(Error::Config("port is empty; give the serial device path, e.g. /dev/ttyUSB0".into()));
+        }
+        if self.baud == 0 {
+            return Err(Error::Config("baud must be positive (115200, 256000 or 1000000)".into()));
+        }
+        if self.frame_id.trim().is_empty() {
+            return Err(Error::Config("frame_id is empty".into()));
+        }
+        self.geometry.validate()?;
+        if let Some(pwm) = self.motor_pwm
+            && pwm > 1023
+        {
+            return Err(Error::Config(format!("motor_pwm = {pwm} must be in 0..=1023")));
+        }
+        if let ScanModeChoice::Named(name) = &self.scan_mode
+            && name.trim().is_empty()
+        {
+            return Err(Error::Config("scan_mode name is empty".into()));
+        }
+        for (name, value) in [
+            ("request_timeout", self.request_timeout),
+            ("data_timeout", self.data_timeout),
+            ("reconnect_min", self.reconnect_min),
+            ("reconnect_max", self.reconnect_max),
+            ("diagnostics_period", self.diagnostics_period),
+        ] {
+            if value.is_zero() {
+                return Err(Error::Config(format!("{name} must be longer than zero")));
+            }
+        }
+        if self.reconnect_max < self.reconnect_min {
+            return Err(Error::Config(format!(
+                "reconnect_max ({:?}) is shorter than reconnect_min ({:?})",
+                self.reconnect_max, self.reconnect_min
+            )));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid() {
+        Config::new("/dev/ttyUSB0").validate().unwrap();
+    }
+
+    #[test]
+    fn each_bad_field_is_named() {
+        let base = Config::new("/dev/ttyUSB0");
+        let cases: Vec<(Config, &str)> = vec![
+            (Config { port: " ".into(), ..base.clone() }, "port"),
+            (Config { baud: 0, ..base.clone() }, "baud"),
+            (Config { frame_id: String::new(), ..base.clone() }, "frame_id"),
+            (Config { motor_pwm: Some(2000), ..base.clone() }, "motor_pwm"),
+            (Config { data_timeout: Duration::ZERO, ..base.clone() }, "data_timeout"),
+            (Config { reconnect_max: Duration::from_millis(1), ..base.clone() }, "reconnect_max"),
+            (
+                Config { geometry: ScanGeometry { beams: 0, range_min_m: 0.1, range_max_m: 1.0 }, ..base.clone() },
+                "beams",
+            ),
+        ];
+        for (config, field) in cases {
+            let e = config.validate().unwrap_err().to_string();
+            assert!(e.contains(field), "{field}: {e}");
+        }
+    }
+
+    #[test]
+    fn scan_mode_parses() {
+        assert_eq!("Standard".parse::<ScanModeChoice>().unwrap(), ScanModeChoice::Standard);
+        assert_eq!("auto".parse::<ScanModeChoice>().unwrap(), ScanModeChoice::Auto);
+        assert_eq!("express".parse::<ScanModeChoice>().unwrap(), ScanModeChoice::Express);
+        assert_eq!("Sensitivity".parse::<ScanModeChoice>().unwrap(), ScanModeChoice::Named("Sensitivity".into()));
+        assert!("  ".parse::<ScanModeChoice>().is_err());
+    }
+}

@@ -1,0 +1,747 @@
+//! The driver: owns the serial port and runs the device through its states, turning every
+//! fault into a diagnostic and a recovery instead of an error.
+//!
+//! ```text
+//! Disconnected --open, stop, info, health, start scan--> Scanning
+//!      ^   (failure: wait, doubling up to reconnect_max)      |
+//!      |                                                        | no valid data for data_timeout:
+//!      +------------- read/write error (unplugged) -------------+   RESET, then start again
+//!                                                                     health error at start: RESET
+//! ```
+//!
+//! A host (the ROS node) only loops over [`Driver::next_event`] and publishes what it gets.
+//! `next_event` blocks until there is a scan or a diagnostics report; reports come at
+//! least every `diagnostics_period`, so a host can check for shutdown between events.
+
+use std::collections::VecDeque;
+use std::io::{ErrorKind, Read, Write};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use lidar_har_msgs::builtin_interfaces::Time;
+use lidar_har_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
+use lidar_har_msgs::sensor_msgs::LaserScan;
+use lidar_har_msgs::std_msgs::Header;
+use log::{debug, error, info, warn};
+use serialport::{ClearBuffer, SerialPort};
+
+use crate::config::{Config, ScanModeChoice};
+use crate::decode::{DecodeStats, Sample, ScanFormat, StreamDecoder};
+use crate::error::{Error, Result};
+use crate::protocol::{
+    DESCRIPTOR_LEN, Descriptor, DeviceHealth, DeviceInfo, HealthStatus, RESPONSE_SYNC, Request, ScanModeInfo, answer,
+    conf, conf_string, conf_u32, parse_conf_answer,
+};
+use crate::rotation::{Rotation, RotationAssembler};
+use crate::scan::ScanFrame;
+
+/// What the driver has for its host.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// One rotation as a fixed-size scan.
+    Scan(LaserScan),
+    /// A state change or the routine report.
+    Diagnostics(DiagnosticArray),
+}
+
+/// A caller-given clock: nanoseconds of the time the scans are stamped in (wall clock by
+/// default; a simulation clock for `use_sim_time`).
+pub type Clock = Box<dyn Fn() -> i64 + Send>;
+
+/// Longest single wait on the port, so that reports stay on time.
+const POLL: Duration = Duration::from_millis(50);
+/// Pause after `STOP` (the device needs at least 1 ms to stop sending).
+const AFTER_STOP: Duration = Duration::from_millis(20);
+/// Scan-mode queries on old firmware get no answer: do not wait long for them.
+const CONF_PROBE_TIMEOUT: Duration = Duration::from_millis(300);
+/// Answers longer than this are not single answers of this protocol.
+const MAX_ANSWER_LEN: u32 = 4096;
+
+/// Driver state and counters, for hosts and tests.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DriverStatus {
+    pub scanning: bool,
+    pub device: Option<DeviceInfo>,
+    pub health: Option<DeviceHealth>,
+    pub scan_mode: Option<String>,
+    pub format: Option<ScanFormat>,
+    /// Baud rate the port reports after opening (a pseudo-terminal accepts any).
+    pub baud_readback: Option<u32>,
+    pub scans: u64,
+    pub resets: u64,
+    pub connects: u64,
+    pub disconnects: u64,
+    pub decode: DecodeStats,
+    /// Measured rotation rate (smoothed) and samples in the last rotation.
+    pub rotation_hz: Option<f64>,
+    pub samples_per_rotation: Option<usize>,
+    pub last_error: Option<String>,
+}
+
+/// The serial port with a receive buffer.
+struct Link {
+    port: Box<dyn SerialPort>,
+    path: String,
+    rx: Vec<u8>,
+    chunk: Vec<u8>,
+}
+
+impl Link {
+    fn open(config: &Config) -> Result<Self> {
+        let port = serialport::new(&config.port, config.baud)
+            .timeout(POLL)
+            .open()
+            .map_err(|source| Error::Port { path: config.port.clone(), source })?;
+        Ok(Self { port, path: config.port.clone(), rx: Vec::with_capacity(8192), chunk: vec![0; 8192] })
+    }
+
+    fn io_error(&self, source: std::io::Error) -> Error {
+        Error::Io { path: self.path.clone(), source }
+    }
+
+    fn send(&mut self, request: &Request) -> Result<()> {
+        debug!("{}: send {request:?}", self.path);
+        let bytes = request.encode();
+        self.port.write_all(&bytes).map_err(|e| self.io_error(e))?;
+        self.port.flush().map_err(|e| self.io_error(e))
+    }
+
+    /// Reads what is available within `timeout` into `rx`; 0 on timeout.
+    fn read_some(&mut self, timeout: Duration) -> Result<usize> {
+        let _ = self.port.set_timeout(timeout.max(Duration::from_millis(1)));
+        match self.port.read(&mut self.chunk) {
+            Ok(0) => Err(self.io_error(std::io::Error::new(ErrorKind::UnexpectedEof, "port closed"))),
+            Ok(n) => {
+                self.rx.extend_from_slice(&self.chunk[..n]);
+                Ok(n)
+            }
+            Err(e) if e.kind() == ErrorKind::TimedOut || e.kind() == ErrorKind::Interrupted => Ok(0),
+            Err(e) => Err(self.io_error(e)),
+        }
+    }
+
+    fn clear_input(&mut self) {
+        self.rx.clear();
+        if let Err(e) = self.port.clear(ClearBuffer::Input) {
+            debug!("{}: clearing the input buffer failed: {e}", self.path);
+        }
+    }
+
+    /// Motor on/off through DTR (A1/A2 on their USB adapter: DTR low runs the motor).
+    /// Ports without modem lines (pseudo-terminals: ENOTTY) are fine.
+    fn set_motor_dtr(&mut self, on: bool) {
+        if let Err(e) = self.port.write_data_terminal_ready(!on) {
+            debug!("{}: DTR not supported on this port ({e}); motor left as it is", self.path);
+        }
+    }
+
+    /// Waits for a descriptor of `expected` type, skipping anything else (stale scan data,
+    /// boot messages). Returns as soon as it has arrived.
+    fn wait_descriptor(&mut self, expected: u8, deadline: Instant, what: &str) -> Result<Descriptor> {
+        let started = Instant::now();
+        let mut seen = None;
+        loop {
+            while let Some(i) = self.rx.windows(2).position(|w| w == RESPONSE_SYNC) {
+                if self.rx.len() < i + DESCRIPTOR_LEN {
+                    self.rx.drain(..i);
+                    break;
+                }
+                let d = Descriptor::parse(&self.rx[i..i + DESCRIPTOR_LEN])?;
+                if d.answer_type == expected {
+                    self.rx.drain(..i + DESCRIPTOR_LEN);
+                    return Ok(d);
+                }
+                seen = Some(d.answer_type);
+                self.rx.drain(..i + 1);
+            }
+            if self.rx.windows(2).all(|w| w != RESPONSE_SYNC) {
+                // Keep a trailing 0xA5: it may start the next descriptor.
+                let keep = usize::from(self.rx.last() == Some(&RESPONSE_SYNC[0]));
+                let cut = self.rx.len() - keep;
+                self.rx.drain(..cut);
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                let what = match seen {
+                    Some(t) => format!("{what} (answer type 0x{expected:02X}; saw only 0x{t:02X})"),
+                    None => format!("{what} (answer type 0x{expected:02X})"),
+                };
+                return Err(Error::Timeout { what, waited_ms: now.duration_since(started).as_millis() as u64 });
+            }
+            self.read_some((deadline - now).min(POLL))?;
+        }
+    }
+
+    fn wait_bytes(&mut self, len: usize, deadline: Instant, what: &str) -> Result<Vec<u8>> {
+        let started = Instant::now();
+        while self.rx.len() < len {
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(Error::Timeout {
+                    what: format!("{what}: {} of {len} bytes", self.rx.len()),
+                    waited_ms: now.duration_since(started).as_millis() as u64,
+                });
+            }
+            self.read_some((deadline - now).min(POLL))?;
+        }
+        Ok(self.rx.drain(..len).collect())
+    }
+
+    /// Sends a request and returns the payload of its single answer.
+    fn request(&mut self, request: &Request, expected: u8, timeout: Duration, what: &str) -> Result<Vec<u8>> {
+        self.send(request)?;
+        let deadline = Instant::now() + timeout;
+        let d = self.wait_descriptor(expected, deadline, what)?;
+        if d.len > MAX_ANSWER_LEN {
+            return Err(Error::Protocol(format!("{what}: answer length {} is implausible", d.len)));
+        }
+        self.wait_bytes(d.len as usize, deadline, what)
+    }
+}
+
+/// How a scan is started and decoded.
+struct ScanPlan {
+    request: Request,
+    format: ScanFormat,
+    mode_name: String,
+}
+
+/// A device that is scanning.
+struct Session {
+    link: Link,
+    info: DeviceInfo,
+    health: DeviceHealth,
+    mode_name: String,
+    decoder: StreamDecoder,
+    assembler: RotationAssembler,
+    samples: Vec<Sample>,
+    rotations: Vec<Rotation>,
+    last_data: Instant,
+    baud_readback: Option<u32>,
+}
+
+enum State {
+    Disconnected { next_attempt: Instant },
+    Scanning(Box<Session>),
+}
+
+/// The RPLIDAR driver (see the module documentation).
+pub struct Driver {
+    config: Config,
+    clock: Clock,
+    state: State,
+    pending: VecDeque<Event>,
+    backoff: Duration,
+    next_report: Instant,
+    status: DriverStatus,
+    scans_at_last_report: u64,
+    /// Decode counters of earlier sessions, so totals survive reconnects.
+    decode_before: DecodeStats,
+}
+
+/// Wall-clock nanoseconds since the Unix epoch.
+pub fn system_clock_ns() -> i64 {
+    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64)
+}
+
+impl Driver {
+    /// A driver stamping scans with the wall clock. Fails only on an invalid configuration;
+    /// the device is opened by [`Driver::next_event`].
+    pub fn new(config: Config) -> Result<Self> {
+        Self::with_clock(config, Box::new(system_clock_ns))
+    }
+
+    pub fn with_clock(config: Config, clock: Clock) -> Result<Self> {
+        config.validate()?;
+        let now = Instant::now();
+        Ok(Self {
+            backoff: config.reconnect_min,
+            next_report: now + config.diagnostics_period,
+            config,
+            clock,
+            state: State::Disconnected { next_attempt: now },
+            pending: VecDeque::new(),
+            status: DriverStatus::default(),
+            scans_at_last_report: 0,
+            decode_before: DecodeStats::default(),
+        })
+    }
+
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    pub fn status(&self) -> DriverStatus {
+        let mut s = self.status.clone();
+        s.decode = self.decode_totals();
+        s
+    }
+
+    /// Blocks until the next scan or diagnostics report.
+    pub fn next_event(&mut self) -> Event {
+        loop {
+            if let Some(event) = self.pending.pop_front() {
+                return event;
+            }
+            self.step();
+        }
+    }
+
+    fn step(&mut self) {
+        let now = Instant::now();
+        if now >= self.next_report {
+            self.next_report = now + self.config.diagnostics_period;
+            self.routine_report();
+            return;
+        }
+        match &mut self.state {
+            State::Disconnected { next_attempt } => {
+                if now < *next_attempt {
+                    std::thread::sleep((*next_attempt).min(self.next_report) - now);
+                } else {
+                    self.connect();
+                }
+            }
+            State::Scanning(_) => self.poll_scan(),
+        }
+    }
+
+    fn connect(&mut self) {
+        let result = Link::open(&self.config).and_then(|link| self.start_session(link));
+        match result {
+            Ok(session) => {
+                self.status.connects += 1;
+                self.backoff = self.config.reconnect_min;
+                let message = format!(
+                    "scanning: RPLIDAR {} firmware {} hardware {}, mode {}",
+                    session.info.family(),
+                    session.info.firmware(),
+                    session.info.hardware,
+                    session.mode_name
+                );
+                info!("{}: {message}", self.config.port);
+                self.status.last_error = None;
+                self.enter_scanning(session);
+                self.report(DiagnosticStatus::OK, message);
+            }
+            Err(e) => self.fail_connect(e),
+        }
+    }
+
+    fn fail_connect(&mut self, e: Error) {
+        let wait = self.backoff;
+        self.backoff = (self.backoff * 2).min(self.config.reconnect_max);
+        let message = format!("cannot start the device: {e}; retrying in {} ms", wait.as_millis());
+        warn!("{}: {message}", self.config.port);
+        self.status.last_error = Some(e.to_string());
+        self.leave_scanning();
+        self.state = State::Disconnected { next_attempt: Instant::now() + wait };
+        self.report(DiagnosticStatus::ERROR, message);
+    }
+
+    fn enter_scanning(&mut self, session: Session) {
+        self.status.scanning = true;
+        self.status.device = Some(session.info.clone());
+        self.status.health = Some(session.health);
+        self.status.scan_mode = Some(session.mode_name.clone());
+        self.status.format = Some(session.decoder.format());
+        self.status.baud_readback = session.baud_readback;
+        self.state = State::Scanning(Box::new(session));
+    }
+
+    /// Ends a session (keeping its decode counters) and leaves the state to the caller.
+    fn leave_scanning(&mut self) {
+        if let State::Scanning(session) = &self.state {
+            self.decode_before = add_stats(self.decode_before, session.decoder.stats());
+        }
+        self.status.scanning = false;
+        self.state = State::Disconnected { next_attempt: Instant::now() };
+    }
+
+    fn decode_totals(&self) -> DecodeStats {
+        match &self.state {
+            State::Scanning(s) => add_stats(self.decode_before, s.decoder.stats()),
+            State::Disconnected { .. } => self.decode_before,
+        }
+    }
+
+    /// Stop whatever runs, read info and health (resetting on a health error), set the
+    /// motor, choose the mode and start scanning.
+    fn start_session(&mut self, mut link: Link) -> Result<Session> {
+        let baud_readback = link.port.baud_rate().ok();
+        link.set_motor_dtr(true);
+        link.send(&Request::Stop)?;
+        std::thread::sleep(AFTER_STOP);
+        link.clear_input();
+        let timeout = self.config.request_timeout;
+        let info = DeviceInfo::parse(&link.request(&Request::GetInfo, answer::DEVICE_INFO, timeout, "device info")?)?;
+        let mut health = self.get_health(&mut link)?;
+        if health.status == HealthStatus::Error {
+            let message = format!("device reports a health error (code 0x{:04X}): resetting it", health.error_code);
+            warn!("{}: {message}", self.config.port);
+            self.report(DiagnosticStatus::ERROR, message);
+            self.reset_device(&mut link)?;
+            health = self.get_health(&mut link)?;
+            if health.status == HealthStatus::Error {
+                return Err(Error::Protocol(format!(
+                    "health error (code 0x{:04X}) persists after a reset",
+                    health.error_code
+                )));
+            }
+        } else if health.status != HealthStatus::Good {
+            let message = format!("device health {:?} (code 0x{:04X})", health.status, health.error_code);
+            warn!("{}: {message}", self.config.port);
+            self.report(DiagnosticStatus::WARN, message);
+        }
+        if info.is_time_of_flight() {
+            if let Some(rpm) = self.config.motor_rpm {
+                link.send(&Request::SetMotorRpm(rpm))?;
+            }
+        } else if let Some(pwm) = self.config.motor_pwm {
+            link.send(&Request::SetMotorPwm(pwm))?;
+        }
+        let plan = self.plan_scan(&mut link, &info)?;
+        link.send(&plan.request)?;
+        let deadline = Instant::now() + timeout;
+        let descriptor = link.wait_descriptor(plan.format.answer_type(), deadline, "scan start")?;
+        if descriptor.len as usize != plan.format.packet_len() {
+            debug!(
+                "{}: scan descriptor announces {} bytes per packet, format {:?} has {}",
+                self.config.port,
+                descriptor.len,
+                plan.format,
+                plan.format.packet_len()
+            );
+        }
+        let mut decoder = StreamDecoder::new(plan.format);
+        let mut samples = Vec::with_capacity(4096);
+        let leftover = std::mem::take(&mut link.rx);
+        decoder.push(&leftover, &mut samples);
+        Ok(Session {
+            link,
+            info,
+            health,
+            mode_name: plan.mode_name,
+            decoder,
+            assembler: RotationAssembler::new(),
+            samples,
+            rotations: Vec::new(),
+            last_data: Instant::now(),
+            baud_readback,
+        })
+    }
+
+    fn get_health(&self, link: &mut Link) -> Result<DeviceHealth> {
+        let timeout = self.config.request_timeout;
+        DeviceHealth::parse(&link.request(&Request::GetHealth, answer::DEVICE_HEALTH, timeout, "device health")?)
+    }
+
+    fn reset_device(&mut self, link: &mut Link) -> Result<()> {
+        self.status.resets += 1;
+        link.send(&Request::Reset)?;
+        std::thread::sleep(self.config.reset_wait);
+        // The device prints a boot banner after a reset: not protocol, drop it.
+        link.clear_input();
+        Ok(())
+    }
+
+    /// The scan modes the device describes, or `None` when its firmware has none.
+    fn scan_modes(&self, link: &mut Link) -> Result<Option<Vec<ScanModeInfo>>> {
+        let probe = self.config.request_timeout.min(CONF_PROBE_TIMEOUT);
+        let count = match conf_request(link, conf::SCAN_MODE_COUNT, None, probe) {
+            Ok(v) => conf_u32(&v, 2, "scan mode count")? as u16,
+            Err(Error::Timeout { .. }) => {
+                link.clear_input();
+                return Ok(None);
+            }
+            Err(e) => return Err(e),
+        };
+        let timeout = self.config.request_timeout;
+        let mut modes = Vec::with_capacity(usize::from(count));
+        for id in 0..count {
+            let us = conf_u32(&conf_request(link, conf::SCAN_MODE_US_PER_SAMPLE, Some(id), timeout)?, 4, "us per sample")?;
+            let dist = conf_u32(&conf_request(link, conf::SCAN_MODE_MAX_DISTANCE, Some(id), timeout)?, 4, "max distance")?;
+            let ans = conf_u32(&conf_request(link, conf::SCAN_MODE_ANS_TYPE, Some(id), timeout)?, 1, "answer type")?;
+            let name = conf_string(&conf_request(link, conf::SCAN_MODE_NAME, Some(id), timeout)?);
+            modes.push(ScanModeInfo {
+                id,
+                name,
+                us_per_sample: us as f32 / 256.0,
+                max_distance_m: dist as f32 / 256.0,
+                answer_type: ans as u8,
+            });
+        }
+        Ok(Some(modes))
+    }
+
+    fn plan_scan(&mut self, link: &mut Link, info: &DeviceInfo) -> Result<ScanPlan> {
+        let standard = || ScanPlan { request: Request::Scan, format: ScanFormat::Standard, mode_name: "Standard".into() };
+        let legacy_express = || ScanPlan {
+            request: Request::ExpressScan { working_mode: 0, working_flags: 0, param: 0 },
+            format: ScanFormat::Express,
+            mode_name: "Express".into(),
+        };
+        let choice = self.config.scan_mode.clone();
+        if choice == ScanModeChoice::Standard {
+            return Ok(standard());
+        }
+        if !info.supports_express() {
+            if let ScanModeChoice::Named(name) = &choice {
+                return Err(Error::Unsupported(format!(
+                    "scan mode {name}: firmware {} has no scan modes; use standard",
+                    info.firmware()
+                )));
+            }
+            if choice == ScanModeChoice::Express {
+                let message = format!("firmware {} has no express scan: using standard", info.firmware());
+                self.report(DiagnosticStatus::WARN, message);
+            }
+            return Ok(standard());
+        }
+        let modes = self.scan_modes(link)?;
+        let Some(modes) = modes else {
+            return match choice {
+                ScanModeChoice::Named(name) => Err(Error::Unsupported(format!(
+                    "scan mode {name}: firmware {} does not list scan modes; use standard or express",
+                    info.firmware()
+                ))),
+                _ => Ok(legacy_express()),
+            };
+        };
+        let chosen = match &choice {
+            ScanModeChoice::Express => modes
+                .iter()
+                .find(|m| m.answer_type == answer::MEASUREMENT_CAPSULED && m.name.eq_ignore_ascii_case("express"))
+                .or_else(|| modes.iter().find(|m| m.answer_type == answer::MEASUREMENT_CAPSULED)),
+            ScanModeChoice::Auto => {
+                let v = conf_request(link, conf::SCAN_MODE_TYPICAL, None, self.config.request_timeout)?;
+                let typical = conf_u32(&v, 2, "typical scan mode")? as u16;
+                modes.iter().find(|m| m.id == typical)
+            }
+            ScanModeChoice::Named(name) => modes.iter().find(|m| m.name.eq_ignore_ascii_case(name.trim())),
+            ScanModeChoice::Standard => None,
+        };
+        let Some(mode) = chosen else {
+            let offered: Vec<String> = modes.iter().map(|m| format!("{} (id {})", m.name, m.id)).collect();
+            if choice == ScanModeChoice::Express {
+                return Ok(legacy_express());
+            }
+            return Err(Error::Unsupported(format!(
+                "scan mode {choice:?} not offered; the device offers: {}",
+                offered.join(", ")
+            )));
+        };
+        if mode.answer_type == answer::MEASUREMENT {
+            return Ok(ScanPlan { mode_name: mode.name.clone(), ..standard() });
+        }
+        let format = ScanFormat::from_answer_type(mode.answer_type).ok_or_else(|| {
+            Error::Unsupported(format!(
+                "scan mode {} streams answer type 0x{:02X}, which this driver does not decode",
+                mode.name, mode.answer_type
+            ))
+        })?;
+        let working_mode = u8::try_from(mode.id)
+            .map_err(|_| Error::Protocol(format!("scan mode id {} does not fit the request", mode.id)))?;
+        info!(
+            "{}: scan mode {} (id {}): {:.0} samples/s, max {:.1} m",
+            self.config.port,
+            mode.name,
+            mode.id,
+            mode.sample_rate_hz(),
+            mode.max_distance_m
+        );
+        Ok(ScanPlan {
+            request: Request::ExpressScan { working_mode, working_flags: 0, param: 0 },
+            format,
+            mode_name: mode.name.clone(),
+        })
+    }
+
+    fn poll_scan(&mut self) {
+        let State::Scanning(session) = &mut self.state else {
+            return;
+        };
+        let wait = self.next_report.saturating_duration_since(Instant::now()).min(POLL);
+        let read = session.link.read_some(wait);
+        let arrival = Instant::now();
+        match read {
+            Err(e) => {
+                self.lose_device(e);
+                return;
+            }
+            Ok(0) => {}
+            Ok(_) => {
+                session.samples.clear();
+                let rx = std::mem::take(&mut session.link.rx);
+                session.decoder.push(&rx, &mut session.samples);
+                session.link.rx = rx;
+                session.link.rx.clear();
+                if !session.samples.is_empty() {
+                    session.last_data = arrival;
+                }
+                session.assembler.push(&session.samples, arrival, &mut session.rotations);
+            }
+        }
+        let silent_for = arrival.saturating_duration_since(session.last_data);
+        let rotations = std::mem::take(&mut session.rotations);
+        for rotation in &rotations {
+            let start_ns = instant_to_clock_ns(&self.clock, rotation.started);
+            let frame = ScanFrame::from_rotation(rotation, start_ns, &self.config.geometry);
+            self.status.scans += 1;
+            let hz = if frame.scan_time > 0.0 { 1.0 / f64::from(frame.scan_time) } else { 0.0 };
+            self.status.rotation_hz = Some(match self.status.rotation_hz {
+                Some(old) if hz > 0.0 => 0.8 * old + 0.2 * hz,
+                Some(old) => old,
+                None => hz,
+            });
+            self.status.samples_per_rotation = Some(frame.samples_in_rotation);
+            self.pending.push_back(Event::Scan(frame.to_laser_scan(&self.config.frame_id)));
+        }
+        if silent_for > self.config.data_timeout {
+            self.recover_silent(silent_for);
+        }
+    }
+
+    fn lose_device(&mut self, e: Error) {
+        self.status.disconnects += 1;
+        self.status.last_error = Some(e.to_string());
+        let message = format!("lost the device: {e}; reconnecting");
+        error!("{}: {message}", self.config.port);
+        self.leave_scanning();
+        self.backoff = self.config.reconnect_min;
+        self.state = State::Disconnected { next_attempt: Instant::now() + self.config.reconnect_min };
+        self.report(DiagnosticStatus::ERROR, message);
+    }
+
+    fn recover_silent(&mut self, silent_for: Duration) {
+        let message = format!("no valid data for {:.1} s: resetting the device", silent_for.as_secs_f64());
+        warn!("{}: {message}", self.config.port);
+        self.report(DiagnosticStatus::WARN, message);
+        let old = std::mem::replace(&mut self.state, State::Disconnected { next_attempt: Instant::now() });
+        let State::Scanning(session) = old else {
+            return;
+        };
+        self.decode_before = add_stats(self.decode_before, session.decoder.stats());
+        self.status.scanning = false;
+        let mut link = session.link;
+        let result = self.reset_device(&mut link).and_then(|()| self.start_session(link));
+        match result {
+            Ok(session) => {
+                let message = format!("scanning again after a reset, mode {}", session.mode_name);
+                info!("{}: {message}", self.config.port);
+                self.enter_scanning(session);
+                self.report(DiagnosticStatus::OK, message);
+            }
+            Err(e) => self.fail_connect(e),
+        }
+    }
+
+    fn hardware_id(&self) -> String {
+        self.status.device.as_ref().map_or_else(|| self.config.port.clone(), DeviceInfo::serial_hex)
+    }
+
+    fn routine_report(&mut self) {
+        let new_scans = self.status.scans - self.scans_at_last_report;
+        self.scans_at_last_report = self.status.scans;
+        let (level, message) = if !self.status.scanning {
+            let why = self.status.last_error.clone().unwrap_or_else(|| "not connected yet".into());
+            (DiagnosticStatus::ERROR, format!("not scanning: {why}"))
+        } else if new_scans == 0 {
+            (DiagnosticStatus::WARN, "scanning, but no complete rotation in the last period".to_owned())
+        } else {
+            (
+                DiagnosticStatus::OK,
+                format!(
+                    "scanning at {:.1} Hz, {} samples per rotation",
+                    self.status.rotation_hz.unwrap_or(0.0),
+                    self.status.samples_per_rotation.unwrap_or(0)
+                ),
+            )
+        };
+        self.report(level, message);
+    }
+
+    /// Queues a diagnostics event with the current values.
+    fn report(&mut self, level: u8, message: String) {
+        let s = self.status();
+        let mut values = vec![
+            KeyValue::new("port", self.config.port.clone()),
+            KeyValue::new("baud", self.config.baud.to_string()),
+            KeyValue::new("scanning", s.scanning.to_string()),
+            KeyValue::new("beams", self.config.geometry.beams.to_string()),
+            KeyValue::new("scans", s.scans.to_string()),
+            KeyValue::new("resets", s.resets.to_string()),
+            KeyValue::new("connects", s.connects.to_string()),
+            KeyValue::new("disconnects", s.disconnects.to_string()),
+            KeyValue::new("skipped_bytes", s.decode.skipped_bytes.to_string()),
+            KeyValue::new("rejected_packets", s.decode.rejected_packets.to_string()),
+        ];
+        if let Some(d) = &s.device {
+            values.push(KeyValue::new("model", format!("{} (0x{:02X})", d.family(), d.model)));
+            values.push(KeyValue::new("firmware", d.firmware()));
+            values.push(KeyValue::new("hardware", d.hardware.to_string()));
+            values.push(KeyValue::new("serial", d.serial_hex()));
+        }
+        if let Some(h) = &s.health {
+            values.push(KeyValue::new("health", format!("{:?} (code 0x{:04X})", h.status, h.error_code)));
+        }
+        if let Some(mode) = &s.scan_mode {
+            values.push(KeyValue::new("scan_mode", mode.clone()));
+        }
+        if let Some(baud) = s.baud_readback {
+            values.push(KeyValue::new("baud_readback", baud.to_string()));
+        }
+        if let Some(hz) = s.rotation_hz {
+            values.push(KeyValue::new("rotation_hz", format!("{hz:.2}")));
+        }
+        if let Some(n) = s.samples_per_rotation {
+            values.push(KeyValue::new("samples_per_rotation", n.to_string()));
+            if let Some(hz) = s.rotation_hz {
+                values.push(KeyValue::new("sample_rate_hz", format!("{:.0}", hz * n as f64)));
+            }
+        }
+        let status = DiagnosticStatus {
+            level,
+            name: format!("rplidar: {}", self.config.port),
+            message,
+            hardware_id: self.hardware_id(),
+            values,
+        };
+        let stamp = Time::from_nanos((self.clock)());
+        self.pending.push_back(Event::Diagnostics(DiagnosticArray {
+            header: Header { stamp, frame_id: String::new() },
+            status: vec![status],
+        }));
+    }
+}
+
+impl Drop for Driver {
+    /// Leaves the device stopped with its motor off.
+    fn drop(&mut self) {
+        if let State::Scanning(session) = &mut self.state {
+            let _ = session.link.send(&Request::Stop);
+            session.link.set_motor_dtr(false);
+        }
+    }
+}
+
+fn conf_request(link: &mut Link, entry: u32, mode: Option<u16>, timeout: Duration) -> Result<Vec<u8>> {
+    let what = format!("configuration entry 0x{entry:X}");
+    let payload = link.request(&Request::GetLidarConf { entry, mode }, answer::GET_LIDAR_CONF, timeout, &what)?;
+    Ok(parse_conf_answer(&payload, entry)?.to_vec())
+}
+
+fn instant_to_clock_ns(clock: &Clock, t: Instant) -> i64 {
+    let now = Instant::now();
+    let clock_now = clock();
+    clock_now.saturating_sub(now.saturating_duration_since(t).as_nanos() as i64)
+}
+
+fn add_stats(a: DecodeStats, b: DecodeStats) -> DecodeStats {
+    DecodeStats {
+        packets: a.packets + b.packets,
+        samples: a.samples + b.samples,
+        skipped_bytes: a.skipped_bytes + b.skipped_bytes,
+        rejected_packets: a.rejected_packets + b.rejected_packets,
+        gaps: a.gaps + b.gaps,
+    }
+}
