@@ -1,1 +1,363 @@
-//! lidar_har infer crate.
+//! The activity model on ONNX Runtime: loads the per-scan ConvLSTM step model of
+//! `docs/model_contract.md`, checks it against the contract, and steps it for
+//! [`lidar_har_core::classifier::StreamingClassifier`].
+//!
+//! ONNX Runtime is loaded at run time (`ort`'s `load-dynamic`): from `$ORT_DYLIB_PATH`, else
+//! from `<repo>/.deps/onnxruntime/libonnxruntime.so`, where `scripts/setup.sh` installs it.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use lidar_har_core::activity::Activity;
+use lidar_har_core::classifier::{StepModel, StreamSpec, StreamSpecError};
+use ndarray::ArrayView2;
+use ort::environment::Environment;
+use ort::session::Session;
+use ort::session::builder::GraphOptimizationLevel;
+use ort::value::{Outlet, TensorElementType, TensorRef};
+
+/// Where `scripts/setup.sh` puts the ONNX Runtime library, relative to the repository root.
+pub const DEFAULT_RUNTIME_RELATIVE: &str = ".deps/onnxruntime/libonnxruntime.so";
+
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum InferError {
+    #[error(
+        "ONNX Runtime library not found at {path} ({origin}); run scripts/setup.sh to install it, \
+         or set ORT_DYLIB_PATH to a libonnxruntime.so of version 1.31"
+    )]
+    RuntimeMissing { path: PathBuf, origin: &'static str },
+    #[error(
+        "could not load ONNX Runtime from {path}: {message}; run scripts/setup.sh to reinstall it"
+    )]
+    RuntimeLoad { path: PathBuf, message: String },
+    #[error("model file {path} not found (train one with training/, see docs/classifier.md)")]
+    ModelMissing { path: PathBuf },
+    #[error("could not load model {path}: {message}")]
+    ModelLoad { path: PathBuf, message: String },
+    #[error("model {path} does not follow docs/model_contract.md: {problem}")]
+    Contract { path: PathBuf, problem: String },
+    #[error("model {path} has unusable metadata: {source}")]
+    Metadata {
+        path: PathBuf,
+        #[source]
+        source: StreamSpecError,
+    },
+    #[error("frame is {got:?} pixels, the model takes {expected}x{expected}")]
+    FrameShape {
+        got: (usize, usize),
+        expected: usize,
+    },
+    #[error("ONNX Runtime failed to run the model: {0}")]
+    Run(String),
+}
+
+/// The library path to load and where that choice came from.
+pub fn runtime_library_path() -> (PathBuf, &'static str) {
+    match std::env::var_os("ORT_DYLIB_PATH") {
+        Some(p) if !p.is_empty() => (PathBuf::from(p), "from ORT_DYLIB_PATH"),
+        _ => (
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../..")
+                .join(DEFAULT_RUNTIME_RELATIVE),
+            "the default location; ORT_DYLIB_PATH is not set",
+        ),
+    }
+}
+
+/// The process-wide ONNX Runtime environment (ONNX Runtime allows one per process).
+fn environment() -> Result<&'static Environment, InferError> {
+    static ENV: OnceLock<Result<Environment, InferError>> = OnceLock::new();
+    let result = ENV.get_or_init(|| {
+        let (path, origin) = runtime_library_path();
+        if !path.is_file() {
+            return Err(InferError::RuntimeMissing { path, origin });
+        }
+        ort::init_from(&path)
+            .map_err(|e| e.to_string())
+            .and_then(|builder| {
+                builder
+                    .with_name("lidar_har")
+                    .build()
+                    .map_err(|e| e.to_string())
+            })
+            .map_err(|message| InferError::RuntimeLoad { path, message })
+    });
+    result.as_ref().map_err(Clone::clone)
+}
+
+/// What a model file says about itself and its state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelInfo {
+    pub path: PathBuf,
+    /// Representation, window and scan rate, from `metadata_props`.
+    pub stream: StreamSpec,
+    /// Hidden channels of the ConvLSTM state.
+    pub hidden: usize,
+    /// Side of the state's feature map.
+    pub state_side: usize,
+    /// Intra-op threads the session runs with.
+    pub threads: usize,
+}
+
+/// The ConvLSTM state for one lane: `h` and `c`, `[1, hidden, side, side]` each.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelState {
+    h: Vec<f32>,
+    c: Vec<f32>,
+}
+
+impl ModelState {
+    pub fn h(&self) -> &[f32] {
+        &self.h
+    }
+    pub fn c(&self) -> &[f32] {
+        &self.c
+    }
+}
+
+/// A loaded step model.
+pub struct ActivityModel {
+    session: Session,
+    info: ModelInfo,
+    state_shape: [usize; 4],
+    /// Copy of a frame that is not contiguous in memory (normally unused).
+    frame_buffer: Vec<f32>,
+}
+
+impl std::fmt::Debug for ActivityModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ActivityModel")
+            .field("info", &self.info)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ActivityModel {
+    /// Loads and checks a model; `threads` is ONNX Runtime's intra-op thread count (>= 1).
+    pub fn load(path: impl AsRef<Path>, threads: usize) -> Result<Self, InferError> {
+        let path = path.as_ref().to_path_buf();
+        let env = environment()?;
+        if !path.is_file() {
+            return Err(InferError::ModelMissing { path });
+        }
+        let load_error = |message: String| InferError::ModelLoad {
+            path: path.clone(),
+            message,
+        };
+        let threads = threads.max(1);
+        let session = Session::builder(env)
+            .map_err(|e| load_error(e.to_string()))?
+            .with_optimization_level(GraphOptimizationLevel::Level3)
+            .map_err(|e| load_error(e.to_string()))?
+            .with_intra_threads(threads)
+            .map_err(|e| load_error(e.to_string()))?
+            .with_inter_threads(1)
+            .map_err(|e| load_error(e.to_string()))?
+            .commit_from_file(&path)
+            .map_err(|e| load_error(e.to_string()))?;
+
+        let metadata = session.metadata().map_err(|e| load_error(e.to_string()))?;
+        let stream = StreamSpec::from_metadata(|key| metadata.custom(key)).map_err(|source| {
+            InferError::Metadata {
+                path: path.clone(),
+                source,
+            }
+        })?;
+        drop(metadata);
+
+        let contract = |problem: String| InferError::Contract {
+            path: path.clone(),
+            problem,
+        };
+        let (hidden, state_side) = check_signature(
+            session.inputs(),
+            session.outputs(),
+            stream.representation.size,
+        )
+        .map_err(contract)?;
+        Ok(Self {
+            session,
+            info: ModelInfo {
+                path: path.clone(),
+                stream,
+                hidden,
+                state_side,
+                threads,
+            },
+            state_shape: [1, hidden, state_side, state_side],
+            frame_buffer: Vec::new(),
+        })
+    }
+
+    pub fn info(&self) -> &ModelInfo {
+        &self.info
+    }
+
+    fn state_len(&self) -> usize {
+        self.state_shape.iter().product()
+    }
+
+    /// One step: returns the logits and updates `state` in place.
+    pub fn step(
+        &mut self,
+        frame: ArrayView2<'_, f32>,
+        state: &mut ModelState,
+    ) -> Result<[f32; Activity::COUNT], InferError> {
+        let size = self.info.stream.representation.size;
+        if frame.dim() != (size, size) {
+            return Err(InferError::FrameShape {
+                got: frame.dim(),
+                expected: size,
+            });
+        }
+        let frame_data: &[f32] = match frame.as_slice() {
+            Some(data) => data,
+            None => {
+                self.frame_buffer.clear();
+                self.frame_buffer.extend(frame.iter());
+                &self.frame_buffer
+            }
+        };
+        let run = |e: ort::Error| InferError::Run(e.to_string());
+        let inputs = ort::inputs![
+            "frame" => TensorRef::from_array_view(([1usize, 1, size, size], frame_data)).map_err(run)?,
+            "h" => TensorRef::from_array_view((self.state_shape, state.h.as_slice())).map_err(run)?,
+            "c" => TensorRef::from_array_view((self.state_shape, state.c.as_slice())).map_err(run)?,
+        ];
+        let outputs = self.session.run(inputs).map_err(run)?;
+        let mut logits = [0.0; Activity::COUNT];
+        for (name, target) in [
+            ("logits", &mut logits[..]),
+            ("h_next", &mut state.h[..]),
+            ("c_next", &mut state.c[..]),
+        ] {
+            let value = outputs
+                .get(name)
+                .ok_or_else(|| InferError::Run(format!("the model gave no '{name}' output")))?;
+            let (_, data) = value.try_extract_tensor::<f32>().map_err(run)?;
+            if data.len() != target.len() {
+                return Err(InferError::Run(format!(
+                    "output '{name}' has {} values, expected {}",
+                    data.len(),
+                    target.len()
+                )));
+            }
+            target.copy_from_slice(data);
+        }
+        Ok(logits)
+    }
+}
+
+impl StepModel for ActivityModel {
+    type State = ModelState;
+    type Error = InferError;
+
+    fn initial_state(&self) -> ModelState {
+        ModelState {
+            h: vec![0.0; self.state_len()],
+            c: vec![0.0; self.state_len()],
+        }
+    }
+
+    fn reset_state(&self, state: &mut ModelState) {
+        state.h.fill(0.0);
+        state.c.fill(0.0);
+    }
+
+    fn step(
+        &mut self,
+        frame: ArrayView2<'_, f32>,
+        state: &mut ModelState,
+    ) -> Result<[f32; Activity::COUNT], InferError> {
+        ActivityModel::step(self, frame, state)
+    }
+}
+
+/// Checks names, element types and shapes against the contract; returns (hidden, state side).
+fn check_signature(
+    inputs: &[Outlet],
+    outputs: &[Outlet],
+    size: usize,
+) -> Result<(usize, usize), String> {
+    let find = |outlets: &[Outlet], kind: &str, name: &str| -> Result<Vec<i64>, String> {
+        let names: Vec<&str> = outlets.iter().map(|o| o.name()).collect();
+        let outlet = outlets
+            .iter()
+            .find(|o| o.name() == name)
+            .ok_or_else(|| format!("no {kind} named '{name}' (the model's {kind}s: {names:?})"))?;
+        if outlet.dtype().tensor_type() != Some(TensorElementType::Float32) {
+            return Err(format!(
+                "{kind} '{name}' is {:?}, expected a float32 tensor",
+                outlet.dtype()
+            ));
+        }
+        let shape = outlet
+            .dtype()
+            .tensor_shape()
+            .map(|s| s.to_vec())
+            .unwrap_or_default();
+        Ok(shape)
+    };
+    for (outlets, kind, expected) in [
+        (inputs, "input", ["frame", "h", "c"]),
+        (outputs, "output", ["logits", "h_next", "c_next"]),
+    ] {
+        for name in expected {
+            find(outlets, kind, name)?;
+        }
+        if let Some(extra) = outlets.iter().find(|o| !expected.contains(&o.name())) {
+            return Err(format!(
+                "unexpected {kind} '{}' (expected exactly {expected:?})",
+                extra.name()
+            ));
+        }
+    }
+    // The batch dimension may be symbolic (-1); every other one must be the number we need.
+    let matches = |shape: &[i64], expected: &[usize]| {
+        shape.len() == expected.len()
+            && shape
+                .iter()
+                .zip(expected)
+                .enumerate()
+                .all(|(i, (&got, &want))| got == want as i64 || (i == 0 && got == -1))
+    };
+    let frame = find(inputs, "input", "frame")?;
+    if !matches(&frame, &[1, 1, size, size]) {
+        return Err(format!(
+            "input 'frame' has shape {frame:?}, expected [1, 1, {size}, {size}] (lidar_har.size = {size} in the metadata)"
+        ));
+    }
+    let h = find(inputs, "input", "h")?;
+    let (hidden, side) = match h.as_slice() {
+        [_, hidden, side, side2] if *hidden > 0 && side == side2 && *side > 0 => {
+            (*hidden as usize, *side as usize)
+        }
+        _ => {
+            return Err(format!(
+                "input 'h' has shape {h:?}, expected [1, hidden, side, side] with fixed sizes"
+            ));
+        }
+    };
+    let state_shape = [1, hidden, side, side];
+    for (name, kind, outlets) in [
+        ("h", "input", inputs),
+        ("c", "input", inputs),
+        ("h_next", "output", outputs),
+        ("c_next", "output", outputs),
+    ] {
+        let shape = find(outlets, kind, name)?;
+        if !matches(&shape, &state_shape) {
+            return Err(format!(
+                "{kind} '{name}' has shape {shape:?}, expected {state_shape:?} (the shape of 'h')"
+            ));
+        }
+    }
+    let logits = find(outputs, "output", "logits")?;
+    if !matches(&logits, &[1, Activity::COUNT]) {
+        return Err(format!(
+            "output 'logits' has shape {logits:?}, expected [1, {}] (one per activity class)",
+            Activity::COUNT
+        ));
+    }
+    Ok((hidden, side))
+}

@@ -1,0 +1,96 @@
+//! Per-scan classification cost on one thread: rendering plus the two staggered ConvLSTM
+//! steps, as the classifier node does it. Prints figures; asserts nothing.
+//!
+//!   cargo bench -p lidar-har-infer --bench classify [-- MODEL.onnx]
+//!
+//! Default model: models/activity.onnx when present, else the tiny test fixture (which only
+//! measures the overhead around the model).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::DVec2;
+use lidar_har_core::classifier::{PersonScan, StreamingClassifier};
+use lidar_har_core::representation::Renderer;
+use lidar_har_infer::ActivityModel;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let path = std::env::args()
+        .skip(1)
+        .find(|a| a.ends_with(".onnx"))
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            let trained = repo.join("models/activity.onnx");
+            if trained.is_file() {
+                trained
+            } else {
+                repo.join("crates/infer/tests/fixtures/step_model.onnx")
+            }
+        });
+    let model = ActivityModel::load(&path, 1)?;
+    let info = model.info().clone();
+    let spec = info.stream;
+    println!(
+        "model {} (state {} x {}x{}; {} {} {}x{} at {} m, window {})",
+        path.canonicalize().unwrap_or(path.clone()).display(),
+        info.hidden,
+        info.state_side,
+        info.state_side,
+        spec.representation.kind,
+        spec.representation.framing,
+        spec.representation.size,
+        spec.representation.size,
+        spec.representation.resolution_m,
+        spec.window
+    );
+
+    // A person walking at 1 m/s past the sensor, ~25 points on a 0.4 m arc, 20 Hz.
+    let scans: Vec<(f64, DVec2, Vec<DVec2>)> = (0..2000)
+        .map(|k| {
+            let t = k as f64 / spec.scan_rate_hz;
+            let centre = DVec2::new(1.0 + 0.05 * (k % 60) as f64, 0.5);
+            let points = (0..25)
+                .map(|i| {
+                    centre + 0.2 * DVec2::from_angle(std::f64::consts::PI * (0.5 + i as f64 / 24.0))
+                })
+                .collect();
+            (t, centre, points)
+        })
+        .collect();
+    let sensor = DVec2::ZERO;
+
+    let renderer = Renderer::new(spec.representation)?;
+    let mut image = spec.representation.blank_image();
+    let start = Instant::now();
+    for (_, centre, points) in &scans {
+        renderer.render(points.iter().copied(), *centre, sensor, image.view_mut());
+    }
+    let render_us = start.elapsed().as_secs_f64() * 1e6 / scans.len() as f64;
+
+    let mut classifier = StreamingClassifier::new(model, spec)?;
+    for (t, centre, points) in scans.iter().take(100) {
+        classifier.classify(&PersonScan {
+            stamp_s: *t,
+            points,
+            position: Some(*centre),
+            sensor,
+        })?;
+    }
+    let start = Instant::now();
+    for (t, centre, points) in &scans {
+        let t = t + 100.0 / spec.scan_rate_hz;
+        classifier.classify(&PersonScan {
+            stamp_s: t,
+            points,
+            position: Some(*centre),
+            sensor,
+        })?;
+    }
+    let per_scan_ms = start.elapsed().as_secs_f64() * 1e3 / scans.len() as f64;
+    println!("render one image: {render_us:.2} us");
+    println!(
+        "per scan (render + 2 steps + softmax), 1 thread: {per_scan_ms:.3} ms (target <= 0.5 ms)"
+    );
+    Ok(())
+}

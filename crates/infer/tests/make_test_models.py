@@ -1,0 +1,142 @@
+"""Builds the small ONNX step models the infer crate is tested with, and the expected outputs.
+
+A real (tiny) ConvLSTM cell with the names and shapes of docs/model_contract.md, random
+weights from a fixed seed, so the tests exercise ONNX Runtime for real without depending on a
+trained model. The expected logits come from an independent NumPy implementation of the same
+cell, so the Rust side is checked against arithmetic, not against itself.
+
+Run from the repository root:  .venv/bin/python crates/infer/tests/make_test_models.py
+It rewrites crates/infer/tests/fixtures/ (deterministic: same bytes every run).
+"""
+
+import json
+import pathlib
+
+import numpy as np
+import onnx
+from onnx import TensorProto, helper, numpy_helper
+
+SIZE, HIDDEN, HS, CLASSES = 16, 4, 8, 9
+OUT = pathlib.Path(__file__).parent / "fixtures"
+
+METADATA = {
+    "lidar_har.representation": "boolean_grid",
+    "lidar_har.framing": "person_centred",
+    "lidar_har.size": str(SIZE),
+    "lidar_har.resolution_m": "0.1",
+    "lidar_har.window": "8",
+    "lidar_har.scan_rate_hz": "20",
+}
+
+
+def weights(logit_scale=1.0, classes=CLASSES):
+    rng = np.random.default_rng(5)
+    return {
+        "w_conv": rng.normal(0.0, 0.4, (4 * HIDDEN, 1 + HIDDEN, 3, 3)).astype(np.float32),
+        "b_conv": rng.normal(0.0, 0.1, (4 * HIDDEN,)).astype(np.float32),
+        "w_out": (rng.normal(0.0, 1.0, (HIDDEN, classes)) * logit_scale).astype(np.float32),
+        "b_out": rng.normal(0.0, 0.1, (classes,)).astype(np.float32),
+    }
+
+
+def build(w, frame_name="frame", classes=CLASSES, metadata=METADATA):
+    f = TensorProto.FLOAT
+    inputs = [
+        helper.make_tensor_value_info(frame_name, f, [1, 1, SIZE, SIZE]),
+        helper.make_tensor_value_info("h", f, [1, HIDDEN, HS, HS]),
+        helper.make_tensor_value_info("c", f, [1, HIDDEN, HS, HS]),
+    ]
+    outputs = [
+        helper.make_tensor_value_info("logits", f, [1, classes]),
+        helper.make_tensor_value_info("h_next", f, [1, HIDDEN, HS, HS]),
+        helper.make_tensor_value_info("c_next", f, [1, HIDDEN, HS, HS]),
+    ]
+    init = [numpy_helper.from_array(v, k) for k, v in w.items()]
+    init.append(numpy_helper.from_array(np.array([HIDDEN] * 4, dtype=np.int64), "split"))
+    n = helper.make_node
+    nodes = [
+        n("MaxPool", [frame_name], ["pooled"], kernel_shape=[2, 2], strides=[2, 2]),
+        n("Concat", ["pooled", "h"], ["x"], axis=1),
+        n("Conv", ["x", "w_conv", "b_conv"], ["gates"], pads=[1, 1, 1, 1]),
+        n("Split", ["gates", "split"], ["gi", "gf", "go", "gg"], axis=1),
+        n("Sigmoid", ["gi"], ["i"]),
+        n("Sigmoid", ["gf"], ["f"]),
+        n("Sigmoid", ["go"], ["o"]),
+        n("Tanh", ["gg"], ["g"]),
+        n("Mul", ["f", "c"], ["fc"]),
+        n("Mul", ["i", "g"], ["ig"]),
+        n("Add", ["fc", "ig"], ["c_next"]),
+        n("Tanh", ["c_next"], ["tc"]),
+        n("Mul", ["o", "tc"], ["h_next"]),
+        n("GlobalAveragePool", ["h_next"], ["hp"]),
+        n("Flatten", ["hp"], ["hf"]),
+        n("Gemm", ["hf", "w_out", "b_out"], ["logits"]),
+    ]
+    graph = helper.make_graph(nodes, "convlstm_step_test", inputs, outputs, init)
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="lidar_har tests")
+    model.ir_version = 8
+    for k, v in metadata.items():
+        model.metadata_props.add(key=k, value=v)
+    onnx.checker.check_model(model, full_check=True)
+    return model
+
+
+def sigmoid(x):
+    return 1.0 / (1.0 + np.exp(-x))
+
+
+def reference_step(w, frame, h, c):
+    """The same cell in NumPy (float64), independent of ONNX."""
+    pooled = frame.reshape(SIZE // 2, 2, SIZE // 2, 2).max(axis=(1, 3))
+    x = np.concatenate([pooled[None], h], axis=0).astype(np.float64)
+    xp = np.pad(x, ((0, 0), (1, 1), (1, 1)))
+    gates = np.zeros((4 * HIDDEN, HS, HS))
+    for r in range(HS):
+        for q in range(HS):
+            patch = xp[:, r : r + 3, q : q + 3]
+            gates[:, r, q] = np.tensordot(w["w_conv"], patch, axes=3) + w["b_conv"]
+    gi, gf, go, gg = np.split(gates, 4, axis=0)
+    c_next = sigmoid(gf) * c + sigmoid(gi) * np.tanh(gg)
+    h_next = sigmoid(go) * np.tanh(c_next)
+    logits = h_next.mean(axis=(1, 2)) @ w["w_out"] + w["b_out"]
+    return logits, h_next, c_next
+
+
+def frames(count):
+    """A person-like blob moving across the image, with an empty (hidden) frame in between."""
+    out = []
+    for k in range(count):
+        img = np.zeros((SIZE, SIZE), dtype=np.float32)
+        if k != 3:
+            img[6 + k % 3 : 9 + k % 3, 2 + 2 * k : 4 + 2 * k] = 1.0
+        out.append(img)
+    return out
+
+
+def main():
+    OUT.mkdir(exist_ok=True)
+    w = weights()
+    onnx.save(build(w), OUT / "step_model.onnx")
+    onnx.save(build(weights(logit_scale=1e4)), OUT / "saturating_model.onnx")
+    onnx.save(build(w, frame_name="image"), OUT / "wrong_input_name.onnx")
+    onnx.save(build(weights(classes=8), classes=8), OUT / "wrong_class_count.onnx")
+    onnx.save(build(w, metadata={k: v for k, v in METADATA.items() if k != "lidar_har.window"}), OUT / "missing_window.onnx")
+    onnx.save(build(w, metadata={**METADATA, "lidar_har.size": "32"}), OUT / "size_mismatch.onnx")
+
+    h = np.zeros((HIDDEN, HS, HS))
+    c = np.zeros((HIDDEN, HS, HS))
+    seq = frames(6)
+    logits = []
+    for frame in seq:
+        out, h, c = reference_step(w, frame.astype(np.float64), h, c)
+        logits.append([float(v) for v in out])
+    expected = {
+        "frames": [[float(v) for v in f.ravel()] for f in seq],
+        "logits": logits,
+        "h_final_sum": float(h.sum()),
+    }
+    (OUT / "step_model_expected.json").write_text(json.dumps(expected) + "\n")
+
+
+if __name__ == "__main__":
+    main()

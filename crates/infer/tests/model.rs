@@ -1,0 +1,226 @@
+//! The step model on real ONNX Runtime, with the fixtures made by `make_test_models.py`:
+//! parity with an independent NumPy implementation, contract checks at load, and the
+//! numerical extremes of streaming.
+
+use std::path::{Path, PathBuf};
+
+use glam::DVec2;
+use lidar_har_core::classifier::{PersonScan, StreamingClassifier};
+use lidar_har_infer::{ActivityModel, InferError, runtime_library_path};
+use ndarray::Array2;
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures")
+        .join(name)
+}
+
+/// The runtime library is installed by scripts/setup.sh; without it these tests skip, unless
+/// LIDAR_HAR_REQUIRE_CHECKERS is set (as in CI), where its absence fails.
+fn runtime_available() -> bool {
+    let (path, _) = runtime_library_path();
+    if path.is_file() {
+        return true;
+    }
+    if std::env::var_os("LIDAR_HAR_REQUIRE_CHECKERS").is_some() {
+        panic!("{} missing: run scripts/setup.sh", path.display());
+    }
+    eprintln!("SKIP: {} missing (run scripts/setup.sh)", path.display());
+    false
+}
+
+fn load(name: &str) -> Result<ActivityModel, InferError> {
+    ActivityModel::load(fixture(name), 1)
+}
+
+#[test]
+fn loads_the_step_model_and_reads_its_metadata() {
+    if !runtime_available() {
+        return;
+    }
+    let model = load("step_model.onnx").unwrap();
+    let info = model.info();
+    assert_eq!((info.hidden, info.state_side, info.threads), (4, 8, 1));
+    assert_eq!(info.stream.window, 8);
+    assert_eq!(info.stream.scan_rate_hz, 20.0);
+    assert_eq!(info.stream.representation.size, 16);
+    assert_eq!(info.stream.representation.resolution_m, 0.1);
+    assert_eq!(info.stream.representation.kind.name(), "boolean_grid");
+    assert_eq!(info.stream.representation.framing.name(), "person_centred");
+}
+
+#[test]
+fn steps_match_an_independent_numpy_implementation() {
+    if !runtime_available() {
+        return;
+    }
+    let expected: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(fixture("step_model_expected.json")).unwrap(),
+    )
+    .unwrap();
+    let mut model = load("step_model.onnx").unwrap();
+    let mut state = lidar_har_core::classifier::StepModel::initial_state(&model);
+    let frames = expected["frames"].as_array().unwrap();
+    let logits = expected["logits"].as_array().unwrap();
+    let mut worst = 0.0f64;
+    for (frame, want) in frames.iter().zip(logits) {
+        let data: Vec<f32> = frame
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap() as f32)
+            .collect();
+        let image = Array2::from_shape_vec((16, 16), data).unwrap();
+        let got = model.step(image.view(), &mut state).unwrap();
+        for (g, w) in got.iter().zip(want.as_array().unwrap()) {
+            worst = worst.max((*g as f64 - w.as_f64().unwrap()).abs());
+        }
+    }
+    assert!(worst < 1e-5, "max abs difference to NumPy {worst}");
+    let h_sum: f64 = state.h().iter().map(|&v| v as f64).sum();
+    assert!((h_sum - expected["h_final_sum"].as_f64().unwrap()).abs() < 1e-4);
+}
+
+#[test]
+fn contract_violations_are_refused_at_load_naming_file_and_problem() {
+    if !runtime_available() {
+        return;
+    }
+    let cases = [
+        ("wrong_input_name.onnx", "no input named 'frame'"),
+        ("wrong_class_count.onnx", "output 'logits' has shape [1, 8]"),
+        ("missing_window.onnx", "lidar_har.window"),
+        ("size_mismatch.onnx", "lidar_har.size = 32"),
+    ];
+    for (file, needle) in cases {
+        let e = load(file).unwrap_err().to_string();
+        assert!(e.contains(file) && e.contains(needle), "{file}: {e}");
+    }
+}
+
+#[test]
+fn missing_garbage_and_truncated_files_give_clear_errors() {
+    if !runtime_available() {
+        return;
+    }
+    let e = load("no_such_model.onnx").unwrap_err();
+    assert!(matches!(e, InferError::ModelMissing { .. }), "{e}");
+    assert!(e.to_string().contains("no_such_model.onnx"));
+
+    let dir = tempfile::tempdir().unwrap();
+    let garbage = dir.path().join("garbage.onnx");
+    std::fs::write(&garbage, b"this is not a protobuf at all \xff\xfe").unwrap();
+    let e = ActivityModel::load(&garbage, 1).unwrap_err();
+    assert!(matches!(e, InferError::ModelLoad { .. }), "{e}");
+    assert!(e.to_string().contains("garbage.onnx"));
+
+    let bytes = std::fs::read(fixture("step_model.onnx")).unwrap();
+    let truncated = dir.path().join("truncated.onnx");
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    let e = ActivityModel::load(&truncated, 1).unwrap_err();
+    assert!(e.to_string().contains("truncated.onnx"), "{e}");
+}
+
+#[test]
+fn a_frame_of_the_wrong_size_is_an_error() {
+    if !runtime_available() {
+        return;
+    }
+    let mut model = load("step_model.onnx").unwrap();
+    let mut state = lidar_har_core::classifier::StepModel::initial_state(&model);
+    let e = model
+        .step(Array2::zeros((8, 16)).view(), &mut state)
+        .unwrap_err();
+    assert!(e.to_string().contains("16x16"), "{e}");
+}
+
+fn person(t: f64, visible: bool, points: &[DVec2]) -> PersonScan<'_> {
+    PersonScan {
+        stamp_s: t,
+        points,
+        position: visible.then_some(DVec2::ZERO),
+        sensor: DVec2::new(-2.0, 0.0),
+    }
+}
+
+fn assert_distribution(p: &[f32; 9]) {
+    assert!(p.iter().all(|v| v.is_finite() && *v >= 0.0), "{p:?}");
+    assert!((p.iter().sum::<f32>() - 1.0).abs() < 1e-5, "{p:?}");
+}
+
+#[test]
+fn person_hidden_in_every_frame_gives_valid_probabilities() {
+    if !runtime_available() {
+        return;
+    }
+    let model = load("step_model.onnx").unwrap();
+    let spec = model.info().stream;
+    let mut classifier = StreamingClassifier::new(model, spec).unwrap();
+    for k in 0..40 {
+        let p = classifier
+            .classify(&person(k as f64 * 0.05, false, &[]))
+            .unwrap();
+        assert_distribution(&p.probabilities);
+        assert!(classifier.last_image().iter().all(|v| *v == 0.0));
+    }
+}
+
+#[test]
+fn saturated_logits_still_give_a_distribution() {
+    if !runtime_available() {
+        return;
+    }
+    let model = load("saturating_model.onnx").unwrap();
+    let spec = model.info().stream;
+    let mut classifier = StreamingClassifier::new(model, spec).unwrap();
+    let points = [
+        DVec2::new(0.05, 0.05),
+        DVec2::new(0.15, -0.25),
+        DVec2::new(-0.3, 0.1),
+    ];
+    let mut saturated = false;
+    for k in 0..20 {
+        let p = classifier
+            .classify(&person(k as f64 * 0.05, true, &points))
+            .unwrap();
+        assert_distribution(&p.probabilities);
+        saturated |= p.confidence == 1.0;
+    }
+    assert!(saturated, "the fixture should push softmax into saturation");
+}
+
+#[test]
+fn first_window_and_long_gap_start_from_zero_state() {
+    if !runtime_available() {
+        return;
+    }
+    let points = [DVec2::new(0.05, 0.05), DVec2::new(0.25, 0.05)];
+    let fresh = |t: f64| {
+        let model = load("step_model.onnx").unwrap();
+        let spec = model.info().stream;
+        let mut c = StreamingClassifier::new(model, spec).unwrap();
+        c.classify(&person(t, true, &points)).unwrap()
+    };
+    let first = fresh(0.0);
+    assert_eq!(first.history, 1);
+    assert!(!first.ready);
+    assert_distribution(&first.probabilities);
+
+    let model = load("step_model.onnx").unwrap();
+    let spec = model.info().stream;
+    let mut c = StreamingClassifier::new(model, spec).unwrap();
+    let moving = [DVec2::new(-0.4, 0.3)];
+    for k in 0..13 {
+        c.classify(&person(k as f64 * 0.05, true, &moving)).unwrap();
+    }
+    let before_gap = c.classify(&person(0.65, true, &points)).unwrap();
+    assert!(before_gap.history >= 4);
+    // 8 scans at 20 Hz = 0.4 s; a 10 s gap resets both states: the prediction equals a fresh one.
+    let after_gap = c.classify(&person(10.65, true, &points)).unwrap();
+    assert_eq!(after_gap.history, 1);
+    assert_eq!(after_gap.probabilities, first.probabilities);
+    assert_ne!(
+        before_gap.probabilities, first.probabilities,
+        "history changes the output"
+    );
+}
