@@ -26,7 +26,9 @@ impl FromStr for ScanModeChoice {
     fn from_str(s: &str) -> Result<Self> {
         let t = s.trim();
         match t.to_ascii_lowercase().as_str() {
-            "" => Err(Error::Config("scan_mode is empty; use standard, express, auto or a device mode name".into())),
+            "" => Err(Error::Config(
+                "scan_mode is empty; use standard, express, auto or a device mode name".into(),
+            )),
             "standard" => Ok(Self::Standard),
             "express" => Ok(Self::Express),
             "auto" | "typical" => Ok(Self::Auto),
@@ -72,7 +74,11 @@ impl Config {
             port: port.into(),
             baud: 115_200,
             frame_id: "laser".into(),
-            geometry: ScanGeometry { beams: 720, range_min_m: 0.15, range_max_m: 12.0 },
+            geometry: ScanGeometry {
+                beams: 720,
+                range_min_m: 0.15,
+                range_max_m: 12.0,
+            },
             scan_mode: ScanModeChoice::Auto,
             motor_pwm: None,
             motor_rpm: None,
@@ -88,10 +94,14 @@ impl Config {
     /// Checks every field; the error names the field and what is wrong with it.
     pub fn validate(&self) -> Result<()> {
         if self.port.trim().is_empty() {
-            return Err(Error::Config("port is empty; give the serial device path, e.g. /dev/ttyUSB0".into()));
+            return Err(Error::Config(
+                "port is empty; give the serial device path, e.g. /dev/ttyUSB0".into(),
+            ));
         }
         if self.baud == 0 {
-            return Err(Error::Config("baud must be positive (115200, 256000 or 1000000)".into()));
+            return Err(Error::Config(
+                "baud must be positive (115200, 256000 or 1000000)".into(),
+            ));
         }
         if self.frame_id.trim().is_empty() {
             return Err(Error::Config("frame_id is empty".into()));
@@ -100,7 +110,9 @@ impl Config {
         if let Some(pwm) = self.motor_pwm
             && pwm > 1023
         {
-            return Err(Error::Config(format!("motor_pwm = {pwm} must be in 0..=1023")));
+            return Err(Error::Config(format!(
+                "motor_pwm = {pwm} must be in 0..=1023"
+            )));
         }
         if let ScanModeChoice::Named(name) = &self.scan_mode
             && name.trim().is_empty()
@@ -141,14 +153,57 @@ mod tests {
     fn each_bad_field_is_named() {
         let base = Config::new("/dev/ttyUSB0");
         let cases: Vec<(Config, &str)> = vec![
-            (Config { port: " ".into(), ..base.clone() }, "port"),
-            (Config { baud: 0, ..base.clone() }, "baud"),
-            (Config { frame_id: String::new(), ..base.clone() }, "frame_id"),
-            (Config { motor_pwm: Some(2000), ..base.clone() }, "motor_pwm"),
-            (Config { data_timeout: Duration::ZERO, ..base.clone() }, "data_timeout"),
-            (Config { reconnect_max: Duration::from_millis(1), ..base.clone() }, "reconnect_max"),
             (
-                Config { geometry: ScanGeometry { beams: 0, range_min_m: 0.1, range_max_m: 1.0 }, ..base.clone() },
+                Config {
+                    port: " ".into(),
+                    ..base.clone()
+                },
+                "port",
+            ),
+            (
+                Config {
+                    baud: 0,
+                    ..base.clone()
+                },
+                "baud",
+            ),
+            (
+                Config {
+                    frame_id: String::new(),
+                    ..base.clone()
+                },
+                "frame_id",
+            ),
+            (
+                Config {
+                    motor_pwm: Some(2000),
+                    ..base.clone()
+                },
+                "motor_pwm",
+            ),
+            (
+                Config {
+                    data_timeout: Duration::ZERO,
+                    ..base.clone()
+                },
+                "data_timeout",
+            ),
+            (
+                Config {
+                    reconnect_max: Duration::from_millis(1),
+                    ..base.clone()
+                },
+                "reconnect_max",
+            ),
+            (
+                Config {
+                    geometry: ScanGeometry {
+                        beams: 0,
+                        range_min_m: 0.1,
+                        range_max_m: 1.0,
+                    },
+                    ..base.clone()
+                },
                 "beams",
             ),
         ];
@@ -160,10 +215,22 @@ mod tests {
 
     #[test]
     fn scan_mode_parses() {
-        assert_eq!("Standard".parse::<ScanModeChoice>().unwrap(), ScanModeChoice::Standard);
-        assert_eq!("auto".parse::<ScanModeChoice>().unwrap(), ScanModeChoice::Auto);
-        assert_eq!("express".parse::<ScanModeChoice>().unwrap(), ScanModeChoice::Express);
-        assert_eq!("Sensitivity".parse::<ScanModeChoice>().unwrap(), ScanModeChoice::Named("Sensitivity".into()));
+        assert_eq!(
+            "Standard".parse::<ScanModeChoice>().unwrap(),
+            ScanModeChoice::Standard
+        );
+        assert_eq!(
+            "auto".parse::<ScanModeChoice>().unwrap(),
+            ScanModeChoice::Auto
+        );
+        assert_eq!(
+            "express".parse::<ScanModeChoice>().unwrap(),
+            ScanModeChoice::Express
+        );
+        assert_eq!(
+            "Sensitivity".parse::<ScanModeChoice>().unwrap(),
+            ScanModeChoice::Named("Sensitivity".into())
+        );
         assert!("  ".parse::<ScanModeChoice>().is_err());
     }
 }

@@ -133,6 +133,8 @@ enum Check {
     /// Starts like a packet but fails the checksum or a check bit: skip one byte.
     Corrupt,
     Valid,
+    /// Cannot tell yet: wait for more bytes.
+    NeedMore,
 }
 
 impl StreamDecoder {
@@ -173,15 +175,16 @@ impl StreamDecoder {
         let buf = std::mem::take(&mut self.buf);
         while buf.len() - pos >= len {
             let packet = &buf[pos..pos + len];
-            match self.check(packet) {
+            match self.check(packet, &buf[pos + len..]) {
+                Check::NeedMore => break,
                 Check::NoSync => {
                     self.stats.skipped_bytes += 1;
-                    self.lose_sync();
+                    self.lose_sync(out);
                     pos += 1;
                 }
                 Check::Corrupt => {
                     self.stats.rejected_packets += 1;
-                    self.lose_sync();
+                    self.lose_sync(out);
                     pos += 1;
                 }
                 Check::Valid => {
@@ -198,26 +201,40 @@ impl StreamDecoder {
         produced
     }
 
-    /// After skipped bytes, the capsule before them cannot be completed.
-    fn lose_sync(&mut self) {
-        if self.prev_capsule.take().is_some() {
-            self.stats.gaps += 1;
+    /// After skipped bytes the capsule before them has no successor: its samples are
+    /// spread over the usual angle step instead (dropped if there is none yet).
+    fn lose_sync(&mut self, out: &mut Vec<Sample>) {
+        if let Some(prev) = self.prev_capsule.take() {
+            match self.typical_step_deg {
+                Some(step) => self.decode_capsule(&prev, step, None, out),
+                None => self.stats.gaps += 1,
+            }
         }
         self.last_nominal_deg = None;
     }
 
-    fn check(&self, p: &[u8]) -> Check {
+    /// Checks the packet `p`; `following` are the bytes after it (the standard format looks
+    /// one node ahead).
+    fn check(&self, p: &[u8], following: &[u8]) -> Check {
         match self.format {
             ScanFormat::Standard => {
-                let sync_ok = (p[0] ^ (p[0] >> 1)) & 1 == 1;
-                if !sync_ok {
-                    return Check::NoSync;
+                // Check bits pass for a quarter of random bytes, so a node is only taken
+                // when the node after it also passes and continues its angle: after
+                // garbage or a lost byte this finds the real node boundary again.
+                let Some(angle) = standard_angle_q6(p) else {
+                    return if (p[0] ^ (p[0] >> 1)) & 1 == 1 {
+                        Check::Corrupt
+                    } else {
+                        Check::NoSync
+                    };
+                };
+                let Some(next) = following.get(..5) else {
+                    return Check::NeedMore;
+                };
+                match standard_angle_q6(next) {
+                    Some(next_angle) if angle_follows(angle, next_angle) => Check::Valid,
+                    _ => Check::Corrupt,
                 }
-                let angle_word = u16::from_le_bytes([p[1], p[2]]);
-                if angle_word & 1 == 0 || angle_word >> 1 >= FULL_CIRCLE_Q6 {
-                    return Check::Corrupt;
-                }
-                Check::Valid
             }
             ScanFormat::Express | ScanFormat::Ultra | ScanFormat::Dense => {
                 if p[0] >> 4 != 0xA || p[1] >> 4 != 0x5 {
@@ -234,7 +251,12 @@ impl StreamDecoder {
                 if p[0] != HQ_SYNC {
                     return Check::NoSync;
                 }
-                let stored = u32::from_le_bytes([p[HQ_LEN - 4], p[HQ_LEN - 3], p[HQ_LEN - 2], p[HQ_LEN - 1]]);
+                let stored = u32::from_le_bytes([
+                    p[HQ_LEN - 4],
+                    p[HQ_LEN - 3],
+                    p[HQ_LEN - 2],
+                    p[HQ_LEN - 1],
+                ]);
                 if hq_crc32(&p[..HQ_LEN - 4]) != stored {
                     return Check::Corrupt;
                 }
@@ -275,7 +297,10 @@ impl StreamDecoder {
         if let Some(typical) = self.typical_step_deg
             && step_total > 1.5 * typical + 1.0
         {
+            // Capsules were lost in between: use the usual step, and the rotation's
+            // continuity is broken.
             self.stats.gaps += 1;
+            self.decode_capsule(prev, typical, None, out);
             self.last_nominal_deg = None;
             return;
         }
@@ -283,22 +308,41 @@ impl StreamDecoder {
             Some(t) => 0.8 * t + 0.2 * step_total,
             None => step_total,
         });
+        let next_first_cabin = u32::from_le_bytes([next[4], next[5], next[6], next[7]]);
+        self.decode_capsule(prev, step_total, Some(next_first_cabin), out);
+    }
+
+    /// Samples of capsule `prev` spread over `step_total` degrees from its start angle.
+    /// `next_first_cabin` is the first ultra cabin of the next capsule, when known.
+    fn decode_capsule(
+        &mut self,
+        prev: &[u8],
+        step_total: f32,
+        next_first_cabin: Option<u32>,
+        out: &mut Vec<Sample>,
+    ) {
+        let start = f32::from(u16::from_le_bytes([prev[2], prev[3]]) & 0x7FFF) / 64.0;
         let n = self.format.samples_per_packet();
         let step = step_total / n as f32;
-        let mut emit = |k: usize, distance_mm: f32, compensation_deg: f32, out: &mut Vec<Sample>| {
-            let mut nominal = start + step * k as f32;
-            if nominal >= 360.0 {
-                nominal -= 360.0;
-            }
-            let start_of_rotation = self.last_nominal_deg.is_some_and(|last| nominal < last);
-            self.last_nominal_deg = Some(nominal);
-            out.push(Sample {
-                angle_deg: wrap_degrees(nominal - compensation_deg),
-                distance_mm,
-                quality: if distance_mm > 0.0 { CAPSULE_QUALITY } else { 0 },
-                start_of_rotation,
-            });
-        };
+        let mut emit =
+            |k: usize, distance_mm: f32, compensation_deg: f32, out: &mut Vec<Sample>| {
+                let mut nominal = start + step * k as f32;
+                if nominal >= 360.0 {
+                    nominal -= 360.0;
+                }
+                let start_of_rotation = self.last_nominal_deg.is_some_and(|last| nominal < last);
+                self.last_nominal_deg = Some(nominal);
+                out.push(Sample {
+                    angle_deg: wrap_degrees(nominal - compensation_deg),
+                    distance_mm,
+                    quality: if distance_mm > 0.0 {
+                        CAPSULE_QUALITY
+                    } else {
+                        0
+                    },
+                    start_of_rotation,
+                });
+            };
         match self.format {
             ScanFormat::Express => {
                 for (i, cabin) in prev[4..84].chunks_exact(5).enumerate() {
@@ -324,7 +368,11 @@ impl StreamDecoder {
                 };
                 for i in 0..32 {
                     let word = cabin(prev, i);
-                    let next_word = if i == 31 { cabin(next, 0) } else { cabin(prev, i + 1) };
+                    let next_word = if i == 31 {
+                        next_first_cabin
+                    } else {
+                        Some(cabin(prev, i + 1))
+                    };
                     let distances = ultra_distances(word, next_word);
                     for (j, d) in distances.into_iter().enumerate() {
                         emit(3 * i + j, d as f32, ultra_compensation_deg(d), out);
@@ -340,6 +388,22 @@ fn wrap_degrees(a: f32) -> f32 {
     let w = a.rem_euclid(360.0);
     // rem_euclid can return exactly 360.0 for tiny negative inputs.
     if w >= 360.0 { 0.0 } else { w }
+}
+
+/// The angle of a standard node whose check bits pass, in q6 degrees.
+fn standard_angle_q6(p: &[u8]) -> Option<u16> {
+    let sync_ok = (p[0] ^ (p[0] >> 1)) & 1 == 1;
+    let angle_word = u16::from_le_bytes([p[1], p[2]]);
+    (sync_ok && angle_word & 1 == 1 && angle_word >> 1 < FULL_CIRCLE_Q6).then_some(angle_word >> 1)
+}
+
+/// Whether `next` can be the angle of the node after one at `angle` (q6): a small step
+/// forward, across 360 included, or a little jitter back.
+fn angle_follows(angle: u16, next: u16) -> bool {
+    const MAX_STEP_Q6: i32 = 15 * 64;
+    const MAX_BACK_Q6: i32 = 2 * 64;
+    let delta = (i32::from(next) - i32::from(angle)).rem_euclid(i32::from(FULL_CIRCLE_Q6));
+    delta <= MAX_STEP_Q6 || delta >= i32::from(FULL_CIRCLE_Q6) - MAX_BACK_Q6
 }
 
 fn decode_standard(p: &[u8]) -> Sample {
@@ -369,7 +433,12 @@ fn decode_hq(p: &[u8], out: &mut Vec<Sample>) {
 /// level (the shift applied to the predictions that refer to it).
 fn var_bit_scale(scaled: u32) -> (u32, u32) {
     // (first scaled value of the segment, distance at that value, shift)
-    const SEGMENTS: [(u32, u32, u32); 4] = [(3328, 1 << 14, 4), (1792, 1 << 12, 3), (1280, 1 << 11, 2), (512, 1 << 9, 1)];
+    const SEGMENTS: [(u32, u32, u32); 4] = [
+        (3328, 1 << 14, 4),
+        (1792, 1 << 12, 3),
+        (1280, 1 << 11, 2),
+        (512, 1 << 9, 1),
+    ];
     for (base, target, shift) in SEGMENTS {
         if scaled >= base {
             return (target + ((scaled - base) << shift), shift);
@@ -380,12 +449,17 @@ fn var_bit_scale(scaled: u32) -> (u32, u32) {
 
 /// The three distances (mm) of an ultra cabin: a 12-bit major value and two signed 10-bit
 /// predictions relative to it (or to the next cabin's major when this one is 0).
-fn ultra_distances(word: u32, next_word: u32) -> [u32; 3] {
+/// Without the next cabin, the third distance is unknown (0).
+fn ultra_distances(word: u32, next_word: Option<u32>) -> [u32; 3] {
     let (major, scale1) = var_bit_scale(word & 0xFFF);
-    let (major_next, scale2) = var_bit_scale(next_word & 0xFFF);
+    let (major_next, scale2) = var_bit_scale(next_word.unwrap_or(0) & 0xFFF);
     let predict1 = ((word << 10) as i32) >> 22;
     let predict2 = (word as i32) >> 22;
-    let (base1, scale1) = if major == 0 && major_next != 0 { (major_next, scale2) } else { (major, scale1) };
+    let (base1, scale1) = if major == 0 && major_next != 0 {
+        (major_next, scale2)
+    } else {
+        (major, scale1)
+    };
     let predicted = |predict: i32, base: u32, scale: u32| -> u32 {
         // -512 and 511 mark "no return".
         if predict == -512 || predict == 511 {
@@ -394,7 +468,12 @@ fn ultra_distances(word: u32, next_word: u32) -> [u32; 3] {
         let d = i64::from(predict) * (1 << scale) + i64::from(base);
         u32::try_from(d).unwrap_or(0)
     };
-    [major, predicted(predict1, base1, scale1), predicted(predict2, major_next, scale2)]
+    let third = if next_word.is_some() {
+        predicted(predict2, major_next, scale2)
+    } else {
+        0
+    };
+    [major, predicted(predict1, base1, scale1), third]
 }
 
 /// Angle compensation of ultra capsules: a distance-dependent offset of about 7.5 to 8
@@ -436,10 +515,15 @@ mod tests {
         }
         for chunk in [1, 3, 5, 64, 4096] {
             let (out, stats) = decode_all(ScanFormat::Standard, &bytes, chunk);
-            assert_eq!(out.len(), 720, "chunk {chunk}");
+            // The last node waits for its successor (the look-ahead check).
+            assert_eq!(out.len(), 719, "chunk {chunk}");
             assert_eq!(stats.skipped_bytes, 0);
             for (s, (a, d)) in out.iter().zip(&expected) {
-                assert!((s.angle_deg - a).abs() <= 1.0 / 64.0, "{} vs {a}", s.angle_deg);
+                assert!(
+                    (s.angle_deg - a).abs() <= 1.0 / 64.0,
+                    "{} vs {a}",
+                    s.angle_deg
+                );
                 assert!((s.distance_mm - d).abs() <= 0.25);
                 assert_eq!(s.quality, 188);
             }
@@ -457,22 +541,35 @@ mod tests {
         bytes.splice(250..250, [0x00, 0xFF, 0x00]);
         let (out, stats) = decode_all(ScanFormat::Standard, &bytes, 7);
         assert!(stats.skipped_bytes >= 1);
-        assert!(out.len() >= 99, "lost more than one node: {}", out.len());
-        let good = out.iter().filter(|s| s.distance_mm == 1000.0).count();
-        assert!(good >= 99);
+        // The node before the garbage has no valid successor and the last one waits.
+        assert!(out.len() >= 98, "lost more than one node: {}", out.len());
+        assert!(out.iter().all(|s| s.distance_mm == 1000.0));
     }
 
-    fn express_stream(samples_per_rotation: usize, rotations: usize, lead_deg: f32) -> (Vec<u8>, Vec<(f32, f32)>) {
+    fn express_stream(
+        samples_per_rotation: usize,
+        rotations: usize,
+        lead_deg: f32,
+    ) -> (Vec<u8>, Vec<(f32, f32)>) {
         let total = samples_per_rotation * rotations;
-        let angle = |j: usize| (j % samples_per_rotation) as f32 * 360.0 / samples_per_rotation as f32;
+        let angle =
+            |j: usize| (j % samples_per_rotation) as f32 * 360.0 / samples_per_rotation as f32;
         let dist = |j: usize| 300.0 + (((j % samples_per_rotation) * 37) % 5000) as f32;
         let mut bytes = Vec::new();
         let mut truth = Vec::new();
         let capsules = total / 32;
         for c in 0..capsules {
-            let samples: Vec<(f32, f32)> = (0..32).map(|k| (angle(c * 32 + k), dist(c * 32 + k))).collect();
+            let samples: Vec<(f32, f32)> = (0..32)
+                .map(|k| (angle(c * 32 + k), dist(c * 32 + k)))
+                .collect();
             let next_first = angle((c + 1) * 32);
-            bytes.extend_from_slice(&encode::express_capsule(angle(c * 32), next_first, lead_deg, &samples, c == 0));
+            bytes.extend_from_slice(&encode::express_capsule(
+                angle(c * 32),
+                next_first,
+                lead_deg,
+                &samples,
+                c == 0,
+            ));
             truth.extend(samples);
         }
         (bytes, truth)
@@ -489,7 +586,11 @@ mod tests {
         for (s, (a, d)) in out.iter().zip(&truth) {
             let err = (s.angle_deg - a + 540.0).rem_euclid(360.0) - 180.0;
             assert!(err.abs() <= 0.07, "angle {} vs {a}", s.angle_deg);
-            assert!((s.distance_mm - d).abs() < 1.0, "dist {} vs {d}", s.distance_mm);
+            assert!(
+                (s.distance_mm - d).abs() < 1.0,
+                "dist {} vs {d}",
+                s.distance_mm
+            );
             starts += usize::from(s.start_of_rotation);
         }
         assert_eq!(starts, 2, "one start per wrap of the nominal angle");
@@ -502,9 +603,15 @@ mod tests {
         bytes.splice(84 * 10..84 * 10, [0xA5, 0x5A, 0x12]); // garbage before capsule 10
         let (out, stats) = decode_all(ScanFormat::Express, &bytes, 100);
         assert!(stats.rejected_packets >= 1);
-        // Capsules 4, 5 (prev of a bad one / bad one) and 9 (before the garbage) lose their
-        // samples, plus the last one: at most 5 x 32.
-        assert!(out.len() >= truth.len() - 5 * 32, "{} of {}", out.len(), truth.len());
+        // Only the corrupt capsule 5 and the last one (no successor) lose their samples;
+        // the capsules before the faults are spread over the usual step.
+        assert_eq!(
+            out.len(),
+            truth.len() - 2 * 32,
+            "{} of {}",
+            out.len(),
+            truth.len()
+        );
         for s in &out {
             let k = (s.angle_deg / 0.5).round() as usize % 720;
             let d = truth[k].1;
@@ -513,15 +620,24 @@ mod tests {
     }
 
     #[test]
-    fn express_drops_samples_across_a_lost_capsule() {
-        let (mut bytes, _) = express_stream(720, 1, 2.0);
+    fn express_spreads_over_the_usual_step_across_a_lost_capsule() {
+        let (mut bytes, truth) = express_stream(720, 1, 2.0);
         bytes.drain(84 * 6..84 * 7); // a whole capsule vanishes: no checksum can notice
         let (out, stats) = decode_all(ScanFormat::Express, &bytes, 84);
         assert_eq!(stats.gaps, 1);
+        assert_eq!(
+            out.len(),
+            truth.len() - 2 * 32,
+            "the lost capsule and the last one"
+        );
         for s in &out {
             let k = (s.angle_deg / 0.5).round() as usize % 720;
             let expected = 300.0 + ((k * 37) % 5000) as f32;
-            assert!((s.distance_mm - expected).abs() < 1.0, "smeared sample at {}", s.angle_deg);
+            assert!(
+                (s.distance_mm - expected).abs() < 1.0,
+                "smeared sample at {}",
+                s.angle_deg
+            );
         }
     }
 
@@ -548,12 +664,26 @@ mod tests {
             .map(|i| {
                 let m = majors[i / 16];
                 let unit = 1u32 << [0, 1, 2, 4][i / 16];
-                [m, m + 8 * unit, if i % 16 == 15 { 0 } else { m + 20 * unit }]
+                [
+                    m,
+                    m + 8 * unit,
+                    if i % 16 == 15 { 0 } else { m + 20 * unit },
+                ]
             })
             .collect();
         let mut bytes = encode::ultra_capsule(0.0, &cabins[..32], cabins[32][0], true);
-        bytes.extend_from_slice(&encode::ultra_capsule(30.0, &cabins[32..], cabins[0][0], false));
-        bytes.extend_from_slice(&encode::ultra_capsule(60.0, &cabins[..32], cabins[32][0], false));
+        bytes.extend_from_slice(&encode::ultra_capsule(
+            30.0,
+            &cabins[32..],
+            cabins[0][0],
+            false,
+        ));
+        bytes.extend_from_slice(&encode::ultra_capsule(
+            60.0,
+            &cabins[..32],
+            cabins[32][0],
+            false,
+        ));
         let (out, stats) = decode_all(ScanFormat::Ultra, &bytes, 50);
         assert_eq!(stats.rejected_packets, 0);
         assert_eq!(out.len(), 2 * 96);
@@ -569,7 +699,9 @@ mod tests {
 
     #[test]
     fn hq_capsules_need_a_valid_crc() {
-        let nodes: Vec<(f32, f32, u8, bool)> = (0..96).map(|k| (k as f32 * 3.75, 1234.5, 200, k == 0)).collect();
+        let nodes: Vec<(f32, f32, u8, bool)> = (0..96)
+            .map(|k| (k as f32 * 3.75, 1234.5, 200, k == 0))
+            .collect();
         let capsule = encode::hq_capsule(123_456, &nodes);
         let mut bytes = capsule.clone();
         let mut bad = capsule.clone();
@@ -595,7 +727,13 @@ mod tests {
                 state as u8
             })
             .collect();
-        for format in [ScanFormat::Standard, ScanFormat::Express, ScanFormat::Ultra, ScanFormat::Dense, ScanFormat::Hq] {
+        for format in [
+            ScanFormat::Standard,
+            ScanFormat::Express,
+            ScanFormat::Ultra,
+            ScanFormat::Dense,
+            ScanFormat::Hq,
+        ] {
             let (out, stats) = decode_all(format, &bytes, 333);
             assert!(stats.skipped_bytes > 0, "{format:?}");
             for s in out {

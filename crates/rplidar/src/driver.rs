@@ -28,8 +28,8 @@ use crate::config::{Config, ScanModeChoice};
 use crate::decode::{DecodeStats, Sample, ScanFormat, StreamDecoder};
 use crate::error::{Error, Result};
 use crate::protocol::{
-    DESCRIPTOR_LEN, Descriptor, DeviceHealth, DeviceInfo, HealthStatus, RESPONSE_SYNC, Request, ScanModeInfo, answer,
-    conf, conf_string, conf_u32, parse_conf_answer,
+    DESCRIPTOR_LEN, Descriptor, DeviceHealth, DeviceInfo, HealthStatus, RESPONSE_SYNC, Request,
+    ScanModeInfo, answer, conf, conf_string, conf_u32, parse_conf_answer,
 };
 use crate::rotation::{Rotation, RotationAssembler};
 use crate::scan::ScanFrame;
@@ -90,12 +90,23 @@ impl Link {
         let port = serialport::new(&config.port, config.baud)
             .timeout(POLL)
             .open()
-            .map_err(|source| Error::Port { path: config.port.clone(), source })?;
-        Ok(Self { port, path: config.port.clone(), rx: Vec::with_capacity(8192), chunk: vec![0; 8192] })
+            .map_err(|source| Error::Port {
+                path: config.port.clone(),
+                source,
+            })?;
+        Ok(Self {
+            port,
+            path: config.port.clone(),
+            rx: Vec::with_capacity(8192),
+            chunk: vec![0; 8192],
+        })
     }
 
     fn io_error(&self, source: std::io::Error) -> Error {
-        Error::Io { path: self.path.clone(), source }
+        Error::Io {
+            path: self.path.clone(),
+            source,
+        }
     }
 
     fn send(&mut self, request: &Request) -> Result<()> {
@@ -109,12 +120,16 @@ impl Link {
     fn read_some(&mut self, timeout: Duration) -> Result<usize> {
         let _ = self.port.set_timeout(timeout.max(Duration::from_millis(1)));
         match self.port.read(&mut self.chunk) {
-            Ok(0) => Err(self.io_error(std::io::Error::new(ErrorKind::UnexpectedEof, "port closed"))),
+            Ok(0) => {
+                Err(self.io_error(std::io::Error::new(ErrorKind::UnexpectedEof, "port closed")))
+            }
             Ok(n) => {
                 self.rx.extend_from_slice(&self.chunk[..n]);
                 Ok(n)
             }
-            Err(e) if e.kind() == ErrorKind::TimedOut || e.kind() == ErrorKind::Interrupted => Ok(0),
+            Err(e) if e.kind() == ErrorKind::TimedOut || e.kind() == ErrorKind::Interrupted => {
+                Ok(0)
+            }
             Err(e) => Err(self.io_error(e)),
         }
     }
@@ -130,13 +145,21 @@ impl Link {
     /// Ports without modem lines (pseudo-terminals: ENOTTY) are fine.
     fn set_motor_dtr(&mut self, on: bool) {
         if let Err(e) = self.port.write_data_terminal_ready(!on) {
-            debug!("{}: DTR not supported on this port ({e}); motor left as it is", self.path);
+            debug!(
+                "{}: DTR not supported on this port ({e}); motor left as it is",
+                self.path
+            );
         }
     }
 
     /// Waits for a descriptor of `expected` type, skipping anything else (stale scan data,
     /// boot messages). Returns as soon as it has arrived.
-    fn wait_descriptor(&mut self, expected: u8, deadline: Instant, what: &str) -> Result<Descriptor> {
+    fn wait_descriptor(
+        &mut self,
+        expected: u8,
+        deadline: Instant,
+        what: &str,
+    ) -> Result<Descriptor> {
         let started = Instant::now();
         let mut seen = None;
         loop {
@@ -165,7 +188,10 @@ impl Link {
                     Some(t) => format!("{what} (answer type 0x{expected:02X}; saw only 0x{t:02X})"),
                     None => format!("{what} (answer type 0x{expected:02X})"),
                 };
-                return Err(Error::Timeout { what, waited_ms: now.duration_since(started).as_millis() as u64 });
+                return Err(Error::Timeout {
+                    what,
+                    waited_ms: now.duration_since(started).as_millis() as u64,
+                });
             }
             self.read_some((deadline - now).min(POLL))?;
         }
@@ -187,12 +213,21 @@ impl Link {
     }
 
     /// Sends a request and returns the payload of its single answer.
-    fn request(&mut self, request: &Request, expected: u8, timeout: Duration, what: &str) -> Result<Vec<u8>> {
+    fn request(
+        &mut self,
+        request: &Request,
+        expected: u8,
+        timeout: Duration,
+        what: &str,
+    ) -> Result<Vec<u8>> {
         self.send(request)?;
         let deadline = Instant::now() + timeout;
         let d = self.wait_descriptor(expected, deadline, what)?;
         if d.len > MAX_ANSWER_LEN {
-            return Err(Error::Protocol(format!("{what}: answer length {} is implausible", d.len)));
+            return Err(Error::Protocol(format!(
+                "{what}: answer length {} is implausible",
+                d.len
+            )));
         }
         self.wait_bytes(d.len as usize, deadline, what)
     }
@@ -240,7 +275,9 @@ pub struct Driver {
 
 /// Wall-clock nanoseconds since the Unix epoch.
 pub fn system_clock_ns() -> i64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as i64)
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as i64)
 }
 
 impl Driver {
@@ -330,11 +367,16 @@ impl Driver {
     fn fail_connect(&mut self, e: Error) {
         let wait = self.backoff;
         self.backoff = (self.backoff * 2).min(self.config.reconnect_max);
-        let message = format!("cannot start the device: {e}; retrying in {} ms", wait.as_millis());
+        let message = format!(
+            "cannot start the device: {e}; retrying in {} ms",
+            wait.as_millis()
+        );
         warn!("{}: {message}", self.config.port);
         self.status.last_error = Some(e.to_string());
         self.leave_scanning();
-        self.state = State::Disconnected { next_attempt: Instant::now() + wait };
+        self.state = State::Disconnected {
+            next_attempt: Instant::now() + wait,
+        };
         self.report(DiagnosticStatus::ERROR, message);
     }
 
@@ -354,7 +396,9 @@ impl Driver {
             self.decode_before = add_stats(self.decode_before, session.decoder.stats());
         }
         self.status.scanning = false;
-        self.state = State::Disconnected { next_attempt: Instant::now() };
+        self.state = State::Disconnected {
+            next_attempt: Instant::now(),
+        };
     }
 
     fn decode_totals(&self) -> DecodeStats {
@@ -373,10 +417,18 @@ impl Driver {
         std::thread::sleep(AFTER_STOP);
         link.clear_input();
         let timeout = self.config.request_timeout;
-        let info = DeviceInfo::parse(&link.request(&Request::GetInfo, answer::DEVICE_INFO, timeout, "device info")?)?;
+        let info = DeviceInfo::parse(&link.request(
+            &Request::GetInfo,
+            answer::DEVICE_INFO,
+            timeout,
+            "device info",
+        )?)?;
         let mut health = self.get_health(&mut link)?;
         if health.status == HealthStatus::Error {
-            let message = format!("device reports a health error (code 0x{:04X}): resetting it", health.error_code);
+            let message = format!(
+                "device reports a health error (code 0x{:04X}): resetting it",
+                health.error_code
+            );
             warn!("{}: {message}", self.config.port);
             self.report(DiagnosticStatus::ERROR, message);
             self.reset_device(&mut link)?;
@@ -388,7 +440,10 @@ impl Driver {
                 )));
             }
         } else if health.status != HealthStatus::Good {
-            let message = format!("device health {:?} (code 0x{:04X})", health.status, health.error_code);
+            let message = format!(
+                "device health {:?} (code 0x{:04X})",
+                health.status, health.error_code
+            );
             warn!("{}: {message}", self.config.port);
             self.report(DiagnosticStatus::WARN, message);
         }
@@ -432,7 +487,12 @@ impl Driver {
 
     fn get_health(&self, link: &mut Link) -> Result<DeviceHealth> {
         let timeout = self.config.request_timeout;
-        DeviceHealth::parse(&link.request(&Request::GetHealth, answer::DEVICE_HEALTH, timeout, "device health")?)
+        DeviceHealth::parse(&link.request(
+            &Request::GetHealth,
+            answer::DEVICE_HEALTH,
+            timeout,
+            "device health",
+        )?)
     }
 
     fn reset_device(&mut self, link: &mut Link) -> Result<()> {
@@ -458,10 +518,27 @@ impl Driver {
         let timeout = self.config.request_timeout;
         let mut modes = Vec::with_capacity(usize::from(count));
         for id in 0..count {
-            let us = conf_u32(&conf_request(link, conf::SCAN_MODE_US_PER_SAMPLE, Some(id), timeout)?, 4, "us per sample")?;
-            let dist = conf_u32(&conf_request(link, conf::SCAN_MODE_MAX_DISTANCE, Some(id), timeout)?, 4, "max distance")?;
-            let ans = conf_u32(&conf_request(link, conf::SCAN_MODE_ANS_TYPE, Some(id), timeout)?, 1, "answer type")?;
-            let name = conf_string(&conf_request(link, conf::SCAN_MODE_NAME, Some(id), timeout)?);
+            let us = conf_u32(
+                &conf_request(link, conf::SCAN_MODE_US_PER_SAMPLE, Some(id), timeout)?,
+                4,
+                "us per sample",
+            )?;
+            let dist = conf_u32(
+                &conf_request(link, conf::SCAN_MODE_MAX_DISTANCE, Some(id), timeout)?,
+                4,
+                "max distance",
+            )?;
+            let ans = conf_u32(
+                &conf_request(link, conf::SCAN_MODE_ANS_TYPE, Some(id), timeout)?,
+                1,
+                "answer type",
+            )?;
+            let name = conf_string(&conf_request(
+                link,
+                conf::SCAN_MODE_NAME,
+                Some(id),
+                timeout,
+            )?);
             modes.push(ScanModeInfo {
                 id,
                 name,
@@ -474,9 +551,17 @@ impl Driver {
     }
 
     fn plan_scan(&mut self, link: &mut Link, info: &DeviceInfo) -> Result<ScanPlan> {
-        let standard = || ScanPlan { request: Request::Scan, format: ScanFormat::Standard, mode_name: "Standard".into() };
+        let standard = || ScanPlan {
+            request: Request::Scan,
+            format: ScanFormat::Standard,
+            mode_name: "Standard".into(),
+        };
         let legacy_express = || ScanPlan {
-            request: Request::ExpressScan { working_mode: 0, working_flags: 0, param: 0 },
+            request: Request::ExpressScan {
+                working_mode: 0,
+                working_flags: 0,
+                param: 0,
+            },
             format: ScanFormat::Express,
             mode_name: "Express".into(),
         };
@@ -492,7 +577,10 @@ impl Driver {
                 )));
             }
             if choice == ScanModeChoice::Express {
-                let message = format!("firmware {} has no express scan: using standard", info.firmware());
+                let message = format!(
+                    "firmware {} has no express scan: using standard",
+                    info.firmware()
+                );
                 self.report(DiagnosticStatus::WARN, message);
             }
             return Ok(standard());
@@ -510,18 +598,35 @@ impl Driver {
         let chosen = match &choice {
             ScanModeChoice::Express => modes
                 .iter()
-                .find(|m| m.answer_type == answer::MEASUREMENT_CAPSULED && m.name.eq_ignore_ascii_case("express"))
-                .or_else(|| modes.iter().find(|m| m.answer_type == answer::MEASUREMENT_CAPSULED)),
+                .find(|m| {
+                    m.answer_type == answer::MEASUREMENT_CAPSULED
+                        && m.name.eq_ignore_ascii_case("express")
+                })
+                .or_else(|| {
+                    modes
+                        .iter()
+                        .find(|m| m.answer_type == answer::MEASUREMENT_CAPSULED)
+                }),
             ScanModeChoice::Auto => {
-                let v = conf_request(link, conf::SCAN_MODE_TYPICAL, None, self.config.request_timeout)?;
+                let v = conf_request(
+                    link,
+                    conf::SCAN_MODE_TYPICAL,
+                    None,
+                    self.config.request_timeout,
+                )?;
                 let typical = conf_u32(&v, 2, "typical scan mode")? as u16;
                 modes.iter().find(|m| m.id == typical)
             }
-            ScanModeChoice::Named(name) => modes.iter().find(|m| m.name.eq_ignore_ascii_case(name.trim())),
+            ScanModeChoice::Named(name) => modes
+                .iter()
+                .find(|m| m.name.eq_ignore_ascii_case(name.trim())),
             ScanModeChoice::Standard => None,
         };
         let Some(mode) = chosen else {
-            let offered: Vec<String> = modes.iter().map(|m| format!("{} (id {})", m.name, m.id)).collect();
+            let offered: Vec<String> = modes
+                .iter()
+                .map(|m| format!("{} (id {})", m.name, m.id))
+                .collect();
             if choice == ScanModeChoice::Express {
                 return Ok(legacy_express());
             }
@@ -531,7 +636,10 @@ impl Driver {
             )));
         };
         if mode.answer_type == answer::MEASUREMENT {
-            return Ok(ScanPlan { mode_name: mode.name.clone(), ..standard() });
+            return Ok(ScanPlan {
+                mode_name: mode.name.clone(),
+                ..standard()
+            });
         }
         let format = ScanFormat::from_answer_type(mode.answer_type).ok_or_else(|| {
             Error::Unsupported(format!(
@@ -539,8 +647,9 @@ impl Driver {
                 mode.name, mode.answer_type
             ))
         })?;
-        let working_mode = u8::try_from(mode.id)
-            .map_err(|_| Error::Protocol(format!("scan mode id {} does not fit the request", mode.id)))?;
+        let working_mode = u8::try_from(mode.id).map_err(|_| {
+            Error::Protocol(format!("scan mode id {} does not fit the request", mode.id))
+        })?;
         info!(
             "{}: scan mode {} (id {}): {:.0} samples/s, max {:.1} m",
             self.config.port,
@@ -550,7 +659,11 @@ impl Driver {
             mode.max_distance_m
         );
         Ok(ScanPlan {
-            request: Request::ExpressScan { working_mode, working_flags: 0, param: 0 },
+            request: Request::ExpressScan {
+                working_mode,
+                working_flags: 0,
+                param: 0,
+            },
             format,
             mode_name: mode.name.clone(),
         })
@@ -560,7 +673,10 @@ impl Driver {
         let State::Scanning(session) = &mut self.state else {
             return;
         };
-        let wait = self.next_report.saturating_duration_since(Instant::now()).min(POLL);
+        let wait = self
+            .next_report
+            .saturating_duration_since(Instant::now())
+            .min(POLL);
         let read = session.link.read_some(wait);
         let arrival = Instant::now();
         match read {
@@ -578,7 +694,9 @@ impl Driver {
                 if !session.samples.is_empty() {
                     session.last_data = arrival;
                 }
-                session.assembler.push(&session.samples, arrival, &mut session.rotations);
+                session
+                    .assembler
+                    .push(&session.samples, arrival, &mut session.rotations);
             }
         }
         let silent_for = arrival.saturating_duration_since(session.last_data);
@@ -587,14 +705,19 @@ impl Driver {
             let start_ns = instant_to_clock_ns(&self.clock, rotation.started);
             let frame = ScanFrame::from_rotation(rotation, start_ns, &self.config.geometry);
             self.status.scans += 1;
-            let hz = if frame.scan_time > 0.0 { 1.0 / f64::from(frame.scan_time) } else { 0.0 };
+            let hz = if frame.scan_time > 0.0 {
+                1.0 / f64::from(frame.scan_time)
+            } else {
+                0.0
+            };
             self.status.rotation_hz = Some(match self.status.rotation_hz {
                 Some(old) if hz > 0.0 => 0.8 * old + 0.2 * hz,
                 Some(old) => old,
                 None => hz,
             });
             self.status.samples_per_rotation = Some(frame.samples_in_rotation);
-            self.pending.push_back(Event::Scan(frame.to_laser_scan(&self.config.frame_id)));
+            self.pending
+                .push_back(Event::Scan(frame.to_laser_scan(&self.config.frame_id)));
         }
         if silent_for > self.config.data_timeout {
             self.recover_silent(silent_for);
@@ -608,22 +731,34 @@ impl Driver {
         error!("{}: {message}", self.config.port);
         self.leave_scanning();
         self.backoff = self.config.reconnect_min;
-        self.state = State::Disconnected { next_attempt: Instant::now() + self.config.reconnect_min };
+        self.state = State::Disconnected {
+            next_attempt: Instant::now() + self.config.reconnect_min,
+        };
         self.report(DiagnosticStatus::ERROR, message);
     }
 
     fn recover_silent(&mut self, silent_for: Duration) {
-        let message = format!("no valid data for {:.1} s: resetting the device", silent_for.as_secs_f64());
+        let message = format!(
+            "no valid data for {:.1} s: resetting the device",
+            silent_for.as_secs_f64()
+        );
         warn!("{}: {message}", self.config.port);
         self.report(DiagnosticStatus::WARN, message);
-        let old = std::mem::replace(&mut self.state, State::Disconnected { next_attempt: Instant::now() });
+        let old = std::mem::replace(
+            &mut self.state,
+            State::Disconnected {
+                next_attempt: Instant::now(),
+            },
+        );
         let State::Scanning(session) = old else {
             return;
         };
         self.decode_before = add_stats(self.decode_before, session.decoder.stats());
         self.status.scanning = false;
         let mut link = session.link;
-        let result = self.reset_device(&mut link).and_then(|()| self.start_session(link));
+        let result = self
+            .reset_device(&mut link)
+            .and_then(|()| self.start_session(link));
         match result {
             Ok(session) => {
                 let message = format!("scanning again after a reset, mode {}", session.mode_name);
@@ -636,17 +771,27 @@ impl Driver {
     }
 
     fn hardware_id(&self) -> String {
-        self.status.device.as_ref().map_or_else(|| self.config.port.clone(), DeviceInfo::serial_hex)
+        self.status
+            .device
+            .as_ref()
+            .map_or_else(|| self.config.port.clone(), DeviceInfo::serial_hex)
     }
 
     fn routine_report(&mut self) {
         let new_scans = self.status.scans - self.scans_at_last_report;
         self.scans_at_last_report = self.status.scans;
         let (level, message) = if !self.status.scanning {
-            let why = self.status.last_error.clone().unwrap_or_else(|| "not connected yet".into());
+            let why = self
+                .status
+                .last_error
+                .clone()
+                .unwrap_or_else(|| "not connected yet".into());
             (DiagnosticStatus::ERROR, format!("not scanning: {why}"))
         } else if new_scans == 0 {
-            (DiagnosticStatus::WARN, "scanning, but no complete rotation in the last period".to_owned())
+            (
+                DiagnosticStatus::WARN,
+                "scanning, but no complete rotation in the last period".to_owned(),
+            )
         } else {
             (
                 DiagnosticStatus::OK,
@@ -676,13 +821,19 @@ impl Driver {
             KeyValue::new("rejected_packets", s.decode.rejected_packets.to_string()),
         ];
         if let Some(d) = &s.device {
-            values.push(KeyValue::new("model", format!("{} (0x{:02X})", d.family(), d.model)));
+            values.push(KeyValue::new(
+                "model",
+                format!("{} (0x{:02X})", d.family(), d.model),
+            ));
             values.push(KeyValue::new("firmware", d.firmware()));
             values.push(KeyValue::new("hardware", d.hardware.to_string()));
             values.push(KeyValue::new("serial", d.serial_hex()));
         }
         if let Some(h) = &s.health {
-            values.push(KeyValue::new("health", format!("{:?} (code 0x{:04X})", h.status, h.error_code)));
+            values.push(KeyValue::new(
+                "health",
+                format!("{:?} (code 0x{:04X})", h.status, h.error_code),
+            ));
         }
         if let Some(mode) = &s.scan_mode {
             values.push(KeyValue::new("scan_mode", mode.clone()));
@@ -696,7 +847,10 @@ impl Driver {
         if let Some(n) = s.samples_per_rotation {
             values.push(KeyValue::new("samples_per_rotation", n.to_string()));
             if let Some(hz) = s.rotation_hz {
-                values.push(KeyValue::new("sample_rate_hz", format!("{:.0}", hz * n as f64)));
+                values.push(KeyValue::new(
+                    "sample_rate_hz",
+                    format!("{:.0}", hz * n as f64),
+                ));
             }
         }
         let status = DiagnosticStatus {
@@ -708,7 +862,10 @@ impl Driver {
         };
         let stamp = Time::from_nanos((self.clock)());
         self.pending.push_back(Event::Diagnostics(DiagnosticArray {
-            header: Header { stamp, frame_id: String::new() },
+            header: Header {
+                stamp,
+                frame_id: String::new(),
+            },
             status: vec![status],
         }));
     }
@@ -724,9 +881,19 @@ impl Drop for Driver {
     }
 }
 
-fn conf_request(link: &mut Link, entry: u32, mode: Option<u16>, timeout: Duration) -> Result<Vec<u8>> {
+fn conf_request(
+    link: &mut Link,
+    entry: u32,
+    mode: Option<u16>,
+    timeout: Duration,
+) -> Result<Vec<u8>> {
     let what = format!("configuration entry 0x{entry:X}");
-    let payload = link.request(&Request::GetLidarConf { entry, mode }, answer::GET_LIDAR_CONF, timeout, &what)?;
+    let payload = link.request(
+        &Request::GetLidarConf { entry, mode },
+        answer::GET_LIDAR_CONF,
+        timeout,
+        &what,
+    )?;
     Ok(parse_conf_answer(&payload, entry)?.to_vec())
 }
 

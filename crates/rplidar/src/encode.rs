@@ -101,7 +101,12 @@ fn ultra_prediction(distance_mm: u32, base_mm: u32, shift: u32) -> u32 {
 /// a cabin refers to the next cabin's major distance; `next_major_mm` is that of the next
 /// capsule's first cabin. Distances that the compression cannot represent exactly are sent
 /// as "no return".
-pub fn ultra_capsule(start_deg: f32, cabins: &[[u32; 3]], next_major_mm: u32, new_scan: bool) -> Vec<u8> {
+pub fn ultra_capsule(
+    start_deg: f32,
+    cabins: &[[u32; 3]],
+    next_major_mm: u32,
+    new_scan: bool,
+) -> Vec<u8> {
     let major = |i: usize| cabins.get(i).map_or(next_major_mm, |c| c[0]);
     let mut body = Vec::with_capacity(128);
     for i in 0..32 {
@@ -124,7 +129,8 @@ pub fn hq_capsule(timestamp: u64, nodes: &[(f32, f32, u8, bool)]) -> Vec<u8> {
     out.extend_from_slice(&timestamp.to_le_bytes());
     for k in 0..96 {
         let (angle, dist, quality, start) = nodes.get(k).copied().unwrap_or((0.0, 0.0, 0, false));
-        let angle_q14 = ((angle.rem_euclid(360.0) * 16384.0 / 90.0).round() as u32).min(u32::from(u16::MAX)) as u16;
+        let angle_q14 = ((angle.rem_euclid(360.0) * 16384.0 / 90.0).round() as u32)
+            .min(u32::from(u16::MAX)) as u16;
         out.extend_from_slice(&angle_q14.to_le_bytes());
         out.extend_from_slice(&((dist * 4.0).round().max(0.0) as u32).to_le_bytes());
         out.push(quality);

@@ -21,7 +21,8 @@ use serialport::{SerialPort, TTYPort};
 
 use crate::encode;
 use crate::protocol::{
-    Descriptor, DeviceHealth, DeviceInfo, HealthStatus, REQUEST_SYNC, SendMode, answer, command, conf, xor,
+    Descriptor, DeviceHealth, DeviceInfo, HealthStatus, REQUEST_SYNC, SendMode, answer, command,
+    conf, xor,
 };
 
 /// Ranges of one rotation: `samples` values in metres at device angles
@@ -56,7 +57,13 @@ pub struct SyntheticRoom {
 
 impl Default for SyntheticRoom {
     fn default() -> Self {
-        Self { width_m: 5.0, depth_m: 4.0, sensor: (1.5, 1.2), pillar: (3.5, 2.8, 0.3), window_deg: (200.0, 215.0) }
+        Self {
+            width_m: 5.0,
+            depth_m: 4.0,
+            sensor: (1.5, 1.2),
+            pillar: (3.5, 2.8, 0.3),
+            window_deg: (200.0, 215.0),
+        }
     }
 }
 
@@ -73,9 +80,17 @@ impl SyntheticRoom {
         let (sx, sy) = self.sensor;
         let mut best = f32::INFINITY;
         for t in [
-            if dx > 0.0 { (self.width_m - sx) / dx } else { f32::INFINITY },
+            if dx > 0.0 {
+                (self.width_m - sx) / dx
+            } else {
+                f32::INFINITY
+            },
             if dx < 0.0 { -sx / dx } else { f32::INFINITY },
-            if dy > 0.0 { (self.depth_m - sy) / dy } else { f32::INFINITY },
+            if dy > 0.0 {
+                (self.depth_m - sy) / dy
+            } else {
+                f32::INFINITY
+            },
             if dy < 0.0 { -sy / dy } else { f32::INFINITY },
         ] {
             if t > 0.0 {
@@ -99,7 +114,9 @@ impl SyntheticRoom {
 
 impl RangeSource for SyntheticRoom {
     fn rotation(&mut self, _index: u64, samples: usize) -> Vec<f32> {
-        (0..samples).map(|k| self.range_at(k as f32 * 360.0 / samples as f32)).collect()
+        (0..samples)
+            .map(|k| self.range_at(k as f32 * 360.0 / samples as f32))
+            .collect()
     }
 }
 
@@ -131,7 +148,13 @@ pub struct FakeConfig {
 impl Default for FakeConfig {
     fn default() -> Self {
         Self {
-            info: DeviceInfo { model: 0x18, firmware_major: 1, firmware_minor: 29, hardware: 7, serial: *b"FAKE-RPLIDAR-001" },
+            info: DeviceInfo {
+                model: 0x18,
+                firmware_major: 1,
+                firmware_minor: 29,
+                hardware: 7,
+                serial: *b"FAKE-RPLIDAR-001",
+            },
             samples_per_rotation: 720,
             rotation_hz: 20.0,
             scan_modes: true,
@@ -188,7 +211,11 @@ pub struct FakeLidar {
 impl FakeLidar {
     /// Starts a fake device reachable at `link` (a path that must not exist yet, in a
     /// directory that does).
-    pub fn spawn(link: impl Into<PathBuf>, config: FakeConfig, source: impl RangeSource + 'static) -> std::io::Result<Self> {
+    pub fn spawn(
+        link: impl Into<PathBuf>,
+        config: FakeConfig,
+        source: impl RangeSource + 'static,
+    ) -> std::io::Result<Self> {
         let link = link.into();
         let pty = Pty::new(&link)?;
         let shared = Arc::new(Shared {
@@ -197,12 +224,18 @@ impl FakeLidar {
                 drop_bytes: 0,
                 stall_until: None,
                 hung: false,
-                health: DeviceHealth { status: HealthStatus::Good, error_code: 0 },
+                health: DeviceHealth {
+                    status: HealthStatus::Good,
+                    error_code: 0,
+                },
                 health_cleared_by_reset: true,
                 plugged: true,
                 stop: false,
             }),
-            log: Mutex::new(FakeLog { plugs: 1, ..FakeLog::default() }),
+            log: Mutex::new(FakeLog {
+                plugs: 1,
+                ..FakeLog::default()
+            }),
         });
         let device = Device {
             config,
@@ -213,8 +246,14 @@ impl FakeLidar {
             rx: Vec::new(),
             stream: None,
         };
-        let thread = std::thread::Builder::new().name("fake-rplidar".into()).spawn(move || device.run())?;
-        Ok(Self { link, shared, thread: Some(thread) })
+        let thread = std::thread::Builder::new()
+            .name("fake-rplidar".into())
+            .spawn(move || device.run())?;
+        Ok(Self {
+            link,
+            shared,
+            thread: Some(thread),
+        })
     }
 
     /// The path a driver opens.
@@ -287,13 +326,18 @@ impl Pty {
         let slave_path = slave
             .name()
             .ok_or_else(|| std::io::Error::other("the pseudo-terminal has no slave path"))?;
-        master.set_timeout(Duration::from_millis(20)).map_err(std::io::Error::from)?;
+        master
+            .set_timeout(Duration::from_millis(20))
+            .map_err(std::io::Error::from)?;
         // Replace the link atomically, as udev does when a device comes back.
         let tmp = link.with_extension("new-link");
         let _ = std::fs::remove_file(&tmp);
         std::os::unix::fs::symlink(&slave_path, &tmp)?;
         std::fs::rename(&tmp, link)?;
-        Ok(Self { master, _slave: slave })
+        Ok(Self {
+            master,
+            _slave: slave,
+        })
     }
 }
 
@@ -316,7 +360,8 @@ struct Device {
     stream: Option<Stream>,
 }
 
-const BOOT_BANNER: &[u8] = b"RP LIDAR System.\r\nFirmware Ver 1.29 - rtm, HW Ver 7\r\nModel: 24\r\n";
+const BOOT_BANNER: &[u8] =
+    b"RP LIDAR System.\r\nFirmware Ver 1.29 - rtm, HW Ver 7\r\nModel: 24\r\n";
 
 impl Device {
     fn run(mut self) {
@@ -350,7 +395,9 @@ impl Device {
                     }
                 }
             }
-            let Some(pty) = self.pty.as_mut() else { continue };
+            let Some(pty) = self.pty.as_mut() else {
+                continue;
+            };
             let _ = pty.master.set_timeout(Duration::from_millis(2));
             match pty.master.read(&mut buf) {
                 Ok(n) => self.rx.extend_from_slice(&buf[..n]),
@@ -377,7 +424,11 @@ impl Device {
     }
 
     fn answer(&mut self, answer_type: u8, payload: &[u8]) {
-        let d = Descriptor { len: payload.len() as u32, mode: SendMode::Single, answer_type };
+        let d = Descriptor {
+            len: payload.len() as u32,
+            mode: SendMode::Single,
+            answer_type,
+        };
         let mut out = d.encode().to_vec();
         out.extend_from_slice(payload);
         self.write(&out);
@@ -389,7 +440,11 @@ impl Device {
             FakeMode::Express => (84, answer::MEASUREMENT_CAPSULED),
             FakeMode::Dense => (84, answer::MEASUREMENT_DENSE_CAPSULED),
         };
-        let d = Descriptor { len: packet_len, mode: SendMode::Multiple, answer_type };
+        let d = Descriptor {
+            len: packet_len,
+            mode: SendMode::Multiple,
+            answer_type,
+        };
         self.write(&d.encode());
         lock(&self.shared.log).scans_started.push(mode);
         // Start mid-rotation, as a spinning device does.
@@ -418,7 +473,10 @@ impl Device {
                     let mut c = lock(&self.shared.control);
                     c.hung = false;
                     if c.health_cleared_by_reset {
-                        c.health = DeviceHealth { status: HealthStatus::Good, error_code: 0 };
+                        c.health = DeviceHealth {
+                            status: HealthStatus::Good,
+                            error_code: 0,
+                        };
                     }
                 }
                 lock(&self.shared.log).resets += 1;
@@ -450,10 +508,12 @@ impl Device {
             }
             command::GET_LIDAR_CONF if self.config.scan_modes => self.answer_conf(payload),
             command::SET_MOTOR_PWM if payload.len() >= 2 => {
-                lock(&self.shared.log).motor_pwm = Some(u16::from_le_bytes([payload[0], payload[1]]));
+                lock(&self.shared.log).motor_pwm =
+                    Some(u16::from_le_bytes([payload[0], payload[1]]));
             }
             command::HQ_MOTOR_SPEED if payload.len() >= 2 => {
-                lock(&self.shared.log).motor_rpm = Some(u16::from_le_bytes([payload[0], payload[1]]));
+                lock(&self.shared.log).motor_rpm =
+                    Some(u16::from_le_bytes([payload[0], payload[1]]));
             }
             command::GET_ACC_BOARD_FLAG => self.answer(answer::ACC_BOARD_FLAG, &1u32.to_le_bytes()),
             _ => {}
@@ -479,9 +539,9 @@ impl Device {
         let value: Vec<u8> = match (entry, selected) {
             (conf::SCAN_MODE_COUNT, _) => (MODES.len() as u16).to_le_bytes().to_vec(),
             (conf::SCAN_MODE_TYPICAL, _) => self.config.typical_mode.to_le_bytes().to_vec(),
-            (conf::SCAN_MODE_US_PER_SAMPLE, Some(_)) => {
-                ((self.us_per_sample() * 256.0) as u32).to_le_bytes().to_vec()
-            }
+            (conf::SCAN_MODE_US_PER_SAMPLE, Some(_)) => ((self.us_per_sample() * 256.0) as u32)
+                .to_le_bytes()
+                .to_vec(),
             (conf::SCAN_MODE_MAX_DISTANCE, Some(_)) => (12u32 * 256).to_le_bytes().to_vec(),
             (conf::SCAN_MODE_ANS_TYPE, Some((_, ans))) => vec![*ans],
             (conf::SCAN_MODE_NAME, Some((name, _))) => {
@@ -505,7 +565,9 @@ impl Device {
         let n = self.config.samples_per_rotation;
         let rate = f64::from(self.config.rotation_hz) * n as f64;
         let lead = self.config.express_lead_deg;
-        let Some(stream) = self.stream.as_mut() else { return };
+        let Some(stream) = self.stream.as_mut() else {
+            return;
+        };
         let due = n as u64 / 3 + (now.duration_since(stream.started).as_secs_f64() * rate) as u64;
         if stalled || hung {
             stream.next_sample = due.max(stream.next_sample);
@@ -524,22 +586,48 @@ impl Device {
                 stream.ranges = Some((rotation, ranges));
                 served += 1;
             }
-            let range = stream.ranges.as_ref().map_or(0.0, |(_, r)| r[(j % n as u64) as usize]);
-            let dist_mm = if range.is_finite() && range > 0.0 { range * 1000.0 } else { 0.0 };
+            let range = stream
+                .ranges
+                .as_ref()
+                .map_or(0.0, |(_, r)| r[(j % n as u64) as usize]);
+            let dist_mm = if range.is_finite() && range > 0.0 {
+                range * 1000.0
+            } else {
+                0.0
+            };
             match stream.mode {
                 FakeMode::Standard => {
                     let quality = if dist_mm > 0.0 { 47 << 2 } else { 0 };
-                    out.extend_from_slice(&encode::standard_node(angle(j), dist_mm, quality, j % n as u64 == 0));
+                    out.extend_from_slice(&encode::standard_node(
+                        angle(j),
+                        dist_mm,
+                        quality,
+                        j % n as u64 == 0,
+                    ));
                 }
                 FakeMode::Express | FakeMode::Dense => {
                     stream.group.push((angle(j), dist_mm));
-                    let size = if stream.mode == FakeMode::Express { 32 } else { 40 };
+                    let size = if stream.mode == FakeMode::Express {
+                        32
+                    } else {
+                        40
+                    };
                     if stream.group.len() == size {
                         let first = angle(j + 1 - size as u64);
                         let capsule = if stream.mode == FakeMode::Express {
-                            encode::express_capsule(first, angle(j + 1), lead, &stream.group, stream.first_capsule)
+                            encode::express_capsule(
+                                first,
+                                angle(j + 1),
+                                lead,
+                                &stream.group,
+                                stream.first_capsule,
+                            )
                         } else {
-                            let d: Vec<u16> = stream.group.iter().map(|(_, d)| d.round().min(65535.0) as u16).collect();
+                            let d: Vec<u16> = stream
+                                .group
+                                .iter()
+                                .map(|(_, d)| d.round().min(65535.0) as u16)
+                                .collect();
                             encode::dense_capsule(first, &d, stream.first_capsule)
                         };
                         out.extend_from_slice(&capsule);
@@ -604,10 +692,20 @@ mod tests {
     fn requests_are_parsed_back() {
         let mut rx = vec![0x00, 0x13];
         rx.extend(Request::GetInfo.encode());
-        rx.extend(Request::ExpressScan { working_mode: 2, working_flags: 0, param: 0 }.encode());
+        rx.extend(
+            Request::ExpressScan {
+                working_mode: 2,
+                working_flags: 0,
+                param: 0,
+            }
+            .encode(),
+        );
         rx.extend(Request::Stop.encode());
         assert_eq!(take_request(&mut rx), Some((command::GET_INFO, vec![])));
-        assert_eq!(take_request(&mut rx), Some((command::EXPRESS_SCAN, vec![2, 0, 0, 0, 0])));
+        assert_eq!(
+            take_request(&mut rx),
+            Some((command::EXPRESS_SCAN, vec![2, 0, 0, 0, 0]))
+        );
         assert_eq!(take_request(&mut rx), Some((command::STOP, vec![])));
         assert_eq!(take_request(&mut rx), None);
     }

@@ -67,12 +67,19 @@ pub enum Request {
     ForceScan,
     /// Start a capsuled scan. `working_mode` is a scan mode id from the configuration
     /// (0 = legacy express on firmware without scan modes).
-    ExpressScan { working_mode: u8, working_flags: u16, param: u16 },
+    ExpressScan {
+        working_mode: u8,
+        working_flags: u16,
+        param: u16,
+    },
     GetInfo,
     GetHealth,
     GetSampleRate,
     /// Read a configuration entry; the scan-mode entries take the mode id.
-    GetLidarConf { entry: u32, mode: Option<u16> },
+    GetLidarConf {
+        entry: u32,
+        mode: Option<u16>,
+    },
     /// Motor duty cycle (0..=1023) through the A2/A3 accessory board.
     SetMotorPwm(u16),
     /// Motor speed in rpm on the time-of-flight models (S-series).
@@ -102,7 +109,11 @@ impl Request {
 
     fn payload(&self) -> Vec<u8> {
         match *self {
-            Request::ExpressScan { working_mode, working_flags, param } => {
+            Request::ExpressScan {
+                working_mode,
+                working_flags,
+                param,
+            } => {
                 let mut p = vec![working_mode];
                 p.extend_from_slice(&working_flags.to_le_bytes());
                 p.extend_from_slice(&param.to_le_bytes());
@@ -129,7 +140,11 @@ impl Request {
             return vec![REQUEST_SYNC, self.command()];
         }
         // Payloads are at most 6 bytes here, so the size always fits the size byte.
-        let mut out = vec![REQUEST_SYNC, self.command() | command::HAS_PAYLOAD, payload.len() as u8];
+        let mut out = vec![
+            REQUEST_SYNC,
+            self.command() | command::HAS_PAYLOAD,
+            payload.len() as u8,
+        ];
         out.extend_from_slice(&payload);
         out.push(xor(&out));
         out
@@ -137,7 +152,10 @@ impl Request {
 
     /// Whether the device answers this request with a descriptor.
     pub fn expects_answer(&self) -> bool {
-        !matches!(self, Request::Stop | Request::Reset | Request::SetMotorPwm(_) | Request::SetMotorRpm(_))
+        !matches!(
+            self,
+            Request::Stop | Request::Reset | Request::SetMotorPwm(_) | Request::SetMotorRpm(_)
+        )
     }
 }
 
@@ -185,7 +203,11 @@ impl Descriptor {
             1 => SendMode::Multiple,
             other => SendMode::Reserved(other),
         };
-        Ok(Self { len: word & 0x3FFF_FFFF, mode, answer_type: bytes[6] })
+        Ok(Self {
+            len: word & 0x3FFF_FFFF,
+            mode,
+            answer_type: bytes[6],
+        })
     }
 
     /// The 7 bytes of this descriptor (used by the fake device and the tests).
@@ -197,7 +219,15 @@ impl Descriptor {
         };
         let word = (self.len & 0x3FFF_FFFF) | (mode << 30);
         let w = word.to_le_bytes();
-        [RESPONSE_SYNC[0], RESPONSE_SYNC[1], w[0], w[1], w[2], w[3], self.answer_type]
+        [
+            RESPONSE_SYNC[0],
+            RESPONSE_SYNC[1],
+            w[0],
+            w[1],
+            w[2],
+            w[3],
+            self.answer_type,
+        ]
     }
 }
 
@@ -236,7 +266,12 @@ impl DeviceInfo {
     }
 
     pub fn encode(&self) -> Vec<u8> {
-        let mut out = vec![self.model, self.firmware_minor, self.firmware_major, self.hardware];
+        let mut out = vec![
+            self.model,
+            self.firmware_minor,
+            self.firmware_major,
+            self.hardware,
+        ];
         out.extend_from_slice(&self.serial);
         out
     }
@@ -297,7 +332,10 @@ impl DeviceHealth {
 
     pub fn parse(payload: &[u8]) -> Result<Self> {
         if payload.len() < Self::LEN {
-            return Err(Error::Protocol(format!("device health needs 3 bytes, got {}", payload.len())));
+            return Err(Error::Protocol(format!(
+                "device health needs 3 bytes, got {}",
+                payload.len()
+            )));
         }
         let status = match payload[0] {
             0 => HealthStatus::Good,
@@ -305,7 +343,10 @@ impl DeviceHealth {
             2 => HealthStatus::Error,
             other => HealthStatus::Unknown(other),
         };
-        Ok(Self { status, error_code: u16::from_le_bytes([payload[1], payload[2]]) })
+        Ok(Self {
+            status,
+            error_code: u16::from_le_bytes([payload[1], payload[2]]),
+        })
     }
 
     pub fn encode(&self) -> Vec<u8> {
@@ -330,7 +371,10 @@ pub struct SampleRate {
 impl SampleRate {
     pub fn parse(payload: &[u8]) -> Result<Self> {
         if payload.len() < 4 {
-            return Err(Error::Protocol(format!("sample rate needs 4 bytes, got {}", payload.len())));
+            return Err(Error::Protocol(format!(
+                "sample rate needs 4 bytes, got {}",
+                payload.len()
+            )));
         }
         Ok(Self {
             standard_us: u16::from_le_bytes([payload[0], payload[1]]),
@@ -355,14 +399,21 @@ pub struct ScanModeInfo {
 impl ScanModeInfo {
     /// Samples per second of this mode.
     pub fn sample_rate_hz(&self) -> f32 {
-        if self.us_per_sample > 0.0 { 1e6 / self.us_per_sample } else { 0.0 }
+        if self.us_per_sample > 0.0 {
+            1e6 / self.us_per_sample
+        } else {
+            0.0
+        }
     }
 }
 
 /// Splits a `GET_LIDAR_CONF` answer into its entry type and value, checking the echoed type.
 pub fn parse_conf_answer(payload: &[u8], expected_entry: u32) -> Result<&[u8]> {
     if payload.len() < 4 {
-        return Err(Error::Protocol(format!("configuration answer needs at least 4 bytes, got {}", payload.len())));
+        return Err(Error::Protocol(format!(
+            "configuration answer needs at least 4 bytes, got {}",
+            payload.len()
+        )));
     }
     let entry = u32::from_le_bytes([payload[0], payload[1], payload[2], payload[3]]);
     if entry != expected_entry {
@@ -376,9 +427,15 @@ pub fn parse_conf_answer(payload: &[u8], expected_entry: u32) -> Result<&[u8]> {
 /// Reads a little-endian unsigned value of 1 to 4 bytes from a configuration value.
 pub fn conf_u32(value: &[u8], len: usize, what: &str) -> Result<u32> {
     if value.len() < len {
-        return Err(Error::Protocol(format!("configuration value {what} needs {len} bytes, got {}", value.len())));
+        return Err(Error::Protocol(format!(
+            "configuration value {what} needs {len} bytes, got {}",
+            value.len()
+        )));
     }
-    Ok(value[..len].iter().rev().fold(0u32, |acc, b| (acc << 8) | u32::from(*b)))
+    Ok(value[..len]
+        .iter()
+        .rev()
+        .fold(0u32, |acc, b| (acc << 8) | u32::from(*b)))
 }
 
 /// A configuration string: bytes up to the first NUL, lossily decoded.
@@ -409,7 +466,11 @@ const fn crc_table() -> [u32; 256] {
         let mut c = i as u32;
         let mut j = 0;
         while j < 8 {
-            c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
             j += 1;
         }
         table[i] = c;
@@ -432,17 +493,30 @@ mod tests {
 
     #[test]
     fn express_scan_request_carries_size_payload_and_checksum() {
-        let bytes = Request::ExpressScan { working_mode: 0, working_flags: 0, param: 0 }.encode();
+        let bytes = Request::ExpressScan {
+            working_mode: 0,
+            working_flags: 0,
+            param: 0,
+        }
+        .encode();
         // A5 82 05 00 00 00 00 00 22: the published example of a legacy express request.
         assert_eq!(bytes, vec![0xA5, 0x82, 0x05, 0, 0, 0, 0, 0, 0x22]);
         let pwm = Request::SetMotorPwm(660).encode();
         assert_eq!(pwm[..3], [0xA5, 0xF0, 2]);
-        assert_eq!(xor(&pwm), 0, "the checksum makes the XOR of the whole packet zero");
+        assert_eq!(
+            xor(&pwm),
+            0,
+            "the checksum makes the XOR of the whole packet zero"
+        );
     }
 
     #[test]
     fn conf_request_appends_mode_id() {
-        let bytes = Request::GetLidarConf { entry: conf::SCAN_MODE_NAME, mode: Some(3) }.encode();
+        let bytes = Request::GetLidarConf {
+            entry: conf::SCAN_MODE_NAME,
+            mode: Some(3),
+        }
+        .encode();
         assert_eq!(bytes[..3], [0xA5, 0x84, 6]);
         assert_eq!(bytes[3..9], [0x7F, 0, 0, 0, 3, 0]);
         assert_eq!(xor(&bytes), 0);
@@ -450,7 +524,11 @@ mod tests {
 
     #[test]
     fn descriptor_round_trip_and_errors() {
-        let d = Descriptor { len: 84, mode: SendMode::Multiple, answer_type: answer::MEASUREMENT_CAPSULED };
+        let d = Descriptor {
+            len: 84,
+            mode: SendMode::Multiple,
+            answer_type: answer::MEASUREMENT_CAPSULED,
+        };
         let bytes = d.encode();
         assert_eq!(bytes, [0xA5, 0x5A, 0x54, 0, 0, 0x40, 0x82]);
         assert_eq!(Descriptor::parse(&bytes).unwrap(), d);
@@ -463,7 +541,13 @@ mod tests {
 
     #[test]
     fn info_and_health_parse() {
-        let info = DeviceInfo { model: 0x18, firmware_major: 1, firmware_minor: 29, hardware: 7, serial: [0xAB; 16] };
+        let info = DeviceInfo {
+            model: 0x18,
+            firmware_major: 1,
+            firmware_minor: 29,
+            hardware: 7,
+            serial: [0xAB; 16],
+        };
         let parsed = DeviceInfo::parse(&info.encode()).unwrap();
         assert_eq!(parsed, info);
         assert_eq!(parsed.family(), "A1");
@@ -471,7 +555,13 @@ mod tests {
         assert!(parsed.supports_express());
         assert!(DeviceInfo::parse(&[1, 2, 3]).is_err());
         let health = DeviceHealth::parse(&[2, 0x34, 0x12]).unwrap();
-        assert_eq!(health, DeviceHealth { status: HealthStatus::Error, error_code: 0x1234 });
+        assert_eq!(
+            health,
+            DeviceHealth {
+                status: HealthStatus::Error,
+                error_code: 0x1234
+            }
+        );
         assert!(DeviceHealth::parse(&[0]).is_err());
     }
 
@@ -495,7 +585,11 @@ mod tests {
             for &b in data {
                 crc ^= u32::from(b);
                 for _ in 0..8 {
-                    crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+                    crc = if crc & 1 != 0 {
+                        (crc >> 1) ^ 0xEDB8_8320
+                    } else {
+                        crc >> 1
+                    };
                 }
             }
             !crc

@@ -32,7 +32,9 @@ pub struct Rotation {
 impl Rotation {
     /// Measured period in seconds.
     pub fn period_s(&self) -> f64 {
-        self.ended.saturating_duration_since(self.started).as_secs_f64()
+        self.ended
+            .saturating_duration_since(self.started)
+            .as_secs_f64()
     }
 }
 
@@ -86,7 +88,9 @@ impl RotationAssembler {
     /// Adds samples that arrived at `arrival`; completed rotations are appended to `out`.
     pub fn push(&mut self, samples: &[Sample], arrival: Instant, out: &mut Vec<Rotation>) {
         for s in samples {
-            let wrapped = self.last_angle.is_some_and(|last| last - s.angle_deg > 180.0);
+            let wrapped = self
+                .last_angle
+                .is_some_and(|last| last - s.angle_deg > 180.0);
             if let Some(last) = self.last_angle {
                 let delta = (s.angle_deg - last).rem_euclid(360.0);
                 if delta < 180.0 {
@@ -98,8 +102,13 @@ impl RotationAssembler {
             if trigger && (self.started.is_none() || self.swept_deg >= 180.0) {
                 if let Some(started) = self.started {
                     let capacity = self.current.capacity();
-                    let samples = std::mem::replace(&mut self.current, Vec::with_capacity(capacity));
-                    out.push(Rotation { samples, started, ended: arrival });
+                    let samples =
+                        std::mem::replace(&mut self.current, Vec::with_capacity(capacity));
+                    out.push(Rotation {
+                        samples,
+                        started,
+                        ended: arrival,
+                    });
                 }
                 self.started = Some(arrival);
                 self.swept_deg = 0.0;
@@ -113,7 +122,11 @@ impl RotationAssembler {
                 self.reset();
                 continue;
             }
-            self.current.push(RotationSample { angle_deg: s.angle_deg, distance_mm: s.distance_mm, quality: s.quality });
+            self.current.push(RotationSample {
+                angle_deg: s.angle_deg,
+                distance_mm: s.distance_mm,
+                quality: s.quality,
+            });
         }
     }
 }
@@ -124,11 +137,18 @@ mod tests {
     use std::time::Duration;
 
     fn sample(angle: f32, start: bool) -> Sample {
-        Sample { angle_deg: angle, distance_mm: 1000.0, quality: 100, start_of_rotation: start }
+        Sample {
+            angle_deg: angle,
+            distance_mm: 1000.0,
+            quality: 100,
+            start_of_rotation: start,
+        }
     }
 
     fn turn(n: usize, with_flag: bool) -> Vec<Sample> {
-        (0..n).map(|k| sample(k as f32 * 360.0 / n as f32, with_flag && k == 0)).collect()
+        (0..n)
+            .map(|k| sample(k as f32 * 360.0 / n as f32, with_flag && k == 0))
+            .collect()
     }
 
     #[test]
@@ -140,9 +160,17 @@ mod tests {
         let half: Vec<Sample> = (180..360).map(|k| sample(k as f32, false)).collect();
         a.push(&half, t0, &mut out);
         for i in 1..=3 {
-            a.push(&turn(360, true), t0 + Duration::from_millis(100 * i), &mut out);
+            a.push(
+                &turn(360, true),
+                t0 + Duration::from_millis(100 * i),
+                &mut out,
+            );
         }
-        a.push(&[sample(0.0, true)], t0 + Duration::from_millis(400), &mut out);
+        a.push(
+            &[sample(0.0, true)],
+            t0 + Duration::from_millis(400),
+            &mut out,
+        );
         assert_eq!(out.len(), 3);
         assert!(out.iter().all(|r| r.samples.len() == 360));
         assert!((out[0].period_s() - 0.1).abs() < 1e-9);

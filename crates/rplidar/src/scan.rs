@@ -36,10 +36,16 @@ pub struct ScanGeometry {
 impl ScanGeometry {
     pub fn validate(&self) -> Result<()> {
         if !(2..=100_000).contains(&self.beams) {
-            return Err(Error::Config(format!("beams = {} must be in 2..=100000", self.beams)));
+            return Err(Error::Config(format!(
+                "beams = {} must be in 2..=100000",
+                self.beams
+            )));
         }
         if !(self.range_min_m.is_finite() && self.range_min_m >= 0.0) {
-            return Err(Error::Config(format!("range_min = {} m must be finite and >= 0", self.range_min_m)));
+            return Err(Error::Config(format!(
+                "range_min = {} m must be finite and >= 0",
+                self.range_min_m
+            )));
         }
         if !(self.range_max_m.is_finite() && self.range_max_m > self.range_min_m) {
             return Err(Error::Config(format!(
@@ -115,7 +121,8 @@ impl ScanFrame {
         }
         let scan_time = rotation.period_s() as f32;
         let time_increment = -scan_time / beams as f32;
-        let beam0_offset_ns = (rotation.period_s() * (beams - 1) as f64 / beams as f64 * 1e9) as i64;
+        let beam0_offset_ns =
+            (rotation.period_s() * (beams - 1) as f64 / beams as f64 * 1e9) as i64;
         Self {
             stamp_ns: start_ns.saturating_add(beam0_offset_ns),
             angle_min: geometry.angle_min(),
@@ -135,7 +142,10 @@ impl ScanFrame {
     /// The ROS message of this scan in `frame_id`.
     pub fn to_laser_scan(&self, frame_id: &str) -> LaserScan {
         LaserScan {
-            header: Header { stamp: Time::from_nanos(self.stamp_ns), frame_id: frame_id.to_owned() },
+            header: Header {
+                stamp: Time::from_nanos(self.stamp_ns),
+                frame_id: frame_id.to_owned(),
+            },
             angle_min: self.angle_min,
             angle_max: self.angle_max,
             angle_increment: self.angle_increment,
@@ -156,7 +166,11 @@ mod tests {
     use std::time::{Duration, Instant};
 
     fn geometry(beams: usize) -> ScanGeometry {
-        ScanGeometry { beams, range_min_m: 0.15, range_max_m: 12.0 }
+        ScanGeometry {
+            beams,
+            range_min_m: 0.15,
+            range_max_m: 12.0,
+        }
     }
 
     #[test]
@@ -182,13 +196,37 @@ mod tests {
         let g = geometry(360);
         let t = Instant::now();
         let samples = vec![
-            RotationSample { angle_deg: 10.0, distance_mm: 2000.0, quality: 50 },
-            RotationSample { angle_deg: 10.2, distance_mm: 1500.0, quality: 60 },
-            RotationSample { angle_deg: 20.0, distance_mm: 0.0, quality: 0 },
-            RotationSample { angle_deg: 30.0, distance_mm: 50.0, quality: 10 },
-            RotationSample { angle_deg: 40.0, distance_mm: 20000.0, quality: 10 },
+            RotationSample {
+                angle_deg: 10.0,
+                distance_mm: 2000.0,
+                quality: 50,
+            },
+            RotationSample {
+                angle_deg: 10.2,
+                distance_mm: 1500.0,
+                quality: 60,
+            },
+            RotationSample {
+                angle_deg: 20.0,
+                distance_mm: 0.0,
+                quality: 0,
+            },
+            RotationSample {
+                angle_deg: 30.0,
+                distance_mm: 50.0,
+                quality: 10,
+            },
+            RotationSample {
+                angle_deg: 40.0,
+                distance_mm: 20000.0,
+                quality: 10,
+            },
         ];
-        let rotation = Rotation { samples, started: t, ended: t + Duration::from_millis(100) };
+        let rotation = Rotation {
+            samples,
+            started: t,
+            ended: t + Duration::from_millis(100),
+        };
         let f = ScanFrame::from_rotation(&rotation, 1_000_000_000, &g);
         assert_eq!(f.ranges.len(), 360);
         assert_eq!(f.intensities.len(), 360);
@@ -208,7 +246,11 @@ mod tests {
     #[test]
     fn empty_rotation_gives_all_inf() {
         let t = Instant::now();
-        let rotation = Rotation { samples: vec![], started: t, ended: t };
+        let rotation = Rotation {
+            samples: vec![],
+            started: t,
+            ended: t,
+        };
         let f = ScanFrame::from_rotation(&rotation, 0, &geometry(720));
         assert_eq!(f.ranges.len(), 720);
         assert!(f.ranges.iter().all(|r| *r == f32::INFINITY));
@@ -220,9 +262,23 @@ mod tests {
         assert!(geometry(720).validate().is_ok());
         let e = geometry(1).validate().unwrap_err().to_string();
         assert!(e.contains("beams"), "{e}");
-        let e = ScanGeometry { beams: 720, range_min_m: 1.0, range_max_m: 0.5 }.validate().unwrap_err().to_string();
+        let e = ScanGeometry {
+            beams: 720,
+            range_min_m: 1.0,
+            range_max_m: 0.5,
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("range_max"), "{e}");
-        let e = ScanGeometry { beams: 720, range_min_m: f32::NAN, range_max_m: 5.0 }.validate().unwrap_err().to_string();
+        let e = ScanGeometry {
+            beams: 720,
+            range_min_m: f32::NAN,
+            range_max_m: 5.0,
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("range_min"), "{e}");
     }
 }

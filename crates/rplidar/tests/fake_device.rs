@@ -1,0 +1,411 @@
+//! The real driver against the fake RPLIDAR on a pseudo-terminal: scans decoded to the
+//! served ranges, scan-mode selection, and recovery from every injected fault.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use lidar_har_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
+use lidar_har_msgs::sensor_msgs::LaserScan;
+use lidar_har_rplidar::fake::{FakeConfig, FakeLidar, SyntheticRoom};
+use lidar_har_rplidar::protocol::HealthStatus;
+use lidar_har_rplidar::{Config, Driver, Event, ScanFormat, ScanGeometry, ScanModeChoice};
+
+const SAMPLES: usize = 720;
+
+fn config(path: &Path, mode: ScanModeChoice) -> Config {
+    Config {
+        scan_mode: mode,
+        request_timeout: Duration::from_millis(300),
+        data_timeout: Duration::from_millis(300),
+        reset_wait: Duration::from_millis(30),
+        reconnect_min: Duration::from_millis(20),
+        reconnect_max: Duration::from_millis(160),
+        diagnostics_period: Duration::from_millis(200),
+        ..Config::new(path.to_str().expect("temp paths are UTF-8"))
+    }
+}
+
+/// What the scan of the synthetic room must contain, beam by beam.
+fn expected_ranges(geometry: &ScanGeometry) -> Vec<f32> {
+    let room = SyntheticRoom::default();
+    (0..geometry.beams)
+        .map(|b| {
+            let k =
+                (geometry.device_angle_of(b) / (360.0 / SAMPLES as f32)).round() as usize % SAMPLES;
+            let r = room.range_at(k as f32 * 360.0 / SAMPLES as f32);
+            if r >= geometry.range_min_m && r <= geometry.range_max_m {
+                r
+            } else {
+                f32::INFINITY
+            }
+        })
+        .collect()
+}
+
+fn mismatches(scan: &LaserScan, expected: &[f32], tolerance_m: f32) -> usize {
+    assert_eq!(
+        scan.ranges.len(),
+        expected.len(),
+        "the beam count never changes"
+    );
+    scan.ranges
+        .iter()
+        .zip(expected)
+        .filter(|(got, want)| {
+            if want.is_infinite() {
+                !got.is_infinite()
+            } else {
+                (*got - *want).abs() > tolerance_m
+            }
+        })
+        .count()
+}
+
+fn spawn(dir: &Path, fake: FakeConfig) -> FakeLidar {
+    FakeLidar::spawn(dir.join("rplidar"), fake, SyntheticRoom::default())
+        .expect("fake device starts")
+}
+
+/// Runs the driver until `done` says so, returning every scan and diagnostic seen.
+fn run_until(
+    driver: &mut Driver,
+    limit: Duration,
+    mut done: impl FnMut(&[LaserScan], &[DiagnosticStatus]) -> bool,
+) -> (Vec<LaserScan>, Vec<DiagnosticStatus>) {
+    let deadline = Instant::now() + limit;
+    let mut scans = Vec::new();
+    let mut diags = Vec::new();
+    while !done(&scans, &diags) {
+        assert!(
+            Instant::now() < deadline,
+            "gave up after {limit:?}: {} scans; diagnostics: {:#?}",
+            scans.len(),
+            diags
+                .iter()
+                .map(|d: &DiagnosticStatus| (d.level, d.message.clone()))
+                .collect::<Vec<_>>()
+        );
+        match driver.next_event() {
+            Event::Scan(scan) => scans.push(scan),
+            Event::Diagnostics(DiagnosticArray { status, .. }) => diags.extend(status),
+        }
+    }
+    (scans, diags)
+}
+
+fn scans(n: usize) -> impl FnMut(&[LaserScan], &[DiagnosticStatus]) -> bool {
+    move |s, _| s.len() >= n
+}
+
+fn value<'a>(d: &'a DiagnosticStatus, key: &str) -> Option<&'a str> {
+    d.values
+        .iter()
+        .find(|kv| kv.key == key)
+        .map(|kv| kv.value.as_str())
+}
+
+fn check_exact(mode: ScanModeChoice, format: ScanFormat, tolerance_m: f32) {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::default());
+    let mut cfg = config(fake.path(), mode);
+    cfg.motor_pwm = Some(600);
+    let expected = expected_ranges(&cfg.geometry);
+    let mut driver = Driver::new(cfg.clone()).unwrap();
+    let (scans, diags) = run_until(&mut driver, Duration::from_secs(10), scans(4));
+    let status = driver.status();
+    assert_eq!(status.format, Some(format));
+    for scan in &scans {
+        assert_eq!(
+            mismatches(scan, &expected, tolerance_m),
+            0,
+            "{format:?} scan differs from the served ranges"
+        );
+        assert_eq!(scan.header.frame_id, "laser");
+        assert!(scan.time_increment < 0.0);
+        // 20 Hz served; the measured period must be near 50 ms.
+        assert!(
+            (0.035..0.075).contains(&scan.scan_time),
+            "scan_time {}",
+            scan.scan_time
+        );
+        assert!((scan.time_increment * 720.0 + scan.scan_time).abs() < 1e-6);
+    }
+    let window = scans[1].ranges.iter().filter(|r| r.is_infinite()).count();
+    assert!(
+        window >= 25,
+        "the window sector has no return: {window} inf beams"
+    );
+    // Device facts and the configured baud are reported.
+    let connected = diags
+        .iter()
+        .find(|d| d.message.starts_with("scanning:"))
+        .expect("a connect report");
+    assert_eq!(connected.level, DiagnosticStatus::OK);
+    assert_eq!(value(connected, "model"), Some("A1 (0x18)"));
+    assert_eq!(value(connected, "firmware"), Some("1.29"));
+    assert_eq!(value(connected, "baud"), Some("115200"));
+    assert_eq!(connected.hardware_id, "46414B452D52504C494441522D303031");
+    assert_eq!(status.health.map(|h| h.status), Some(HealthStatus::Good));
+    if let Some(baud) = status.baud_readback {
+        assert_eq!(baud, cfg.baud, "a pty reads back the configured rate");
+    }
+    assert_eq!(
+        fake.log().motor_pwm,
+        Some(600),
+        "motor PWM sent through the accessory board request"
+    );
+    let n = status.samples_per_rotation.unwrap();
+    assert!((700..=740).contains(&n), "samples per rotation {n}");
+}
+
+#[test]
+fn standard_scan_decodes_to_the_served_ranges() {
+    check_exact(ScanModeChoice::Standard, ScanFormat::Standard, 0.0006);
+}
+
+#[test]
+fn express_scan_decodes_to_the_served_ranges() {
+    check_exact(ScanModeChoice::Express, ScanFormat::Express, 0.0006);
+}
+
+#[test]
+fn named_dense_mode_decodes_to_the_served_ranges() {
+    check_exact(
+        ScanModeChoice::Named("denseboost".into()),
+        ScanFormat::Dense,
+        0.0006,
+    );
+}
+
+#[test]
+fn auto_uses_the_typical_mode_or_legacy_express() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(
+        dir.path(),
+        FakeConfig {
+            typical_mode: 2,
+            ..FakeConfig::default()
+        },
+    );
+    let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Auto)).unwrap();
+    run_until(&mut driver, Duration::from_secs(10), scans(1));
+    assert_eq!(driver.status().scan_mode.as_deref(), Some("DenseBoost"));
+    drop(driver);
+    drop(fake);
+
+    // Firmware without scan modes: the configuration probe times out quickly and the
+    // legacy express scan is used.
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(
+        dir.path(),
+        FakeConfig {
+            scan_modes: false,
+            ..FakeConfig::default()
+        },
+    );
+    let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Auto)).unwrap();
+    let started = Instant::now();
+    run_until(&mut driver, Duration::from_secs(10), scans(1));
+    assert_eq!(driver.status().format, Some(ScanFormat::Express));
+    assert!(started.elapsed() < Duration::from_secs(3));
+}
+
+#[test]
+fn unknown_named_mode_is_reported_and_retried_never_fatal() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::default());
+    let mut driver =
+        Driver::new(config(fake.path(), ScanModeChoice::Named("Boost".into()))).unwrap();
+    let (_, diags) = run_until(&mut driver, Duration::from_secs(5), |_, d| {
+        d.iter()
+            .filter(|s| s.message.contains("cannot start"))
+            .count()
+            >= 2
+    });
+    let error = diags
+        .iter()
+        .find(|d| d.message.contains("cannot start"))
+        .unwrap();
+    assert_eq!(error.level, DiagnosticStatus::ERROR);
+    assert!(
+        error
+            .message
+            .contains("Standard (id 0), Express (id 1), DenseBoost (id 2)"),
+        "{}",
+        error.message
+    );
+}
+
+fn garbage_resync(mode: ScanModeChoice) {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::default());
+    let cfg = config(fake.path(), mode);
+    let expected = expected_ranges(&cfg.geometry);
+    let mut driver = Driver::new(cfg).unwrap();
+    run_until(&mut driver, Duration::from_secs(10), scans(2));
+    // Faults while scanning: garbage that looks like sync bytes, odd lengths, dropped bytes.
+    let mut faulty = Vec::new();
+    for round in 0..4 {
+        match round {
+            0 => fake.inject_garbage(&[0xA5, 0x5A, 0x13, 0x37, 0xFF]),
+            1 => fake.drop_bytes(7),
+            2 => fake.inject_garbage(&[0x00; 1]),
+            _ => fake.inject_garbage(&(0..=255).collect::<Vec<u8>>()),
+        }
+        let (s, _) = run_until(&mut driver, Duration::from_secs(10), scans(2));
+        faulty.extend(s);
+    }
+    let (clean, _) = run_until(&mut driver, Duration::from_secs(10), scans(2));
+    let lost: usize = faulty
+        .iter()
+        .map(|s| mismatches(s, &expected, 0.0006))
+        .sum();
+    eprintln!(
+        "{lost} beams wrong over {} scans after 4 faults",
+        faulty.len()
+    );
+    // Each fault costs at most the packet it hit: one capsule (32 samples) or a few nodes.
+    assert!(
+        lost <= 4 * 40,
+        "{lost} beams wrong over {} scans after 4 faults",
+        faulty.len()
+    );
+    for scan in &clean {
+        assert_eq!(
+            mismatches(scan, &expected, 0.0006),
+            0,
+            "decoding recovered fully"
+        );
+    }
+    let status = driver.status();
+    assert!(status.decode.skipped_bytes + status.decode.rejected_packets > 0);
+    assert_eq!(status.resets, 0, "garbage alone must not trigger a reset");
+    assert_eq!(status.connects, 1);
+}
+
+#[test]
+fn standard_scan_resyncs_after_garbage_with_bounded_loss() {
+    garbage_resync(ScanModeChoice::Standard);
+}
+
+#[test]
+fn express_scan_resyncs_after_garbage_with_bounded_loss() {
+    garbage_resync(ScanModeChoice::Express);
+}
+
+#[test]
+fn unplug_and_replug_reconnects_with_backoff() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::default());
+    let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Express)).unwrap();
+    run_until(&mut driver, Duration::from_secs(10), scans(2));
+    fake.unplug();
+    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |_, d| {
+        d.iter()
+            .filter(|s| s.message.starts_with("cannot start"))
+            .count()
+            >= 3
+    });
+    let lost = diags
+        .iter()
+        .find(|d| d.message.starts_with("lost the device"))
+        .expect("the loss is reported");
+    assert_eq!(lost.level, DiagnosticStatus::ERROR);
+    let retry = diags
+        .iter()
+        .find(|d| d.message.starts_with("cannot start"))
+        .unwrap();
+    assert!(retry.message.contains("retrying in"), "{}", retry.message);
+    assert!(!driver.status().scanning);
+    fake.replug();
+    let (scans_after, diags) = run_until(&mut driver, Duration::from_secs(10), scans(3));
+    assert!(
+        diags
+            .iter()
+            .any(|d| d.level == DiagnosticStatus::OK && d.message.starts_with("scanning:"))
+    );
+    assert!(scans_after.iter().all(|s| s.ranges.len() == 720));
+    let status = driver.status();
+    assert_eq!((status.connects, status.disconnects), (2, 1));
+    assert_eq!(fake.log().plugs, 2);
+}
+
+#[test]
+fn hung_device_is_reset_and_scans_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::default());
+    let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Standard)).unwrap();
+    run_until(&mut driver, Duration::from_secs(10), scans(2));
+    // A short stall (below the data timeout) is tolerated without a reset.
+    fake.stall(Duration::from_millis(100));
+    run_until(&mut driver, Duration::from_secs(10), scans(3));
+    assert_eq!(driver.status().resets, 0);
+    fake.hang();
+    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |s, d| {
+        d.iter().any(|x| x.message.starts_with("scanning again")) && !s.is_empty()
+    });
+    let warn = diags
+        .iter()
+        .find(|d| d.message.starts_with("no valid data"))
+        .expect("silence is reported");
+    assert_eq!(warn.level, DiagnosticStatus::WARN);
+    assert_eq!(fake.log().resets, 1);
+    assert_eq!(driver.status().resets, 1);
+    assert_eq!(driver.status().connects, 1, "recovered on the same port");
+}
+
+#[test]
+fn health_error_at_start_is_reset() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::default());
+    fake.set_health(HealthStatus::Error, 0x8001, true);
+    let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Express)).unwrap();
+    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), scans(2));
+    let error = diags
+        .iter()
+        .find(|d| d.message.contains("health error"))
+        .expect("the health error is reported");
+    assert_eq!(error.level, DiagnosticStatus::ERROR);
+    assert!(error.message.contains("0x8001"));
+    assert_eq!(fake.log().resets, 1);
+}
+
+#[test]
+fn persistent_health_error_keeps_retrying_until_it_clears() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::default());
+    fake.set_health(HealthStatus::Error, 0x0042, false);
+    let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Standard)).unwrap();
+    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |_, d| {
+        d.iter()
+            .filter(|s| s.message.contains("persists after a reset"))
+            .count()
+            >= 2
+    });
+    assert!(
+        diags
+            .iter()
+            .all(|d| d.level != DiagnosticStatus::OK || !d.message.starts_with("scanning:"))
+    );
+    fake.set_health(HealthStatus::Warning, 0x0007, false);
+    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), scans(2));
+    let warn = diags
+        .iter()
+        .find(|d| d.message.contains("Warning"))
+        .expect("a warning health is reported");
+    assert_eq!(warn.level, DiagnosticStatus::WARN);
+}
+
+#[test]
+fn missing_port_is_reported_not_fatal() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("no-such-device");
+    let mut driver = Driver::new(config(&path, ScanModeChoice::Auto)).unwrap();
+    let (_, diags) = run_until(&mut driver, Duration::from_secs(5), |_, d| d.len() >= 3);
+    assert!(diags.iter().all(|d| d.level == DiagnosticStatus::ERROR));
+    assert!(
+        diags[0].message.contains("no-such-device"),
+        "{}",
+        diags[0].message
+    );
+}
