@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Runs every cargo-fuzz target in fuzz/ for a fixed number of runs with a fixed seed (short
+# and reproducible, for CI), or longer when asked. A new target in fuzz/Cargo.toml is picked
+# up by itself (`cargo fuzz list`); inputs in fuzz/seeds/<target>/ seed its corpus.
+#
+#   scripts/fuzz.sh                     every target, FUZZ_RUNS (20000) runs each
+#   scripts/fuzz.sh cdr_decode          only the named targets
+#   FUZZ_RUNS=2000000 FUZZ_SEED=7 scripts/fuzz.sh cdr_decode    a longer session
+#
+# Needs cargo-fuzz (scripts/setup.sh installs it). Works with the stable compiler:
+# RUSTC_BOOTSTRAP=1 lets it accept the -Z flags cargo-fuzz passes (sanitizer, coverage).
+# A crash stops the script with the failing input under fuzz/artifacts/<target>/.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+RUNS="${FUZZ_RUNS:-20000}"
+SEED="${FUZZ_SEED:-1}"
+# Fuzz builds use their own compiler flags: keep them apart from the workspace's build.
+TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/target}/fuzz"
+
+say() { printf '\033[1mfuzz:\033[0m %s\n' "$*"; }
+
+if ! cargo fuzz --version >/dev/null 2>&1; then
+    echo "fuzz: cargo-fuzz is not installed: run scripts/setup.sh (or 'cargo install cargo-fuzz --locked')" >&2
+    exit 1
+fi
+export RUSTC_BOOTSTRAP=1
+
+cd "$ROOT/fuzz"
+if [ "$#" -gt 0 ]; then
+    targets=("$@")
+else
+    mapfile -t targets < <(cargo fuzz list)
+fi
+[ "${#targets[@]}" -gt 0 ] || { echo "fuzz: no targets in fuzz/Cargo.toml" >&2; exit 1; }
+
+for target in "${targets[@]}"; do
+    corpus="corpus/$target"
+    mkdir -p "$corpus"
+    seeds=()
+    [ -d "seeds/$target" ] && seeds=("seeds/$target/")
+    say "$target: $RUNS runs, seed $SEED"
+    start=$SECONDS
+    log="$TARGET_DIR/$target.log"
+    mkdir -p "$TARGET_DIR"
+    # -rss_limit_mb also limits single allocations: unbounded allocation is a finding.
+    if ! cargo fuzz run --target-dir "$TARGET_DIR" "$target" "$corpus" "${seeds[@]}" -- \
+        -runs="$RUNS" -seed="$SEED" -max_len=65536 -rss_limit_mb=1024 -timeout=10 -print_final_stats=1 \
+        >"$log" 2>&1; then
+        tail -n 80 "$log" >&2
+        echo "fuzz: $target FAILED (full log: $log; the input is under fuzz/artifacts/$target/)" >&2
+        exit 1
+    fi
+    grep -E '^(Done|stat::number_of_executed_units|stat::peak_rss_mb|INFO: seed corpus)' "$log" || true
+    say "$target: ok in $((SECONDS - start)) s"
+done
