@@ -11,10 +11,17 @@ use lidar_har_msgs::{
 };
 
 fn check<M: RosMessage>(data: &[u8]) {
-    let Ok(message) = decode::<M>(data) else { return };
+    let Ok(message) = decode::<M>(data) else {
+        return;
+    };
     let bytes = encode(&message).expect("a decoded message encodes");
     let again: M = decode(&bytes).expect("our own encoding decodes");
-    assert_eq!(encode(&again).expect("encodes"), bytes, "{}: encode . decode is not stable", M::TYPE_NAME);
+    assert_eq!(
+        encode(&again).expect("encodes"),
+        bytes,
+        "{}: encode . decode is not stable",
+        M::TYPE_NAME
+    );
 }
 
 fuzz_target!(|data: &[u8]| {
