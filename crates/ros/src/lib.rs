@@ -1,1 +1,381 @@
-//! lidar_har ros crate.
+//! ROS 2 transport of lidar_har: a small byte-level publish/subscribe interface (topic, type
+//! name, QoS, CDR bytes) over two backends, so that `lidar_har_msgs`' codec is the only place
+//! that knows message layouts.
+//!
+//! - default: `ros2-client` (pure-Rust DDS/RTPS with ROS 2 naming: topic `rt/scan`, type
+//!   `sensor_msgs::msg::dds_::LaserScan_`). Builds and runs everywhere, talks to ROS 2 nodes.
+//! - feature `r2r`: rcl through `r2r` (`publish_raw` / `subscribe_raw`); needs a sourced ROS 2.
+//!
+//! It also handles what ros2-client leaves to the application: `--ros-args` (remapping, node
+//! name and namespace, `-p`, `--params-file`), `ROS_DOMAIN_ID`, and typed parameters that
+//! `ros2 param get/set` can reach. Time stamps come from [`Node::now`], which follows /clock
+//! when the `use_sim_time` parameter is true.
+
+pub mod args;
+mod dds;
+pub mod json;
+pub mod params;
+#[cfg(feature = "r2r")]
+mod rcl;
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use lidar_har_msgs::qos::QosProfile;
+use lidar_har_msgs::topics::TopicSpec;
+use lidar_har_msgs::{CdrError, RosMessage};
+
+pub use args::RosArgs;
+pub use params::{ParamDecl, ParamValue, Parameters};
+
+/// Everything that can go wrong in the transport, each naming what it is about.
+#[derive(Debug, thiserror::Error)]
+pub enum RosError {
+    #[error("bad ROS argument {0}")]
+    Args(String),
+    #[error("parameter `{name}`: {reason}")]
+    Parameter { name: String, reason: String },
+    #[error("parameter file {path}: {reason}")]
+    ParamsFile { path: PathBuf, reason: String },
+    #[error("bad name `{name}`: {reason}")]
+    Name { name: String, reason: String },
+    #[error("type name `{0}` is not of the form `package/msg/Type`")]
+    TypeName(String),
+    #[error("DDS: {0}")]
+    Dds(String),
+    #[error("topic {topic}: {reason}")]
+    Topic { topic: String, reason: String },
+    #[error(transparent)]
+    Cdr(#[from] CdrError),
+}
+
+/// Which middleware a node uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Backend {
+    /// Pure-Rust DDS (`ros2-client`).
+    Dds,
+    /// rcl through `r2r`.
+    #[cfg(feature = "r2r")]
+    Rcl,
+}
+
+impl Default for Backend {
+    /// rcl when built with `r2r` (a ROS 2 installation is present), pure-Rust DDS otherwise.
+    fn default() -> Self {
+        #[cfg(feature = "r2r")]
+        return Self::Rcl;
+        #[cfg(not(feature = "r2r"))]
+        Self::Dds
+    }
+}
+
+/// How to start a node: its default name, the parameters it declares, and the command line
+/// (whose `--ros-args` sections are applied; the rest is left to the program).
+#[derive(Debug, Clone)]
+pub struct NodeSetup {
+    pub name: String,
+    pub namespace: String,
+    pub parameters: Vec<ParamDecl>,
+    pub args: Vec<String>,
+    pub backend: Backend,
+}
+
+impl NodeSetup {
+    /// A node named `name` in `/`, reading this process's command line.
+    pub fn new(name: &str) -> Self {
+        Self {
+            name: name.to_string(),
+            namespace: "/".to_string(),
+            parameters: Vec::new(),
+            args: std::env::args().skip(1).collect(),
+            backend: Backend::default(),
+        }
+    }
+
+    pub fn parameters(mut self, decls: Vec<ParamDecl>) -> Self {
+        self.parameters = decls;
+        self
+    }
+
+    pub fn args<I: IntoIterator<Item = S>, S: Into<String>>(mut self, args: I) -> Self {
+        self.args = args.into_iter().map(Into::into).collect();
+        self
+    }
+}
+
+/// A received message: its CDR bytes (with encapsulation header) and when it was published.
+#[derive(Debug, Clone)]
+pub struct Sample {
+    pub bytes: Vec<u8>,
+    /// The publisher's source time stamp in nanoseconds since the Unix epoch, when the
+    /// middleware carries one.
+    pub source_time_ns: Option<i64>,
+}
+
+impl Sample {
+    pub fn decode<M: RosMessage>(&self) -> Result<M, RosError> {
+        Ok(lidar_har_msgs::decode(&self.bytes)?)
+    }
+}
+
+/// A topic seen on the network.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+pub struct TopicInfo {
+    /// ROS name, e.g. `/scan`.
+    pub name: String,
+    /// ROS type, e.g. `sensor_msgs/msg/LaserScan`.
+    pub type_name: String,
+}
+
+trait NodeBackend: Send + Sync {
+    fn publisher(&self, topic: &str, type_name: &str, qos: &QosProfile) -> Result<Box<dyn PublisherBackend>, RosError>;
+    fn subscriber(&self, topic: &str, type_name: &str, qos: &QosProfile)
+    -> Result<Box<dyn SubscriberBackend>, RosError>;
+    /// Blocks until some subscriber may have data, or `timeout` passes.
+    fn wait(&self, timeout: Duration) -> Result<(), RosError>;
+    fn now_ns(&self) -> i64;
+    fn parameter(&self, name: &str) -> Option<ParamValue>;
+    fn topics(&self) -> Vec<TopicInfo>;
+}
+
+trait PublisherBackend: Send + Sync {
+    fn publish(&self, cdr: &[u8]) -> Result<(), RosError>;
+    fn subscription_count(&self) -> usize;
+}
+
+trait SubscriberBackend: Send + Sync {
+    fn try_take(&self) -> Result<Option<Sample>, RosError>;
+}
+
+/// A ROS 2 node.
+pub struct Node {
+    name: String,
+    namespace: String,
+    ros_args: RosArgs,
+    params: Parameters,
+    backend: Box<dyn NodeBackend>,
+}
+
+impl Node {
+    /// Parses the command line, resolves the parameters (defaults, then parameter files, then
+    /// `-p`) and joins the ROS graph. Bad arguments or parameters are errors naming them.
+    pub fn new(setup: NodeSetup) -> Result<Self, RosError> {
+        let ros_args = RosArgs::parse(setup.args.clone())?;
+        let name = ros_args.node_name.clone().unwrap_or(setup.name.clone());
+        let namespace = ros_args.namespace.clone().unwrap_or(setup.namespace.clone());
+        let fqn = args::expand_name(&name, &namespace, &name);
+        let mut decls = setup.parameters.clone();
+        if !decls.iter().any(|d| d.name == "use_sim_time") {
+            decls.push(ParamDecl::new(
+                "use_sim_time",
+                ParamValue::Bool(false),
+                "stamp with /clock instead of the system clock",
+            ));
+        }
+        let params = Parameters::resolve(&decls, &fqn, &ros_args.params_files, &ros_args.params)?;
+        let backend: Box<dyn NodeBackend> = match setup.backend {
+            Backend::Dds => Box::new(dds::DdsNode::new(&name, &namespace, &decls, &params)?),
+            #[cfg(feature = "r2r")]
+            Backend::Rcl => Box::new(rcl::RclNode::new(&name, &namespace, &setup.args)?),
+        };
+        Ok(Self { name, namespace, ros_args, params, backend })
+    }
+
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    pub fn namespace(&self) -> &str {
+        &self.namespace
+    }
+
+    /// Command-line arguments outside `--ros-args`: the program's own.
+    pub fn program_args(&self) -> &[String] {
+        &self.ros_args.rest
+    }
+
+    /// Parameter values at start-up.
+    pub fn params(&self) -> &Parameters {
+        &self.params
+    }
+
+    /// The current value of a parameter, including changes made with `ros2 param set`.
+    pub fn parameter(&self, name: &str) -> Option<ParamValue> {
+        self.backend.parameter(name).or_else(|| self.params.get(name).cloned())
+    }
+
+    /// `topic` after namespace expansion and `-r` remapping.
+    pub fn resolve_topic(&self, topic: &str) -> String {
+        args::resolve_topic(topic, &self.ros_args.remaps, &self.namespace, &self.name)
+    }
+
+    /// Now, in nanoseconds since the epoch: /clock time when `use_sim_time` is true (zero
+    /// until the first /clock message), the system clock otherwise.
+    pub fn now(&self) -> i64 {
+        self.backend.now_ns()
+    }
+
+    pub fn publisher(&self, topic: &str, type_name: &str, qos: QosProfile) -> Result<Publisher, RosError> {
+        let resolved = self.resolve_topic(topic);
+        let inner = self.backend.publisher(&resolved, type_name, &qos)?;
+        Ok(Publisher { topic: resolved, type_name: type_name.to_string(), inner })
+    }
+
+    pub fn subscriber(&self, topic: &str, type_name: &str, qos: QosProfile) -> Result<Subscriber, RosError> {
+        let resolved = self.resolve_topic(topic);
+        let inner = self.backend.subscriber(&resolved, type_name, &qos)?;
+        Ok(Subscriber { topic: resolved, type_name: type_name.to_string(), inner })
+    }
+
+    /// A publisher for a topic of the contract (its name, type and QoS).
+    pub fn publisher_for(&self, spec: &TopicSpec) -> Result<Publisher, RosError> {
+        self.publisher(spec.name, spec.type_name, spec.qos)
+    }
+
+    /// A subscriber for a topic of the contract (its name, type and QoS).
+    pub fn subscriber_for(&self, spec: &TopicSpec) -> Result<Subscriber, RosError> {
+        self.subscriber(spec.name, spec.type_name, spec.qos)
+    }
+
+    /// Blocks until one of this node's subscribers may have data, or `timeout` passes. Take
+    /// from every subscriber until empty before waiting again.
+    pub fn wait(&self, timeout: Duration) -> Result<(), RosError> {
+        self.backend.wait(timeout)
+    }
+
+    /// Topics discovered on the network so far, sorted.
+    pub fn topics(&self) -> Vec<TopicInfo> {
+        let mut topics = self.backend.topics();
+        topics.sort();
+        topics.dedup();
+        topics
+    }
+}
+
+/// Publishes CDR bytes on one topic.
+pub struct Publisher {
+    topic: String,
+    type_name: String,
+    inner: Box<dyn PublisherBackend>,
+}
+
+impl Publisher {
+    /// Publishes one message: CDR bytes beginning with the 4-byte encapsulation header.
+    pub fn publish(&self, cdr: &[u8]) -> Result<(), RosError> {
+        self.inner.publish(cdr)
+    }
+
+    /// Encodes and publishes a message of this topic's type.
+    pub fn publish_msg<M: RosMessage>(&self, msg: &M) -> Result<(), RosError> {
+        if M::TYPE_NAME != self.type_name {
+            return Err(RosError::Topic {
+                topic: self.topic.clone(),
+                reason: format!("publishes {}, not {}", self.type_name, M::TYPE_NAME),
+            });
+        }
+        self.publish(&lidar_har_msgs::encode(msg)?)
+    }
+
+    pub fn topic(&self) -> &str {
+        &self.topic
+    }
+
+    /// Subscribers matched so far.
+    pub fn subscription_count(&self) -> usize {
+        self.inner.subscription_count()
+    }
+}
+
+/// Receives CDR bytes from one topic.
+pub struct Subscriber {
+    topic: String,
+    type_name: String,
+    inner: Box<dyn SubscriberBackend>,
+}
+
+impl Subscriber {
+    /// The next received message, if any, without blocking.
+    pub fn try_take(&self) -> Result<Option<Sample>, RosError> {
+        self.inner.try_take()
+    }
+
+    /// The next message, waiting at most `timeout` on `node` (the node that made this
+    /// subscriber).
+    pub fn take_timeout(&self, node: &Node, timeout: Duration) -> Result<Option<Sample>, RosError> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(sample) = self.try_take()? {
+                return Ok(Some(sample));
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Ok(None);
+            }
+            // Bounded slices: a notification that raced with the last take costs at most 20 ms.
+            node.wait(left.min(Duration::from_millis(20)))?;
+        }
+    }
+
+    /// The next message decoded as `M`, without blocking.
+    pub fn try_take_msg<M: RosMessage>(&self) -> Result<Option<(M, Sample)>, RosError> {
+        if M::TYPE_NAME != self.type_name {
+            return Err(RosError::Topic {
+                topic: self.topic.clone(),
+                reason: format!("carries {}, not {}", self.type_name, M::TYPE_NAME),
+            });
+        }
+        match self.try_take()? {
+            Some(sample) => {
+                let msg = sample.decode::<M>().map_err(|e| RosError::Topic {
+                    topic: self.topic.clone(),
+                    reason: e.to_string(),
+                })?;
+                Ok(Some((msg, sample)))
+            }
+            None => Ok(None),
+        }
+    }
+
+    pub fn topic(&self) -> &str {
+        &self.topic
+    }
+
+    pub fn type_name(&self) -> &str {
+        &self.type_name
+    }
+}
+
+/// Splits `pkg/msg/Type` into its package and type.
+fn split_type_name(type_name: &str) -> Result<(&str, &str), RosError> {
+    match type_name.split('/').collect::<Vec<_>>().as_slice() {
+        [pkg, "msg", ty] if !pkg.is_empty() && !ty.is_empty() => Ok((pkg, ty)),
+        _ => Err(RosError::TypeName(type_name.to_string())),
+    }
+}
+
+/// `pkg::msg::dds_::Type_` (the DDS type name) back to `pkg/msg/Type`.
+pub fn ros_type_from_dds(dds: &str) -> Option<String> {
+    let (pkg, rest) = dds.split_once("::msg::dds_::")?;
+    Some(format!("{pkg}/msg/{}", rest.strip_suffix('_')?))
+}
+
+/// `rt/scan` (a DDS topic of a ROS topic) back to `/scan`.
+pub fn ros_topic_from_dds(dds: &str) -> Option<String> {
+    dds.strip_prefix("rt/").map(|t| format!("/{t}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn type_names_round_trip() {
+        assert_eq!(split_type_name("sensor_msgs/msg/LaserScan").unwrap(), ("sensor_msgs", "LaserScan"));
+        assert!(split_type_name("sensor_msgs/LaserScan").is_err());
+        assert!(split_type_name("/msg/X").is_err());
+        assert_eq!(ros_type_from_dds("sensor_msgs::msg::dds_::LaserScan_").as_deref(), Some("sensor_msgs/msg/LaserScan"));
+        assert_eq!(ros_type_from_dds("rcl_interfaces::srv::dds_::GetParameters_Request_"), None);
+        assert_eq!(ros_topic_from_dds("rt/human/activity").as_deref(), Some("/human/activity"));
+        assert_eq!(ros_topic_from_dds("rq/node/get_parametersRequest"), None);
+    }
+}

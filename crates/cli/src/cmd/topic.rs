@@ -1,11 +1,170 @@
-//! `lidar-har topic` (being built; see the issue tracker).
+//! `lidar-har topic list|echo`: see and read ROS 2 topics over DDS without ROS 2 installed
+//! (the pure-Rust transport of `lidar-har-ros`), as JSON lines that tests and scripts parse.
+
+use std::io::Write;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use lidar_har_msgs::qos::QosProfile;
+use lidar_har_ros::{Node, NodeSetup};
 
 #[derive(clap::Subcommand)]
 pub enum TopicCommand {
-    /// Not available in this build yet.
-    Info,
+    /// List the topics discovered on the network (ROS_DOMAIN_ID applies), one per line.
+    List {
+        /// How long to listen for discovery, in seconds.
+        #[arg(long, default_value_t = 2.0)]
+        wait: f64,
+        /// Also print each topic's type.
+        #[arg(short = 't', long)]
+        show_types: bool,
+    },
+    /// Print the messages of a topic as JSON lines.
+    Echo {
+        /// Topic name, e.g. /human/activity.
+        topic: String,
+        /// Message type (e.g. lidar_har_msgs/msg/Activity); found by discovery when omitted.
+        #[arg(long = "type")]
+        type_name: Option<String>,
+        /// Stop after this many messages.
+        #[arg(long)]
+        count: Option<u64>,
+        /// Stop after this many seconds (also bounds the wait for discovery).
+        #[arg(long)]
+        timeout: Option<f64>,
+        /// Exit non-zero when fewer than --count messages arrived before --timeout.
+        #[arg(long)]
+        require_count: bool,
+    },
 }
 
-pub fn run(_command: TopicCommand) -> anyhow::Result<()> {
-    anyhow::bail!("`lidar-har topic` is not available in this build yet")
+pub fn run(command: TopicCommand) -> anyhow::Result<()> {
+    match command {
+        TopicCommand::List { wait, show_types } => list(seconds(wait, "--wait")?, show_types),
+        TopicCommand::Echo { topic, type_name, count, timeout, require_count } => {
+            let timeout = timeout.map(|t| seconds(t, "--timeout")).transpose()?;
+            echo(&topic, type_name, count, timeout, require_count)
+        }
+    }
+}
+
+fn seconds(value: f64, flag: &str) -> anyhow::Result<Duration> {
+    if !(value.is_finite() && value >= 0.0) {
+        bail!("{flag} {value}: must be a finite number of seconds >= 0");
+    }
+    Ok(Duration::from_secs_f64(value))
+}
+
+fn cli_node() -> anyhow::Result<Node> {
+    // A unique name per process: several `topic echo` may run at once.
+    let name = format!("lidar_har_cli_{}", std::process::id());
+    Node::new(NodeSetup::new(&name).args(Vec::<String>::new())).context("cannot join the ROS 2 graph")
+}
+
+fn list(wait: Duration, show_types: bool) -> anyhow::Result<()> {
+    let node = cli_node()?;
+    std::thread::sleep(wait);
+    let mut out = std::io::stdout().lock();
+    for t in node.topics() {
+        if show_types {
+            writeln!(out, "{} [{}]", t.name, t.type_name)?;
+        } else {
+            writeln!(out, "{}", t.name)?;
+        }
+    }
+    Ok(())
+}
+
+/// The contract's QoS for a known topic; best effort (which matches every writer) otherwise.
+fn qos_for(topic: &str) -> QosProfile {
+    lidar_har_msgs::topics::ALL
+        .iter()
+        .find(|spec| spec.name == topic)
+        .map(|spec| spec.qos)
+        .unwrap_or(QosProfile::sensor_data())
+}
+
+fn echo(
+    topic: &str,
+    type_name: Option<String>,
+    count: Option<u64>,
+    timeout: Option<Duration>,
+    require_count: bool,
+) -> anyhow::Result<()> {
+    let start = Instant::now();
+    let deadline = timeout.map(|t| start + t);
+    let node = cli_node()?;
+    let type_name = match type_name {
+        Some(t) => t,
+        None => match lidar_har_msgs::topics::ALL.iter().find(|s| s.name == topic) {
+            Some(spec) => spec.type_name.to_string(),
+            None => discover_type(&node, topic, deadline)?,
+        },
+    };
+    let sub = node.subscriber(topic, &type_name, qos_for(topic))?;
+    let stop = stop_flag()?;
+    let mut received = 0u64;
+    let mut out = std::io::stdout().lock();
+    while count.is_none_or(|c| received < c) && !stop.load(std::sync::atomic::Ordering::Relaxed) {
+        let left = match deadline {
+            Some(d) => d.saturating_duration_since(Instant::now()),
+            None => Duration::from_millis(200),
+        };
+        if left.is_zero() {
+            break;
+        }
+        let Some(sample) = sub.take_timeout(&node, left.min(Duration::from_millis(200)))? else {
+            continue;
+        };
+        received += 1;
+        let line = serde_json::json!({
+            "topic": topic,
+            "type": type_name,
+            "source_time_ns": sample.source_time_ns,
+            "msg": to_json(&type_name, &sample.bytes),
+        });
+        writeln!(out, "{line}")?;
+        out.flush()?;
+    }
+    if require_count && let Some(c) = count
+        && received < c
+    {
+        bail!("{topic}: received {received} of {c} messages before the timeout");
+    }
+    Ok(())
+}
+
+fn discover_type(node: &Node, topic: &str, deadline: Option<Instant>) -> anyhow::Result<String> {
+    let deadline = deadline.unwrap_or_else(|| Instant::now() + Duration::from_secs(5));
+    loop {
+        if let Some(t) = node.topics().into_iter().find(|t| t.name == topic) {
+            return Ok(t.type_name);
+        }
+        if Instant::now() >= deadline {
+            bail!("topic {topic} not found on the network; give its type with --type");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// SIGINT/SIGTERM end the echo loop cleanly (stdout flushed, exit 0).
+fn stop_flag() -> anyhow::Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, flag.clone()).context("cannot install signal handler")?;
+    }
+    Ok(flag)
+}
+
+/// A message as JSON: decoded field by field for the types of `lidar_har_msgs`, otherwise
+/// its CDR bytes in hex.
+fn to_json(type_name: &str, bytes: &[u8]) -> serde_json::Value {
+    match lidar_har_ros::json::decode_to_json(type_name, bytes) {
+        Some(Ok(value)) => value,
+        Some(Err(e)) => serde_json::json!({ "decode_error": e.to_string() }),
+        None => {
+            let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
+            serde_json::json!({ "cdr_hex": hex })
+        }
+    }
 }

@@ -1,0 +1,346 @@
+//! The default backend: ros2-client (RustDDS) with raw CDR bytes.
+//!
+//! ros2-client's typed publishers serialise serde values; we already have CDR bytes from our
+//! codec. So the ros2-client `Node` provides the ROS side (node in the graph, parameter
+//! services, /clock, ROS topic and type naming) and our data readers and writers are RustDDS
+//! ones on its participant, with a serializer adapter that passes bytes through unchanged.
+
+use std::collections::HashMap;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Duration;
+
+use lidar_har_msgs::qos::{Durability, History, QosProfile, Reliability};
+use ros2_client::dds::rustdds;
+use ros2_client::{MessageTypeName, Name, NodeName, NodeOptions, ParameterValue as Ros2Value};
+use rustdds::mio1;
+use rustdds::no_key::{self, DataWriter, Decode, DefaultDecoder, DeserializerAdapter, SerializerAdapter};
+use rustdds::{DataWriterStatus, QosPolicies, RepresentationIdentifier, StatusEvented, Timestamp, Topic};
+
+use crate::params::{ParamDecl, ParamValue, Parameters};
+use crate::{NodeBackend, PublisherBackend, RosError, Sample, SubscriberBackend, TopicInfo, split_type_name};
+
+/// CDR bytes after the encapsulation header, with the header's representation identifier.
+pub(crate) struct RawCdr {
+    representation: RepresentationIdentifier,
+    body: Vec<u8>,
+}
+
+/// Why bytes could not be handed to or taken from DDS.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum RawCdrError {
+    #[error("encapsulation {0:02x?} is not plain CDR")]
+    Encapsulation([u8; 2]),
+}
+
+/// Serialiser and deserialiser adapter passing CDR bytes through unchanged.
+pub(crate) struct RawAdapter;
+
+impl SerializerAdapter<RawCdr> for RawAdapter {
+    type Error = RawCdrError;
+
+    fn output_encoding() -> RepresentationIdentifier {
+        RepresentationIdentifier::CDR_LE
+    }
+
+    fn to_bytes(value: &RawCdr) -> Result<rustdds::bytes::Bytes, RawCdrError> {
+        // The writer adds the CDR_LE header itself; only little-endian payloads are offered.
+        if value.representation != RepresentationIdentifier::CDR_LE {
+            return Err(RawCdrError::Encapsulation(value.representation.to_bytes()));
+        }
+        Ok(rustdds::bytes::Bytes::copy_from_slice(&value.body))
+    }
+}
+
+impl DeserializerAdapter<RawCdr> for RawAdapter {
+    type Error = RawCdrError;
+    type Decoded = RawCdr;
+
+    fn supported_encodings() -> &'static [RepresentationIdentifier] {
+        &[RepresentationIdentifier::CDR_LE, RepresentationIdentifier::CDR_BE]
+    }
+
+    fn transform_decoded(decoded: RawCdr) -> RawCdr {
+        decoded
+    }
+}
+
+#[derive(Clone)]
+pub(crate) struct RawDecoder;
+
+impl Decode<'_, RawCdr> for RawDecoder {
+    type Error = RawCdrError;
+
+    fn decode_bytes(self, input: &[u8], encoding: RepresentationIdentifier) -> Result<RawCdr, RawCdrError> {
+        Ok(RawCdr { representation: encoding, body: input.to_vec() })
+    }
+}
+
+impl DefaultDecoder<RawCdr> for RawAdapter {
+    type Decoder = RawDecoder;
+    const DECODER: RawDecoder = RawDecoder;
+}
+
+fn to_ros2_value(v: &ParamValue) -> Ros2Value {
+    match v.clone() {
+        ParamValue::Bool(b) => Ros2Value::Boolean(b),
+        ParamValue::Integer(i) => Ros2Value::Integer(i),
+        ParamValue::Double(d) => Ros2Value::Double(d),
+        ParamValue::String(s) => Ros2Value::String(s),
+        ParamValue::BoolArray(v) => Ros2Value::BooleanArray(v),
+        ParamValue::IntegerArray(v) => Ros2Value::IntegerArray(v),
+        ParamValue::DoubleArray(v) => Ros2Value::DoubleArray(v),
+        ParamValue::StringArray(v) => Ros2Value::StringArray(v),
+    }
+}
+
+fn from_ros2_value(v: Ros2Value) -> Option<ParamValue> {
+    Some(match v {
+        Ros2Value::NotSet | Ros2Value::ByteArray(_) => return None,
+        Ros2Value::Boolean(b) => ParamValue::Bool(b),
+        Ros2Value::Integer(i) => ParamValue::Integer(i),
+        Ros2Value::Double(d) => ParamValue::Double(d),
+        Ros2Value::String(s) => ParamValue::String(s),
+        Ros2Value::BooleanArray(v) => ParamValue::BoolArray(v),
+        Ros2Value::IntegerArray(v) => ParamValue::IntegerArray(v),
+        Ros2Value::DoubleArray(v) => ParamValue::DoubleArray(v),
+        Ros2Value::StringArray(v) => ParamValue::StringArray(v),
+    })
+}
+
+fn qos_policies(qos: &QosProfile) -> QosPolicies {
+    use ros2_client::qos as r;
+    let reliability = match qos.reliability {
+        Reliability::Reliable => r::Reliability::Reliable { when_full: r::WhenFull::DEFAULT },
+        Reliability::BestEffort => r::Reliability::BestEffort,
+    };
+    let durability = match qos.durability {
+        Durability::Volatile => r::Durability::Volatile,
+        Durability::TransientLocal => r::Durability::TransientLocal,
+    };
+    let history = match qos.history {
+        History::KeepLast(depth) => r::History::KeepLast { depth: depth.max(1) as usize },
+        History::KeepAll => r::History::KeepAll,
+    };
+    let profile = r::QosProfile::publisher_default().reliability(reliability).durability(durability).history(history);
+    QosPolicies::from(&profile)
+}
+
+fn dds_err(e: impl std::fmt::Display) -> RosError {
+    RosError::Dds(e.to_string())
+}
+
+pub(crate) struct DdsNode {
+    context: ros2_client::Context,
+    node: ros2_client::Node,
+    publisher: rustdds::Publisher,
+    subscriber: rustdds::Subscriber,
+    topics: Mutex<HashMap<String, Topic>>,
+    poll: Mutex<(mio1::Poll, mio1::Events)>,
+    registry: mio1::Registry,
+    next_token: Mutex<usize>,
+}
+
+impl DdsNode {
+    pub(crate) fn new(name: &str, namespace: &str, decls: &[ParamDecl], params: &Parameters) -> Result<Self, RosError> {
+        let domain = crate::args::domain_id_from_env()?;
+        let context = ros2_client::Context::with_options(ros2_client::ContextOptions::new().domain_id(domain))
+            .map_err(dds_err)?;
+        let node_name = NodeName::new(namespace, name)
+            .map_err(|e| RosError::Name { name: format!("{namespace}/{name}"), reason: format!("{e:?}") })?;
+        let mut options = NodeOptions::new().enable_rosout(true).start_parameter_services(true);
+        for (pname, value) in params.iter() {
+            options = options.declare_parameter(pname, to_ros2_value(value));
+        }
+        // `ros2 param set` may change a value but not its type (as rclcpp's default).
+        let types: HashMap<String, ParamValue> = decls.iter().map(|d| (d.name.clone(), d.default.clone())).collect();
+        options = options.parameter_validator(Box::new(move |pname, value| {
+            let declared = types.get(pname).ok_or_else(|| format!("parameter `{pname}` is not declared"))?;
+            let given = from_ros2_value(value.clone()).ok_or_else(|| format!("parameter `{pname}`: unsupported value"))?;
+            let same = std::mem::discriminant(declared) == std::mem::discriminant(&given)
+                || matches!((declared, &given), (ParamValue::Double(_), ParamValue::Integer(_)));
+            if same { Ok(()) } else { Err(format!("parameter `{pname}` is {}, not {}", declared.type_name(), given.type_name())) }
+        }));
+        let mut node = context.new_node(node_name, options).map_err(dds_err)?;
+        // The spinner serves parameter services and follows /clock for use_sim_time; it ends
+        // when the node is dropped.
+        let spinner = node.spinner().map_err(dds_err)?;
+        std::thread::Builder::new()
+            .name("ros2-spinner".into())
+            .spawn(move || {
+                if let Err(e) = futures::executor::block_on(spinner.spin()) {
+                    log::warn!("ros2-client spinner stopped: {e:?}");
+                }
+            })
+            .map_err(dds_err)?;
+        let participant = context.domain_participant();
+        let publisher = participant.create_publisher(&QosPolicies::qos_none()).map_err(dds_err)?;
+        let subscriber = participant.create_subscriber(&QosPolicies::qos_none()).map_err(dds_err)?;
+        let poll = mio1::Poll::new().map_err(dds_err)?;
+        let registry = poll.registry().try_clone().map_err(dds_err)?;
+        Ok(Self {
+            context,
+            node,
+            publisher,
+            subscriber,
+            topics: Mutex::new(HashMap::new()),
+            poll: Mutex::new((poll, mio1::Events::with_capacity(64))),
+            registry,
+            next_token: Mutex::new(0),
+        })
+    }
+
+    fn topic(&self, name: &str, type_name: &str, qos: &QosPolicies) -> Result<Topic, RosError> {
+        let mut topics = self.topics.lock().map_err(dds_err)?;
+        if let Some(t) = topics.get(name) {
+            return Ok(t.clone());
+        }
+        let (pkg, ty) = split_type_name(type_name)?;
+        let ros_name = Name::parse(name).map_err(|e| RosError::Name { name: name.into(), reason: format!("{e:?}") })?;
+        let profile = ros2_client::QosProfile::from(qos);
+        let topic = self.node.create_topic(&ros_name, MessageTypeName::new(pkg, ty), &profile).map_err(dds_err)?;
+        topics.insert(name.to_string(), topic.clone());
+        Ok(topic)
+    }
+}
+
+fn lock_poisoned<T>(_: T) -> RosError {
+    RosError::Dds("internal lock poisoned".into())
+}
+
+impl NodeBackend for DdsNode {
+    fn publisher(&self, topic: &str, type_name: &str, qos: &QosProfile) -> Result<Box<dyn PublisherBackend>, RosError> {
+        let policies = qos_policies(qos);
+        let t = self.topic(topic, type_name, &policies)?;
+        let writer = self
+            .publisher
+            .create_datawriter_no_key::<RawCdr, RawAdapter>(&t, Some(policies))
+            .map_err(|e| RosError::Topic { topic: topic.into(), reason: e.to_string() })?;
+        Ok(Box::new(DdsPublisher { topic: topic.to_string(), writer, matched: AtomicUsize::new(0) }))
+    }
+
+    fn subscriber(
+        &self,
+        topic: &str,
+        type_name: &str,
+        qos: &QosProfile,
+    ) -> Result<Box<dyn SubscriberBackend>, RosError> {
+        let policies = qos_policies(qos);
+        let t = self.topic(topic, type_name, &policies)?;
+        let mut reader = self
+            .subscriber
+            .create_simple_datareader_no_key::<RawCdr, RawAdapter>(&t, Some(policies))
+            .map_err(|e| RosError::Topic { topic: topic.into(), reason: e.to_string() })?;
+        let token = {
+            let mut next = self.next_token.lock().map_err(lock_poisoned)?;
+            *next += 1;
+            *next
+        };
+        mio1::event::Source::register(&mut reader, &self.registry, mio1::Token(token), mio1::Interest::READABLE)
+            .map_err(dds_err)?;
+        Ok(Box::new(DdsSubscriber { topic: topic.to_string(), reader }))
+    }
+
+    fn wait(&self, timeout: Duration) -> Result<(), RosError> {
+        let mut guard = self.poll.lock().map_err(lock_poisoned)?;
+        let (poll, events) = &mut *guard;
+        match poll.poll(events, Some(timeout)) {
+            Ok(()) => Ok(()),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => Ok(()),
+            Err(e) => Err(dds_err(e)),
+        }
+    }
+
+    fn now_ns(&self) -> i64 {
+        self.node.time_now().to_nanos()
+    }
+
+    fn parameter(&self, name: &str) -> Option<ParamValue> {
+        self.node.get_parameter(name).and_then(from_ros2_value)
+    }
+
+    fn topics(&self) -> Vec<TopicInfo> {
+        self.context
+            .discovered_topics()
+            .into_iter()
+            .filter_map(|t| {
+                Some(TopicInfo {
+                    name: crate::ros_topic_from_dds(&t.name)?,
+                    type_name: crate::ros_type_from_dds(&t.type_name)?,
+                })
+            })
+            .collect()
+    }
+}
+
+struct DdsPublisher {
+    topic: String,
+    writer: DataWriter<RawCdr, RawAdapter>,
+    /// Matched readers, from the writer's status events (RustDDS has no direct query).
+    matched: AtomicUsize,
+}
+
+impl PublisherBackend for DdsPublisher {
+    fn publish(&self, cdr: &[u8]) -> Result<(), RosError> {
+        let bad = |reason: String| RosError::Topic { topic: self.topic.clone(), reason };
+        let Some((header, body)) = cdr.split_first_chunk::<4>() else {
+            return Err(bad(format!("{} bytes are shorter than the CDR encapsulation header", cdr.len())));
+        };
+        let representation = RepresentationIdentifier::from_bytes(&header[..2]).map_err(|e| bad(e.to_string()))?;
+        self.writer
+            .write(RawCdr { representation, body: body.to_vec() }, Some(Timestamp::now()))
+            .map_err(|e| bad(format!("write failed: {e}")))
+    }
+
+    fn subscription_count(&self) -> usize {
+        while let Some(status) = self.writer.try_recv_status() {
+            if let DataWriterStatus::PublicationMatched { current, .. } = status {
+                self.matched.store(usize::try_from(current.count()).unwrap_or(0), Ordering::Relaxed);
+            }
+        }
+        self.matched.load(Ordering::Relaxed)
+    }
+}
+
+struct DdsSubscriber {
+    topic: String,
+    reader: no_key::SimpleDataReader<RawCdr, RawAdapter>,
+}
+
+/// RTPS time (seconds and 2^-32 fractions since the epoch) in nanoseconds.
+fn timestamp_ns(t: Timestamp) -> i64 {
+    let ticks = t.to_ticks();
+    let seconds = (ticks >> 32) as i64;
+    let nanos = ((ticks & 0xFFFF_FFFF) * 1_000_000_000) >> 32;
+    seconds * 1_000_000_000 + nanos as i64
+}
+
+impl SubscriberBackend for DdsSubscriber {
+    fn try_take(&self) -> Result<Option<Sample>, RosError> {
+        self.reader.drain_read_notifications();
+        let taken = self
+            .reader
+            .try_take_one()
+            .map_err(|e| RosError::Topic { topic: self.topic.clone(), reason: e.to_string() })?;
+        Ok(taken.map(|change| {
+            let source_time_ns = change.source_timestamp().map(timestamp_ns);
+            let raw = change.into_value();
+            let mut bytes = Vec::with_capacity(raw.body.len() + 4);
+            bytes.extend_from_slice(&raw.representation.to_bytes());
+            bytes.extend_from_slice(&[0, 0]);
+            bytes.extend_from_slice(&raw.body);
+            Sample { bytes, source_time_ns }
+        }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rtps_time_converts_to_nanoseconds() {
+        let t = Timestamp::from_ticks((5u64 << 32) | (1u64 << 31));
+        assert_eq!(timestamp_ns(t), 5_500_000_000);
+    }
+}

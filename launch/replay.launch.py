@@ -1,0 +1,49 @@
+"""Bag replay: replay + localiser + classifier on the bag's clock (use_sim_time), no driver.
+
+    ros2 launch lidar_har replay.launch.py bag:=/path/to/bag
+    ros2 launch lidar_har replay.launch.py bag:=/path/to/bag rate:=4.0 use_rviz:=true
+"""
+
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
+
+
+def generate_launch_description():
+    share = get_package_share_directory("lidar_har")
+    config = os.path.join(share, "config")
+    arg = LaunchConfiguration
+    sim_time = {"use_sim_time": True}
+    return LaunchDescription([
+        DeclareLaunchArgument("bag", description="rosbag2 directory to play"),
+        DeclareLaunchArgument("rate", default_value="1.0", description="playback speed; 0 = as fast as possible"),
+        DeclareLaunchArgument("loop", default_value="false", description="play the bag in a loop"),
+        DeclareLaunchArgument("use_localiser", default_value="true", description="start the localiser"),
+        DeclareLaunchArgument("use_classifier", default_value="true", description="start the classifier"),
+        DeclareLaunchArgument("use_rviz", default_value="false", description="start rviz2 with config/lidar_har.rviz"),
+        DeclareLaunchArgument("params_file", default_value=os.path.join(config, "replay.yaml"),
+                              description="parameters of all nodes (ROS 2 params-file layout)"),
+        Node(package="lidar_har", executable="replay", name="replay", output="screen",
+             parameters=[arg("params_file"), {
+                 "bag": arg("bag"),
+                 "rate": ParameterValue(arg("rate"), value_type=float),
+                 "loop": ParameterValue(arg("loop"), value_type=bool),
+                 # Topics the nodes below publish themselves are not replayed from the bag.
+                 "topics": ["/scan", "/odom", "/map", "/tf", "/tf_static"],
+             }]),
+        Node(package="lidar_har", executable="localiser", name="localiser", output="screen",
+             parameters=[os.path.join(config, "localiser.yaml"), arg("params_file"), sim_time],
+             condition=IfCondition(arg("use_localiser"))),
+        Node(package="lidar_har", executable="classifier", name="classifier", output="screen",
+             parameters=[arg("params_file"), sim_time],
+             condition=IfCondition(arg("use_classifier"))),
+        Node(package="rviz2", executable="rviz2", name="rviz2", output="screen",
+             arguments=["-d", os.path.join(config, "lidar_har.rviz")], parameters=[sim_time],
+             condition=IfCondition(arg("use_rviz"))),
+    ])

@@ -1,0 +1,41 @@
+"""Robot bring-up: RPLIDAR driver, localiser and classifier (and optionally rviz2).
+
+    ros2 launch lidar_har robot.launch.py serial_port:=/dev/ttyUSB0
+    ros2 launch lidar_har robot.launch.py use_classifier:=false   # tracking only
+"""
+
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+
+def generate_launch_description():
+    share = get_package_share_directory("lidar_har")
+    config = os.path.join(share, "config")
+    arg = LaunchConfiguration
+    return LaunchDescription([
+        DeclareLaunchArgument("use_driver", default_value="true", description="start rplidar_driver"),
+        DeclareLaunchArgument("use_localiser", default_value="true", description="start the localiser"),
+        DeclareLaunchArgument("use_classifier", default_value="true", description="start the classifier"),
+        DeclareLaunchArgument("use_rviz", default_value="false", description="start rviz2 with config/lidar_har.rviz"),
+        DeclareLaunchArgument("serial_port", default_value="/dev/ttyUSB0", description="RPLIDAR serial device"),
+        DeclareLaunchArgument("params_file", default_value=os.path.join(config, "robot.yaml"),
+                              description="parameters of all nodes (ROS 2 params-file layout)"),
+        Node(package="lidar_har", executable="rplidar_driver", name="rplidar_driver", output="screen",
+             parameters=[arg("params_file"), {"port": arg("serial_port")}],
+             condition=IfCondition(arg("use_driver"))),
+        Node(package="lidar_har", executable="localiser", name="localiser", output="screen",
+             parameters=[os.path.join(config, "localiser.yaml"), arg("params_file")],
+             condition=IfCondition(arg("use_localiser"))),
+        Node(package="lidar_har", executable="classifier", name="classifier", output="screen",
+             parameters=[arg("params_file")],
+             condition=IfCondition(arg("use_classifier"))),
+        Node(package="rviz2", executable="rviz2", name="rviz2", output="screen",
+             arguments=["-d", os.path.join(config, "lidar_har.rviz")],
+             condition=IfCondition(arg("use_rviz"))),
+    ])

@@ -1,0 +1,73 @@
+"""Eclipse Cyclone DDS on the other side of the lidar_har nodes (run inside a private network
+namespace by tests/tests/ros_nodes.rs).
+
+    ros_cyclone_interop.py receive TOPIC COUNT TIMEOUT   JSON line per message on stdout
+    ros_cyclone_interop.py publish-scan COUNT RATE_HZ    LaserScans with ranges [i, i, ...]
+
+Topics use ROS 2 naming (`rt/` prefix) and the QoS of DESIGN.md's contract.
+"""
+
+import json
+import sys
+import time
+from dataclasses import asdict
+
+from cyclonedds.core import Policy, Qos
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+
+from ros_idl import Activity, FallAlert, Header, LaserScan, Time
+
+TYPES = {
+    "/scan": (LaserScan, Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(5))),
+    "/human/activity": (Activity, Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
+                                      Policy.History.KeepLast(10))),
+    "/human/fall_alert": (FallAlert, Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
+                                         Policy.Durability.TransientLocal, Policy.History.KeepLast(10))),
+}
+
+
+def receive(participant, topic_name, count, timeout):
+    cls, qos = TYPES[topic_name]
+    reader = DataReader(participant, Topic(participant, "rt" + topic_name, cls), qos=qos)
+    got = 0
+    end = time.monotonic() + timeout
+    while got < count and time.monotonic() < end:
+        for sample in reader.take(N=16):
+            print(json.dumps(asdict(sample)), flush=True)
+            got += 1
+        time.sleep(0.005)
+    return 0 if got >= count else 1
+
+
+def publish_scans(participant, count, rate_hz):
+    cls, qos = TYPES["/scan"]
+    writer = DataWriter(participant, Topic(participant, "rt/scan", cls), qos=qos)
+    # Give discovery time to match the node's reader before the first scan.
+    time.sleep(1.0)
+    for i in range(count):
+        ns = 1_700_000_000_000_000_000 + i * 50_000_000
+        writer.write(LaserScan(
+            header=Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="laser"),
+            angle_min=-3.14159, angle_max=3.14159, angle_increment=6.28318 / 8, scan_time=0.05,
+            range_min=0.1, range_max=12.0, ranges=[float(i)] * 8, intensities=[]))
+        time.sleep(1.0 / rate_hz)
+    time.sleep(0.5)
+    return 0
+
+
+def main(argv):
+    participant = DomainParticipant(0)
+    if argv[1] == "receive":
+        return receive(participant, argv[2], int(argv[3]), float(argv[4]))
+    if argv[1] == "publish-scan":
+        return publish_scans(participant, int(argv[2]), float(argv[3]))
+    print(f"unknown mode {argv[1]!r}", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

@@ -1,0 +1,277 @@
+//! The ROS 2 nodes as separate processes over real DDS, inside a private network namespace
+//! (DESIGN.md "Network rule"): each test runs one shell script under `unshare -rn` with
+//! loopback up and multicast routed to it, so nothing leaves the namespace. Every script runs
+//! under `timeout`, so a hung process cannot hang the suite. Tests skip with a message where
+//! namespaces are unavailable.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::Duration;
+
+use lidar_har_bag::{BagWriter, WriterOptions};
+use lidar_har_e2e::{checker_python, repo_root, workspace_bin};
+use lidar_har_msgs::builtin_interfaces::Time;
+use lidar_har_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
+use lidar_har_msgs::sensor_msgs::LaserScan;
+use lidar_har_msgs::std_msgs::Header;
+use lidar_har_msgs::topics;
+
+const NETNS_SETUP: &str = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo";
+const T0_NS: i64 = 1_700_000_000_000_000_000;
+
+/// Whether `unshare -rn` with a multicast loopback works here; prints why not.
+fn netns_available() -> bool {
+    let ok = Command::new("unshare")
+        .args(["-rn", "sh", "-c", NETNS_SETUP])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !ok {
+        eprintln!("SKIP: cannot create a private network namespace (`unshare -rn` + `ip`): DDS tests need one");
+    }
+    ok
+}
+
+/// Runs `script` with `sh` in a fresh network namespace, killed after `limit`. `vars` are
+/// exported to it.
+fn in_netns(script: &str, vars: &[(&str, &Path)], limit: Duration) -> Output {
+    let mut cmd = Command::new("timeout");
+    cmd.args(["-k", "3", &format!("{}", limit.as_secs()), "unshare", "-rn", "sh", "-c"])
+        .arg(format!("set -u; {NETNS_SETUP} || exit 90\n{script}"));
+    for (k, v) in vars {
+        cmd.env(k, v);
+    }
+    let out = cmd.output().expect("run timeout/unshare");
+    eprintln!("--- script stdout\n{}", String::from_utf8_lossy(&out.stdout));
+    eprintln!("--- script stderr\n{}", String::from_utf8_lossy(&out.stderr));
+    assert_ne!(out.status.code(), Some(124), "the script ran past its {limit:?} limit");
+    out
+}
+
+fn scan(i: usize) -> LaserScan {
+    LaserScan {
+        header: Header::new(Time::from_nanos(T0_NS + 50_000_000 * (i as i64 + 1)), "laser"),
+        angle_min: -std::f32::consts::PI,
+        angle_max: std::f32::consts::PI,
+        angle_increment: std::f32::consts::TAU / 8.0,
+        time_increment: 0.0,
+        scan_time: 0.05,
+        range_min: 0.1,
+        range_max: 12.0,
+        ranges: vec![i as f32 * 0.25; 8],
+        intensities: vec![],
+    }
+}
+
+/// A bag with a latched /map at the start and `scans` LaserScans at 20 Hz.
+fn write_bag(dir: &Path, scans: usize) -> PathBuf {
+    let path = dir.join("bag");
+    let mut w = BagWriter::create(&path, WriterOptions::default()).unwrap();
+    let map_topic = w.add_topic_for::<OccupancyGrid>(topics::MAP.name, topics::MAP.qos).unwrap();
+    let scan_topic = w.add_topic_for::<LaserScan>(topics::SCAN.name, topics::SCAN.qos).unwrap();
+    let map = OccupancyGrid {
+        header: Header::new(Time::from_nanos(T0_NS), "map"),
+        info: MapMetaData { resolution: 0.05, width: 4, height: 3, ..Default::default() },
+        data: vec![0, 100, -1, 0, 0, 0, 100, 100, 0, 0, -1, 0],
+    };
+    w.write_message(map_topic, T0_NS, &map).unwrap();
+    for i in 0..scans {
+        let s = scan(i);
+        w.write_message(scan_topic, T0_NS + 50_000_000 * (i as i64 + 1), &s).unwrap();
+    }
+    w.finish().unwrap();
+    path
+}
+
+fn json_lines(path: &Path) -> Vec<serde_json::Value> {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    text.lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{}: not a complete JSON line: {l:?}: {e}", path.display())))
+        .collect()
+}
+
+/// The scan index a JSON LaserScan was made from (its stamp), checking its content.
+fn scan_index(msg: &serde_json::Value) -> usize {
+    let stamp = &msg["header"]["stamp"];
+    let ns = stamp["sec"].as_i64().unwrap() * 1_000_000_000 + stamp["nanosec"].as_i64().unwrap();
+    let i = ((ns - T0_NS) / 50_000_000 - 1) as usize;
+    let want = scan(i);
+    let ranges: Vec<f32> = msg["ranges"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap() as f32).collect();
+    assert_eq!(ranges, want.ranges, "scan {i} content");
+    assert_eq!(msg["header"]["frame_id"], "laser");
+    i
+}
+
+#[test]
+fn ros_replay_reaches_topic_echo_and_map_is_latched_for_late_subscribers() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 60);
+    let script = r#"
+"$LH" topic echo /scan --count 60 --timeout 15 > "$OUT/scan.jsonl" &
+E=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan &
+R=$!
+# /map was published when the replay started; a subscriber joining a second later still gets it.
+sleep 1
+"$LH" topic echo /map --count 1 --timeout 5 --require-count > "$OUT/map.jsonl"; echo "map_echo=$?"
+wait $R; echo "replay=$?"
+wait $E; echo "scan_echo=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[("LH", &workspace_bin("lidar-har")), ("REPLAY", &workspace_bin("replay")), ("BAG", &bag), ("OUT", dir.path())],
+        Duration::from_secs(40),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["map_echo=0", "replay=0", "scan_echo=0"] {
+        assert!(stdout.contains(want), "expected {want}");
+    }
+    let map = json_lines(&dir.path().join("map.jsonl"));
+    assert_eq!(map.len(), 1);
+    assert_eq!(map[0]["type"], "nav_msgs/msg/OccupancyGrid");
+    assert_eq!(map[0]["msg"]["info"]["width"], 4);
+    assert_eq!(map[0]["msg"]["data"], serde_json::json!([0, 100, -1, 0, 0, 0, 100, 100, 0, 0, -1, 0]));
+
+    let scans = json_lines(&dir.path().join("scan.jsonl"));
+    let indices: Vec<usize> = scans.iter().map(|l| scan_index(&l["msg"])).collect();
+    // Best-effort /scan (sensor-data QoS): in order, no duplicates; on loopback at 20 Hz all
+    // arrive once the subscriber is matched.
+    assert!(indices.windows(2).all(|w| w[0] < w[1]), "out of order or duplicated: {indices:?}");
+    assert!(indices.len() >= 55, "only {} of 60 scans arrived: {indices:?}", indices.len());
+}
+
+#[test]
+fn ros_nodes_reject_bad_parameters_naming_them() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 2);
+    let params_file = dir.path().join("bad.yaml");
+    std::fs::write(&params_file, "replay:\n  ros__parameters:\n    rate: fast\n").unwrap();
+    let cases: &[(&str, &[&str])] = &[
+        (r#""$REPLAY""#, &["`bag`", "required"]),
+        (r#""$REPLAY" --ros-args -p bag:=/nonexistent/bag"#, &["`bag`", "/nonexistent/bag"]),
+        (r#""$REPLAY" --ros-args -p bag:="$BAG" -p rate:=-2"#, &["`rate`", ">= 0"]),
+        (r#""$REPLAY" --ros-args -p bag:="$BAG" -p rate:=.nan"#, &["`rate`"]),
+        (r#""$REPLAY" --ros-args -p bag:="$BAG" -p rate:=fast"#, &["`rate`", "expected double"]),
+        (r#""$REPLAY" --ros-args -p bag:="$BAG" -p speed:=2"#, &["`speed`", "unknown"]),
+        (r#""$REPLAY" --ros-args -p bag:="$BAG" -p topics:=[/nope]"#, &["`topics`", "/nope"]),
+        (r#""$REPLAY" --ros-args -p bag:="$BAG" --params-file "$PF""#, &["`rate`", "bad.yaml"]),
+        (r#""$REPLAY" --ros-args -p bag:="$BAG" --params-file /nonexistent.yaml"#, &["/nonexistent.yaml"]),
+        (r#"ROS_DOMAIN_ID=999 "$REPLAY" --ros-args -p bag:="$BAG""#, &["ROS_DOMAIN_ID"]),
+    ];
+    for (command, needles) in cases {
+        let script = format!("{command} 2> \"$OUT/err.txt\"; echo \"exit=$?\"");
+        let out = in_netns(
+            &script,
+            &[("REPLAY", &workspace_bin("replay")), ("BAG", &bag), ("PF", &params_file), ("OUT", dir.path())],
+            Duration::from_secs(20),
+        );
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let stderr = std::fs::read_to_string(dir.path().join("err.txt")).unwrap();
+        assert!(!stdout.contains("exit=0") && stdout.contains("exit="), "{command}: must fail: {stdout}");
+        for needle in *needles {
+            assert!(stderr.contains(needle), "{command}: stderr must name {needle}: {stderr}");
+        }
+        assert!(!stderr.contains("panicked"), "{command}: panicked: {stderr}");
+    }
+}
+
+#[test]
+fn ros_sigterm_during_replay_stops_cleanly_without_zombies_or_partial_lines() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 200); // 10 s of scans
+    let script = r#"
+"$LH" topic echo /scan --timeout 30 > "$OUT/scan.jsonl" &
+E=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan &
+R=$!
+sleep 2
+t0=$(date +%s%N)
+kill -TERM $R
+wait $R; echo "replay=$?"
+t1=$(date +%s%N)
+echo "replay_stop_ms=$(( (t1 - t0) / 1000000 ))"
+kill -TERM $E
+wait $E; echo "echo=$?"
+sleep 0.2
+echo "zombies=$(ps -o stat= --ppid $$ | grep -c Z)"
+"#;
+    let out = in_netns(
+        script,
+        &[("LH", &workspace_bin("lidar-har")), ("REPLAY", &workspace_bin("replay")), ("BAG", &bag), ("OUT", dir.path())],
+        Duration::from_secs(40),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["replay=0", "echo=0", "zombies=0"] {
+        assert!(stdout.contains(want), "expected {want}");
+    }
+    let stop_ms: u64 = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("replay_stop_ms="))
+        .and_then(|v| v.trim().parse().ok())
+        .expect("stop time printed");
+    assert!(stop_ms < 2000, "replay took {stop_ms} ms to stop after SIGTERM");
+    let scans = json_lines(&dir.path().join("scan.jsonl"));
+    assert!(!scans.is_empty() && scans.len() < 200, "{} scans: the replay must have been cut short", scans.len());
+    for s in &scans {
+        scan_index(&s["msg"]);
+    }
+}
+
+#[test]
+fn ros_cyclone_dds_interoperates_with_replay_and_topic_echo() {
+    if !netns_available() {
+        return;
+    }
+    let Some(python) = checker_python() else { return };
+    let python = PathBuf::from(python.get_program());
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 40);
+    let script = r#"
+cd "$PYDIR"
+# Cyclone receives what our replay publishes ...
+"$PY" ros_cyclone_interop.py receive /scan 40 15 > "$OUT/cyclone_scan.jsonl" &
+C=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan; echo "replay=$?"
+wait $C; echo "cyclone_receive=$?"
+# ... and our transport receives what Cyclone publishes.
+"$LH" topic echo /scan --count 20 --timeout 15 --require-count > "$OUT/echo_scan.jsonl" &
+E=$!
+"$PY" ros_cyclone_interop.py publish-scan 20 20; echo "cyclone_publish=$?"
+wait $E; echo "echo=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("LH", &workspace_bin("lidar-har")),
+            ("REPLAY", &workspace_bin("replay")),
+            ("BAG", &bag),
+            ("OUT", dir.path()),
+            ("PY", &python),
+            ("PYDIR", &repo_root().join("tests/python")),
+        ],
+        Duration::from_secs(60),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["replay=0", "cyclone_receive=0", "cyclone_publish=0", "echo=0"] {
+        assert!(stdout.contains(want), "expected {want}");
+    }
+    let received = json_lines(&dir.path().join("cyclone_scan.jsonl"));
+    let indices: Vec<usize> = received.iter().map(scan_index).collect();
+    assert!(indices.windows(2).all(|w| w[0] < w[1]), "out of order or duplicated: {indices:?}");
+    assert!(indices.len() >= 36, "Cyclone received only {} of 40 scans: {indices:?}", indices.len());
+    let echoed = json_lines(&dir.path().join("echo_scan.jsonl"));
+    assert_eq!(echoed.len(), 20);
+    for (i, line) in echoed.iter().enumerate() {
+        let ranges = line["msg"]["ranges"].as_array().unwrap();
+        assert_eq!(ranges.len(), 8);
+        assert_eq!(ranges[0].as_f64(), Some(i as f64), "Cyclone scan {i} arrived changed or out of order");
+    }
+}
