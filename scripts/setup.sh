@@ -105,4 +105,13 @@ if [ "$WITH_PYTHON" = 1 ]; then
         "check that PyPI is reachable; the failing package is named above"
 fi
 
+# --- cargo-fuzz (scripts/fuzz.sh runs the fuzz targets briefly in the test suite)
+if cargo fuzz --version >/dev/null 2>&1; then
+    say "cargo-fuzz already installed"
+else
+    say "installing cargo-fuzz from crates.io (a minute or two)"
+    cargo install cargo-fuzz --locked --quiet \
+        || fail "cargo install cargo-fuzz failed" "check that crates.io is reachable, then rerun scripts/setup.sh"
+fi
+
 say "done. ONNX Runtime: $ORT_LIB"
