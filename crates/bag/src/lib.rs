@@ -1,1 +1,20 @@
-//! lidar_har bag crate.
+//! rosbag2 bags without ROS 2: read MCAP and sqlite3 storage (metadata.yaml versions 1 to 9,
+//! zstd/lz4 chunks, bare `.mcap` files) and write MCAP (or sqlite3) bags that `ros2 bag play`,
+//! `rosbags` and Foxglove accept.
+//!
+//! The API is byte-level: messages are CDR bytes made by `lidar-har-msgs`; a bag stores them
+//! with their type name and `ros2msg` schema text. Reading streams in constant memory; writing
+//! flushes regularly so a killed recorder loses at most one flush interval.
+
+mod error;
+mod mcap_storage;
+pub mod metadata;
+pub mod qos;
+mod reader;
+mod sqlite_storage;
+mod writer;
+
+pub use error::{BagError, Result};
+pub use qos::OfferedQos;
+pub use reader::{BagInfo, BagMessage, BagReader, Messages, TopicInfo};
+pub use writer::{BagSummary, BagWriter, Compression, StorageId, TopicHandle, WriterOptions};

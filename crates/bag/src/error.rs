@@ -1,0 +1,105 @@
+//! Errors of the bag reader and writer. Each names the path it concerns and what is wrong.
+
+use std::path::PathBuf;
+
+/// Why a bag could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum BagError {
+    #[error("{path}: no such file or directory")]
+    NotFound { path: PathBuf },
+    #[error("{path}: not a rosbag2 bag: {reason}")]
+    NotABag { path: PathBuf, reason: String },
+    #[error("{path}: {action}: {source}")]
+    Io {
+        path: PathBuf,
+        action: &'static str,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: malformed metadata.yaml: {message}")]
+    Metadata { path: PathBuf, message: String },
+    #[error(
+        "{path}: metadata.yaml version {version} is not supported (this reader knows versions 1 to 9)"
+    )]
+    UnsupportedVersion { path: PathBuf, version: u32 },
+    #[error("{path}: unknown storage identifier `{storage_id}` (supported: mcap, sqlite3)")]
+    UnknownStorage { path: PathBuf, storage_id: String },
+    #[error("{path}: compression `{format}` ({mode}) is not supported")]
+    UnsupportedCompression {
+        path: PathBuf,
+        format: String,
+        mode: String,
+    },
+    #[error("{path}: invalid MCAP: {source}")]
+    Mcap {
+        path: PathBuf,
+        #[source]
+        source: mcap::McapError,
+    },
+    #[error(
+        "{path}: MCAP file ends early (truncated, e.g. the recorder was killed) after {messages_read} complete messages: {source}"
+    )]
+    Truncated {
+        path: PathBuf,
+        messages_read: u64,
+        #[source]
+        source: mcap::McapError,
+    },
+    #[error("{path}: sqlite3 storage: {source}")]
+    Sqlite {
+        path: PathBuf,
+        #[source]
+        source: rusqlite::Error,
+    },
+    #[error("{path}: topic `{topic}` has no schema (message definition); every channel needs one")]
+    MissingSchema { path: PathBuf, topic: String },
+    #[error("{path}: message refers to unknown channel/topic id {id}")]
+    UnknownTopicId { path: PathBuf, id: i64 },
+    #[error("{path}: message on `{topic}` at {log_time} ns has log time out of range")]
+    BadTime {
+        path: PathBuf,
+        topic: String,
+        log_time: u64,
+    },
+    #[error("topic `{topic}` has type `{found}`, not `{expected}`")]
+    WrongType {
+        topic: String,
+        expected: &'static str,
+        found: String,
+    },
+    #[error("topic `{topic}` is not in this bag")]
+    UnknownTopic { topic: String },
+    #[error("message on `{topic}` at {log_time_ns} ns: {source}")]
+    Decode {
+        topic: String,
+        log_time_ns: i64,
+        #[source]
+        source: lidar_har_msgs::CdrError,
+    },
+    #[error("{path}: cannot write: {message}")]
+    Write { path: PathBuf, message: String },
+}
+
+pub type Result<T, E = BagError> = std::result::Result<T, E>;
+
+pub(crate) fn io_error(
+    path: impl Into<PathBuf>,
+    action: &'static str,
+) -> impl FnOnce(std::io::Error) -> BagError {
+    let path = path.into();
+    move |source| BagError::Io {
+        path,
+        action,
+        source,
+    }
+}
+
+pub(crate) fn sqlite_error(path: impl Into<PathBuf>) -> impl FnOnce(rusqlite::Error) -> BagError {
+    let path = path.into();
+    move |source| BagError::Sqlite { path, source }
+}
+
+pub(crate) fn mcap_error(path: impl Into<PathBuf>) -> impl FnOnce(mcap::McapError) -> BagError {
+    let path = path.into();
+    move |source| BagError::Mcap { path, source }
+}

@@ -1,0 +1,687 @@
+//! MCAP storage in rosbag2's profile: writing (chunked, flushed regularly so a killed writer
+//! leaves a readable file) and streaming reading (indexed in log-time order when the file has
+//! a summary, linear in file order when it does not, e.g. after the recorder was killed).
+
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use mcap::records::{self, MessageHeader, Record};
+use mcap::sans_io::indexed_reader::{IndexedReadEvent, IndexedReader, IndexedReaderOptions};
+use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
+use mcap::{McapError, Summary};
+
+use crate::error::{BagError, Result, io_error, mcap_error};
+use crate::metadata::{BagMetadata, METADATA_VERSION};
+use crate::qos;
+use crate::reader::{BagMessage, TopicInfo};
+use crate::writer::{Compression, StorageSink, WriterTopic};
+
+/// The MCAP profile, schema encoding and message encoding of rosbag2.
+pub(crate) const PROFILE: &str = "ros2";
+pub(crate) const SCHEMA_ENCODING: &str = "ros2msg";
+pub(crate) const MESSAGE_ENCODING: &str = "cdr";
+
+/// Records (and decompressed chunks) larger than this are refused rather than allocated:
+/// no real bag has a single 256 MiB message, and garbage lengths must not exhaust memory.
+const RECORD_LENGTH_LIMIT: usize = 256 << 20;
+const READ_BUFFER: usize = 256 << 10;
+
+pub(crate) struct McapSink {
+    path: PathBuf,
+    writer: Option<mcap::Writer<BufWriter<File>>>,
+    sequences: HashMap<u16, u32>,
+}
+
+impl McapSink {
+    pub(crate) fn create(path: &Path, compression: Compression, chunk_size: u64) -> Result<Self> {
+        let file = File::create_new(path).map_err(io_error(path, "cannot create"))?;
+        let options = mcap::WriteOptions::new()
+            .profile(PROFILE)
+            .library(concat!("lidar-har-bag/", env!("CARGO_PKG_VERSION")))
+            .compression(match compression {
+                Compression::None => None,
+                Compression::Zstd => Some(mcap::Compression::Zstd),
+                Compression::Lz4 => Some(mcap::Compression::Lz4),
+            })
+            .compression_threads(0)
+            .chunk_size(Some(chunk_size));
+        let writer = options
+            .create(BufWriter::new(file))
+            .map_err(mcap_error(path))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            writer: Some(writer),
+            sequences: HashMap::new(),
+        })
+    }
+
+    fn writer(&mut self) -> Result<&mut mcap::Writer<BufWriter<File>>> {
+        self.writer.as_mut().ok_or_else(|| BagError::Write {
+            path: self.path.clone(),
+            message: "the bag is already finished".into(),
+        })
+    }
+}
+
+impl StorageSink for McapSink {
+    fn add_topic(&mut self, topic: &WriterTopic) -> Result<i64> {
+        let path = self.path.clone();
+        let writer = self.writer()?;
+        let schema_id = writer
+            .add_schema(
+                &topic.type_name,
+                SCHEMA_ENCODING,
+                topic.schema_text.as_bytes(),
+            )
+            .map_err(mcap_error(&path))?;
+        let mut metadata = BTreeMap::new();
+        metadata.insert(
+            "offered_qos_profiles".to_string(),
+            qos::to_yaml_string(&topic.qos, METADATA_VERSION),
+        );
+        if !topic.type_description_hash.is_empty() {
+            metadata.insert(
+                "topic_type_hash".to_string(),
+                topic.type_description_hash.clone(),
+            );
+        }
+        let channel = writer
+            .add_channel(
+                schema_id,
+                &topic.name,
+                &topic.serialization_format,
+                &metadata,
+            )
+            .map_err(mcap_error(&path))?;
+        Ok(i64::from(channel))
+    }
+
+    fn write(&mut self, storage_id: i64, log_time_ns: i64, data: &[u8]) -> Result<()> {
+        let path = self.path.clone();
+        let channel_id = u16::try_from(storage_id).map_err(|_| BagError::UnknownTopicId {
+            path: path.clone(),
+            id: storage_id,
+        })?;
+        let time = u64::try_from(log_time_ns).map_err(|_| BagError::Write {
+            path: path.clone(),
+            message: format!("negative log time {log_time_ns} ns"),
+        })?;
+        let sequence = self.sequences.entry(channel_id).or_insert(0);
+        *sequence = sequence.wrapping_add(1);
+        let header = MessageHeader {
+            channel_id,
+            sequence: *sequence,
+            log_time: time,
+            publish_time: time,
+        };
+        self.writer()?
+            .write_to_known_channel(&header, data)
+            .map_err(mcap_error(path))
+    }
+
+    fn flush(&mut self) -> Result<()> {
+        let path = self.path.clone();
+        self.writer()?.flush().map_err(mcap_error(path))
+    }
+
+    fn finish(&mut self, metadata: &BagMetadata) -> Result<()> {
+        let Some(mut writer) = self.writer.take() else {
+            return Ok(());
+        };
+        let path = self.path.clone();
+        let mut record = BTreeMap::new();
+        record.insert(
+            "serialized_metadata".to_string(),
+            metadata.to_serialized_metadata(),
+        );
+        record.insert("ROS_DISTRO".to_string(), metadata.ros_distro.clone());
+        writer
+            .write_metadata(&records::Metadata {
+                name: "rosbag2".to_string(),
+                metadata: record,
+            })
+            .map_err(mcap_error(&path))?;
+        writer.finish().map_err(mcap_error(&path))?;
+        let file = writer.into_inner().into_inner().map_err(|e| BagError::Io {
+            path: path.clone(),
+            action: "cannot flush",
+            source: e.into_error(),
+        })?;
+        file.sync_all().map_err(io_error(&path, "cannot sync"))
+    }
+}
+
+/// Something an MCAP can be read from more than once: a file, or bytes in memory.
+#[derive(Clone)]
+pub(crate) enum McapInput {
+    File(PathBuf),
+    Bytes(Arc<[u8]>),
+}
+
+trait ReadSeek: Read + Seek {}
+impl<T: Read + Seek> ReadSeek for T {}
+
+impl McapInput {
+    fn path(&self) -> PathBuf {
+        match self {
+            McapInput::File(path) => path.clone(),
+            McapInput::Bytes(_) => PathBuf::from("<memory>"),
+        }
+    }
+
+    fn open(&self) -> Result<(Box<dyn ReadSeek + Send>, u64)> {
+        match self {
+            McapInput::File(path) => {
+                let file = File::open(path).map_err(io_error(path, "cannot open"))?;
+                let len = file
+                    .metadata()
+                    .map_err(io_error(path, "cannot stat"))?
+                    .len();
+                Ok((Box::new(BufReader::with_capacity(READ_BUFFER, file)), len))
+            }
+            McapInput::Bytes(bytes) => Ok((
+                Box::new(std::io::Cursor::new(bytes.clone())),
+                bytes.len() as u64,
+            )),
+        }
+    }
+}
+
+/// What opening an MCAP learnt: its topics, and how to stream its messages.
+pub(crate) struct McapFile {
+    input: McapInput,
+    /// The summary, when the file was finished; `None` for a file cut short.
+    summary: Option<Summary>,
+    pub(crate) topics: Vec<TopicInfo>,
+    /// (first, last) log time, when there are messages.
+    pub(crate) time_bounds: Option<(i64, i64)>,
+    pub(crate) truncated: bool,
+}
+
+impl McapFile {
+    pub(crate) fn open(input: McapInput) -> Result<Self> {
+        let path = input.path();
+        let (mut reader, len) = input.open()?;
+        let mut magic = [0u8; 8];
+        let got = read_fully(&mut reader, &mut magic).map_err(io_error(&path, "cannot read"))?;
+        if magic[..got] != mcap::MAGIC[..got.min(8)] || got < mcap::MAGIC.len() {
+            return Err(BagError::NotABag {
+                path,
+                reason: "not an MCAP file (bad magic bytes)".into(),
+            });
+        }
+        reader
+            .seek(SeekFrom::Start(0))
+            .map_err(io_error(&path, "cannot seek"))?;
+        match read_summary(&mut reader, len) {
+            Ok(Some(summary)) if summary.stats.is_some() || !summary.chunk_indexes.is_empty() => {
+                Self::from_summary(input, summary)
+            }
+            _ => Self::from_linear_scan(input),
+        }
+    }
+
+    fn from_summary(input: McapInput, summary: Summary) -> Result<Self> {
+        let path = input.path();
+        let counts = summary
+            .stats
+            .as_ref()
+            .map(|s| s.channel_message_counts.clone())
+            .unwrap_or_default();
+        let mut ids: Vec<_> = summary.channels.keys().copied().collect();
+        ids.sort_unstable();
+        let mut topics = Vec::new();
+        for id in ids {
+            let channel = &summary.channels[&id];
+            let schema = channel
+                .schema
+                .as_ref()
+                .map(|s| (s.name.clone(), s.encoding.clone(), s.data.to_vec()));
+            topics.push(topic_info(
+                &path,
+                id,
+                &channel.topic,
+                &channel.message_encoding,
+                &channel.metadata,
+                schema,
+            )?);
+            if let Some(topic) = topics.last_mut() {
+                topic.message_count = counts.get(&id).copied().unwrap_or(0);
+            }
+        }
+        let time_bounds = match &summary.stats {
+            Some(stats) if stats.message_count > 0 => Some((
+                to_i64(&path, "", stats.message_start_time)?,
+                to_i64(&path, "", stats.message_end_time)?,
+            )),
+            _ => None,
+        };
+        Ok(Self {
+            input,
+            summary: Some(summary),
+            topics,
+            time_bounds,
+            truncated: false,
+        })
+    }
+
+    /// Reads a file without a summary from start to end: channels, counts and time bounds.
+    /// A file that ends early is accepted here; its messages report the truncation.
+    fn from_linear_scan(input: McapInput) -> Result<Self> {
+        let mut stream = LinearMessages::new(&input, None)?;
+        let mut counts: HashMap<u16, u64> = HashMap::new();
+        let mut time_bounds: Option<(i64, i64)> = None;
+        let mut truncated = false;
+        while let Some(item) = stream.next_raw() {
+            match item {
+                Ok((channel_id, log_time, _data)) => {
+                    *counts.entry(channel_id).or_insert(0) += 1;
+                    time_bounds = Some(match time_bounds {
+                        None => (log_time, log_time),
+                        Some((lo, hi)) => (lo.min(log_time), hi.max(log_time)),
+                    });
+                }
+                Err(BagError::Truncated { .. }) => {
+                    truncated = true;
+                    break;
+                }
+                Err(other) => return Err(other),
+            }
+        }
+        let mut topics = std::mem::take(&mut stream.topics);
+        for topic in &mut topics {
+            topic.message_count = counts.get(&(topic.storage_id as u16)).copied().unwrap_or(0);
+        }
+        Ok(Self {
+            input,
+            summary: None,
+            topics,
+            time_bounds,
+            truncated,
+        })
+    }
+
+    /// Streams the messages (of `topics` if given) in log-time order when the file has a
+    /// summary, else in file order. Memory stays bounded by the chunks in flight.
+    pub(crate) fn messages(&self, topics: Option<&BTreeSet<String>>) -> Result<McapMessages> {
+        match &self.summary {
+            Some(summary) => Ok(McapMessages::Indexed(IndexedMessages::new(
+                &self.input,
+                summary,
+                topics,
+            )?)),
+            None => Ok(McapMessages::Linear(LinearMessages::new(
+                &self.input,
+                topics,
+            )?)),
+        }
+    }
+}
+
+fn read_fully(reader: &mut dyn Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut filled = 0;
+    while filled < buf.len() {
+        match reader.read(&mut buf[filled..])? {
+            0 => break,
+            n => filled += n,
+        }
+    }
+    Ok(filled)
+}
+
+fn read_summary(
+    reader: &mut dyn ReadSeek,
+    len: u64,
+) -> std::result::Result<Option<Summary>, McapError> {
+    let mut summary_reader = SummaryReader::new_with_options(
+        SummaryReaderOptions::default()
+            .with_file_size(len)
+            .with_record_length_limit(RECORD_LENGTH_LIMIT),
+    );
+    while let Some(event) = summary_reader.next_event() {
+        match event? {
+            SummaryReadEvent::ReadRequest(n) => {
+                let read = reader.read(summary_reader.insert(n))?;
+                summary_reader.notify_read(read);
+            }
+            SummaryReadEvent::SeekRequest(to) => {
+                let pos = reader.seek(to)?;
+                summary_reader.notify_seeked(pos);
+            }
+        }
+    }
+    Ok(summary_reader.finish())
+}
+
+fn to_i64(path: &Path, topic: &str, log_time: u64) -> Result<i64> {
+    i64::try_from(log_time).map_err(|_| BagError::BadTime {
+        path: path.to_path_buf(),
+        topic: topic.to_string(),
+        log_time,
+    })
+}
+
+/// A rosbag2 topic from an MCAP channel; refuses a channel without a `ros2msg` schema.
+fn topic_info(
+    path: &Path,
+    channel_id: u16,
+    topic: &str,
+    message_encoding: &str,
+    metadata: &BTreeMap<String, String>,
+    schema: Option<(String, String, Vec<u8>)>,
+) -> Result<TopicInfo> {
+    let Some((type_name, encoding, data)) = schema else {
+        return Err(BagError::MissingSchema {
+            path: path.to_path_buf(),
+            topic: topic.to_string(),
+        });
+    };
+    let offered_qos = match metadata.get("offered_qos_profiles") {
+        Some(text) => qos::parse_str(text).map_err(|message| BagError::Metadata {
+            path: path.to_path_buf(),
+            message: format!("channel `{topic}`: offered_qos_profiles: {message}"),
+        })?,
+        None => Vec::new(),
+    };
+    let schema_text =
+        (encoding == SCHEMA_ENCODING).then(|| String::from_utf8_lossy(&data).into_owned());
+    Ok(TopicInfo {
+        name: topic.to_string(),
+        type_name,
+        serialization_format: message_encoding.to_string(),
+        offered_qos,
+        schema_text,
+        type_description_hash: metadata.get("topic_type_hash").cloned().unwrap_or_default(),
+        message_count: 0,
+        storage_id: i64::from(channel_id),
+    })
+}
+
+/// Messages of one MCAP file.
+pub(crate) enum McapMessages {
+    Indexed(IndexedMessages),
+    Linear(LinearMessages),
+}
+
+impl Iterator for McapMessages {
+    type Item = Result<BagMessage>;
+    fn next(&mut self) -> Option<Self::Item> {
+        match self {
+            McapMessages::Indexed(m) => m.next(),
+            McapMessages::Linear(m) => m.next(),
+        }
+    }
+}
+
+/// Log-time-ordered reading through the summary's chunk indexes.
+pub(crate) struct IndexedMessages {
+    path: PathBuf,
+    file: Box<dyn ReadSeek + Send>,
+    reader: IndexedReader,
+    channels: HashMap<u16, Arc<str>>,
+    chunk: Vec<u8>,
+    failed: bool,
+}
+
+impl IndexedMessages {
+    fn new(
+        input: &McapInput,
+        summary: &Summary,
+        topics: Option<&BTreeSet<String>>,
+    ) -> Result<Self> {
+        let path = input.path();
+        let (file, _) = input.open()?;
+        let mut options = IndexedReaderOptions::new().with_record_length_limit(RECORD_LENGTH_LIMIT);
+        if let Some(topics) = topics {
+            options = options.include_topics(topics.iter().cloned());
+        }
+        let reader =
+            IndexedReader::new_with_options(summary, options).map_err(mcap_error(&path))?;
+        let channels = summary
+            .channels
+            .iter()
+            .map(|(id, c)| (*id, Arc::from(c.topic.as_str())))
+            .collect();
+        Ok(Self {
+            path,
+            file,
+            reader,
+            channels,
+            chunk: Vec::new(),
+            failed: false,
+        })
+    }
+}
+
+impl Iterator for IndexedMessages {
+    type Item = Result<BagMessage>;
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed {
+            return None;
+        }
+        let result = loop {
+            let event = match self.reader.next_event()? {
+                Ok(event) => event,
+                Err(e) => {
+                    break Err(BagError::Mcap {
+                        path: self.path.clone(),
+                        source: e,
+                    });
+                }
+            };
+            match event {
+                IndexedReadEvent::ReadChunkRequest { offset, length } => {
+                    self.chunk.resize(length, 0);
+                    let read = self
+                        .file
+                        .seek(SeekFrom::Start(offset))
+                        .and_then(|_| self.file.read_exact(&mut self.chunk));
+                    if let Err(e) = read {
+                        let truncated = e.kind() == std::io::ErrorKind::UnexpectedEof;
+                        break Err(if truncated {
+                            BagError::Mcap {
+                                path: self.path.clone(),
+                                source: McapError::BadIndex,
+                            }
+                        } else {
+                            BagError::Io {
+                                path: self.path.clone(),
+                                action: "cannot read",
+                                source: e,
+                            }
+                        });
+                    }
+                    if let Err(e) = self.reader.insert_chunk_record_data(offset, &self.chunk) {
+                        break Err(BagError::Mcap {
+                            path: self.path.clone(),
+                            source: e,
+                        });
+                    }
+                }
+                IndexedReadEvent::Message { header, data } => {
+                    let Some(topic) = self.channels.get(&header.channel_id) else {
+                        break Err(BagError::UnknownTopicId {
+                            path: self.path.clone(),
+                            id: i64::from(header.channel_id),
+                        });
+                    };
+                    break to_i64(&self.path, topic, header.log_time).map(|log_time_ns| {
+                        BagMessage {
+                            topic: topic.clone(),
+                            log_time_ns,
+                            data: data.to_vec(),
+                        }
+                    });
+                }
+            }
+        };
+        self.failed = result.is_err();
+        Some(result)
+    }
+}
+
+/// File-order reading of every record, for files without a summary. Checks each chunk's CRC
+/// before yielding any of its messages, so a chunk cut short yields nothing corrupt.
+pub(crate) struct LinearMessages {
+    path: PathBuf,
+    file: Box<dyn ReadSeek + Send>,
+    reader: LinearReader,
+    schemas: HashMap<u16, (String, String, Vec<u8>)>,
+    channels: HashMap<u16, Arc<str>>,
+    pub(crate) topics: Vec<TopicInfo>,
+    filter: Option<BTreeSet<String>>,
+    messages_read: u64,
+    done: bool,
+}
+
+impl LinearMessages {
+    fn new(input: &McapInput, topics: Option<&BTreeSet<String>>) -> Result<Self> {
+        let path = input.path();
+        let (file, _) = input.open()?;
+        let reader = LinearReader::new_with_options(
+            LinearReaderOptions::default()
+                .with_prevalidate_chunk_crcs(true)
+                .with_record_length_limit(RECORD_LENGTH_LIMIT),
+        );
+        Ok(Self {
+            path,
+            file,
+            reader,
+            schemas: HashMap::new(),
+            channels: HashMap::new(),
+            topics: Vec::new(),
+            filter: topics.cloned(),
+            messages_read: 0,
+            done: false,
+        })
+    }
+
+    fn fail(&mut self, source: McapError) -> BagError {
+        self.done = true;
+        if matches!(source, McapError::UnexpectedEof) {
+            BagError::Truncated {
+                path: self.path.clone(),
+                messages_read: self.messages_read,
+                source,
+            }
+        } else {
+            BagError::Mcap {
+                path: self.path.clone(),
+                source,
+            }
+        }
+    }
+
+    /// The next message as (channel id, log time, bytes), whatever its topic.
+    fn next_raw(&mut self) -> Option<Result<(u16, i64, Vec<u8>)>> {
+        if self.done {
+            return None;
+        }
+        loop {
+            let event = match self.reader.next_event() {
+                None => {
+                    self.done = true;
+                    return None;
+                }
+                Some(Ok(event)) => event,
+                Some(Err(e)) => return Some(Err(self.fail(e))),
+            };
+            let (opcode, data) = match event {
+                LinearReadEvent::ReadRequest(need) => {
+                    match self.file.read(self.reader.insert(need)) {
+                        Ok(n) => self.reader.notify_read(n),
+                        Err(e) => {
+                            self.done = true;
+                            return Some(Err(BagError::Io {
+                                path: self.path.clone(),
+                                action: "cannot read",
+                                source: e,
+                            }));
+                        }
+                    }
+                    continue;
+                }
+                LinearReadEvent::Record { opcode, data } => (opcode, data),
+            };
+            let record = match mcap::parse_record(opcode, data) {
+                Ok(record) => record,
+                Err(e) => return Some(Err(self.fail(e))),
+            };
+            match record {
+                Record::Schema { header, data } => {
+                    self.schemas
+                        .insert(header.id, (header.name, header.encoding, data.into_owned()));
+                }
+                Record::Channel(channel) => {
+                    if self.channels.contains_key(&channel.id) {
+                        continue;
+                    }
+                    let schema = self.schemas.get(&channel.schema_id).cloned();
+                    let info = match topic_info(
+                        &self.path,
+                        channel.id,
+                        &channel.topic,
+                        &channel.message_encoding,
+                        &channel.metadata,
+                        schema,
+                    ) {
+                        Ok(info) => info,
+                        Err(e) => {
+                            self.done = true;
+                            return Some(Err(e));
+                        }
+                    };
+                    self.channels
+                        .insert(channel.id, Arc::from(channel.topic.as_str()));
+                    self.topics.push(info);
+                }
+                Record::Message { header, data } => {
+                    if !self.channels.contains_key(&header.channel_id) {
+                        self.done = true;
+                        return Some(Err(BagError::UnknownTopicId {
+                            path: self.path.clone(),
+                            id: i64::from(header.channel_id),
+                        }));
+                    }
+                    let log_time = match to_i64(&self.path, "", header.log_time) {
+                        Ok(t) => t,
+                        Err(e) => {
+                            self.done = true;
+                            return Some(Err(e));
+                        }
+                    };
+                    self.messages_read += 1;
+                    return Some(Ok((header.channel_id, log_time, data.into_owned())));
+                }
+                _ => {}
+            }
+        }
+    }
+}
+
+impl Iterator for LinearMessages {
+    type Item = Result<BagMessage>;
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            let (channel_id, log_time_ns, data) = match self.next_raw()? {
+                Ok(raw) => raw,
+                Err(e) => return Some(Err(e)),
+            };
+            let Some(topic) = self.channels.get(&channel_id) else {
+                continue;
+            };
+            if self.filter.as_ref().is_some_and(|f| !f.contains(&**topic)) {
+                continue;
+            }
+            return Some(Ok(BagMessage {
+                topic: topic.clone(),
+                log_time_ns,
+                data,
+            }));
+        }
+    }
+}

@@ -1,0 +1,435 @@
+//! Writing rosbag2 directories: `metadata.yaml` plus one storage file (`<dir>_0.mcap` or
+//! `<dir>_0.db3`). Data is flushed regularly and `metadata.yaml` rewritten at each flush, so a
+//! process killed mid-recording leaves a bag that reads back up to its last flush.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use lidar_har_msgs::RosMessage;
+use lidar_har_msgs::qos::QosProfile;
+
+use crate::error::{BagError, Result, io_error};
+use crate::mcap_storage::McapSink;
+use crate::metadata::{
+    BagMetadata, FileInformation, METADATA_VERSION, Nanoseconds, NanosecondsSinceEpoch,
+    TopicMetadata, TopicWithCount,
+};
+use crate::qos::{self, OfferedQos};
+use crate::reader::TopicInfo;
+use crate::sqlite_storage::SqliteSink;
+
+/// Storage plugin of a bag, as named in `metadata.yaml`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum StorageId {
+    #[default]
+    Mcap,
+    Sqlite3,
+}
+
+impl StorageId {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StorageId::Mcap => "mcap",
+            StorageId::Sqlite3 => "sqlite3",
+        }
+    }
+
+    fn extension(self) -> &'static str {
+        match self {
+            StorageId::Mcap => "mcap",
+            StorageId::Sqlite3 => "db3",
+        }
+    }
+}
+
+impl std::fmt::Display for StorageId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for StorageId {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "mcap" => Ok(StorageId::Mcap),
+            "sqlite3" => Ok(StorageId::Sqlite3),
+            other => Err(format!(
+                "unknown storage `{other}` (expected mcap or sqlite3)"
+            )),
+        }
+    }
+}
+
+/// Chunk compression of MCAP storage (sqlite3 storage is never compressed by this writer).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Compression {
+    #[default]
+    None,
+    Zstd,
+    Lz4,
+}
+
+impl std::str::FromStr for Compression {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "none" | "" => Ok(Compression::None),
+            "zstd" => Ok(Compression::Zstd),
+            "lz4" => Ok(Compression::Lz4),
+            other => Err(format!(
+                "unknown compression `{other}` (expected none, zstd or lz4)"
+            )),
+        }
+    }
+}
+
+/// How a bag is written.
+#[derive(Debug, Clone)]
+pub struct WriterOptions {
+    pub storage: StorageId,
+    pub compression: Compression,
+    /// Target uncompressed MCAP chunk size in bytes; a full chunk is written out at once.
+    pub chunk_size: u64,
+    /// Longest time data may sit in memory: after it, the current chunk (or sqlite
+    /// transaction) is written out and `metadata.yaml` rewritten. Bounds what a kill loses.
+    pub flush_interval: Duration,
+    /// `ros_distro` recorded in the metadata (the format written is rosbag2 Jazzy's).
+    pub ros_distro: String,
+    pub custom_data: BTreeMap<String, String>,
+}
+
+impl Default for WriterOptions {
+    fn default() -> Self {
+        Self {
+            storage: StorageId::Mcap,
+            compression: Compression::None,
+            chunk_size: 1 << 20,
+            flush_interval: Duration::from_millis(500),
+            ros_distro: "jazzy".to_string(),
+            custom_data: BTreeMap::new(),
+        }
+    }
+}
+
+/// A topic added to a [`BagWriter`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct TopicHandle(usize);
+
+/// A topic as the storage back-ends need it.
+#[derive(Debug, Clone)]
+pub(crate) struct WriterTopic {
+    pub name: String,
+    pub type_name: String,
+    pub serialization_format: String,
+    pub schema_text: String,
+    pub qos: Vec<OfferedQos>,
+    pub type_description_hash: String,
+    pub storage_id: i64,
+    pub message_count: u64,
+}
+
+/// What a storage back-end does; the writer keeps topics, counts and metadata.
+pub(crate) trait StorageSink {
+    fn add_topic(&mut self, topic: &WriterTopic) -> Result<i64>;
+    fn write(&mut self, storage_id: i64, log_time_ns: i64, data: &[u8]) -> Result<()>;
+    fn flush(&mut self) -> Result<()>;
+    fn finish(&mut self, metadata: &BagMetadata) -> Result<()>;
+}
+
+/// What a finished bag holds.
+#[derive(Debug, Clone)]
+pub struct BagSummary {
+    pub dir: PathBuf,
+    pub metadata: BagMetadata,
+}
+
+/// Writes one rosbag2 directory. Dropping it finishes the bag (best effort, errors ignored);
+/// call [`BagWriter::finish`] to see errors.
+pub struct BagWriter {
+    dir: PathBuf,
+    file_name: String,
+    options: WriterOptions,
+    sink: Box<dyn StorageSink + Send>,
+    topics: Vec<WriterTopic>,
+    time_bounds: Option<(i64, i64)>,
+    last_flush: Instant,
+    finished: Option<BagSummary>,
+}
+
+impl BagWriter {
+    /// Creates the bag directory `dir` (which must not already hold a bag) and its storage file.
+    pub fn create(dir: impl AsRef<Path>, options: WriterOptions) -> Result<Self> {
+        let dir = dir.as_ref().to_path_buf();
+        if options.storage == StorageId::Sqlite3 && options.compression != Compression::None {
+            return Err(BagError::Write {
+                path: dir,
+                message: "compression is only supported with MCAP storage".into(),
+            });
+        }
+        if dir.join("metadata.yaml").exists() {
+            return Err(BagError::Write {
+                path: dir,
+                message: "a bag already exists there".into(),
+            });
+        }
+        std::fs::create_dir_all(&dir).map_err(io_error(&dir, "cannot create the bag directory"))?;
+        let stem = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .filter(|n| !n.is_empty() && n != "..")
+            .unwrap_or_else(|| "bag".to_string());
+        let file_name = format!("{stem}_0.{}", options.storage.extension());
+        let file_path = dir.join(&file_name);
+        let sink: Box<dyn StorageSink + Send> = match options.storage {
+            StorageId::Mcap => Box::new(McapSink::create(
+                &file_path,
+                options.compression,
+                options.chunk_size,
+            )?),
+            StorageId::Sqlite3 => Box::new(SqliteSink::create(&file_path, &options.ros_distro)?),
+        };
+        let writer = Self {
+            dir,
+            file_name,
+            options,
+            sink,
+            topics: Vec::new(),
+            time_bounds: None,
+            last_flush: Instant::now(),
+            finished: None,
+        };
+        writer.metadata().write(&writer.dir)?;
+        Ok(writer)
+    }
+
+    /// The bag directory.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Adds a topic with its type, `ros2msg` schema text (the .msg and its dependencies) and QoS.
+    pub fn add_topic(
+        &mut self,
+        name: &str,
+        type_name: &str,
+        schema_text: &str,
+        qos: QosProfile,
+    ) -> Result<TopicHandle> {
+        self.add_topic_with(
+            name,
+            type_name,
+            schema_text,
+            vec![OfferedQos::from(qos)],
+            "",
+        )
+    }
+
+    /// Adds a topic for message type `M`, taking its type name and schema from the type.
+    pub fn add_topic_for<M: RosMessage>(
+        &mut self,
+        name: &str,
+        qos: QosProfile,
+    ) -> Result<TopicHandle> {
+        self.add_topic(name, M::TYPE_NAME, &M::schema_text(), qos)
+    }
+
+    /// Adds a topic copied from another bag (keeps its QoS list and type hash as they were).
+    pub fn add_topic_like(&mut self, topic: &TopicInfo) -> Result<TopicHandle> {
+        let schema = topic.schema_text.clone().unwrap_or_default();
+        self.add_topic_with(
+            &topic.name,
+            &topic.type_name,
+            &schema,
+            topic.offered_qos.clone(),
+            &topic.type_description_hash,
+        )
+    }
+
+    fn add_topic_with(
+        &mut self,
+        name: &str,
+        type_name: &str,
+        schema_text: &str,
+        qos: Vec<OfferedQos>,
+        type_description_hash: &str,
+    ) -> Result<TopicHandle> {
+        let problem = if self.finished.is_some() {
+            Some("the bag is already finished".to_string())
+        } else if self.topics.iter().any(|t| t.name == name) {
+            Some(format!("topic `{name}` added twice"))
+        } else if schema_text.trim().is_empty() {
+            Some(format!(
+                "topic `{name}` ({type_name}) has no schema text; rosbag2 needs one per topic"
+            ))
+        } else if !name.starts_with('/') || type_name.split('/').count() != 3 {
+            Some(format!(
+                "topic `{name}` of type `{type_name}`: expected `/name` and `pkg/msg/Type`"
+            ))
+        } else {
+            None
+        };
+        if let Some(message) = problem {
+            return Err(BagError::Write {
+                path: self.dir.clone(),
+                message,
+            });
+        }
+        let mut topic = WriterTopic {
+            name: name.to_string(),
+            type_name: type_name.to_string(),
+            serialization_format: crate::mcap_storage::MESSAGE_ENCODING.to_string(),
+            schema_text: schema_text.to_string(),
+            qos,
+            type_description_hash: type_description_hash.to_string(),
+            storage_id: 0,
+            message_count: 0,
+        };
+        topic.storage_id = self.sink.add_topic(&topic)?;
+        self.topics.push(topic);
+        self.metadata().write(&self.dir)?;
+        Ok(TopicHandle(self.topics.len() - 1))
+    }
+
+    /// Writes one serialised (CDR, with encapsulation header) message received at `log_time_ns`.
+    pub fn write(&mut self, topic: TopicHandle, log_time_ns: i64, cdr: &[u8]) -> Result<()> {
+        if self.finished.is_some() {
+            return Err(BagError::Write {
+                path: self.dir.clone(),
+                message: "the bag is already finished".into(),
+            });
+        }
+        let Some(entry) = self.topics.get_mut(topic.0) else {
+            return Err(BagError::UnknownTopicId {
+                path: self.dir.clone(),
+                id: topic.0 as i64,
+            });
+        };
+        if log_time_ns < 0 {
+            return Err(BagError::Write {
+                path: self.dir.clone(),
+                message: format!("`{}`: negative log time {log_time_ns} ns", entry.name),
+            });
+        }
+        self.sink.write(entry.storage_id, log_time_ns, cdr)?;
+        entry.message_count += 1;
+        self.time_bounds = Some(match self.time_bounds {
+            None => (log_time_ns, log_time_ns),
+            Some((lo, hi)) => (lo.min(log_time_ns), hi.max(log_time_ns)),
+        });
+        if self.last_flush.elapsed() >= self.options.flush_interval {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Serialises `msg` and writes it; refuses a message type other than the topic's.
+    pub fn write_message<M: RosMessage>(
+        &mut self,
+        topic: TopicHandle,
+        log_time_ns: i64,
+        msg: &M,
+    ) -> Result<()> {
+        let Some(entry) = self.topics.get(topic.0) else {
+            return Err(BagError::UnknownTopicId {
+                path: self.dir.clone(),
+                id: topic.0 as i64,
+            });
+        };
+        if entry.type_name != M::TYPE_NAME {
+            return Err(BagError::WrongType {
+                topic: entry.name.clone(),
+                expected: M::TYPE_NAME,
+                found: entry.type_name.clone(),
+            });
+        }
+        let cdr = lidar_har_msgs::encode(msg).map_err(|source| BagError::Decode {
+            topic: entry.name.clone(),
+            log_time_ns,
+            source,
+        })?;
+        self.write(topic, log_time_ns, &cdr)
+    }
+
+    /// Writes buffered messages to disk and rewrites `metadata.yaml`: after this returns,
+    /// a kill loses nothing written so far.
+    pub fn flush(&mut self) -> Result<()> {
+        if self.finished.is_some() {
+            return Ok(());
+        }
+        self.sink.flush()?;
+        self.metadata().write(&self.dir)?;
+        self.last_flush = Instant::now();
+        Ok(())
+    }
+
+    /// Completes the storage file (MCAP summary, statistics and `rosbag2` record; sqlite
+    /// metadata row) and writes the final `metadata.yaml`. Calling it again returns the same
+    /// summary; signal handlers in binaries can call it from their shutdown path.
+    pub fn finish(&mut self) -> Result<BagSummary> {
+        if let Some(summary) = &self.finished {
+            return Ok(summary.clone());
+        }
+        let metadata = self.metadata();
+        self.sink.finish(&metadata)?;
+        metadata.write(&self.dir)?;
+        let summary = BagSummary {
+            dir: self.dir.clone(),
+            metadata,
+        };
+        self.finished = Some(summary.clone());
+        Ok(summary)
+    }
+
+    fn metadata(&self) -> BagMetadata {
+        let (start, end) = self.time_bounds.unwrap_or((0, 0));
+        let message_count = self.topics.iter().map(|t| t.message_count).sum();
+        BagMetadata {
+            version: METADATA_VERSION,
+            storage_identifier: self.options.storage.as_str().to_string(),
+            duration: Nanoseconds {
+                nanoseconds: end - start,
+            },
+            starting_time: NanosecondsSinceEpoch {
+                nanoseconds_since_epoch: start,
+            },
+            message_count,
+            topics_with_message_count: self
+                .topics
+                .iter()
+                .map(|t| TopicWithCount {
+                    topic_metadata: TopicMetadata {
+                        name: t.name.clone(),
+                        type_name: t.type_name.clone(),
+                        serialization_format: t.serialization_format.clone(),
+                        offered_qos_profiles: qos::to_v9_list(&t.qos),
+                        type_description_hash: t.type_description_hash.clone(),
+                    },
+                    message_count: t.message_count,
+                })
+                .collect(),
+            compression_format: String::new(),
+            compression_mode: String::new(),
+            relative_file_paths: vec![self.file_name.clone()],
+            files: vec![FileInformation {
+                path: self.file_name.clone(),
+                starting_time: NanosecondsSinceEpoch {
+                    nanoseconds_since_epoch: start,
+                },
+                duration: Nanoseconds {
+                    nanoseconds: end - start,
+                },
+                message_count,
+            }],
+            custom_data: Some(self.options.custom_data.clone()),
+            ros_distro: self.options.ros_distro.clone(),
+        }
+    }
+}
+
+impl Drop for BagWriter {
+    fn drop(&mut self) {
+        let _ = self.finish();
+    }
+}
