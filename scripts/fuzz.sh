@@ -6,6 +6,7 @@
 #   scripts/fuzz.sh                     every target, FUZZ_RUNS (20000) runs each
 #   scripts/fuzz.sh cdr_decode          only the named targets
 #   FUZZ_RUNS=2000000 FUZZ_SEED=7 scripts/fuzz.sh cdr_decode    a longer session
+#   FUZZ_SANITIZER=none scripts/fuzz.sh  without AddressSanitizer (faster; default: address)
 #
 # Needs cargo-fuzz (scripts/setup.sh installs it). Works with the stable compiler:
 # RUSTC_BOOTSTRAP=1 lets it accept the -Z flags cargo-fuzz passes (sanitizer, coverage).
@@ -14,6 +15,7 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 RUNS="${FUZZ_RUNS:-20000}"
 SEED="${FUZZ_SEED:-1}"
+SANITIZER="${FUZZ_SANITIZER:-address}"
 # Fuzz builds use their own compiler flags: keep them apart from the workspace's build.
 TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/target}/fuzz"
 
@@ -33,6 +35,17 @@ else
 fi
 [ "${#targets[@]}" -gt 0 ] || { echo "fuzz: no targets in fuzz/Cargo.toml" >&2; exit 1; }
 
+# One cargo build for all targets: shared dependencies compile once, in parallel.
+say "building ${targets[*]} (sanitizer: $SANITIZER)"
+build_args=(--sanitizer "$SANITIZER" --target-dir "$TARGET_DIR")
+if [ "$#" -gt 0 ]; then
+    for target in "${targets[@]}"; do
+        cargo fuzz build "${build_args[@]}" "$target" || { echo "fuzz: building $target failed" >&2; exit 1; }
+    done
+else
+    cargo fuzz build "${build_args[@]}" || { echo "fuzz: building the fuzz targets failed" >&2; exit 1; }
+fi
+
 for target in "${targets[@]}"; do
     corpus="corpus/$target"
     mkdir -p "$corpus"
@@ -43,7 +56,7 @@ for target in "${targets[@]}"; do
     log="$TARGET_DIR/$target.log"
     mkdir -p "$TARGET_DIR"
     # -rss_limit_mb also limits single allocations: unbounded allocation is a finding.
-    if ! cargo fuzz run --target-dir "$TARGET_DIR" "$target" "$corpus" "${seeds[@]}" -- \
+    if ! cargo fuzz run --sanitizer "$SANITIZER" --target-dir "$TARGET_DIR" "$target" "$corpus" "${seeds[@]}" -- \
         -runs="$RUNS" -seed="$SEED" -max_len=65536 -rss_limit_mb=1024 -timeout=10 -print_final_stats=1 \
         >"$log" 2>&1; then
         tail -n 80 "$log" >&2
