@@ -1,0 +1,628 @@
+//! The person: a script of activities turned into a body pose at any time.
+//!
+//! Each activity is a parametric motion (gait cycles as functions of a phase, a fall as a
+//! pitch angle growing with the square of time, like a toppling body from rest); steps are
+//! joined by blending the joint parameters from the previous step's last pose, and the root
+//! is re-anchored so the pelvis does not jump. Everything is a closed-form function of time:
+//! no integration, no drift over hours.
+
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
+
+use glam::DVec2;
+use lidar_har_core::activity::Activity;
+use lidar_har_core::geometry::normalize_angle;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::body::{BodyDims, Capsule, PARTS, PoseParams, capsules};
+use crate::scene::{FallDirection, PersonSpec, ScriptStep, SceneError, is_locomotion};
+use crate::world::World;
+
+/// Per-person traits drawn once per episode.
+#[derive(Debug, Clone, Copy)]
+pub struct Traits {
+    pub dims: BodyDims,
+    pub pace: f64,
+    pub stride: f64,
+    pub sway: f64,
+    /// Phase offsets of the slow sway oscillators.
+    phases: [f64; 6],
+}
+
+/// Where the person is and what they do at one instant.
+#[derive(Debug, Clone, Copy)]
+pub struct PersonState {
+    /// Pelvis position on the floor plane (the ground-truth position).
+    pub position: DVec2,
+    /// Facing direction of the root frame.
+    pub yaw: f64,
+    pub activity: Activity,
+    pub parts: [Capsule; PARTS],
+}
+
+#[derive(Debug, Clone)]
+struct Route {
+    points: Vec<DVec2>,
+    cumulative: Vec<f64>,
+}
+
+impl Route {
+    fn new(points: Vec<DVec2>) -> Self {
+        let mut cumulative = vec![0.0];
+        for w in points.windows(2) {
+            let last = cumulative.last().copied().unwrap_or(0.0);
+            cumulative.push(last + (w[1] - w[0]).length());
+        }
+        Self { points, cumulative }
+    }
+
+    fn length(&self) -> f64 {
+        self.cumulative.last().copied().unwrap_or(0.0)
+    }
+
+    /// Position after walking `s` metres, back and forth along the route.
+    fn at(&self, s: f64) -> DVec2 {
+        let len = self.length();
+        if len <= 1e-9 {
+            return self.points[0];
+        }
+        let u = s.rem_euclid(2.0 * len);
+        let u = if u > len { 2.0 * len - u } else { u };
+        let i = self.cumulative.partition_point(|&c| c <= u).clamp(1, self.points.len() - 1);
+        let (c0, c1) = (self.cumulative[i - 1], self.cumulative[i]);
+        let f = if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.0 };
+        self.points[i - 1].lerp(self.points[i], f)
+    }
+}
+
+/// One script step, resolved: timing, route, speeds and the pose it starts from.
+#[derive(Debug, Clone)]
+struct Plan {
+    activity: Activity,
+    start: f64,
+    end: f64,
+    route: Route,
+    speed: f64,
+    /// Gait cycles per second.
+    freq: f64,
+    /// Hip swing amplitude, radians.
+    amp: f64,
+    phase0: f64,
+    heading0: f64,
+    blend: f64,
+    from: PoseParams,
+    from_heading: f64,
+    /// For falls, getting up and lying: which way the body lies from the feet.
+    lying: FallDirection,
+    /// Step duration for falls and getting up (the motion's own time scale).
+    motion_time: f64,
+}
+
+/// The person of a scene, evaluated at non-decreasing times.
+#[derive(Debug, Clone)]
+pub struct Person {
+    steps: Vec<ScriptStep>,
+    repeat: bool,
+    traits: Traits,
+    rng: ChaCha8Rng,
+    plans: Vec<Plan>,
+    /// Next script step to plan, counting over repeats.
+    next_step: usize,
+    current: usize,
+    world_check: Option<World>,
+}
+
+fn smoothstep(x: f64) -> f64 {
+    let x = x.clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+fn rotate(v: DVec2, yaw: f64) -> DVec2 {
+    DVec2::from_angle(yaw).rotate(v)
+}
+
+fn lying_vector(dir: FallDirection) -> DVec2 {
+    match dir {
+        FallDirection::Forward => DVec2::X,
+        FallDirection::Backward => -DVec2::X,
+        FallDirection::Left => DVec2::Y,
+        FallDirection::Right => -DVec2::Y,
+    }
+}
+
+/// Usual speed (m/s) and gait frequency (cycles/s) of a moving activity, before traits.
+fn gait_defaults(a: Activity) -> (f64, f64) {
+    match a {
+        Activity::Walking => (1.0, 0.9),
+        Activity::Running => (2.5, 1.4),
+        Activity::WalkingUnsteadily => (0.5, 0.7),
+        Activity::Crawling => (0.3, 0.5),
+        _ => (0.0, 0.0),
+    }
+}
+
+impl Traits {
+    fn wave(&self, t: f64, freq: f64, k: usize) -> f64 {
+        (TAU * freq * t + self.phases[k % 6]).sin()
+    }
+
+    fn standing(&self, t: f64) -> PoseParams {
+        let sway = 0.012 * self.sway;
+        PoseParams {
+            pelvis: DVec2::new(sway * self.wave(t, 0.21, 0), sway * self.wave(t, 0.29, 1)),
+            pitch: 0.02 + 0.01 * self.wave(t, 0.17, 2),
+            roll: 0.012 * self.sway * self.wave(t, 0.23, 3),
+            hip_abduct: [0.05, 0.05],
+            knee_flex: [0.03, 0.03],
+            shoulder_flex: [0.05, 0.05],
+            shoulder_abduct: [0.08, 0.08],
+            elbow_flex: [0.15, 0.15],
+            ..PoseParams::default()
+        }
+    }
+
+    fn lying(&self, dir: FallDirection, t: f64) -> PoseParams {
+        let (pitch, roll, leg) = match dir {
+            FallDirection::Forward => (FRAC_PI_2, 0.0, 0.08),
+            FallDirection::Backward => (-FRAC_PI_2, 0.0, -0.08),
+            FallDirection::Left => (0.0, -FRAC_PI_2, 0.0),
+            FallDirection::Right => (0.0, FRAC_PI_2, 0.0),
+        };
+        let breath = 0.03 * self.wave(t, 0.25, 4);
+        PoseParams {
+            pelvis: lying_vector(dir) * (self.dims.leg_length() + 0.05),
+            pitch,
+            roll,
+            hip_flex: [leg, leg],
+            hip_abduct: [0.1, 0.1],
+            knee_flex: [0.1, 0.15],
+            shoulder_flex: [0.2, 0.2],
+            shoulder_abduct: [0.35 + breath, 0.35 + breath],
+            elbow_flex: [0.3, 0.3],
+            ..PoseParams::default()
+        }
+    }
+
+    /// The fall at progress `w` in [0, 1]: the trunk turns from upright to flat through
+    /// `w * pi/2` about the feet, with knees and hips giving way on the way down.
+    fn falling(&self, dir: FallDirection, w: f64, t: f64) -> PoseParams {
+        let mut p = self.standing(t).lerp(&self.lying(dir, t), w);
+        let theta = w * FRAC_PI_2;
+        let sign = |v: f64| if v == 0.0 { 0.0 } else { v.signum() };
+        let lying = self.lying(dir, t);
+        p.pitch = sign(lying.pitch) * theta;
+        p.roll = sign(lying.roll) * theta;
+        p.pelvis = lying_vector(dir) * (self.dims.leg_length() + 0.05) * theta.sin();
+        let bump = (PI * w).sin();
+        for i in 0..2 {
+            p.knee_flex[i] += 0.5 * bump;
+            p.hip_flex[i] += 0.3 * bump * sign(lying.pitch + 1e-9);
+            p.shoulder_flex[i] += 1.0 * bump; // arms reach out
+        }
+        p
+    }
+
+    fn sitting(&self, t: f64) -> PoseParams {
+        let pitch = -0.2 + 0.02 * self.wave(t, 0.2, 5);
+        PoseParams {
+            pelvis: DVec2::new(-0.3, 0.0),
+            pitch,
+            roll: 0.02 * self.sway * self.wave(t, 0.15, 1),
+            hip_flex: [FRAC_PI_2 + pitch, FRAC_PI_2 + pitch - 0.05],
+            hip_abduct: [0.15, 0.15],
+            knee_flex: [0.3, 0.45],
+            ankle: [0.3, 0.3],
+            shoulder_flex: [-0.5, -0.5],
+            shoulder_abduct: [0.25, 0.25],
+            elbow_flex: [0.0, 0.0],
+            ..PoseParams::default()
+        }
+    }
+
+    fn crawling(&self, phase: f64, amp: f64) -> PoseParams {
+        let pitch = 1.2;
+        let s = [phase.sin(), (phase + PI).sin()];
+        PoseParams {
+            pelvis: DVec2::new(-0.25, 0.0),
+            pitch,
+            roll: 0.04 * self.sway * phase.sin(),
+            hip_flex: [pitch + amp * s[0], pitch + amp * s[1]],
+            hip_abduct: [0.08, 0.08],
+            knee_flex: [FRAC_PI_2 + amp * s[0], FRAC_PI_2 + amp * s[1]],
+            ankle: [-FRAC_PI_2, -FRAC_PI_2],
+            // Diagonal pairs: left arm with right leg.
+            shoulder_flex: [pitch + amp * s[1], pitch + amp * s[0]],
+            shoulder_abduct: [0.1, 0.1],
+            elbow_flex: [0.1, 0.1],
+            ..PoseParams::default()
+        }
+    }
+
+    /// Walking, running and unsteady walking: legs swing with `phase`; the stance foot moves
+    /// back at the walking speed when `amp` matches the stride (see `Plan::new`).
+    fn gait(&self, a: Activity, phase: f64, amp: f64, t: f64) -> PoseParams {
+        let ph = [phase, phase + PI];
+        let mut p = PoseParams::default();
+        let (knee_base, knee_swing, elbow, pitch) = match a {
+            Activity::Running => (0.35, 1.5, 1.4, 0.15),
+            Activity::WalkingUnsteadily => (0.12, 0.8, 0.3, 0.1 + 0.05 * self.wave(t, 0.37, 2)),
+            _ => (0.08, 0.95, 0.25, 0.05),
+        };
+        let bias = if a == Activity::Running { 0.15 } else { 0.0 };
+        for i in 0..2 {
+            let swing = ph[i].cos().max(0.0);
+            p.hip_flex[i] = amp * ph[i].sin() + bias;
+            p.knee_flex[i] = knee_base + knee_swing * swing * swing;
+            p.shoulder_flex[i] = -0.8 * amp * ph[i].sin();
+            p.elbow_flex[i] = elbow;
+            p.hip_abduct[i] = 0.04;
+            p.shoulder_abduct[i] = 0.08;
+        }
+        p.pitch = pitch;
+        p.roll = 0.04 * self.sway * phase.sin();
+        p.pelvis = DVec2::new(0.0, 0.025 * self.sway * phase.cos());
+        match a {
+            Activity::Running => p.lift = 0.07 * self.stride * (-(2.0 * phase).cos()).max(0.0),
+            Activity::WalkingUnsteadily => {
+                p.pelvis.y += 0.07 * self.sway * self.wave(t, 0.27, 1);
+                p.roll += 0.12 * self.sway * self.wave(t, 0.4, 5);
+                for i in 0..2 {
+                    p.hip_abduct[i] = 0.12 + 0.06 * self.wave(t, 0.23 + 0.1 * i as f64, 3);
+                    p.shoulder_abduct[i] = 0.35;
+                }
+            }
+            _ => {}
+        }
+        p
+    }
+}
+
+impl Plan {
+    fn local(&self, t: f64) -> f64 {
+        (t - self.start).max(0.0)
+    }
+
+    fn phase(&self, traits: &Traits, t: f64) -> f64 {
+        let l = self.local(t);
+        let mut phase = self.phase0 + TAU * self.freq * l;
+        if self.activity == Activity::WalkingUnsteadily {
+            // Irregular steps: the cadence wanders smoothly.
+            phase += 0.6 * traits.wave(l, 0.31, 2) + 0.4 * traits.wave(l, 0.53, 3);
+        }
+        phase
+    }
+
+    /// The activity's own pose, before blending from the previous step.
+    fn raw_pose(&self, traits: &Traits, t: f64) -> PoseParams {
+        let l = self.local(t);
+        match self.activity {
+            Activity::Standing => traits.standing(l),
+            Activity::LyingDown => traits.lying(self.lying, l),
+            Activity::SittingOnFloor => traits.sitting(l),
+            Activity::FallingDown => {
+                let tau = (l / self.motion_time).min(1.0);
+                traits.falling(self.lying, tau * tau, l)
+            }
+            Activity::GettingUp => {
+                let tau = (l / self.motion_time).min(1.0);
+                traits.falling(self.lying, 1.0 - smoothstep(tau), l)
+            }
+            Activity::Crawling => traits.crawling(self.phase(traits, t), self.amp),
+            a => traits.gait(a, self.phase(traits, t), self.amp, l),
+        }
+    }
+
+    fn root(&self, t: f64) -> DVec2 {
+        self.route.at(self.speed * self.local(t))
+    }
+
+    fn raw_heading(&self, traits: &Traits, t: f64) -> f64 {
+        if self.speed <= 0.0 || self.route.length() <= 1e-9 {
+            return self.heading0;
+        }
+        // Chord over ±0.25 m of route: turns at corners take a quarter metre each side.
+        let s = self.speed * self.local(t);
+        let ahead = self.route.at(s + 0.25);
+        let behind = self.route.at((s - 0.25).max(0.0));
+        let chord = ahead - behind;
+        let mut h = if chord.length() > 1e-6 { chord.to_angle() } else { self.heading0 };
+        if self.activity == Activity::WalkingUnsteadily {
+            h += 0.15 * traits.sway * traits.wave(self.local(t), 0.19, 0);
+        }
+        h
+    }
+
+    fn pose(&self, traits: &Traits, t: f64) -> (PoseParams, f64) {
+        let raw = self.raw_pose(traits, t);
+        let heading = self.raw_heading(traits, t);
+        let l = self.local(t);
+        if l >= self.blend {
+            return (raw, heading);
+        }
+        let w = smoothstep(l / self.blend);
+        let h = self.from_heading + normalize_angle(heading - self.from_heading) * w;
+        (self.from.lerp(&raw, w), h)
+    }
+}
+
+impl Person {
+    /// Builds the person of a scene; `seed` drives per-person traits and per-episode choices.
+    /// Errors name the script step whose path runs through furniture.
+    pub fn new(spec: &PersonSpec, world: &World, seed: u64) -> Result<Self, SceneError> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let b = spec.body;
+        let mut vary = |x: f64| x * (1.0 + b.variation * rng.random_range(-1.0..=1.0));
+        let height = vary(b.height);
+        let girth = vary(b.girth);
+        let (pace, stride, sway) = (vary(b.pace), vary(b.stride), vary(b.sway));
+        let mut phases = [0.0; 6];
+        for p in &mut phases {
+            *p = rng.random_range(0.0..TAU);
+        }
+        let traits = Traits { dims: BodyDims::new(height, girth), pace, stride, sway, phases };
+        let start = spec.start.to_pose();
+        let mut person = Person {
+            steps: spec.script.clone(),
+            repeat: spec.repeat,
+            traits,
+            rng,
+            plans: Vec::new(),
+            next_step: 0,
+            current: 0,
+            world_check: Some(world.clone()),
+        };
+        let first = person.make_plan(0.0, start.position(), start.theta, None)?;
+        person.plans.push(first);
+        // Plan the whole first pass now, so path errors surface before simulating.
+        while person.next_step < person.steps.len() {
+            person.extend()?;
+        }
+        person.world_check = None;
+        Ok(person)
+    }
+
+    pub fn traits(&self) -> &Traits {
+        &self.traits
+    }
+
+    /// The script step to plan next, and its index in the script for error messages.
+    fn step_to_plan(&self) -> Option<(usize, ScriptStep)> {
+        let n = self.steps.len();
+        if self.next_step < n || self.repeat {
+            let i = self.next_step % n;
+            return Some((i, self.steps[i].clone()));
+        }
+        None
+    }
+
+    /// Resolves the next script step, starting at `start` from `prev` (root, heading, pose).
+    fn make_plan(
+        &mut self,
+        start: f64,
+        root: DVec2,
+        heading: f64,
+        prev: Option<(&Plan, PoseParams)>,
+    ) -> Result<Plan, SceneError> {
+        let (index, step) = match self.step_to_plan() {
+            Some(s) => s,
+            None => {
+                // After the script: the last activity goes on, a fall ends lying, getting up standing.
+                let last = self.plans.last().map(|p| p.activity).unwrap_or(Activity::Standing);
+                let activity = match last {
+                    Activity::FallingDown => Activity::LyingDown,
+                    Activity::GettingUp => Activity::Standing,
+                    a => a,
+                };
+                let mut s = self.steps[self.steps.len() - 1].clone();
+                s.activity = activity;
+                s.duration = f64::INFINITY;
+                s.fall = None;
+                if !is_locomotion(activity) {
+                    s.path.clear();
+                }
+                (self.steps.len() - 1, s)
+            }
+        };
+        self.next_step += 1;
+        let a = step.activity;
+        let prev_lying = prev.map(|(p, _)| p.lying);
+        let lying = match (a, step.fall) {
+            (Activity::FallingDown, Some(d)) => d,
+            (Activity::FallingDown, None) => {
+                [FallDirection::Forward, FallDirection::Backward, FallDirection::Left, FallDirection::Right]
+                    [self.rng.random_range(0..4)]
+            }
+            _ => match (prev.map(|(p, _)| p.activity), prev_lying) {
+                (Some(Activity::FallingDown | Activity::LyingDown | Activity::GettingUp), Some(d)) => d,
+                _ => [FallDirection::Backward, FallDirection::Left, FallDirection::Right][self.rng.random_range(0..3)],
+            },
+        };
+        let (base_speed, base_freq) = gait_defaults(a);
+        let speed = step.speed.unwrap_or(base_speed * self.traits.pace * self.traits.stride * self.rng.random_range(0.9..=1.1));
+        let freq = base_freq * self.traits.pace;
+        // Hip amplitude that makes the stance foot move back at the walking speed:
+        // stride = speed / freq = 4 * leg * sin(amp).
+        let leg = self.traits.dims.leg_length();
+        let amp = if a == Activity::Crawling {
+            0.22
+        } else if freq > 0.0 {
+            ((speed / freq) / (4.0 * leg)).clamp(0.0, 0.9).asin()
+        } else {
+            0.0
+        };
+        let blend: f64 = match (prev.map(|(p, _)| p.activity), a) {
+            (None, _) => 0.0,
+            (_, Activity::FallingDown) => 0.15,
+            (Some(Activity::FallingDown), Activity::LyingDown) => 0.2,
+            (_, Activity::LyingDown | Activity::SittingOnFloor) => 1.0,
+            (_, Activity::GettingUp) => 0.5,
+            _ => 0.4,
+        };
+        let blend = blend.min(step.duration);
+        let mut plan = Plan {
+            activity: a,
+            start,
+            end: start + step.duration,
+            route: Route::new(vec![root]),
+            speed: if is_locomotion(a) { speed } else { 0.0 },
+            freq,
+            amp,
+            phase0: self.rng.random_range(0.0..TAU),
+            heading0: heading,
+            blend,
+            from: PoseParams::default(),
+            from_heading: heading,
+            lying,
+            motion_time: step.duration.min(15.0),
+        };
+        // Re-anchor the root so the pelvis stays where the previous step left it.
+        let nominal_pelvis = plan.raw_pose(&self.traits, start).pelvis;
+        let root = match prev {
+            Some((_, prev_pose)) => root + rotate(prev_pose.pelvis - nominal_pelvis, heading),
+            None => root,
+        };
+        let mut points = vec![root];
+        points.extend(step.path.iter().map(|p| DVec2::new(p[0], p[1])));
+        if let Some(world) = &self.world_check {
+            for (j, w) in points.windows(2).enumerate() {
+                let blocked = world.furniture.iter().enumerate().find(|(_, f)| f.person_blocks.iter().any(|s| s.crosses_segment(w[0], w[1])));
+                let outside = world.wall_clearance(w[1]) < 0.0 || crate::shapes::segments_cross_outline(w[0], w[1], &world.outline);
+                if let Some((fi, f)) = blocked {
+                    return Err(path_error(index, j, format!("the walk to this point crosses furniture[{fi}] '{}'", f.name)));
+                }
+                if outside {
+                    return Err(path_error(index, j, "the walk to this point leaves the room".to_string()));
+                }
+            }
+        }
+        plan.route = Route::new(points);
+        if let Some(first) = plan.route.points.get(1) {
+            let d = *first - root;
+            if d.length() > 1e-9 {
+                plan.heading0 = d.to_angle();
+            }
+        }
+        if let Some((_, mut prev_pose)) = prev {
+            prev_pose.pelvis = nominal_pelvis;
+            plan.from = prev_pose;
+        } else {
+            plan.from = plan.raw_pose(&self.traits, start);
+        }
+        Ok(plan)
+    }
+
+    fn extend(&mut self) -> Result<(), SceneError> {
+        let Some(last) = self.plans.last().cloned() else { return Ok(()) };
+        let end = last.end;
+        let (pose, heading) = last.pose(&self.traits, end);
+        let root = last.root(end);
+        let plan = self.make_plan(end, root, heading, Some((&last, pose)))?;
+        self.plans.push(plan);
+        Ok(())
+    }
+
+    /// The person at time `t` seconds from the scene start. Times should not go backwards
+    /// by more than one script step (the simulator only moves forward).
+    pub fn state_at(&mut self, t: f64) -> PersonState {
+        while self.plans[self.current].end <= t {
+            if self.current + 1 >= self.plans.len() && self.extend().is_err() {
+                break; // cannot happen after the first pass; stay in the current step
+            }
+            if self.current + 1 >= self.plans.len() {
+                break;
+            }
+            self.current += 1;
+            // Keep memory bounded over hours of repeats.
+            if self.current > 64 {
+                self.plans.drain(..32);
+                self.current -= 32;
+            }
+        }
+        while self.current > 0 && self.plans[self.current].start > t {
+            self.current -= 1;
+        }
+        let plan = &self.plans[self.current];
+        let (pose, yaw) = plan.pose(&self.traits, t);
+        let root = plan.root(t);
+        let parts = capsules(&self.traits.dims, &pose, root, yaw);
+        PersonState { position: root + rotate(pose.pelvis, yaw), yaw: normalize_angle(yaw), activity: plan.activity, parts }
+    }
+}
+
+fn path_error(step: usize, point: usize, message: String) -> SceneError {
+    SceneError::Invalid { origin: "scene".to_string(), key: format!("person.script[{step}].path[{point}]"), message }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Scene;
+
+    fn scene(script: &str) -> Scene {
+        let text = format!(
+            "duration: 60\nroom: {{outline: [[0,0],[8,0],[8,6],[0,6]]}}\nrobot: {{start: {{x: 0.5, y: 0.5}}}}\nperson:\n  start: {{x: 4, y: 3}}\n  script:\n{script}"
+        );
+        Scene::parse(&text, "test").unwrap()
+    }
+
+    fn max_jump(person: &mut Person, t0: f64, t1: f64, dt: f64) -> f64 {
+        let mut prev = person.state_at(t0);
+        let mut worst: f64 = 0.0;
+        let mut t = t0 + dt;
+        while t <= t1 {
+            let s = person.state_at(t);
+            for (a, b) in prev.parts.iter().zip(s.parts.iter()) {
+                worst = worst.max((a.a - b.a).length()).max((a.b - b.b).length());
+            }
+            prev = s;
+            t += dt;
+        }
+        worst
+    }
+
+    #[test]
+    fn consecutive_activities_join_without_jumps() {
+        let s = scene(
+            "    - {activity: standing, duration: 1}\n    - {activity: walking, duration: 3, path: [[6,3]]}\n    - {activity: running, duration: 2, path: [[2,3]]}\n    - {activity: walking_unsteadily, duration: 2, path: [[4,4]]}\n    - {activity: falling_down, duration: 1}\n    - {activity: lying_down, duration: 2}\n    - {activity: getting_up, duration: 2}\n    - {activity: sitting_on_floor, duration: 2}\n    - {activity: crawling, duration: 3, path: [[3,3]]}\n    - {activity: standing, duration: 2}\n",
+        );
+        let world = World::new(&s);
+        let mut p = Person::new(s.person.as_ref().unwrap(), &world, 5).unwrap();
+        // At 1 kHz no body point moves more than 2 cm (20 m/s, far above running limbs).
+        let jump = max_jump(&mut p, 0.0, 20.0, 0.001);
+        assert!(jump < 0.02, "largest per-millisecond jump {jump} m");
+    }
+
+    #[test]
+    fn fall_takes_the_body_to_the_floor() {
+        let s = scene("    - {activity: standing, duration: 1}\n    - {activity: falling_down, duration: 1, fall: backward}\n    - {activity: lying_down, duration: 5}\n");
+        let world = World::new(&s);
+        let mut p = Person::new(s.person.as_ref().unwrap(), &world, 1).unwrap();
+        let top = |st: &PersonState| st.parts.iter().map(|c| c.a.z.max(c.b.z) + c.radius).fold(0.0, f64::max);
+        let before = p.state_at(0.9);
+        assert!(top(&before) > 1.5);
+        let after = p.state_at(2.1);
+        assert_eq!(after.activity, Activity::LyingDown);
+        assert!(top(&after) < 0.35, "lying body top at {}", top(&after));
+        assert!((after.position - before.position).length() > 0.7, "the pelvis ends about a leg's length away");
+    }
+
+    #[test]
+    fn walking_path_is_followed_back_and_forth() {
+        let s = scene("    - {activity: walking, duration: 100, path: [[6,3]], speed: 1.0}\n");
+        let world = World::new(&s);
+        let mut p = Person::new(s.person.as_ref().unwrap(), &world, 1).unwrap();
+        // 2 m each way at 1 m/s: at t = 2 s at (6,3), at t = 4 s back at (4,3).
+        assert!((p.state_at(2.0).position - DVec2::new(6.0, 3.0)).length() < 0.1);
+        assert!((p.state_at(4.0).position - DVec2::new(4.0, 3.0)).length() < 0.1);
+        // And the script's last step goes on: still walking after 10 minutes.
+        assert_eq!(p.state_at(600.0).activity, Activity::Walking);
+    }
+
+    #[test]
+    fn a_path_through_furniture_is_rejected_with_its_step() {
+        let text = "duration: 10\nroom: {outline: [[0,0],[8,0],[8,6],[0,6]]}\nfurniture: [{kind: box, name: sofa, center: [5, 3], size: [1, 2], height: 0.8}]\nrobot: {start: {x: 0.5, y: 0.5}}\nperson:\n  start: {x: 3, y: 3}\n  script:\n    - {activity: standing, duration: 1}\n    - {activity: walking, duration: 5, path: [[7,3]]}\n";
+        let s = Scene::parse(text, "t").unwrap();
+        let err = Person::new(s.person.as_ref().unwrap(), &World::new(&s), 0).unwrap_err().to_string();
+        assert!(err.contains("person.script[1].path[0]") && err.contains("sofa"), "{err}");
+    }
+}

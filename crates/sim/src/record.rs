@@ -1,0 +1,199 @@
+//! Recording a simulation as a rosbag2 directory (MCAP), with the map beside it in
+//! map_server format. Everything written derives from the scene and the seed: no wall clock,
+//! and the bag writer never flushes on a timer, so the same inputs give the same bytes.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use lidar_har_bag::{BagWriter, WriterOptions};
+use lidar_har_core::geometry::Pose2;
+use lidar_har_msgs::builtin_interfaces::Time;
+use lidar_har_msgs::geometry_msgs::{
+    Point, Pose, PoseStamped, PoseWithCovariance, Quaternion, Transform, TransformStamped, Twist,
+    TwistWithCovariance, Vector3,
+};
+use lidar_har_msgs::lidar_har_msgs::Activity as ActivityMsg;
+use lidar_har_msgs::nav_msgs::{MapMetaData, OccupancyGrid, Odometry};
+use lidar_har_msgs::rosgraph_msgs::Clock;
+use lidar_har_msgs::sensor_msgs::LaserScan;
+use lidar_har_msgs::std_msgs::Header;
+use lidar_har_msgs::tf2_msgs::TFMessage;
+use lidar_har_msgs::topics;
+
+use crate::map::OccupancyMap;
+use crate::simulator::{Frame, Simulator};
+
+pub const MAP_FRAME: &str = "map";
+pub const ODOM_FRAME: &str = "odom";
+pub const BASE_FRAME: &str = "base_link";
+pub const LASER_FRAME: &str = "laser";
+
+/// Why a recording failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    #[error(transparent)]
+    Bag(#[from] lidar_har_bag::BagError),
+    #[error("cannot write the map beside the bag in {path}: {source}")]
+    Map {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// What was recorded.
+#[derive(Debug, Clone)]
+pub struct RecordSummary {
+    pub bag_dir: PathBuf,
+    pub frames: u64,
+    pub messages: u64,
+    pub first_stamp_ns: u64,
+    pub last_stamp_ns: u64,
+}
+
+fn time(ns: u64) -> Time {
+    Time::from_nanos(ns as i64)
+}
+
+fn pose_msg(p: Pose2) -> Pose {
+    Pose::from_xy_yaw(p.x, p.y, p.theta)
+}
+
+fn transform(stamp: Time, parent: &str, child: &str, p: Pose2, z: f64) -> TransformStamped {
+    TransformStamped {
+        header: Header::new(stamp, parent),
+        child_frame_id: child.to_string(),
+        transform: Transform {
+            translation: Vector3 { x: p.x, y: p.y, z },
+            rotation: Quaternion::from_yaw(p.theta),
+        },
+    }
+}
+
+/// The map as a `nav_msgs/OccupancyGrid` in the `map` frame.
+pub fn occupancy_grid_msg(map: &OccupancyMap, stamp_ns: u64) -> OccupancyGrid {
+    OccupancyGrid {
+        header: Header::new(time(stamp_ns), MAP_FRAME),
+        info: MapMetaData {
+            map_load_time: time(stamp_ns),
+            resolution: map.resolution as f32,
+            width: map.width,
+            height: map.height,
+            origin: Pose { position: Point { x: map.origin.x, y: map.origin.y, z: 0.0 }, orientation: Quaternion::IDENTITY },
+        },
+        data: map.data.clone(),
+    }
+}
+
+/// The frame's scan as a `sensor_msgs/LaserScan` in the `laser` frame.
+pub fn laser_scan_msg(sim: &Simulator, frame: &Frame) -> LaserScan {
+    let g = sim.scan_geometry();
+    LaserScan {
+        header: Header::new(time(frame.stamp_ns), LASER_FRAME),
+        angle_min: g.angle_min as f32,
+        angle_max: g.angle_max() as f32,
+        angle_increment: g.angle_increment as f32,
+        // All beams of a rotation are taken at the same instant (see docs/simulator.md).
+        time_increment: 0.0,
+        scan_time: g.scan_time as f32,
+        range_min: g.range_min as f32,
+        range_max: g.range_max as f32,
+        ranges: frame.ranges.clone(),
+        intensities: Vec::new(),
+    }
+}
+
+/// Runs `sim` to its end into a new rosbag2 directory `out` (MCAP), and writes
+/// `out/map.pgm` + `out/map.yaml`. `on_frame` sees every frame (progress, renders).
+pub fn record(
+    sim: &mut Simulator,
+    out: &Path,
+    map_resolution: f64,
+    mut on_frame: impl FnMut(&Frame),
+) -> Result<RecordSummary, RecordError> {
+    let options = WriterOptions { flush_interval: Duration::MAX, ..WriterOptions::default() };
+    let mut bag = BagWriter::create(out, options)?;
+    let scan_t = bag.add_topic_for::<LaserScan>(topics::SCAN.name, topics::SCAN.qos)?;
+    let odom_t = bag.add_topic_for::<Odometry>(topics::ODOM.name, topics::ODOM.qos)?;
+    let tf_t = bag.add_topic_for::<TFMessage>(topics::TF.name, topics::TF.qos)?;
+    let tf_static_t = bag.add_topic_for::<TFMessage>(topics::TF_STATIC.name, topics::TF_STATIC.qos)?;
+    let map_t = bag.add_topic_for::<OccupancyGrid>(topics::MAP.name, topics::MAP.qos)?;
+    let clock_t = bag.add_topic_for::<Clock>(topics::CLOCK.name, topics::CLOCK.qos)?;
+    let has_person = sim.scene().person.is_some();
+    let truth_t = if has_person {
+        Some((
+            bag.add_topic_for::<PoseStamped>(topics::GROUND_TRUTH_POSE.name, topics::GROUND_TRUTH_POSE.qos)?,
+            bag.add_topic_for::<ActivityMsg>(topics::GROUND_TRUTH_ACTIVITY.name, topics::GROUND_TRUTH_ACTIVITY.qos)?,
+        ))
+    } else {
+        None
+    };
+
+    let start = sim.start_ns();
+    let map = OccupancyMap::from_world(sim.world(), map_resolution);
+    map.write_map_server(out, "map")
+        .map_err(|source| RecordError::Map { path: out.display().to_string(), source })?;
+    let t0 = time(start);
+    let log0 = start as i64;
+    bag.write_message(map_t, log0, &occupancy_grid_msg(&map, start))?;
+    let laser_z = sim.scene().robot.lidar_height;
+    let mount = sim.lidar_mount();
+    bag.write_message(
+        tf_static_t,
+        log0,
+        &TFMessage { transforms: vec![transform(t0, BASE_FRAME, LASER_FRAME, mount, laser_z)] },
+    )?;
+
+    let mut frame = Frame::default();
+    let mut summary = RecordSummary { bag_dir: out.to_path_buf(), frames: 0, messages: 2, first_stamp_ns: start, last_stamp_ns: start };
+    while sim.step_into(&mut frame) {
+        let stamp = time(frame.stamp_ns);
+        let log = frame.stamp_ns as i64;
+        bag.write_message(clock_t, log, &Clock { clock: stamp })?;
+        bag.write_message(
+            tf_t,
+            log,
+            &TFMessage {
+                transforms: vec![
+                    transform(stamp, MAP_FRAME, ODOM_FRAME, Pose2::IDENTITY, 0.0),
+                    transform(stamp, ODOM_FRAME, BASE_FRAME, frame.robot, 0.0),
+                ],
+            },
+        )?;
+        let odom = Odometry {
+            header: Header::new(stamp, ODOM_FRAME),
+            child_frame_id: BASE_FRAME.to_string(),
+            pose: PoseWithCovariance { pose: pose_msg(frame.robot), ..PoseWithCovariance::default() },
+            twist: TwistWithCovariance {
+                twist: Twist {
+                    linear: Vector3 { x: frame.robot_twist.linear, y: 0.0, z: 0.0 },
+                    angular: Vector3 { x: 0.0, y: 0.0, z: frame.robot_twist.angular },
+                },
+                ..TwistWithCovariance::default()
+            },
+        };
+        bag.write_message(odom_t, log, &odom)?;
+        bag.write_message(scan_t, log, &laser_scan_msg(sim, &frame))?;
+        summary.messages += 4;
+        if let (Some((pose_t, activity_t)), Some(person)) = (truth_t, &frame.person) {
+            bag.write_message(pose_t, log, &PoseStamped { header: Header::new(stamp, MAP_FRAME), pose: pose_msg(person.pose) })?;
+            let class = person.activity.index();
+            let mut probabilities = vec![0.0f32; lidar_har_core::activity::Activity::COUNT];
+            probabilities[class] = 1.0;
+            let msg = ActivityMsg {
+                header: Header::new(stamp, MAP_FRAME),
+                activity: class as u8,
+                label: person.activity.label().to_string(),
+                confidence: 1.0,
+                probabilities,
+            };
+            bag.write_message(activity_t, log, &msg)?;
+            summary.messages += 2;
+        }
+        summary.frames += 1;
+        summary.last_stamp_ns = frame.stamp_ns;
+        on_frame(&frame);
+    }
+    bag.finish()?;
+    Ok(summary)
+}

@@ -1,0 +1,473 @@
+//! The robot's motion: a path planned on an occupancy grid inflated by the robot's radius
+//! (A* between the motion's waypoints, shortened by line of sight), then driven as turns on
+//! the spot and straight runs at constant speed. The plan repeats with a fixed period, and
+//! the pose is a closed-form function of time, so hours of motion accumulate no error.
+
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+use glam::DVec2;
+use lidar_har_core::geometry::{Pose2, normalize_angle};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::scene::{Motion, RobotSpec, SceneError};
+use crate::world::World;
+
+/// Extra distance the planner keeps from obstacles beyond the robot's radius.
+pub const PLANNING_MARGIN: f64 = 0.03;
+const GRID_RESOLUTION: f64 = 0.05;
+
+/// The robot's velocity in its own frame (base_link): forward speed and turn rate.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Twist2 {
+    pub linear: f64,
+    pub angular: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Leg {
+    Turn { at: DVec2, from: f64, delta: f64 },
+    Drive { from: DVec2, to: DVec2, heading: f64 },
+}
+
+#[derive(Debug, Clone, Copy)]
+struct TimedLeg {
+    start: f64,
+    duration: f64,
+    leg: Leg,
+}
+
+/// The robot's planned motion.
+#[derive(Debug, Clone)]
+pub struct RobotMotion {
+    legs: Vec<TimedLeg>,
+    period: f64,
+    start: Pose2,
+    speed: f64,
+    turn_rate: f64,
+    /// The planned path's corners, for drawing.
+    pub path: Vec<DVec2>,
+}
+
+/// Free space for the robot's centre on a grid.
+struct Grid {
+    origin: DVec2,
+    width: usize,
+    height: usize,
+    free: Vec<bool>,
+}
+
+impl Grid {
+    fn new(world: &World, clearance: f64) -> Self {
+        let (lo, hi) = world.bounds();
+        let origin = lo;
+        let width = (((hi.x - lo.x) / GRID_RESOLUTION).ceil() as usize).max(1);
+        let height = (((hi.y - lo.y) / GRID_RESOLUTION).ceil() as usize).max(1);
+        let mut free = vec![false; width * height];
+        for j in 0..height {
+            for i in 0..width {
+                let c = origin + DVec2::new((i as f64 + 0.5) * GRID_RESOLUTION, (j as f64 + 0.5) * GRID_RESOLUTION);
+                free[j * width + i] = world.robot_clearance(c).0 >= clearance;
+            }
+        }
+        Self { origin, width, height, free }
+    }
+
+    fn cell(&self, p: DVec2) -> Option<(usize, usize)> {
+        let q = (p - self.origin) / GRID_RESOLUTION;
+        (q.x >= 0.0 && q.y >= 0.0 && (q.x as usize) < self.width && (q.y as usize) < self.height)
+            .then(|| (q.x as usize, q.y as usize))
+    }
+
+    fn center(&self, (i, j): (usize, usize)) -> DVec2 {
+        self.origin + DVec2::new((i as f64 + 0.5) * GRID_RESOLUTION, (j as f64 + 0.5) * GRID_RESOLUTION)
+    }
+
+    fn is_free(&self, p: DVec2) -> bool {
+        self.cell(p).is_some_and(|(i, j)| self.free[j * self.width + i])
+    }
+
+    /// Is the straight run `a`-`b` free (sampled at a fifth of a cell)?
+    fn line_free(&self, a: DVec2, b: DVec2) -> bool {
+        let n = ((b - a).length() / (GRID_RESOLUTION * 0.2)).ceil().max(1.0) as usize;
+        (0..=n).all(|k| self.is_free(a.lerp(b, k as f64 / n as f64)))
+    }
+
+    /// Free cell nearest to `p` (breadth-first over the grid).
+    fn nearest_free(&self, p: DVec2) -> Option<(usize, usize)> {
+        let start = self.cell(p)?;
+        let mut seen = vec![false; self.free.len()];
+        let mut queue = std::collections::VecDeque::from([start]);
+        seen[start.1 * self.width + start.0] = true;
+        while let Some((i, j)) = queue.pop_front() {
+            if self.free[j * self.width + i] {
+                return Some((i, j));
+            }
+            for (di, dj) in [(1i64, 0i64), (-1, 0), (0, 1), (0, -1)] {
+                let (ni, nj) = (i as i64 + di, j as i64 + dj);
+                if ni >= 0 && nj >= 0 && (ni as usize) < self.width && (nj as usize) < self.height {
+                    let k = nj as usize * self.width + ni as usize;
+                    if !seen[k] {
+                        seen[k] = true;
+                        queue.push_back((ni as usize, nj as usize));
+                    }
+                }
+            }
+        }
+        None
+    }
+
+    /// A* (8-connected) from `a` to `b`, then shortened by line of sight. `None`: unreachable.
+    fn plan(&self, a: DVec2, b: DVec2) -> Option<Vec<DVec2>> {
+        if self.line_free(a, b) {
+            return Some(vec![a, b]);
+        }
+        let s = self.nearest_free(a)?;
+        let g = self.nearest_free(b)?;
+        let idx = |(i, j): (usize, usize)| j * self.width + i;
+        let h = |(i, j): (usize, usize)| {
+            let (dx, dy) = ((i as f64 - g.0 as f64).abs(), (j as f64 - g.1 as f64).abs());
+            dx.max(dy) + (std::f64::consts::SQRT_2 - 1.0) * dx.min(dy)
+        };
+        let mut cost = vec![f64::INFINITY; self.free.len()];
+        let mut parent = vec![usize::MAX; self.free.len()];
+        let mut open = BinaryHeap::new();
+        cost[idx(s)] = 0.0;
+        open.push(Node { f: h(s), cell: s });
+        while let Some(Node { cell, .. }) = open.pop() {
+            if cell == g {
+                break;
+            }
+            let c = cost[idx(cell)];
+            for (di, dj) in [(1i64, 0i64), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)] {
+                let (ni, nj) = (cell.0 as i64 + di, cell.1 as i64 + dj);
+                if ni < 0 || nj < 0 || ni as usize >= self.width || nj as usize >= self.height {
+                    continue;
+                }
+                let n = (ni as usize, nj as usize);
+                // Diagonal steps may not cut a blocked corner.
+                if !self.free[idx(n)] || !self.free[idx((n.0, cell.1))] || !self.free[idx((cell.0, n.1))] {
+                    continue;
+                }
+                let step = if di != 0 && dj != 0 { std::f64::consts::SQRT_2 } else { 1.0 };
+                if c + step < cost[idx(n)] {
+                    cost[idx(n)] = c + step;
+                    parent[idx(n)] = idx(cell);
+                    open.push(Node { f: c + step + h(n), cell: n });
+                }
+            }
+        }
+        if !cost[idx(g)].is_finite() {
+            return None;
+        }
+        let mut cells = vec![g];
+        let mut k = idx(g);
+        while k != idx(s) {
+            k = parent[k];
+            cells.push((k % self.width, k / self.width));
+        }
+        cells.reverse();
+        let mut raw: Vec<DVec2> = vec![a];
+        raw.extend(cells.iter().map(|c| self.center(*c)));
+        raw.push(b);
+        // Line-of-sight shortening.
+        let mut out = vec![a];
+        let mut i = 0;
+        while i + 1 < raw.len() {
+            let mut j = raw.len() - 1;
+            while j > i + 1 && !self.line_free(raw[i], raw[j]) {
+                j -= 1;
+            }
+            out.push(raw[j]);
+            i = j;
+        }
+        Some(out)
+    }
+
+    /// How far the robot can drive from `p` along `dir` before leaving free space.
+    fn free_run(&self, p: DVec2, dir: DVec2) -> f64 {
+        let step = GRID_RESOLUTION * 0.2;
+        let mut d = 0.0;
+        while self.is_free(p + dir * (d + step)) && d < 100.0 {
+            d += step;
+        }
+        d
+    }
+}
+
+#[derive(PartialEq)]
+struct Node {
+    f: f64,
+    cell: (usize, usize),
+}
+impl Eq for Node {}
+impl Ord for Node {
+    fn cmp(&self, other: &Self) -> Ordering {
+        other.f.total_cmp(&self.f).then_with(|| self.cell.cmp(&other.cell))
+    }
+}
+impl PartialOrd for Node {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+fn motion_error(key: &str, message: String) -> SceneError {
+    SceneError::Invalid { origin: "scene".to_string(), key: key.to_string(), message }
+}
+
+impl RobotMotion {
+    /// Plans the robot's motion in `world`; `seed` drives random bounce headings.
+    pub fn new(spec: &RobotSpec, world: &World, seed: u64) -> Result<Self, SceneError> {
+        let start = spec.start.to_pose();
+        let mut motion = RobotMotion {
+            legs: Vec::new(),
+            period: 0.0,
+            start,
+            speed: spec.speed,
+            turn_rate: spec.turn_rate_deg.to_radians(),
+            path: vec![start.position()],
+        };
+        if matches!(spec.motion, Motion::Static) {
+            return Ok(motion);
+        }
+        let grid = Grid::new(world, spec.radius + PLANNING_MARGIN);
+        let s = start.position();
+        let mut stops: Vec<DVec2> = Vec::new();
+        let mut repeat = true;
+        match &spec.motion {
+            Motion::Static => {}
+            Motion::Waypoints { points, repeat: r } => {
+                stops.extend(points.iter().map(|p| DVec2::new(p[0], p[1])));
+                repeat = *r;
+            }
+            Motion::Coverage { spacing, along_y } => {
+                let (lo, hi) = world.bounds();
+                let (axis_lo, axis_hi, cross_lo, cross_hi) =
+                    if *along_y { (lo.y, hi.y, lo.x, hi.x) } else { (lo.x, hi.x, lo.y, hi.y) };
+                let point = |along: f64, across: f64| if *along_y { DVec2::new(across, along) } else { DVec2::new(along, across) };
+                let mut lane = 0usize;
+                let mut across = cross_lo + spacing / 2.0;
+                while across < cross_hi {
+                    // Free stretches of this lane.
+                    let mut runs: Vec<(f64, f64)> = Vec::new();
+                    let mut run_start: Option<f64> = None;
+                    let step = GRID_RESOLUTION * 0.5;
+                    let mut along = axis_lo;
+                    while along <= axis_hi {
+                        let free = grid.is_free(point(along, across));
+                        match (free, run_start) {
+                            (true, None) => run_start = Some(along),
+                            (false, Some(a0)) => {
+                                runs.push((a0, along - step));
+                                run_start = None;
+                            }
+                            _ => {}
+                        }
+                        along += step;
+                    }
+                    if let Some(a0) = run_start {
+                        runs.push((a0, along - step));
+                    }
+                    runs.retain(|(a, b)| b - a > 0.1);
+                    if lane % 2 == 1 {
+                        runs.reverse();
+                        for r in &mut runs {
+                            *r = (r.1, r.0);
+                        }
+                    }
+                    for (a, b) in runs {
+                        stops.push(point(a, across));
+                        stops.push(point(b, across));
+                    }
+                    lane += 1;
+                    across += spacing;
+                }
+                if stops.is_empty() {
+                    return Err(motion_error("robot.motion", "coverage found no free lane for the robot".to_string()));
+                }
+            }
+            Motion::Bounce { runs } => {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                let mut p = s;
+                for _ in 0..*runs {
+                    let mut best: Option<(f64, DVec2)> = None;
+                    for _ in 0..32 {
+                        let dir = DVec2::from_angle(rng.random_range(-std::f64::consts::PI..std::f64::consts::PI));
+                        let d = grid.free_run(p, dir);
+                        if best.is_none_or(|(bd, _)| d > bd) {
+                            best = Some((d, dir));
+                        }
+                        if d > 0.5 {
+                            break;
+                        }
+                    }
+                    match best {
+                        Some((d, dir)) if d > 0.05 => {
+                            p += dir * d;
+                            stops.push(p);
+                        }
+                        _ => break,
+                    }
+                }
+            }
+        }
+        if repeat {
+            stops.push(s);
+        }
+        let mut at = s;
+        let mut path = vec![s];
+        for (k, stop) in stops.iter().enumerate() {
+            let Some(leg) = grid.plan(at, *stop) else {
+                let key = match spec.motion {
+                    Motion::Waypoints { .. } if k < stops.len() - usize::from(repeat) => format!("robot.motion.points[{k}]"),
+                    _ => "robot.motion".to_string(),
+                };
+                return Err(motion_error(&key, format!("no collision-free way for the robot to ({:.2}, {:.2})", stop.x, stop.y)));
+            };
+            path.extend(leg.into_iter().skip(1));
+            at = *stop;
+        }
+        path.dedup_by(|a, b| (*a - *b).length() < 1e-9);
+        motion.build_legs(&path, repeat);
+        motion.path = path;
+        Ok(motion)
+    }
+
+    fn build_legs(&mut self, path: &[DVec2], repeat: bool) {
+        let mut t = 0.0;
+        let mut heading = self.start.theta;
+        for w in path.windows(2) {
+            let d = w[1] - w[0];
+            let target = d.to_angle();
+            let delta = normalize_angle(target - heading);
+            if delta.abs() > 1e-9 {
+                let duration = delta.abs() / self.turn_rate;
+                self.legs.push(TimedLeg { start: t, duration, leg: Leg::Turn { at: w[0], from: heading, delta } });
+                t += duration;
+            }
+            let duration = d.length() / self.speed;
+            self.legs.push(TimedLeg { start: t, duration, leg: Leg::Drive { from: w[0], to: w[1], heading: target } });
+            t += duration;
+            heading = target;
+        }
+        if repeat {
+            let delta = normalize_angle(self.start.theta - heading);
+            if delta.abs() > 1e-9 {
+                let at = path.last().copied().unwrap_or(self.start.position());
+                let duration = delta.abs() / self.turn_rate;
+                self.legs.push(TimedLeg { start: t, duration, leg: Leg::Turn { at, from: heading, delta } });
+                t += duration;
+            }
+            self.period = t;
+        } else {
+            self.period = f64::INFINITY;
+        }
+    }
+
+    /// Pose and velocity at `t` seconds from the start.
+    pub fn at(&self, t: f64) -> (Pose2, Twist2) {
+        let Some(last) = self.legs.last() else { return (self.start, Twist2::default()) };
+        let t = if self.period.is_finite() && self.period > 0.0 { t.rem_euclid(self.period) } else { t.max(0.0) };
+        let i = self.legs.partition_point(|l| l.start <= t).saturating_sub(1);
+        let l = &self.legs[i];
+        let f = if l.duration > 0.0 { ((t - l.start) / l.duration).clamp(0.0, 1.0) } else { 1.0 };
+        let moving = t < last.start + last.duration;
+        match l.leg {
+            Leg::Turn { at, from, delta } => {
+                let w = if moving { delta.signum() * self.turn_rate } else { 0.0 };
+                (Pose2::new(at.x, at.y, normalize_angle(from + delta * f)), Twist2 { linear: 0.0, angular: w })
+            }
+            Leg::Drive { from, to, heading } => {
+                let p = from.lerp(to, f);
+                let v = if moving { self.speed } else { 0.0 };
+                (Pose2::new(p.x, p.y, heading), Twist2 { linear: v, angular: 0.0 })
+            }
+        }
+    }
+
+    /// Seconds after which the motion repeats (infinite when it stops at its last point).
+    pub fn period(&self) -> f64 {
+        self.period
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Scene;
+
+    fn scene(motion: &str) -> Scene {
+        let text = format!(
+            "duration: 10\nroom: {{outline: [[0,0],[6,0],[6,4],[0,4]]}}\nfurniture: [{{kind: box, center: [3, 2], size: [1, 2.4], height: 0.8}}]\nrobot: {{start: {{x: 0.5, y: 2}}, motion: {motion}}}\n"
+        );
+        Scene::parse(&text, "t").unwrap()
+    }
+
+    fn check_clear(s: &Scene, m: &RobotMotion) {
+        let world = World::new(s);
+        let mut t = 0.0;
+        while t < m.period().min(2000.0) {
+            let (pose, _) = m.at(t);
+            let clear = world.robot_clearance(pose.position()).0;
+            assert!(clear >= s.robot.radius - 1e-9, "robot at {pose:?} (t = {t}) only {clear} m from an obstacle");
+            t += 0.25;
+        }
+    }
+
+    #[test]
+    fn waypoints_are_reached_around_furniture() {
+        let s = scene("{kind: waypoints, points: [[5.5, 2]]}");
+        let m = RobotMotion::new(&s.robot, &World::new(&s), 0).unwrap();
+        assert!(m.path.len() > 2, "the box is in the way: the path must bend");
+        check_clear(&s, &m);
+        // Reaches the waypoint and comes back: periodic.
+        assert!(m.path.iter().any(|p| (*p - DVec2::new(5.5, 2.0)).length() < 1e-9));
+        let (p0, _) = m.at(0.0);
+        let (p1, _) = m.at(m.period());
+        assert!((p0.position() - p1.position()).length() < 1e-9);
+    }
+
+    #[test]
+    fn coverage_and_bounce_stay_clear() {
+        for motion in ["{kind: coverage, spacing: 0.4}", "{kind: coverage, along_y: true}", "{kind: bounce, runs: 20}"] {
+            let s = scene(motion);
+            let m = RobotMotion::new(&s.robot, &World::new(&s), 3).unwrap();
+            assert!(m.period() > 10.0, "{motion}");
+            check_clear(&s, &m);
+        }
+    }
+
+    #[test]
+    fn speed_and_turn_rate_are_respected() {
+        let s = scene("{kind: coverage}");
+        let m = RobotMotion::new(&s.robot, &World::new(&s), 0).unwrap();
+        let dt = 0.01;
+        let mut prev = m.at(0.0).0;
+        for k in 1..5000 {
+            let p = m.at(k as f64 * dt).0;
+            assert!((p.position() - prev.position()).length() <= 0.2 * dt + 1e-9);
+            assert!(normalize_angle(p.theta - prev.theta).abs() <= std::f64::consts::FRAC_PI_2 * dt + 1e-9);
+            prev = p;
+        }
+    }
+
+    #[test]
+    fn pose_after_hours_repeats_exactly() {
+        let s = scene("{kind: waypoints, points: [[5.5, 2], [5.5, 0.5]]}");
+        let m = RobotMotion::new(&s.robot, &World::new(&s), 0).unwrap();
+        let t = 1.234;
+        let (a, _) = m.at(t);
+        let (b, _) = m.at(t + 500.0 * m.period());
+        assert!((a.position() - b.position()).length() < 1e-6 && normalize_angle(a.theta - b.theta).abs() < 1e-6);
+    }
+
+    #[test]
+    fn unreachable_waypoint_is_an_error() {
+        let text = "duration: 10\nroom: {outline: [[0,0],[6,0],[6,4],[0,4]]}\nfurniture: [{kind: box, center: [3, 2], size: [0.3, 4], height: 0.8}]\nrobot: {start: {x: 0.5, y: 2}, motion: {kind: waypoints, points: [[5.5, 2]]}}\n";
+        let s = Scene::parse(text, "t").unwrap();
+        let err = RobotMotion::new(&s.robot, &World::new(&s), 0).unwrap_err().to_string();
+        assert!(err.contains("robot.motion.points[0]"), "{err}");
+    }
+}
