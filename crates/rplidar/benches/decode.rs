@@ -30,13 +30,26 @@ fn stream(format: ScanFormat) -> Vec<u8> {
     match format {
         ScanFormat::Standard => {
             for j in 0..total {
-                bytes.extend_from_slice(&encode::standard_node(angle(j), range_mm(j), 188, j % PER_ROTATION == 0));
+                bytes.extend_from_slice(&encode::standard_node(
+                    angle(j),
+                    range_mm(j),
+                    188,
+                    j % PER_ROTATION == 0,
+                ));
             }
         }
         ScanFormat::Express => {
             for c in 0..total / 32 {
-                let samples: Vec<(f32, f32)> = (0..32).map(|k| (angle(c * 32 + k), range_mm(c * 32 + k))).collect();
-                bytes.extend(encode::express_capsule(angle(c * 32), angle(c * 32 + 32), 2.0, &samples, c == 0));
+                let samples: Vec<(f32, f32)> = (0..32)
+                    .map(|k| (angle(c * 32 + k), range_mm(c * 32 + k)))
+                    .collect();
+                bytes.extend(encode::express_capsule(
+                    angle(c * 32),
+                    angle(c * 32 + 32),
+                    2.0,
+                    &samples,
+                    c == 0,
+                ));
             }
         }
         ScanFormat::Dense => {
@@ -113,9 +126,15 @@ fn latency(format: ScanFormat, bytes: &[u8], geometry: &ScanGeometry) -> Vec<Dur
 }
 
 fn main() {
-    let geometry = ScanGeometry { beams: 720, range_min_m: 0.15, range_max_m: 12.0 };
+    let geometry = ScanGeometry {
+        beams: 720,
+        range_min_m: 0.15,
+        range_max_m: 12.0,
+    };
     let target = 100.0 * 32_000.0;
-    println!("RPLIDAR decode benchmark: {ROTATIONS} rotations x {PER_ROTATION} samples, {CHUNK}-byte reads");
+    println!(
+        "RPLIDAR decode benchmark: {ROTATIONS} rotations x {PER_ROTATION} samples, {CHUNK}-byte reads"
+    );
     println!("target: {:.1} M samples/s (100 x 32 kHz)", target / 1e6);
     for format in [ScanFormat::Standard, ScanFormat::Express, ScanFormat::Dense] {
         let bytes = stream(format);

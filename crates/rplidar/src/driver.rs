@@ -29,7 +29,7 @@ use crate::decode::{DecodeStats, Sample, ScanFormat, StreamDecoder};
 use crate::error::{Error, Result};
 use crate::protocol::{
     DESCRIPTOR_LEN, Descriptor, DeviceHealth, DeviceInfo, HealthStatus, RESPONSE_SYNC, Request,
-    ScanModeInfo, answer, conf, conf_string, conf_u32, parse_conf_answer,
+    SampleRate, ScanModeInfo, answer, conf, conf_string, conf_u32, parse_conf_answer,
 };
 use crate::rotation::{Rotation, RotationAssembler};
 use crate::scan::ScanFrame;
@@ -64,6 +64,9 @@ pub struct DriverStatus {
     pub health: Option<DeviceHealth>,
     pub scan_mode: Option<String>,
     pub format: Option<ScanFormat>,
+    /// Samples per second the device announces for the mode (what it really delivers is
+    /// `rotation_hz x samples_per_rotation`).
+    pub nominal_sample_rate_hz: Option<f32>,
     /// Baud rate the port reports after opening (a pseudo-terminal accepts any).
     pub baud_readback: Option<u32>,
     pub scans: u64,
@@ -238,6 +241,8 @@ struct ScanPlan {
     request: Request,
     format: ScanFormat,
     mode_name: String,
+    /// Samples per second the device announces for this mode.
+    nominal_rate_hz: Option<f32>,
 }
 
 /// A device that is scanning.
@@ -246,6 +251,7 @@ struct Session {
     info: DeviceInfo,
     health: DeviceHealth,
     mode_name: String,
+    nominal_rate_hz: Option<f32>,
     decoder: StreamDecoder,
     assembler: RotationAssembler,
     samples: Vec<Sample>,
@@ -386,6 +392,7 @@ impl Driver {
         self.status.health = Some(session.health);
         self.status.scan_mode = Some(session.mode_name.clone());
         self.status.format = Some(session.decoder.format());
+        self.status.nominal_sample_rate_hz = session.nominal_rate_hz;
         self.status.baud_readback = session.baud_readback;
         self.state = State::Scanning(Box::new(session));
     }
@@ -454,7 +461,10 @@ impl Driver {
         } else if let Some(pwm) = self.config.motor_pwm {
             link.send(&Request::SetMotorPwm(pwm))?;
         }
-        let plan = self.plan_scan(&mut link, &info)?;
+        let mut plan = self.plan_scan(&mut link, &info)?;
+        if plan.nominal_rate_hz.is_none() && info.supports_express() {
+            plan.nominal_rate_hz = self.legacy_sample_rate(&mut link, plan.format);
+        }
         link.send(&plan.request)?;
         let deadline = Instant::now() + timeout;
         let descriptor = link.wait_descriptor(plan.format.answer_type(), deadline, "scan start")?;
@@ -476,6 +486,7 @@ impl Driver {
             info,
             health,
             mode_name: plan.mode_name,
+            nominal_rate_hz: plan.nominal_rate_hz,
             decoder,
             assembler: RotationAssembler::new(),
             samples,
@@ -483,6 +494,33 @@ impl Driver {
             last_data: Instant::now(),
             baud_readback,
         })
+    }
+
+    /// `GET_SAMPLERATE` (firmware 1.17 and later): samples per second of the standard or
+    /// express scan; `None` when the device does not answer.
+    fn legacy_sample_rate(&self, link: &mut Link, format: ScanFormat) -> Option<f32> {
+        let probe = self.config.request_timeout.min(CONF_PROBE_TIMEOUT);
+        match link.request(
+            &Request::GetSampleRate,
+            answer::SAMPLE_RATE,
+            probe,
+            "sample rate",
+        ) {
+            Ok(payload) => {
+                let rate = SampleRate::parse(&payload).ok()?;
+                let us = if format == ScanFormat::Standard {
+                    rate.standard_us
+                } else {
+                    rate.express_us
+                };
+                (us > 0).then(|| 1e6 / f32::from(us))
+            }
+            Err(e) => {
+                debug!("{}: no sample rate: {e}", self.config.port);
+                link.clear_input();
+                None
+            }
+        }
     }
 
     fn get_health(&self, link: &mut Link) -> Result<DeviceHealth> {
@@ -555,6 +593,7 @@ impl Driver {
             request: Request::Scan,
             format: ScanFormat::Standard,
             mode_name: "Standard".into(),
+            nominal_rate_hz: None,
         };
         let legacy_express = || ScanPlan {
             request: Request::ExpressScan {
@@ -564,6 +603,7 @@ impl Driver {
             },
             format: ScanFormat::Express,
             mode_name: "Express".into(),
+            nominal_rate_hz: None,
         };
         let choice = self.config.scan_mode.clone();
         if choice == ScanModeChoice::Standard {
@@ -638,6 +678,7 @@ impl Driver {
         if mode.answer_type == answer::MEASUREMENT {
             return Ok(ScanPlan {
                 mode_name: mode.name.clone(),
+                nominal_rate_hz: Some(mode.sample_rate_hz()),
                 ..standard()
             });
         }
@@ -666,6 +707,7 @@ impl Driver {
             },
             format,
             mode_name: mode.name.clone(),
+            nominal_rate_hz: Some(mode.sample_rate_hz()),
         })
     }
 
@@ -837,6 +879,12 @@ impl Driver {
         }
         if let Some(mode) = &s.scan_mode {
             values.push(KeyValue::new("scan_mode", mode.clone()));
+        }
+        if let Some(rate) = s.nominal_sample_rate_hz {
+            values.push(KeyValue::new(
+                "nominal_sample_rate_hz",
+                format!("{rate:.0}"),
+            ));
         }
         if let Some(baud) = s.baud_readback {
             values.push(KeyValue::new("baud_readback", baud.to_string()));
