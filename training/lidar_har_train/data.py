@@ -1,0 +1,74 @@
+"""Reads a dataset written by `lidar-har dataset` (layout in docs/training.md)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+CLASSES = [
+    "crawling",
+    "falling_down",
+    "getting_up",
+    "lying_down",
+    "running",
+    "sitting_on_floor",
+    "standing",
+    "walking",
+    "walking_unsteadily",
+]
+
+
+@dataclass
+class Split:
+    """The windows of one split: images `[N, T, S, S]` (uint8, value/255), labels `[N, T]`."""
+
+    name: str
+    images: np.ndarray
+    labels: np.ndarray
+    episodes: np.ndarray
+
+    def __len__(self) -> int:
+        return self.images.shape[0]
+
+    def subset(self, mask: np.ndarray, name: str) -> "Split":
+        return Split(name, self.images[mask], self.labels[mask], self.episodes[mask])
+
+
+class DatasetError(Exception):
+    pass
+
+
+def load_index(data_dir: Path) -> dict:
+    path = data_dir / "index.json"
+    try:
+        index = json.loads(path.read_text())
+    except FileNotFoundError as err:
+        raise DatasetError(f"{path}: no index.json; make the dataset with `lidar-har dataset`") from err
+    except json.JSONDecodeError as err:
+        raise DatasetError(f"{path}: not valid JSON ({err})") from err
+    if index.get("classes") != CLASSES:
+        raise DatasetError(f"{path}: classes {index.get('classes')} differ from DESIGN.md order {CLASSES}")
+    return index
+
+
+def load_split(data_dir: Path, index: dict, name: str) -> Split | None:
+    info = index.get("splits", {}).get(name)
+    if info is None or info.get("windows", 0) == 0:
+        return None
+    images = np.load(data_dir / info["images"])
+    labels = np.load(data_dir / info["labels"])
+    spec = index["spec"]
+    expected = (info["windows"], spec["window"], spec["size"], spec["size"])
+    if images.shape != expected or images.dtype != np.uint8:
+        raise DatasetError(f"{data_dir / info['images']}: shape {images.shape} {images.dtype}, expected {expected} uint8")
+    if labels.shape != expected[:2] or labels.max(initial=0) >= len(CLASSES):
+        raise DatasetError(f"{data_dir / info['labels']}: shape {labels.shape}, expected {expected[:2]} with classes 0..8")
+    rows = [w for w in index["windows"] if w["split"] == name]
+    rows.sort(key=lambda w: w["row"])
+    episodes = np.array([w["episode"] for w in rows], dtype=np.int64)
+    if len(episodes) != expected[0]:
+        raise DatasetError(f"{data_dir / 'index.json'}: {len(episodes)} windows listed for {name}, arrays hold {expected[0]}")
+    return Split(name, images, labels.astype(np.int64), episodes)

@@ -1,0 +1,226 @@
+"""Trains the activity ConvLSTM on a `lidar-har dataset` directory and exports the ONNX step model.
+
+    python -m lidar_har_train.train --data DIR --out models/activity.onnx
+
+Loss: cross-entropy at every step from T/2 on (docs/model_contract.md), each step against the
+activity at that step's scan. Class balance: windows are drawn with probability inversely
+proportional to their class's count (by the window's last label). Early stopping on a
+validation split made of whole training episodes. Augmentation: the eight rotations/flips of
+the square image (the map frame has no preferred direction for a person).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import random
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from .data import CLASSES, DatasetError, Split, load_index, load_split
+from .export import ExportError, export_step_model
+from .model import ActivityConvLSTM
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--data", type=Path, required=True, help="dataset directory (index.json + .npy)")
+    p.add_argument("--out", type=Path, required=True, help="ONNX file to write")
+    p.add_argument("--hidden", type=int, default=16, help="ConvLSTM hidden channels")
+    p.add_argument("--encoder-channels", type=int, default=8)
+    p.add_argument("--batch", type=int, default=64)
+    p.add_argument("--lr", type=float, default=3e-3)
+    p.add_argument("--max-epochs", type=int, default=40)
+    p.add_argument("--patience", type=int, default=5, help="epochs without validation gain before stopping")
+    p.add_argument("--steps-per-epoch", type=int, default=150, help="balanced batches drawn per epoch")
+    p.add_argument("--time-budget-min", type=float, default=45.0, help="stop training after this many minutes")
+    p.add_argument("--val-fraction", type=float, default=0.15, help="share of training episodes held for validation")
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--seed", type=int, default=7)
+    p.add_argument("--no-augment", action="store_true")
+    return p.parse_args(argv)
+
+
+def seed_everything(seed: int, threads: int):
+    random.seed(seed)
+    np.random.seed(seed)
+    torch.manual_seed(seed)
+    torch.set_num_threads(threads)
+    torch.use_deterministic_algorithms(True)
+
+
+def split_validation(train: Split, fraction: float, rng: np.random.Generator) -> tuple[Split, Split]:
+    """Holds out whole episodes (never single windows) for validation."""
+    episodes = np.unique(train.episodes)
+    if len(episodes) < 2:
+        raise DatasetError("the train split has fewer than 2 episodes: cannot hold any out for validation")
+    count = max(1, int(round(fraction * len(episodes))))
+    held = rng.choice(episodes, size=count, replace=False)
+    mask = np.isin(train.episodes, held)
+    return train.subset(~mask, "train"), train.subset(mask, "validation")
+
+
+def to_tensor(images: np.ndarray) -> torch.Tensor:
+    return torch.from_numpy(images.astype(np.float32) / 255.0)
+
+
+def augment(batch: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """One of the eight square symmetries per window (same for all its frames)."""
+    out = np.empty_like(batch)
+    for i, window in enumerate(batch):
+        k = int(rng.integers(4))
+        w = np.rot90(window, k, axes=(1, 2))
+        if rng.integers(2):
+            w = w[:, :, ::-1]
+        out[i] = w
+    return out
+
+
+def class_weights_for_sampling(labels_last: np.ndarray) -> np.ndarray:
+    counts = np.bincount(labels_last, minlength=len(CLASSES)).astype(np.float64)
+    per_class = np.where(counts > 0, 1.0 / np.maximum(counts, 1), 0.0)
+    weights = per_class[labels_last]
+    return weights / weights.sum()
+
+
+def loss_on_second_half(logits: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
+    half = logits.shape[1] // 2
+    return nn.functional.cross_entropy(logits[:, half:].reshape(-1, len(CLASSES)), labels[:, half:].reshape(-1))
+
+
+@torch.no_grad()
+def predict(model: ActivityConvLSTM, split: Split, batch: int = 256) -> np.ndarray:
+    """Logits `[N, T, 9]` over the split's windows, each from a zero state."""
+    model.eval()
+    out = []
+    for start in range(0, len(split), batch):
+        out.append(model(to_tensor(split.images[start : start + batch])).numpy())
+    return np.concatenate(out) if out else np.zeros((0, split.images.shape[1], len(CLASSES)), np.float32)
+
+
+def summarise(logits: np.ndarray, split: Split) -> dict:
+    """Accuracy at the window's last step (history T) and at step T/2 (the shortest history)."""
+    steps = logits.shape[1]
+    last = logits[:, -1].argmax(-1)
+    half = logits[:, steps // 2].argmax(-1)
+    truth_last = split.labels[:, -1]
+    truth_half = split.labels[:, steps // 2]
+    confusion = np.zeros((len(CLASSES), len(CLASSES)), dtype=np.int64)
+    np.add.at(confusion, (truth_last, last), 1)
+    recall = {
+        CLASSES[k]: float(confusion[k, k] / confusion[k].sum()) if confusion[k].sum() else None
+        for k in range(len(CLASSES))
+    }
+    return {
+        "windows": int(len(split)),
+        "accuracy_at_T": float((last == truth_last).mean()),
+        "accuracy_at_T_half": float((half == truth_half).mean()),
+        "recall_at_T": recall,
+        "confusion_at_T": confusion.tolist(),
+    }
+
+
+def train(args) -> int:
+    seed_everything(args.seed, args.threads)
+    rng = np.random.default_rng(args.seed)
+    index = load_index(args.data)
+    spec = index["spec"]
+    train_all = load_split(args.data, index, "train")
+    if train_all is None:
+        raise DatasetError(f"{args.data}: the train split is empty")
+    train_split, val_split = split_validation(train_all, args.val_fraction, rng)
+    print(f"train {len(train_split)} windows, validation {len(val_split)} windows "
+          f"({len(np.unique(val_split.episodes))} episodes)", flush=True)
+
+    model = ActivityConvLSTM(spec["size"], hidden=args.hidden, encoder_channels=args.encoder_channels)
+    params = sum(p.numel() for p in model.parameters())
+    print(f"model: size {spec['size']}, hidden {args.hidden}, {params} parameters", flush=True)
+    optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
+    sampling = class_weights_for_sampling(train_split.labels[:, -1])
+
+    best_state, best_val, best_epoch, history = None, -1.0, 0, []
+    started = time.monotonic()
+    for epoch in range(1, args.max_epochs + 1):
+        model.train()
+        total = 0.0
+        for _ in range(args.steps_per_epoch):
+            rows = np.sort(rng.choice(len(train_split), size=args.batch, p=sampling))
+            images = train_split.images[rows]
+            if not args.no_augment:
+                images = augment(images, rng)
+            logits = model(to_tensor(np.ascontiguousarray(images)))
+            loss = loss_on_second_half(logits, torch.from_numpy(train_split.labels[rows]))
+            optimiser.zero_grad()
+            loss.backward()
+            nn.utils.clip_grad_norm_(model.parameters(), 5.0)
+            optimiser.step()
+            total += loss.item()
+        val = summarise(predict(model, val_split), val_split)
+        # Balanced validation score: mean recall at T, so rare classes (falls) count as much.
+        recalls = [r for r in val["recall_at_T"].values() if r is not None]
+        score = float(np.mean(recalls)) if recalls else 0.0
+        elapsed = time.monotonic() - started
+        history.append({"epoch": epoch, "loss": total / args.steps_per_epoch, "val_accuracy": val["accuracy_at_T"],
+                        "val_balanced_recall": score, "elapsed_s": round(elapsed, 1)})
+        print(f"epoch {epoch:3d} loss {total / args.steps_per_epoch:.4f} val acc {val['accuracy_at_T']:.4f} "
+              f"balanced recall {score:.4f} ({elapsed / 60:.1f} min)", flush=True)
+        if score > best_val:
+            best_val, best_epoch = score, epoch
+            best_state = {k: v.clone() for k, v in model.state_dict().items()}
+        elif epoch - best_epoch >= args.patience:
+            print(f"early stop: no validation gain for {args.patience} epochs", flush=True)
+            break
+        if elapsed > args.time_budget_min * 60:
+            print(f"time budget of {args.time_budget_min} min reached", flush=True)
+            break
+    training_s = time.monotonic() - started
+    model.load_state_dict(best_state)
+    model.eval()
+
+    results = {"validation": summarise(predict(model, val_split), val_split)}
+    for name in ("test", "test_unseen"):
+        split = load_split(args.data, index, name)
+        if split is not None:
+            results[name] = summarise(predict(model, split), split)
+            print(f"{name}: accuracy at T {results[name]['accuracy_at_T']:.4f}, "
+                  f"at T/2 {results[name]['accuracy_at_T_half']:.4f} ({len(split)} windows)", flush=True)
+
+    parity_split = load_split(args.data, index, "test") or val_split
+    parity = export_step_model(model, spec, args.out, parity_split.images[:16])
+    report = {
+        "date_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "data": str(args.data),
+        "dataset_generator": index.get("generator"),
+        "spec": spec,
+        "settings": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
+        "parameters": params,
+        "best_epoch": best_epoch,
+        "training_seconds": round(training_s, 1),
+        "torch_threads": torch.get_num_threads(),
+        "history": history,
+        "results": results,
+        "parity_max_abs_diff": parity,
+    }
+    report_path = args.out.with_suffix(".training.json")
+    report_path.write_text(json.dumps(report, indent=2) + "\n")
+    print(f"wrote {args.out} and {report_path} (parity max abs diff {parity:.2e})", flush=True)
+    return 0
+
+
+def main(argv=None) -> int:
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        return train(args)
+    except (DatasetError, ExportError) as err:
+        print(f"train: error: {err}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
