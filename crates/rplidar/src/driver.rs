@@ -373,8 +373,14 @@ impl Driver {
     fn fail_connect(&mut self, e: Error) {
         let wait = self.backoff;
         self.backoff = (self.backoff * 2).min(self.config.reconnect_max);
+        let hint = match &e {
+            Error::Timeout { what, .. } if what.starts_with("device info") => {
+                " (no answer at all: wrong baud rate, or not an RPLIDAR?)"
+            }
+            _ => "",
+        };
         let message = format!(
-            "cannot start the device: {e}; retrying in {} ms",
+            "cannot start the device: {e}{hint}; retrying in {} ms",
             wait.as_millis()
         );
         warn!("{}: {message}", self.config.port);

@@ -12,7 +12,7 @@ pub mod driver;
 #[cfg(any(test, feature = "fake"))]
 pub mod encode;
 pub mod error;
-#[cfg(feature = "fake")]
+#[cfg(all(feature = "fake", unix))]
 pub mod fake;
 pub mod protocol;
 pub mod rotation;

@@ -111,7 +111,16 @@ fn check_exact(mode: ScanModeChoice, format: ScanFormat, tolerance_m: f32) {
     cfg.motor_pwm = Some(600);
     let expected = expected_ranges(&cfg.geometry);
     let mut driver = Driver::new(cfg.clone()).unwrap();
-    let (scans, diags) = run_until(&mut driver, Duration::from_secs(10), scans(4));
+    let started = Instant::now();
+    let (first, diags) = run_until(&mut driver, Duration::from_secs(10), |_, d| !d.is_empty());
+    // Requests return as soon as their answer is complete: no full timeout is waited.
+    assert!(
+        started.elapsed() < Duration::from_secs(2),
+        "start took {:?}",
+        started.elapsed()
+    );
+    let (more, _) = run_until(&mut driver, Duration::from_secs(10), scans(4));
+    let scans: Vec<LaserScan> = first.into_iter().chain(more).collect();
     let status = driver.status();
     assert_eq!(status.format, Some(format));
     for scan in &scans {
@@ -418,6 +427,33 @@ fn missing_port_is_reported_not_fatal() {
     assert!(diags.iter().all(|d| d.level == DiagnosticStatus::ERROR));
     assert!(
         diags[0].message.contains("no-such-device"),
+        "{}",
+        diags[0].message
+    );
+}
+
+#[test]
+fn a_port_that_never_answers_times_out_quickly_with_a_hint() {
+    // A pty with nobody behind it: like a device at the wrong baud rate.
+    use serialport::SerialPort;
+    let (_master, slave) = serialport::TTYPort::pair().unwrap();
+    let path = slave.name().unwrap();
+    drop(slave);
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("silent");
+    std::os::unix::fs::symlink(&path, &link).unwrap();
+    let mut driver = Driver::new(config(&link, ScanModeChoice::Auto)).unwrap();
+    let started = Instant::now();
+    let (_, diags) = run_until(&mut driver, Duration::from_secs(5), |_, d| !d.is_empty());
+    let elapsed = started.elapsed();
+    assert!(elapsed < Duration::from_secs(2), "{elapsed:?}");
+    assert!(
+        diags[0].message.contains("device info"),
+        "{}",
+        diags[0].message
+    );
+    assert!(
+        diags[0].message.contains("wrong baud rate"),
         "{}",
         diags[0].message
     );
