@@ -257,6 +257,8 @@ struct Session {
     samples: Vec<Sample>,
     rotations: Vec<Rotation>,
     last_data: Instant,
+    /// When the last rotation completed (or the scan started).
+    last_rotation: Instant,
     baud_readback: Option<u32>,
 }
 
@@ -498,6 +500,7 @@ impl Driver {
             samples,
             rotations: Vec::new(),
             last_data: Instant::now(),
+            last_rotation: Instant::now(),
             baud_readback,
         })
     }
@@ -748,6 +751,10 @@ impl Driver {
             }
         }
         let silent_for = arrival.saturating_duration_since(session.last_data);
+        if !session.rotations.is_empty() {
+            session.last_rotation = arrival;
+        }
+        let turnless_for = arrival.saturating_duration_since(session.last_rotation);
         let rotations = std::mem::take(&mut session.rotations);
         for rotation in &rotations {
             let start_ns = instant_to_clock_ns(&self.clock, rotation.started);
@@ -768,7 +775,16 @@ impl Driver {
                 .push_back(Event::Scan(frame.to_laser_scan(&self.config.frame_id)));
         }
         if silent_for > self.config.data_timeout {
-            self.recover_silent(silent_for);
+            self.recover(format!(
+                "no valid data for {:.1} s: resetting the device",
+                silent_for.as_secs_f64()
+            ));
+        } else if turnless_for > 2 * self.config.data_timeout {
+            // Samples arrive but the angle never wraps: the motor is stuck or stopped.
+            self.recover(format!(
+                "data but no complete rotation for {:.1} s (motor stopped?): resetting the device",
+                turnless_for.as_secs_f64()
+            ));
         }
     }
 
@@ -785,11 +801,8 @@ impl Driver {
         self.report(DiagnosticStatus::ERROR, message);
     }
 
-    fn recover_silent(&mut self, silent_for: Duration) {
-        let message = format!(
-            "no valid data for {:.1} s: resetting the device",
-            silent_for.as_secs_f64()
-        );
+    /// Resets the device on the open port and starts scanning again.
+    fn recover(&mut self, message: String) {
         warn!("{}: {message}", self.config.port);
         self.report(DiagnosticStatus::WARN, message);
         let old = std::mem::replace(

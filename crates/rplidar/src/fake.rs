@@ -185,6 +185,7 @@ struct Control {
     drop_bytes: usize,
     stall_until: Option<Instant>,
     hung: bool,
+    motor_stopped: bool,
     health: DeviceHealth,
     health_cleared_by_reset: bool,
     plugged: bool,
@@ -224,6 +225,7 @@ impl FakeLidar {
                 drop_bytes: 0,
                 stall_until: None,
                 hung: false,
+                motor_stopped: false,
                 health: DeviceHealth {
                     status: HealthStatus::Good,
                     error_code: 0,
@@ -279,6 +281,11 @@ impl FakeLidar {
     /// The device hangs: no data and no answers until it receives `RESET`.
     pub fn hang(&self) {
         lock(&self.shared.control).hung = true;
+    }
+
+    /// The motor stops: samples keep coming, all at one angle, until `RESET`.
+    pub fn stop_motor(&self) {
+        lock(&self.shared.control).motor_stopped = true;
     }
 
     /// Health reported from now on; `cleared_by_reset`: a `RESET` makes it good again.
@@ -472,6 +479,7 @@ impl Device {
                 {
                     let mut c = lock(&self.shared.control);
                     c.hung = false;
+                    c.motor_stopped = false;
                     if c.health_cleared_by_reset {
                         c.health = DeviceHealth {
                             status: HealthStatus::Good,
@@ -558,9 +566,13 @@ impl Device {
 
     fn stream_out(&mut self) {
         let now = Instant::now();
-        let (stalled, hung) = {
+        let (stalled, hung, motor_stopped) = {
             let c = lock(&self.shared.control);
-            (c.stall_until.is_some_and(|t| now < t), c.hung)
+            (
+                c.stall_until.is_some_and(|t| now < t),
+                c.hung,
+                c.motor_stopped,
+            )
         };
         let n = self.config.samples_per_rotation;
         let rate = f64::from(self.config.rotation_hz) * n as f64;
@@ -574,7 +586,13 @@ impl Device {
             stream.group.clear();
             return;
         }
-        let angle = |j: u64| (j % n as u64) as f32 * 360.0 / n as f32;
+        let angle = |j: u64| {
+            if motor_stopped {
+                90.0
+            } else {
+                (j % n as u64) as f32 * 360.0 / n as f32
+            }
+        };
         let mut out = Vec::new();
         let mut served = 0;
         while stream.next_sample < due {

@@ -458,3 +458,26 @@ fn a_port_that_never_answers_times_out_quickly_with_a_hint() {
         diags[0].message
     );
 }
+
+#[test]
+fn stopped_motor_is_reset_and_scans_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::default());
+    let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Express)).unwrap();
+    run_until(&mut driver, Duration::from_secs(10), scans(2));
+    fake.stop_motor();
+    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |s, d| {
+        d.iter().any(|x| x.message.starts_with("scanning again")) && !s.is_empty()
+    });
+    let warn = diags
+        .iter()
+        .find(|d| d.message.contains("no complete rotation"))
+        .expect("a stuck motor is reported");
+    assert_eq!(warn.level, DiagnosticStatus::WARN);
+    assert!(diags.iter().any(|d| {
+        d.level == DiagnosticStatus::WARN
+            && d.message
+                .contains("no complete rotation in the last period")
+    }));
+    assert_eq!(fake.log().resets, 1);
+}
