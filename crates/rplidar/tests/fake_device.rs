@@ -481,3 +481,34 @@ fn stopped_motor_is_reset_and_scans_again() {
     }));
     assert_eq!(fake.log().resets, 1);
 }
+
+#[test]
+fn stamps_follow_the_callers_clock_and_drop_stops_the_device() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::default());
+    // A simulation clock that starts at 1000 s.
+    const EPOCH_NS: i64 = 1_000_000_000_000;
+    let t0 = Instant::now();
+    let clock = Box::new(move || EPOCH_NS + t0.elapsed().as_nanos() as i64);
+    let mut driver =
+        Driver::with_clock(config(fake.path(), ScanModeChoice::Standard), clock).unwrap();
+    let (scans, _) = run_until(&mut driver, Duration::from_secs(10), scans(4));
+    let elapsed_ns = t0.elapsed().as_nanos() as i64;
+    for pair in scans.windows(2) {
+        let (a, b) = (
+            pair[0].header.stamp.to_nanos(),
+            pair[1].header.stamp.to_nanos(),
+        );
+        assert!(a > EPOCH_NS && b <= EPOCH_NS + elapsed_ns, "{a} {b}");
+        // Consecutive stamps are one rotation apart.
+        let gap = (b - a) as f32 * 1e-9;
+        assert!(
+            (gap - pair[1].scan_time).abs() < 0.02,
+            "gap {gap} vs scan_time {}",
+            pair[1].scan_time
+        );
+    }
+    drop(driver);
+    std::thread::sleep(Duration::from_millis(50));
+    assert_eq!(fake.log().commands.last(), Some(&0x25), "STOP sent on drop");
+}
