@@ -44,6 +44,12 @@ impl ScanGeometry {
         }
     }
 
+    /// Unit direction of beam `i` in the map for a Lidar heading `heading`, computed exactly
+    /// as the caster does (the nominal direction, without angle error).
+    pub fn direction(&self, heading: f64, i: usize) -> DVec2 {
+        DVec2::from_angle(heading).rotate(DVec2::from_angle(self.angle_min + self.angle_increment * i as f64))
+    }
+
     /// Angle of the last beam (LaserScan's `angle_max`).
     pub fn angle_max(&self) -> f64 {
         self.angle_min + self.angle_increment * (self.beams as f64 - 1.0)
@@ -260,7 +266,7 @@ mod tests {
     fn brute(w: &World, laser: Pose2, g: &ScanGeometry, parts: &[Capsule]) -> Vec<f64> {
         (0..g.beams)
             .map(|i| {
-                let d = DVec2::from_angle(laser.theta + g.angle_min + g.angle_increment * i as f64);
+                let d = g.direction(laser.theta, i);
                 let o = laser.position();
                 let mut best = f64::INFINITY;
                 for s in &w.segments {

@@ -38,7 +38,8 @@ impl OccupancyMap {
         let origin = lo - DVec2::splat(BORDER);
         let width = (((hi.x - lo.x + 2.0 * BORDER) / resolution).ceil() as u32).max(1);
         let height = (((hi.y - lo.y + 2.0 * BORDER) / resolution).ceil() as u32).max(1);
-        let half = resolution / 2.0;
+        // Half a cell, plus a hair so an edge exactly on a cell border marks that cell.
+        let half = resolution / 2.0 + 1e-9;
         let mut data = vec![UNKNOWN; width as usize * height as usize];
         // Furniture solids cut by the plane (edges come with the segments).
         let seen_solids: Vec<&Vec<DVec2>> = world

@@ -40,10 +40,16 @@ pub struct PersonState {
     pub parts: [Capsule; PARTS],
 }
 
+/// A walking route: the polyline walked there and back again, forever.
 #[derive(Debug, Clone)]
 struct Route {
     points: Vec<DVec2>,
     cumulative: Vec<f64>,
+    /// One there-and-back period as legs `(start, end, heading)` in arc length, headings
+    /// unwrapped so that each reversal is a left turn of pi (no jump of 2 pi anywhere).
+    legs: Vec<(f64, f64, f64)>,
+    /// Heading gained over one period (a multiple of 2 pi).
+    turn_per_period: f64,
 }
 
 impl Route {
@@ -53,7 +59,33 @@ impl Route {
             let last = cumulative.last().copied().unwrap_or(0.0);
             cumulative.push(last + (w[1] - w[0]).length());
         }
-        Self { points, cumulative }
+        let len = cumulative.last().copied().unwrap_or(0.0);
+        let mut raw: Vec<(f64, f64, f64)> = Vec::new();
+        if len > 1e-9 {
+            for i in 0..points.len() - 1 {
+                if cumulative[i + 1] - cumulative[i] > 1e-12 {
+                    raw.push((cumulative[i], cumulative[i + 1], (points[i + 1] - points[i]).to_angle()));
+                }
+            }
+            for i in (0..points.len() - 1).rev() {
+                if cumulative[i + 1] - cumulative[i] > 1e-12 {
+                    raw.push((2.0 * len - cumulative[i + 1], 2.0 * len - cumulative[i], (points[i] - points[i + 1]).to_angle()));
+                }
+            }
+        }
+        let mut legs: Vec<(f64, f64, f64)> = Vec::with_capacity(raw.len());
+        for (a, b, angle) in raw {
+            let unwrapped = match legs.last() {
+                Some(prev) => prev.2 + normalize_angle(angle - prev.2),
+                None => angle,
+            };
+            legs.push((a, b, unwrapped));
+        }
+        let turn_per_period = match (legs.first(), legs.last()) {
+            (Some(first), Some(last)) => last.2 + normalize_angle(first.2 - last.2) - first.2,
+            _ => 0.0,
+        };
+        Self { points, cumulative, legs, turn_per_period }
     }
 
     fn length(&self) -> f64 {
@@ -72,6 +104,28 @@ impl Route {
         let (c0, c1) = (self.cumulative[i - 1], self.cumulative[i]);
         let f = if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.0 };
         self.points[i - 1].lerp(self.points[i], f)
+    }
+
+    /// Mean walking direction over the arc `[s - w, s + w]` (clipped at the start): turns at
+    /// corners and reversals are spread over `2 w` metres instead of happening at once.
+    fn heading(&self, s: f64, w: f64) -> Option<f64> {
+        let period = 2.0 * self.length();
+        if self.legs.is_empty() || period <= 0.0 {
+            return None;
+        }
+        let (lo, hi) = ((s - w).max(0.0), s + w);
+        let mut u = lo;
+        let mut acc = 0.0;
+        while u < hi {
+            let k = (u / period).floor();
+            let r = u - k * period;
+            let j = self.legs.partition_point(|l| l.1 <= r).min(self.legs.len() - 1);
+            let (_, end, angle) = self.legs[j];
+            let next = (k * period + end).min(hi).max(u + 1e-12);
+            acc += (next - u) * (angle + k * self.turn_per_period);
+            u = next;
+        }
+        Some(acc / (hi - lo))
     }
 }
 
@@ -162,12 +216,14 @@ impl Traits {
     }
 
     fn lying(&self, dir: FallDirection, t: f64) -> PoseParams {
-        let (pitch, roll, leg) = match dir {
-            FallDirection::Forward => (FRAC_PI_2, 0.0, 0.08),
-            FallDirection::Backward => (-FRAC_PI_2, 0.0, -0.08),
+        // `down`: the sign of a flexion that points a limb at the floor.
+        let (pitch, roll, down) = match dir {
+            FallDirection::Forward => (FRAC_PI_2, 0.0, 1.0),
+            FallDirection::Backward => (-FRAC_PI_2, 0.0, -1.0),
             FallDirection::Left => (0.0, -FRAC_PI_2, 0.0),
             FallDirection::Right => (0.0, FRAC_PI_2, 0.0),
         };
+        let leg = 0.08 * down;
         let breath = 0.03 * self.wave(t, 0.25, 4);
         PoseParams {
             pelvis: lying_vector(dir) * (self.dims.leg_length() + 0.05),
@@ -176,9 +232,9 @@ impl Traits {
             hip_flex: [leg, leg],
             hip_abduct: [0.1, 0.1],
             knee_flex: [0.1, 0.15],
-            shoulder_flex: [0.2, 0.2],
+            shoulder_flex: [0.1 * down, 0.1 * down],
             shoulder_abduct: [0.35 + breath, 0.35 + breath],
-            elbow_flex: [0.3, 0.3],
+            elbow_flex: [0.15, 0.15],
             ..PoseParams::default()
         }
     }
@@ -317,15 +373,10 @@ impl Plan {
     }
 
     fn raw_heading(&self, traits: &Traits, t: f64) -> f64 {
-        if self.speed <= 0.0 || self.route.length() <= 1e-9 {
+        if self.speed <= 0.0 {
             return self.heading0;
         }
-        // Chord over ±0.25 m of route: turns at corners take a quarter metre each side.
-        let s = self.speed * self.local(t);
-        let ahead = self.route.at(s + 0.25);
-        let behind = self.route.at((s - 0.25).max(0.0));
-        let chord = ahead - behind;
-        let mut h = if chord.length() > 1e-6 { chord.to_angle() } else { self.heading0 };
+        let mut h = self.route.heading(self.speed * self.local(t), 0.25).unwrap_or(self.heading0);
         if self.activity == Activity::WalkingUnsteadily {
             h += 0.15 * traits.sway * traits.wave(self.local(t), 0.19, 0);
         }
@@ -496,6 +547,19 @@ impl Person {
             }
         }
         plan.route = Route::new(points);
+        // Cover the path a whole number of times (ending at its last point or back at its
+        // start), so where the next step starts does not depend on the random speed.
+        let len = plan.route.length();
+        if plan.speed > 0.0 && step.speed.is_none() && step.duration.is_finite() && len > 1e-9 {
+            let laps = (step.duration * plan.speed / len).round().max(1.0);
+            let fitted = laps * len / step.duration;
+            if (0.6 * plan.speed..=1.5 * plan.speed).contains(&fitted) {
+                plan.speed = fitted;
+                if a != Activity::Crawling && freq > 0.0 {
+                    plan.amp = ((fitted / freq) / (4.0 * leg)).clamp(0.0, 0.9).asin();
+                }
+            }
+        }
         if let Some(first) = plan.route.points.get(1) {
             let d = *first - root;
             if d.length() > 1e-9 {
@@ -571,8 +635,10 @@ mod tests {
         let mut t = t0 + dt;
         while t <= t1 {
             let s = person.state_at(t);
-            for (a, b) in prev.parts.iter().zip(s.parts.iter()) {
-                worst = worst.max((a.a - b.a).length()).max((a.b - b.b).length());
+            for (k, (a, b)) in prev.parts.iter().zip(s.parts.iter()).enumerate() {
+                let j = (a.a - b.a).length().max((a.b - b.b).length());
+                assert!(j < 0.02, "part {k} jumps {j} m at t = {t} ({})", s.activity);
+                worst = worst.max(j);
             }
             prev = s;
             t += dt;

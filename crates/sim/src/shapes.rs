@@ -35,12 +35,14 @@ pub fn ray_circle(o: DVec2, d: DVec2, c: DVec2, r: f64) -> Option<f64> {
     if b >= 0.0 {
         return None; // outside and moving away
     }
-    let disc = b * b - cc;
+    // r^2 minus the squared distance from the centre to the beam's line, from the
+    // perpendicular offset itself: no cancellation of large squares for far circles.
+    let perp = m - d * b;
+    let disc = r * r - perp.length_squared();
     if disc < 0.0 {
         return None;
     }
-    // Stable near root: t = cc / (-b + sqrt(disc)), no cancellation for grazing beams.
-    Some(cc / (-b + disc.sqrt()))
+    Some((-b - disc.sqrt()).max(0.0))
 }
 
 /// Distance along the 3D ray `o + t d` (`d` unit) to the ball of radius `r` at `c`.
@@ -54,8 +56,8 @@ fn ray_ball(o: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<f64> {
     if b >= 0.0 {
         return None;
     }
-    let disc = b * b - cc;
-    (disc >= 0.0).then(|| cc / (-b + disc.sqrt()))
+    let disc = r * r - (m - d * b).length_squared();
+    (disc >= 0.0).then(|| (-b - disc.sqrt()).max(0.0))
 }
 
 /// Squared distance from `p` to segment `a`-`b` in 3D (a zero-length segment is a point).

@@ -60,7 +60,7 @@ fn brute(sim: &Simulator, frame: &Frame, i: usize) -> f64 {
     let g = sim.scan_geometry();
     let w = sim.world();
     let o = frame.laser.position();
-    let d = DVec2::from_angle(frame.laser.theta + g.angle_min + g.angle_increment * i as f64);
+    let d = g.direction(frame.laser.theta, i);
     let mut best = f64::INFINITY;
     for s in &w.segments {
         best = best.min(ray_segment(o, d, s.a, s.b).unwrap_or(f64::INFINITY));

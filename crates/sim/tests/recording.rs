@@ -120,8 +120,8 @@ fn every_shipped_scene_simulates() {
         .collect();
     names.sort();
     assert!(names.len() >= 6, "{names:?}");
-    for name in names {
-        let mut sim = Simulator::new(short(&name, 1.0), 0).unwrap_or_else(|e| panic!("{name}: {e}"));
+    for (name, seed) in names.iter().flat_map(|n| (0..4u64).map(move |s| (n, s))) {
+        let mut sim = Simulator::new(short(name, 1.0), seed).unwrap_or_else(|e| panic!("{name} seed {seed}: {e}"));
         let mut n = 0;
         while let Some(f) = sim.step() {
             assert!(f.robot.is_finite(), "{name}");
