@@ -1,0 +1,339 @@
+//! Runs the pipeline over a recorded bag, in log-time order, without ROS or threads: the
+//! engine of `lidar-har run`. The outputs go into a new rosbag2 directory, with
+//! `summary.json` beside them.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::DVec2;
+use lidar_har_bag::{BagError, BagReader, BagWriter, TopicHandle, WriterOptions};
+use lidar_har_core::localiser::{ConfigError, LocaliserConfig};
+use lidar_har_core::map::OccupancyMap;
+use lidar_har_msgs::geometry_msgs::{PoseStamped, PoseWithCovarianceStamped};
+use lidar_har_msgs::lidar_har_msgs::HumanObservation;
+use lidar_har_msgs::topics::{self, TopicSpec};
+use lidar_har_msgs::visualization_msgs::MarkerArray;
+use serde::Serialize;
+
+use crate::{LocaliserStage, Pipeline, RoomSource};
+
+/// What to run with.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    pub config: LocaliserConfig,
+    /// A map given on the command line; without one the bag's /map is used, or, when the bag
+    /// has none, a background learned from its first scans.
+    pub map: Option<OccupancyMap>,
+}
+
+/// Why a run failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error("input bag {}: {source}", path.display())]
+    Input {
+        path: PathBuf,
+        #[source]
+        source: BagError,
+    },
+    #[error("output bag {}: {source}", path.display())]
+    Output {
+        path: PathBuf,
+        #[source]
+        source: BagError,
+    },
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error("cannot write {}: {source}", path.display())]
+    Summary {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// Median and tail of a distribution.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Spread {
+    pub median: f64,
+    pub p95: f64,
+    pub p99: f64,
+    pub max: f64,
+    pub count: usize,
+}
+
+impl Spread {
+    /// Nearest-rank quantiles; `None` for no values.
+    pub fn of(mut values: Vec<f64>) -> Option<Spread> {
+        values.retain(|v| v.is_finite());
+        if values.is_empty() {
+            return None;
+        }
+        values.sort_by(f64::total_cmp);
+        let q =
+            |p: f64| values[((p * values.len() as f64).ceil() as usize).clamp(1, values.len()) - 1];
+        Some(Spread {
+            median: q(0.5),
+            p95: q(0.95),
+            p99: q(0.99),
+            max: q(1.0),
+            count: values.len(),
+        })
+    }
+}
+
+/// `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunSummary {
+    pub input: PathBuf,
+    /// `map` (a given map or /map) or `learned_background`.
+    pub room: &'static str,
+    /// `odometry` (a moving robot) or `stationary`.
+    pub motion: &'static str,
+    /// Scans in the bag.
+    pub scans: u64,
+    /// Scans that gave an output (not skipped, not used for learning).
+    pub scans_localised: u64,
+    /// Scans used to learn the background.
+    pub scans_learning: u64,
+    /// Fraction of all scans in which the person was seen.
+    pub visible_ratio: f64,
+    /// Fraction of all scans with a person track (seen or predicted).
+    pub tracked_ratio: f64,
+    /// Tracks confirmed over the run: people, or persistent objects not in the map.
+    pub tracks_confirmed: u64,
+    /// Distance from the estimate to `/ground_truth/human_pose`, when the bag has it.
+    pub position_error_m: Option<Spread>,
+    /// Localiser time per scan (core only), microseconds.
+    pub scan_time_us: Option<Spread>,
+    /// Whole pipeline time per scan (decode, localise, encode outputs), microseconds.
+    pub pipeline_time_us: Option<Spread>,
+    /// Input problems by kind (the log shows them rate-limited).
+    pub warnings: std::collections::BTreeMap<&'static str, u64>,
+    /// Messages that could not be decoded and were skipped.
+    pub decode_errors: u64,
+}
+
+/// Handles of the output topics.
+struct Outputs {
+    writer: BagWriter,
+    pose: TopicHandle,
+    observation: TopicHandle,
+    markers: TopicHandle,
+}
+
+impl Outputs {
+    fn create(dir: &Path) -> Result<Self, BagError> {
+        let mut writer = BagWriter::create(dir, WriterOptions::default())?;
+        let pose = writer.add_topic_for::<PoseWithCovarianceStamped>(
+            topics::HUMAN_POSE.name,
+            topics::HUMAN_POSE.qos,
+        )?;
+        let observation = writer.add_topic_for::<HumanObservation>(
+            topics::HUMAN_OBSERVATION.name,
+            topics::HUMAN_OBSERVATION.qos,
+        )?;
+        let markers = writer
+            .add_topic_for::<MarkerArray>(topics::HUMAN_MARKERS.name, topics::HUMAN_MARKERS.qos)?;
+        Ok(Self {
+            writer,
+            pose,
+            observation,
+            markers,
+        })
+    }
+
+    fn handle(&self, topic: &TopicSpec) -> Option<TopicHandle> {
+        match topic.name {
+            n if n == topics::HUMAN_POSE.name => Some(self.pose),
+            n if n == topics::HUMAN_OBSERVATION.name => Some(self.observation),
+            n if n == topics::HUMAN_MARKERS.name => Some(self.markers),
+            _ => None,
+        }
+    }
+}
+
+/// Runs the localiser over the bag at `input`, writing the outputs as a rosbag2 directory
+/// `out_dir` (created; it must not hold a bag) and `out_dir/summary.json`.
+pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunSummary, RunError> {
+    let input_error = |source| RunError::Input {
+        path: input.to_path_buf(),
+        source,
+    };
+    let output_error = |source| RunError::Output {
+        path: out_dir.to_path_buf(),
+        source,
+    };
+    let reader = BagReader::open(input).map_err(input_error)?;
+    let has_odometry = reader.topic(topics::ODOM.name).is_some();
+    let room = match options.map {
+        Some(map) => RoomSource::Map(map),
+        None if reader.topic(topics::MAP.name).is_some() => RoomSource::MapTopic,
+        None => RoomSource::LearnedBackground,
+    };
+    let learned = matches!(room, RoomSource::LearnedBackground);
+    if learned && has_odometry {
+        log::warn!(
+            "{}: no map, so the background is learned; it assumes the Lidar does not move",
+            input.display()
+        );
+    }
+    let moving = has_odometry && !learned;
+    let mut pipeline = Pipeline::new(LocaliserStage::new(options.config, room, moving)?);
+    let mut outputs = Outputs::create(out_dir).map_err(output_error)?;
+
+    let mut scans = 0u64;
+    let mut scans_localised = 0u64;
+    let mut visible = 0u64;
+    let mut tracked = 0u64;
+    let mut decode_errors = 0u64;
+    let mut scan_times = Vec::new();
+    let mut pipeline_times = Vec::new();
+    let mut estimates: Vec<(i64, DVec2)> = Vec::new();
+    let mut ground_truth: Vec<(i64, DVec2)> = Vec::new();
+
+    for message in reader.messages().map_err(input_error)? {
+        let message = message.map_err(input_error)?;
+        let topic = &*message.topic;
+        if topic == topics::GROUND_TRUTH_POSE.name {
+            match lidar_har_msgs::decode::<PoseStamped>(&message.data) {
+                Ok(gt) => ground_truth.push((
+                    gt.header.stamp.to_nanos(),
+                    DVec2::new(gt.pose.position.x, gt.pose.position.y),
+                )),
+                Err(e) => {
+                    decode_errors += 1;
+                    log::warn!("{topic} at {} ns skipped: {e}", message.log_time_ns);
+                }
+            }
+            continue;
+        }
+        if !Pipeline::consumes(topic) {
+            continue;
+        }
+        let is_scan = topic == topics::SCAN.name;
+        scans += u64::from(is_scan);
+        let started = Instant::now();
+        let step = match pipeline.handle(topic, &message.data) {
+            Ok(step) => step,
+            Err(e) => {
+                decode_errors += 1;
+                log::warn!("skipped at {} ns: {e}", message.log_time_ns);
+                continue;
+            }
+        };
+        if is_scan {
+            pipeline_times.push(started.elapsed().as_secs_f64() * 1e6);
+            if let Some(t) = pipeline.localiser.last_scan_time() {
+                scan_times.push(t.as_secs_f64() * 1e6);
+            }
+        }
+        if let Some(output) = &step.localised {
+            scans_localised += 1;
+            if let Some(person) = &output.person {
+                tracked += 1;
+                visible += u64::from(person.visible);
+                estimates.push((output.stamp_ns, person.position));
+            }
+        }
+        for out in &step.outgoing {
+            if let Some(handle) = outputs.handle(&out.topic) {
+                outputs
+                    .writer
+                    .write(handle, message.log_time_ns, &out.cdr)
+                    .map_err(output_error)?;
+            }
+        }
+    }
+    outputs.writer.finish().map_err(output_error)?;
+
+    let ratio = |n: u64| {
+        if scans == 0 {
+            0.0
+        } else {
+            n as f64 / scans as f64
+        }
+    };
+    let summary = RunSummary {
+        input: input.to_path_buf(),
+        room: if learned { "learned_background" } else { "map" },
+        motion: if moving { "odometry" } else { "stationary" },
+        scans,
+        scans_localised,
+        scans_learning: pipeline.localiser.scans_learning(),
+        visible_ratio: ratio(visible),
+        tracked_ratio: ratio(tracked),
+        tracks_confirmed: pipeline.localiser.localiser().confirmed_tracks(),
+        position_error_m: Spread::of(position_errors(&estimates, ground_truth)),
+        scan_time_us: Spread::of(scan_times),
+        pipeline_time_us: Spread::of(pipeline_times),
+        warnings: pipeline.localiser.warning_counts().clone(),
+        decode_errors,
+    };
+    let path = out_dir.join("summary.json");
+    let json = serde_json::to_string_pretty(&summary).expect("the summary is plain data");
+    std::fs::write(&path, json + "\n").map_err(|source| RunError::Summary { path, source })?;
+    Ok(summary)
+}
+
+/// Ground truth samples farther apart than this are not interpolated between.
+const MAX_TRUTH_GAP_NS: i64 = 200_000_000;
+/// An estimate this close in time to a lone ground truth sample is compared with it.
+const MAX_TRUTH_OFFSET_NS: i64 = 30_000_000;
+
+/// The distance of each estimate from the ground truth at its stamp (interpolated), for the
+/// estimates that have ground truth around them.
+pub fn position_errors(estimates: &[(i64, DVec2)], mut truth: Vec<(i64, DVec2)>) -> Vec<f64> {
+    truth.sort_by_key(|&(t, _)| t);
+    estimates
+        .iter()
+        .filter_map(|&(stamp, estimate)| {
+            let i = truth.partition_point(|&(t, _)| t < stamp);
+            let after = truth.get(i);
+            let before = i.checked_sub(1).and_then(|j| truth.get(j));
+            let at = match (before, after) {
+                (_, Some(&(t, p))) if t == stamp => p,
+                (Some(&(ta, pa)), Some(&(tb, pb))) if tb - ta <= MAX_TRUTH_GAP_NS => {
+                    pa.lerp(pb, (stamp - ta) as f64 / (tb - ta) as f64)
+                }
+                (Some(&(t, p)), _) | (_, Some(&(t, p)))
+                    if (stamp - t).abs() <= MAX_TRUTH_OFFSET_NS =>
+                {
+                    p
+                }
+                _ => return None,
+            };
+            Some(estimate.distance(at))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spread_uses_nearest_rank_and_ignores_nan() {
+        let s = Spread::of((1..=100).map(f64::from).chain([f64::NAN]).collect()).unwrap();
+        assert_eq!(
+            (s.median, s.p95, s.p99, s.max, s.count),
+            (50.0, 95.0, 99.0, 100.0, 100)
+        );
+        assert!(Spread::of(vec![]).is_none());
+    }
+
+    #[test]
+    fn ground_truth_is_interpolated_at_the_estimate_stamp() {
+        let truth = vec![(100_000_000, DVec2::new(1.0, 0.0)), (0, DVec2::ZERO)];
+        let errors = position_errors(
+            &[
+                (50_000_000, DVec2::new(0.5, 0.0)),
+                (100_000_000, DVec2::new(1.0, 1.0)),
+                (900_000_000, DVec2::ZERO),
+            ],
+            truth,
+        );
+        assert_eq!(errors.len(), 2);
+        assert!(errors[0].abs() < 1e-12);
+        assert!((errors[1] - 1.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,367 @@
+//! The localiser fed with ROS messages: resolves frames from /tf and /tf_static, converts
+//! each message, logs the core's warnings (rate-limited) and builds the output messages.
+
+use std::collections::{BTreeMap, HashMap};
+use std::time::{Duration, Instant};
+
+use lidar_har_core::geometry::Pose2;
+use lidar_har_core::localiser::{
+    ConfigError, FrameConfig, Localiser, LocaliserConfig, LocaliserOutput, Motion, Reference,
+    Warning,
+};
+use lidar_har_core::map::OccupancyMap;
+use lidar_har_msgs::geometry_msgs::PoseWithCovarianceStamped;
+use lidar_har_msgs::lidar_har_msgs::HumanObservation;
+use lidar_har_msgs::nav_msgs::{OccupancyGrid, Odometry};
+use lidar_har_msgs::sensor_msgs::LaserScan;
+use lidar_har_msgs::tf2_msgs::TFMessage;
+use lidar_har_msgs::visualization_msgs::MarkerArray;
+
+use crate::convert;
+
+/// How the room is told apart from the person.
+#[derive(Debug, Clone)]
+pub enum RoomSource {
+    /// A map known in advance (a map_server file); /map messages replace it.
+    Map(OccupancyMap),
+    /// The map will come on /map; scans before it are skipped.
+    MapTopic,
+    /// No map exists: learn the background from the first scans of a stationary Lidar.
+    LearnedBackground,
+}
+
+/// The three messages the localiser publishes for one scan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LocaliserMessages {
+    /// `/human/pose`, when a person is tracked.
+    pub pose: Option<PoseWithCovarianceStamped>,
+    /// `/human/observation`, when a person is tracked.
+    pub observation: Option<HumanObservation>,
+    /// `/human/markers`, every scan (it clears the person when they are lost).
+    pub markers: MarkerArray,
+}
+
+/// Scan time between two log lines of the same warning kind.
+const WARNING_LOG_INTERVAL_NS: i64 = 5_000_000_000;
+
+/// Counts warnings by kind and logs the first of each kind, then at most one per interval
+/// of scan time with the number left unlogged.
+#[derive(Debug, Default)]
+pub struct WarningLog {
+    counts: BTreeMap<&'static str, u64>,
+    last_logged: HashMap<&'static str, (i64, u64)>,
+}
+
+impl WarningLog {
+    pub fn record(&mut self, warning: &Warning, stamp_ns: i64) {
+        let kind = warning.kind();
+        let count = self.counts.entry(kind).or_default();
+        *count += 1;
+        let due = match self.last_logged.get(kind) {
+            None => true,
+            Some(&(at, _)) => stamp_ns.abs_diff(at) >= WARNING_LOG_INTERVAL_NS as u64,
+        };
+        if due {
+            let unlogged = self
+                .last_logged
+                .get(kind)
+                .map_or(0, |&(_, logged_count)| *count - logged_count - 1);
+            if unlogged > 0 {
+                log::warn!("localiser: {warning} ({unlogged} more like it since the last report)");
+            } else {
+                log::warn!("localiser: {warning}");
+            }
+            self.last_logged.insert(kind, (stamp_ns, *count));
+        }
+    }
+
+    /// Warnings so far, by kind.
+    pub fn counts(&self) -> &BTreeMap<&'static str, u64> {
+        &self.counts
+    }
+}
+
+/// The localiser with message inputs and outputs.
+#[derive(Debug)]
+pub struct LocaliserStage {
+    localiser: Localiser,
+    frames: FrameConfig,
+    learned_background: bool,
+    /// The scan's frame (from its header), where the mount ends.
+    laser_frame: Option<String>,
+    /// child frame -> (parent frame, pose in parent), from /tf_static.
+    static_tf: HashMap<String, (String, Pose2)>,
+    warnings: WarningLog,
+    occupied_thresh: f64,
+    last_stamp_ns: i64,
+    /// Time the core took for the latest scan.
+    last_scan_time: Option<Duration>,
+    scans_learning: u64,
+}
+
+/// Longest chain of static transforms between the base and the laser.
+const MAX_TF_CHAIN: usize = 16;
+
+impl LocaliserStage {
+    /// `moving`: whether odometry gives the robot's pose (otherwise the Lidar is fixed and
+    /// `base_link` is the map origin). A learned background implies a fixed Lidar.
+    pub fn new(
+        config: LocaliserConfig,
+        room: RoomSource,
+        moving: bool,
+    ) -> Result<Self, ConfigError> {
+        let frames = config.frames.clone();
+        let learned_background = matches!(room, RoomSource::LearnedBackground);
+        let localiser = match room {
+            RoomSource::LearnedBackground => Localiser::with_learned_background(config)?,
+            RoomSource::Map(map) => Localiser::new(config, Reference::Map(map), motion(moving))?,
+            RoomSource::MapTopic => Localiser::new(config, Reference::AwaitingMap, motion(moving))?,
+        };
+        Ok(Self {
+            localiser,
+            frames,
+            learned_background,
+            laser_frame: None,
+            static_tf: HashMap::new(),
+            warnings: WarningLog::default(),
+            occupied_thresh: convert::OCCUPIED_THRESH,
+            last_stamp_ns: 0,
+            last_scan_time: None,
+            scans_learning: 0,
+        })
+    }
+
+    pub fn localiser(&self) -> &Localiser {
+        &self.localiser
+    }
+
+    /// How long the core took for the latest scan (conversion and logging excluded).
+    pub fn last_scan_time(&self) -> Option<Duration> {
+        self.last_scan_time
+    }
+
+    /// Scans used to learn the background so far.
+    pub fn scans_learning(&self) -> u64 {
+        self.scans_learning
+    }
+
+    pub fn warning_counts(&self) -> &BTreeMap<&'static str, u64> {
+        self.warnings.counts()
+    }
+
+    /// The frame of the outputs: the map, or the Lidar's own frame with a learned background.
+    pub fn output_frame(&self) -> &str {
+        match (&self.laser_frame, self.learned_background) {
+            (Some(laser), true) => laser,
+            _ => &self.frames.map,
+        }
+    }
+
+    fn warn(&mut self, warning: Option<Warning>) {
+        if let Some(w) = warning {
+            self.warnings.record(&w, self.last_stamp_ns);
+        }
+    }
+
+    /// Localises the person in one scan; `None` when the scan was skipped or learned from.
+    pub fn on_scan(&mut self, msg: &LaserScan) -> Option<LocaliserOutput> {
+        let frame = msg.header.frame_id.trim_start_matches('/');
+        if self.laser_frame.as_deref() != Some(frame) {
+            self.laser_frame = Some(frame.to_string());
+            self.update_mount();
+        }
+        let scan = convert::scan_from_msg(msg);
+        self.last_stamp_ns = scan.stamp_ns;
+        let started = Instant::now();
+        let result = self.localiser.process_scan(&scan);
+        self.last_scan_time = Some(started.elapsed());
+        self.scans_learning += u64::from(result.learning);
+        for w in &result.warnings {
+            self.warnings.record(w, scan.stamp_ns);
+        }
+        result.output
+    }
+
+    /// Odometry: the pose of the base in the odom frame.
+    pub fn on_odom(&mut self, msg: &Odometry) {
+        let stamp_ns = msg.header.stamp.to_nanos();
+        self.last_stamp_ns = stamp_ns;
+        let w = self
+            .localiser
+            .add_odometry(stamp_ns, convert::pose2_from_pose(&msg.pose.pose));
+        self.warn(w);
+    }
+
+    /// A new map replaces the previous one (not the learned background, which needs none).
+    pub fn on_map(&mut self, msg: &OccupancyGrid) {
+        if self.learned_background {
+            return;
+        }
+        match convert::map_from_grid(msg, self.occupied_thresh) {
+            Ok(map) => self.localiser.set_map(map),
+            Err(e) => log::warn!("localiser: /map ignored: {e}"),
+        }
+    }
+
+    /// Dynamic transforms: the `map -> odom` correction, or a moving mount.
+    pub fn on_tf(&mut self, msg: &TFMessage) {
+        for t in &msg.transforms {
+            let parent = t.header.frame_id.trim_start_matches('/');
+            let child = t.child_frame_id.trim_start_matches('/');
+            let pose = convert::pose2_from_transform(&t.transform);
+            if parent == self.frames.map && child == self.frames.odom {
+                let w = self.localiser.set_map_to_odom(pose);
+                self.warn(w);
+            }
+        }
+    }
+
+    /// Static transforms: the mount of the Lidar on the base, possibly through a chain.
+    pub fn on_tf_static(&mut self, msg: &TFMessage) {
+        for t in &msg.transforms {
+            let parent = t.header.frame_id.trim_start_matches('/').to_string();
+            let child = t.child_frame_id.trim_start_matches('/').to_string();
+            self.static_tf
+                .insert(child, (parent, convert::pose2_from_transform(&t.transform)));
+        }
+        self.update_mount();
+    }
+
+    /// Recomputes `base -> laser` from the static transforms, when they connect the two.
+    fn update_mount(&mut self) {
+        if self.learned_background {
+            return;
+        }
+        let Some(laser) = self.laser_frame.clone() else {
+            return;
+        };
+        let mut frame = laser.as_str();
+        let mut mount = Pose2::IDENTITY;
+        for _ in 0..MAX_TF_CHAIN {
+            if frame == self.frames.base {
+                let w = self.localiser.set_mount(mount);
+                self.warn(w);
+                return;
+            }
+            let Some((parent, pose)) = self.static_tf.get(frame) else {
+                return;
+            };
+            mount = pose.compose(&mount);
+            frame = parent;
+        }
+    }
+
+    /// The messages to publish for one output.
+    pub fn messages(&self, output: &LocaliserOutput) -> LocaliserMessages {
+        let frame = self.output_frame();
+        LocaliserMessages {
+            pose: output
+                .person
+                .as_ref()
+                .map(|p| convert::pose_msg(output, p, frame)),
+            observation: output
+                .person
+                .as_ref()
+                .map(|p| convert::observation_msg(output, p, frame)),
+            markers: convert::markers_msg(output, frame),
+        }
+    }
+}
+
+fn motion(moving: bool) -> Motion {
+    if moving {
+        Motion::Odometry
+    } else {
+        Motion::Stationary(Pose2::IDENTITY)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lidar_har_msgs::builtin_interfaces::Time;
+    use lidar_har_msgs::geometry_msgs::{Quaternion, Transform, TransformStamped, Vector3};
+    use lidar_har_msgs::std_msgs::Header;
+
+    fn tf(parent: &str, child: &str, x: f64, yaw: f64) -> TransformStamped {
+        TransformStamped {
+            header: Header::new(Time::default(), parent),
+            child_frame_id: child.into(),
+            transform: Transform {
+                translation: Vector3::new(x, 0.0, 0.3),
+                rotation: Quaternion::from_yaw(yaw),
+            },
+        }
+    }
+
+    fn scan(stamp_ns: i64) -> LaserScan {
+        LaserScan {
+            header: Header::new(Time::from_nanos(stamp_ns), "laser"),
+            angle_min: 0.0,
+            angle_max: 0.0,
+            angle_increment: 0.01,
+            range_min: 0.1,
+            range_max: 10.0,
+            ranges: vec![],
+            ..LaserScan::default()
+        }
+    }
+
+    #[test]
+    fn mount_is_resolved_through_a_static_chain_and_map_to_odom_applied() {
+        let map = {
+            let geometry = lidar_har_core::map::MapGeometry {
+                resolution: 0.1,
+                origin: Pose2::new(-5.0, -5.0, 0.0),
+                width: 100,
+                height: 100,
+            };
+            OccupancyMap::new(geometry, vec![false; 10_000]).unwrap()
+        };
+        let mut stage =
+            LocaliserStage::new(LocaliserConfig::default(), RoomSource::Map(map), true).unwrap();
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![
+                tf("base_link", "laser_mount", 0.2, 0.0),
+                tf("/laser_mount", "laser", 0.1, 0.5),
+            ],
+        });
+        stage.on_tf(&TFMessage {
+            transforms: vec![tf("map", "odom", 1.0, 0.0), tf("odom", "other", 9.0, 0.0)],
+        });
+        let mut odom = Odometry::default();
+        odom.pose.pose.position.y = 2.0;
+        stage.on_odom(&odom);
+        let out = stage.on_scan(&scan(0)).expect("localised");
+        assert!(
+            (out.laser_pose.x - 1.3).abs() < 1e-12,
+            "{:?}",
+            out.laser_pose
+        );
+        assert!((out.laser_pose.y - 2.0).abs() < 1e-12);
+        assert!((out.laser_pose.theta - 0.5).abs() < 1e-12);
+        assert_eq!(stage.output_frame(), "map");
+    }
+
+    #[test]
+    fn warnings_are_counted_by_kind() {
+        let mut stage =
+            LocaliserStage::new(LocaliserConfig::default(), RoomSource::MapTopic, false).unwrap();
+        for k in 0..5 {
+            assert!(stage.on_scan(&scan(k)).is_none());
+        }
+        assert_eq!(stage.warning_counts().get("no_map"), Some(&5));
+    }
+
+    #[test]
+    fn learned_background_reports_in_the_laser_frame() {
+        let mut stage = LocaliserStage::new(
+            LocaliserConfig::default(),
+            RoomSource::LearnedBackground,
+            false,
+        )
+        .unwrap();
+        assert!(stage.on_scan(&scan(0)).is_none(), "learning");
+        assert_eq!(stage.output_frame(), "laser");
+    }
+}
