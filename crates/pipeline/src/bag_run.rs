@@ -15,6 +15,9 @@ use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_msgs::visualization_msgs::MarkerArray;
 use serde::Serialize;
 
+use crate::classifier::{
+    ActivitySummary, ClassifierConfig, ClassifierError, ClassifierRun, ClassifierRunError,
+};
 use crate::{LocaliserStage, Pipeline, RoomSource};
 
 /// What to run with.
@@ -24,6 +27,8 @@ pub struct RunOptions {
     /// A map given on the command line; without one the bag's /map is used, or, when the bag
     /// has none, a background learned from its first scans.
     pub map: Option<OccupancyMap>,
+    /// Classifier parameters, model included; `None` runs the localiser only.
+    pub classifier: Option<ClassifierConfig>,
 }
 
 /// Why a run failed.
@@ -43,6 +48,10 @@ pub enum RunError {
     },
     #[error(transparent)]
     Config(#[from] ConfigError),
+    #[error(transparent)]
+    Classifier(#[from] ClassifierError),
+    #[error(transparent)]
+    ClassifierRun(#[from] ClassifierRunError),
     #[error("cannot write {}: {source}", path.display())]
     Summary {
         path: PathBuf,
@@ -111,6 +120,8 @@ pub struct RunSummary {
     pub warnings: std::collections::BTreeMap<&'static str, u64>,
     /// Messages that could not be decoded and were skipped.
     pub decode_errors: u64,
+    /// The classifier's results (activities, accuracy, alerts), when it ran.
+    pub activity: Option<ActivitySummary>,
 }
 
 /// Handles of the output topics.
@@ -179,7 +190,16 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
     }
     let moving = has_odometry && !learned;
     let mut pipeline = Pipeline::new(LocaliserStage::new(options.config, room, moving)?);
+    let mut classifier = options
+        .classifier
+        .as_ref()
+        .map(ClassifierRun::load)
+        .transpose()?;
     let mut outputs = Outputs::create(out_dir).map_err(output_error)?;
+    if let Some(c) = classifier.as_mut() {
+        c.add_topics(&mut outputs.writer, outputs.markers)
+            .map_err(output_error)?;
+    }
 
     let mut scans = 0u64;
     let mut scans_localised = 0u64;
@@ -194,6 +214,12 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
     for message in reader.messages().map_err(input_error)? {
         let message = message.map_err(input_error)?;
         let topic = &*message.topic;
+        if classifier
+            .as_mut()
+            .is_some_and(|c| c.on_input(topic, &message.data))
+        {
+            continue;
+        }
         if topic == topics::GROUND_TRUTH_POSE.name {
             match lidar_har_msgs::decode::<PoseStamped>(&message.data) {
                 Ok(gt) => ground_truth.push((
@@ -236,6 +262,9 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
             }
         }
         for out in &step.outgoing {
+            if let Some(c) = classifier.as_mut() {
+                c.on_localiser_output(out, message.log_time_ns, &mut outputs.writer)?;
+            }
             if let Some(handle) = outputs.handle(&out.topic) {
                 outputs
                     .writer
@@ -268,6 +297,7 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         pipeline_time_us: Spread::of(pipeline_times),
         warnings: pipeline.localiser.warning_counts().clone(),
         decode_errors,
+        activity: classifier.map(ClassifierRun::finish),
     };
     let path = out_dir.join("summary.json");
     let json = serde_json::to_string_pretty(&summary).expect("the summary is plain data");

@@ -11,6 +11,7 @@
 //! A further stage (the classifier) plugs in by consuming [`Step::localised`].
 
 pub mod bag_run;
+pub mod classifier;
 pub mod convert;
 pub mod files;
 pub mod localiser_stage;

@@ -1,0 +1,1031 @@
+//! The classifier stage: /human/observation in; /human/activity, /human/fall_alert and a text
+//! marker on /human/markers out. It works from the `HumanObservation` message alone (points,
+//! position, visibility, sensor position, stamp), so the classifier node, which subscribes
+//! only to /human/observation, and `lidar-har run`, which gets the localiser's observation in
+//! process, run exactly the same code.
+//!
+//! Per observation: the person's points become the model's image, the model's two staggered
+//! states step (core `StreamingClassifier`), and the probabilities feed the fall alerts (core
+//! `FallDetector`). An activity is published once the model has enough history (`T/2` scans)
+//! and only for scans where the person is visible: a hidden person's class is not known.
+
+use std::path::{Path, PathBuf};
+
+use glam::DVec2;
+use lidar_har_bag::{BagError, BagWriter, TopicHandle};
+use lidar_har_core::activity::Activity;
+use lidar_har_core::classifier::{
+    PersonScan, Prediction, StepError, StepModel, StreamSpec, StreamSpecError, StreamingClassifier,
+};
+use lidar_har_core::fall::{
+    AlertKind, FallAlert, FallAlertConfig, FallConfigError, FallDetector, FallInput,
+};
+use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
+use lidar_har_infer::{ActivityModel, InferError};
+use lidar_har_msgs::builtin_interfaces::{Duration, Time};
+use lidar_har_msgs::geometry_msgs::{Point, Vector3};
+use lidar_har_msgs::lidar_har_msgs::{self as har, HumanObservation};
+use lidar_har_msgs::std_msgs::{ColorRGBA, Header};
+use lidar_har_msgs::topics;
+use lidar_har_msgs::visualization_msgs::{Marker, MarkerArray};
+use serde::{Deserialize, Serialize};
+
+use crate::{Outgoing, PipelineError};
+
+/// `config/classifier.yaml`. Every key is optional; unknown keys are errors.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ClassifierConfig {
+    /// The ONNX step model; relative paths are taken from the working directory.
+    pub model: PathBuf,
+    /// ONNX Runtime intra-op threads.
+    pub threads: usize,
+    pub fall_alert: FallAlertConfig,
+}
+
+impl Default for ClassifierConfig {
+    fn default() -> Self {
+        Self {
+            model: PathBuf::from("models/activity.onnx"),
+            threads: 1,
+            fall_alert: FallAlertConfig::default(),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ClassifierError {
+    #[error("cannot read classifier configuration {}: {source}", path.display())]
+    ConfigRead {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("classifier configuration{}: {message}", path.as_ref().map(|p| format!(" {}", p.display())).unwrap_or_default())]
+    Config {
+        path: Option<PathBuf>,
+        message: String,
+    },
+    #[error(transparent)]
+    Model(#[from] InferError),
+    #[error(transparent)]
+    Stream(#[from] StreamSpecError),
+    #[error(transparent)]
+    FallConfig(#[from] FallConfigError),
+    #[error(transparent)]
+    Step(#[from] StepError),
+}
+
+/// Parses and validates configuration text (the file, or a ROS parameter value).
+pub fn parse_classifier_config(text: &str) -> Result<ClassifierConfig, ClassifierError> {
+    let config: ClassifierConfig =
+        serde_yaml_ng::from_str(text).map_err(|e| ClassifierError::Config {
+            path: None,
+            message: e.to_string(),
+        })?;
+    config.fall_alert.validate()?;
+    if config.threads == 0 {
+        return Err(ClassifierError::Config {
+            path: None,
+            message: "threads must be at least 1".into(),
+        });
+    }
+    Ok(config)
+}
+
+/// Loads `config/classifier.yaml` (or another file of that format).
+pub fn load_classifier_config(path: &Path) -> Result<ClassifierConfig, ClassifierError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ClassifierError::ConfigRead {
+        path: path.into(),
+        source,
+    })?;
+    parse_classifier_config(&text).map_err(|e| match e {
+        ClassifierError::Config { message, .. } => ClassifierError::Config {
+            path: Some(path.into()),
+            message,
+        },
+        other => ClassifierError::Config {
+            path: Some(path.into()),
+            message: other.to_string(),
+        },
+    })
+}
+
+/// What one observation produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClassifierOutput {
+    pub stamp_ns: i64,
+    pub frame_id: String,
+    pub visible: bool,
+    /// The person's position (the localiser's prediction when not visible).
+    pub position: DVec2,
+    pub prediction: Prediction,
+    /// Alerts raised by this observation.
+    pub alerts: Vec<FallAlert>,
+}
+
+impl ClassifierOutput {
+    /// Whether this scan's activity is worth publishing: the model has its minimum history
+    /// and the person is visible.
+    pub fn publishable(&self) -> bool {
+        self.visible && self.prediction.ready
+    }
+}
+
+/// The stage's messages for one observation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClassifierMessages {
+    pub activity: Option<har::Activity>,
+    pub alerts: Vec<har::FallAlert>,
+    pub markers: MarkerArray,
+}
+
+/// Streaming classifier plus fall alerts over a step model (the ONNX one in production).
+pub struct ClassifierStage<M: StepModel = ActivityModel> {
+    classifier: StreamingClassifier<M>,
+    fall: FallDetector,
+    points: Vec<DVec2>,
+    track_id: Option<u32>,
+    alerts_raised: usize,
+    /// The latest alert, shown in the text marker.
+    last_alert: Option<FallAlert>,
+}
+
+impl ClassifierStage<ActivityModel> {
+    /// Loads the model named by `config` (or `model`, when given).
+    pub fn load(config: &ClassifierConfig, model: Option<&Path>) -> Result<Self, ClassifierError> {
+        let path = model.unwrap_or(&config.model);
+        let model = ActivityModel::load(path, config.threads)?;
+        let stream = model.info().stream;
+        Self::new(model, stream, config.fall_alert)
+    }
+}
+
+impl<M: StepModel> ClassifierStage<M> {
+    pub fn new(
+        model: M,
+        stream: StreamSpec,
+        fall_alert: FallAlertConfig,
+    ) -> Result<Self, ClassifierError> {
+        Ok(Self {
+            classifier: StreamingClassifier::new(model, stream)?,
+            fall: FallDetector::new(fall_alert)?,
+            points: Vec::new(),
+            track_id: None,
+            alerts_raised: 0,
+            last_alert: None,
+        })
+    }
+
+    pub fn classifier(&self) -> &StreamingClassifier<M> {
+        &self.classifier
+    }
+
+    /// Classifies one observation and runs the fall alerts.
+    pub fn on_observation(
+        &mut self,
+        obs: &HumanObservation,
+    ) -> Result<ClassifierOutput, ClassifierError> {
+        let stamp_ns = obs.header.stamp.to_nanos();
+        let stamp_s = stamp_ns as f64 * 1e-9;
+        let position = DVec2::new(obs.position.x, obs.position.y);
+        // A new track may be another person, or the same one found far away: start afresh.
+        if obs.visible && self.track_id.is_some_and(|id| id != obs.track_id) {
+            self.classifier.reset();
+        }
+        if obs.visible {
+            self.track_id = Some(obs.track_id);
+        }
+        self.points.clear();
+        if obs.visible {
+            self.points.extend(
+                obs.points
+                    .iter()
+                    .map(|p| DVec2::new(f64::from(p.x), f64::from(p.y))),
+            );
+        }
+        let scan = PersonScan {
+            stamp_s,
+            points: &self.points,
+            position: obs.visible.then_some(position),
+            sensor: DVec2::new(obs.sensor_position.x, obs.sensor_position.y),
+        };
+        let prediction = self.classifier.classify(&scan)?;
+        let alerts = self.fall.update(&FallInput {
+            stamp_s,
+            position: (obs.visible && prediction.ready).then_some(position),
+            probabilities: prediction.probabilities,
+        });
+        self.alerts_raised += alerts.len();
+        if let Some(last) = alerts.last() {
+            self.last_alert = Some(*last);
+        }
+        Ok(ClassifierOutput {
+            stamp_ns,
+            frame_id: obs.header.frame_id.clone(),
+            visible: obs.visible,
+            position,
+            prediction,
+            alerts,
+        })
+    }
+
+    /// The messages for an output: the activity (when publishable), the alerts, the marker.
+    pub fn messages(&self, out: &ClassifierOutput) -> ClassifierMessages {
+        let header = Header {
+            stamp: Time::from_nanos(out.stamp_ns),
+            frame_id: out.frame_id.clone(),
+        };
+        let activity = out
+            .publishable()
+            .then(|| activity_msg(header.clone(), &out.prediction));
+        let alerts = out
+            .alerts
+            .iter()
+            .map(|a| alert_msg(&out.frame_id, a))
+            .collect();
+        ClassifierMessages {
+            activity,
+            alerts,
+            markers: self.marker(out, header),
+        }
+    }
+
+    /// Decodes a /human/observation message, classifies it and encodes the outputs.
+    pub fn handle_cdr(
+        &mut self,
+        cdr: &[u8],
+    ) -> Result<(ClassifierOutput, Vec<Outgoing>), ClassifierStageError> {
+        let obs: HumanObservation =
+            lidar_har_msgs::decode(cdr).map_err(|source| PipelineError::Decode {
+                topic: topics::HUMAN_OBSERVATION.name.to_string(),
+                source,
+            })?;
+        let out = self.on_observation(&obs)?;
+        let outgoing = self.outgoing(&out)?;
+        Ok((out, outgoing))
+    }
+
+    /// The encoded messages of an output, in publishing order.
+    pub fn outgoing(&self, out: &ClassifierOutput) -> Result<Vec<Outgoing>, PipelineError> {
+        let messages = self.messages(out);
+        let mut outgoing = Vec::with_capacity(2 + messages.alerts.len());
+        if let Some(activity) = &messages.activity {
+            outgoing.push(Outgoing::encode(
+                topics::HUMAN_ACTIVITY,
+                out.stamp_ns,
+                activity,
+            )?);
+        }
+        for alert in &messages.alerts {
+            outgoing.push(Outgoing::encode(topics::FALL_ALERT, out.stamp_ns, alert)?);
+        }
+        outgoing.push(Outgoing::encode(
+            topics::HUMAN_MARKERS,
+            out.stamp_ns,
+            &messages.markers,
+        )?);
+        Ok(outgoing)
+    }
+
+    /// A text above the person: the activity and its confidence, or the alert in red while
+    /// the person is down; plus a red sphere per alert raised by this scan.
+    fn marker(&self, out: &ClassifierOutput, header: Header) -> MarkerArray {
+        let down = self.fall.down_since_s();
+        let (text, color) = match (self.last_alert, down) {
+            (Some(alert), Some(_)) => (
+                format!("{} ({:.0}%)", alert.kind.name(), alert.confidence * 100.0),
+                ColorRGBA {
+                    r: 1.0,
+                    g: 0.1,
+                    b: 0.1,
+                    a: 1.0,
+                },
+            ),
+            _ if out.publishable() => (
+                format!(
+                    "{} {:.0}%",
+                    out.prediction.activity,
+                    out.prediction.confidence * 100.0
+                ),
+                if out.prediction.activity.is_on_floor() {
+                    ColorRGBA {
+                        r: 1.0,
+                        g: 0.6,
+                        b: 0.0,
+                        a: 1.0,
+                    }
+                } else {
+                    ColorRGBA {
+                        r: 0.2,
+                        g: 0.9,
+                        b: 0.2,
+                        a: 1.0,
+                    }
+                },
+            ),
+            _ => (
+                String::from("?"),
+                ColorRGBA {
+                    r: 0.7,
+                    g: 0.7,
+                    b: 0.7,
+                    a: 1.0,
+                },
+            ),
+        };
+        let at = |z: f64| Point {
+            x: out.position.x,
+            y: out.position.y,
+            z,
+        };
+        let mut markers = vec![Marker {
+            header: header.clone(),
+            ns: "lidar_har/activity".into(),
+            id: 0,
+            r#type: Marker::TEXT_VIEW_FACING,
+            action: Marker::ADD,
+            pose: lidar_har_msgs::geometry_msgs::Pose {
+                position: at(2.0),
+                ..Default::default()
+            },
+            scale: Vector3 {
+                x: 0.0,
+                y: 0.0,
+                z: 0.3,
+            },
+            color,
+            lifetime: Duration { sec: 1, nanosec: 0 },
+            text,
+            ..Default::default()
+        }];
+        for (i, alert) in out.alerts.iter().enumerate() {
+            markers.push(Marker {
+                header: header.clone(),
+                ns: "lidar_har/fall_alert".into(),
+                id: i32::try_from(self.alerts_raised - out.alerts.len() + i).unwrap_or(i32::MAX),
+                r#type: Marker::SPHERE,
+                action: Marker::ADD,
+                pose: lidar_har_msgs::geometry_msgs::Pose {
+                    position: Point {
+                        x: alert.position.x,
+                        y: alert.position.y,
+                        z: 0.2,
+                    },
+                    ..Default::default()
+                },
+                scale: Vector3 {
+                    x: 0.4,
+                    y: 0.4,
+                    z: 0.4,
+                },
+                color: ColorRGBA {
+                    r: 1.0,
+                    g: 0.0,
+                    b: 0.0,
+                    a: 0.8,
+                },
+                ..Default::default()
+            });
+        }
+        MarkerArray { markers }
+    }
+}
+
+/// Why a /human/observation message could not be handled.
+#[derive(Debug, thiserror::Error)]
+pub enum ClassifierStageError {
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
+    #[error(transparent)]
+    Classifier(#[from] ClassifierError),
+}
+
+/// The /human/activity message of a prediction.
+pub fn activity_msg(header: Header, prediction: &Prediction) -> har::Activity {
+    har::Activity {
+        header,
+        activity: prediction.activity.index() as u8,
+        label: prediction.activity.label().into(),
+        confidence: prediction.confidence,
+        probabilities: prediction.probabilities.to_vec(),
+    }
+}
+
+/// The /human/fall_alert message of an alert.
+pub fn alert_msg(frame_id: &str, alert: &FallAlert) -> har::FallAlert {
+    let secs_to_time = |s: f64| Time::from_nanos((s * 1e9).round() as i64);
+    let (kind, event_time_s, description) = match alert.kind {
+        AlertKind::FallDetected => (
+            har::FallAlert::FALL_DETECTED,
+            alert.event_time_s,
+            format!(
+                "fall detected near ({:.1}, {:.1})",
+                alert.position.x, alert.position.y
+            ),
+        ),
+        AlertKind::PersonDown => (
+            har::FallAlert::PERSON_DOWN,
+            alert.down_since_s,
+            format!(
+                "person down for {:.0} s near ({:.1}, {:.1})",
+                alert.raised_at_s - alert.down_since_s,
+                alert.position.x,
+                alert.position.y
+            ),
+        ),
+    };
+    har::FallAlert {
+        header: Header {
+            stamp: secs_to_time(alert.raised_at_s),
+            frame_id: frame_id.into(),
+        },
+        kind,
+        position: Point {
+            x: alert.position.x,
+            y: alert.position.y,
+            z: 0.0,
+        },
+        confidence: alert.confidence,
+        event_time: secs_to_time(event_time_s),
+        description,
+    }
+}
+
+/// The activity of a /human/activity or /ground_truth/activity message, if its index is valid.
+pub fn activity_of(msg: &har::Activity) -> Option<Activity> {
+    Activity::from_index(usize::from(msg.activity))
+}
+
+/// The classifier's results over a run, with the ground truth when the input had it: the
+/// activity part of `summary.json` and the demo's timeline.
+#[derive(Debug, Clone, Default)]
+pub struct ActivityLog {
+    /// (stamp, true activity), in time order.
+    truth: Vec<(i64, Activity)>,
+    /// Published predictions: (stamp, activity, confidence).
+    predictions: Vec<(i64, Activity, f32)>,
+    alerts: Vec<FallAlert>,
+}
+
+/// One stretch of the same recognised activity.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Segment {
+    pub start_s: f64,
+    pub end_s: f64,
+    pub activity: Activity,
+    pub mean_confidence: f32,
+    /// The most frequent true activity over the segment, when known.
+    pub truth: Option<Activity>,
+    pub scans: usize,
+}
+
+/// An alert as reported in `summary.json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AlertRecord {
+    pub kind: &'static str,
+    /// When the alert was raised, s (stream time).
+    pub time_s: f64,
+    /// When the fall happened / since when the person is down, s.
+    pub event_time_s: f64,
+    pub position: [f64; 2],
+    pub confidence: f32,
+}
+
+/// The activity part of `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ActivitySummary {
+    /// Scans with a published activity.
+    pub scans_classified: usize,
+    /// Against /ground_truth/activity (the latest truth at or before each prediction), when
+    /// the input had it.
+    pub accuracy: Option<f64>,
+    pub macro_f1: Option<f64>,
+    pub metrics: Option<MetricsReport>,
+    pub alerts: Vec<AlertRecord>,
+    pub segments: Vec<Segment>,
+    /// Classifier time per scan (decode, render, two model steps, alerts, encode), microseconds.
+    pub classify_time_us: Option<crate::bag_run::Spread>,
+}
+
+/// Ground truth older than this is not matched to a prediction.
+const TRUTH_MAX_AGE_NS: i64 = 500_000_000;
+
+impl ActivityLog {
+    pub fn add_truth(&mut self, stamp_ns: i64, msg: &har::Activity) {
+        if let Some(activity) = activity_of(msg) {
+            self.truth.push((stamp_ns, activity));
+        }
+    }
+
+    pub fn add_output(&mut self, out: &ClassifierOutput) {
+        if out.publishable() {
+            self.predictions.push((
+                out.stamp_ns,
+                out.prediction.activity,
+                out.prediction.confidence,
+            ));
+        }
+        self.alerts.extend(out.alerts.iter().copied());
+    }
+
+    pub fn alerts(&self) -> &[FallAlert] {
+        &self.alerts
+    }
+
+    /// The true activity at `stamp_ns`: the latest truth not after it, if recent.
+    pub fn truth_at(&self, stamp_ns: i64) -> Option<Activity> {
+        let i = self.truth.partition_point(|(t, _)| *t <= stamp_ns);
+        let (t, a) = *self.truth.get(i.checked_sub(1)?)?;
+        (stamp_ns - t <= TRUTH_MAX_AGE_NS).then_some(a)
+    }
+
+    fn sort(&mut self) {
+        self.truth.sort_by_key(|(t, _)| *t);
+        self.predictions.sort_by_key(|(t, _, _)| *t);
+    }
+
+    /// Runs of the same recognised activity (a gap over 1 s also ends a run).
+    pub fn segments(&mut self) -> Vec<Segment> {
+        self.sort();
+        let mut segments: Vec<(Segment, [usize; Activity::COUNT])> = Vec::new();
+        let mut last_stamp = None;
+        for &(t, activity, confidence) in &self.predictions {
+            let truth = self.truth_at(t);
+            let s = t as f64 * 1e-9;
+            let continues = segments
+                .last()
+                .is_some_and(|(seg, _)| seg.activity == activity)
+                && last_stamp.is_some_and(|l: i64| t - l < 1_000_000_000);
+            if !continues {
+                segments.push((
+                    Segment {
+                        start_s: s,
+                        end_s: s,
+                        activity,
+                        mean_confidence: 0.0,
+                        truth: None,
+                        scans: 0,
+                    },
+                    [0; Activity::COUNT],
+                ));
+            }
+            if let Some((seg, votes)) = segments.last_mut() {
+                seg.end_s = s;
+                seg.mean_confidence += confidence;
+                seg.scans += 1;
+                if let Some(truth) = truth {
+                    votes[truth.index()] += 1;
+                }
+            }
+            last_stamp = Some(t);
+        }
+        segments
+            .into_iter()
+            .map(|(mut seg, votes)| {
+                seg.mean_confidence /= seg.scans.max(1) as f32;
+                let (best, &n) = votes
+                    .iter()
+                    .enumerate()
+                    .max_by_key(|(_, n)| **n)
+                    .unwrap_or((0, &0));
+                seg.truth = (n > 0).then(|| Activity::ALL[best]);
+                seg
+            })
+            .collect()
+    }
+
+    pub fn summary(&mut self) -> ActivitySummary {
+        self.sort();
+        let pairs: Vec<(Activity, Activity)> = self
+            .predictions
+            .iter()
+            .filter_map(|&(t, predicted, _)| Some((self.truth_at(t)?, predicted)))
+            .collect();
+        let metrics = (!pairs.is_empty()).then(|| ConfusionMatrix::from_pairs(pairs).report());
+        ActivitySummary {
+            scans_classified: self.predictions.len(),
+            accuracy: metrics.as_ref().map(|m| m.accuracy),
+            macro_f1: metrics.as_ref().map(|m| m.macro_f1),
+            metrics,
+            alerts: self
+                .alerts
+                .iter()
+                .map(|a| AlertRecord {
+                    kind: a.kind.name(),
+                    time_s: a.raised_at_s,
+                    event_time_s: match a.kind {
+                        AlertKind::FallDetected => a.event_time_s,
+                        AlertKind::PersonDown => a.down_since_s,
+                    },
+                    position: [a.position.x, a.position.y],
+                    confidence: a.confidence,
+                })
+                .collect(),
+            segments: self.segments(),
+            classify_time_us: None,
+        }
+    }
+}
+
+/// The classifier inside a bag run (`lidar-har run`, `lidar-har demo`): classifies every
+/// /human/observation the localiser produces, records /human/activity, /human/fall_alert and
+/// the text markers, and scores against /ground_truth/activity when the input has it.
+pub struct ClassifierRun {
+    stage: ClassifierStage,
+    log: ActivityLog,
+    topics: Option<[TopicHandle; 3]>,
+    times_us: Vec<f64>,
+}
+
+impl ClassifierRun {
+    /// Loads the model; fails early (before any work) when it is missing or unusable.
+    pub fn load(config: &ClassifierConfig) -> Result<Self, ClassifierError> {
+        Ok(Self {
+            stage: ClassifierStage::load(config, None)?,
+            log: ActivityLog::default(),
+            topics: None,
+            times_us: Vec::new(),
+        })
+    }
+
+    /// Declares the output topics; `markers` is the (shared) /human/markers topic.
+    pub fn add_topics(
+        &mut self,
+        writer: &mut BagWriter,
+        markers: TopicHandle,
+    ) -> Result<(), BagError> {
+        let activity = writer.add_topic_for::<har::Activity>(
+            topics::HUMAN_ACTIVITY.name,
+            topics::HUMAN_ACTIVITY.qos,
+        )?;
+        let alert = writer
+            .add_topic_for::<har::FallAlert>(topics::FALL_ALERT.name, topics::FALL_ALERT.qos)?;
+        self.topics = Some([activity, alert, markers]);
+        Ok(())
+    }
+
+    /// An input message: takes /ground_truth/activity (returns true), ignores the rest.
+    pub fn on_input(&mut self, topic: &str, cdr: &[u8]) -> bool {
+        if topic != topics::GROUND_TRUTH_ACTIVITY.name {
+            return false;
+        }
+        match lidar_har_msgs::decode::<har::Activity>(cdr) {
+            Ok(msg) => self.log.add_truth(msg.header.stamp.to_nanos(), &msg),
+            Err(e) => log::warn!("{topic} skipped: {e}"),
+        }
+        true
+    }
+
+    /// A message the localiser produced: classifies /human/observation and records the results.
+    pub fn on_localiser_output(
+        &mut self,
+        out: &Outgoing,
+        log_time_ns: i64,
+        writer: &mut BagWriter,
+    ) -> Result<(), ClassifierRunError> {
+        if out.topic.name != topics::HUMAN_OBSERVATION.name {
+            return Ok(());
+        }
+        let started = std::time::Instant::now();
+        let (result, outgoing) = self.stage.handle_cdr(&out.cdr)?;
+        self.times_us.push(started.elapsed().as_secs_f64() * 1e6);
+        self.log.add_output(&result);
+        if let Some([activity, alert, markers]) = self.topics {
+            for message in outgoing {
+                let handle = match message.topic.name {
+                    n if n == topics::HUMAN_ACTIVITY.name => activity,
+                    n if n == topics::FALL_ALERT.name => alert,
+                    _ => markers,
+                };
+                writer.write(handle, log_time_ns, &message.cdr)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The activity part of `summary.json`, with the classification time per scan.
+    pub fn finish(mut self) -> ActivitySummary {
+        let mut summary = self.log.summary();
+        summary.classify_time_us = crate::bag_run::Spread::of(std::mem::take(&mut self.times_us));
+        summary
+    }
+}
+
+/// Why the classifier failed inside a run.
+#[derive(Debug, thiserror::Error)]
+pub enum ClassifierRunError {
+    #[error(transparent)]
+    Stage(#[from] ClassifierStageError),
+    #[error("writing the classifier's outputs: {0}")]
+    Bag(#[from] BagError),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lidar_har_core::representation::{Framing, RepresentationKind, RepresentationSpec};
+    use lidar_har_msgs::geometry_msgs::Point32;
+    use ndarray::ArrayView2;
+
+    /// A stand-in model that "recognises" a script: the class is chosen by the scan's stamp
+    /// through a shared timeline, so tests can drive fall alerts through the whole stage.
+    struct TimelineModel {
+        timeline: Vec<(f64, Activity)>,
+        now: std::rc::Rc<std::cell::Cell<f64>>,
+    }
+
+    impl StepModel for TimelineModel {
+        type State = ();
+        type Error = std::io::Error;
+        fn initial_state(&self) {}
+        fn reset_state(&self, _: &mut ()) {}
+        fn step(&mut self, _: ArrayView2<'_, f32>, _: &mut ()) -> Result<[f32; 9], std::io::Error> {
+            let t = self.now.get();
+            let activity = self
+                .timeline
+                .iter()
+                .rev()
+                .find(|(start, _)| *start <= t)
+                .map_or(Activity::Standing, |(_, a)| *a);
+            let mut logits = [0.0; 9];
+            logits[activity.index()] = 8.0;
+            Ok(logits)
+        }
+    }
+
+    fn stream() -> StreamSpec {
+        StreamSpec {
+            representation: RepresentationSpec::new(
+                RepresentationKind::BooleanGrid,
+                Framing::RoomFixed,
+                16,
+                0.1,
+            ),
+            window: 8,
+            scan_rate_hz: 20.0,
+        }
+    }
+
+    fn observation(t: f64, visible: bool) -> HumanObservation {
+        HumanObservation {
+            header: Header {
+                stamp: Time::from_nanos((t * 1e9) as i64),
+                frame_id: "map".into(),
+            },
+            track_id: 1,
+            visible,
+            position: Point {
+                x: 2.0,
+                y: 1.0,
+                z: 0.0,
+            },
+            sensor_position: Point {
+                x: 0.0,
+                y: 0.0,
+                z: 0.2,
+            },
+            points: if visible {
+                vec![
+                    Point32 {
+                        x: 2.0,
+                        y: 1.0,
+                        z: 0.0,
+                    },
+                    Point32 {
+                        x: 2.1,
+                        y: 1.05,
+                        z: 0.0,
+                    },
+                ]
+            } else {
+                vec![]
+            },
+            ..Default::default()
+        }
+    }
+
+    fn run(
+        timeline: Vec<(f64, Activity)>,
+        seconds: f64,
+    ) -> Vec<(ClassifierOutput, ClassifierMessages)> {
+        let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
+        let model = TimelineModel {
+            timeline,
+            now: now.clone(),
+        };
+        let config = FallAlertConfig {
+            down_after_s: 5.0,
+            ..Default::default()
+        };
+        let mut stage = ClassifierStage::new(model, stream(), config).unwrap();
+        (0..(seconds * 20.0) as usize)
+            .map(|k| {
+                let t = k as f64 * 0.05;
+                now.set(t);
+                let out = stage.on_observation(&observation(t, true)).unwrap();
+                let msgs = stage.messages(&out);
+                (out, msgs)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_fall_gives_activity_messages_and_one_alert_of_each_kind() {
+        let outputs = run(
+            vec![
+                (0.0, Activity::Walking),
+                (3.0, Activity::FallingDown),
+                (4.0, Activity::LyingDown),
+            ],
+            12.0,
+        );
+        let alerts: Vec<&har::FallAlert> = outputs.iter().flat_map(|(_, m)| &m.alerts).collect();
+        assert_eq!(alerts.len(), 2, "{alerts:?}");
+        assert_eq!(alerts[0].kind, har::FallAlert::FALL_DETECTED);
+        assert_eq!(alerts[0].event_time.to_nanos(), 3_000_000_000);
+        assert!(
+            (alerts[0].header.stamp.to_secs_f64() - 3.1).abs() < 1e-6,
+            "3 scans after the fall starts"
+        );
+        assert_eq!((alerts[0].position.x, alerts[0].position.y), (2.0, 1.0));
+        assert_eq!(alerts[1].kind, har::FallAlert::PERSON_DOWN);
+        assert_eq!(
+            alerts[1].event_time.to_nanos(),
+            3_000_000_000,
+            "down since the fall"
+        );
+        assert!(
+            alerts[1].description.contains("person down for 5 s"),
+            "{}",
+            alerts[1].description
+        );
+
+        // Activities: none before T/2 = 4 scans, then every scan, with labels and probabilities.
+        let published: Vec<&har::Activity> = outputs
+            .iter()
+            .filter_map(|(_, m)| m.activity.as_ref())
+            .collect();
+        assert_eq!(published.len(), outputs.len() - 3);
+        let at = |t: f64| {
+            published
+                .iter()
+                .find(|a| (a.header.stamp.to_secs_f64() - t).abs() < 1e-6)
+                .unwrap()
+        };
+        assert_eq!(at(1.0).label, "walking");
+        assert_eq!(at(3.5).label, "falling_down");
+        assert_eq!(at(6.0).activity, har::Activity::LYING_DOWN);
+        assert_eq!(at(6.0).probabilities.len(), 9);
+        assert!((at(6.0).probabilities.iter().sum::<f32>() - 1.0).abs() < 1e-5);
+
+        // The marker shows the alert while the person is down.
+        let (_, last) = outputs.last().unwrap();
+        assert!(
+            last.markers.markers[0].text.contains("PERSON_DOWN"),
+            "{:?}",
+            last.markers.markers[0].text
+        );
+        let (_, early) = &outputs[20];
+        assert!(
+            early.markers.markers[0].text.starts_with("walking"),
+            "{}",
+            early.markers.markers[0].text
+        );
+    }
+
+    #[test]
+    fn hidden_person_gets_no_activity_message() {
+        let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
+        let model = TimelineModel {
+            timeline: vec![(0.0, Activity::Walking)],
+            now,
+        };
+        let mut stage = ClassifierStage::new(model, stream(), FallAlertConfig::default()).unwrap();
+        for k in 0..20 {
+            let out = stage
+                .on_observation(&observation(k as f64 * 0.05, k < 10))
+                .unwrap();
+            let msgs = stage.messages(&out);
+            assert_eq!(msgs.activity.is_some(), (3..10).contains(&k), "scan {k}");
+            assert_eq!(msgs.markers.markers.len(), 1);
+        }
+    }
+
+    #[test]
+    fn observation_bytes_in_encoded_messages_out() {
+        let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
+        let model = TimelineModel {
+            timeline: vec![(0.0, Activity::Standing)],
+            now,
+        };
+        let mut stage = ClassifierStage::new(model, stream(), FallAlertConfig::default()).unwrap();
+        let mut last = vec![];
+        for k in 0..6 {
+            let cdr = lidar_har_msgs::encode(&observation(k as f64 * 0.05, true)).unwrap();
+            last = stage.handle_cdr(&cdr).unwrap().1;
+        }
+        assert_eq!(last[0].topic.name, "/human/activity");
+        let activity: har::Activity = lidar_har_msgs::decode(&last[0].cdr).unwrap();
+        assert_eq!(activity.label, "standing");
+        assert_eq!(last.last().unwrap().topic.name, "/human/markers");
+        let e = stage.handle_cdr(&[0, 1, 0, 0, 7]).unwrap_err().to_string();
+        assert!(e.contains("/human/observation"), "{e}");
+    }
+
+    #[test]
+    fn config_parses_with_defaults_and_rejects_unknown_keys() {
+        let c = parse_classifier_config("threads: 2\nfall_alert:\n  down_after_s: 30\n").unwrap();
+        assert_eq!(c.threads, 2);
+        assert_eq!(c.fall_alert.down_after_s, 30.0);
+        assert_eq!(
+            c.fall_alert.fall_min_scans,
+            FallAlertConfig::default().fall_min_scans
+        );
+        assert_eq!(c.model, PathBuf::from("models/activity.onnx"));
+        let e = parse_classifier_config("fall_alert:\n  down_after: 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("down_after"), "{e}");
+        let e = parse_classifier_config("fall_alert:\n  fall_probability: 2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("fall_probability"), "{e}");
+        assert!(parse_classifier_config("threads: 0\n").is_err());
+    }
+
+    #[test]
+    fn the_committed_config_file_is_valid() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/classifier.yaml");
+        let config = load_classifier_config(&path).unwrap();
+        assert_eq!(
+            config,
+            ClassifierConfig::default(),
+            "config/classifier.yaml should state the defaults"
+        );
+    }
+
+    #[test]
+    fn activity_log_scores_against_truth_and_makes_segments() {
+        let outputs = run(
+            vec![
+                (0.0, Activity::Walking),
+                (3.0, Activity::FallingDown),
+                (4.0, Activity::LyingDown),
+            ],
+            8.0,
+        );
+        let mut log = ActivityLog::default();
+        // Truth: walking to 3.0, falling to 4.2 (the model switches to lying 0.2 s early).
+        for k in 0..160 {
+            let t = k as f64 * 0.05;
+            let a = if t < 3.0 {
+                Activity::Walking
+            } else if t < 4.2 {
+                Activity::FallingDown
+            } else {
+                Activity::LyingDown
+            };
+            let msg = har::Activity {
+                activity: a.index() as u8,
+                ..Default::default()
+            };
+            log.add_truth((t * 1e9) as i64, &msg);
+        }
+        for (out, _) in &outputs {
+            log.add_output(out);
+        }
+        let summary = log.summary();
+        assert_eq!(summary.scans_classified, 157);
+        // 4 of 157 scans (4.0 .. 4.15) disagree.
+        let accuracy = summary.accuracy.unwrap();
+        assert!((accuracy - 153.0 / 157.0).abs() < 1e-9, "{accuracy}");
+        assert_eq!(
+            summary.alerts.len(),
+            1,
+            "down for 4 s only: no PERSON_DOWN yet"
+        );
+        assert_eq!(summary.alerts[0].kind, "FALL_DETECTED");
+        assert!((summary.alerts[0].event_time_s - 3.0).abs() < 1e-6);
+        let kinds: Vec<Activity> = summary.segments.iter().map(|s| s.activity).collect();
+        assert_eq!(
+            kinds,
+            [
+                Activity::Walking,
+                Activity::FallingDown,
+                Activity::LyingDown
+            ]
+        );
+        assert_eq!(summary.segments[1].truth, Some(Activity::FallingDown));
+        assert!((summary.segments[1].start_s - 3.0).abs() < 1e-6);
+        assert!((summary.segments[1].end_s - 3.95).abs() < 1e-6);
+        // Without truth: no accuracy, segments without truth.
+        let mut bare = ActivityLog::default();
+        for (out, _) in &outputs {
+            bare.add_output(out);
+        }
+        let summary = bare.summary();
+        assert!(summary.accuracy.is_none() && summary.metrics.is_none());
+        assert!(summary.segments.iter().all(|s| s.truth.is_none()));
+    }
+}
