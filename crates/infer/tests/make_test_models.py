@@ -7,6 +7,11 @@ cell, so the Rust side is checked against arithmetic, not against itself.
 
 Run from the repository root:  .venv/bin/python crates/infer/tests/make_test_models.py
 It rewrites crates/infer/tests/fixtures/ (deterministic: same bytes every run).
+
+For benchmarks, `--size S --hidden H --out FILE` writes one untrained model of that size
+instead (state side S/2), e.g. to time a 64x64 image with 16 hidden channels:
+  .venv/bin/python crates/infer/tests/make_test_models.py --size 64 --hidden 16 --out /tmp/m.onnx
+  cargo bench -p lidar-har-infer --bench classify -- /tmp/m.onnx
 """
 
 import json
@@ -30,6 +35,7 @@ METADATA = {
 
 
 def weights(logit_scale=1.0, classes=CLASSES):
+    """Random weights of the cell, fixed seed."""
     rng = np.random.default_rng(5)
     return {
         "w_conv": rng.normal(0.0, 0.4, (4 * HIDDEN, 1 + HIDDEN, 3, 3)).astype(np.float32),
@@ -138,5 +144,18 @@ def main():
     (OUT / "step_model_expected.json").write_text(json.dumps(expected) + "\n")
 
 
+def bench_model(argv):
+    global SIZE, HIDDEN, HS
+    args = dict(zip(argv[::2], argv[1::2]))
+    SIZE, HIDDEN = int(args["--size"]), int(args["--hidden"])
+    HS = SIZE // 2
+    onnx.save(build(weights(), metadata={**METADATA, "lidar_har.size": str(SIZE)}), args["--out"])
+
+
 if __name__ == "__main__":
-    main()
+    import sys
+
+    if len(sys.argv) > 1:
+        bench_model(sys.argv[1:])
+    else:
+        main()
