@@ -65,3 +65,38 @@ impl Shutdown {
         }
     }
 }
+
+/// Publishers of a node's output topics, by topic name.
+pub struct Outputs {
+    publishers: std::collections::HashMap<&'static str, lidar_har_ros::Publisher>,
+}
+
+impl Outputs {
+    /// A publisher (contract name, type and QoS) for each of `specs`.
+    pub fn new(node: &lidar_har_ros::Node, specs: &[lidar_har_msgs::topics::TopicSpec]) -> Result<Self, RosError> {
+        let publishers = specs.iter().map(|s| Ok((s.name, node.publisher_for(s)?))).collect::<Result<_, RosError>>()?;
+        Ok(Self { publishers })
+    }
+
+    /// Publishes what a pipeline stage produced, in order.
+    pub fn publish(&self, outgoing: &[lidar_har_pipeline::Outgoing]) -> Result<(), RosError> {
+        for out in outgoing {
+            match self.publishers.get(out.topic.name) {
+                Some(publisher) => publisher.publish(&out.cdr)?,
+                None => log::warn!("no publisher for {} (not an output of this node)", out.topic.name),
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A configuration file parameter: the path, or `None` when empty (use the defaults).
+pub fn optional_path(params: &lidar_har_ros::Parameters, name: &str) -> Result<Option<std::path::PathBuf>, RosError> {
+    let value = params.string(name)?;
+    Ok(if value.is_empty() { None } else { Some(value.into()) })
+}
+
+/// A bad parameter whose value could not be used, with the reason.
+pub fn bad_parameter(name: &str, reason: impl std::fmt::Display) -> RosError {
+    RosError::Parameter { name: name.to_string(), reason: format!("{reason:#}") }
+}

@@ -275,3 +275,92 @@ wait $E; echo "echo=$?"
         assert_eq!(ranges[0].as_f64(), Some(i as f64), "Cyclone scan {i} arrived changed or out of order");
     }
 }
+
+/// Messages of `topic` in a bag, as the JSON `lidar-har topic echo` prints for them.
+fn bag_topic_json(bag: &Path, topic: &str) -> Vec<serde_json::Value> {
+    let reader = lidar_har_bag::BagReader::open(bag).unwrap();
+    let type_name = reader.topic(topic).map(|t| t.type_name.clone());
+    let Some(type_name) = type_name else { return Vec::new() };
+    reader
+        .messages_on(&[topic])
+        .unwrap()
+        .map(|m| lidar_har_ros::json::decode_to_json(&type_name, &m.unwrap().data).unwrap().unwrap())
+        .collect()
+}
+
+#[test]
+fn ros_replay_localiser_classifier_processes_equal_the_embedded_run() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("sim");
+    let run_out = dir.path().join("run");
+    let lh = workspace_bin("lidar-har");
+    let status = Command::new(&lh)
+        .current_dir(repo_root())
+        .args(["simulate", "--duration", "6", "--out"])
+        .arg(&bag)
+        .status()
+        .unwrap();
+    assert!(status.success(), "lidar-har simulate failed");
+    let status = Command::new(&lh).current_dir(repo_root()).arg("run").arg("--bag").arg(&bag).arg("--out").arg(&run_out).status().unwrap();
+    assert!(status.success(), "lidar-har run failed");
+    let want_poses = bag_topic_json(&run_out, topics::HUMAN_POSE.name);
+    let want_activities = bag_topic_json(&run_out, topics::HUMAN_ACTIVITY.name);
+    assert!(want_poses.len() > 20, "the simulated person should be tracked: {} poses", want_poses.len());
+    let with_classifier = !want_activities.is_empty();
+    if !with_classifier {
+        eprintln!("NOTE: `lidar-har run` wrote no /human/activity (no model): comparing the localiser's outputs only");
+    }
+    let script = format!(
+        r#"
+"$LOC" &
+L=$!
+{classifier}
+"$LH" topic echo /human/pose --count {np} --timeout 40 > "$OUT/pose.jsonl" &
+P=$!
+{echo_activity}
+sleep 1.5
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan -p topics:="[/scan, /odom, /map, /tf, /tf_static]"; echo "replay=$?"
+wait $P; echo "pose_echo=$?"
+{wait_activity}
+kill -TERM $L {kill_classifier}; wait $L; echo "localiser=$?"
+"#,
+        np = want_poses.len(),
+        classifier = if with_classifier { r#""$CLS" & C=$!"# } else { "" },
+        echo_activity = if with_classifier {
+            format!(r#""$LH" topic echo /human/activity --count {} --timeout 40 > "$OUT/activity.jsonl" & A=$!"#, want_activities.len())
+        } else {
+            String::new()
+        },
+        wait_activity = if with_classifier { r#"wait $A; echo "activity_echo=$?""# } else { "" },
+        kill_classifier = if with_classifier { "$C" } else { "" },
+    );
+    let out = in_netns(
+        &script,
+        &[
+            ("LH", &lh),
+            ("REPLAY", &workspace_bin("replay")),
+            ("LOC", &workspace_bin("localiser")),
+            ("CLS", &workspace_bin("classifier")),
+            ("BAG", &bag),
+            ("OUT", dir.path()),
+        ],
+        Duration::from_secs(90),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["replay=0", "pose_echo=0", "localiser=0"] {
+        assert!(stdout.contains(want), "expected {want}");
+    }
+    let got_poses: Vec<_> = json_lines(&dir.path().join("pose.jsonl")).into_iter().map(|l| l["msg"].clone()).collect();
+    assert_eq!(got_poses.len(), want_poses.len());
+    for (i, (got, want)) in got_poses.iter().zip(&want_poses).enumerate() {
+        assert_eq!(got, want, "/human/pose {i} differs between the nodes and `lidar-har run`");
+    }
+    if with_classifier {
+        assert!(stdout.contains("activity_echo=0"));
+        let got: Vec<_> = json_lines(&dir.path().join("activity.jsonl")).into_iter().map(|l| l["msg"].clone()).collect();
+        assert_eq!(got, want_activities, "/human/activity differs between the nodes and `lidar-har run`");
+    }
+}

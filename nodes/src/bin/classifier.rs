@@ -1,0 +1,55 @@
+//! `classifier`: recognises the person's activity and raises fall alerts. Subscribes
+//! /human/observation; publishes /human/activity, /human/fall_alert and a text marker on
+//! /human/markers. The work is the pipeline's classifier stage (ONNX step model), the same
+//! code `lidar-har run` runs over a bag.
+//!
+//! Parameters: `config` (a `config/classifier.yaml`-format file; empty = defaults), `model`
+//! (the ONNX model; empty = the one the configuration names).
+
+use std::process::ExitCode;
+use std::time::Duration;
+
+use lidar_har::{Outputs, Shutdown, bad_parameter, optional_path};
+use lidar_har_msgs::topics;
+use lidar_har_pipeline::classifier::{ClassifierStage, load_classifier_config};
+use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue};
+
+fn main() -> ExitCode {
+    lidar_har::run("classifier", classify)
+}
+
+fn decls() -> Vec<ParamDecl> {
+    use ParamValue as V;
+    vec![
+        ParamDecl::new("config", V::String(String::new()), "classifier configuration file; empty = defaults"),
+        ParamDecl::new("model", V::String(String::new()), "ONNX step model; empty = the configuration's"),
+    ]
+}
+
+fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
+    let node = Node::new(NodeSetup::new("classifier").parameters(decls()))?;
+    let p = node.params();
+    let config = match optional_path(p, "config")? {
+        Some(path) => load_classifier_config(&path).map_err(|e| bad_parameter("config", e))?,
+        None => Default::default(),
+    };
+    let model = optional_path(p, "model")?;
+    let mut stage = ClassifierStage::load(&config, model.as_deref()).map_err(|e| bad_parameter("model", e))?;
+    let input = node.subscriber_for(&topics::HUMAN_OBSERVATION)?;
+    let outputs = Outputs::new(&node, &[topics::HUMAN_ACTIVITY, topics::FALL_ALERT, topics::HUMAN_MARKERS])?;
+    let mut errors = 0u64;
+    while !shutdown.requested() {
+        let Some(sample) = input.take_timeout(&node, Duration::from_millis(100))? else { continue };
+        match stage.handle_cdr(&sample.bytes) {
+            Ok((_, outgoing)) => outputs.publish(&outgoing)?,
+            Err(e) => {
+                errors += 1;
+                if errors.is_power_of_two() {
+                    log::warn!("{e} ({errors} unusable observations so far)");
+                }
+            }
+        }
+    }
+    log::info!("classifier: stopped; {errors} unusable observations");
+    Ok(())
+}

@@ -1,0 +1,86 @@
+//! `localiser`: finds and tracks the person in each scan. Subscribes /scan, /odom, /map, /tf,
+//! /tf_static; publishes /human/pose, /human/observation and /human/markers. The work is the
+//! pipeline's localiser stage, the same code `lidar-har run` runs over a bag.
+//!
+//! Parameters: `config` (a `config/localiser.yaml`-format file; empty = defaults),
+//! `map_file` (a map_server YAML; empty = wait for /map), `learned_background` (no map: learn
+//! the room from the first scans of a fixed Lidar), `moving` (odometry moves the robot).
+
+use std::process::ExitCode;
+use std::time::Duration;
+
+use lidar_har::{Outputs, Shutdown, bad_parameter, optional_path};
+use lidar_har_msgs::topics;
+use lidar_har_pipeline::{LocaliserStage, Pipeline, RoomSource, files};
+use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, RosError};
+
+fn main() -> ExitCode {
+    lidar_har::run("localiser", localise)
+}
+
+fn decls() -> Vec<ParamDecl> {
+    use ParamValue as V;
+    vec![
+        ParamDecl::new("config", V::String(String::new()), "localiser configuration file; empty = defaults"),
+        ParamDecl::new("map_file", V::String(String::new()), "map_server YAML of the room; empty = use /map"),
+        ParamDecl::new("learned_background", V::Bool(false), "no map: learn the room from the first scans"),
+        ParamDecl::new("moving", V::Bool(true), "the Lidar moves with the robot (needs /odom or /tf)"),
+    ]
+}
+
+fn stage(node: &Node) -> Result<LocaliserStage, RosError> {
+    let p = node.params();
+    let config = match optional_path(p, "config")? {
+        Some(path) => files::load_config(&path).map_err(|e| bad_parameter("config", e))?,
+        None => Default::default(),
+    };
+    let learned = p.bool("learned_background")?;
+    let room = match (optional_path(p, "map_file")?, learned) {
+        (Some(_), true) => {
+            return Err(bad_parameter("map_file", "cannot be combined with learned_background:=true"));
+        }
+        (Some(path), false) => RoomSource::Map(files::load_map(&path).map_err(|e| bad_parameter("map_file", e))?),
+        (None, true) => RoomSource::LearnedBackground,
+        (None, false) => RoomSource::MapTopic,
+    };
+    LocaliserStage::new(config, room, p.bool("moving")?).map_err(|e| bad_parameter("config", e))
+}
+
+fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
+    let node = Node::new(NodeSetup::new("localiser").parameters(decls()))?;
+    let mut pipeline = Pipeline::new(stage(&node)?);
+    let inputs = [topics::SCAN, topics::ODOM, topics::MAP, topics::TF, topics::TF_STATIC]
+        .into_iter()
+        .map(|spec| Ok((spec.name, node.subscriber_for(&spec)?)))
+        .collect::<Result<Vec<_>, RosError>>()?;
+    let outputs = Outputs::new(&node, &[topics::HUMAN_POSE, topics::HUMAN_OBSERVATION, topics::HUMAN_MARKERS])?;
+    let mut decode_errors = 0u64;
+    let mut batch = Vec::new();
+    while !shutdown.requested() {
+        for (topic, sub) in &inputs {
+            while let Some(sample) = sub.try_take()? {
+                batch.push((*topic, sample));
+            }
+        }
+        if batch.is_empty() {
+            node.wait(Duration::from_millis(100))?;
+            continue;
+        }
+        // Messages of different topics that arrived together are used in publication order
+        // (odometry before the scan it positions).
+        batch.sort_by_key(|(_, sample)| sample.source_time_ns.unwrap_or(0));
+        for (topic, sample) in batch.drain(..) {
+            match pipeline.handle(topic, &sample.bytes) {
+                Ok(step) => outputs.publish(&step.outgoing)?,
+                Err(e) => {
+                    decode_errors += 1;
+                    if decode_errors.is_power_of_two() {
+                        log::warn!("{e} ({decode_errors} undecodable messages so far)");
+                    }
+                }
+            }
+        }
+    }
+    log::info!("localiser: stopped; {decode_errors} undecodable messages");
+    Ok(())
+}
