@@ -109,6 +109,12 @@ impl Simulator {
         self.frames
     }
 
+    /// Makes `index` the next frame (clamped to the end). Skipping ahead costs no scans;
+    /// the person's script is planned up to that time on the next step.
+    pub fn seek(&mut self, index: u64) {
+        self.index = index.min(self.frames);
+    }
+
     /// Stamp of the first frame, nanoseconds since the Unix epoch.
     pub fn start_ns(&self) -> u64 {
         self.start_ns
@@ -173,5 +179,63 @@ impl Iterator for Simulator {
     type Item = Frame;
     fn next(&mut self) -> Option<Frame> {
         self.step()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hall(hours: f64) -> Scene {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/hall.yaml");
+        let mut s = Scene::load(&path).unwrap();
+        s.duration = hours * 3600.0;
+        s
+    }
+
+    #[test]
+    fn hours_of_simulation_do_not_drift() {
+        let mut sim = Simulator::new(hall(5.0), 3).unwrap();
+        assert_eq!(sim.frame_count(), 5 * 3600 * 20);
+        let last = sim.frame_count() - 1;
+        sim.seek(last);
+        let f = sim.step().unwrap();
+        // Stamps come from the index: exact to the nanosecond after five hours.
+        assert_eq!(f.stamp_ns, 1_700_000_000_000_000_000 + last * 50_000_000);
+        assert!(sim.step().is_none());
+        // The robot's pose is its periodic plan's: the same as one period earlier.
+        let period = sim.robot_motion().period();
+        let t = last as f64 / 20.0;
+        let (now, _) = sim.robot_motion().at(t);
+        let (before, _) = sim.robot_motion().at(t - (t / period).floor() * period);
+        assert!((now.position() - before.position()).length() < 1e-6, "{now:?} vs {before:?}");
+        assert_eq!(f.robot, now);
+        // The person is still inside the hall, on the floor, and finite.
+        let p = f.person.unwrap();
+        assert!(p.pose.is_finite() && (0.0..12.0).contains(&p.pose.x) && (0.0..9.0).contains(&p.pose.y), "{:?}", p.pose);
+        assert!(p.parts.iter().all(|c| c.a.is_finite() && c.b.is_finite() && c.a.z.min(c.b.z) - c.radius > -1e-9));
+        assert!(f.ranges.iter().all(|r| r.is_infinite() || (0.15..=16.0).contains(r)));
+    }
+
+    #[test]
+    fn rate_that_does_not_divide_a_second_keeps_integer_stamps() {
+        let mut s = hall(1.0);
+        s.lidar.rate_hz = 7.0;
+        let sim = Simulator::new(s, 0).unwrap();
+        assert_eq!(sim.offset_ns(7), 1_000_000_000);
+        assert_eq!(sim.offset_ns(7 * 3600), 3_600_000_000_000);
+        assert_eq!(sim.offset_ns(1), 142_857_142);
+    }
+
+    #[test]
+    fn a_scene_without_person_or_noise_does_no_work_for_them() {
+        let mut s = hall(0.01);
+        s.person = None;
+        s.lidar.noise = crate::scene::NoiseSpec::NONE;
+        let mut sim = Simulator::new(s, 0).unwrap();
+        assert!(sim.person.is_none() && sim.noise_rng.is_none());
+        let f = sim.step().unwrap();
+        assert!(f.person.is_none());
+        assert!(!f.labels.contains(&BeamLabel::Missing) && !f.labels.contains(&BeamLabel::Person));
     }
 }

@@ -143,8 +143,12 @@ pub fn validate(scene: &Scene) -> Check {
     let world = World::new(scene);
     let (clear, what) = world.robot_clearance(r.start.to_pose().position());
     if clear < r.radius {
-        let where_ = if clear < 0.0 { "inside" } else { "overlapping" };
-        return fail("robot.start", format!("the robot (radius {} m) starts {where_} {}", r.radius, describe(&world, what)));
+        let place = match (clear < 0.0, what) {
+            (true, None) => "outside the room".to_string(),
+            (true, Some(_)) => format!("inside {}", describe(&world, what)),
+            (false, _) => format!("overlapping {}", describe(&world, what)),
+        };
+        return fail("robot.start", format!("the robot (radius {} m) starts {place}", r.radius));
     }
     match &r.motion {
         Motion::Static => {}
@@ -181,8 +185,12 @@ pub fn validate(scene: &Scene) -> Check {
         finite("person.start.yaw_deg", p.start.yaw_deg)?;
         let (clear, what) = world.person_clearance(p.start.to_pose().position());
         if clear < PERSON_START_CLEARANCE {
-            let where_ = if clear < 0.0 { "inside" } else { "too close to" };
-            return fail("person.start", format!("the person starts {where_} {}", describe(&world, what)));
+            let place = match (clear < 0.0, what) {
+                (true, None) => "outside the room".to_string(),
+                (true, Some(_)) => format!("inside {}", describe(&world, what)),
+                (false, _) => format!("too close to {}", describe(&world, what)),
+            };
+            return fail("person.start", format!("the person starts {place}"));
         }
         if p.script.is_empty() {
             return fail("person.script", "needs at least one step");
@@ -219,4 +227,70 @@ pub fn validate(scene: &Scene) -> Check {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::scene::Scene;
+
+    const BASE: &str = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nfurniture:\n  - {kind: box, name: sofa, center: [2.5, 2], size: [1, 1], height: 0.8}\n  - {kind: table, center: [1, 3], size: [1, 0.6], height: 0.7}\n";
+
+    fn error(text: &str) -> String {
+        Scene::parse(text, "bad.yaml").expect_err("the scene must be rejected").to_string()
+    }
+
+    fn with(robot: &str, rest: &str) -> String {
+        format!("{BASE}robot: {robot}\n{rest}")
+    }
+
+    #[test]
+    fn each_bad_value_names_its_key() {
+        let ok_robot = "{start: {x: 0.5, y: 0.5}}";
+        let cases = [
+            (with(ok_robot, "lidar: {rate_hz: 0}"), "bad.yaml: lidar.rate_hz: must be positive"),
+            (with(ok_robot, "lidar: {noise: {missing_pct: 120}}"), "lidar.noise.missing_pct: must be within [0, 100]"),
+            (with(ok_robot, "lidar: {noise: {missing_pct: 60, wrong_pct: 50}}"), "lidar.noise.wrong_pct: missing_pct + wrong_pct"),
+            (with(ok_robot, "lidar: {range_min: 2, range_max: 1}"), "lidar.range_max: must exceed range_min"),
+            (with(ok_robot, "lidar: {beams: 0}"), "lidar.beams"),
+            (with("{start: {x: 2.5, y: 2}}", ""), "robot.start: the robot (radius 0.17 m) starts inside furniture[0] 'sofa'"),
+            (with("{start: {x: 1.85, y: 2}}", ""), "robot.start: the robot (radius 0.17 m) starts overlapping furniture[0] 'sofa'"),
+            (with("{start: {x: 7, y: 2}}", ""), "robot.start: the robot (radius 0.17 m) starts outside the room"),
+            (with("{start: {x: 0.5, y: 0.5}, speed: 0.5}", ""), "robot.speed: at most 0.2"),
+            (with("{start: {x: 0.5, y: 0.5}, motion: {kind: waypoints, points: [[0.5, 0.5], [2.5, 2.2]]}}", ""), "robot.motion.points[1]"),
+            (with(ok_robot, "person: {start: {x: 1, y: 3}, script: [{activity: standing, duration: 1}]}"), "person.start: the person starts inside furniture[1]"),
+            (with(ok_robot, "person: {start: {x: 4, y: 1}, script: []}"), "person.script: needs at least one step"),
+            (with(ok_robot, "person: {start: {x: 4, y: 1}, script: [{activity: walking, duration: 3}]}"), "person.script[0].path: walking needs a path"),
+            (with(ok_robot, "person: {start: {x: 4, y: 1}, script: [{activity: standing, duration: -3}]}"), "person.script[0].duration"),
+            (with(ok_robot, "person: {start: {x: 4, y: 1}, script: [{activity: falling_down, duration: 9}]}"), "person.script[0].duration: must be within [0.4, 5]"),
+            (with(ok_robot, "person: {start: {x: 4, y: 1}, body: {height: 4}, script: [{activity: standing, duration: 1}]}"), "person.body.height"),
+            (format!("{BASE}robot: {ok_robot}\nfurniture: []\n"), "duplicate"),
+        ];
+        for (text, expect) in cases {
+            let e = error(&text);
+            assert!(e.contains(expect), "expected `{expect}` in `{e}`");
+        }
+    }
+
+    #[test]
+    fn negative_size_and_unknown_keys_name_their_path() {
+        let neg = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nfurniture:\n  - {kind: cylinder, center: [4, 3], radius: 0.2, height: 1}\n  - {kind: box, center: [2, 2], size: [1, 1], height: 1}\n  - {kind: box, center: [2, 2], size: [-1, 1], height: 1}\nrobot: {start: {x: 0.5, y: 0.5}}\n";
+        assert!(error(neg).contains("furniture[2].size[0]: must be positive, got -1"), "{}", error(neg));
+        let unknown = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nfurniture:\n  - {kind: box, center: [2, 2], size: [1, 1], height: 1, colour: red}\nrobot: {start: {x: 0.5, y: 0.5}}\n";
+        let e = error(unknown);
+        assert!(e.contains("furniture[0]") && e.contains("unknown field `colour`"), "{e}");
+        let nested = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nrobot: {start: {x: 0.5, y: 0.5}, lidar_hieght: 0.2}\n";
+        let e = error(nested);
+        assert!(e.contains("robot") && e.contains("unknown field `lidar_hieght`"), "{e}");
+        let kind = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nfurniture: [{kind: sofa, center: [1, 1]}]\nrobot: {start: {x: 0.5, y: 0.5}}\n";
+        assert!(error(kind).contains("furniture[0]") && error(kind).contains("sofa"), "{}", error(kind));
+        let activity = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nrobot: {start: {x: 0.5, y: 0.5}}\nperson: {start: {x: 3, y: 3}, script: [{activity: dancing, duration: 1}]}\n";
+        let e = error(activity);
+        assert!(e.contains("person.script[0].activity") && e.contains("dancing"), "{e}");
+        let nan = "duration: .nan\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nrobot: {start: {x: 0.5, y: 0.5}}\n";
+        assert!(error(nan).contains("duration: must be a finite number"), "{}", error(nan));
+        let bow = "duration: 5\nroom: {outline: [[0,0],[5,4],[5,0],[0,4]]}\nrobot: {start: {x: 0.5, y: 0.5}}\n";
+        assert!(error(bow).contains("room.outline: edges"), "{}", error(bow));
+        assert!(error("").contains("bad.yaml"), "{}", error(""));
+        assert!(error("duration: [1").contains("bad.yaml"));
+    }
 }
