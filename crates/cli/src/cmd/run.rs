@@ -1,8 +1,91 @@
-//! `lidar-har run` (being built; see the issue tracker).
+//! `lidar-har run`: the embedded pipeline over a recorded bag (the work is in
+//! `lidar_har_pipeline::bag_run`).
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use lidar_har_pipeline::bag_run::{RunOptions, run_bag};
+use lidar_har_pipeline::classifier::{ClassifierConfig, load_classifier_config};
+use lidar_har_pipeline::files;
 
 #[derive(clap::Args)]
-pub struct RunArgs {}
+pub struct RunArgs {
+    /// Input rosbag2 directory (MCAP or sqlite3) with /scan and, on a robot, /odom, /tf, /map.
+    #[arg(long)]
+    pub bag: PathBuf,
+    /// Output directory: a rosbag2 bag of /human/pose, /human/observation, /human/markers,
+    /// /human/activity, /human/fall_alert, plus summary.json. Must not already hold a bag.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// map_server map (YAML naming a PGM/PNG image). Without it: the bag's /map, or else a
+    /// background learned from the first scans (fixed Lidar).
+    #[arg(long)]
+    pub map: Option<PathBuf>,
+    /// Localiser parameters (YAML, see config/localiser.yaml); defaults are the paper's.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Activity model (ONNX step model, docs/model_contract.md) for /human/activity and
+    /// /human/fall_alert [default: models/activity.onnx; when that is absent and no --model
+    /// is given, the localiser runs alone, with a warning].
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Classifier parameters (YAML, see config/classifier.yaml).
+    #[arg(long)]
+    pub classifier_config: Option<PathBuf>,
+    /// Run the localiser only (no model needed).
+    #[arg(long, conflicts_with_all = ["model", "classifier_config"])]
+    pub no_classifier: bool,
+}
 
-pub fn run(_args: RunArgs) -> anyhow::Result<()> {
-    anyhow::bail!("`lidar-har run` is not available in this build yet")
+pub fn run(args: RunArgs) -> anyhow::Result<()> {
+    let _ = env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn"))
+        .try_init();
+    let config = match &args.config {
+        Some(path) => files::load_config(path)?,
+        None => Default::default(),
+    };
+    let map = args.map.as_deref().map(files::load_map).transpose()?;
+    let classifier = if args.no_classifier {
+        None
+    } else {
+        let mut classifier = match &args.classifier_config {
+            Some(path) => load_classifier_config(path)?,
+            None => ClassifierConfig::default(),
+        };
+        // A model named on the command line or in a classifier configuration must exist.
+        let explicit = args.model.is_some() || args.classifier_config.is_some();
+        if let Some(model) = &args.model {
+            classifier.model = model.clone();
+        }
+        if classifier.model.is_file() {
+            Some(classifier)
+        } else {
+            anyhow::ensure!(
+                !explicit,
+                "no activity model at {}: pass an existing --model FILE, train one (training/, see \
+                 docs/classifier.md), or run the localiser alone with --no-classifier",
+                classifier.model.display()
+            );
+            eprintln!(
+                "lidar-har: warning: no activity model at {}: running the localiser only (train \
+                 one, see docs/classifier.md, or pass --model FILE; --no-classifier silences this)",
+                classifier.model.display()
+            );
+            None
+        }
+    };
+    let options = RunOptions {
+        config,
+        map,
+        classifier,
+    };
+    let summary = run_bag(&args.bag, &args.out, options)
+        .with_context(|| format!("running the pipeline over {}", args.bag.display()))?;
+    println!("{}", serde_json::to_string_pretty(&summary)?);
+    eprintln!(
+        "wrote {} (bag) and {}",
+        args.out.display(),
+        args.out.join("summary.json").display()
+    );
+    Ok(())
 }
