@@ -1,8 +1,723 @@
-//! `lidar-har dataset` (being built; see the issue tracker).
+//! `lidar-har dataset`: labelled windows for training, made by the real pipeline.
+//!
+//! Per episode (a scene, a seed and a randomised activity script covering the nine classes):
+//! the simulator runs, the real localiser (map subtraction, clustering, tracker) finds the
+//! person in each scan, the person's points become an image (`lidar_har_core::representation`)
+//! and the scans are cut into windows of `T` scans with a label per scan. Episodes, never
+//! windows, are split into train and test; scenes named by `--held-out` are never trained on
+//! and form the `test_unseen` split. Layout on disk: docs/training.md.
 
-#[derive(clap::Args)]
-pub struct DatasetArgs {}
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
-pub fn run(_args: DatasetArgs) -> anyhow::Result<()> {
-    anyhow::bail!("`lidar-har dataset` is not available in this build yet")
+use anyhow::{Context, bail};
+use glam::DVec2;
+use indicatif::{ProgressBar, ProgressStyle};
+use lidar_har_core::activity::Activity;
+use lidar_har_core::geometry::Pose2;
+use lidar_har_core::localiser::{Localiser, LocaliserConfig, Motion, Reference};
+use lidar_har_core::map::{MapGeometry, OccupancyMap as CoreMap};
+use lidar_har_core::representation::{Framing, RepresentationKind, RepresentationSpec, Renderer};
+use lidar_har_core::scan::Scan;
+use lidar_har_sim::map::{DEFAULT_RESOLUTION, OccupancyMap as SimMap};
+use lidar_har_sim::person::Person;
+use lidar_har_sim::scene::{FallDirection, Motion as RobotMotionSpec, PersonSpec, PoseSpec, ScriptStep};
+use lidar_har_sim::world::World;
+use lidar_har_sim::{Scene, Simulator};
+use ndarray::{Array2, Array4, s};
+use rand::seq::IndexedRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+/// Bumped when the layout of `index.json` or the arrays changes.
+pub const FORMAT_VERSION: u32 = 1;
+pub const SPLITS: [&str; 3] = ["train", "test", "test_unseen"];
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct DatasetArgs {
+    /// Scene files, as a glob (e.g. 'config/scenes/*.yaml').
+    #[arg(long)]
+    pub scenes: String,
+    /// Episodes over the training scenes (train + test); the held-out scenes get
+    /// `test_fraction` of this many more.
+    #[arg(long, default_value_t = 40)]
+    pub episodes: usize,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output directory (created; existing dataset files are replaced).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value = "boolean_grid")]
+    pub representation: RepresentationKind,
+    #[arg(long, default_value = "person_centred")]
+    pub framing: Framing,
+    /// Image side, pixels (a multiple of 4 for the model's encoder).
+    #[arg(long, default_value_t = 32)]
+    pub size: usize,
+    /// Metres per pixel.
+    #[arg(long, default_value_t = 0.05)]
+    pub resolution: f64,
+    /// Scans per window (T).
+    #[arg(long, default_value_t = 20)]
+    pub window: usize,
+    /// Scans between the starts of consecutive windows.
+    #[arg(long, default_value_t = 10)]
+    pub stride: usize,
+    /// Share of the training scenes' episodes that go to the test split.
+    #[arg(long, default_value_t = 0.2)]
+    pub test_fraction: f64,
+    /// Scene names (their `name:` field) kept out of training: the `test_unseen` split.
+    #[arg(long, value_delimiter = ',')]
+    pub held_out: Vec<String>,
+    /// Seconds simulated per episode.
+    #[arg(long, default_value_t = 60.0)]
+    pub episode_seconds: f64,
+    /// A Lidar fixed in the room (at a random free spot per episode) instead of the moving robot.
+    #[arg(long)]
+    pub fixed_lidar: bool,
+    /// Worker threads (episodes run in parallel).
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
+}
+
+/// What every image and window of a dataset was made with.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DatasetSpec {
+    pub representation: RepresentationKind,
+    pub framing: Framing,
+    pub size: usize,
+    pub resolution_m: f64,
+    pub window: usize,
+    pub stride: usize,
+    pub scan_rate_hz: f64,
+    pub fixed_lidar: bool,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeEntry {
+    pub id: usize,
+    pub scene: String,
+    pub scene_file: String,
+    pub seed: u64,
+    pub split: String,
+    pub scans: usize,
+    /// Scans in which the localiser had the person in view.
+    pub person_visible_scans: usize,
+    pub windows: usize,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WindowEntry {
+    pub split: String,
+    /// Row in the split's arrays.
+    pub row: usize,
+    pub episode: usize,
+    pub start_scan: usize,
+    /// Stamp of the window's first scan, seconds from the episode start.
+    pub start_s: f64,
+    /// The activity at the window's last scan.
+    pub label: Activity,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SplitEntry {
+    pub windows: usize,
+    /// `[windows, T, size, size]` uint8: pixel value x 255.
+    pub images: String,
+    /// `[windows, T]` uint8: the class index of each scan.
+    pub labels: String,
+    /// Windows per class (by last label), class order.
+    pub class_counts: Vec<usize>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Generator {
+    pub command: String,
+    pub scenes: Vec<String>,
+    pub held_out: Vec<String>,
+    pub episodes: usize,
+    pub seed: u64,
+    pub episode_seconds: f64,
+    /// How the person's points were found.
+    pub person_points: String,
+}
+
+/// `index.json`: everything about a dataset except the pixels.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DatasetIndex {
+    pub format_version: u32,
+    pub spec: DatasetSpec,
+    pub classes: Vec<String>,
+    pub generator: Generator,
+    pub splits: std::collections::BTreeMap<String, SplitEntry>,
+    pub episodes: Vec<EpisodeEntry>,
+    pub windows: Vec<WindowEntry>,
+}
+
+impl DatasetIndex {
+    /// Reads and checks `dir/index.json` (classes in DESIGN.md order, rows consistent).
+    pub fn load(dir: &Path) -> anyhow::Result<Self> {
+        let path = dir.join("index.json");
+        let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
+        let index: DatasetIndex =
+            serde_json::from_str(&text).with_context(|| format!("{}: not a lidar-har dataset index", path.display()))?;
+        if index.format_version != FORMAT_VERSION {
+            bail!("{}: format version {} (this build reads {FORMAT_VERSION})", path.display(), index.format_version);
+        }
+        let expected: Vec<&str> = Activity::ALL.iter().map(|a| a.label()).collect();
+        if index.classes != expected {
+            bail!("{}: classes {:?} differ from the class order {:?}", path.display(), index.classes, expected);
+        }
+        Ok(index)
+    }
+
+    /// The split's images `[N, T, S, S]` and per-scan labels `[N, T]`, shape-checked.
+    pub fn read_split(&self, dir: &Path, split: &str) -> anyhow::Result<Option<(Array4<u8>, Array2<u8>)>> {
+        let Some(entry) = self.splits.get(split) else { return Ok(None) };
+        if entry.windows == 0 {
+            return Ok(None);
+        }
+        let images_path = dir.join(&entry.images);
+        let labels_path = dir.join(&entry.labels);
+        let images: Array4<u8> = ndarray_npy::read_npy(&images_path)
+            .with_context(|| format!("cannot read {} as a uint8 [N, T, S, S] array", images_path.display()))?;
+        let labels: Array2<u8> = ndarray_npy::read_npy(&labels_path)
+            .with_context(|| format!("cannot read {} as a uint8 [N, T] array", labels_path.display()))?;
+        let (t, size) = (self.spec.window, self.spec.size);
+        if images.dim() != (entry.windows, t, size, size) {
+            bail!("{}: shape {:?}, index says {:?}", images_path.display(), images.dim(), (entry.windows, t, size, size));
+        }
+        if labels.dim() != (entry.windows, t) {
+            bail!("{}: shape {:?}, index says {:?}", labels_path.display(), labels.dim(), (entry.windows, t));
+        }
+        if let Some(bad) = labels.iter().find(|&&l| l as usize >= Activity::COUNT) {
+            bail!("{}: class index {bad} is out of range 0..8", labels_path.display());
+        }
+        Ok(Some((images, labels)))
+    }
+}
+
+/// One simulated episode, ready to run.
+struct EpisodePlan {
+    id: usize,
+    scene: Scene,
+    scene_file: String,
+    seed: u64,
+    split: &'static str,
+}
+
+/// What an episode gives: its windows and their labels.
+struct EpisodeWindows {
+    images: Array4<u8>,
+    labels: Array2<u8>,
+    starts: Vec<usize>,
+    scans: usize,
+    visible: usize,
+}
+
+pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
+    validate_args(&args)?;
+    let spec = RepresentationSpec::new(args.representation, args.framing, args.size, args.resolution);
+    let renderer = Renderer::new(spec).context("--size/--resolution")?;
+    let scenes = load_scenes(&args.scenes)?;
+    for name in &args.held_out {
+        if !scenes.iter().any(|(_, s)| &s.name == name) {
+            bail!("--held-out '{name}' is not the name of any scene matched by '{}'", args.scenes);
+        }
+    }
+    let plans = plan_episodes(&args, &scenes)?;
+    let rate_hz = plans.first().map(|p| p.scene.lidar.rate_hz).unwrap_or(20.0);
+    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
+
+    let bar = ProgressBar::new(plans.len() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} episodes {pos}/{len} [{bar:30}] {elapsed_precise} eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let results: Mutex<Vec<Option<anyhow::Result<EpisodeWindows>>>> = Mutex::new((0..plans.len()).map(|_| None).collect());
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    std::thread::scope(|scope| {
+        for _ in 0..args.threads.max(1) {
+            scope.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some(plan) = plans.get(i) else { break };
+                    let result = run_episode(plan, &args, &renderer);
+                    if let Ok(mut r) = results.lock() {
+                        r[i] = Some(result);
+                    }
+                    bar.inc(1);
+                }
+            });
+        }
+    });
+    bar.finish_and_clear();
+    let results = results.into_inner().map_err(|_| anyhow::anyhow!("a worker thread panicked"))?;
+
+    let mut episodes = Vec::new();
+    let mut per_split: Vec<(Vec<EpisodeWindows>, Vec<usize>)> = SPLITS.iter().map(|_| (Vec::new(), Vec::new())).collect();
+    for (plan, result) in plans.iter().zip(results) {
+        let windows = match result {
+            Some(Ok(windows)) => windows,
+            // A scene too small for a random script (e.g. no room to run) loses that episode only.
+            Some(Err(err)) => {
+                eprintln!("dataset: skipping episode {} (scene '{}', seed {}): {err:#}", plan.id, plan.scene.name, plan.seed);
+                continue;
+            }
+            None => bail!("episode {} did not run", plan.id),
+        };
+        episodes.push(EpisodeEntry {
+            id: plan.id,
+            scene: plan.scene.name.clone(),
+            scene_file: plan.scene_file.clone(),
+            seed: plan.seed,
+            split: plan.split.to_string(),
+            scans: windows.scans,
+            person_visible_scans: windows.visible,
+            windows: windows.starts.len(),
+        });
+        let k = SPLITS.iter().position(|s| *s == plan.split).unwrap_or(0);
+        per_split[k].0.push(windows);
+        per_split[k].1.push(plan.id);
+    }
+
+    let mut index = DatasetIndex {
+        format_version: FORMAT_VERSION,
+        spec: DatasetSpec {
+            representation: args.representation,
+            framing: args.framing,
+            size: args.size,
+            resolution_m: args.resolution,
+            window: args.window,
+            stride: args.stride,
+            scan_rate_hz: rate_hz,
+            fixed_lidar: args.fixed_lidar,
+        },
+        classes: Activity::ALL.iter().map(|a| a.label().to_string()).collect(),
+        generator: Generator {
+            command: std::env::args().collect::<Vec<_>>().join(" "),
+            scenes: scenes.iter().map(|(_, s)| s.name.clone()).collect(),
+            held_out: args.held_out.clone(),
+            episodes: args.episodes,
+            seed: args.seed,
+            episode_seconds: args.episode_seconds,
+            person_points: "localiser (map subtraction, clustering, tracker; lidar_har_core::localiser)".to_string(),
+        },
+        splits: Default::default(),
+        episodes,
+        windows: Vec::new(),
+    };
+    let period_s = 1.0 / rate_hz;
+    for (split, (parts, ids)) in SPLITS.iter().zip(per_split) {
+        let total: usize = parts.iter().map(|p| p.starts.len()).sum();
+        let mut images = Array4::<u8>::zeros((total, args.window, args.size, args.size));
+        let mut labels = Array2::<u8>::zeros((total, args.window));
+        let mut counts = vec![0usize; Activity::COUNT];
+        let mut row = 0;
+        for (part, episode) in parts.iter().zip(ids) {
+            let n = part.starts.len();
+            images.slice_mut(s![row..row + n, .., .., ..]).assign(&part.images);
+            labels.slice_mut(s![row..row + n, ..]).assign(&part.labels);
+            for (k, &start) in part.starts.iter().enumerate() {
+                let last = part.labels[[k, args.window - 1]] as usize;
+                counts[last] += 1;
+                index.windows.push(WindowEntry {
+                    split: split.to_string(),
+                    row: row + k,
+                    episode,
+                    start_scan: start,
+                    start_s: start as f64 * period_s,
+                    label: Activity::from_index(last).unwrap_or(Activity::Standing),
+                });
+            }
+            row += n;
+        }
+        let entry = SplitEntry {
+            windows: total,
+            images: format!("{split}_images.npy"),
+            labels: format!("{split}_labels.npy"),
+            class_counts: counts,
+        };
+        write_npy(&args.out.join(&entry.images), &images)?;
+        write_npy(&args.out.join(&entry.labels), &labels)?;
+        index.splits.insert(split.to_string(), entry);
+    }
+    if index.windows.is_empty() {
+        bail!("no episode gave any window (see the messages above)");
+    }
+    let index_path = args.out.join("index.json");
+    std::fs::write(&index_path, serde_json::to_string_pretty(&index)? + "\n")
+        .with_context(|| format!("cannot write {}", index_path.display()))?;
+    print_counts(&index);
+    println!("wrote {} windows to {}", index.windows.len(), args.out.display());
+    Ok(())
+}
+
+fn write_npy<A: ndarray_npy::WritableElement, D: ndarray::Dimension>(
+    path: &Path,
+    array: &ndarray::Array<A, D>,
+) -> anyhow::Result<()> {
+    ndarray_npy::write_npy(path, array).with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
+    if args.window < 2 {
+        bail!("--window {} must be at least 2 scans", args.window);
+    }
+    if args.stride == 0 {
+        bail!("--stride must be at least 1");
+    }
+    if args.size % 4 != 0 {
+        bail!("--size {} must be a multiple of 4 (the model's encoder halves it twice)", args.size);
+    }
+    if !(args.test_fraction >= 0.0 && args.test_fraction < 1.0) {
+        bail!("--test-fraction {} must be in [0, 1)", args.test_fraction);
+    }
+    if args.episodes == 0 {
+        bail!("--episodes must be at least 1");
+    }
+    if !(args.episode_seconds.is_finite() && args.episode_seconds > 0.0) {
+        bail!("--episode-seconds {} must be a positive number", args.episode_seconds);
+    }
+    Ok(())
+}
+
+/// Scenes matching the glob, sorted by path, each with a person (the activities come from it).
+fn load_scenes(pattern: &str) -> anyhow::Result<Vec<(String, Scene)>> {
+    let mut paths: Vec<PathBuf> = glob::glob(pattern)
+        .with_context(|| format!("--scenes '{pattern}' is not a valid glob"))?
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("--scenes '{pattern}'"))?;
+    paths.sort();
+    if paths.is_empty() {
+        bail!("--scenes '{pattern}' matches no file");
+    }
+    let mut scenes = Vec::new();
+    for path in paths {
+        let scene = Scene::load(&path)?;
+        if scene.person.is_none() {
+            eprintln!("dataset: skipping {} (no person in the scene)", path.display());
+            continue;
+        }
+        scenes.push((path.display().to_string(), scene));
+    }
+    if scenes.is_empty() {
+        bail!("--scenes '{pattern}': no scene has a person");
+    }
+    Ok(scenes)
+}
+
+/// Episodes round-robin over the scenes; a seeded shuffle picks the test episodes among the
+/// training scenes' (whole episodes, never windows); held-out scenes are all `test_unseen`.
+fn plan_episodes(args: &DatasetArgs, scenes: &[(String, Scene)]) -> anyhow::Result<Vec<EpisodePlan>> {
+    let (unseen, seen): (Vec<_>, Vec<_>) = scenes.iter().partition(|(_, s)| args.held_out.contains(&s.name));
+    if seen.is_empty() {
+        bail!("every scene is held out: nothing left to train on");
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(args.seed);
+    let test_count = (args.test_fraction * args.episodes as f64).round() as usize;
+    let mut order: Vec<usize> = (0..args.episodes).collect();
+    for i in (1..order.len()).rev() {
+        order.swap(i, rng.random_range(0..=i));
+    }
+    let test: std::collections::HashSet<usize> = order.into_iter().take(test_count).collect();
+    let mut plans = Vec::new();
+    let mut push = |id: usize, (file, scene): &(String, Scene), split: &'static str| {
+        let seed = args.seed.wrapping_mul(1_000_003).wrapping_add(id as u64);
+        let mut scene = scene.clone();
+        scene.duration = args.episode_seconds;
+        plans.push(EpisodePlan { id, scene, scene_file: file.clone(), seed, split });
+    };
+    for id in 0..args.episodes {
+        let split = if test.contains(&id) { "test" } else { "train" };
+        push(id, seen[id % seen.len()], split);
+    }
+    if !unseen.is_empty() {
+        let count = test_count.max(unseen.len());
+        for k in 0..count {
+            push(args.episodes + k, unseen[k % unseen.len()], "test_unseen");
+        }
+    }
+    Ok(plans)
+}
+
+fn run_episode(plan: &EpisodePlan, args: &DatasetArgs, renderer: &Renderer) -> anyhow::Result<EpisodeWindows> {
+    let mut rng = ChaCha8Rng::seed_from_u64(plan.seed ^ 0x5eed_da7a);
+    let mut scene = plan.scene.clone();
+    let world = World::new(&scene);
+    if args.fixed_lidar {
+        let spot = random_free_point(&world, &mut rng, 0.5)
+            .ok_or_else(|| anyhow::anyhow!("no free spot for a fixed Lidar in scene '{}'", scene.name))?;
+        scene.robot.start = PoseSpec { x: spot.x, y: spot.y, yaw_deg: rng.random_range(-180.0..180.0) };
+        scene.robot.motion = RobotMotionSpec::Static;
+    }
+    let mut simulator = None;
+    let mut last_error = None;
+    for attempt in 0..30 {
+        let Some(person) = random_person(&scene, &world, &mut rng, plan.seed + attempt) else { continue };
+        let mut candidate = scene.clone();
+        candidate.person = Some(person);
+        match Simulator::new(candidate, plan.seed) {
+            Ok(sim) => {
+                simulator = Some(sim);
+                break;
+            }
+            Err(e) => last_error = Some(e),
+        }
+    }
+    let Some(mut sim) = simulator else {
+        bail!("no valid random activity script after 30 attempts (last error: {last_error:?})");
+    };
+
+    let map = core_map(&SimMap::from_world(sim.world(), DEFAULT_RESOLUTION))?;
+    let config = LocaliserConfig { mount: sim.lidar_mount(), ..LocaliserConfig::default() };
+    let motion = if args.fixed_lidar { Motion::Stationary(scene.robot.start.to_pose()) } else { Motion::Odometry };
+    let mut localiser = Localiser::new(config, Reference::Map(map), motion).context("localiser configuration")?;
+    let geometry = sim.scan_geometry();
+
+    // Per scan: the person's points, the track position (if any), the Lidar position, the truth.
+    let mut points: Vec<Vec<DVec2>> = Vec::new();
+    let mut positions: Vec<Option<DVec2>> = Vec::new();
+    let mut sensors: Vec<DVec2> = Vec::new();
+    let mut truth: Vec<Activity> = Vec::new();
+    let mut visible = 0;
+    while let Some(frame) = sim.step() {
+        let stamp = frame.stamp_ns as i64;
+        if !args.fixed_lidar {
+            localiser.add_odometry(stamp, frame.robot);
+        }
+        let scan = Scan {
+            stamp_ns: stamp,
+            angle_min: geometry.angle_min as f32,
+            angle_increment: geometry.angle_increment as f32,
+            range_min: geometry.range_min as f32,
+            range_max: geometry.range_max as f32,
+            ranges: frame.ranges,
+        };
+        let result = localiser.process_scan(&scan);
+        let person = result.output.as_ref().and_then(|o| o.person.as_ref());
+        match person {
+            Some(p) if p.visible => {
+                visible += 1;
+                points.push(p.points.clone());
+                positions.push(Some(p.position));
+            }
+            Some(p) => {
+                points.push(Vec::new());
+                positions.push(Some(p.position));
+            }
+            None => {
+                points.push(Vec::new());
+                positions.push(None);
+            }
+        }
+        sensors.push(frame.laser.position());
+        truth.push(frame.person.map(|p| p.activity).unwrap_or(Activity::Standing));
+    }
+    let scans = truth.len();
+    let t = args.window;
+    let starts: Vec<usize> = if scans >= t { (0..=scans - t).step_by(args.stride).collect() } else { Vec::new() };
+    let size = args.size;
+    let mut images = Array4::<u8>::zeros((starts.len(), t, size, size));
+    let mut labels = Array2::<u8>::zeros((starts.len(), t));
+    let mut image = Array2::<f32>::zeros((size, size));
+    for (w, &start) in starts.iter().enumerate() {
+        // Room-fixed framing: centred on the first known position in the window.
+        let anchor = (start..start + t).find_map(|i| positions[i]);
+        for k in 0..t {
+            let i = start + k;
+            labels[[w, k]] = truth[i].index() as u8;
+            let centre = match args.framing {
+                Framing::PersonCentred => positions[i],
+                Framing::RoomFixed => anchor,
+            };
+            let mut out = images.slice_mut(s![w, k, .., ..]);
+            if let Some(centre) = centre
+                && !points[i].is_empty()
+            {
+                renderer.render(points[i].iter().copied(), centre, sensors[i], image.view_mut());
+                out.zip_mut_with(&image, |o, &v| *o = (v.clamp(0.0, 1.0) * 255.0).round() as u8);
+            }
+        }
+    }
+    Ok(EpisodeWindows { images, labels, starts, scans, visible })
+}
+
+/// The simulator's grid as the localiser's map (map_server's default threshold).
+fn core_map(sim_map: &SimMap) -> anyhow::Result<CoreMap> {
+    let geometry = MapGeometry {
+        resolution: sim_map.resolution,
+        origin: Pose2::new(sim_map.origin.x, sim_map.origin.y, 0.0),
+        width: sim_map.width as usize,
+        height: sim_map.height as usize,
+    };
+    CoreMap::from_grid_values(geometry, &sim_map.data, 0.65).context("simulated map")
+}
+
+/// A random point in the room at least `clearance` from walls and furniture.
+fn random_free_point(world: &World, rng: &mut ChaCha8Rng, clearance: f64) -> Option<DVec2> {
+    let (lo, hi) = world.bounds();
+    (0..500).find_map(|_| {
+        let p = DVec2::new(rng.random_range(lo.x..hi.x), rng.random_range(lo.y..hi.y));
+        (world.person_clearance(p).0 >= clearance && world.wall_clearance(p) >= clearance).then_some(p)
+    })
+}
+
+/// A reachable random point: free, and the straight walk to it stays clear.
+fn random_reachable_point(world: &World, rng: &mut ChaCha8Rng, from: DVec2, max_dist: f64) -> Option<DVec2> {
+    (0..200).find_map(|_| {
+        let p = random_free_point(world, rng, 0.45)?;
+        let d = p - from;
+        if d.length() < 0.5 || d.length() > max_dist {
+            return None;
+        }
+        let steps = (d.length() / 0.1).ceil() as usize;
+        let clear = (1..steps).all(|k| world.person_clearance(from + d * (k as f64 / steps as f64)).0 >= 0.3);
+        clear.then_some(p)
+    })
+}
+
+/// A locomotion step of about `seconds` that ends at its last path point.
+fn locomotion_step(
+    world: &World,
+    rng: &mut ChaCha8Rng,
+    activity: Activity,
+    from: DVec2,
+    speed: std::ops::Range<f64>,
+    seconds: std::ops::Range<f64>,
+) -> Option<(ScriptStep, DVec2)> {
+    let speed = rng.random_range(speed);
+    let seconds = rng.random_range(seconds);
+    let mut path = Vec::new();
+    let (mut here, mut length) = (from, 0.0);
+    while length < speed * seconds {
+        let max = if activity == Activity::Crawling { 1.5 } else { 6.0 };
+        let next = random_reachable_point(world, rng, here, max)?;
+        length += (next - here).length();
+        path.push([next.x, next.y]);
+        here = next;
+        if path.len() > 12 {
+            break;
+        }
+    }
+    let step = ScriptStep { activity, duration: (length / speed).max(0.5), path, speed: Some(speed), fall: None };
+    Some((step, here))
+}
+
+fn still_step(activity: Activity, duration: f64) -> ScriptStep {
+    ScriptStep { activity, duration, path: Vec::new(), speed: None, fall: None }
+}
+
+/// The scene's person with a random start and a random script that covers the nine
+/// activities in plausible orders (falls end on the floor, the floor ends by getting up).
+/// The rarer, shorter activities (falls, getting up, crawling, running) come often.
+fn random_person(scene: &Scene, world: &World, rng: &mut ChaCha8Rng, person_seed: u64) -> Option<PersonSpec> {
+    let base = scene.person.clone()?;
+    let start = random_free_point(world, rng, 0.6)?;
+    let mut script: Vec<ScriptStep> = Vec::new();
+    let mut here = start;
+    let mut total = 0.0;
+    let mut spec = PersonSpec {
+        start: PoseSpec { x: start.x, y: start.y, yaw_deg: rng.random_range(-180.0..180.0) },
+        script: Vec::new(),
+        repeat: false,
+        ..base
+    };
+    let fall_dirs = [FallDirection::Forward, FallDirection::Backward, FallDirection::Left, FallDirection::Right];
+    let mut draws = 0;
+    while total < scene.duration + 2.0 {
+        draws += 1;
+        if draws > 200 {
+            return None;
+        }
+        let mut block: Vec<ScriptStep> = Vec::new();
+        let mut end_here = None;
+        match rng.random_range(0..10) {
+            0 => block.push(still_step(Activity::Standing, rng.random_range(1.5..4.0))),
+            1 | 2 => {
+                let (s, p) = locomotion_step(world, rng, Activity::Walking, here, 0.7..1.2, 3.0..7.0)?;
+                block.push(s);
+                end_here = Some(p);
+            }
+            3 => {
+                let (s, p) = locomotion_step(world, rng, Activity::Running, here, 1.8..2.8, 2.0..4.0)?;
+                block.push(s);
+                end_here = Some(p);
+            }
+            4 => {
+                let (s, p) =
+                    locomotion_step(world, rng, Activity::WalkingUnsteadily, here, 0.35..0.6, 3.0..6.0)?;
+                block.push(s);
+                end_here = Some(p);
+            }
+            5..=7 => {
+                let mut fall = still_step(Activity::FallingDown, rng.random_range(0.7..1.4));
+                fall.fall = fall_dirs.choose(rng).copied();
+                block.push(fall);
+                block.push(still_step(Activity::LyingDown, rng.random_range(2.0..6.0)));
+                if rng.random_bool(0.3) {
+                    block.push(still_step(Activity::SittingOnFloor, rng.random_range(2.0..4.0)));
+                }
+                block.push(still_step(Activity::GettingUp, rng.random_range(1.2..2.5)));
+            }
+            _ => {
+                block.push(still_step(Activity::SittingOnFloor, rng.random_range(2.0..5.0)));
+                if rng.random_bool(0.6) {
+                    // Crawling from where the person sits: the position comes from the plan.
+                    let mut trial = spec.clone();
+                    trial.script = script.iter().chain(block.iter()).cloned().collect();
+                    let at = position_after(&trial, world, person_seed)?;
+                    if let Some((s, _)) = locomotion_step(world, rng, Activity::Crawling, at, 0.2..0.4, 2.5..5.0) {
+                        block.push(s);
+                    }
+                }
+                block.push(still_step(Activity::GettingUp, rng.random_range(1.2..2.5)));
+            }
+        }
+        let mut trial = spec.clone();
+        trial.script = script.iter().chain(block.iter()).cloned().collect();
+        if Person::new(&trial, world, person_seed).is_err() {
+            continue; // this block does not fit here (a path through furniture): draw another
+        }
+        total += block.iter().map(|s| s.duration).sum::<f64>();
+        script.extend(block);
+        here = match end_here {
+            Some(p) => p,
+            None => position_after(&trial, world, person_seed)?,
+        };
+        if world.person_clearance(here).0 < 0.2 {
+            return None;
+        }
+    }
+    spec.script = script;
+    Some(spec)
+}
+
+/// Where the person stands at the end of `spec`'s script.
+fn position_after(spec: &PersonSpec, world: &World, seed: u64) -> Option<DVec2> {
+    let mut person = Person::new(spec, world, seed).ok()?;
+    let end: f64 = spec.script.iter().map(|s| s.duration).sum();
+    Some(person.state_at(end).position)
+}
+
+fn print_counts(index: &DatasetIndex) {
+    print!("{:<20}", "class");
+    for split in SPLITS {
+        print!("{split:>12}");
+    }
+    println!();
+    for activity in Activity::ALL {
+        print!("{:<20}", activity.label());
+        for split in SPLITS {
+            let n = index.splits.get(split).map(|e| e.class_counts[activity.index()]).unwrap_or(0);
+            print!("{n:>12}");
+        }
+        println!();
+    }
+    print!("{:<20}", "episodes");
+    for split in SPLITS {
+        print!("{:>12}", index.episodes.iter().filter(|e| e.split == split).count());
+    }
+    println!();
 }
