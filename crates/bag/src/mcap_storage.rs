@@ -218,7 +218,11 @@ impl McapFile {
             .seek(SeekFrom::Start(0))
             .map_err(io_error(&path, "cannot seek"))?;
         match read_summary(&mut reader, len) {
-            Ok(Some(summary)) if summary.stats.is_some() || !summary.chunk_indexes.is_empty() => {
+            // The indexed reader only sees messages inside indexed chunks: use it when every
+            // message is in one (a chunked file, or one without messages).
+            Ok(Some(summary))
+                if !summary.chunk_indexes.is_empty() || summary.stats.as_ref().is_some_and(|s| s.message_count == 0) =>
+            {
                 Self::from_summary(input, summary)
             }
             _ => Self::from_linear_scan(input),

@@ -1,0 +1,144 @@
+//! A real child process records a bag and is interrupted: SIGKILL loses nothing flushed and
+//! leaves nothing corrupt; SIGTERM (handled the way the project's binaries do) leaves a
+//! complete bag. The child is this test binary itself, re-run with `BAG_CHILD_DIR` set.
+
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use lidar_har_bag::{BagError, BagReader, BagWriter, Compression, WriterOptions};
+use lidar_har_msgs::builtin_interfaces::Time;
+use lidar_har_msgs::qos::QosProfile;
+use lidar_har_msgs::sensor_msgs::LaserScan;
+use lidar_har_msgs::std_msgs::Header;
+
+const CHILD_DIR: &str = "BAG_CHILD_DIR";
+
+fn scan(i: u32) -> LaserScan {
+    LaserScan {
+        header: Header { stamp: Time { sec: i as i32, nanosec: 0 }, frame_id: "laser".into() },
+        angle_increment: 0.00872,
+        range_max: 12.0,
+        ranges: (0..720).map(|b| if b % 7 == 0 { f32::INFINITY } else { (i + b) as f32 * 0.001 }).collect(),
+        ..LaserScan::default()
+    }
+}
+
+/// The child: records scans until SIGTERM/SIGINT (then finishes the bag) or until killed.
+/// Prints `flushed N` each time N messages are safely on disk.
+#[test]
+fn child_writer() {
+    let Some(dir) = std::env::var_os(CHILD_DIR) else { return };
+    let stop = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, stop.clone()).unwrap();
+    signal_hook::flag::register(signal_hook::consts::SIGINT, stop.clone()).unwrap();
+    let options = WriterOptions {
+        compression: Compression::Zstd,
+        chunk_size: 64 * 1024,
+        flush_interval: Duration::from_secs(3600),
+        ..WriterOptions::default()
+    };
+    let mut writer = BagWriter::create(Path::new(&dir), options).unwrap();
+    let topic = writer.add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data()).unwrap();
+    let mut i = 0u32;
+    while !stop.load(Ordering::Relaxed) && i < 1_000_000 {
+        writer.write_message(topic, 1_000 + i64::from(i) * 50_000_000, &scan(i)).unwrap();
+        i += 1;
+        if i % 25 == 0 {
+            writer.flush().unwrap();
+            println!("flushed {i}");
+        }
+        std::thread::sleep(Duration::from_micros(200));
+    }
+    let summary = writer.finish().unwrap();
+    println!("finished {}", summary.metadata.message_count);
+}
+
+fn spawn_child(dir: &Path) -> Child {
+    Command::new(std::env::current_exe().unwrap())
+        .args(["--exact", "child_writer", "--nocapture", "--test-threads=1"])
+        .env(CHILD_DIR, dir)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// Reads the child's `flushed N` lines until N reaches `at_least`; returns the last N seen.
+fn wait_for_flushes(lines: &mut impl Iterator<Item = String>, at_least: u32) -> u32 {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    for line in lines {
+        if let Some(n) = line.strip_prefix("flushed ").and_then(|n| n.trim().parse::<u32>().ok()) {
+            if n >= at_least {
+                return n;
+            }
+        }
+        assert!(Instant::now() < deadline, "child too slow");
+    }
+    panic!("child ended before flushing {at_least} messages");
+}
+
+fn read_back(dir: &Path) -> (Vec<LaserScan>, Option<BagError>) {
+    let reader = BagReader::open(dir).unwrap();
+    let mut scans = Vec::new();
+    let mut error = None;
+    for message in reader.messages().unwrap() {
+        match message {
+            Ok(m) => scans.push(reader.decode::<LaserScan>(&m).unwrap()),
+            Err(e) => error = Some(e),
+        }
+    }
+    (scans, error)
+}
+
+#[test]
+fn sigkill_loses_nothing_flushed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("killed");
+    let mut child = spawn_child(&dir);
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines().map_while(Result::ok);
+    let flushed = wait_for_flushes(&mut lines, 300);
+    child.kill().unwrap(); // SIGKILL: no handler runs
+    child.wait().unwrap();
+
+    let (scans, error) = read_back(&dir);
+    assert!(scans.len() >= flushed as usize, "{} read back, {flushed} flushed", scans.len());
+    for (i, got) in scans.iter().enumerate() {
+        let expected = scan(i as u32);
+        assert_eq!(got.header, expected.header, "message {i}");
+        assert!(got.ranges.iter().zip(&expected.ranges).all(|(a, b)| a.to_bits() == b.to_bits()), "message {i}");
+    }
+    // The writer was killed mid-file: no summary, and normally half a chunk at the end.
+    let reader = BagReader::open(&dir).unwrap();
+    assert!(reader.metadata().truncated);
+    if let Some(error) = error {
+        assert!(matches!(error, BagError::Truncated { .. }), "{error}");
+    }
+    // metadata.yaml was kept up to date at each flush.
+    let listed = reader.bag_metadata().unwrap().message_count;
+    assert!(listed >= u64::from(flushed) && listed <= scans.len() as u64, "metadata.yaml lists {listed}");
+}
+
+#[test]
+fn sigterm_finishes_the_bag() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("terminated");
+    let mut child = spawn_child(&dir);
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines().map_while(Result::ok);
+    wait_for_flushes(&mut lines, 100);
+    nix::sys::signal::kill(nix::unistd::Pid::from_raw(child.id() as i32), nix::sys::signal::Signal::SIGTERM).unwrap();
+    let finished: u64 = lines
+        .find_map(|l| l.strip_prefix("finished ").and_then(|n| n.trim().parse().ok()))
+        .expect("child prints `finished N` after SIGTERM");
+    assert!(child.wait().unwrap().success());
+
+    let (scans, error) = read_back(&dir);
+    assert!(error.is_none(), "{error:?}");
+    assert_eq!(scans.len() as u64, finished);
+    let reader = BagReader::open(&dir).unwrap();
+    assert!(!reader.metadata().truncated, "a complete MCAP with its summary");
+    assert_eq!(reader.bag_metadata().unwrap().message_count, finished);
+    assert_eq!(reader.metadata().message_count, finished);
+}
