@@ -1,8 +1,306 @@
-//! `lidar-har demo` (being built; see the issue tracker).
+//! `lidar-har demo`: the product in one command. Simulates a scene with a fall, runs the
+//! whole pipeline (localiser, classifier, fall alerts) over the recording, prints a timeline
+//! of recognised activities (with the ground truth) and the alerts, and writes the bags and
+//! two pictures. It needs a trained model: without one it stops and says so, it never fakes
+//! results.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use lidar_har_core::activity::Activity;
+use lidar_har_pipeline::bag_run::{RunOptions, run_bag};
+use lidar_har_pipeline::classifier::{
+    ActivitySummary, ClassifierConfig, ClassifierRun, load_classifier_config,
+};
+use lidar_har_sim::map::OccupancyMap;
+use lidar_har_sim::record::record;
+use lidar_har_sim::render::{ACTIVITY_COLOURS, Trace, render_png};
+use lidar_har_sim::{Scene, Simulator};
+use plotters::prelude::*;
 
 #[derive(clap::Args)]
-pub struct DemoArgs {}
+pub struct DemoArgs {
+    /// Scene to simulate (YAML, see docs/simulator.md); the default one contains a fall.
+    #[arg(long, default_value = "config/scenes/living_room.yaml")]
+    pub scene: PathBuf,
+    /// Output directory (created; must not exist or be empty): sim/ (the simulated bag),
+    /// run/ (the pipeline's bag and summary.json), scene.png, timeline.png.
+    #[arg(long, default_value = "demo_out")]
+    pub out: PathBuf,
+    /// Mixed with the scene's seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// The activity model (ONNX step model, see docs/model_contract.md).
+    #[arg(long, default_value = "models/activity.onnx")]
+    pub model: PathBuf,
+    /// Classifier parameters (YAML, see config/classifier.yaml); defaults when absent.
+    #[arg(long)]
+    pub classifier_config: Option<PathBuf>,
+}
 
-pub fn run(_args: DemoArgs) -> anyhow::Result<()> {
-    anyhow::bail!("`lidar-har demo` is not available in this build yet")
+pub fn run(args: DemoArgs) -> anyhow::Result<()> {
+    let _ = env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn"))
+        .try_init();
+    let mut config = match &args.classifier_config {
+        Some(path) => load_classifier_config(path)?,
+        None => ClassifierConfig::default(),
+    };
+    config.model = args.model.clone();
+    anyhow::ensure!(
+        config.model.is_file(),
+        "no activity model at {}: the demo needs a trained model and does not fake results. \
+         Train one (training/, see docs/classifier.md) or pass --model FILE",
+        config.model.display()
+    );
+    // Load once now, so a broken model or a missing ONNX Runtime stops us before simulating.
+    drop(
+        ClassifierRun::load(&config)
+            .with_context(|| format!("loading {}", config.model.display()))?,
+    );
+    if args.out.exists() {
+        let empty = std::fs::read_dir(&args.out)
+            .map(|mut d| d.next().is_none())
+            .unwrap_or(false);
+        anyhow::ensure!(
+            empty,
+            "--out {} already exists and is not empty: choose another or delete it",
+            args.out.display()
+        );
+    }
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+
+    // 1. Simulate.
+    let scene = Scene::load(&args.scene)?;
+    let mut sim = Simulator::new(scene, args.seed)
+        .with_context(|| format!("scene {}", args.scene.display()))?;
+    let geometry = sim.scan_geometry();
+    let start_s = sim.start_ns() as f64 * 1e-9;
+    let mut trace = Trace::new((sim.frame_count() / 40).max(1));
+    let mut truth: Vec<(f64, Activity)> = Vec::new();
+    let sim_dir = args.out.join("sim");
+    eprintln!(
+        "simulating {} ({} scans) ...",
+        args.scene.display(),
+        sim.frame_count()
+    );
+    record(
+        &mut sim,
+        &sim_dir,
+        lidar_har_sim::map::DEFAULT_RESOLUTION,
+        |frame| {
+            trace.add(frame, &geometry);
+            if let Some(p) = &frame.person {
+                truth.push((frame.stamp_ns as f64 * 1e-9 - start_s, p.activity));
+            }
+        },
+    )
+    .with_context(|| format!("recording {}", sim_dir.display()))?;
+
+    // 2. Run the pipeline over the recording, as `lidar-har run` does.
+    eprintln!("running the pipeline ...");
+    let run_dir = args.out.join("run");
+    let summary = run_bag(
+        &sim_dir,
+        &run_dir,
+        RunOptions {
+            classifier: Some(config),
+            ..RunOptions::default()
+        },
+    )
+    .with_context(|| format!("running the pipeline over {}", sim_dir.display()))?;
+    let activity = summary
+        .activity
+        .as_ref()
+        .context("the run produced no activity results")?;
+
+    // 3. Report.
+    print!("{}", timeline_text(activity, start_s));
+    let map = OccupancyMap::from_world(sim.world(), lidar_har_sim::map::DEFAULT_RESOLUTION);
+    let scene_png = args.out.join("scene.png");
+    render_png(&scene_png, &map, &trace)?;
+    mark_alerts(&scene_png, &map, activity)
+        .with_context(|| format!("marking alerts on {}", scene_png.display()))?;
+    let timeline_png = args.out.join("timeline.png");
+    draw_timeline(&timeline_png, activity, &truth, start_s)
+        .with_context(|| format!("drawing {}", timeline_png.display()))?;
+    println!();
+    println!("simulated bag:  {}", sim_dir.display());
+    println!(
+        "pipeline bag:   {} (summary.json beside it)",
+        run_dir.display()
+    );
+    println!(
+        "pictures:       {} (top view, alerts ringed in red), {}",
+        scene_png.display(),
+        timeline_png.display()
+    );
+    Ok(())
+}
+
+/// The printed timeline: activity segments (time from the start of the recording), then alerts.
+fn timeline_text(activity: &ActivitySummary, start_s: f64) -> String {
+    let mut s = String::from("\nActivities (recognised; ground truth where it differs)\n");
+    for seg in &activity.segments {
+        let truth = match seg.truth {
+            Some(t) if t == seg.activity => String::from("  ok"),
+            Some(t) => format!("  truth: {t}"),
+            None => String::new(),
+        };
+        s += &format!(
+            "  {:6.2} - {:6.2} s  {:<20} {:>4.0} %{}\n",
+            seg.start_s - start_s,
+            seg.end_s - start_s,
+            seg.activity.label(),
+            seg.mean_confidence * 100.0,
+            truth
+        );
+    }
+    s += "\nAlerts\n";
+    if activity.alerts.is_empty() {
+        s += "  none\n";
+    }
+    for a in &activity.alerts {
+        s += &format!(
+            "  {:6.2} s  {:<14} at ({:.2}, {:.2}) m, confidence {:.0} %, since {:.2} s\n",
+            a.time_s - start_s,
+            a.kind,
+            a.position[0],
+            a.position[1],
+            a.confidence * 100.0,
+            a.event_time_s - start_s
+        );
+    }
+    if let (Some(acc), Some(f1)) = (activity.accuracy, activity.macro_f1) {
+        s += &format!(
+            "\nAccuracy {:.1} %, macro F1 {:.1} % over {} classified scans (against the simulator's ground truth)\n",
+            acc * 100.0,
+            f1 * 100.0,
+            activity.scans_classified
+        );
+    }
+    s
+}
+
+/// Rings each alert's position in red on the simulator's top view. The pixel mapping follows
+/// the picture's own size: the map spans the full width, and the legend strip lies below.
+fn mark_alerts(png: &Path, map: &OccupancyMap, activity: &ActivitySummary) -> anyhow::Result<()> {
+    if activity.alerts.is_empty() {
+        return Ok(());
+    }
+    let mut img = image::open(png)?.to_rgb8();
+    let w_m = map.width as f64 * map.resolution;
+    let h_m = map.height as f64 * map.resolution;
+    let scale = img.width() as f64 / w_m;
+    let map_h = (h_m * scale).ceil();
+    for a in &activity.alerts {
+        let cx = (a.position[0] - map.origin.x) * scale;
+        let cy = map_h - (a.position[1] - map.origin.y) * scale;
+        let radius = 0.35 * scale;
+        for k in 0..720 {
+            let angle = k as f64 * std::f64::consts::TAU / 720.0;
+            for r in [radius, radius + 1.0, radius + 2.0] {
+                let (x, y) = (cx + r * angle.cos(), cy + r * angle.sin());
+                if x >= 0.0 && y >= 0.0 && (x as u32) < img.width() && (y as u32) < img.height() {
+                    img.put_pixel(x as u32, y as u32, image::Rgb([255, 0, 0]));
+                }
+            }
+        }
+    }
+    img.save(png)?;
+    Ok(())
+}
+
+/// A time chart without text (the workspace's plotters has no fonts): one row per class in
+/// class order from the top (crawling .. walking_unsteadily), recognised segments as bars in
+/// the activity colours of docs/simulator.md, the ground truth as a black line through its
+/// row, alerts as red vertical lines (a thin dark-red line where the event began).
+fn draw_timeline(
+    path: &Path,
+    activity: &ActivitySummary,
+    truth: &[(f64, Activity)],
+    start_s: f64,
+) -> anyhow::Result<()> {
+    const ROW: i32 = 30;
+    const LEFT: i32 = 10;
+    const WIDTH: u32 = 1400;
+    let end_s = truth
+        .last()
+        .map(|t| t.0)
+        .unwrap_or(0.0)
+        .max(
+            activity
+                .segments
+                .last()
+                .map(|s| s.end_s - start_s)
+                .unwrap_or(0.0),
+        )
+        .max(1.0);
+    let height = (ROW * Activity::COUNT as i32 + 20) as u32;
+    let root = BitMapBackend::new(path, (WIDTH, height)).into_drawing_area();
+    root.fill(&WHITE).map_err(plot_error)?;
+    let x = |t: f64| LEFT + ((t / end_s) * f64::from(WIDTH - 2 * LEFT as u32)).round() as i32;
+    let row_y = |a: Activity| 10 + a.index() as i32 * ROW;
+    for a in Activity::ALL {
+        let y = row_y(a);
+        root.draw(&Rectangle::new(
+            [(LEFT, y), (x(end_s), y + ROW - 2)],
+            RGBColor(240, 240, 240).filled(),
+        ))
+        .map_err(plot_error)?;
+        // Whole seconds as faint ticks.
+        for sec in 0..=end_s as i32 {
+            let tx = x(f64::from(sec));
+            let c = if sec % 10 == 0 {
+                RGBColor(170, 170, 170)
+            } else {
+                RGBColor(220, 220, 220)
+            };
+            root.draw(&PathElement::new(vec![(tx, y), (tx, y + ROW - 2)], c))
+                .map_err(plot_error)?;
+        }
+    }
+    for seg in &activity.segments {
+        let y = row_y(seg.activity);
+        let (x0, x1) = (
+            x(seg.start_s - start_s),
+            x(seg.end_s - start_s + 0.05).max(x(seg.start_s - start_s) + 1),
+        );
+        root.draw(&Rectangle::new(
+            [(x0, y + 3), (x1, y + ROW - 5)],
+            ACTIVITY_COLOURS[seg.activity.index()].filled(),
+        ))
+        .map_err(plot_error)?;
+    }
+    for pair in truth.windows(2) {
+        let (t, a) = pair[0];
+        let y = row_y(a) + ROW / 2 - 1;
+        root.draw(&PathElement::new(
+            vec![(x(t), y), (x(pair[1].0), y)],
+            BLACK.stroke_width(2),
+        ))
+        .map_err(plot_error)?;
+    }
+    for alert in &activity.alerts {
+        let bottom = 10 + ROW * Activity::COUNT as i32;
+        let xe = x(alert.event_time_s - start_s);
+        root.draw(&PathElement::new(
+            vec![(xe, 5), (xe, bottom)],
+            RGBColor(120, 0, 0).stroke_width(1),
+        ))
+        .map_err(plot_error)?;
+        let xa = x(alert.time_s - start_s);
+        root.draw(&PathElement::new(
+            vec![(xa, 5), (xa, bottom)],
+            RED.stroke_width(3),
+        ))
+        .map_err(plot_error)?;
+    }
+    root.present().map_err(plot_error)?;
+    Ok(())
+}
+
+/// plotters' errors carry the backend's error type; keep only the message.
+fn plot_error(e: impl std::fmt::Display) -> anyhow::Error {
+    anyhow::anyhow!("{e}")
 }

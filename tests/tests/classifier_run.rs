@@ -1,0 +1,153 @@
+//! `lidar-har run` and `lidar-har demo` with the classifier, end to end through the binary:
+//! simulate, localise, classify on real ONNX Runtime, record, summarise.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use lidar_har_bag::BagReader;
+use lidar_har_e2e::{repo_root, workspace_bin};
+use lidar_har_msgs::lidar_har_msgs::Activity;
+
+fn lidar_har(args: &[&str]) -> Output {
+    Command::new(workspace_bin("lidar-har"))
+        .args(args)
+        .current_dir(repo_root())
+        .output()
+        .expect("lidar-har runs")
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().expect("temporary paths are UTF-8")
+}
+
+/// The small real step model the infer crate is tested with (untrained: checks plumbing).
+fn test_model() -> PathBuf {
+    repo_root().join("crates/infer/tests/fixtures/step_model.onnx")
+}
+
+fn runtime_available() -> bool {
+    let lib = repo_root().join(".deps/onnxruntime/libonnxruntime.so");
+    if lib.is_file() || std::env::var_os("ORT_DYLIB_PATH").is_some() {
+        return true;
+    }
+    if std::env::var_os("LIDAR_HAR_REQUIRE_CHECKERS").is_some() {
+        panic!("{} missing: run scripts/setup.sh", lib.display());
+    }
+    eprintln!("SKIP: {} missing (run scripts/setup.sh)", lib.display());
+    false
+}
+
+#[test]
+fn run_without_the_model_says_how_to_proceed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let missing = tmp.path().join("no_model.onnx");
+    let out = lidar_har(&[
+        "run",
+        "--bag",
+        path(tmp.path()),
+        "--out",
+        path(&tmp.path().join("out")),
+        "--model",
+        path(&missing),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(path(&missing)) && err.contains("--no-classifier"),
+        "{err}"
+    );
+}
+
+#[test]
+fn demo_without_a_model_refuses_rather_than_faking() {
+    let tmp = tempfile::tempdir().unwrap();
+    let demo_out = tmp.path().join("demo");
+    let out = lidar_har(&[
+        "demo",
+        "--out",
+        path(&demo_out),
+        "--model",
+        path(&tmp.path().join("none.onnx")),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("none.onnx") && err.contains("does not fake results"),
+        "{err}"
+    );
+    assert!(!demo_out.exists(), "nothing is written without a model");
+}
+
+#[test]
+fn run_with_a_model_records_activities_and_scores_them() {
+    if !runtime_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let sim = tmp.path().join("sim");
+    let run = tmp.path().join("run");
+    let out = lidar_har(&[
+        "simulate",
+        "--scene",
+        "config/scenes/living_room.yaml",
+        "--duration",
+        "4",
+        "--out",
+        path(&sim),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let model = test_model();
+    let out = lidar_har(&[
+        "run",
+        "--bag",
+        path(&sim),
+        "--out",
+        path(&run),
+        "--model",
+        path(&model),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
+    let activity = &summary["activity"];
+    let classified = activity["scans_classified"].as_u64().unwrap();
+    assert!(classified > 20, "{activity:#}");
+    // The simulator writes /ground_truth/activity, so the run is scored (the untrained test
+    // model's accuracy itself means nothing).
+    let accuracy = activity["accuracy"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&accuracy));
+    assert_eq!(
+        activity["metrics"]["confusion"].as_array().unwrap().len(),
+        9
+    );
+    assert!(activity["alerts"].is_array());
+    assert!(activity["classify_time_us"]["median"].as_f64().unwrap() > 0.0);
+
+    let bag = BagReader::open(&run).unwrap();
+    assert_eq!(
+        bag.topic("/human/activity").unwrap().type_name,
+        "lidar_har_msgs/msg/Activity"
+    );
+    assert_eq!(
+        bag.topic("/human/fall_alert").unwrap().type_name,
+        "lidar_har_msgs/msg/FallAlert"
+    );
+    let mut count = 0;
+    for message in bag.messages_on(&["/human/activity"]).unwrap() {
+        let msg: Activity = lidar_har_msgs::decode(&message.unwrap().data).unwrap();
+        assert_eq!(msg.probabilities.len(), 9);
+        assert!((msg.probabilities.iter().sum::<f32>() - 1.0).abs() < 1e-4);
+        assert_eq!(Activity::label_of(msg.activity), Some(msg.label.as_str()));
+        count += 1;
+    }
+    assert_eq!(count, classified);
+}
