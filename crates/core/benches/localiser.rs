@@ -164,13 +164,15 @@ fn measure(beams: usize, side_m: f64) -> Row {
             )
         })
         .collect();
-    for k in 0..=SCANS * 5 / 2 {
-        let t = k as f64 * 0.02;
-        loc.add_odometry(k as i64 * 20_000_000, robot(t));
-    }
+    let mut odometry_k = 0i64;
     let mut times = Vec::with_capacity(SCANS);
     let mut tracked = 0;
     for scan in &scans {
+        // Odometry at 50 Hz up to just after the scan, as it arrives on a robot.
+        while odometry_k * 20_000_000 <= scan.stamp_ns + 20_000_000 {
+            loc.add_odometry(odometry_k * 20_000_000, robot(odometry_k as f64 * 0.02));
+            odometry_k += 1;
+        }
         let started = Instant::now();
         let result = black_box(loc.process_scan(black_box(scan)));
         times.push(started.elapsed().as_secs_f64() * 1e6);
