@@ -1,11 +1,189 @@
-//! `lidar-har bag` (being built; see the issue tracker).
+//! `lidar-har bag`: inspect (`info`) and convert (`convert`) rosbag2 bags, MCAP and sqlite3.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use lidar_har_bag::{BagReader, BagWriter, Compression, StorageId, WriterOptions};
 
 #[derive(clap::Subcommand)]
 pub enum BagCommand {
-    /// Not available in this build yet.
-    Info,
+    /// Show storage, files, duration, start/end time and topics (type, count, QoS) of a bag,
+    /// like `ros2 bag info`.
+    Info {
+        /// A rosbag2 directory (with metadata.yaml) or a bare .mcap file.
+        bag: PathBuf,
+    },
+    /// Copy every message of a bag into a new bag, changing storage and/or compression.
+    Convert {
+        /// The bag to read (directory or bare .mcap file).
+        src: PathBuf,
+        /// The bag directory to create (must not already hold a bag).
+        dst: PathBuf,
+        /// Storage of the new bag.
+        #[arg(long, default_value = "mcap", value_parser = parse_storage)]
+        storage: StorageId,
+        /// Chunk compression of the new bag (MCAP only).
+        #[arg(long, default_value = "none", value_parser = parse_compression)]
+        compression: Compression,
+    },
 }
 
-pub fn run(_command: BagCommand) -> anyhow::Result<()> {
-    anyhow::bail!("`lidar-har bag` is not available in this build yet")
+fn parse_storage(s: &str) -> Result<StorageId, String> {
+    s.parse()
+}
+
+fn parse_compression(s: &str) -> Result<Compression, String> {
+    s.parse()
+}
+
+pub fn run(command: BagCommand) -> anyhow::Result<()> {
+    match command {
+        BagCommand::Info { bag } => info(&bag),
+        BagCommand::Convert { src, dst, storage, compression } => convert(&src, &dst, storage, compression),
+    }
+}
+
+fn info(path: &Path) -> anyhow::Result<()> {
+    let reader = BagReader::open(path).with_context(|| format!("cannot open bag {}", path.display()))?;
+    let info = reader.metadata();
+    let size: u64 = info.files.iter().filter_map(|f| std::fs::metadata(f).ok()).map(|m| m.len()).sum();
+    let files: Vec<String> = info
+        .files
+        .iter()
+        .map(|f| f.file_name().map_or_else(|| f.display().to_string(), |n| n.to_string_lossy().into_owned()))
+        .collect();
+    println!("Files:             {}", files.join("\n                   "));
+    println!("Bag size:          {}", human_size(size));
+    println!("Storage id:        {}", info.storage);
+    if let Some(version) = info.metadata_version {
+        println!("Metadata version:  {version}");
+    }
+    if !info.ros_distro.is_empty() {
+        println!("ROS Distro:        {}", info.ros_distro);
+    }
+    println!("Duration:          {}", seconds(info.duration_ns()));
+    println!("Start:             {}", timestamp(info.start_ns));
+    println!("End:               {}", timestamp(info.end_ns));
+    println!("Messages:          {}", info.message_count);
+    if info.truncated {
+        println!("Warning:           a storage file ends early (recorder killed?); counts cover its complete part");
+    }
+    let width = reader.topics().iter().map(|t| t.name.len()).max().unwrap_or(0);
+    for (i, topic) in reader.topics().iter().enumerate() {
+        let qos: Vec<String> = topic.offered_qos.iter().map(|q| q.describe()).collect();
+        println!(
+            "{}Topic: {:width$} | Type: {} | Count: {} | Serialization Format: {} | QoS: {}",
+            if i == 0 { "Topic information: " } else { "                   " },
+            topic.name,
+            topic.type_name,
+            topic.message_count,
+            topic.serialization_format,
+            if qos.is_empty() { "(none recorded)".to_string() } else { qos.join(", ") },
+        );
+    }
+    Ok(())
+}
+
+fn convert(src: &Path, dst: &Path, storage: StorageId, compression: Compression) -> anyhow::Result<()> {
+    let reader = BagReader::open(src).with_context(|| format!("cannot open bag {}", src.display()))?;
+    let mut options = WriterOptions { storage, compression, ..WriterOptions::default() };
+    if let Some(metadata) = reader.bag_metadata() {
+        if !metadata.ros_distro.is_empty() {
+            options.ros_distro = metadata.ros_distro.clone();
+        }
+        options.custom_data = metadata.custom_data.clone().unwrap_or_default();
+    }
+    let mut writer = BagWriter::create(dst, options).with_context(|| format!("cannot create bag {}", dst.display()))?;
+    let mut handles = std::collections::HashMap::new();
+    for topic in reader.topics() {
+        let mut topic = topic.clone();
+        if topic.schema_text.is_none() {
+            // Older sqlite3 bags (Foxy/Humble) store no definitions: use ours where we know the type.
+            let Some(definition) = lidar_har_msgs::schema::definition(&topic.type_name) else {
+                bail!(
+                    "{}: topic `{}` ({}) has no stored message definition and the type is unknown to lidar-har",
+                    src.display(),
+                    topic.name,
+                    topic.type_name
+                );
+            };
+            topic.schema_text = Some(definition.schema_text());
+        }
+        let handle = writer.add_topic_like(&topic).with_context(|| format!("cannot add topic {}", topic.name))?;
+        handles.insert(topic.name.clone(), handle);
+    }
+    let mut count = 0u64;
+    for message in reader.messages()? {
+        let message = message.with_context(|| format!("reading {}", src.display()))?;
+        let Some(&handle) = handles.get(&*message.topic) else {
+            bail!("{}: message on unlisted topic `{}`", src.display(), message.topic);
+        };
+        writer.write(handle, message.log_time_ns, &message.data)?;
+        count += 1;
+    }
+    let summary = writer.finish()?;
+    println!(
+        "Converted {count} messages on {} topics: {} ({}) -> {} ({storage})",
+        handles.len(),
+        src.display(),
+        reader.storage(),
+        summary.dir.display()
+    );
+    Ok(())
+}
+
+fn human_size(bytes: u64) -> String {
+    const UNITS: [&str; 4] = ["B", "KiB", "MiB", "GiB"];
+    let mut value = bytes as f64;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < UNITS.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    format!("{value:.1} {}", UNITS[unit])
+}
+
+fn seconds(ns: i64) -> String {
+    format!("{}.{:09}s", ns.div_euclid(1_000_000_000), ns.rem_euclid(1_000_000_000))
+}
+
+/// `YYYY-MM-DD hh:mm:ss.nnnnnnnnn UTC (seconds.nanoseconds)`.
+fn timestamp(ns: i64) -> String {
+    let secs = ns.div_euclid(1_000_000_000);
+    let nanos = ns.rem_euclid(1_000_000_000);
+    let days = secs.div_euclid(86_400);
+    let of_day = secs.rem_euclid(86_400);
+    let (y, m, d) = civil_from_days(days);
+    format!(
+        "{y:04}-{m:02}-{d:02} {:02}:{:02}:{:02}.{nanos:09} UTC ({secs}.{nanos:09})",
+        of_day / 3600,
+        of_day % 3600 / 60,
+        of_day % 60
+    )
+}
+
+/// Proleptic Gregorian date of a day count since 1970-01-01 (Howard Hinnant's algorithm).
+fn civil_from_days(days: i64) -> (i64, i64, i64) {
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    (yoe + era * 400 + i64::from(m <= 2), m, d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn formats_times() {
+        assert_eq!(timestamp(0), "1970-01-01 00:00:00.000000000 UTC (0.000000000)");
+        assert!(timestamp(1_403_201_183_687_882_605).starts_with("2014-06-19 18:06:23.687882605"));
+        assert_eq!(seconds(125_989_004_529), "125.989004529s");
+        assert_eq!(human_size(2048), "2.0 KiB");
+    }
 }
