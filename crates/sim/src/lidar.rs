@@ -147,15 +147,15 @@ impl Lidar {
         match rng.as_deref_mut() {
             Some(r) if angle_sigma > 0.0 => {
                 let cut = ANGLE_SIGMA_CUT * angle_sigma;
-                for i in 0..n {
+                for (dir, local) in self.dirs.iter_mut().zip(&self.local_dirs) {
                     let z: f64 = StandardNormal.sample(r);
                     let delta = (z * angle_sigma).clamp(-cut, cut);
-                    self.dirs[i] = rot.rotate(small_rotation(delta).rotate(self.local_dirs[i]));
+                    *dir = rot.rotate(small_rotation(delta).rotate(*local));
                 }
             }
             _ => {
-                for i in 0..n {
-                    self.dirs[i] = rot.rotate(self.local_dirs[i]);
+                for (dir, local) in self.dirs.iter_mut().zip(&self.local_dirs) {
+                    *dir = rot.rotate(*local);
                 }
             }
         }
@@ -195,10 +195,9 @@ impl Lidar {
         let g = self.geometry;
         let valid = |r: f64| r >= g.range_min && r <= g.range_max;
         let Some(rng) = rng else {
-            for i in 0..n {
-                let r = self.exact[i];
+            for (&r, &hit) in self.exact.iter().zip(&self.hit) {
                 ranges.push(if valid(r) { r as f32 } else { f32::INFINITY });
-                labels.push(if valid(r) { self.hit[i] } else { BeamLabel::Nothing });
+                labels.push(if valid(r) { hit } else { BeamLabel::Nothing });
             }
             return;
         };

@@ -1,0 +1,85 @@
+//! `lidar-har simulate` makes a bag that independent readers decode: `rosbags` (every
+//! message, with its types registered from the bag's own schemas) and `mcap` +
+//! `mcap-ros2-support`. Also checks the map_server files and the render.
+
+use std::process::Command;
+
+use lidar_har_e2e::{checker_python, repo_root, workspace_bin};
+
+const CHECK: &str = r#"
+import sys, math, collections
+from pathlib import Path
+from rosbags.highlevel import AnyReader
+bag = Path(sys.argv[1])
+counts = collections.Counter()
+frames = {}
+with AnyReader([bag]) as reader:
+    for conn, t, raw in reader.messages():
+        msg = reader.deserialize(raw, conn.msgtype)
+        counts[conn.topic] += 1
+        if conn.topic == '/scan':
+            assert msg.header.frame_id == 'laser'
+            assert len(msg.ranges) == 720
+            assert all(math.isinf(r) or msg.range_min <= r <= msg.range_max for r in msg.ranges)
+            assert msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec == t
+        if conn.topic == '/ground_truth/activity':
+            assert msg.probabilities[msg.activity] == 1.0 and len(msg.probabilities) == 9
+        if conn.topic == '/tf_static':
+            frames['static'] = (msg.transforms[0].header.frame_id, msg.transforms[0].child_frame_id)
+        if conn.topic == '/map':
+            assert len(msg.data) == msg.info.width * msg.info.height
+from mcap_ros2.reader import read_ros2_messages
+mcap_counts = collections.Counter()
+for f in bag.glob('*.mcap'):
+    for m in read_ros2_messages(str(f)):
+        mcap_counts[m.channel.topic] += 1
+assert mcap_counts == counts, (mcap_counts, counts)
+assert frames['static'] == ('base_link', 'laser')
+print(dict(sorted(counts.items())))
+"#;
+
+#[test]
+fn simulated_bag_reads_in_rosbags_and_mcap() {
+    let Some(mut python) = checker_python() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("living");
+    let png = tmp.path().join("living.png");
+    let status = Command::new(workspace_bin("lidar-har"))
+        .current_dir(repo_root())
+        .args(["simulate", "--scene", "config/scenes/living_room.yaml", "--duration", "2", "--seed", "3", "--out"])
+        .arg(&out)
+        .arg("--render")
+        .arg(&png)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    assert!(out.join("map.pgm").is_file() && out.join("map.yaml").is_file());
+    assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+    let result = python.arg("-c").arg(CHECK).arg(&out).output().unwrap();
+    let stdout = String::from_utf8_lossy(&result.stdout);
+    assert!(result.status.success(), "checker failed:\n{stdout}\n{}", String::from_utf8_lossy(&result.stderr));
+    for topic in ["'/scan': 40", "'/odom': 40", "'/tf': 40", "'/clock': 40", "'/map': 1", "'/tf_static': 1", "'/ground_truth/activity': 40", "'/ground_truth/human_pose': 40"] {
+        assert!(stdout.contains(topic), "{topic} missing from {stdout}");
+    }
+}
+
+#[test]
+fn simulate_rejects_a_bad_scene_naming_the_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("bad.yaml");
+    std::fs::write(
+        &scene,
+        "duration: 5\nroom: {outline: [[0,0],[4,0],[4,4],[0,4]]}\nfurniture: [{kind: box, center: [2,2], size: [-1, 1], height: 1}]\nrobot: {start: {x: 0.5, y: 0.5}}\n",
+    )
+    .unwrap();
+    let output = Command::new(workspace_bin("lidar-har"))
+        .args(["simulate", "--scene"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(tmp.path().join("out"))
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("furniture[0].size[0]: must be positive"), "{stderr}");
+}
