@@ -17,11 +17,13 @@ use lidar_har_core::activity::Activity;
 use lidar_har_core::geometry::Pose2;
 use lidar_har_core::localiser::{Localiser, LocaliserConfig, Motion, Reference};
 use lidar_har_core::map::{MapGeometry, OccupancyMap as CoreMap};
-use lidar_har_core::representation::{Framing, RepresentationKind, RepresentationSpec, Renderer};
+use lidar_har_core::representation::{Framing, Renderer, RepresentationKind, RepresentationSpec};
 use lidar_har_core::scan::Scan;
 use lidar_har_sim::map::{DEFAULT_RESOLUTION, OccupancyMap as SimMap};
 use lidar_har_sim::person::Person;
-use lidar_har_sim::scene::{FallDirection, Motion as RobotMotionSpec, PersonSpec, PoseSpec, ScriptStep};
+use lidar_har_sim::scene::{
+    FallDirection, Motion as RobotMotionSpec, PersonSpec, PoseSpec, ScriptStep,
+};
 use lidar_har_sim::world::World;
 use lidar_har_sim::{Scene, Simulator};
 use ndarray::{Array2, Array4, s};
@@ -159,40 +161,77 @@ impl DatasetIndex {
     /// Reads and checks `dir/index.json` (classes in DESIGN.md order, rows consistent).
     pub fn load(dir: &Path) -> anyhow::Result<Self> {
         let path = dir.join("index.json");
-        let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
-        let index: DatasetIndex =
-            serde_json::from_str(&text).with_context(|| format!("{}: not a lidar-har dataset index", path.display()))?;
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let index: DatasetIndex = serde_json::from_str(&text)
+            .with_context(|| format!("{}: not a lidar-har dataset index", path.display()))?;
         if index.format_version != FORMAT_VERSION {
-            bail!("{}: format version {} (this build reads {FORMAT_VERSION})", path.display(), index.format_version);
+            bail!(
+                "{}: format version {} (this build reads {FORMAT_VERSION})",
+                path.display(),
+                index.format_version
+            );
         }
         let expected: Vec<&str> = Activity::ALL.iter().map(|a| a.label()).collect();
         if index.classes != expected {
-            bail!("{}: classes {:?} differ from the class order {:?}", path.display(), index.classes, expected);
+            bail!(
+                "{}: classes {:?} differ from the class order {:?}",
+                path.display(),
+                index.classes,
+                expected
+            );
         }
         Ok(index)
     }
 
     /// The split's images `[N, T, S, S]` and per-scan labels `[N, T]`, shape-checked.
-    pub fn read_split(&self, dir: &Path, split: &str) -> anyhow::Result<Option<(Array4<u8>, Array2<u8>)>> {
-        let Some(entry) = self.splits.get(split) else { return Ok(None) };
+    pub fn read_split(
+        &self,
+        dir: &Path,
+        split: &str,
+    ) -> anyhow::Result<Option<(Array4<u8>, Array2<u8>)>> {
+        let Some(entry) = self.splits.get(split) else {
+            return Ok(None);
+        };
         if entry.windows == 0 {
             return Ok(None);
         }
         let images_path = dir.join(&entry.images);
         let labels_path = dir.join(&entry.labels);
-        let images: Array4<u8> = ndarray_npy::read_npy(&images_path)
-            .with_context(|| format!("cannot read {} as a uint8 [N, T, S, S] array", images_path.display()))?;
-        let labels: Array2<u8> = ndarray_npy::read_npy(&labels_path)
-            .with_context(|| format!("cannot read {} as a uint8 [N, T] array", labels_path.display()))?;
+        let images: Array4<u8> = ndarray_npy::read_npy(&images_path).with_context(|| {
+            format!(
+                "cannot read {} as a uint8 [N, T, S, S] array",
+                images_path.display()
+            )
+        })?;
+        let labels: Array2<u8> = ndarray_npy::read_npy(&labels_path).with_context(|| {
+            format!(
+                "cannot read {} as a uint8 [N, T] array",
+                labels_path.display()
+            )
+        })?;
         let (t, size) = (self.spec.window, self.spec.size);
         if images.dim() != (entry.windows, t, size, size) {
-            bail!("{}: shape {:?}, index says {:?}", images_path.display(), images.dim(), (entry.windows, t, size, size));
+            bail!(
+                "{}: shape {:?}, index says {:?}",
+                images_path.display(),
+                images.dim(),
+                (entry.windows, t, size, size)
+            );
         }
         if labels.dim() != (entry.windows, t) {
-            bail!("{}: shape {:?}, index says {:?}", labels_path.display(), labels.dim(), (entry.windows, t));
+            bail!(
+                "{}: shape {:?}, index says {:?}",
+                labels_path.display(),
+                labels.dim(),
+                (entry.windows, t)
+            );
         }
         if let Some(bad) = labels.iter().find(|&&l| l as usize >= Activity::COUNT) {
-            bail!("{}: class index {bad} is out of range 0..8", labels_path.display());
+            bail!(
+                "{}: class index {bad} is out of range 0..8",
+                labels_path.display()
+            );
         }
         Ok(Some((images, labels)))
     }
@@ -218,24 +257,36 @@ struct EpisodeWindows {
 
 pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
     validate_args(&args)?;
-    let spec = RepresentationSpec::new(args.representation, args.framing, args.size, args.resolution);
+    let spec = RepresentationSpec::new(
+        args.representation,
+        args.framing,
+        args.size,
+        args.resolution,
+    );
     let renderer = Renderer::new(spec).context("--size/--resolution")?;
     let scenes = load_scenes(&args.scenes)?;
     for name in &args.held_out {
         if !scenes.iter().any(|(_, s)| &s.name == name) {
-            bail!("--held-out '{name}' is not the name of any scene matched by '{}'", args.scenes);
+            bail!(
+                "--held-out '{name}' is not the name of any scene matched by '{}'",
+                args.scenes
+            );
         }
     }
     let plans = plan_episodes(&args, &scenes)?;
     let rate_hz = plans.first().map(|p| p.scene.lidar.rate_hz).unwrap_or(20.0);
-    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
 
     let bar = ProgressBar::new(plans.len() as u64);
     bar.set_style(
-        ProgressStyle::with_template("{spinner} episodes {pos}/{len} [{bar:30}] {elapsed_precise} eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(
+            "{spinner} episodes {pos}/{len} [{bar:30}] {elapsed_precise} eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let results: Mutex<Vec<Option<anyhow::Result<EpisodeWindows>>>> = Mutex::new((0..plans.len()).map(|_| None).collect());
+    let results: Mutex<Vec<Option<anyhow::Result<EpisodeWindows>>>> =
+        Mutex::new((0..plans.len()).map(|_| None).collect());
     let next = std::sync::atomic::AtomicUsize::new(0);
     std::thread::scope(|scope| {
         for _ in 0..args.threads.max(1) {
@@ -253,16 +304,22 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         }
     });
     bar.finish_and_clear();
-    let results = results.into_inner().map_err(|_| anyhow::anyhow!("a worker thread panicked"))?;
+    let results = results
+        .into_inner()
+        .map_err(|_| anyhow::anyhow!("a worker thread panicked"))?;
 
     let mut episodes = Vec::new();
-    let mut per_split: Vec<(Vec<EpisodeWindows>, Vec<usize>)> = SPLITS.iter().map(|_| (Vec::new(), Vec::new())).collect();
+    let mut per_split: Vec<(Vec<EpisodeWindows>, Vec<usize>)> =
+        SPLITS.iter().map(|_| (Vec::new(), Vec::new())).collect();
     for (plan, result) in plans.iter().zip(results) {
         let windows = match result {
             Some(Ok(windows)) => windows,
             // A scene too small for a random script (e.g. no room to run) loses that episode only.
             Some(Err(err)) => {
-                eprintln!("dataset: skipping episode {} (scene '{}', seed {}): {err:#}", plan.id, plan.scene.name, plan.seed);
+                eprintln!(
+                    "dataset: skipping episode {} (scene '{}', seed {}): {err:#}",
+                    plan.id, plan.scene.name, plan.seed
+                );
                 continue;
             }
             None => bail!("episode {} did not run", plan.id),
@@ -294,7 +351,10 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
             scan_rate_hz: rate_hz,
             fixed_lidar: args.fixed_lidar,
         },
-        classes: Activity::ALL.iter().map(|a| a.label().to_string()).collect(),
+        classes: Activity::ALL
+            .iter()
+            .map(|a| a.label().to_string())
+            .collect(),
         generator: Generator {
             command: std::env::args().collect::<Vec<_>>().join(" "),
             scenes: scenes.iter().map(|(_, s)| s.name.clone()).collect(),
@@ -302,7 +362,9 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
             episodes: args.episodes,
             seed: args.seed,
             episode_seconds: args.episode_seconds,
-            person_points: "localiser (map subtraction, clustering, tracker; lidar_har_core::localiser)".to_string(),
+            person_points:
+                "localiser (map subtraction, clustering, tracker; lidar_har_core::localiser)"
+                    .to_string(),
         },
         splits: Default::default(),
         episodes,
@@ -317,7 +379,9 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         let mut row = 0;
         for (part, episode) in parts.iter().zip(ids) {
             let n = part.starts.len();
-            images.slice_mut(s![row..row + n, .., .., ..]).assign(&part.images);
+            images
+                .slice_mut(s![row..row + n, .., .., ..])
+                .assign(&part.images);
             labels.slice_mut(s![row..row + n, ..]).assign(&part.labels);
             for (k, &start) in part.starts.iter().enumerate() {
                 let last = part.labels[[k, args.window - 1]] as usize;
@@ -350,7 +414,11 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
     std::fs::write(&index_path, serde_json::to_string_pretty(&index)? + "\n")
         .with_context(|| format!("cannot write {}", index_path.display()))?;
     print_counts(&index);
-    println!("wrote {} windows to {}", index.windows.len(), args.out.display());
+    println!(
+        "wrote {} windows to {}",
+        index.windows.len(),
+        args.out.display()
+    );
     Ok(())
 }
 
@@ -369,7 +437,10 @@ fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
         bail!("--stride must be at least 1");
     }
     if args.size % 4 != 0 {
-        bail!("--size {} must be a multiple of 4 (the model's encoder halves it twice)", args.size);
+        bail!(
+            "--size {} must be a multiple of 4 (the model's encoder halves it twice)",
+            args.size
+        );
     }
     if !(args.test_fraction >= 0.0 && args.test_fraction < 1.0) {
         bail!("--test-fraction {} must be in [0, 1)", args.test_fraction);
@@ -378,7 +449,10 @@ fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
         bail!("--episodes must be at least 1");
     }
     if !(args.episode_seconds.is_finite() && args.episode_seconds > 0.0) {
-        bail!("--episode-seconds {} must be a positive number", args.episode_seconds);
+        bail!(
+            "--episode-seconds {} must be a positive number",
+            args.episode_seconds
+        );
     }
     Ok(())
 }
@@ -397,7 +471,10 @@ fn load_scenes(pattern: &str) -> anyhow::Result<Vec<(String, Scene)>> {
     for path in paths {
         let scene = Scene::load(&path)?;
         if scene.person.is_none() {
-            eprintln!("dataset: skipping {} (no person in the scene)", path.display());
+            eprintln!(
+                "dataset: skipping {} (no person in the scene)",
+                path.display()
+            );
             continue;
         }
         scenes.push((path.display().to_string(), scene));
@@ -410,8 +487,13 @@ fn load_scenes(pattern: &str) -> anyhow::Result<Vec<(String, Scene)>> {
 
 /// Episodes round-robin over the scenes; a seeded shuffle picks the test episodes among the
 /// training scenes' (whole episodes, never windows); held-out scenes are all `test_unseen`.
-fn plan_episodes(args: &DatasetArgs, scenes: &[(String, Scene)]) -> anyhow::Result<Vec<EpisodePlan>> {
-    let (unseen, seen): (Vec<_>, Vec<_>) = scenes.iter().partition(|(_, s)| args.held_out.contains(&s.name));
+fn plan_episodes(
+    args: &DatasetArgs,
+    scenes: &[(String, Scene)],
+) -> anyhow::Result<Vec<EpisodePlan>> {
+    let (unseen, seen): (Vec<_>, Vec<_>) = scenes
+        .iter()
+        .partition(|(_, s)| args.held_out.contains(&s.name));
     if seen.is_empty() {
         bail!("every scene is held out: nothing left to train on");
     }
@@ -427,7 +509,13 @@ fn plan_episodes(args: &DatasetArgs, scenes: &[(String, Scene)]) -> anyhow::Resu
         let seed = args.seed.wrapping_mul(1_000_003).wrapping_add(id as u64);
         let mut scene = scene.clone();
         scene.duration = args.episode_seconds;
-        plans.push(EpisodePlan { id, scene, scene_file: file.clone(), seed, split });
+        plans.push(EpisodePlan {
+            id,
+            scene,
+            scene_file: file.clone(),
+            seed,
+            split,
+        });
     };
     for id in 0..args.episodes {
         let split = if test.contains(&id) { "test" } else { "train" };
@@ -442,20 +530,31 @@ fn plan_episodes(args: &DatasetArgs, scenes: &[(String, Scene)]) -> anyhow::Resu
     Ok(plans)
 }
 
-fn run_episode(plan: &EpisodePlan, args: &DatasetArgs, renderer: &Renderer) -> anyhow::Result<EpisodeWindows> {
+fn run_episode(
+    plan: &EpisodePlan,
+    args: &DatasetArgs,
+    renderer: &Renderer,
+) -> anyhow::Result<EpisodeWindows> {
     let mut rng = ChaCha8Rng::seed_from_u64(plan.seed ^ 0x5eed_da7a);
     let mut scene = plan.scene.clone();
     let world = World::new(&scene);
     if args.fixed_lidar {
-        let spot = random_free_point(&world, &mut rng, 0.5)
-            .ok_or_else(|| anyhow::anyhow!("no free spot for a fixed Lidar in scene '{}'", scene.name))?;
-        scene.robot.start = PoseSpec { x: spot.x, y: spot.y, yaw_deg: rng.random_range(-180.0..180.0) };
+        let spot = random_free_point(&world, &mut rng, 0.5).ok_or_else(|| {
+            anyhow::anyhow!("no free spot for a fixed Lidar in scene '{}'", scene.name)
+        })?;
+        scene.robot.start = PoseSpec {
+            x: spot.x,
+            y: spot.y,
+            yaw_deg: rng.random_range(-180.0..180.0),
+        };
         scene.robot.motion = RobotMotionSpec::Static;
     }
     let mut simulator = None;
     let mut last_error = None;
     for attempt in 0..30 {
-        let Some(person) = random_person(&scene, &world, &mut rng, plan.seed + attempt) else { continue };
+        let Some(person) = random_person(&scene, &world, &mut rng, plan.seed + attempt) else {
+            continue;
+        };
         let mut candidate = scene.clone();
         candidate.person = Some(person);
         match Simulator::new(candidate, plan.seed) {
@@ -471,9 +570,17 @@ fn run_episode(plan: &EpisodePlan, args: &DatasetArgs, renderer: &Renderer) -> a
     };
 
     let map = core_map(&SimMap::from_world(sim.world(), DEFAULT_RESOLUTION))?;
-    let config = LocaliserConfig { mount: sim.lidar_mount(), ..LocaliserConfig::default() };
-    let motion = if args.fixed_lidar { Motion::Stationary(scene.robot.start.to_pose()) } else { Motion::Odometry };
-    let mut localiser = Localiser::new(config, Reference::Map(map), motion).context("localiser configuration")?;
+    let config = LocaliserConfig {
+        mount: sim.lidar_mount(),
+        ..LocaliserConfig::default()
+    };
+    let motion = if args.fixed_lidar {
+        Motion::Stationary(scene.robot.start.to_pose())
+    } else {
+        Motion::Odometry
+    };
+    let mut localiser =
+        Localiser::new(config, Reference::Map(map), motion).context("localiser configuration")?;
     let geometry = sim.scan_geometry();
 
     // Per scan: the person's points, the track position (if any), the Lidar position, the truth.
@@ -513,11 +620,20 @@ fn run_episode(plan: &EpisodePlan, args: &DatasetArgs, renderer: &Renderer) -> a
             }
         }
         sensors.push(frame.laser.position());
-        truth.push(frame.person.map(|p| p.activity).unwrap_or(Activity::Standing));
+        truth.push(
+            frame
+                .person
+                .map(|p| p.activity)
+                .unwrap_or(Activity::Standing),
+        );
     }
     let scans = truth.len();
     let t = args.window;
-    let starts: Vec<usize> = if scans >= t { (0..=scans - t).step_by(args.stride).collect() } else { Vec::new() };
+    let starts: Vec<usize> = if scans >= t {
+        (0..=scans - t).step_by(args.stride).collect()
+    } else {
+        Vec::new()
+    };
     let size = args.size;
     let mut images = Array4::<u8>::zeros((starts.len(), t, size, size));
     let mut labels = Array2::<u8>::zeros((starts.len(), t));
@@ -536,12 +652,25 @@ fn run_episode(plan: &EpisodePlan, args: &DatasetArgs, renderer: &Renderer) -> a
             if let Some(centre) = centre
                 && !points[i].is_empty()
             {
-                renderer.render(points[i].iter().copied(), centre, sensors[i], image.view_mut());
-                out.zip_mut_with(&image, |o, &v| *o = (v.clamp(0.0, 1.0) * 255.0).round() as u8);
+                renderer.render(
+                    points[i].iter().copied(),
+                    centre,
+                    sensors[i],
+                    image.view_mut(),
+                );
+                out.zip_mut_with(&image, |o, &v| {
+                    *o = (v.clamp(0.0, 1.0) * 255.0).round() as u8
+                });
             }
         }
     }
-    Ok(EpisodeWindows { images, labels, starts, scans, visible })
+    Ok(EpisodeWindows {
+        images,
+        labels,
+        starts,
+        scans,
+        visible,
+    })
 }
 
 /// The simulator's grid as the localiser's map (map_server's default threshold).
@@ -560,12 +689,18 @@ fn random_free_point(world: &World, rng: &mut ChaCha8Rng, clearance: f64) -> Opt
     let (lo, hi) = world.bounds();
     (0..500).find_map(|_| {
         let p = DVec2::new(rng.random_range(lo.x..hi.x), rng.random_range(lo.y..hi.y));
-        (world.person_clearance(p).0 >= clearance && world.wall_clearance(p) >= clearance).then_some(p)
+        (world.person_clearance(p).0 >= clearance && world.wall_clearance(p) >= clearance)
+            .then_some(p)
     })
 }
 
 /// A reachable random point: free, and the straight walk to it stays clear.
-fn random_reachable_point(world: &World, rng: &mut ChaCha8Rng, from: DVec2, max_dist: f64) -> Option<DVec2> {
+fn random_reachable_point(
+    world: &World,
+    rng: &mut ChaCha8Rng,
+    from: DVec2,
+    max_dist: f64,
+) -> Option<DVec2> {
     (0..200).find_map(|_| {
         let p = random_free_point(world, rng, 0.45)?;
         let d = p - from;
@@ -573,7 +708,12 @@ fn random_reachable_point(world: &World, rng: &mut ChaCha8Rng, from: DVec2, max_
             return None;
         }
         let steps = (d.length() / 0.1).ceil() as usize;
-        let clear = (1..steps).all(|k| world.person_clearance(from + d * (k as f64 / steps as f64)).0 >= 0.3);
+        let clear = (1..steps).all(|k| {
+            world
+                .person_clearance(from + d * (k as f64 / steps as f64))
+                .0
+                >= 0.3
+        });
         clear.then_some(p)
     })
 }
@@ -592,7 +732,11 @@ fn locomotion_step(
     let mut path = Vec::new();
     let (mut here, mut length) = (from, 0.0);
     while length < speed * seconds {
-        let max = if activity == Activity::Crawling { 1.5 } else { 6.0 };
+        let max = if activity == Activity::Crawling {
+            1.5
+        } else {
+            6.0
+        };
         let next = random_reachable_point(world, rng, here, max)?;
         length += (next - here).length();
         path.push([next.x, next.y]);
@@ -601,30 +745,56 @@ fn locomotion_step(
             break;
         }
     }
-    let step = ScriptStep { activity, duration: (length / speed).max(0.5), path, speed: Some(speed), fall: None };
+    let step = ScriptStep {
+        activity,
+        duration: (length / speed).max(0.5),
+        path,
+        speed: Some(speed),
+        fall: None,
+    };
     Some((step, here))
 }
 
 fn still_step(activity: Activity, duration: f64) -> ScriptStep {
-    ScriptStep { activity, duration, path: Vec::new(), speed: None, fall: None }
+    ScriptStep {
+        activity,
+        duration,
+        path: Vec::new(),
+        speed: None,
+        fall: None,
+    }
 }
 
 /// The scene's person with a random start and a random script that covers the nine
 /// activities in plausible orders (falls end on the floor, the floor ends by getting up).
 /// The rarer, shorter activities (falls, getting up, crawling, running) come often.
-fn random_person(scene: &Scene, world: &World, rng: &mut ChaCha8Rng, person_seed: u64) -> Option<PersonSpec> {
+fn random_person(
+    scene: &Scene,
+    world: &World,
+    rng: &mut ChaCha8Rng,
+    person_seed: u64,
+) -> Option<PersonSpec> {
     let base = scene.person.clone()?;
     let start = random_free_point(world, rng, 0.6)?;
     let mut script: Vec<ScriptStep> = Vec::new();
     let mut here = start;
     let mut total = 0.0;
     let mut spec = PersonSpec {
-        start: PoseSpec { x: start.x, y: start.y, yaw_deg: rng.random_range(-180.0..180.0) },
+        start: PoseSpec {
+            x: start.x,
+            y: start.y,
+            yaw_deg: rng.random_range(-180.0..180.0),
+        },
         script: Vec::new(),
         repeat: false,
         ..base
     };
-    let fall_dirs = [FallDirection::Forward, FallDirection::Backward, FallDirection::Left, FallDirection::Right];
+    let fall_dirs = [
+        FallDirection::Forward,
+        FallDirection::Backward,
+        FallDirection::Left,
+        FallDirection::Right,
+    ];
     let mut draws = 0;
     while total < scene.duration + 2.0 {
         draws += 1;
@@ -636,18 +806,26 @@ fn random_person(scene: &Scene, world: &World, rng: &mut ChaCha8Rng, person_seed
         match rng.random_range(0..10) {
             0 => block.push(still_step(Activity::Standing, rng.random_range(1.5..4.0))),
             1 | 2 => {
-                let (s, p) = locomotion_step(world, rng, Activity::Walking, here, 0.7..1.2, 3.0..7.0)?;
+                let (s, p) =
+                    locomotion_step(world, rng, Activity::Walking, here, 0.7..1.2, 3.0..7.0)?;
                 block.push(s);
                 end_here = Some(p);
             }
             3 => {
-                let (s, p) = locomotion_step(world, rng, Activity::Running, here, 1.8..2.8, 2.0..4.0)?;
+                let (s, p) =
+                    locomotion_step(world, rng, Activity::Running, here, 1.8..2.8, 2.0..4.0)?;
                 block.push(s);
                 end_here = Some(p);
             }
             4 => {
-                let (s, p) =
-                    locomotion_step(world, rng, Activity::WalkingUnsteadily, here, 0.35..0.6, 3.0..6.0)?;
+                let (s, p) = locomotion_step(
+                    world,
+                    rng,
+                    Activity::WalkingUnsteadily,
+                    here,
+                    0.35..0.6,
+                    3.0..6.0,
+                )?;
                 block.push(s);
                 end_here = Some(p);
             }
@@ -657,18 +835,26 @@ fn random_person(scene: &Scene, world: &World, rng: &mut ChaCha8Rng, person_seed
                 block.push(fall);
                 block.push(still_step(Activity::LyingDown, rng.random_range(2.0..6.0)));
                 if rng.random_bool(0.3) {
-                    block.push(still_step(Activity::SittingOnFloor, rng.random_range(2.0..4.0)));
+                    block.push(still_step(
+                        Activity::SittingOnFloor,
+                        rng.random_range(2.0..4.0),
+                    ));
                 }
                 block.push(still_step(Activity::GettingUp, rng.random_range(1.2..2.5)));
             }
             _ => {
-                block.push(still_step(Activity::SittingOnFloor, rng.random_range(2.0..5.0)));
+                block.push(still_step(
+                    Activity::SittingOnFloor,
+                    rng.random_range(2.0..5.0),
+                ));
                 if rng.random_bool(0.6) {
                     // Crawling from where the person sits: the position comes from the plan.
                     let mut trial = spec.clone();
                     trial.script = script.iter().chain(block.iter()).cloned().collect();
                     let at = position_after(&trial, world, person_seed)?;
-                    if let Some((s, _)) = locomotion_step(world, rng, Activity::Crawling, at, 0.2..0.4, 2.5..5.0) {
+                    if let Some((s, _)) =
+                        locomotion_step(world, rng, Activity::Crawling, at, 0.2..0.4, 2.5..5.0)
+                    {
                         block.push(s);
                     }
                 }
@@ -710,14 +896,21 @@ fn print_counts(index: &DatasetIndex) {
     for activity in Activity::ALL {
         print!("{:<20}", activity.label());
         for split in SPLITS {
-            let n = index.splits.get(split).map(|e| e.class_counts[activity.index()]).unwrap_or(0);
+            let n = index
+                .splits
+                .get(split)
+                .map(|e| e.class_counts[activity.index()])
+                .unwrap_or(0);
             print!("{n:>12}");
         }
         println!();
     }
     print!("{:<20}", "episodes");
     for split in SPLITS {
-        print!("{:>12}", index.episodes.iter().filter(|e| e.split == split).count());
+        print!(
+            "{:>12}",
+            index.episodes.iter().filter(|e| e.split == split).count()
+        );
     }
     println!();
 }

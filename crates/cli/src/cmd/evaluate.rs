@@ -48,7 +48,11 @@ const PAPER_BOOLEAN: [(f64, f64); Activity::COUNT] = [
     (83.4, 87.0),
     (89.1, 85.1),
 ];
-const PAPER_ACCURACY: [(&str, f64); 3] = [("boolean_grid", 91.3), ("circles", 78.8), ("ellipses", 78.3)];
+const PAPER_ACCURACY: [(&str, f64); 3] = [
+    ("boolean_grid", 91.3),
+    ("circles", 78.8),
+    ("ellipses", 78.3),
+];
 
 #[derive(Serialize)]
 struct SplitMetrics {
@@ -85,12 +89,15 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
     let index = DatasetIndex::load(&args.data)?;
     let mut model = ActivityModel::load(&args.model, args.threads)?;
     check_model_matches(&model, &index, &args.model)?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
 
     let mut splits = std::collections::BTreeMap::new();
     let mut step_times = Vec::new();
     for split in ["test", "test_unseen"] {
-        let Some((images, labels)) = index.read_split(&args.data, split)? else { continue };
+        let Some((images, labels)) = index.read_split(&args.data, split)? else {
+            continue;
+        };
         let (metrics, confusion) = evaluate_split(&mut model, &images, &labels, &mut step_times)?;
         draw_confusion(&confusion, &args.out.join(format!("confusion_{split}.png")))?;
         splits.insert(split.to_string(), metrics);
@@ -100,7 +107,10 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
     };
     step_times.sort_by(f64::total_cmp);
     let mean = step_times.iter().sum::<f64>() / step_times.len().max(1) as f64;
-    let p99 = step_times.get(step_times.len() * 99 / 100).copied().unwrap_or(0.0);
+    let p99 = step_times
+        .get(step_times.len() * 99 / 100)
+        .copied()
+        .unwrap_or(0.0);
     let metrics = Metrics {
         model: args.model.display().to_string(),
         data: args.data.display().to_string(),
@@ -117,7 +127,8 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
     std::fs::write(&json_path, serde_json::to_string_pretty(&metrics)? + "\n")
         .with_context(|| format!("cannot write {}", json_path.display()))?;
     let report_path = args.out.join("report.md");
-    std::fs::write(&report_path, report(&metrics, &index)).with_context(|| format!("cannot write {}", report_path.display()))?;
+    std::fs::write(&report_path, report(&metrics, &index))
+        .with_context(|| format!("cannot write {}", report_path.display()))?;
     println!(
         "test accuracy {:.1} % ({} windows){}; step {:.3} ms; wrote {}",
         100.0 * metrics.test.accuracy,
@@ -125,7 +136,11 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
         metrics
             .splits
             .get("test_unseen")
-            .map(|u| format!(", unseen rooms {:.1} % ({} windows)", 100.0 * u.accuracy, u.windows))
+            .map(|u| format!(
+                ", unseen rooms {:.1} % ({} windows)",
+                100.0 * u.accuracy,
+                u.windows
+            ))
             .unwrap_or_default(),
         mean,
         args.out.display()
@@ -134,7 +149,11 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
 }
 
 /// The model must have been trained on images made like the dataset's.
-fn check_model_matches(model: &ActivityModel, index: &DatasetIndex, path: &Path) -> anyhow::Result<()> {
+fn check_model_matches(
+    model: &ActivityModel,
+    index: &DatasetIndex,
+    path: &Path,
+) -> anyhow::Result<()> {
     let stream = &model.info().stream;
     let rep = &stream.representation;
     let spec = &index.spec;
@@ -176,7 +195,9 @@ fn evaluate_split(
     for w in 0..n {
         model.reset_state(&mut state);
         for k in 0..t {
-            frame.zip_mut_with(&images.slice(s![w, k, .., ..]), |f, &v| *f = f32::from(v) / 255.0);
+            frame.zip_mut_with(&images.slice(s![w, k, .., ..]), |f, &v| {
+                *f = f32::from(v) / 255.0
+            });
             let started = Instant::now();
             let logits = model.step(frame.view(), &mut state)?;
             step_times.push(started.elapsed().as_secs_f64() * 1e3);
@@ -192,7 +213,11 @@ fn evaluate_split(
     }
     let report = confusion.report();
     let by_class = |f: fn(&lidar_har_core::metrics::ClassMetrics) -> f64| {
-        report.per_class.iter().map(|c| (c.activity.label().to_string(), f(c))).collect()
+        report
+            .per_class
+            .iter()
+            .map(|c| (c.activity.label().to_string(), f(c)))
+            .collect()
     };
     let metrics = SplitMetrics {
         windows: n,
@@ -236,7 +261,10 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
         index.spec.resolution_m,
         index.spec.window
     );
-    let paper_acc = PAPER_ACCURACY.iter().find(|(k, _)| *k == m.representation).map(|(_, v)| format!("{v:.1}"));
+    let paper_acc = PAPER_ACCURACY
+        .iter()
+        .find(|(k, _)| *k == m.representation)
+        .map(|(_, v)| format!("{v:.1}"));
     out += "| | ours: test | ours: unseen rooms | paper |\n|---|---|---|---|\n";
     let unseen = m.splits.get("test_unseen");
     out += &format!(
@@ -248,19 +276,29 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
     out += &format!(
         "| accuracy at T/2 (%) | {} | {} | - |\n",
         pct(m.test.accuracy_at_half_window),
-        unseen.map(|u| pct(u.accuracy_at_half_window)).unwrap_or("-".into())
+        unseen
+            .map(|u| pct(u.accuracy_at_half_window))
+            .unwrap_or("-".into())
     );
     out += &format!(
         "| macro F1 (%) | {} | {} | {} |\n",
         pct(m.test.macro_f1),
         unseen.map(|u| pct(u.macro_f1)).unwrap_or("-".into()),
-        paper_acc.map(|_| {
-            let f1 = [91.3, 76.5, 76.9][PAPER_ACCURACY.iter().position(|(k, _)| *k == m.representation).unwrap_or(0)];
-            format!("{f1:.1}")
-        })
-        .unwrap_or("-".into())
+        paper_acc
+            .map(|_| {
+                let f1 = [91.3, 76.5, 76.9][PAPER_ACCURACY
+                    .iter()
+                    .position(|(k, _)| *k == m.representation)
+                    .unwrap_or(0)];
+                format!("{f1:.1}")
+            })
+            .unwrap_or("-".into())
     );
-    out += &format!("| windows | {} | {} | - |\n\n", m.test.windows, unseen.map(|u| u.windows).unwrap_or(0));
+    out += &format!(
+        "| windows | {} | {} | - |\n\n",
+        m.test.windows,
+        unseen.map(|u| u.windows).unwrap_or(0)
+    );
     out += "Per class on the test split, recall / precision in % (paper: Boolean grid):\n\n";
     out += "| class | ours recall | ours precision | ours F1 | paper recall | paper precision |\n|---|---|---|---|---|---|\n";
     for a in Activity::ALL {
@@ -275,13 +313,20 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
     }
     out += "\nConfusion matrix on the test split (rows: truth, columns: prediction, class order above):\n\n";
     out += "| | ";
-    out += &(0..Activity::COUNT).map(|i| i.to_string()).collect::<Vec<_>>().join(" | ");
+    out += &(0..Activity::COUNT)
+        .map(|i| i.to_string())
+        .collect::<Vec<_>>()
+        .join(" | ");
     out += " |\n|---|";
     out += &"---|".repeat(Activity::COUNT);
     out += "\n";
     for (a, row) in Activity::ALL.iter().zip(&m.test.confusion) {
         out += &format!("| {} {} | ", a.index(), a.label());
-        out += &row.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(" | ");
+        out += &row
+            .iter()
+            .map(|v| v.to_string())
+            .collect::<Vec<_>>()
+            .join(" | ");
         out += " |\n";
     }
     out += &format!(
@@ -305,15 +350,29 @@ fn draw_confusion(confusion: &ConfusionMatrix, path: &Path) -> anyhow::Result<()
     for (r, row) in counts.iter().enumerate() {
         let total: u64 = row.iter().sum();
         for (c, &v) in row.iter().enumerate() {
-            let share = if total == 0 { 0.0 } else { v as f64 / total as f64 };
+            let share = if total == 0 {
+                0.0
+            } else {
+                v as f64 / total as f64
+            };
             let shade = (255.0 * (1.0 - share)).round() as u8;
             // Diagonal in blue, errors in red.
-            let colour = if r == c { RGBColor(shade, shade, 255) } else { RGBColor(255, shade, shade) };
+            let colour = if r == c {
+                RGBColor(shade, shade, 255)
+            } else {
+                RGBColor(255, shade, shade)
+            };
             let (x, y) = (CELL + c as i32 * CELL, CELL + r as i32 * CELL);
-            root.draw(&Rectangle::new([(x, y), (x + CELL - 1, y + CELL - 1)], colour.filled()))
-                .map_err(|e| draw(&e))?;
-            root.draw(&Rectangle::new([(x, y), (x + CELL - 1, y + CELL - 1)], BLACK.stroke_width(1)))
-                .map_err(|e| draw(&e))?;
+            root.draw(&Rectangle::new(
+                [(x, y), (x + CELL - 1, y + CELL - 1)],
+                colour.filled(),
+            ))
+            .map_err(|e| draw(&e))?;
+            root.draw(&Rectangle::new(
+                [(x, y), (x + CELL - 1, y + CELL - 1)],
+                BLACK.stroke_width(1),
+            ))
+            .map_err(|e| draw(&e))?;
         }
     }
     root.present().map_err(|e| draw(&e))?;

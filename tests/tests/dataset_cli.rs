@@ -1,0 +1,227 @@
+//! `lidar-har dataset` end to end on short episodes: the split is by episode, the held-out
+//! scene is only in `test_unseen`, class counts and the `.npy` arrays agree with the index.
+
+use std::path::Path;
+use std::process::Command;
+
+use lidar_har_e2e::{repo_root, workspace_bin};
+use serde_json::Value;
+
+/// The shape in a `.npy` header, and the byte count after the header.
+fn npy_shape(path: &Path) -> (Vec<usize>, usize, String) {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(
+        &bytes[..6],
+        b"\x93NUMPY",
+        "{} is not a .npy file",
+        path.display()
+    );
+    let (header_len, start) = if bytes[6] == 1 {
+        (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10)
+    } else {
+        (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        )
+    };
+    let header = String::from_utf8_lossy(&bytes[start..start + header_len]).to_string();
+    let inner = header
+        .split("'shape': (")
+        .nth(1)
+        .and_then(|s| s.split(')').next())
+        .expect("shape in header");
+    let shape = inner
+        .split(',')
+        .filter(|s| !s.trim().is_empty())
+        .map(|s| s.trim().parse().expect("dim"))
+        .collect();
+    (shape, bytes.len() - start - header_len, header)
+}
+
+fn make_dataset(out: &Path, extra: &[&str]) -> std::process::Output {
+    Command::new(workspace_bin("lidar-har"))
+        .current_dir(repo_root())
+        .args([
+            "dataset",
+            "--scenes",
+            "config/scenes/[ko]*.yaml",
+            "--held-out",
+            "office",
+            "--episodes",
+            "4",
+        ])
+        .args([
+            "--episode-seconds",
+            "6",
+            "--window",
+            "8",
+            "--stride",
+            "4",
+            "--size",
+            "16",
+            "--test-fraction",
+            "0.25",
+        ])
+        .args(["--seed", "3", "--out"])
+        .arg(out)
+        .args(extra)
+        .output()
+        .expect("lidar-har runs")
+}
+
+#[test]
+fn dataset_splits_by_episode_and_arrays_match_the_index() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = make_dataset(dir.path(), &[]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "dataset failed: {}\n{stdout}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("falling_down"),
+        "class counts are printed:\n{stdout}"
+    );
+
+    let index: Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("index.json")).expect("index"),
+    )
+    .expect("index.json is JSON");
+    let classes = index["classes"].as_array().expect("classes");
+    assert_eq!(classes.len(), 9);
+    assert_eq!(classes[1], "falling_down");
+
+    // Every episode is in exactly one split; the held-out scene only in test_unseen.
+    let episodes = index["episodes"].as_array().expect("episodes");
+    assert_eq!(
+        episodes.len(),
+        4 + 1,
+        "4 episodes + 1 for the held-out scene"
+    );
+    let split_of = |id: u64| {
+        episodes
+            .iter()
+            .find(|e| e["id"] == id)
+            .map(|e| e["split"].as_str().unwrap_or("").to_string())
+    };
+    for e in episodes {
+        let held_out = e["scene"] == "office";
+        assert_eq!(held_out, e["split"] == "test_unseen", "episode {e}");
+    }
+    assert_eq!(episodes.iter().filter(|e| e["split"] == "test").count(), 1);
+    let windows = index["windows"].as_array().expect("windows");
+    assert!(!windows.is_empty());
+    for w in windows {
+        let episode_split = split_of(w["episode"].as_u64().expect("episode id"))
+            .expect("window's episode is listed");
+        assert_eq!(
+            w["split"].as_str(),
+            Some(episode_split.as_str()),
+            "a window is in its episode's split: {w}"
+        );
+    }
+
+    // Arrays: shapes, rows and class counts agree with the index.
+    for (name, split) in index["splits"].as_object().expect("splits") {
+        let n = split["windows"].as_u64().expect("windows") as usize;
+        let listed: Vec<&Value> = windows
+            .iter()
+            .filter(|w| w["split"] == name.as_str())
+            .collect();
+        assert_eq!(listed.len(), n, "{name}: windows listed");
+        let counts: Vec<u64> = split["class_counts"]
+            .as_array()
+            .expect("counts")
+            .iter()
+            .map(|v| v.as_u64().unwrap_or(0))
+            .collect();
+        assert_eq!(
+            counts.iter().sum::<u64>() as usize,
+            n,
+            "{name}: class counts add up"
+        );
+        if n == 0 {
+            continue;
+        }
+        let (shape, data, header) =
+            npy_shape(&dir.path().join(split["images"].as_str().expect("images")));
+        assert_eq!(shape, vec![n, 8, 16, 16], "{name} images");
+        assert!(header.contains("'|u1'"), "uint8 images: {header}");
+        assert_eq!(data, n * 8 * 16 * 16);
+        let (shape, data, _) =
+            npy_shape(&dir.path().join(split["labels"].as_str().expect("labels")));
+        assert_eq!(shape, vec![n, 8], "{name} labels");
+        let labels_bytes =
+            std::fs::read(dir.path().join(split["labels"].as_str().unwrap_or(""))).expect("labels");
+        let labels = &labels_bytes[labels_bytes.len() - data..];
+        assert!(
+            labels.iter().all(|&l| l < 9),
+            "{name}: class indices in 0..8"
+        );
+        for (row, w) in listed.iter().enumerate() {
+            assert_eq!(w["row"].as_u64(), Some(row as u64));
+            let last = labels[row * 8 + 7] as usize;
+            assert_eq!(
+                w["label"], classes[last],
+                "{name} row {row}: index label = last scan's label"
+            );
+        }
+    }
+    // The localiser found the person in most scans of the seen scenes.
+    let visible: u64 = episodes
+        .iter()
+        .map(|e| e["person_visible_scans"].as_u64().unwrap_or(0))
+        .sum();
+    let scans: u64 = episodes
+        .iter()
+        .map(|e| e["scans"].as_u64().unwrap_or(0))
+        .sum();
+    assert!(
+        visible * 2 > scans,
+        "person visible in {visible} of {scans} scans"
+    );
+
+    // Same seed, same dataset (bit for bit).
+    let again = tempfile::tempdir().expect("tempdir");
+    assert!(make_dataset(again.path(), &[]).status.success());
+    for file in ["index.json", "train_images.npy", "test_labels.npy"] {
+        let a = std::fs::read(dir.path().join(file)).expect("a");
+        let b = std::fs::read(again.path().join(file)).expect("b");
+        assert!(
+            a == b || file == "index.json",
+            "{file} differs between two runs with one seed"
+        );
+    }
+}
+
+#[test]
+fn dataset_rejects_bad_arguments_with_a_clear_error() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (extra, needle) in [
+        (&["--size", "18"][..], "multiple of 4"),
+        (&["--held-out", "nowhere"][..], "nowhere"),
+        (&["--window", "1"][..], "--window"),
+    ] {
+        let out = make_dataset(dir.path(), extra);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{extra:?} accepted");
+        assert!(
+            stderr.contains(needle),
+            "{extra:?}: error should mention '{needle}': {stderr}"
+        );
+    }
+    let out = Command::new(workspace_bin("lidar-har"))
+        .current_dir(repo_root())
+        .args([
+            "dataset",
+            "--scenes",
+            "config/scenes/no_such_*.yaml",
+            "--out",
+        ])
+        .arg(dir.path())
+        .output()
+        .expect("runs");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("matches no file"));
+}
