@@ -20,7 +20,13 @@ use serde_json::Value as Json;
 use serde_yaml_ng::Value as Yaml;
 
 fn header(i: i32, frame: &str) -> Header {
-    Header { stamp: Time { sec: 1000 + i, nanosec: 250_000_000 }, frame_id: frame.into() }
+    Header {
+        stamp: Time {
+            sec: 1000 + i,
+            nanosec: 250_000_000,
+        },
+        frame_id: frame.into(),
+    }
 }
 
 fn scan(i: i32) -> LaserScan {
@@ -33,17 +39,40 @@ fn scan(i: i32) -> LaserScan {
         scan_time: 0.05,
         range_min: 0.15,
         range_max: 12.0,
-        ranges: vec![0.5 + i as f32, f32::INFINITY, f32::NAN, f32::NEG_INFINITY, 0.1],
+        ranges: vec![
+            0.5 + i as f32,
+            f32::INFINITY,
+            f32::NAN,
+            f32::NEG_INFINITY,
+            0.1,
+        ],
         intensities: vec![1.0, 0.0, 255.0],
     }
 }
 
 fn odom(i: i32) -> Odometry {
-    let mut odom = Odometry { header: header(i, "odom"), child_frame_id: "base_link".into(), ..Odometry::default() };
-    odom.pose.pose.position = Point { x: 0.1 * f64::from(i), y: -1.5, z: 0.0 };
-    odom.pose.pose.orientation = Quaternion { x: 0.0, y: 0.0, z: 0.38268343236, w: 0.92387953251 };
+    let mut odom = Odometry {
+        header: header(i, "odom"),
+        child_frame_id: "base_link".into(),
+        ..Odometry::default()
+    };
+    odom.pose.pose.position = Point {
+        x: 0.1 * f64::from(i),
+        y: -1.5,
+        z: 0.0,
+    };
+    odom.pose.pose.orientation = Quaternion {
+        x: 0.0,
+        y: 0.0,
+        z: 0.38268343236,
+        w: 0.92387953251,
+    };
     odom.pose.covariance = std::array::from_fn(|k| k as f64 * 0.25 - 3.0);
-    odom.twist.twist.linear = Vector3 { x: 0.2, y: 0.0, z: 0.0 };
+    odom.twist.twist.linear = Vector3 {
+        x: 0.2,
+        y: 0.0,
+        z: 0.0,
+    };
     odom.twist.covariance[35] = 1e-9;
     odom
 }
@@ -55,13 +84,35 @@ fn markers(i: i32) -> MarkerArray {
         id,
         r#type: 2,
         action: 0,
-        scale: Vector3 { x: 0.3, y: 0.3, z: 1.7 },
-        color: ColorRGBA { r: 1.0, g: 0.2, b: 0.0, a: 0.8 },
-        points: vec![Point { x: 1.0, y: 2.0, z: 0.0 }, Point { x: -1.0, y: 0.5, z: 0.0 }],
+        scale: Vector3 {
+            x: 0.3,
+            y: 0.3,
+            z: 1.7,
+        },
+        color: ColorRGBA {
+            r: 1.0,
+            g: 0.2,
+            b: 0.0,
+            a: 0.8,
+        },
+        points: vec![
+            Point {
+                x: 1.0,
+                y: 2.0,
+                z: 0.0,
+            },
+            Point {
+                x: -1.0,
+                y: 0.5,
+                z: 0.0,
+            },
+        ],
         frame_locked: id % 2 == 0,
         ..Marker::default()
     };
-    MarkerArray { markers: vec![marker(0), marker(1)] }
+    MarkerArray {
+        markers: vec![marker(0), marker(1)],
+    }
 }
 
 fn activity(i: i32) -> Activity {
@@ -75,21 +126,48 @@ fn activity(i: i32) -> Activity {
 }
 
 fn tf(i: i32) -> TFMessage {
-    let mut t = TransformStamped { header: header(i, "odom"), child_frame_id: "base_link".into(), ..Default::default() };
-    t.transform.translation = Vector3 { x: 1.0, y: 2.0, z: 0.0 };
+    let mut t = TransformStamped {
+        header: header(i, "odom"),
+        child_frame_id: "base_link".into(),
+        ..Default::default()
+    };
+    t.transform.translation = Vector3 {
+        x: 1.0,
+        y: 2.0,
+        z: 0.0,
+    };
     t.transform.rotation.w = 1.0;
-    TFMessage { transforms: vec![t.clone(), t] }
+    TFMessage {
+        transforms: vec![t.clone(), t],
+    }
 }
 
 /// Writes 3 messages per topic; returns (topic, log time, the message as a serde tree).
 fn write_project_bag(dir: &Path, storage: StorageId) -> Vec<(String, i64, Yaml)> {
-    let mut writer = BagWriter::create(dir, WriterOptions { storage, ..WriterOptions::default() }).unwrap();
+    let mut writer = BagWriter::create(
+        dir,
+        WriterOptions {
+            storage,
+            ..WriterOptions::default()
+        },
+    )
+    .unwrap();
     let mut expected = Vec::new();
-    let s = writer.add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data()).unwrap();
-    let o = writer.add_topic_for::<Odometry>("/odom", QosProfile::reliable(50)).unwrap();
-    let m = writer.add_topic_for::<MarkerArray>("/human/markers", QosProfile::reliable(10)).unwrap();
-    let a = writer.add_topic_for::<Activity>("/human/activity", QosProfile::reliable(10)).unwrap();
-    let t = writer.add_topic_for::<TFMessage>("/tf", QosProfile::reliable(100)).unwrap();
+    let s = writer
+        .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
+        .unwrap();
+    let o = writer
+        .add_topic_for::<Odometry>("/odom", QosProfile::reliable(50))
+        .unwrap();
+    let m = writer
+        .add_topic_for::<MarkerArray>("/human/markers", QosProfile::reliable(10))
+        .unwrap();
+    let a = writer
+        .add_topic_for::<Activity>("/human/activity", QosProfile::reliable(10))
+        .unwrap();
+    let t = writer
+        .add_topic_for::<TFMessage>("/tf", QosProfile::reliable(100))
+        .unwrap();
     fn put<M: RosMessage>(
         w: &mut BagWriter,
         h: lidar_har_bag::TopicHandle,
@@ -99,14 +177,32 @@ fn write_project_bag(dir: &Path, storage: StorageId) -> Vec<(String, i64, Yaml)>
         out: &mut Vec<(String, i64, Yaml)>,
     ) {
         w.write_message(h, time, msg).unwrap();
-        out.push((topic.to_string(), time, serde_yaml_ng::to_value(msg).unwrap()));
+        out.push((
+            topic.to_string(),
+            time,
+            serde_yaml_ng::to_value(msg).unwrap(),
+        ));
     }
     for i in 0..3 {
         let time = 1_700_000_000_000_000_000 + i64::from(i) * 100_000_000;
         put(&mut writer, s, "/scan", time, &scan(i), &mut expected);
         put(&mut writer, o, "/odom", time + 1, &odom(i), &mut expected);
-        put(&mut writer, m, "/human/markers", time + 2, &markers(i), &mut expected);
-        put(&mut writer, a, "/human/activity", time + 3, &activity(i), &mut expected);
+        put(
+            &mut writer,
+            m,
+            "/human/markers",
+            time + 2,
+            &markers(i),
+            &mut expected,
+        );
+        put(
+            &mut writer,
+            a,
+            "/human/activity",
+            time + 3,
+            &activity(i),
+            &mut expected,
+        );
         put(&mut writer, t, "/tf", time + 4, &tf(i), &mut expected);
     }
     writer.finish().unwrap();
@@ -114,7 +210,9 @@ fn write_project_bag(dir: &Path, storage: StorageId) -> Vec<(String, i64, Yaml)>
 }
 
 fn same_float(py: &str, rs: f64) -> bool {
-    let Ok(py) = py.parse::<f64>() else { return false };
+    let Ok(py) = py.parse::<f64>() else {
+        return false;
+    };
     (py.is_nan() && rs.is_nan()) || py == rs || (py as f32).to_bits() == (rs as f32).to_bits()
 }
 
@@ -125,19 +223,31 @@ fn compare(path: &str, py: &Json, rs: &Yaml) -> Result<(), String> {
         (Yaml::Mapping(map), Json::Object(obj)) => {
             for (key, value) in map {
                 let key = key.as_str().unwrap_or_default();
-                let Some(other) = obj.get(key) else { return Err(format!("{path}.{key}: missing in python")) };
+                let Some(other) = obj.get(key) else {
+                    return Err(format!("{path}.{key}: missing in python"));
+                };
                 compare(&format!("{path}.{key}"), other, value)?;
             }
             Ok(())
         }
-        (Yaml::Sequence(items), Json::Array(others)) if items.len() == others.len() => {
-            items.iter().zip(others).enumerate().try_for_each(|(i, (r, p))| compare(&format!("{path}[{i}]"), p, r))
-        }
+        (Yaml::Sequence(items), Json::Array(others)) if items.len() == others.len() => items
+            .iter()
+            .zip(others)
+            .enumerate()
+            .try_for_each(|(i, (r, p))| compare(&format!("{path}[{i}]"), p, r)),
         (Yaml::Number(n), Json::String(s)) if n.is_f64() => {
-            if same_float(s, n.as_f64().unwrap_or(f64::NAN)) { Ok(()) } else { mismatch() }
+            if same_float(s, n.as_f64().unwrap_or(f64::NAN)) {
+                Ok(())
+            } else {
+                mismatch()
+            }
         }
         (Yaml::Number(n), Json::Number(m)) if !n.is_f64() => {
-            if n.as_i64() == m.as_i64() && n.as_u64() == m.as_u64() { Ok(()) } else { mismatch() }
+            if n.as_i64() == m.as_i64() && n.as_u64() == m.as_u64() {
+                Ok(())
+            } else {
+                mismatch()
+            }
         }
         (Yaml::String(a), Json::String(b)) if a == b => Ok(()),
         (Yaml::Bool(a), Json::Bool(b)) if a == b => Ok(()),
@@ -147,8 +257,16 @@ fn compare(path: &str, py: &Json, rs: &Yaml) -> Result<(), String> {
 
 fn run_python(script: &str, arg: &Path) -> Option<std::process::Output> {
     let mut python = checker_python()?;
-    let out = python.arg(format!("tests/python/{script}")).arg(arg).output().unwrap();
-    assert!(out.status.success(), "{script} failed:\n{}", String::from_utf8_lossy(&out.stderr));
+    let out = python
+        .arg(format!("tests/python/{script}"))
+        .arg(arg)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{script} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     Some(out)
 }
 
@@ -158,23 +276,36 @@ fn rosbags_and_mcap_ros2_decode_the_project_bag_field_by_field() {
     for storage in [StorageId::Mcap, StorageId::Sqlite3] {
         let dir = tmp.path().join(format!("project_{storage}"));
         let expected = write_project_bag(&dir, storage);
-        let Some(out) = run_python("bag_decode.py", &dir) else { return };
+        let Some(out) = run_python("bag_decode.py", &dir) else {
+            return;
+        };
         let decoded: Json = serde_json::from_slice(&out.stdout).unwrap();
-        let decoders: &[&str] = if storage == StorageId::Mcap { &["rosbags", "mcap_ros2"] } else { &["rosbags"] };
+        let decoders: &[&str] = if storage == StorageId::Mcap {
+            &["rosbags", "mcap_ros2"]
+        } else {
+            &["rosbags"]
+        };
         for decoder in decoders {
             for topic in ["/scan", "/odom", "/human/markers", "/human/activity", "/tf"] {
-                let got = decoded[decoder][topic].as_array().unwrap_or_else(|| panic!("{decoder}: no {topic}"));
+                let got = decoded[decoder][topic]
+                    .as_array()
+                    .unwrap_or_else(|| panic!("{decoder}: no {topic}"));
                 let want: Vec<_> = expected.iter().filter(|(t, _, _)| t == topic).collect();
                 assert_eq!(got.len(), want.len(), "{decoder} {topic}");
                 for (g, (_, time, value)) in got.iter().zip(want) {
                     assert_eq!(g["log_time"].as_i64(), Some(*time), "{decoder} {topic}");
-                    if let Err(e) = compare(&format!("{decoder} {storage} {topic}"), &g["msg"], value) {
+                    if let Err(e) =
+                        compare(&format!("{decoder} {storage} {topic}"), &g["msg"], value)
+                    {
                         panic!("{e}");
                     }
                 }
             }
         }
-        assert_eq!(decoded["topics"]["/human/activity"]["type"], "lidar_har_msgs/msg/Activity");
+        assert_eq!(
+            decoded["topics"]["/human/activity"]["type"],
+            "lidar_har_msgs/msg/Activity"
+        );
     }
 }
 
@@ -185,7 +316,8 @@ fn the_project_reads_bags_written_by_rosbags() {
         return;
     }
     for name in ["mcap_v8", "mcap_v9", "sqlite3_v8", "sqlite3_v9"] {
-        let reader = BagReader::open(tmp.path().join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let reader =
+            BagReader::open(tmp.path().join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(reader.metadata().message_count, 40, "{name}");
         assert_eq!(
             reader.topic("/odom").unwrap().offered_qos[0].to_profile(),
@@ -202,7 +334,9 @@ fn the_project_reads_bags_written_by_rosbags() {
                     assert_eq!(s.header.stamp.sec, i);
                     assert_eq!(s.header.frame_id, "laser");
                     assert_eq!(s.ranges[0], 0.5 * i as f32);
-                    assert!(s.ranges[1] == f32::INFINITY && s.ranges[2].is_nan() && s.ranges[3] == 1.25);
+                    assert!(
+                        s.ranges[1] == f32::INFINITY && s.ranges[2].is_nan() && s.ranges[3] == 1.25
+                    );
                     assert_eq!(s.intensities, [1.0, 2.0, 3.0, 4.0]);
                     scans += 1;
                 }
@@ -210,7 +344,13 @@ fn the_project_reads_bags_written_by_rosbags() {
                     let o: Odometry = reader.decode(&message).unwrap();
                     assert_eq!(o.pose.pose.position.x, 0.1 * f64::from(i));
                     assert_eq!(o.child_frame_id, "base_link");
-                    assert!(o.pose.covariance.iter().enumerate().all(|(k, c)| *c == 0.5 * k as f64));
+                    assert!(
+                        o.pose
+                            .covariance
+                            .iter()
+                            .enumerate()
+                            .all(|(k, c)| *c == 0.5 * k as f64)
+                    );
                     assert_eq!(o.twist.twist.angular.z, 0.3);
                     odoms += 1;
                 }

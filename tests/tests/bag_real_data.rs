@@ -21,7 +21,9 @@ fn scans(dir: &std::path::Path) -> Vec<(i64, LaserScan, Vec<u8>)> {
 
 #[test]
 fn both_storages_hold_the_same_1265_scans() {
-    let Some(real) = shared_real_data() else { return };
+    let Some(real) = shared_real_data() else {
+        return;
+    };
     let base = real.join("leg_tracker_demo_stationary");
     let mcap = scans(&base.join("mcap"));
     let sqlite = scans(&base.join("sqlite3"));
@@ -42,8 +44,14 @@ fn both_storages_hold_the_same_1265_scans() {
     // The README: about 337 of 512 ranges are +inf and about 3.5 are NaN per scan.
     let per_scan_inf = infs as f64 / 1265.0;
     let per_scan_nan = nans as f64 / 1265.0;
-    assert!((300.0..380.0).contains(&per_scan_inf), "{per_scan_inf} inf per scan");
-    assert!((1.0..10.0).contains(&per_scan_nan), "{per_scan_nan} NaN per scan");
+    assert!(
+        (300.0..380.0).contains(&per_scan_inf),
+        "{per_scan_inf} inf per scan"
+    );
+    assert!(
+        (1.0..10.0).contains(&per_scan_nan),
+        "{per_scan_nan} NaN per scan"
+    );
     assert!(mcap.windows(2).all(|w| w[0].0 <= w[1].0), "log-time order");
     // Re-encoding a decoded scan gives the recorded bytes back (inf/NaN payloads included).
     assert_eq!(lidar_har_msgs::encode(&mcap[10].1).unwrap(), mcap[10].2);
@@ -51,16 +59,32 @@ fn both_storages_hold_the_same_1265_scans() {
 
 #[test]
 fn bag_info_prints_the_counts() {
-    let Some(real) = shared_real_data() else { return };
+    let Some(real) = shared_real_data() else {
+        return;
+    };
     for storage in ["mcap", "sqlite3"] {
         let dir = real.join("leg_tracker_demo_stationary").join(storage);
-        let out = std::process::Command::new(workspace_bin("lidar-har")).args(["bag", "info"]).arg(&dir).output().unwrap();
+        let out = std::process::Command::new(workspace_bin("lidar-har"))
+            .args(["bag", "info"])
+            .arg(&dir)
+            .output()
+            .unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
-        assert!(out.status.success(), "{text}{}", String::from_utf8_lossy(&out.stderr));
-        assert!(text.contains(&format!("Storage id:        {storage}")), "{text}");
+        assert!(
+            out.status.success(),
+            "{text}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            text.contains(&format!("Storage id:        {storage}")),
+            "{text}"
+        );
         assert!(text.contains("Messages:          1265"), "{text}");
         assert!(text.contains("Duration:          125.989004529s"), "{text}");
-        assert!(text.contains("Topic: /scan | Type: sensor_msgs/msg/LaserScan | Count: 1265"), "{text}");
+        assert!(
+            text.contains("Topic: /scan | Type: sensor_msgs/msg/LaserScan | Count: 1265"),
+            "{text}"
+        );
     }
 }
 
@@ -69,10 +93,21 @@ fn bag_info_rejects_what_is_not_a_bag() {
     let tmp = tempfile::tempdir().unwrap();
     let not_bag = tmp.path().join("notes.txt");
     std::fs::write(&not_bag, "hello").unwrap();
-    for path in [tmp.path().to_path_buf(), not_bag, tmp.path().join("missing")] {
-        let out = std::process::Command::new(workspace_bin("lidar-har")).args(["bag", "info"]).arg(&path).output().unwrap();
+    for path in [
+        tmp.path().to_path_buf(),
+        not_bag,
+        tmp.path().join("missing"),
+    ] {
+        let out = std::process::Command::new(workspace_bin("lidar-har"))
+            .args(["bag", "info"])
+            .arg(&path)
+            .output()
+            .unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success());
-        assert!(err.contains(&path.display().to_string()) && !err.contains("panicked"), "{err}");
+        assert!(
+            err.contains(&path.display().to_string()) && !err.contains("panicked"),
+            "{err}"
+        );
     }
 }

@@ -24,7 +24,13 @@ fn scan(i: u32) -> LaserScan {
         })
         .collect();
     LaserScan {
-        header: Header { stamp: Time { sec: (i / 20) as i32, nanosec: (i % 20) * 50_000_000 }, frame_id: "laser".into() },
+        header: Header {
+            stamp: Time {
+                sec: (i / 20) as i32,
+                nanosec: (i % 20) * 50_000_000,
+            },
+            frame_id: "laser".into(),
+        },
         angle_min: -std::f32::consts::PI,
         angle_max: std::f32::consts::PI,
         angle_increment: 2.0 * std::f32::consts::PI / BEAMS as f32,
@@ -40,7 +46,11 @@ fn scan(i: u32) -> LaserScan {
 fn peak_rss_kib() -> u64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("VmHWM:")).map(str::to_string))
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .map(str::to_string)
+        })
         .and_then(|l| l.split_whitespace().nth(1).and_then(|v| v.parse().ok()))
         .unwrap_or(0)
 }
@@ -49,14 +59,26 @@ fn peak_rss_kib() -> u64 {
 /// before reading stays small, so a reader that loaded whole files would show).
 fn write(dir: &Path, storage: StorageId, compression: Compression) {
     let start = Instant::now();
-    let options = WriterOptions { storage, compression, ..WriterOptions::default() };
+    let options = WriterOptions {
+        storage,
+        compression,
+        ..WriterOptions::default()
+    };
     let mut writer = BagWriter::create(dir, options).expect("create bag");
-    let topic = writer.add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data()).expect("add topic");
+    let topic = writer
+        .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
+        .expect("add topic");
     let mut bytes = 0;
     for i in 0..SCANS {
         let payload = lidar_har_msgs::encode(&scan(i)).expect("encode");
         bytes += payload.len();
-        writer.write(topic, 1_700_000_000_000_000_000 + i64::from(i) * 50_000_000, &payload).expect("write");
+        writer
+            .write(
+                topic,
+                1_700_000_000_000_000_000 + i64::from(i) * 50_000_000,
+                &payload,
+            )
+            .expect("write");
     }
     writer.finish().expect("finish");
     let secs = start.elapsed().as_secs_f64();
@@ -67,7 +89,11 @@ fn write(dir: &Path, storage: StorageId, compression: Compression) {
         .sum();
     println!(
         "encode+write {:<12}: {:>9.0} msg/s {:>7.1} MB/s  ({:.1} MB on disk)",
-        format!("{}/{}", storage.as_str(), format!("{compression:?}").to_lowercase()),
+        format!(
+            "{}/{}",
+            storage.as_str(),
+            format!("{compression:?}").to_lowercase()
+        ),
         f64::from(SCANS) / secs,
         bytes as f64 / secs / 1e6,
         file_size as f64 / 1e6
@@ -104,7 +130,11 @@ fn main() {
     println!(
         "{SCANS} LaserScans x {BEAMS} beams, {one} bytes each ({:.1} MB of CDR); one core; {} build",
         (one * SCANS as usize) as f64 / 1e6,
-        if cfg!(debug_assertions) { "debug" } else { "release" }
+        if cfg!(debug_assertions) {
+            "debug"
+        } else {
+            "release"
+        }
     );
     let cases = [
         ("mcap", StorageId::Mcap, Compression::None),

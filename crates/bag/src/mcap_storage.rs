@@ -221,7 +221,8 @@ impl McapFile {
             // The indexed reader only sees messages inside indexed chunks: use it when every
             // message is in one (a chunked file, or one without messages).
             Ok(Some(summary))
-                if !summary.chunk_indexes.is_empty() || summary.stats.as_ref().is_some_and(|s| s.message_count == 0) =>
+                if !summary.chunk_indexes.is_empty()
+                    || summary.stats.as_ref().is_some_and(|s| s.message_count == 0) =>
             {
                 Self::from_summary(input, summary)
             }

@@ -19,10 +19,24 @@ const CHILD_DIR: &str = "BAG_CHILD_DIR";
 
 fn scan(i: u32) -> LaserScan {
     LaserScan {
-        header: Header { stamp: Time { sec: i as i32, nanosec: 0 }, frame_id: "laser".into() },
+        header: Header {
+            stamp: Time {
+                sec: i as i32,
+                nanosec: 0,
+            },
+            frame_id: "laser".into(),
+        },
         angle_increment: 0.00872,
         range_max: 12.0,
-        ranges: (0..720).map(|b| if b % 7 == 0 { f32::INFINITY } else { (i + b) as f32 * 0.001 }).collect(),
+        ranges: (0..720)
+            .map(|b| {
+                if b % 7 == 0 {
+                    f32::INFINITY
+                } else {
+                    (i + b) as f32 * 0.001
+                }
+            })
+            .collect(),
         ..LaserScan::default()
     }
 }
@@ -31,7 +45,9 @@ fn scan(i: u32) -> LaserScan {
 /// Prints `flushed N` each time N messages are safely on disk.
 #[test]
 fn child_writer() {
-    let Some(dir) = std::env::var_os(CHILD_DIR) else { return };
+    let Some(dir) = std::env::var_os(CHILD_DIR) else {
+        return;
+    };
     let stop = Arc::new(AtomicBool::new(false));
     signal_hook::flag::register(signal_hook::consts::SIGTERM, stop.clone()).unwrap();
     signal_hook::flag::register(signal_hook::consts::SIGINT, stop.clone()).unwrap();
@@ -42,10 +58,14 @@ fn child_writer() {
         ..WriterOptions::default()
     };
     let mut writer = BagWriter::create(Path::new(&dir), options).unwrap();
-    let topic = writer.add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data()).unwrap();
+    let topic = writer
+        .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
+        .unwrap();
     let mut i = 0u32;
     while !stop.load(Ordering::Relaxed) && i < 1_000_000 {
-        writer.write_message(topic, 1_000 + i64::from(i) * 50_000_000, &scan(i)).unwrap();
+        writer
+            .write_message(topic, 1_000 + i64::from(i) * 50_000_000, &scan(i))
+            .unwrap();
         i += 1;
         if i % 25 == 0 {
             writer.flush().unwrap();
@@ -70,7 +90,10 @@ fn spawn_child(dir: &Path) -> Child {
 fn wait_for_flushes(lines: &mut impl Iterator<Item = String>, at_least: u32) -> u32 {
     let deadline = Instant::now() + Duration::from_secs(60);
     for line in lines {
-        if let Some(n) = line.strip_prefix("flushed ").and_then(|n| n.trim().parse::<u32>().ok()) {
+        if let Some(n) = line
+            .strip_prefix("flushed ")
+            .and_then(|n| n.trim().parse::<u32>().ok())
+        {
             if n >= at_least {
                 return n;
             }
@@ -98,17 +121,29 @@ fn sigkill_loses_nothing_flushed() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("killed");
     let mut child = spawn_child(&dir);
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines().map_while(Result::ok);
+    let mut lines = BufReader::new(child.stdout.take().unwrap())
+        .lines()
+        .map_while(Result::ok);
     let flushed = wait_for_flushes(&mut lines, 300);
     child.kill().unwrap(); // SIGKILL: no handler runs
     child.wait().unwrap();
 
     let (scans, error) = read_back(&dir);
-    assert!(scans.len() >= flushed as usize, "{} read back, {flushed} flushed", scans.len());
+    assert!(
+        scans.len() >= flushed as usize,
+        "{} read back, {flushed} flushed",
+        scans.len()
+    );
     for (i, got) in scans.iter().enumerate() {
         let expected = scan(i as u32);
         assert_eq!(got.header, expected.header, "message {i}");
-        assert!(got.ranges.iter().zip(&expected.ranges).all(|(a, b)| a.to_bits() == b.to_bits()), "message {i}");
+        assert!(
+            got.ranges
+                .iter()
+                .zip(&expected.ranges)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "message {i}"
+        );
     }
     // The writer was killed mid-file: no summary, and normally half a chunk at the end.
     let reader = BagReader::open(&dir).unwrap();
@@ -118,7 +153,10 @@ fn sigkill_loses_nothing_flushed() {
     }
     // metadata.yaml was kept up to date at each flush.
     let listed = reader.bag_metadata().unwrap().message_count;
-    assert!(listed >= u64::from(flushed) && listed <= scans.len() as u64, "metadata.yaml lists {listed}");
+    assert!(
+        listed >= u64::from(flushed) && listed <= scans.len() as u64,
+        "metadata.yaml lists {listed}"
+    );
 }
 
 #[test]
@@ -126,11 +164,20 @@ fn sigterm_finishes_the_bag() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("terminated");
     let mut child = spawn_child(&dir);
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines().map_while(Result::ok);
+    let mut lines = BufReader::new(child.stdout.take().unwrap())
+        .lines()
+        .map_while(Result::ok);
     wait_for_flushes(&mut lines, 100);
-    nix::sys::signal::kill(nix::unistd::Pid::from_raw(child.id() as i32), nix::sys::signal::Signal::SIGTERM).unwrap();
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(child.id() as i32),
+        nix::sys::signal::Signal::SIGTERM,
+    )
+    .unwrap();
     let finished: u64 = lines
-        .find_map(|l| l.strip_prefix("finished ").and_then(|n| n.trim().parse().ok()))
+        .find_map(|l| {
+            l.strip_prefix("finished ")
+                .and_then(|n| n.trim().parse().ok())
+        })
         .expect("child prints `finished N` after SIGTERM");
     assert!(child.wait().unwrap().success());
 
@@ -138,7 +185,10 @@ fn sigterm_finishes_the_bag() {
     assert!(error.is_none(), "{error:?}");
     assert_eq!(scans.len() as u64, finished);
     let reader = BagReader::open(&dir).unwrap();
-    assert!(!reader.metadata().truncated, "a complete MCAP with its summary");
+    assert!(
+        !reader.metadata().truncated,
+        "a complete MCAP with its summary"
+    );
     assert_eq!(reader.bag_metadata().unwrap().message_count, finished);
     assert_eq!(reader.metadata().message_count, finished);
 }

@@ -39,18 +39,34 @@ fn parse_compression(s: &str) -> Result<Compression, String> {
 pub fn run(command: BagCommand) -> anyhow::Result<()> {
     match command {
         BagCommand::Info { bag } => info(&bag),
-        BagCommand::Convert { src, dst, storage, compression } => convert(&src, &dst, storage, compression),
+        BagCommand::Convert {
+            src,
+            dst,
+            storage,
+            compression,
+        } => convert(&src, &dst, storage, compression),
     }
 }
 
 fn info(path: &Path) -> anyhow::Result<()> {
-    let reader = BagReader::open(path).with_context(|| format!("cannot open bag {}", path.display()))?;
+    let reader =
+        BagReader::open(path).with_context(|| format!("cannot open bag {}", path.display()))?;
     let info = reader.metadata();
-    let size: u64 = info.files.iter().filter_map(|f| std::fs::metadata(f).ok()).map(|m| m.len()).sum();
+    let size: u64 = info
+        .files
+        .iter()
+        .filter_map(|f| std::fs::metadata(f).ok())
+        .map(|m| m.len())
+        .sum();
     let files: Vec<String> = info
         .files
         .iter()
-        .map(|f| f.file_name().map_or_else(|| f.display().to_string(), |n| n.to_string_lossy().into_owned()))
+        .map(|f| {
+            f.file_name().map_or_else(
+                || f.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            )
+        })
         .collect();
     println!("Files:             {}", files.join("\n                   "));
     println!("Bag size:          {}", human_size(size));
@@ -66,34 +82,60 @@ fn info(path: &Path) -> anyhow::Result<()> {
     println!("End:               {}", timestamp(info.end_ns));
     println!("Messages:          {}", info.message_count);
     if info.truncated {
-        println!("Warning:           a storage file ends early (recorder killed?); counts cover its complete part");
+        println!(
+            "Warning:           a storage file ends early (recorder killed?); counts cover its complete part"
+        );
     }
-    let width = reader.topics().iter().map(|t| t.name.len()).max().unwrap_or(0);
+    let width = reader
+        .topics()
+        .iter()
+        .map(|t| t.name.len())
+        .max()
+        .unwrap_or(0);
     for (i, topic) in reader.topics().iter().enumerate() {
         let qos: Vec<String> = topic.offered_qos.iter().map(|q| q.describe()).collect();
         println!(
             "{}Topic: {:width$} | Type: {} | Count: {} | Serialization Format: {} | QoS: {}",
-            if i == 0 { "Topic information: " } else { "                   " },
+            if i == 0 {
+                "Topic information: "
+            } else {
+                "                   "
+            },
             topic.name,
             topic.type_name,
             topic.message_count,
             topic.serialization_format,
-            if qos.is_empty() { "(none recorded)".to_string() } else { qos.join(", ") },
+            if qos.is_empty() {
+                "(none recorded)".to_string()
+            } else {
+                qos.join(", ")
+            },
         );
     }
     Ok(())
 }
 
-fn convert(src: &Path, dst: &Path, storage: StorageId, compression: Compression) -> anyhow::Result<()> {
-    let reader = BagReader::open(src).with_context(|| format!("cannot open bag {}", src.display()))?;
-    let mut options = WriterOptions { storage, compression, ..WriterOptions::default() };
+fn convert(
+    src: &Path,
+    dst: &Path,
+    storage: StorageId,
+    compression: Compression,
+) -> anyhow::Result<()> {
+    let reader =
+        BagReader::open(src).with_context(|| format!("cannot open bag {}", src.display()))?;
+    let mut options = WriterOptions {
+        storage,
+        compression,
+        ..WriterOptions::default()
+    };
     if let Some(metadata) = reader.bag_metadata() {
         if !metadata.ros_distro.is_empty() {
             options.ros_distro = metadata.ros_distro.clone();
         }
         options.custom_data = metadata.custom_data.clone().unwrap_or_default();
     }
-    let mut writer = BagWriter::create(dst, options).with_context(|| format!("cannot create bag {}", dst.display()))?;
+    let mut writer = BagWriter::create(dst, options)
+        .with_context(|| format!("cannot create bag {}", dst.display()))?;
     let mut handles = std::collections::HashMap::new();
     for topic in reader.topics() {
         let mut topic = topic.clone();
@@ -109,14 +151,20 @@ fn convert(src: &Path, dst: &Path, storage: StorageId, compression: Compression)
             };
             topic.schema_text = Some(definition.schema_text());
         }
-        let handle = writer.add_topic_like(&topic).with_context(|| format!("cannot add topic {}", topic.name))?;
+        let handle = writer
+            .add_topic_like(&topic)
+            .with_context(|| format!("cannot add topic {}", topic.name))?;
         handles.insert(topic.name.clone(), handle);
     }
     let mut count = 0u64;
     for message in reader.messages()? {
         let message = message.with_context(|| format!("reading {}", src.display()))?;
         let Some(&handle) = handles.get(&*message.topic) else {
-            bail!("{}: message on unlisted topic `{}`", src.display(), message.topic);
+            bail!(
+                "{}: message on unlisted topic `{}`",
+                src.display(),
+                message.topic
+            );
         };
         writer.write(handle, message.log_time_ns, &message.data)?;
         count += 1;
@@ -144,7 +192,11 @@ fn human_size(bytes: u64) -> String {
 }
 
 fn seconds(ns: i64) -> String {
-    format!("{}.{:09}s", ns.div_euclid(1_000_000_000), ns.rem_euclid(1_000_000_000))
+    format!(
+        "{}.{:09}s",
+        ns.div_euclid(1_000_000_000),
+        ns.rem_euclid(1_000_000_000)
+    )
 }
 
 /// `YYYY-MM-DD hh:mm:ss.nnnnnnnnn UTC (seconds.nanoseconds)`.
@@ -181,7 +233,10 @@ mod tests {
 
     #[test]
     fn formats_times() {
-        assert_eq!(timestamp(0), "1970-01-01 00:00:00.000000000 UTC (0.000000000)");
+        assert_eq!(
+            timestamp(0),
+            "1970-01-01 00:00:00.000000000 UTC (0.000000000)"
+        );
         assert!(timestamp(1_403_201_183_687_882_605).starts_with("2014-06-19 18:06:23.687882605"));
         assert_eq!(seconds(125_989_004_529), "125.989004529s");
         assert_eq!(human_size(2048), "2.0 KiB");
