@@ -46,10 +46,16 @@ fn parse_args() -> anyhow::Result<Args> {
             "--bag" => bag = Some(PathBuf::from(value()?)),
             "--model" => model = Some(PathBuf::from(value()?)),
             "--seconds" => seconds = value()?.parse().context("--seconds")?,
-            other => bail!("unknown argument {other}; usage: latency --bag BAG [--model M] [--seconds S]"),
+            other => bail!(
+                "unknown argument {other}; usage: latency --bag BAG [--model M] [--seconds S]"
+            ),
         }
     }
-    Ok(Args { bag: bag.context("--bag BAG is required")?, model, seconds })
+    Ok(Args {
+        bag: bag.context("--bag BAG is required")?,
+        model,
+        seconds,
+    })
 }
 
 fn run() -> anyhow::Result<()> {
@@ -72,8 +78,14 @@ fn run() -> anyhow::Result<()> {
         return Ok(());
     }
     let args = parse_args()?;
-    let bins = std::env::current_exe()?.parent().and_then(Path::parent).context("binary directory")?.to_path_buf();
-    println!("| replay rate | scans | activities | latency p50 | latency p99 | node | CPU (% of one core) | peak RSS |");
+    let bins = std::env::current_exe()?
+        .parent()
+        .and_then(Path::parent)
+        .context("binary directory")?
+        .to_path_buf();
+    println!(
+        "| replay rate | scans | activities | latency p50 | latency p99 | node | CPU (% of one core) | peak RSS |"
+    );
     println!("|---|---|---|---|---|---|---|---|");
     for rate in [1.0, 0.0] {
         measure(&bins, &args, rate)?;
@@ -87,7 +99,8 @@ fn spawn(bins: &Path, name: &str, params: &[String]) -> anyhow::Result<Child> {
     for p in params {
         cmd.args(["-p", p]);
     }
-    cmd.spawn().with_context(|| format!("start {} (build with --bins)", bins.join(name).display()))
+    cmd.spawn()
+        .with_context(|| format!("start {} (build with --bins)", bins.join(name).display()))
 }
 
 /// utime + stime of a process, in clock ticks.
@@ -101,7 +114,10 @@ fn cpu_ticks(pid: u32) -> Option<u64> {
 /// Peak resident set size, kB.
 fn peak_rss_kb(pid: u32) -> Option<u64> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    status.lines().find_map(|l| l.strip_prefix("VmHWM:")).and_then(|v| v.split_whitespace().next()?.parse().ok())
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.split_whitespace().next()?.parse().ok())
 }
 
 fn quantile(sorted: &[f64], q: f64) -> f64 {
@@ -124,11 +140,18 @@ fn measure(bins: &Path, args: &Args, rate: f64) -> anyhow::Result<()> {
     let mut replay = spawn(
         bins,
         "replay",
-        &[format!("bag:={}", args.bag.display()), format!("rate:={rate}"), "wait_for_subscriber:=/scan".into()],
+        &[
+            format!("bag:={}", args.bag.display()),
+            format!("rate:={rate}"),
+            "wait_for_subscriber:=/scan".into(),
+        ],
     )?;
     let ticks_per_s = 100.0; // USER_HZ on Linux
     let start = Instant::now();
-    let cpu0: Vec<Option<u64>> = [&replay, &localiser, &classifier].iter().map(|c| cpu_ticks(c.id())).collect();
+    let cpu0: Vec<Option<u64>> = [&replay, &localiser, &classifier]
+        .iter()
+        .map(|c| cpu_ticks(c.id()))
+        .collect();
     let mut published: HashMap<i64, i64> = HashMap::new();
     let mut latencies_ms = Vec::new();
     let (mut n_scans, mut n_activities) = (0u64, 0u64);
@@ -143,7 +166,9 @@ fn measure(bins: &Path, args: &Args, rate: f64) -> anyhow::Result<()> {
         }
         while let Some((activity, _)) = activities.try_take_msg::<Activity>()? {
             n_activities += 1;
-            let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH)?.as_nanos() as i64;
+            let now = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)?
+                .as_nanos() as i64;
             if let Some(sent) = published.get(&activity.header.stamp.to_nanos()) {
                 latencies_ms.push((now - sent) as f64 / 1e6);
             }
@@ -152,7 +177,11 @@ fn measure(bins: &Path, args: &Args, rate: f64) -> anyhow::Result<()> {
         replay_done = replay.try_wait()?.is_some();
     }
     let elapsed = start.elapsed().as_secs_f64();
-    let children = [("replay", &mut replay), ("localiser", &mut localiser), ("classifier", &mut classifier)];
+    let children = [
+        ("replay", &mut replay),
+        ("localiser", &mut localiser),
+        ("classifier", &mut classifier),
+    ];
     let usage: Vec<(String, f64, u64)> = children
         .iter()
         .zip(&cpu0)
@@ -169,7 +198,11 @@ fn measure(bins: &Path, args: &Args, rate: f64) -> anyhow::Result<()> {
         let _ = child.wait();
     }
     latencies_ms.sort_by(f64::total_cmp);
-    let label = if rate > 0.0 { format!("{rate}x") } else { "max".into() };
+    let label = if rate > 0.0 {
+        format!("{rate}x")
+    } else {
+        "max".into()
+    };
     for (i, (name, cpu, rss)) in usage.iter().enumerate() {
         let (l, s, a, p50, p99) = if i == 0 {
             (
@@ -182,7 +215,10 @@ fn measure(bins: &Path, args: &Args, rate: f64) -> anyhow::Result<()> {
         } else {
             Default::default()
         };
-        println!("| {l} | {s} | {a} | {p50} | {p99} | {name} | {cpu:.1} | {:.1} MB |", *rss as f64 / 1024.0);
+        println!(
+            "| {l} | {s} | {a} | {p50} | {p99} | {name} | {cpu:.1} | {:.1} MB |",
+            *rss as f64 / 1024.0
+        );
     }
     Ok(())
 }

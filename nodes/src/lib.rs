@@ -26,10 +26,18 @@ pub fn run(node: &str, body: impl FnOnce(&Shutdown) -> anyhow::Result<()>) -> Ex
             let bad_input = err.chain().any(|cause| {
                 matches!(
                     cause.downcast_ref::<RosError>(),
-                    Some(RosError::Parameter { .. } | RosError::ParamsFile { .. } | RosError::Args(_))
+                    Some(
+                        RosError::Parameter { .. }
+                            | RosError::ParamsFile { .. }
+                            | RosError::Args(_)
+                    )
                 )
             });
-            if bad_input { ExitCode::from(2) } else { ExitCode::FAILURE }
+            if bad_input {
+                ExitCode::from(2)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }
@@ -73,8 +81,14 @@ pub struct Outputs {
 
 impl Outputs {
     /// A publisher (contract name, type and QoS) for each of `specs`.
-    pub fn new(node: &lidar_har_ros::Node, specs: &[lidar_har_msgs::topics::TopicSpec]) -> Result<Self, RosError> {
-        let publishers = specs.iter().map(|s| Ok((s.name, node.publisher_for(s)?))).collect::<Result<_, RosError>>()?;
+    pub fn new(
+        node: &lidar_har_ros::Node,
+        specs: &[lidar_har_msgs::topics::TopicSpec],
+    ) -> Result<Self, RosError> {
+        let publishers = specs
+            .iter()
+            .map(|s| Ok((s.name, node.publisher_for(s)?)))
+            .collect::<Result<_, RosError>>()?;
         Ok(Self { publishers })
     }
 
@@ -83,7 +97,10 @@ impl Outputs {
         for out in outgoing {
             match self.publishers.get(out.topic.name) {
                 Some(publisher) => publisher.publish(&out.cdr)?,
-                None => log::warn!("no publisher for {} (not an output of this node)", out.topic.name),
+                None => log::warn!(
+                    "no publisher for {} (not an output of this node)",
+                    out.topic.name
+                ),
             }
         }
         Ok(())
@@ -91,12 +108,22 @@ impl Outputs {
 }
 
 /// A configuration file parameter: the path, or `None` when empty (use the defaults).
-pub fn optional_path(params: &lidar_har_ros::Parameters, name: &str) -> Result<Option<std::path::PathBuf>, RosError> {
+pub fn optional_path(
+    params: &lidar_har_ros::Parameters,
+    name: &str,
+) -> Result<Option<std::path::PathBuf>, RosError> {
     let value = params.string(name)?;
-    Ok(if value.is_empty() { None } else { Some(value.into()) })
+    Ok(if value.is_empty() {
+        None
+    } else {
+        Some(value.into())
+    })
 }
 
 /// A bad parameter whose value could not be used, with the reason.
 pub fn bad_parameter(name: &str, reason: impl std::fmt::Display) -> RosError {
-    RosError::Parameter { name: name.to_string(), reason: format!("{reason:#}") }
+    RosError::Parameter {
+        name: name.to_string(),
+        reason: format!("{reason:#}"),
+    }
 }

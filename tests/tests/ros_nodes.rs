@@ -16,7 +16,8 @@ use lidar_har_msgs::sensor_msgs::LaserScan;
 use lidar_har_msgs::std_msgs::Header;
 use lidar_har_msgs::topics;
 
-const NETNS_SETUP: &str = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo";
+const NETNS_SETUP: &str =
+    "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo";
 const T0_NS: i64 = 1_700_000_000_000_000_000;
 
 /// Whether `unshare -rn` with a multicast loopback works here; prints why not.
@@ -26,7 +27,9 @@ fn netns_available() -> bool {
         .output()
         .is_ok_and(|o| o.status.success());
     if !ok {
-        eprintln!("SKIP: cannot create a private network namespace (`unshare -rn` + `ip`): DDS tests need one");
+        eprintln!(
+            "SKIP: cannot create a private network namespace (`unshare -rn` + `ip`): DDS tests need one"
+        );
     }
     ok
 }
@@ -35,21 +38,42 @@ fn netns_available() -> bool {
 /// exported to it.
 fn in_netns(script: &str, vars: &[(&str, &Path)], limit: Duration) -> Output {
     let mut cmd = Command::new("timeout");
-    cmd.args(["-k", "3", &format!("{}", limit.as_secs()), "unshare", "-rn", "sh", "-c"])
-        .arg(format!("set -u; {NETNS_SETUP} || exit 90\n{script}"));
+    cmd.args([
+        "-k",
+        "3",
+        &format!("{}", limit.as_secs()),
+        "unshare",
+        "-rn",
+        "sh",
+        "-c",
+    ])
+    .arg(format!("set -u; {NETNS_SETUP} || exit 90\n{script}"));
     for (k, v) in vars {
         cmd.env(k, v);
     }
     let out = cmd.output().expect("run timeout/unshare");
-    eprintln!("--- script stdout\n{}", String::from_utf8_lossy(&out.stdout));
-    eprintln!("--- script stderr\n{}", String::from_utf8_lossy(&out.stderr));
-    assert_ne!(out.status.code(), Some(124), "the script ran past its {limit:?} limit");
+    eprintln!(
+        "--- script stdout\n{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    eprintln!(
+        "--- script stderr\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_ne!(
+        out.status.code(),
+        Some(124),
+        "the script ran past its {limit:?} limit"
+    );
     out
 }
 
 fn scan(i: usize) -> LaserScan {
     LaserScan {
-        header: Header::new(Time::from_nanos(T0_NS + 50_000_000 * (i as i64 + 1)), "laser"),
+        header: Header::new(
+            Time::from_nanos(T0_NS + 50_000_000 * (i as i64 + 1)),
+            "laser",
+        ),
         angle_min: -std::f32::consts::PI,
         angle_max: std::f32::consts::PI,
         angle_increment: std::f32::consts::TAU / 8.0,
@@ -66,17 +90,27 @@ fn scan(i: usize) -> LaserScan {
 fn write_bag(dir: &Path, scans: usize) -> PathBuf {
     let path = dir.join("bag");
     let mut w = BagWriter::create(&path, WriterOptions::default()).unwrap();
-    let map_topic = w.add_topic_for::<OccupancyGrid>(topics::MAP.name, topics::MAP.qos).unwrap();
-    let scan_topic = w.add_topic_for::<LaserScan>(topics::SCAN.name, topics::SCAN.qos).unwrap();
+    let map_topic = w
+        .add_topic_for::<OccupancyGrid>(topics::MAP.name, topics::MAP.qos)
+        .unwrap();
+    let scan_topic = w
+        .add_topic_for::<LaserScan>(topics::SCAN.name, topics::SCAN.qos)
+        .unwrap();
     let map = OccupancyGrid {
         header: Header::new(Time::from_nanos(T0_NS), "map"),
-        info: MapMetaData { resolution: 0.05, width: 4, height: 3, ..Default::default() },
+        info: MapMetaData {
+            resolution: 0.05,
+            width: 4,
+            height: 3,
+            ..Default::default()
+        },
         data: vec![0, 100, -1, 0, 0, 0, 100, 100, 0, 0, -1, 0],
     };
     w.write_message(map_topic, T0_NS, &map).unwrap();
     for i in 0..scans {
         let s = scan(i);
-        w.write_message(scan_topic, T0_NS + 50_000_000 * (i as i64 + 1), &s).unwrap();
+        w.write_message(scan_topic, T0_NS + 50_000_000 * (i as i64 + 1), &s)
+            .unwrap();
     }
     w.finish().unwrap();
     path
@@ -85,7 +119,11 @@ fn write_bag(dir: &Path, scans: usize) -> PathBuf {
 fn json_lines(path: &Path) -> Vec<serde_json::Value> {
     let text = std::fs::read_to_string(path).unwrap_or_default();
     text.lines()
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{}: not a complete JSON line: {l:?}: {e}", path.display())))
+        .map(|l| {
+            serde_json::from_str(l).unwrap_or_else(|e| {
+                panic!("{}: not a complete JSON line: {l:?}: {e}", path.display())
+            })
+        })
         .collect()
 }
 
@@ -95,7 +133,12 @@ fn scan_index(msg: &serde_json::Value) -> usize {
     let ns = stamp["sec"].as_i64().unwrap() * 1_000_000_000 + stamp["nanosec"].as_i64().unwrap();
     let i = ((ns - T0_NS) / 50_000_000 - 1) as usize;
     let want = scan(i);
-    let ranges: Vec<f32> = msg["ranges"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap() as f32).collect();
+    let ranges: Vec<f32> = msg["ranges"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap() as f32)
+        .collect();
     assert_eq!(ranges, want.ranges, "scan {i} content");
     assert_eq!(msg["header"]["frame_id"], "laser");
     i
@@ -121,7 +164,12 @@ wait $E; echo "scan_echo=$?"
 "#;
     let out = in_netns(
         script,
-        &[("LH", &workspace_bin("lidar-har")), ("REPLAY", &workspace_bin("replay")), ("BAG", &bag), ("OUT", dir.path())],
+        &[
+            ("LH", &workspace_bin("lidar-har")),
+            ("REPLAY", &workspace_bin("replay")),
+            ("BAG", &bag),
+            ("OUT", dir.path()),
+        ],
         Duration::from_secs(40),
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -132,14 +180,24 @@ wait $E; echo "scan_echo=$?"
     assert_eq!(map.len(), 1);
     assert_eq!(map[0]["type"], "nav_msgs/msg/OccupancyGrid");
     assert_eq!(map[0]["msg"]["info"]["width"], 4);
-    assert_eq!(map[0]["msg"]["data"], serde_json::json!([0, 100, -1, 0, 0, 0, 100, 100, 0, 0, -1, 0]));
+    assert_eq!(
+        map[0]["msg"]["data"],
+        serde_json::json!([0, 100, -1, 0, 0, 0, 100, 100, 0, 0, -1, 0])
+    );
 
     let scans = json_lines(&dir.path().join("scan.jsonl"));
     let indices: Vec<usize> = scans.iter().map(|l| scan_index(&l["msg"])).collect();
     // Best-effort /scan (sensor-data QoS): in order, no duplicates; on loopback at 20 Hz all
     // arrive once the subscriber is matched.
-    assert!(indices.windows(2).all(|w| w[0] < w[1]), "out of order or duplicated: {indices:?}");
-    assert!(indices.len() >= 55, "only {} of 60 scans arrived: {indices:?}", indices.len());
+    assert!(
+        indices.windows(2).all(|w| w[0] < w[1]),
+        "out of order or duplicated: {indices:?}"
+    );
+    assert!(
+        indices.len() >= 55,
+        "only {} of 60 scans arrived: {indices:?}",
+        indices.len()
+    );
 }
 
 #[test]
@@ -150,33 +208,78 @@ fn ros_nodes_reject_bad_parameters_naming_them() {
     let dir = tempfile::tempdir().unwrap();
     let bag = write_bag(dir.path(), 2);
     let params_file = dir.path().join("bad.yaml");
-    std::fs::write(&params_file, "replay:\n  ros__parameters:\n    rate: fast\n").unwrap();
+    std::fs::write(
+        &params_file,
+        "replay:\n  ros__parameters:\n    rate: fast\n",
+    )
+    .unwrap();
     let cases: &[(&str, &[&str])] = &[
         (r#""$REPLAY""#, &["`bag`", "required"]),
-        (r#""$REPLAY" --ros-args -p bag:=/nonexistent/bag"#, &["`bag`", "/nonexistent/bag"]),
-        (r#""$REPLAY" --ros-args -p bag:="$BAG" -p rate:=-2"#, &["`rate`", ">= 0"]),
-        (r#""$REPLAY" --ros-args -p bag:="$BAG" -p rate:=.nan"#, &["`rate`"]),
-        (r#""$REPLAY" --ros-args -p bag:="$BAG" -p rate:=fast"#, &["`rate`", "expected double"]),
-        (r#""$REPLAY" --ros-args -p bag:="$BAG" -p speed:=2"#, &["`speed`", "unknown"]),
-        (r#""$REPLAY" --ros-args -p bag:="$BAG" -p topics:=[/nope]"#, &["`topics`", "/nope"]),
-        (r#""$REPLAY" --ros-args -p bag:="$BAG" --params-file "$PF""#, &["`rate`", "bad.yaml"]),
-        (r#""$REPLAY" --ros-args -p bag:="$BAG" --params-file /nonexistent.yaml"#, &["/nonexistent.yaml"]),
-        (r#"ROS_DOMAIN_ID=999 "$REPLAY" --ros-args -p bag:="$BAG""#, &["ROS_DOMAIN_ID"]),
+        (
+            r#""$REPLAY" --ros-args -p bag:=/nonexistent/bag"#,
+            &["`bag`", "/nonexistent/bag"],
+        ),
+        (
+            r#""$REPLAY" --ros-args -p bag:="$BAG" -p rate:=-2"#,
+            &["`rate`", ">= 0"],
+        ),
+        (
+            r#""$REPLAY" --ros-args -p bag:="$BAG" -p rate:=.nan"#,
+            &["`rate`"],
+        ),
+        (
+            r#""$REPLAY" --ros-args -p bag:="$BAG" -p rate:=fast"#,
+            &["`rate`", "expected double"],
+        ),
+        (
+            r#""$REPLAY" --ros-args -p bag:="$BAG" -p speed:=2"#,
+            &["`speed`", "unknown"],
+        ),
+        (
+            r#""$REPLAY" --ros-args -p bag:="$BAG" -p topics:=[/nope]"#,
+            &["`topics`", "/nope"],
+        ),
+        (
+            r#""$REPLAY" --ros-args -p bag:="$BAG" --params-file "$PF""#,
+            &["`rate`", "bad.yaml"],
+        ),
+        (
+            r#""$REPLAY" --ros-args -p bag:="$BAG" --params-file /nonexistent.yaml"#,
+            &["/nonexistent.yaml"],
+        ),
+        (
+            r#"ROS_DOMAIN_ID=999 "$REPLAY" --ros-args -p bag:="$BAG""#,
+            &["ROS_DOMAIN_ID"],
+        ),
     ];
     for (command, needles) in cases {
         let script = format!("{command} 2> \"$OUT/err.txt\"; echo \"exit=$?\"");
         let out = in_netns(
             &script,
-            &[("REPLAY", &workspace_bin("replay")), ("BAG", &bag), ("PF", &params_file), ("OUT", dir.path())],
+            &[
+                ("REPLAY", &workspace_bin("replay")),
+                ("BAG", &bag),
+                ("PF", &params_file),
+                ("OUT", dir.path()),
+            ],
             Duration::from_secs(20),
         );
         let stdout = String::from_utf8_lossy(&out.stdout);
         let stderr = std::fs::read_to_string(dir.path().join("err.txt")).unwrap();
-        assert!(!stdout.contains("exit=0") && stdout.contains("exit="), "{command}: must fail: {stdout}");
+        assert!(
+            !stdout.contains("exit=0") && stdout.contains("exit="),
+            "{command}: must fail: {stdout}"
+        );
         for needle in *needles {
-            assert!(stderr.contains(needle), "{command}: stderr must name {needle}: {stderr}");
+            assert!(
+                stderr.contains(needle),
+                "{command}: stderr must name {needle}: {stderr}"
+            );
         }
-        assert!(!stderr.contains("panicked"), "{command}: panicked: {stderr}");
+        assert!(
+            !stderr.contains("panicked"),
+            "{command}: panicked: {stderr}"
+        );
     }
 }
 
@@ -205,7 +308,12 @@ echo "zombies=$(ps -o stat= --ppid $$ | grep -c Z)"
 "#;
     let out = in_netns(
         script,
-        &[("LH", &workspace_bin("lidar-har")), ("REPLAY", &workspace_bin("replay")), ("BAG", &bag), ("OUT", dir.path())],
+        &[
+            ("LH", &workspace_bin("lidar-har")),
+            ("REPLAY", &workspace_bin("replay")),
+            ("BAG", &bag),
+            ("OUT", dir.path()),
+        ],
         Duration::from_secs(40),
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -217,9 +325,16 @@ echo "zombies=$(ps -o stat= --ppid $$ | grep -c Z)"
         .find_map(|l| l.strip_prefix("replay_stop_ms="))
         .and_then(|v| v.trim().parse().ok())
         .expect("stop time printed");
-    assert!(stop_ms < 2000, "replay took {stop_ms} ms to stop after SIGTERM");
+    assert!(
+        stop_ms < 2000,
+        "replay took {stop_ms} ms to stop after SIGTERM"
+    );
     let scans = json_lines(&dir.path().join("scan.jsonl"));
-    assert!(!scans.is_empty() && scans.len() < 200, "{} scans: the replay must have been cut short", scans.len());
+    assert!(
+        !scans.is_empty() && scans.len() < 200,
+        "{} scans: the replay must have been cut short",
+        scans.len()
+    );
     for s in &scans {
         scan_index(&s["msg"]);
     }
@@ -230,7 +345,9 @@ fn ros_cyclone_dds_interoperates_with_replay_and_topic_echo() {
     if !netns_available() {
         return;
     }
-    let Some(python) = checker_python() else { return };
+    let Some(python) = checker_python() else {
+        return;
+    };
     let python = PathBuf::from(python.get_program());
     let dir = tempfile::tempdir().unwrap();
     let bag = write_bag(dir.path(), 40);
@@ -260,19 +377,35 @@ wait $E; echo "echo=$?"
         Duration::from_secs(60),
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
-    for want in ["replay=0", "cyclone_receive=0", "cyclone_publish=0", "echo=0"] {
+    for want in [
+        "replay=0",
+        "cyclone_receive=0",
+        "cyclone_publish=0",
+        "echo=0",
+    ] {
         assert!(stdout.contains(want), "expected {want}");
     }
     let received = json_lines(&dir.path().join("cyclone_scan.jsonl"));
     let indices: Vec<usize> = received.iter().map(scan_index).collect();
-    assert!(indices.windows(2).all(|w| w[0] < w[1]), "out of order or duplicated: {indices:?}");
-    assert!(indices.len() >= 36, "Cyclone received only {} of 40 scans: {indices:?}", indices.len());
+    assert!(
+        indices.windows(2).all(|w| w[0] < w[1]),
+        "out of order or duplicated: {indices:?}"
+    );
+    assert!(
+        indices.len() >= 36,
+        "Cyclone received only {} of 40 scans: {indices:?}",
+        indices.len()
+    );
     let echoed = json_lines(&dir.path().join("echo_scan.jsonl"));
     assert_eq!(echoed.len(), 20);
     for (i, line) in echoed.iter().enumerate() {
         let ranges = line["msg"]["ranges"].as_array().unwrap();
         assert_eq!(ranges.len(), 8);
-        assert_eq!(ranges[0].as_f64(), Some(i as f64), "Cyclone scan {i} arrived changed or out of order");
+        assert_eq!(
+            ranges[0].as_f64(),
+            Some(i as f64),
+            "Cyclone scan {i} arrived changed or out of order"
+        );
     }
 }
 
@@ -280,11 +413,17 @@ wait $E; echo "echo=$?"
 fn bag_topic_json(bag: &Path, topic: &str) -> Vec<serde_json::Value> {
     let reader = lidar_har_bag::BagReader::open(bag).unwrap();
     let type_name = reader.topic(topic).map(|t| t.type_name.clone());
-    let Some(type_name) = type_name else { return Vec::new() };
+    let Some(type_name) = type_name else {
+        return Vec::new();
+    };
     reader
         .messages_on(&[topic])
         .unwrap()
-        .map(|m| lidar_har_ros::json::decode_to_json(&type_name, &m.unwrap().data).unwrap().unwrap())
+        .map(|m| {
+            lidar_har_ros::json::decode_to_json(&type_name, &m.unwrap().data)
+                .unwrap()
+                .unwrap()
+        })
         .collect()
 }
 
@@ -304,14 +443,28 @@ fn ros_replay_localiser_classifier_processes_equal_the_embedded_run() {
         .status()
         .unwrap();
     assert!(status.success(), "lidar-har simulate failed");
-    let status = Command::new(&lh).current_dir(repo_root()).arg("run").arg("--bag").arg(&bag).arg("--out").arg(&run_out).status().unwrap();
+    let status = Command::new(&lh)
+        .current_dir(repo_root())
+        .arg("run")
+        .arg("--bag")
+        .arg(&bag)
+        .arg("--out")
+        .arg(&run_out)
+        .status()
+        .unwrap();
     assert!(status.success(), "lidar-har run failed");
     let want_poses = bag_topic_json(&run_out, topics::HUMAN_POSE.name);
     let want_activities = bag_topic_json(&run_out, topics::HUMAN_ACTIVITY.name);
-    assert!(want_poses.len() > 20, "the simulated person should be tracked: {} poses", want_poses.len());
+    assert!(
+        want_poses.len() > 20,
+        "the simulated person should be tracked: {} poses",
+        want_poses.len()
+    );
     let with_classifier = !want_activities.is_empty();
     if !with_classifier {
-        eprintln!("NOTE: `lidar-har run` wrote no /human/activity (no model): comparing the localiser's outputs only");
+        eprintln!(
+            "NOTE: `lidar-har run` wrote no /human/activity (no model): comparing the localiser's outputs only"
+        );
     }
     let script = format!(
         r#"
@@ -328,13 +481,24 @@ wait $P; echo "pose_echo=$?"
 kill -TERM $L {kill_classifier}; wait $L; echo "localiser=$?"
 "#,
         np = want_poses.len(),
-        classifier = if with_classifier { r#""$CLS" & C=$!"# } else { "" },
+        classifier = if with_classifier {
+            r#""$CLS" & C=$!"#
+        } else {
+            ""
+        },
         echo_activity = if with_classifier {
-            format!(r#""$LH" topic echo /human/activity --count {} --timeout 40 > "$OUT/activity.jsonl" & A=$!"#, want_activities.len())
+            format!(
+                r#""$LH" topic echo /human/activity --count {} --timeout 40 > "$OUT/activity.jsonl" & A=$!"#,
+                want_activities.len()
+            )
         } else {
             String::new()
         },
-        wait_activity = if with_classifier { r#"wait $A; echo "activity_echo=$?""# } else { "" },
+        wait_activity = if with_classifier {
+            r#"wait $A; echo "activity_echo=$?""#
+        } else {
+            ""
+        },
         kill_classifier = if with_classifier { "$C" } else { "" },
     );
     let out = in_netns(
@@ -353,14 +517,26 @@ kill -TERM $L {kill_classifier}; wait $L; echo "localiser=$?"
     for want in ["replay=0", "pose_echo=0", "localiser=0"] {
         assert!(stdout.contains(want), "expected {want}");
     }
-    let got_poses: Vec<_> = json_lines(&dir.path().join("pose.jsonl")).into_iter().map(|l| l["msg"].clone()).collect();
+    let got_poses: Vec<_> = json_lines(&dir.path().join("pose.jsonl"))
+        .into_iter()
+        .map(|l| l["msg"].clone())
+        .collect();
     assert_eq!(got_poses.len(), want_poses.len());
     for (i, (got, want)) in got_poses.iter().zip(&want_poses).enumerate() {
-        assert_eq!(got, want, "/human/pose {i} differs between the nodes and `lidar-har run`");
+        assert_eq!(
+            got, want,
+            "/human/pose {i} differs between the nodes and `lidar-har run`"
+        );
     }
     if with_classifier {
         assert!(stdout.contains("activity_echo=0"));
-        let got: Vec<_> = json_lines(&dir.path().join("activity.jsonl")).into_iter().map(|l| l["msg"].clone()).collect();
-        assert_eq!(got, want_activities, "/human/activity differs between the nodes and `lidar-har run`");
+        let got: Vec<_> = json_lines(&dir.path().join("activity.jsonl"))
+            .into_iter()
+            .map(|l| l["msg"].clone())
+            .collect();
+        assert_eq!(
+            got, want_activities,
+            "/human/activity differs between the nodes and `lidar-har run`"
+        );
     }
 }

@@ -48,7 +48,10 @@ impl RosArgs {
                 continue;
             }
             while let Some(flag) = args.next() {
-                let mut value = |what: &str| args.next().ok_or_else(|| bad(&flag, &format!("needs {what}")));
+                let mut value = |what: &str| {
+                    args.next()
+                        .ok_or_else(|| bad(&flag, &format!("needs {what}")))
+                };
                 match flag.as_str() {
                     "--" => break,
                     "--ros-args" => {}
@@ -58,15 +61,19 @@ impl RosArgs {
                     }
                     "-p" | "--param" => {
                         let rule = value("`name:=value`")?;
-                        let (name, text) =
-                            rule.split_once(":=").ok_or_else(|| bad(&rule, "a parameter must be `name:=value`"))?;
+                        let (name, text) = rule
+                            .split_once(":=")
+                            .ok_or_else(|| bad(&rule, "a parameter must be `name:=value`"))?;
                         if name.is_empty() {
                             return Err(bad(&rule, "empty parameter name"));
                         }
                         // `node:name:=value` applies to one node only; we keep the last part.
                         let name = name.rsplit(':').next().unwrap_or(name);
-                        let parsed = ParamValue::parse_cli(text)
-                            .map_err(|e| RosError::Parameter { name: name.to_string(), reason: e })?;
+                        let parsed =
+                            ParamValue::parse_cli(text).map_err(|e| RosError::Parameter {
+                                name: name.to_string(),
+                                reason: e,
+                            })?;
                         out.params.push((name.to_string(), parsed));
                     }
                     "--params-file" => out.params_files.push(PathBuf::from(value("a file")?)),
@@ -74,8 +81,12 @@ impl RosArgs {
                     "--log-level" | "--log-config-file" | "-e" | "--enclave" => {
                         value("a value")?;
                     }
-                    "--enable-rosout-logs" | "--disable-rosout-logs" | "--enable-stdout-logs"
-                    | "--disable-stdout-logs" | "--enable-external-lib-logs" | "--disable-external-lib-logs" => {}
+                    "--enable-rosout-logs"
+                    | "--disable-rosout-logs"
+                    | "--enable-stdout-logs"
+                    | "--disable-stdout-logs"
+                    | "--enable-external-lib-logs"
+                    | "--disable-external-lib-logs" => {}
                     other => return Err(bad(other, "unknown ROS argument")),
                 }
             }
@@ -85,7 +96,9 @@ impl RosArgs {
 
     fn add_remap(&mut self, rule: &str) -> Result<(), RosError> {
         let bad = |reason: &str| RosError::Args(format!("remapping `{rule}`: {reason}"));
-        let (lhs, to) = rule.split_once(":=").ok_or_else(|| bad("must be `from:=to`"))?;
+        let (lhs, to) = rule
+            .split_once(":=")
+            .ok_or_else(|| bad("must be `from:=to`"))?;
         // `node:from` restricts the rule to one node; `from` may itself not contain ':'.
         let (node, from) = match lhs.split_once(':') {
             Some((node, from)) => (Some(node.to_string()), from),
@@ -102,7 +115,11 @@ impl RosArgs {
                 }
                 self.namespace = Some(to.to_string());
             }
-            _ => self.remaps.push(Remap { node, from: from.to_string(), to: to.to_string() }),
+            _ => self.remaps.push(Remap {
+                node,
+                from: from.to_string(),
+                to: to.to_string(),
+            }),
         }
         Ok(())
     }
@@ -143,7 +160,9 @@ fn parse_domain_id(value: Option<&str>) -> Result<u16, RosError> {
         None | Some("") => Ok(0),
         Some(text) => match text.parse::<u16>() {
             Ok(id) if id <= 232 => Ok(id),
-            _ => Err(RosError::Args(format!("ROS_DOMAIN_ID `{text}` is not a domain id (an integer 0..=232)"))),
+            _ => Err(RosError::Args(format!(
+                "ROS_DOMAIN_ID `{text}` is not a domain id (an integer 0..=232)"
+            ))),
         },
     }
 }
@@ -155,15 +174,40 @@ mod tests {
     #[test]
     fn parses_remaps_node_ns_params_and_files() {
         let a = RosArgs::parse([
-            "--bag", "x", "--ros-args", "-r", "scan:=/robot/scan", "-r", "__node:=loc2", "-r", "__ns:=/r1", "-p",
-            "rate:=2.5", "--params-file", "p.yaml", "--log-level", "debug", "--", "tail",
+            "--bag",
+            "x",
+            "--ros-args",
+            "-r",
+            "scan:=/robot/scan",
+            "-r",
+            "__node:=loc2",
+            "-r",
+            "__ns:=/r1",
+            "-p",
+            "rate:=2.5",
+            "--params-file",
+            "p.yaml",
+            "--log-level",
+            "debug",
+            "--",
+            "tail",
         ])
         .unwrap();
         assert_eq!(a.rest, vec!["--bag", "x", "tail"]);
-        assert_eq!(a.remaps, vec![Remap { node: None, from: "scan".into(), to: "/robot/scan".into() }]);
+        assert_eq!(
+            a.remaps,
+            vec![Remap {
+                node: None,
+                from: "scan".into(),
+                to: "/robot/scan".into()
+            }]
+        );
         assert_eq!(a.node_name.as_deref(), Some("loc2"));
         assert_eq!(a.namespace.as_deref(), Some("/r1"));
-        assert_eq!(a.params, vec![("rate".to_string(), ParamValue::Double(2.5))]);
+        assert_eq!(
+            a.params,
+            vec![("rate".to_string(), ParamValue::Double(2.5))]
+        );
         assert_eq!(a.params_files, vec![PathBuf::from("p.yaml")]);
     }
 
@@ -185,11 +229,22 @@ mod tests {
     #[test]
     fn topic_resolution_follows_rcl() {
         let remaps = vec![
-            Remap { node: None, from: "scan".into(), to: "base_scan".into() },
-            Remap { node: Some("other".into()), from: "/odom".into(), to: "/x".into() },
+            Remap {
+                node: None,
+                from: "scan".into(),
+                to: "base_scan".into(),
+            },
+            Remap {
+                node: Some("other".into()),
+                from: "/odom".into(),
+                to: "/x".into(),
+            },
         ];
         assert_eq!(resolve_topic("/scan", &remaps, "/", "loc"), "/base_scan");
-        assert_eq!(resolve_topic("scan", &remaps, "/r1", "loc"), "/r1/base_scan");
+        assert_eq!(
+            resolve_topic("scan", &remaps, "/r1", "loc"),
+            "/r1/base_scan"
+        );
         assert_eq!(resolve_topic("/scan", &remaps, "/r1", "loc"), "/scan");
         assert_eq!(resolve_topic("/odom", &remaps, "/", "loc"), "/odom");
         assert_eq!(resolve_topic("/odom", &remaps, "/", "other"), "/x");
@@ -200,7 +255,12 @@ mod tests {
     fn domain_ids() {
         assert_eq!(parse_domain_id(None).unwrap(), 0);
         assert_eq!(parse_domain_id(Some(" 42 ")).unwrap(), 42);
-        assert!(parse_domain_id(Some("233")).unwrap_err().to_string().contains("ROS_DOMAIN_ID"));
+        assert!(
+            parse_domain_id(Some("233"))
+                .unwrap_err()
+                .to_string()
+                .contains("ROS_DOMAIN_ID")
+        );
         assert!(parse_domain_id(Some("-1")).is_err());
         assert!(parse_domain_id(Some("abc")).is_err());
     }

@@ -14,11 +14,17 @@ use lidar_har_msgs::qos::{Durability, History, QosProfile, Reliability};
 use ros2_client::dds::rustdds;
 use ros2_client::{MessageTypeName, Name, NodeName, NodeOptions, ParameterValue as Ros2Value};
 use rustdds::mio1;
-use rustdds::no_key::{self, DataWriter, Decode, DefaultDecoder, DeserializerAdapter, SerializerAdapter};
-use rustdds::{DataWriterStatus, QosPolicies, RepresentationIdentifier, StatusEvented, Timestamp, Topic};
+use rustdds::no_key::{
+    self, DataWriter, Decode, DefaultDecoder, DeserializerAdapter, SerializerAdapter,
+};
+use rustdds::{
+    DataWriterStatus, QosPolicies, RepresentationIdentifier, StatusEvented, Timestamp, Topic,
+};
 
 use crate::params::{ParamDecl, ParamValue, Parameters};
-use crate::{NodeBackend, PublisherBackend, RosError, Sample, SubscriberBackend, TopicInfo, split_type_name};
+use crate::{
+    NodeBackend, PublisherBackend, RosError, Sample, SubscriberBackend, TopicInfo, split_type_name,
+};
 
 /// CDR bytes after the encapsulation header, with the header's representation identifier.
 pub(crate) struct RawCdr {
@@ -57,7 +63,10 @@ impl DeserializerAdapter<RawCdr> for RawAdapter {
     type Decoded = RawCdr;
 
     fn supported_encodings() -> &'static [RepresentationIdentifier] {
-        &[RepresentationIdentifier::CDR_LE, RepresentationIdentifier::CDR_BE]
+        &[
+            RepresentationIdentifier::CDR_LE,
+            RepresentationIdentifier::CDR_BE,
+        ]
     }
 
     fn transform_decoded(decoded: RawCdr) -> RawCdr {
@@ -71,8 +80,15 @@ pub(crate) struct RawDecoder;
 impl Decode<'_, RawCdr> for RawDecoder {
     type Error = RawCdrError;
 
-    fn decode_bytes(self, input: &[u8], encoding: RepresentationIdentifier) -> Result<RawCdr, RawCdrError> {
-        Ok(RawCdr { representation: encoding, body: input.to_vec() })
+    fn decode_bytes(
+        self,
+        input: &[u8],
+        encoding: RepresentationIdentifier,
+    ) -> Result<RawCdr, RawCdrError> {
+        Ok(RawCdr {
+            representation: encoding,
+            body: input.to_vec(),
+        })
     }
 }
 
@@ -111,7 +127,9 @@ fn from_ros2_value(v: Ros2Value) -> Option<ParamValue> {
 fn qos_policies(qos: &QosProfile) -> QosPolicies {
     use ros2_client::qos as r;
     let reliability = match qos.reliability {
-        Reliability::Reliable => r::Reliability::Reliable { when_full: r::WhenFull::DEFAULT },
+        Reliability::Reliable => r::Reliability::Reliable {
+            when_full: r::WhenFull::DEFAULT,
+        },
         Reliability::BestEffort => r::Reliability::BestEffort,
     };
     let durability = match qos.durability {
@@ -119,10 +137,15 @@ fn qos_policies(qos: &QosProfile) -> QosPolicies {
         Durability::TransientLocal => r::Durability::TransientLocal,
     };
     let history = match qos.history {
-        History::KeepLast(depth) => r::History::KeepLast { depth: depth.max(1) as usize },
+        History::KeepLast(depth) => r::History::KeepLast {
+            depth: depth.max(1) as usize,
+        },
         History::KeepAll => r::History::KeepAll,
     };
-    let profile = r::QosProfile::publisher_default().reliability(reliability).durability(durability).history(history);
+    let profile = r::QosProfile::publisher_default()
+        .reliability(reliability)
+        .durability(durability)
+        .history(history);
     QosPolicies::from(&profile)
 }
 
@@ -142,24 +165,52 @@ pub(crate) struct DdsNode {
 }
 
 impl DdsNode {
-    pub(crate) fn new(name: &str, namespace: &str, decls: &[ParamDecl], params: &Parameters) -> Result<Self, RosError> {
+    pub(crate) fn new(
+        name: &str,
+        namespace: &str,
+        decls: &[ParamDecl],
+        params: &Parameters,
+    ) -> Result<Self, RosError> {
         let domain = crate::args::domain_id_from_env()?;
-        let context = ros2_client::Context::with_options(ros2_client::ContextOptions::new().domain_id(domain))
-            .map_err(dds_err)?;
-        let node_name = NodeName::new(namespace, name)
-            .map_err(|e| RosError::Name { name: format!("{namespace}/{name}"), reason: format!("{e:?}") })?;
-        let mut options = NodeOptions::new().enable_rosout(true).start_parameter_services(true);
+        let context = ros2_client::Context::with_options(
+            ros2_client::ContextOptions::new().domain_id(domain),
+        )
+        .map_err(dds_err)?;
+        let node_name = NodeName::new(namespace, name).map_err(|e| RosError::Name {
+            name: format!("{namespace}/{name}"),
+            reason: format!("{e:?}"),
+        })?;
+        let mut options = NodeOptions::new()
+            .enable_rosout(true)
+            .start_parameter_services(true);
         for (pname, value) in params.iter() {
             options = options.declare_parameter(pname, to_ros2_value(value));
         }
         // `ros2 param set` may change a value but not its type (as rclcpp's default).
-        let types: HashMap<String, ParamValue> = decls.iter().map(|d| (d.name.clone(), d.default.clone())).collect();
+        let types: HashMap<String, ParamValue> = decls
+            .iter()
+            .map(|d| (d.name.clone(), d.default.clone()))
+            .collect();
         options = options.parameter_validator(Box::new(move |pname, value| {
-            let declared = types.get(pname).ok_or_else(|| format!("parameter `{pname}` is not declared"))?;
-            let given = from_ros2_value(value.clone()).ok_or_else(|| format!("parameter `{pname}`: unsupported value"))?;
+            let declared = types
+                .get(pname)
+                .ok_or_else(|| format!("parameter `{pname}` is not declared"))?;
+            let given = from_ros2_value(value.clone())
+                .ok_or_else(|| format!("parameter `{pname}`: unsupported value"))?;
             let same = std::mem::discriminant(declared) == std::mem::discriminant(&given)
-                || matches!((declared, &given), (ParamValue::Double(_), ParamValue::Integer(_)));
-            if same { Ok(()) } else { Err(format!("parameter `{pname}` is {}, not {}", declared.type_name(), given.type_name())) }
+                || matches!(
+                    (declared, &given),
+                    (ParamValue::Double(_), ParamValue::Integer(_))
+                );
+            if same {
+                Ok(())
+            } else {
+                Err(format!(
+                    "parameter `{pname}` is {}, not {}",
+                    declared.type_name(),
+                    given.type_name()
+                ))
+            }
         }));
         let mut node = context.new_node(node_name, options).map_err(dds_err)?;
         // The spinner serves parameter services and follows /clock for use_sim_time; it ends
@@ -174,8 +225,12 @@ impl DdsNode {
             })
             .map_err(dds_err)?;
         let participant = context.domain_participant();
-        let publisher = participant.create_publisher(&QosPolicies::qos_none()).map_err(dds_err)?;
-        let subscriber = participant.create_subscriber(&QosPolicies::qos_none()).map_err(dds_err)?;
+        let publisher = participant
+            .create_publisher(&QosPolicies::qos_none())
+            .map_err(dds_err)?;
+        let subscriber = participant
+            .create_subscriber(&QosPolicies::qos_none())
+            .map_err(dds_err)?;
         let poll = mio1::Poll::new().map_err(dds_err)?;
         let registry = poll.registry().try_clone().map_err(dds_err)?;
         Ok(Self {
@@ -196,9 +251,15 @@ impl DdsNode {
             return Ok(t.clone());
         }
         let (pkg, ty) = split_type_name(type_name)?;
-        let ros_name = Name::parse(name).map_err(|e| RosError::Name { name: name.into(), reason: format!("{e:?}") })?;
+        let ros_name = Name::parse(name).map_err(|e| RosError::Name {
+            name: name.into(),
+            reason: format!("{e:?}"),
+        })?;
         let profile = ros2_client::QosProfile::from(qos);
-        let topic = self.node.create_topic(&ros_name, MessageTypeName::new(pkg, ty), &profile).map_err(dds_err)?;
+        let topic = self
+            .node
+            .create_topic(&ros_name, MessageTypeName::new(pkg, ty), &profile)
+            .map_err(dds_err)?;
         topics.insert(name.to_string(), topic.clone());
         Ok(topic)
     }
@@ -209,14 +270,26 @@ fn lock_poisoned<T>(_: T) -> RosError {
 }
 
 impl NodeBackend for DdsNode {
-    fn publisher(&self, topic: &str, type_name: &str, qos: &QosProfile) -> Result<Box<dyn PublisherBackend>, RosError> {
+    fn publisher(
+        &self,
+        topic: &str,
+        type_name: &str,
+        qos: &QosProfile,
+    ) -> Result<Box<dyn PublisherBackend>, RosError> {
         let policies = qos_policies(qos);
         let t = self.topic(topic, type_name, &policies)?;
         let writer = self
             .publisher
             .create_datawriter_no_key::<RawCdr, RawAdapter>(&t, Some(policies))
-            .map_err(|e| RosError::Topic { topic: topic.into(), reason: e.to_string() })?;
-        Ok(Box::new(DdsPublisher { topic: topic.to_string(), writer, matched: AtomicUsize::new(0) }))
+            .map_err(|e| RosError::Topic {
+                topic: topic.into(),
+                reason: e.to_string(),
+            })?;
+        Ok(Box::new(DdsPublisher {
+            topic: topic.to_string(),
+            writer,
+            matched: AtomicUsize::new(0),
+        }))
     }
 
     fn subscriber(
@@ -230,15 +303,26 @@ impl NodeBackend for DdsNode {
         let mut reader = self
             .subscriber
             .create_simple_datareader_no_key::<RawCdr, RawAdapter>(&t, Some(policies))
-            .map_err(|e| RosError::Topic { topic: topic.into(), reason: e.to_string() })?;
+            .map_err(|e| RosError::Topic {
+                topic: topic.into(),
+                reason: e.to_string(),
+            })?;
         let token = {
             let mut next = self.next_token.lock().map_err(lock_poisoned)?;
             *next += 1;
             *next
         };
-        mio1::event::Source::register(&mut reader, &self.registry, mio1::Token(token), mio1::Interest::READABLE)
-            .map_err(dds_err)?;
-        Ok(Box::new(DdsSubscriber { topic: topic.to_string(), reader }))
+        mio1::event::Source::register(
+            &mut reader,
+            &self.registry,
+            mio1::Token(token),
+            mio1::Interest::READABLE,
+        )
+        .map_err(dds_err)?;
+        Ok(Box::new(DdsSubscriber {
+            topic: topic.to_string(),
+            reader,
+        }))
     }
 
     fn wait(&self, timeout: Duration) -> Result<(), RosError> {
@@ -282,20 +366,36 @@ struct DdsPublisher {
 
 impl PublisherBackend for DdsPublisher {
     fn publish(&self, cdr: &[u8]) -> Result<(), RosError> {
-        let bad = |reason: String| RosError::Topic { topic: self.topic.clone(), reason };
-        let Some((header, body)) = cdr.split_first_chunk::<4>() else {
-            return Err(bad(format!("{} bytes are shorter than the CDR encapsulation header", cdr.len())));
+        let bad = |reason: String| RosError::Topic {
+            topic: self.topic.clone(),
+            reason,
         };
-        let representation = RepresentationIdentifier::from_bytes(&header[..2]).map_err(|e| bad(e.to_string()))?;
+        let Some((header, body)) = cdr.split_first_chunk::<4>() else {
+            return Err(bad(format!(
+                "{} bytes are shorter than the CDR encapsulation header",
+                cdr.len()
+            )));
+        };
+        let representation =
+            RepresentationIdentifier::from_bytes(&header[..2]).map_err(|e| bad(e.to_string()))?;
         self.writer
-            .write(RawCdr { representation, body: body.to_vec() }, Some(Timestamp::now()))
+            .write(
+                RawCdr {
+                    representation,
+                    body: body.to_vec(),
+                },
+                Some(Timestamp::now()),
+            )
             .map_err(|e| bad(format!("write failed: {e}")))
     }
 
     fn subscription_count(&self) -> usize {
         while let Some(status) = self.writer.try_recv_status() {
             if let DataWriterStatus::PublicationMatched { current, .. } = status {
-                self.matched.store(usize::try_from(current.count()).unwrap_or(0), Ordering::Relaxed);
+                self.matched.store(
+                    usize::try_from(current.count()).unwrap_or(0),
+                    Ordering::Relaxed,
+                );
             }
         }
         self.matched.load(Ordering::Relaxed)
@@ -318,10 +418,10 @@ fn timestamp_ns(t: Timestamp) -> i64 {
 impl SubscriberBackend for DdsSubscriber {
     fn try_take(&self) -> Result<Option<Sample>, RosError> {
         self.reader.drain_read_notifications();
-        let taken = self
-            .reader
-            .try_take_one()
-            .map_err(|e| RosError::Topic { topic: self.topic.clone(), reason: e.to_string() })?;
+        let taken = self.reader.try_take_one().map_err(|e| RosError::Topic {
+            topic: self.topic.clone(),
+            reason: e.to_string(),
+        })?;
         Ok(taken.map(|change| {
             let source_time_ns = change.source_timestamp().map(timestamp_ns);
             let raw = change.into_value();
@@ -329,7 +429,10 @@ impl SubscriberBackend for DdsSubscriber {
             bytes.extend_from_slice(&raw.representation.to_bytes());
             bytes.extend_from_slice(&[0, 0]);
             bytes.extend_from_slice(&raw.body);
-            Sample { bytes, source_time_ns }
+            Sample {
+                bytes,
+                source_time_ns,
+            }
         }))
     }
 }

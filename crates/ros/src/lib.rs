@@ -128,9 +128,18 @@ pub struct TopicInfo {
 }
 
 trait NodeBackend: Send + Sync {
-    fn publisher(&self, topic: &str, type_name: &str, qos: &QosProfile) -> Result<Box<dyn PublisherBackend>, RosError>;
-    fn subscriber(&self, topic: &str, type_name: &str, qos: &QosProfile)
-    -> Result<Box<dyn SubscriberBackend>, RosError>;
+    fn publisher(
+        &self,
+        topic: &str,
+        type_name: &str,
+        qos: &QosProfile,
+    ) -> Result<Box<dyn PublisherBackend>, RosError>;
+    fn subscriber(
+        &self,
+        topic: &str,
+        type_name: &str,
+        qos: &QosProfile,
+    ) -> Result<Box<dyn SubscriberBackend>, RosError>;
     /// Blocks until some subscriber may have data, or `timeout` passes.
     fn wait(&self, timeout: Duration) -> Result<(), RosError>;
     fn now_ns(&self) -> i64;
@@ -162,7 +171,10 @@ impl Node {
     pub fn new(setup: NodeSetup) -> Result<Self, RosError> {
         let ros_args = RosArgs::parse(setup.args.clone())?;
         let name = ros_args.node_name.clone().unwrap_or(setup.name.clone());
-        let namespace = ros_args.namespace.clone().unwrap_or(setup.namespace.clone());
+        let namespace = ros_args
+            .namespace
+            .clone()
+            .unwrap_or(setup.namespace.clone());
         let fqn = args::expand_name(&name, &namespace, &name);
         let mut decls = setup.parameters.clone();
         if !decls.iter().any(|d| d.name == "use_sim_time") {
@@ -178,7 +190,13 @@ impl Node {
             #[cfg(feature = "r2r")]
             Backend::Rcl => Box::new(rcl::RclNode::new(&name, &namespace, &setup.args)?),
         };
-        Ok(Self { name, namespace, ros_args, params, backend })
+        Ok(Self {
+            name,
+            namespace,
+            ros_args,
+            params,
+            backend,
+        })
     }
 
     pub fn name(&self) -> &str {
@@ -201,7 +219,9 @@ impl Node {
 
     /// The current value of a parameter, including changes made with `ros2 param set`.
     pub fn parameter(&self, name: &str) -> Option<ParamValue> {
-        self.backend.parameter(name).or_else(|| self.params.get(name).cloned())
+        self.backend
+            .parameter(name)
+            .or_else(|| self.params.get(name).cloned())
     }
 
     /// `topic` after namespace expansion and `-r` remapping.
@@ -215,16 +235,34 @@ impl Node {
         self.backend.now_ns()
     }
 
-    pub fn publisher(&self, topic: &str, type_name: &str, qos: QosProfile) -> Result<Publisher, RosError> {
+    pub fn publisher(
+        &self,
+        topic: &str,
+        type_name: &str,
+        qos: QosProfile,
+    ) -> Result<Publisher, RosError> {
         let resolved = self.resolve_topic(topic);
         let inner = self.backend.publisher(&resolved, type_name, &qos)?;
-        Ok(Publisher { topic: resolved, type_name: type_name.to_string(), inner })
+        Ok(Publisher {
+            topic: resolved,
+            type_name: type_name.to_string(),
+            inner,
+        })
     }
 
-    pub fn subscriber(&self, topic: &str, type_name: &str, qos: QosProfile) -> Result<Subscriber, RosError> {
+    pub fn subscriber(
+        &self,
+        topic: &str,
+        type_name: &str,
+        qos: QosProfile,
+    ) -> Result<Subscriber, RosError> {
         let resolved = self.resolve_topic(topic);
         let inner = self.backend.subscriber(&resolved, type_name, &qos)?;
-        Ok(Subscriber { topic: resolved, type_name: type_name.to_string(), inner })
+        Ok(Subscriber {
+            topic: resolved,
+            type_name: type_name.to_string(),
+            inner,
+        })
     }
 
     /// A publisher for a topic of the contract (its name, type and QoS).
@@ -370,12 +408,24 @@ mod tests {
 
     #[test]
     fn type_names_round_trip() {
-        assert_eq!(split_type_name("sensor_msgs/msg/LaserScan").unwrap(), ("sensor_msgs", "LaserScan"));
+        assert_eq!(
+            split_type_name("sensor_msgs/msg/LaserScan").unwrap(),
+            ("sensor_msgs", "LaserScan")
+        );
         assert!(split_type_name("sensor_msgs/LaserScan").is_err());
         assert!(split_type_name("/msg/X").is_err());
-        assert_eq!(ros_type_from_dds("sensor_msgs::msg::dds_::LaserScan_").as_deref(), Some("sensor_msgs/msg/LaserScan"));
-        assert_eq!(ros_type_from_dds("rcl_interfaces::srv::dds_::GetParameters_Request_"), None);
-        assert_eq!(ros_topic_from_dds("rt/human/activity").as_deref(), Some("/human/activity"));
+        assert_eq!(
+            ros_type_from_dds("sensor_msgs::msg::dds_::LaserScan_").as_deref(),
+            Some("sensor_msgs/msg/LaserScan")
+        );
+        assert_eq!(
+            ros_type_from_dds("rcl_interfaces::srv::dds_::GetParameters_Request_"),
+            None
+        );
+        assert_eq!(
+            ros_topic_from_dds("rt/human/activity").as_deref(),
+            Some("/human/activity")
+        );
         assert_eq!(ros_topic_from_dds("rq/node/get_parametersRequest"), None);
     }
 }

@@ -43,8 +43,8 @@ impl ParamValue {
 
     /// Parses the right-hand side of `-p name:=value` as a YAML scalar or flow sequence.
     pub fn parse_cli(text: &str) -> Result<Self, String> {
-        let value: Value =
-            serde_yaml_ng::from_str(text).map_err(|e| format!("`{text}` is not a YAML value: {e}"))?;
+        let value: Value = serde_yaml_ng::from_str(text)
+            .map_err(|e| format!("`{text}` is not a YAML value: {e}"))?;
         match value {
             // `-p name:=` (empty) and `~` are strings in rcl, not null.
             Value::Null => Ok(Self::String(text.to_string())),
@@ -62,7 +62,9 @@ impl ParamValue {
                 } else if let Some(f) = n.as_f64() {
                     Ok(Self::Double(f))
                 } else {
-                    Err(format!("number {n} does not fit a 64-bit integer or double"))
+                    Err(format!(
+                        "number {n} does not fit a 64-bit integer or double"
+                    ))
                 }
             }
             Value::String(s) => Ok(Self::String(s.clone())),
@@ -74,20 +76,34 @@ impl ParamValue {
     }
 
     fn from_sequence(items: &[Value]) -> Result<Self, String> {
-        let scalars = items.iter().map(Self::from_yaml).collect::<Result<Vec<_>, _>>()?;
+        let scalars = items
+            .iter()
+            .map(Self::from_yaml)
+            .collect::<Result<Vec<_>, _>>()?;
         let all = |pred: fn(&ParamValue) -> bool| scalars.iter().all(pred);
         if scalars.is_empty() {
             // An empty list carries no element type; rcl rejects it too.
             return Err("an empty list has no element type".into());
         }
         if all(|v| matches!(v, Self::Bool(_))) {
-            Ok(Self::BoolArray(scalars.iter().filter_map(|v| v.as_bool()).collect()))
+            Ok(Self::BoolArray(
+                scalars.iter().filter_map(|v| v.as_bool()).collect(),
+            ))
         } else if all(|v| matches!(v, Self::Integer(_))) {
-            Ok(Self::IntegerArray(scalars.iter().filter_map(|v| v.as_i64()).collect()))
+            Ok(Self::IntegerArray(
+                scalars.iter().filter_map(|v| v.as_i64()).collect(),
+            ))
         } else if all(|v| matches!(v, Self::Integer(_) | Self::Double(_))) {
-            Ok(Self::DoubleArray(scalars.iter().filter_map(|v| v.as_f64()).collect()))
+            Ok(Self::DoubleArray(
+                scalars.iter().filter_map(|v| v.as_f64()).collect(),
+            ))
         } else if all(|v| matches!(v, Self::String(_))) {
-            Ok(Self::StringArray(scalars.iter().filter_map(|v| v.as_str().map(String::from)).collect()))
+            Ok(Self::StringArray(
+                scalars
+                    .iter()
+                    .filter_map(|v| v.as_str().map(String::from))
+                    .collect(),
+            ))
         } else {
             Err("a list must hold values of one type (bools, numbers or strings)".into())
         }
@@ -100,7 +116,9 @@ impl ParamValue {
             (Self::DoubleArray(_), Self::IntegerArray(v)) => {
                 Some(Self::DoubleArray(v.into_iter().map(|i| i as f64).collect()))
             }
-            (declared, v) if std::mem::discriminant(declared) == std::mem::discriminant(&v) => Some(v),
+            (declared, v) if std::mem::discriminant(declared) == std::mem::discriminant(&v) => {
+                Some(v)
+            }
             _ => None,
         }
     }
@@ -167,7 +185,11 @@ pub struct ParamDecl {
 
 impl ParamDecl {
     pub fn new(name: &str, default: ParamValue, description: &str) -> Self {
-        Self { name: name.to_string(), default, description: description.to_string() }
+        Self {
+            name: name.to_string(),
+            default,
+            description: description.to_string(),
+        }
     }
 }
 
@@ -185,26 +207,37 @@ impl Parameters {
         files: &[std::path::PathBuf],
         overrides: &[(String, ParamValue)],
     ) -> Result<Self, RosError> {
-        let mut values: BTreeMap<String, ParamValue> =
-            decls.iter().map(|d| (d.name.clone(), d.default.clone())).collect();
-        let mut set = |name: &str, value: ParamValue, source: &str, strict: bool| -> Result<(), RosError> {
-            let Some(declared) = values.get(name) else {
-                if strict {
-                    return Err(RosError::Parameter {
+        let mut values: BTreeMap<String, ParamValue> = decls
+            .iter()
+            .map(|d| (d.name.clone(), d.default.clone()))
+            .collect();
+        let mut set =
+            |name: &str, value: ParamValue, source: &str, strict: bool| -> Result<(), RosError> {
+                let Some(declared) = values.get(name) else {
+                    if strict {
+                        return Err(RosError::Parameter {
+                            name: name.to_string(),
+                            reason: format!(
+                                "unknown parameter (from {source}); this node declares: {}",
+                                decl_names(decls)
+                            ),
+                        });
+                    }
+                    return Ok(());
+                };
+                let given_type = value.type_name();
+                let coerced = declared
+                    .coerce_like(value)
+                    .ok_or_else(|| RosError::Parameter {
                         name: name.to_string(),
-                        reason: format!("unknown parameter (from {source}); this node declares: {}", decl_names(decls)),
-                    });
-                }
-                return Ok(());
+                        reason: format!(
+                            "expected {} but {source} gives {given_type}",
+                            declared.type_name()
+                        ),
+                    })?;
+                values.insert(name.to_string(), coerced);
+                Ok(())
             };
-            let given_type = value.type_name();
-            let coerced = declared.coerce_like(value).ok_or_else(|| RosError::Parameter {
-                name: name.to_string(),
-                reason: format!("expected {} but {source} gives {given_type}", declared.type_name()),
-            })?;
-            values.insert(name.to_string(), coerced);
-            Ok(())
-        };
         for file in files {
             for entry in read_params_file(file, node_fqn)? {
                 let source = format!("parameter file {}", file.display());
@@ -225,7 +258,12 @@ impl Parameters {
         self.values.iter().map(|(k, v)| (k.as_str(), v))
     }
 
-    fn typed<T>(&self, name: &str, want: &str, f: impl Fn(&ParamValue) -> Option<T>) -> Result<T, RosError> {
+    fn typed<T>(
+        &self,
+        name: &str,
+        want: &str,
+        f: impl Fn(&ParamValue) -> Option<T>,
+    ) -> Result<T, RosError> {
         let value = self.values.get(name).ok_or_else(|| RosError::Parameter {
             name: name.to_string(),
             reason: "not declared by this node".into(),
@@ -253,22 +291,36 @@ impl Parameters {
     }
 
     pub fn string_array(&self, name: &str) -> Result<Vec<String>, RosError> {
-        self.typed(name, "string array", |v| v.as_string_array().map(<[String]>::to_vec))
+        self.typed(name, "string array", |v| {
+            v.as_string_array().map(<[String]>::to_vec)
+        })
     }
 
     /// A finite double checked by `valid`; the error names the parameter and the rule.
-    pub fn f64_checked(&self, name: &str, rule: &str, valid: impl Fn(f64) -> bool) -> Result<f64, RosError> {
+    pub fn f64_checked(
+        &self,
+        name: &str,
+        rule: &str,
+        valid: impl Fn(f64) -> bool,
+    ) -> Result<f64, RosError> {
         let v = self.f64(name)?;
         if v.is_finite() && valid(v) {
             Ok(v)
         } else {
-            Err(RosError::Parameter { name: name.to_string(), reason: format!("{v} is invalid: must be {rule}") })
+            Err(RosError::Parameter {
+                name: name.to_string(),
+                reason: format!("{v} is invalid: must be {rule}"),
+            })
         }
     }
 }
 
 fn decl_names(decls: &[ParamDecl]) -> String {
-    decls.iter().map(|d| d.name.as_str()).collect::<Vec<_>>().join(", ")
+    decls
+        .iter()
+        .map(|d| d.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// One value of a parameter file that applies to a node.
@@ -284,7 +336,10 @@ pub struct FileParam {
 /// that apply to the node `node_fqn` (`/ns/name`): sections `/**`, `/**/name`, `name`,
 /// `/ns/name` or `ns/name`, in file order. Nested mappings become dotted names, as in rcl.
 pub fn read_params_file(path: &Path, node_fqn: &str) -> Result<Vec<FileParam>, RosError> {
-    let err = |reason: String| RosError::ParamsFile { path: path.to_path_buf(), reason };
+    let err = |reason: String| RosError::ParamsFile {
+        path: path.to_path_buf(),
+        reason,
+    };
     let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
     parse_params_yaml(&text, node_fqn).map_err(err)
 }
@@ -319,21 +374,36 @@ pub fn parse_params_yaml(text: &str, node_fqn: &str) -> Result<Vec<FileParam>, S
     Ok(out)
 }
 
-fn flatten(value: &Value, prefix: &str, wildcard: bool, out: &mut Vec<FileParam>) -> Result<(), String> {
+fn flatten(
+    value: &Value,
+    prefix: &str,
+    wildcard: bool,
+    out: &mut Vec<FileParam>,
+) -> Result<(), String> {
     let Value::Mapping(map) = value else {
-        return Err(format!("`{}` must be a mapping of parameter names", prefix.trim_end_matches('.')));
+        return Err(format!(
+            "`{}` must be a mapping of parameter names",
+            prefix.trim_end_matches('.')
+        ));
     };
     for (k, v) in map {
         let key = match k {
             Value::String(s) => s.clone(),
-            other => serde_yaml_ng::to_string(other).map_err(|e| e.to_string())?.trim().to_string(),
+            other => serde_yaml_ng::to_string(other)
+                .map_err(|e| e.to_string())?
+                .trim()
+                .to_string(),
         };
         let name = format!("{prefix}{key}");
         if v.is_mapping() {
             flatten(v, &format!("{name}."), wildcard, out)?;
         } else {
             let value = ParamValue::from_yaml(v).map_err(|e| format!("parameter `{name}`: {e}"))?;
-            out.push(FileParam { name, value, wildcard });
+            out.push(FileParam {
+                name,
+                value,
+                wildcard,
+            });
         }
     }
     Ok(())
@@ -355,17 +425,32 @@ mod tests {
     #[test]
     fn cli_values_are_typed_like_yaml() {
         assert_eq!(ParamValue::parse_cli("3").unwrap(), ParamValue::Integer(3));
-        assert_eq!(ParamValue::parse_cli("3.5").unwrap(), ParamValue::Double(3.5));
-        assert_eq!(ParamValue::parse_cli("true").unwrap(), ParamValue::Bool(true));
-        assert_eq!(ParamValue::parse_cli("hello").unwrap(), ParamValue::String("hello".into()));
-        assert_eq!(ParamValue::parse_cli("[1, 2.5]").unwrap(), ParamValue::DoubleArray(vec![1.0, 2.5]));
+        assert_eq!(
+            ParamValue::parse_cli("3.5").unwrap(),
+            ParamValue::Double(3.5)
+        );
+        assert_eq!(
+            ParamValue::parse_cli("true").unwrap(),
+            ParamValue::Bool(true)
+        );
+        assert_eq!(
+            ParamValue::parse_cli("hello").unwrap(),
+            ParamValue::String("hello".into())
+        );
+        assert_eq!(
+            ParamValue::parse_cli("[1, 2.5]").unwrap(),
+            ParamValue::DoubleArray(vec![1.0, 2.5])
+        );
         assert_eq!(
             ParamValue::parse_cli("[/scan, /odom]").unwrap(),
             ParamValue::StringArray(vec!["/scan".into(), "/odom".into()])
         );
         assert!(ParamValue::parse_cli("[1, abc]").is_err());
         assert!(ParamValue::parse_cli("[]").is_err());
-        assert_eq!(ParamValue::parse_cli("").unwrap(), ParamValue::String(String::new()));
+        assert_eq!(
+            ParamValue::parse_cli("").unwrap(),
+            ParamValue::String(String::new())
+        );
     }
 
     #[test]
@@ -388,16 +473,40 @@ other:
 "#;
         let got = parse_params_yaml(yaml, "/replay").unwrap();
         let names: Vec<_> = got.iter().map(|p| (p.name.as_str(), p.wildcard)).collect();
-        assert_eq!(names, vec![("use_sim_time", true), ("rate", true), ("loop", false), ("nested.a", false)]);
+        assert_eq!(
+            names,
+            vec![
+                ("use_sim_time", true),
+                ("rate", true),
+                ("loop", false),
+                ("nested.a", false)
+            ]
+        );
         let in_ns = parse_params_yaml(yaml, "/other_ns/replay").unwrap();
-        assert!(in_ns.iter().any(|p| p.name == "loop" && p.value == ParamValue::Bool(false)));
+        assert!(
+            in_ns
+                .iter()
+                .any(|p| p.name == "loop" && p.value == ParamValue::Bool(false))
+        );
     }
 
     #[test]
     fn params_file_errors_name_the_problem() {
-        assert!(parse_params_yaml("replay: {rate: 1}", "/replay").unwrap_err().contains("ros__parameters"));
-        assert!(parse_params_yaml("- a", "/replay").unwrap_err().contains("top level"));
-        assert!(parse_params_yaml("replay: {ros__parameters: {x: null}}", "/replay").unwrap_err().contains("`x`"));
+        assert!(
+            parse_params_yaml("replay: {rate: 1}", "/replay")
+                .unwrap_err()
+                .contains("ros__parameters")
+        );
+        assert!(
+            parse_params_yaml("- a", "/replay")
+                .unwrap_err()
+                .contains("top level")
+        );
+        assert!(
+            parse_params_yaml("replay: {ros__parameters: {x: null}}", "/replay")
+                .unwrap_err()
+                .contains("`x`")
+        );
         assert!(parse_params_yaml(":\n  - [", "/replay").is_err());
     }
 
@@ -406,32 +515,67 @@ other:
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("p.yaml");
         std::fs::write(&file, "/**:\n  ros__parameters:\n    rate: 2\n    unrelated: 1\nreplay:\n  ros__parameters:\n    bag: a.bag\n").unwrap();
-        let p = Parameters::resolve(&decls(), "/replay", &[file.clone()], &[("loop".into(), ParamValue::Bool(true))])
-            .unwrap();
+        let p = Parameters::resolve(
+            &decls(),
+            "/replay",
+            &[file.clone()],
+            &[("loop".into(), ParamValue::Bool(true))],
+        )
+        .unwrap();
         assert_eq!(p.f64("rate").unwrap(), 2.0);
         assert_eq!(p.string("bag").unwrap(), "a.bag");
         assert!(p.bool("loop").unwrap());
         assert!(p.string_array("topics").unwrap().is_empty());
 
-        let err = Parameters::resolve(&decls(), "/replay", &[], &[("rate".into(), ParamValue::String("fast".into()))])
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("rate") && err.contains("expected double"), "{err}");
-        let err = Parameters::resolve(&decls(), "/replay", &[], &[("speed".into(), ParamValue::Integer(1))])
-            .unwrap_err()
-            .to_string();
+        let err = Parameters::resolve(
+            &decls(),
+            "/replay",
+            &[],
+            &[("rate".into(), ParamValue::String("fast".into()))],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("rate") && err.contains("expected double"),
+            "{err}"
+        );
+        let err = Parameters::resolve(
+            &decls(),
+            "/replay",
+            &[],
+            &[("speed".into(), ParamValue::Integer(1))],
+        )
+        .unwrap_err()
+        .to_string();
         assert!(err.contains("speed") && err.contains("unknown"), "{err}");
         let missing = dir.path().join("missing.yaml");
-        let err = Parameters::resolve(&decls(), "/replay", &[missing], &[]).unwrap_err().to_string();
+        let err = Parameters::resolve(&decls(), "/replay", &[missing], &[])
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("missing.yaml"), "{err}");
     }
 
     #[test]
     fn checked_doubles_reject_nan_and_rule_breakers() {
-        let p = Parameters::resolve(&decls(), "/replay", &[], &[("rate".into(), ParamValue::Double(f64::NAN))]).unwrap();
-        let err = p.f64_checked("rate", "> 0", |v| v > 0.0).unwrap_err().to_string();
+        let p = Parameters::resolve(
+            &decls(),
+            "/replay",
+            &[],
+            &[("rate".into(), ParamValue::Double(f64::NAN))],
+        )
+        .unwrap();
+        let err = p
+            .f64_checked("rate", "> 0", |v| v > 0.0)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("rate") && err.contains("> 0"), "{err}");
-        let p = Parameters::resolve(&decls(), "/replay", &[], &[("rate".into(), ParamValue::Integer(-1))]).unwrap();
+        let p = Parameters::resolve(
+            &decls(),
+            "/replay",
+            &[],
+            &[("rate".into(), ParamValue::Integer(-1))],
+        )
+        .unwrap();
         assert!(p.f64_checked("rate", "> 0", |v| v > 0.0).is_err());
     }
 }

@@ -41,22 +41,37 @@ impl RclNode {
     pub(crate) fn new(name: &str, namespace: &str, _args: &[String]) -> Result<Self, RosError> {
         let context = r2r::Context::create().map_err(rcl_err)?;
         let node = r2r::Node::create(context, name, namespace).map_err(rcl_err)?;
-        Ok(Self { node: Arc::new(Mutex::new(node)) })
+        Ok(Self {
+            node: Arc::new(Mutex::new(node)),
+        })
     }
 
     fn lock(&self) -> Result<std::sync::MutexGuard<'_, r2r::Node>, RosError> {
-        self.node.lock().map_err(|_| RosError::Dds("rcl node lock poisoned".into()))
+        self.node
+            .lock()
+            .map_err(|_| RosError::Dds("rcl node lock poisoned".into()))
     }
 }
 
 impl NodeBackend for RclNode {
-    fn publisher(&self, topic: &str, type_name: &str, qos: &QosProfile) -> Result<Box<dyn PublisherBackend>, RosError> {
+    fn publisher(
+        &self,
+        topic: &str,
+        type_name: &str,
+        qos: &QosProfile,
+    ) -> Result<Box<dyn PublisherBackend>, RosError> {
         crate::split_type_name(type_name)?;
         let publisher = self
             .lock()?
             .create_publisher_untyped(topic, type_name, qos_profile(qos))
-            .map_err(|e| RosError::Topic { topic: topic.into(), reason: e.to_string() })?;
-        Ok(Box::new(RclPublisher { topic: topic.to_string(), publisher }))
+            .map_err(|e| RosError::Topic {
+                topic: topic.into(),
+                reason: e.to_string(),
+            })?;
+        Ok(Box::new(RclPublisher {
+            topic: topic.to_string(),
+            publisher,
+        }))
     }
 
     fn subscriber(
@@ -69,8 +84,13 @@ impl NodeBackend for RclNode {
         let stream = self
             .lock()?
             .subscribe_raw(topic, type_name, qos_profile(qos))
-            .map_err(|e| RosError::Topic { topic: topic.into(), reason: e.to_string() })?;
-        Ok(Box::new(RclSubscriber { stream: Mutex::new(Box::new(stream)) }))
+            .map_err(|e| RosError::Topic {
+                topic: topic.into(),
+                reason: e.to_string(),
+            })?;
+        Ok(Box::new(RclSubscriber {
+            stream: Mutex::new(Box::new(stream)),
+        }))
     }
 
     fn wait(&self, timeout: Duration) -> Result<(), RosError> {
@@ -80,8 +100,13 @@ impl NodeBackend for RclNode {
 
     fn now_ns(&self) -> i64 {
         let Ok(node) = self.lock() else { return 0 };
-        let Ok(mut clock) = node.get_ros_clock().lock() else { return 0 };
-        clock.get_now().map(|d| i64::try_from(d.as_nanos()).unwrap_or(i64::MAX)).unwrap_or(0)
+        let Ok(mut clock) = node.get_ros_clock().lock() else {
+            return 0;
+        };
+        clock
+            .get_now()
+            .map(|d| i64::try_from(d.as_nanos()).unwrap_or(i64::MAX))
+            .unwrap_or(0)
     }
 
     fn parameter(&self, name: &str) -> Option<ParamValue> {
@@ -101,12 +126,19 @@ impl NodeBackend for RclNode {
     }
 
     fn topics(&self) -> Vec<TopicInfo> {
-        let Ok(node) = self.lock() else { return Vec::new() };
+        let Ok(node) = self.lock() else {
+            return Vec::new();
+        };
         node.get_topic_names_and_types()
             .map(|topics| {
                 topics
                     .into_iter()
-                    .flat_map(|(name, types)| types.into_iter().map(move |t| TopicInfo { name: name.clone(), type_name: t }))
+                    .flat_map(|(name, types)| {
+                        types.into_iter().map(move |t| TopicInfo {
+                            name: name.clone(),
+                            type_name: t,
+                        })
+                    })
                     .collect()
             })
             .unwrap_or_default()
@@ -122,11 +154,16 @@ impl PublisherBackend for RclPublisher {
     fn publish(&self, cdr: &[u8]) -> Result<(), RosError> {
         self.publisher
             .publish_raw(cdr)
-            .map_err(|e| RosError::Topic { topic: self.topic.clone(), reason: e.to_string() })
+            .map_err(|e| RosError::Topic {
+                topic: self.topic.clone(),
+                reason: e.to_string(),
+            })
     }
 
     fn subscription_count(&self) -> usize {
-        self.publisher.get_inter_process_subscription_count().unwrap_or(0)
+        self.publisher
+            .get_inter_process_subscription_count()
+            .unwrap_or(0)
     }
 }
 
@@ -139,7 +176,13 @@ struct RclSubscriber {
 impl SubscriberBackend for RclSubscriber {
     /// Messages arrive in the stream during `Node::wait` (rcl's spin_once).
     fn try_take(&self) -> Result<Option<Sample>, RosError> {
-        let mut stream = self.stream.lock().map_err(|_| RosError::Dds("rcl stream lock poisoned".into()))?;
-        Ok(stream.next().now_or_never().flatten().map(|bytes| Sample { bytes, source_time_ns: None }))
+        let mut stream = self
+            .stream
+            .lock()
+            .map_err(|_| RosError::Dds("rcl stream lock poisoned".into()))?;
+        Ok(stream.next().now_or_never().flatten().map(|bytes| Sample {
+            bytes,
+            source_time_ns: None,
+        }))
     }
 }

@@ -21,8 +21,16 @@ fn main() -> ExitCode {
 fn decls() -> Vec<ParamDecl> {
     use ParamValue as V;
     vec![
-        ParamDecl::new("config", V::String(String::new()), "classifier configuration file; empty = defaults"),
-        ParamDecl::new("model", V::String(String::new()), "ONNX step model; empty = the configuration's"),
+        ParamDecl::new(
+            "config",
+            V::String(String::new()),
+            "classifier configuration file; empty = defaults",
+        ),
+        ParamDecl::new(
+            "model",
+            V::String(String::new()),
+            "ONNX step model; empty = the configuration's",
+        ),
     ]
 }
 
@@ -34,12 +42,22 @@ fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
         None => Default::default(),
     };
     let model = optional_path(p, "model")?;
-    let mut stage = ClassifierStage::load(&config, model.as_deref()).map_err(|e| bad_parameter("model", e))?;
+    let mut stage =
+        ClassifierStage::load(&config, model.as_deref()).map_err(|e| bad_parameter("model", e))?;
     let input = node.subscriber_for(&topics::HUMAN_OBSERVATION)?;
-    let outputs = Outputs::new(&node, &[topics::HUMAN_ACTIVITY, topics::FALL_ALERT, topics::HUMAN_MARKERS])?;
+    let outputs = Outputs::new(
+        &node,
+        &[
+            topics::HUMAN_ACTIVITY,
+            topics::FALL_ALERT,
+            topics::HUMAN_MARKERS,
+        ],
+    )?;
     let mut errors = 0u64;
     while !shutdown.requested() {
-        let Some(sample) = input.take_timeout(&node, Duration::from_millis(100))? else { continue };
+        let Some(sample) = input.take_timeout(&node, Duration::from_millis(100))? else {
+            continue;
+        };
         match stage.handle_cdr(&sample.bytes) {
             Ok((_, outgoing)) => outputs.publish(&outgoing)?,
             Err(e) => {

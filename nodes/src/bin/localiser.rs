@@ -21,10 +21,26 @@ fn main() -> ExitCode {
 fn decls() -> Vec<ParamDecl> {
     use ParamValue as V;
     vec![
-        ParamDecl::new("config", V::String(String::new()), "localiser configuration file; empty = defaults"),
-        ParamDecl::new("map_file", V::String(String::new()), "map_server YAML of the room; empty = use /map"),
-        ParamDecl::new("learned_background", V::Bool(false), "no map: learn the room from the first scans"),
-        ParamDecl::new("moving", V::Bool(true), "the Lidar moves with the robot (needs /odom or /tf)"),
+        ParamDecl::new(
+            "config",
+            V::String(String::new()),
+            "localiser configuration file; empty = defaults",
+        ),
+        ParamDecl::new(
+            "map_file",
+            V::String(String::new()),
+            "map_server YAML of the room; empty = use /map",
+        ),
+        ParamDecl::new(
+            "learned_background",
+            V::Bool(false),
+            "no map: learn the room from the first scans",
+        ),
+        ParamDecl::new(
+            "moving",
+            V::Bool(true),
+            "the Lidar moves with the robot (needs /odom or /tf)",
+        ),
     ]
 }
 
@@ -37,9 +53,14 @@ fn stage(node: &Node) -> Result<LocaliserStage, RosError> {
     let learned = p.bool("learned_background")?;
     let room = match (optional_path(p, "map_file")?, learned) {
         (Some(_), true) => {
-            return Err(bad_parameter("map_file", "cannot be combined with learned_background:=true"));
+            return Err(bad_parameter(
+                "map_file",
+                "cannot be combined with learned_background:=true",
+            ));
         }
-        (Some(path), false) => RoomSource::Map(files::load_map(&path).map_err(|e| bad_parameter("map_file", e))?),
+        (Some(path), false) => {
+            RoomSource::Map(files::load_map(&path).map_err(|e| bad_parameter("map_file", e))?)
+        }
         (None, true) => RoomSource::LearnedBackground,
         (None, false) => RoomSource::MapTopic,
     };
@@ -49,11 +70,24 @@ fn stage(node: &Node) -> Result<LocaliserStage, RosError> {
 fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = Node::new(NodeSetup::new("localiser").parameters(decls()))?;
     let mut pipeline = Pipeline::new(stage(&node)?);
-    let inputs = [topics::SCAN, topics::ODOM, topics::MAP, topics::TF, topics::TF_STATIC]
-        .into_iter()
-        .map(|spec| Ok((spec.name, node.subscriber_for(&spec)?)))
-        .collect::<Result<Vec<_>, RosError>>()?;
-    let outputs = Outputs::new(&node, &[topics::HUMAN_POSE, topics::HUMAN_OBSERVATION, topics::HUMAN_MARKERS])?;
+    let inputs = [
+        topics::SCAN,
+        topics::ODOM,
+        topics::MAP,
+        topics::TF,
+        topics::TF_STATIC,
+    ]
+    .into_iter()
+    .map(|spec| Ok((spec.name, node.subscriber_for(&spec)?)))
+    .collect::<Result<Vec<_>, RosError>>()?;
+    let outputs = Outputs::new(
+        &node,
+        &[
+            topics::HUMAN_POSE,
+            topics::HUMAN_OBSERVATION,
+            topics::HUMAN_MARKERS,
+        ],
+    )?;
     let mut decode_errors = 0u64;
     let mut batch = Vec::new();
     while !shutdown.requested() {

@@ -26,14 +26,42 @@ fn main() -> ExitCode {
 fn decls() -> Vec<ParamDecl> {
     use ParamValue as V;
     vec![
-        ParamDecl::new("bag", V::String(String::new()), "rosbag2 directory (or .mcap file) to play"),
-        ParamDecl::new("rate", V::Double(1.0), "playback speed factor; 0 plays as fast as possible"),
+        ParamDecl::new(
+            "bag",
+            V::String(String::new()),
+            "rosbag2 directory (or .mcap file) to play",
+        ),
+        ParamDecl::new(
+            "rate",
+            V::Double(1.0),
+            "playback speed factor; 0 plays as fast as possible",
+        ),
         ParamDecl::new("loop", V::Bool(false), "start again at the end"),
-        ParamDecl::new("start_offset", V::Double(0.0), "seconds into the bag to start at"),
-        ParamDecl::new("topics", V::StringArray(Vec::new()), "topics to play; empty plays all"),
-        ParamDecl::new("publish_clock", V::Bool(true), "publish /clock with the bag's time"),
-        ParamDecl::new("wait_for_subscriber", V::String(String::new()), "topic whose subscriber to wait for"),
-        ParamDecl::new("wait_timeout", V::Double(10.0), "seconds to wait for that subscriber"),
+        ParamDecl::new(
+            "start_offset",
+            V::Double(0.0),
+            "seconds into the bag to start at",
+        ),
+        ParamDecl::new(
+            "topics",
+            V::StringArray(Vec::new()),
+            "topics to play; empty plays all",
+        ),
+        ParamDecl::new(
+            "publish_clock",
+            V::Bool(true),
+            "publish /clock with the bag's time",
+        ),
+        ParamDecl::new(
+            "wait_for_subscriber",
+            V::String(String::new()),
+            "topic whose subscriber to wait for",
+        ),
+        ParamDecl::new(
+            "wait_timeout",
+            V::Double(10.0),
+            "seconds to wait for that subscriber",
+        ),
     ]
 }
 
@@ -53,7 +81,10 @@ impl Settings {
         let p = node.params();
         let bag = p.string("bag")?;
         if bag.is_empty() {
-            return Err(RosError::Parameter { name: "bag".into(), reason: "required: the bag directory to play".into() });
+            return Err(RosError::Parameter {
+                name: "bag".into(),
+                reason: "required: the bag directory to play".into(),
+            });
         }
         let rate = p.f64_checked("rate", ">= 0 (0 = as fast as possible)", |v| v >= 0.0)?;
         let offset = p.f64_checked("start_offset", ">= 0 seconds", |v| v >= 0.0)?;
@@ -84,7 +115,8 @@ fn qos_for(topic: &lidar_har_bag::TopicInfo) -> QosProfile {
 fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = Node::new(NodeSetup::new("replay").parameters(decls()))?;
     let settings = Settings::from(&node)?;
-    let reader = BagReader::open(&settings.bag).with_context(|| format!("parameter `bag`: cannot open {}", settings.bag))?;
+    let reader = BagReader::open(&settings.bag)
+        .with_context(|| format!("parameter `bag`: cannot open {}", settings.bag))?;
     for wanted in &settings.topics {
         if reader.topic(wanted).is_none() {
             return Err(RosError::Parameter {
@@ -101,7 +133,11 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
             publishers.insert(topic.name.clone(), publisher);
         }
     }
-    let clock = if settings.publish_clock { Some(node.publisher_for(&topics::CLOCK)?) } else { None };
+    let clock = if settings.publish_clock {
+        Some(node.publisher_for(&topics::CLOCK)?)
+    } else {
+        None
+    };
     if !settings.wait_for.is_empty() {
         let publisher = publishers
             .get(&settings.wait_for)
@@ -112,7 +148,11 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
         let deadline = Instant::now() + settings.wait_timeout;
         while publisher.subscription_count() == 0 {
             if Instant::now() >= deadline {
-                bail!("no subscriber on {} within {:?}", settings.wait_for, settings.wait_timeout);
+                bail!(
+                    "no subscriber on {} within {:?}",
+                    settings.wait_for,
+                    settings.wait_timeout
+                );
             }
             if !shutdown.sleep_until(Instant::now() + Duration::from_millis(20)) {
                 return Ok(());
@@ -129,9 +169,13 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
             if message.log_time_ns < begin {
                 continue;
             }
-            let Some(publisher) = publishers.get(&*message.topic) else { continue };
+            let Some(publisher) = publishers.get(&*message.topic) else {
+                continue;
+            };
             if settings.rate > 0.0 {
-                let due = Duration::from_secs_f64((message.log_time_ns - begin) as f64 / 1e9 / settings.rate);
+                let due = Duration::from_secs_f64(
+                    (message.log_time_ns - begin) as f64 / 1e9 / settings.rate,
+                );
                 if !shutdown.sleep_until(wall_start + due) {
                     log::info!("replay: stopped by signal after {played} messages");
                     return Ok(());
@@ -140,7 +184,9 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
                 return Ok(());
             }
             if let Some(clock) = &clock {
-                clock.publish_msg(&Clock { clock: Time::from_nanos(message.log_time_ns) })?;
+                clock.publish_msg(&Clock {
+                    clock: Time::from_nanos(message.log_time_ns),
+                })?;
             }
             publisher.publish(&message.data)?;
             played += 1;

@@ -11,8 +11,8 @@ use std::time::Duration;
 
 use lidar_har::{Shutdown, bad_parameter};
 use lidar_har_msgs::topics;
-use lidar_har_rplidar::{Config, Driver, Event, ScanModeChoice};
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, Parameters, RosError};
+use lidar_har_rplidar::{Config, Driver, Event, ScanModeChoice};
 
 fn main() -> ExitCode {
     lidar_har::run("rplidar_driver", drive)
@@ -22,16 +22,56 @@ fn decls() -> Vec<ParamDecl> {
     use ParamValue as V;
     let d = Config::new("/dev/ttyUSB0");
     vec![
-        ParamDecl::new("port", V::String(d.port.clone()), "serial device of the Lidar"),
-        ParamDecl::new("baud", V::Integer(i64::from(d.baud)), "115200 (A1/A2M8), 256000 (A2M12/A3/S1), 1000000 (S2/S3)"),
-        ParamDecl::new("frame_id", V::String(d.frame_id.clone()), "frame of the published scans"),
-        ParamDecl::new("beams", V::Integer(d.geometry.beams as i64), "beams per published scan"),
-        ParamDecl::new("range_min", V::Double(f64::from(d.geometry.range_min_m)), "shortest valid range, m"),
-        ParamDecl::new("range_max", V::Double(f64::from(d.geometry.range_max_m)), "longest valid range, m"),
-        ParamDecl::new("scan_mode", V::String("auto".into()), "auto, standard, express or a device mode name"),
-        ParamDecl::new("motor_pwm", V::Integer(-1), "A2/A3 motor duty 0..1023; -1 = device default"),
-        ParamDecl::new("motor_rpm", V::Integer(-1), "time-of-flight motor speed, rpm; -1 = device default"),
-        ParamDecl::new("diagnostics_period", V::Double(d.diagnostics_period.as_secs_f64()), "s between reports"),
+        ParamDecl::new(
+            "port",
+            V::String(d.port.clone()),
+            "serial device of the Lidar",
+        ),
+        ParamDecl::new(
+            "baud",
+            V::Integer(i64::from(d.baud)),
+            "115200 (A1/A2M8), 256000 (A2M12/A3/S1), 1000000 (S2/S3)",
+        ),
+        ParamDecl::new(
+            "frame_id",
+            V::String(d.frame_id.clone()),
+            "frame of the published scans",
+        ),
+        ParamDecl::new(
+            "beams",
+            V::Integer(d.geometry.beams as i64),
+            "beams per published scan",
+        ),
+        ParamDecl::new(
+            "range_min",
+            V::Double(f64::from(d.geometry.range_min_m)),
+            "shortest valid range, m",
+        ),
+        ParamDecl::new(
+            "range_max",
+            V::Double(f64::from(d.geometry.range_max_m)),
+            "longest valid range, m",
+        ),
+        ParamDecl::new(
+            "scan_mode",
+            V::String("auto".into()),
+            "auto, standard, express or a device mode name",
+        ),
+        ParamDecl::new(
+            "motor_pwm",
+            V::Integer(-1),
+            "A2/A3 motor duty 0..1023; -1 = device default",
+        ),
+        ParamDecl::new(
+            "motor_rpm",
+            V::Integer(-1),
+            "time-of-flight motor speed, rpm; -1 = device default",
+        ),
+        ParamDecl::new(
+            "diagnostics_period",
+            V::Double(d.diagnostics_period.as_secs_f64()),
+            "s between reports",
+        ),
     ]
 }
 
@@ -54,7 +94,10 @@ fn config(p: &Parameters) -> Result<Config, RosError> {
     c.geometry.beams = integer(p, "beams", "a positive number of beams")?;
     c.geometry.range_min_m = p.f64_checked("range_min", ">= 0 m", |v| v >= 0.0)? as f32;
     c.geometry.range_max_m = p.f64_checked("range_max", "> 0 m", |v| v > 0.0)? as f32;
-    c.scan_mode = p.string("scan_mode")?.parse::<ScanModeChoice>().map_err(|e| bad_parameter("scan_mode", e))?;
+    c.scan_mode = p
+        .string("scan_mode")?
+        .parse::<ScanModeChoice>()
+        .map_err(|e| bad_parameter("scan_mode", e))?;
     c.motor_pwm = optional_u16(p, "motor_pwm")?;
     c.motor_rpm = optional_u16(p, "motor_rpm")?;
     let period = p.f64_checked("diagnostics_period", "> 0 s", |v| v > 0.0)?;
@@ -63,7 +106,11 @@ fn config(p: &Parameters) -> Result<Config, RosError> {
     // name except for the geometry fields.
     c.validate().map_err(|e| {
         let text = e.to_string();
-        let name = decls().into_iter().map(|d| d.name).find(|n| text.contains(n.as_str())).unwrap_or("beams".into());
+        let name = decls()
+            .into_iter()
+            .map(|d| d.name)
+            .find(|n| text.contains(n.as_str()))
+            .unwrap_or("beams".into());
         bad_parameter(&name, text)
     })?;
     Ok(c)
@@ -81,6 +128,9 @@ fn drive(shutdown: &Shutdown) -> anyhow::Result<()> {
             Event::Diagnostics(report) => diagnostics.publish_msg(&report)?,
         }
     }
-    log::info!("rplidar_driver: stopped after {} scans", driver.status().scans);
+    log::info!(
+        "rplidar_driver: stopped after {} scans",
+        driver.status().scans
+    );
     Ok(())
 }

@@ -41,7 +41,13 @@ pub enum TopicCommand {
 pub fn run(command: TopicCommand) -> anyhow::Result<()> {
     match command {
         TopicCommand::List { wait, show_types } => list(seconds(wait, "--wait")?, show_types),
-        TopicCommand::Echo { topic, type_name, count, timeout, require_count } => {
+        TopicCommand::Echo {
+            topic,
+            type_name,
+            count,
+            timeout,
+            require_count,
+        } => {
             let timeout = timeout.map(|t| seconds(t, "--timeout")).transpose()?;
             echo(&topic, type_name, count, timeout, require_count)
         }
@@ -58,7 +64,8 @@ fn seconds(value: f64, flag: &str) -> anyhow::Result<Duration> {
 fn cli_node() -> anyhow::Result<Node> {
     // A unique name per process: several `topic echo` may run at once.
     let name = format!("lidar_har_cli_{}", std::process::id());
-    Node::new(NodeSetup::new(&name).args(Vec::<String>::new())).context("cannot join the ROS 2 graph")
+    Node::new(NodeSetup::new(&name).args(Vec::<String>::new()))
+        .context("cannot join the ROS 2 graph")
 }
 
 fn list(wait: Duration, show_types: bool) -> anyhow::Result<()> {
@@ -126,7 +133,8 @@ fn echo(
         writeln!(out, "{line}")?;
         out.flush()?;
     }
-    if require_count && let Some(c) = count
+    if require_count
+        && let Some(c) = count
         && received < c
     {
         bail!("{topic}: received {received} of {c} messages before the timeout");
@@ -151,7 +159,8 @@ fn discover_type(node: &Node, topic: &str, deadline: Option<Instant>) -> anyhow:
 fn stop_flag() -> anyhow::Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
     let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(signal, flag.clone()).context("cannot install signal handler")?;
+        signal_hook::flag::register(signal, flag.clone())
+            .context("cannot install signal handler")?;
     }
     Ok(flag)
 }
