@@ -9,7 +9,8 @@ use lidar_har_sim::scene::{Furniture, NoiseSpec};
 use lidar_har_sim::{Frame, Scene, Simulator};
 
 fn living_room() -> Scene {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/living_room.yaml");
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/living_room.yaml");
     Scene::load(&path).expect("living_room.yaml loads")
 }
 
@@ -36,7 +37,12 @@ fn with_furniture(mut scene: Scene, n: usize) -> Scene {
         let (i, j) = (k % cols, k / cols);
         let x = 1.0 + 4.0 * (i as f64 + 0.5) / cols as f64;
         let y = 1.2 + 2.5 * (j as f64 + 0.5) / cols as f64;
-        scene.furniture.push(Furniture::Cylinder { name: String::new(), center: [x, y], radius: 0.04, height: 1.0 });
+        scene.furniture.push(Furniture::Cylinder {
+            name: String::new(),
+            center: [x, y],
+            radius: 0.04,
+            height: 1.0,
+        });
     }
     scene.robot.start.x = 0.4;
     scene.robot.start.y = 0.4;
@@ -45,8 +51,13 @@ fn with_furniture(mut scene: Scene, n: usize) -> Scene {
 
 fn main() {
     let seconds = 60.0;
-    println!("sim_speed: living_room.yaml, {seconds} s simulated per row, one thread, no recording");
-    println!("{:<44} {:>14} {:>12}", "case", "sim s / wall s", "us / scan");
+    println!(
+        "sim_speed: living_room.yaml, {seconds} s simulated per row, one thread, no recording"
+    );
+    println!(
+        "{:<44} {:>14} {:>12}",
+        "case", "sim s / wall s", "us / scan"
+    );
     let row = |name: &str, scene: Scene| {
         let (speed, us) = measure(scene, seconds);
         println!("{name:<44} {speed:>14.0} {us:>12.1}");
@@ -61,6 +72,9 @@ fn main() {
         row(&format!("beams = {beams}"), s);
     }
     for n in [0usize, 10, 20, 40, 80, 160] {
-        row(&format!("furniture = {n} cylinders (no person)"), with_furniture(living_room(), n));
+        row(
+            &format!("furniture = {n} cylinders (no person)"),
+            with_furniture(living_room(), n),
+        );
     }
 }

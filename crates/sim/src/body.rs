@@ -160,39 +160,73 @@ fn limb_dir(flex: f64, abduct: f64, side: f64) -> DVec3 {
 pub fn capsules(d: &BodyDims, p: &PoseParams, root: DVec2, yaw: f64) -> [Capsule; PARTS] {
     let rot = trunk_rotation(p.pitch, p.roll);
     let to_root = |v: DVec3| rot * v; // trunk frame -> root frame (before the pelvis offset)
-    let mut parts = [Capsule { a: DVec3::ZERO, b: DVec3::ZERO, radius: 0.0 }; PARTS];
+    let mut parts = [Capsule {
+        a: DVec3::ZERO,
+        b: DVec3::ZERO,
+        radius: 0.0,
+    }; PARTS];
     let mut k = 0;
     let mut push = |a: DVec3, b: DVec3, radius: f64| {
-        parts[k] = Capsule { a: to_root(a), b: to_root(b), radius };
+        parts[k] = Capsule {
+            a: to_root(a),
+            b: to_root(b),
+            radius,
+        };
         k += 1;
     };
     for (i, side) in [(0usize, 1.0f64), (1, -1.0)] {
         let hip = DVec3::new(0.0, side * d.hip_width / 2.0, 0.0);
         let knee = hip + limb_dir(p.hip_flex[i], p.hip_abduct[i], side) * d.thigh;
         let shin_angle = p.hip_flex[i] - p.knee_flex[i];
-        let ankle = knee + limb_dir(shin_angle, p.hip_abduct[i], side) * (d.shin + d.ankle_height * 0.5);
+        let ankle =
+            knee + limb_dir(shin_angle, p.hip_abduct[i], side) * (d.shin + d.ankle_height * 0.5);
         let foot_angle = shin_angle + p.ankle[i];
         let toe = ankle + DVec3::new(foot_angle.cos(), 0.0, foot_angle.sin()) * d.foot;
         push(hip, knee, d.r_thigh);
         push(knee, ankle, d.r_shin);
         push(ankle, toe, d.r_foot);
-        let shoulder = DVec3::new(0.0, side * d.shoulder_width / 2.0, d.torso - 0.03 * d.height);
-        let elbow = shoulder + limb_dir(p.shoulder_flex[i], p.shoulder_abduct[i], side) * d.upper_arm;
-        let hand = elbow + limb_dir(p.shoulder_flex[i] + p.elbow_flex[i], p.shoulder_abduct[i], side) * d.forearm;
+        let shoulder = DVec3::new(
+            0.0,
+            side * d.shoulder_width / 2.0,
+            d.torso - 0.03 * d.height,
+        );
+        let elbow =
+            shoulder + limb_dir(p.shoulder_flex[i], p.shoulder_abduct[i], side) * d.upper_arm;
+        let hand = elbow
+            + limb_dir(
+                p.shoulder_flex[i] + p.elbow_flex[i],
+                p.shoulder_abduct[i],
+                side,
+            ) * d.forearm;
         push(shoulder, elbow, d.r_upper_arm);
         push(elbow, hand, d.r_forearm);
     }
-    push(DVec3::new(0.0, 0.0, 0.06 * d.height), DVec3::new(0.0, 0.0, d.torso), d.r_torso);
+    push(
+        DVec3::new(0.0, 0.0, 0.06 * d.height),
+        DVec3::new(0.0, 0.0, d.torso),
+        d.r_torso,
+    );
     let neck = d.torso + 0.04 * d.height;
-    push(DVec3::new(0.0, 0.0, neck), DVec3::new(0.0, 0.0, neck + 0.06 * d.height), d.r_head);
+    push(
+        DVec3::new(0.0, 0.0, neck),
+        DVec3::new(0.0, 0.0, neck + 0.06 * d.height),
+        d.r_head,
+    );
 
     // Floor contact: the lowest surface point rests at `lift`.
-    let lowest = parts.iter().map(|c| c.a.z.min(c.b.z) - c.radius).fold(f64::INFINITY, f64::min);
+    let lowest = parts
+        .iter()
+        .map(|c| c.a.z.min(c.b.z) - c.radius)
+        .fold(f64::INFINITY, f64::min);
     let (s, c) = yaw.sin_cos();
     let place = |v: DVec3| {
         let x = v.x + p.pelvis.x;
         let y = v.y + p.pelvis.y;
-        DVec3::new(root.x + c * x - s * y, root.y + s * x + c * y, v.z - lowest + p.lift)
+        DVec3::new(
+            root.x + c * x - s * y,
+            root.y + s * x + c * y,
+            v.z - lowest + p.lift,
+        )
     };
     for part in &mut parts {
         part.a = place(part.a);
@@ -209,19 +243,33 @@ mod tests {
     fn standing_body_has_expected_extent() {
         let d = BodyDims::new(1.75, 1.0);
         let parts = capsules(&d, &PoseParams::default(), DVec2::ZERO, 0.0);
-        let top = parts.iter().map(|c| c.a.z.max(c.b.z) + c.radius).fold(0.0, f64::max);
-        let bottom = parts.iter().map(|c| c.a.z.min(c.b.z) - c.radius).fold(9.0, f64::min);
+        let top = parts
+            .iter()
+            .map(|c| c.a.z.max(c.b.z) + c.radius)
+            .fold(0.0, f64::max);
+        let bottom = parts
+            .iter()
+            .map(|c| c.a.z.min(c.b.z) - c.radius)
+            .fold(9.0, f64::min);
         assert!(bottom.abs() < 1e-12);
         assert!((top - 1.75).abs() < 0.12, "top of head at {top}");
     }
 
     #[test]
     fn section_bound_covers_section_and_handles_flat_parts() {
-        let flat = Capsule { a: DVec3::new(0.0, 0.0, 0.1), b: DVec3::new(1.0, 0.0, 0.1), radius: 0.1 };
+        let flat = Capsule {
+            a: DVec3::new(0.0, 0.0, 0.1),
+            b: DVec3::new(1.0, 0.0, 0.1),
+            radius: 0.1,
+        };
         let (c, r) = flat.section_bound(0.15).unwrap();
         assert!((c - DVec2::new(0.5, 0.0)).length() < 1e-12 && (r - 0.6).abs() < 1e-12);
         assert!(flat.section_bound(0.21).is_none());
-        let upright = Capsule { a: DVec3::new(0.0, 0.0, 0.0), b: DVec3::new(0.0, 0.0, 1.0), radius: 0.05 };
+        let upright = Capsule {
+            a: DVec3::new(0.0, 0.0, 0.0),
+            b: DVec3::new(0.0, 0.0, 1.0),
+            radius: 0.05,
+        };
         let (c, r) = upright.section_bound(0.5).unwrap();
         assert!(c.length() < 1e-12 && (r - 0.05).abs() < 1e-12);
     }

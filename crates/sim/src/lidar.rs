@@ -47,7 +47,9 @@ impl ScanGeometry {
     /// Unit direction of beam `i` in the map for a Lidar heading `heading`, computed exactly
     /// as the caster does (the nominal direction, without angle error).
     pub fn direction(&self, heading: f64, i: usize) -> DVec2 {
-        DVec2::from_angle(heading).rotate(DVec2::from_angle(self.angle_min + self.angle_increment * i as f64))
+        DVec2::from_angle(heading).rotate(DVec2::from_angle(
+            self.angle_min + self.angle_increment * i as f64,
+        ))
     }
 
     /// Angle of the last beam (LaserScan's `angle_max`).
@@ -83,7 +85,15 @@ impl Lidar {
         let angle_bound = ANGLE_SIGMA_CUT * noise.angle_deg.to_radians();
         let margin = 1 + (angle_bound / geometry.angle_increment).ceil() as i64;
         let n = geometry.beams;
-        Self { geometry, noise, local_dirs, dirs: vec![DVec2::X; n], exact: vec![f64::INFINITY; n], hit: vec![BeamLabel::Nothing; n], margin }
+        Self {
+            geometry,
+            noise,
+            local_dirs,
+            dirs: vec![DVec2::X; n],
+            exact: vec![f64::INFINITY; n],
+            hit: vec![BeamLabel::Nothing; n],
+            margin,
+        }
     }
 
     /// Exact distances of the last scan (before noise), for checks and tests.
@@ -117,7 +127,15 @@ impl Lidar {
 
     /// Angular interval (relative to `heading`) of a circle seen from `o`, or the whole
     /// circle when `o` is inside it.
-    fn paint_circle(&mut self, o: DVec2, heading: f64, c: DVec2, r: f64, label: BeamLabel, test: impl Fn(DVec2) -> Option<f64>) {
+    fn paint_circle(
+        &mut self,
+        o: DVec2,
+        heading: f64,
+        c: DVec2,
+        r: f64,
+        label: BeamLabel,
+        test: impl Fn(DVec2) -> Option<f64>,
+    ) {
         let v = c - o;
         let d = v.length();
         if d <= r * 1.000_001 + 1e-12 {
@@ -171,18 +189,26 @@ impl Lidar {
             }
             let ra = wrap((a - o).to_angle() - laser.theta);
             let delta = wrap((b - o).to_angle() - (a - o).to_angle());
-            let (lo, hi) = if delta >= 0.0 { (ra, ra + delta) } else { (ra + delta, ra) };
+            let (lo, hi) = if delta >= 0.0 {
+                (ra, ra + delta)
+            } else {
+                (ra + delta, ra)
+            };
             self.paint(lo, hi, s.label, |d| ray_segment(o, d, a, b));
         }
         for c in &world.circles {
             let (center, radius) = (c.center, c.radius);
-            self.paint_circle(o, laser.theta, center, radius, BeamLabel::Furniture, |d| ray_circle(o, d, center, radius));
+            self.paint_circle(o, laser.theta, center, radius, BeamLabel::Furniture, |d| {
+                ray_circle(o, d, center, radius)
+            });
         }
         if let Some(parts) = parts {
             let h = world.lidar_height;
             let o3 = o.extend(h);
             for part in parts {
-                let Some((center, radius)) = part.section_bound(h) else { continue };
+                let Some((center, radius)) = part.section_bound(h) else {
+                    continue;
+                };
                 let Capsule { a, b, radius: r } = *part;
                 self.paint_circle(o, laser.theta, center, radius, BeamLabel::Person, |d| {
                     ray_capsule(o3, DVec3::new(d.x, d.y, 0.0), a, b, r)
@@ -211,7 +237,11 @@ impl Lidar {
                 (f64::INFINITY, BeamLabel::Missing)
             } else if u < wrong {
                 // Multipath: the return of a point at another angle, reported at this one.
-                let k = if spread > 0 { rng.random_range(-spread..=spread) } else { 0 };
+                let k = if spread > 0 {
+                    rng.random_range(-spread..=spread)
+                } else {
+                    0
+                };
                 let j = (i as i64 + k).rem_euclid(n as i64) as usize;
                 (self.exact[j], BeamLabel::Wrong)
             } else {
@@ -226,7 +256,11 @@ impl Lidar {
                 labels.push(label);
             } else {
                 ranges.push(f32::INFINITY);
-                labels.push(if label == BeamLabel::Missing { label } else { BeamLabel::Nothing });
+                labels.push(if label == BeamLabel::Missing {
+                    label
+                } else {
+                    BeamLabel::Nothing
+                });
             }
         }
     }
@@ -242,7 +276,10 @@ fn wrap(a: f64) -> f64 {
 fn small_rotation(delta: f64) -> DVec2 {
     if delta.abs() < 0.01 {
         let d2 = delta * delta;
-        DVec2::new(1.0 - d2 / 2.0 + d2 * d2 / 24.0, delta * (1.0 - d2 / 6.0 + d2 * d2 / 120.0))
+        DVec2::new(
+            1.0 - d2 / 2.0 + d2 * d2 / 24.0,
+            delta * (1.0 - d2 / 6.0 + d2 * d2 / 120.0),
+        )
     } else {
         DVec2::from_angle(delta)
     }
@@ -255,7 +292,9 @@ mod tests {
     use rand::SeedableRng;
 
     fn world(extra: &str) -> (Scene, World) {
-        let text = format!("duration: 1\nroom: {{outline: [[-5,-5],[5,-5],[5,5],[-5,5]]}}\n{extra}robot: {{start: {{x: 0, y: 0}}}}\n");
+        let text = format!(
+            "duration: 1\nroom: {{outline: [[-5,-5],[5,-5],[5,5],[-5,5]]}}\n{extra}robot: {{start: {{x: 0, y: 0}}}}\n"
+        );
         let s = Scene::parse(&text, "t").unwrap();
         let w = World::new(&s);
         (s, w)
@@ -275,7 +314,10 @@ mod tests {
                     best = best.min(ray_circle(o, d, c.center, c.radius).unwrap_or(f64::INFINITY));
                 }
                 for p in parts {
-                    best = best.min(ray_capsule(o.extend(w.lidar_height), d.extend(0.0), p.a, p.b, p.radius).unwrap_or(f64::INFINITY));
+                    best = best.min(
+                        ray_capsule(o.extend(w.lidar_height), d.extend(0.0), p.a, p.b, p.radius)
+                            .unwrap_or(f64::INFINITY),
+                    );
                 }
                 best
             })
@@ -284,25 +326,41 @@ mod tests {
 
     #[test]
     fn painting_matches_brute_force() {
-        let (s, w) = world("furniture: [{kind: box, center: [2, 1], size: [1, 0.5], yaw_deg: 30, height: 1}, {kind: table, center: [-2, 2], size: [1.2, 0.8], height: 0.75}, {kind: cylinder, center: [0, -3], radius: 0.3, height: 1}]\n");
-        let mut lidar = Lidar::new(&LidarSpec { noise: NoiseSpec::NONE, ..s.lidar.clone() });
-        let parts = [Capsule { a: DVec3::new(1.0, -1.0, 0.1), b: DVec3::new(2.0, -1.5, 0.1), radius: 0.12 }];
+        let (s, w) = world(
+            "furniture: [{kind: box, center: [2, 1], size: [1, 0.5], yaw_deg: 30, height: 1}, {kind: table, center: [-2, 2], size: [1.2, 0.8], height: 0.75}, {kind: cylinder, center: [0, -3], radius: 0.3, height: 1}]\n",
+        );
+        let mut lidar = Lidar::new(&LidarSpec {
+            noise: NoiseSpec::NONE,
+            ..s.lidar.clone()
+        });
+        let parts = [Capsule {
+            a: DVec3::new(1.0, -1.0, 0.1),
+            b: DVec3::new(2.0, -1.5, 0.1),
+            radius: 0.12,
+        }];
         let (mut r, mut l) = (Vec::new(), Vec::new());
         for theta in [0.0, 0.3, -2.9, PI] {
             let laser = Pose2::new(0.1, -0.2, theta);
             lidar.scan(&w, laser, Some(&parts), None, &mut r, &mut l);
             let expect = brute(&w, laser, &lidar.geometry, &parts);
-            for i in 0..r.len() {
-                assert_eq!(lidar.exact_ranges()[i], expect[i], "beam {i} at heading {theta}");
+            for (i, (got, want)) in lidar.exact_ranges().iter().zip(&expect).enumerate() {
+                assert_eq!(got, want, "beam {i} at heading {theta}");
             }
         }
-        assert!(l.contains(&BeamLabel::Person) && l.contains(&BeamLabel::Furniture) && l.contains(&BeamLabel::Wall));
+        assert!(
+            l.contains(&BeamLabel::Person)
+                && l.contains(&BeamLabel::Furniture)
+                && l.contains(&BeamLabel::Wall)
+        );
     }
 
     #[test]
     fn empty_square_room_ranges_are_exact() {
         let (s, w) = world("");
-        let mut lidar = Lidar::new(&LidarSpec { noise: NoiseSpec::NONE, ..s.lidar.clone() });
+        let mut lidar = Lidar::new(&LidarSpec {
+            noise: NoiseSpec::NONE,
+            ..s.lidar.clone()
+        });
         let (mut r, mut l) = (Vec::new(), Vec::new());
         lidar.scan(&w, Pose2::IDENTITY, None, None, &mut r, &mut l);
         // Beam 360 looks along +x (angle 0), beam 0 along -x: both 5 m.
@@ -313,13 +371,23 @@ mod tests {
 
     #[test]
     fn lidar_at_a_wall_or_inside_an_obstacle_gives_valid_ranges() {
-        let (s, w) = world("furniture: [{kind: cylinder, center: [2, 0], radius: 0.5, height: 1}]\n");
+        let (s, w) =
+            world("furniture: [{kind: cylinder, center: [2, 0], radius: 0.5, height: 1}]\n");
         let mut lidar = Lidar::new(&s.lidar);
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let (mut r, mut l) = (Vec::new(), Vec::new());
-        for pose in [Pose2::new(5.0, 0.0, 0.0), Pose2::new(2.0, 0.0, 1.0), Pose2::new(1.5, 0.0, 0.0), Pose2::new(-5.0, -5.0, 0.3)] {
+        for pose in [
+            Pose2::new(5.0, 0.0, 0.0),
+            Pose2::new(2.0, 0.0, 1.0),
+            Pose2::new(1.5, 0.0, 0.0),
+            Pose2::new(-5.0, -5.0, 0.3),
+        ] {
             lidar.scan(&w, pose, None, Some(&mut rng), &mut r, &mut l);
-            assert!(r.iter().all(|x| x.is_infinite() && *x > 0.0 || (0.15..=12.0).contains(x)), "{pose:?}");
+            assert!(
+                r.iter()
+                    .all(|x| x.is_infinite() && *x > 0.0 || (0.15..=12.0).contains(x)),
+                "{pose:?}"
+            );
         }
         // Inside the cylinder everything is closer than range_min: no return at all.
         lidar.scan(&w, Pose2::new(2.0, 0.0, 1.0), None, None, &mut r, &mut l);
@@ -328,16 +396,22 @@ mod tests {
 
     #[test]
     fn zero_width_gap_between_boxes_is_closed() {
-        let (s, w) = world("furniture: [{kind: box, center: [3, -0.5], size: [1, 1], height: 1}, {kind: box, center: [3, 0.5], size: [1, 1], height: 1}]\n");
-        let spec = LidarSpec { beams: 3600, noise: NoiseSpec::NONE, ..s.lidar.clone() };
+        let (s, w) = world(
+            "furniture: [{kind: box, center: [3, -0.5], size: [1, 1], height: 1}, {kind: box, center: [3, 0.5], size: [1, 1], height: 1}]\n",
+        );
+        let spec = LidarSpec {
+            beams: 3600,
+            noise: NoiseSpec::NONE,
+            ..s.lidar.clone()
+        };
         let mut lidar = Lidar::new(&spec);
         let (mut r, mut l) = (Vec::new(), Vec::new());
         // The beam along +x goes exactly through the shared edge's line y = 0.
         lidar.scan(&w, Pose2::IDENTITY, None, None, &mut r, &mut l);
         let along = spec.beams as usize / 2;
         assert_eq!(r[along], 2.5);
-        for i in along - 40..along + 40 {
-            assert!(r[i] < 2.6, "beam {i} leaked through the gap: {}", r[i]);
+        for (i, range) in r.iter().enumerate().take(along + 40).skip(along - 40) {
+            assert!(*range < 2.6, "beam {i} leaked through the gap: {range}");
         }
     }
 

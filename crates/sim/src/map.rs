@@ -54,9 +54,16 @@ impl OccupancyMap {
             .collect();
         for j in 0..height {
             for i in 0..width {
-                let c = origin + DVec2::new((i as f64 + 0.5) * resolution, (j as f64 + 0.5) * resolution);
-                let near_edge = world.segments.iter().any(|s| point_segment_dist(c, s.a, s.b) <= half);
-                let in_circle = world.circles.iter().any(|k| (c - k.center).length() <= k.radius + half);
+                let c = origin
+                    + DVec2::new((i as f64 + 0.5) * resolution, (j as f64 + 0.5) * resolution);
+                let near_edge = world
+                    .segments
+                    .iter()
+                    .any(|s| point_segment_dist(c, s.a, s.b) <= half);
+                let in_circle = world
+                    .circles
+                    .iter()
+                    .any(|k| (c - k.center).length() <= k.radius + half);
                 let in_solid = seen_solids.iter().any(|p| point_in_polygon(c, p));
                 let value = if near_edge || in_circle || in_solid {
                     OCCUPIED
@@ -68,7 +75,13 @@ impl OccupancyMap {
                 data[(j * width + i) as usize] = value;
             }
         }
-        Self { resolution, origin, width, height, data }
+        Self {
+            resolution,
+            origin,
+            width,
+            height,
+            data,
+        }
     }
 
     /// Writes `<dir>/<stem>.pgm` and `<dir>/<stem>.yaml` as map_server reads them
@@ -76,7 +89,11 @@ impl OccupancyMap {
     pub fn write_map_server(&self, dir: &Path, stem: &str) -> std::io::Result<()> {
         let pgm = dir.join(format!("{stem}.pgm"));
         let mut out = std::io::BufWriter::new(std::fs::File::create(&pgm)?);
-        write!(out, "P5\n# lidar_har simulator map\n{} {}\n255\n", self.width, self.height)?;
+        write!(
+            out,
+            "P5\n# lidar_har simulator map\n{} {}\n255\n",
+            self.width, self.height
+        )?;
         for j in (0..self.height).rev() {
             let row: Vec<u8> = (0..self.width)
                 .map(|i| match self.data[(j * self.width + i) as usize] {
@@ -119,7 +136,10 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         m.write_map_server(dir.path(), "map").unwrap();
         let pgm = std::fs::read(dir.path().join("map.pgm")).unwrap();
-        let header = format!("P5\n# lidar_har simulator map\n{} {}\n255\n", m.width, m.height);
+        let header = format!(
+            "P5\n# lidar_har simulator map\n{} {}\n255\n",
+            m.width, m.height
+        );
         assert_eq!(pgm.len(), header.len() + (m.width * m.height) as usize);
     }
 }

@@ -15,7 +15,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::body::{BodyDims, Capsule, PARTS, PoseParams, capsules};
-use crate::scene::{FallDirection, PersonSpec, ScriptStep, SceneError, is_locomotion};
+use crate::scene::{FallDirection, PersonSpec, SceneError, ScriptStep, is_locomotion};
 use crate::world::World;
 
 /// Per-person traits drawn once per episode.
@@ -64,12 +64,20 @@ impl Route {
         if len > 1e-9 {
             for i in 0..points.len() - 1 {
                 if cumulative[i + 1] - cumulative[i] > 1e-12 {
-                    raw.push((cumulative[i], cumulative[i + 1], (points[i + 1] - points[i]).to_angle()));
+                    raw.push((
+                        cumulative[i],
+                        cumulative[i + 1],
+                        (points[i + 1] - points[i]).to_angle(),
+                    ));
                 }
             }
             for i in (0..points.len() - 1).rev() {
                 if cumulative[i + 1] - cumulative[i] > 1e-12 {
-                    raw.push((2.0 * len - cumulative[i + 1], 2.0 * len - cumulative[i], (points[i] - points[i + 1]).to_angle()));
+                    raw.push((
+                        2.0 * len - cumulative[i + 1],
+                        2.0 * len - cumulative[i],
+                        (points[i] - points[i + 1]).to_angle(),
+                    ));
                 }
             }
         }
@@ -85,7 +93,12 @@ impl Route {
             (Some(first), Some(last)) => last.2 + normalize_angle(first.2 - last.2) - first.2,
             _ => 0.0,
         };
-        Self { points, cumulative, legs, turn_per_period }
+        Self {
+            points,
+            cumulative,
+            legs,
+            turn_per_period,
+        }
     }
 
     fn length(&self) -> f64 {
@@ -100,7 +113,10 @@ impl Route {
         }
         let u = s.rem_euclid(2.0 * len);
         let u = if u > len { 2.0 * len - u } else { u };
-        let i = self.cumulative.partition_point(|&c| c <= u).clamp(1, self.points.len() - 1);
+        let i = self
+            .cumulative
+            .partition_point(|&c| c <= u)
+            .clamp(1, self.points.len() - 1);
         let (c0, c1) = (self.cumulative[i - 1], self.cumulative[i]);
         let f = if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.0 };
         self.points[i - 1].lerp(self.points[i], f)
@@ -119,7 +135,10 @@ impl Route {
         while u < hi {
             let k = (u / period).floor();
             let r = u - k * period;
-            let j = self.legs.partition_point(|l| l.1 <= r).min(self.legs.len() - 1);
+            let j = self
+                .legs
+                .partition_point(|l| l.1 <= r)
+                .min(self.legs.len() - 1);
             let (_, end, angle) = self.legs[j];
             let next = (k * period + end).min(hi).max(u + 1e-12);
             acc += (next - u) * (angle + k * self.turn_per_period);
@@ -305,11 +324,11 @@ impl Traits {
             _ => (0.08, 0.95, 0.25, 0.05),
         };
         let bias = if a == Activity::Running { 0.15 } else { 0.0 };
-        for i in 0..2 {
-            let swing = ph[i].cos().max(0.0);
-            p.hip_flex[i] = amp * ph[i].sin() + bias;
+        for (i, ph) in ph.iter().enumerate() {
+            let swing = ph.cos().max(0.0);
+            p.hip_flex[i] = amp * ph.sin() + bias;
             p.knee_flex[i] = knee_base + knee_swing * swing * swing;
-            p.shoulder_flex[i] = -0.8 * amp * ph[i].sin();
+            p.shoulder_flex[i] = -0.8 * amp * ph.sin();
             p.elbow_flex[i] = elbow;
             p.hip_abduct[i] = 0.04;
             p.shoulder_abduct[i] = 0.08;
@@ -376,7 +395,10 @@ impl Plan {
         if self.speed <= 0.0 {
             return self.heading0;
         }
-        let mut h = self.route.heading(self.speed * self.local(t), 0.25).unwrap_or(self.heading0);
+        let mut h = self
+            .route
+            .heading(self.speed * self.local(t), 0.25)
+            .unwrap_or(self.heading0);
         if self.activity == Activity::WalkingUnsteadily {
             h += 0.15 * traits.sway * traits.wave(self.local(t), 0.19, 0);
         }
@@ -410,7 +432,13 @@ impl Person {
         for p in &mut phases {
             *p = rng.random_range(0.0..TAU);
         }
-        let traits = Traits { dims: BodyDims::new(height, girth), pace, stride, sway, phases };
+        let traits = Traits {
+            dims: BodyDims::new(height, girth),
+            pace,
+            stride,
+            sway,
+            phases,
+        };
         let start = spec.start.to_pose();
         let mut person = Person {
             steps: spec.script.clone(),
@@ -458,7 +486,11 @@ impl Person {
             Some(s) => s,
             None => {
                 // After the script: the last activity goes on, a fall ends lying, getting up standing.
-                let last = self.plans.last().map(|p| p.activity).unwrap_or(Activity::Standing);
+                let last = self
+                    .plans
+                    .last()
+                    .map(|p| p.activity)
+                    .unwrap_or(Activity::Standing);
                 let activity = match last {
                     Activity::FallingDown => Activity::LyingDown,
                     Activity::GettingUp => Activity::Standing,
@@ -479,17 +511,28 @@ impl Person {
         let prev_lying = prev.map(|(p, _)| p.lying);
         let lying = match (a, step.fall) {
             (Activity::FallingDown, Some(d)) => d,
-            (Activity::FallingDown, None) => {
-                [FallDirection::Forward, FallDirection::Backward, FallDirection::Left, FallDirection::Right]
-                    [self.rng.random_range(0..4)]
-            }
+            (Activity::FallingDown, None) => [
+                FallDirection::Forward,
+                FallDirection::Backward,
+                FallDirection::Left,
+                FallDirection::Right,
+            ][self.rng.random_range(0..4)],
             _ => match (prev.map(|(p, _)| p.activity), prev_lying) {
-                (Some(Activity::FallingDown | Activity::LyingDown | Activity::GettingUp), Some(d)) => d,
-                _ => [FallDirection::Backward, FallDirection::Left, FallDirection::Right][self.rng.random_range(0..3)],
+                (
+                    Some(Activity::FallingDown | Activity::LyingDown | Activity::GettingUp),
+                    Some(d),
+                ) => d,
+                _ => [
+                    FallDirection::Backward,
+                    FallDirection::Left,
+                    FallDirection::Right,
+                ][self.rng.random_range(0..3)],
             },
         };
         let (base_speed, base_freq) = gait_defaults(a);
-        let speed = step.speed.unwrap_or(base_speed * self.traits.pace * self.traits.stride * self.rng.random_range(0.9..=1.1));
+        let speed = step.speed.unwrap_or(
+            base_speed * self.traits.pace * self.traits.stride * self.rng.random_range(0.9..=1.1),
+        );
         let freq = base_freq * self.traits.pace;
         // Hip amplitude that makes the stance foot move back at the walking speed:
         // stride = speed / freq = 4 * leg * sin(amp).
@@ -536,13 +579,29 @@ impl Person {
         points.extend(step.path.iter().map(|p| DVec2::new(p[0], p[1])));
         if let Some(world) = &self.world_check {
             for (j, w) in points.windows(2).enumerate() {
-                let blocked = world.furniture.iter().enumerate().find(|(_, f)| f.person_blocks.iter().any(|s| s.crosses_segment(w[0], w[1])));
-                let outside = world.wall_clearance(w[1]) < 0.0 || crate::shapes::segments_cross_outline(w[0], w[1], &world.outline);
+                let blocked = world.furniture.iter().enumerate().find(|(_, f)| {
+                    f.person_blocks
+                        .iter()
+                        .any(|s| s.crosses_segment(w[0], w[1]))
+                });
+                let outside = world.wall_clearance(w[1]) < 0.0
+                    || crate::shapes::segments_cross_outline(w[0], w[1], &world.outline);
                 if let Some((fi, f)) = blocked {
-                    return Err(path_error(index, j, format!("the walk to this point crosses furniture[{fi}] '{}'", f.name)));
+                    return Err(path_error(
+                        index,
+                        j,
+                        format!(
+                            "the walk to this point crosses furniture[{fi}] '{}'",
+                            f.name
+                        ),
+                    ));
                 }
                 if outside {
-                    return Err(path_error(index, j, "the walk to this point leaves the room".to_string()));
+                    return Err(path_error(
+                        index,
+                        j,
+                        "the walk to this point leaves the room".to_string(),
+                    ));
                 }
             }
         }
@@ -576,7 +635,9 @@ impl Person {
     }
 
     fn extend(&mut self) -> Result<(), SceneError> {
-        let Some(last) = self.plans.last().cloned() else { return Ok(()) };
+        let Some(last) = self.plans.last().cloned() else {
+            return Ok(());
+        };
         let end = last.end;
         let (pose, heading) = last.pose(&self.traits, end);
         let root = last.root(end);
@@ -609,12 +670,21 @@ impl Person {
         let (pose, yaw) = plan.pose(&self.traits, t);
         let root = plan.root(t);
         let parts = capsules(&self.traits.dims, &pose, root, yaw);
-        PersonState { position: root + rotate(pose.pelvis, yaw), yaw: normalize_angle(yaw), activity: plan.activity, parts }
+        PersonState {
+            position: root + rotate(pose.pelvis, yaw),
+            yaw: normalize_angle(yaw),
+            activity: plan.activity,
+            parts,
+        }
     }
 }
 
 fn path_error(step: usize, point: usize, message: String) -> SceneError {
-    SceneError::Invalid { origin: "scene".to_string(), key: format!("person.script[{step}].path[{point}]"), message }
+    SceneError::Invalid {
+        origin: "scene".to_string(),
+        key: format!("person.script[{step}].path[{point}]"),
+        message,
+    }
 }
 
 #[cfg(test)]
@@ -660,16 +730,26 @@ mod tests {
 
     #[test]
     fn fall_takes_the_body_to_the_floor() {
-        let s = scene("    - {activity: standing, duration: 1}\n    - {activity: falling_down, duration: 1, fall: backward}\n    - {activity: lying_down, duration: 5}\n");
+        let s = scene(
+            "    - {activity: standing, duration: 1}\n    - {activity: falling_down, duration: 1, fall: backward}\n    - {activity: lying_down, duration: 5}\n",
+        );
         let world = World::new(&s);
         let mut p = Person::new(s.person.as_ref().unwrap(), &world, 1).unwrap();
-        let top = |st: &PersonState| st.parts.iter().map(|c| c.a.z.max(c.b.z) + c.radius).fold(0.0, f64::max);
+        let top = |st: &PersonState| {
+            st.parts
+                .iter()
+                .map(|c| c.a.z.max(c.b.z) + c.radius)
+                .fold(0.0, f64::max)
+        };
         let before = p.state_at(0.9);
         assert!(top(&before) > 1.5);
         let after = p.state_at(2.1);
         assert_eq!(after.activity, Activity::LyingDown);
         assert!(top(&after) < 0.35, "lying body top at {}", top(&after));
-        assert!((after.position - before.position).length() > 0.7, "the pelvis ends about a leg's length away");
+        assert!(
+            (after.position - before.position).length() > 0.7,
+            "the pelvis ends about a leg's length away"
+        );
     }
 
     #[test]
@@ -688,7 +768,12 @@ mod tests {
     fn a_path_through_furniture_is_rejected_with_its_step() {
         let text = "duration: 10\nroom: {outline: [[0,0],[8,0],[8,6],[0,6]]}\nfurniture: [{kind: box, name: sofa, center: [5, 3], size: [1, 2], height: 0.8}]\nrobot: {start: {x: 0.5, y: 0.5}}\nperson:\n  start: {x: 3, y: 3}\n  script:\n    - {activity: standing, duration: 1}\n    - {activity: walking, duration: 5, path: [[7,3]]}\n";
         let s = Scene::parse(text, "t").unwrap();
-        let err = Person::new(s.person.as_ref().unwrap(), &World::new(&s), 0).unwrap_err().to_string();
-        assert!(err.contains("person.script[1].path[0]") && err.contains("sofa"), "{err}");
+        let err = Person::new(s.person.as_ref().unwrap(), &World::new(&s), 0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("person.script[1].path[0]") && err.contains("sofa"),
+            "{err}"
+        );
     }
 }

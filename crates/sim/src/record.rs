@@ -79,7 +79,14 @@ pub fn occupancy_grid_msg(map: &OccupancyMap, stamp_ns: u64) -> OccupancyGrid {
             resolution: map.resolution as f32,
             width: map.width,
             height: map.height,
-            origin: Pose { position: Point { x: map.origin.x, y: map.origin.y, z: 0.0 }, orientation: Quaternion::IDENTITY },
+            origin: Pose {
+                position: Point {
+                    x: map.origin.x,
+                    y: map.origin.y,
+                    z: 0.0,
+                },
+                orientation: Quaternion::IDENTITY,
+            },
         },
         data: map.data.clone(),
     }
@@ -111,19 +118,29 @@ pub fn record(
     map_resolution: f64,
     mut on_frame: impl FnMut(&Frame),
 ) -> Result<RecordSummary, RecordError> {
-    let options = WriterOptions { flush_interval: Duration::MAX, ..WriterOptions::default() };
+    let options = WriterOptions {
+        flush_interval: Duration::MAX,
+        ..WriterOptions::default()
+    };
     let mut bag = BagWriter::create(out, options)?;
     let scan_t = bag.add_topic_for::<LaserScan>(topics::SCAN.name, topics::SCAN.qos)?;
     let odom_t = bag.add_topic_for::<Odometry>(topics::ODOM.name, topics::ODOM.qos)?;
     let tf_t = bag.add_topic_for::<TFMessage>(topics::TF.name, topics::TF.qos)?;
-    let tf_static_t = bag.add_topic_for::<TFMessage>(topics::TF_STATIC.name, topics::TF_STATIC.qos)?;
+    let tf_static_t =
+        bag.add_topic_for::<TFMessage>(topics::TF_STATIC.name, topics::TF_STATIC.qos)?;
     let map_t = bag.add_topic_for::<OccupancyGrid>(topics::MAP.name, topics::MAP.qos)?;
     let clock_t = bag.add_topic_for::<Clock>(topics::CLOCK.name, topics::CLOCK.qos)?;
     let has_person = sim.scene().person.is_some();
     let truth_t = if has_person {
         Some((
-            bag.add_topic_for::<PoseStamped>(topics::GROUND_TRUTH_POSE.name, topics::GROUND_TRUTH_POSE.qos)?,
-            bag.add_topic_for::<ActivityMsg>(topics::GROUND_TRUTH_ACTIVITY.name, topics::GROUND_TRUTH_ACTIVITY.qos)?,
+            bag.add_topic_for::<PoseStamped>(
+                topics::GROUND_TRUTH_POSE.name,
+                topics::GROUND_TRUTH_POSE.qos,
+            )?,
+            bag.add_topic_for::<ActivityMsg>(
+                topics::GROUND_TRUTH_ACTIVITY.name,
+                topics::GROUND_TRUTH_ACTIVITY.qos,
+            )?,
         ))
     } else {
         None
@@ -132,7 +149,10 @@ pub fn record(
     let start = sim.start_ns();
     let map = OccupancyMap::from_world(sim.world(), map_resolution);
     map.write_map_server(out, "map")
-        .map_err(|source| RecordError::Map { path: out.display().to_string(), source })?;
+        .map_err(|source| RecordError::Map {
+            path: out.display().to_string(),
+            source,
+        })?;
     let t0 = time(start);
     let log0 = start as i64;
     bag.write_message(map_t, log0, &occupancy_grid_msg(&map, start))?;
@@ -141,11 +161,19 @@ pub fn record(
     bag.write_message(
         tf_static_t,
         log0,
-        &TFMessage { transforms: vec![transform(t0, BASE_FRAME, LASER_FRAME, mount, laser_z)] },
+        &TFMessage {
+            transforms: vec![transform(t0, BASE_FRAME, LASER_FRAME, mount, laser_z)],
+        },
     )?;
 
     let mut frame = Frame::default();
-    let mut summary = RecordSummary { bag_dir: out.to_path_buf(), frames: 0, messages: 2, first_stamp_ns: start, last_stamp_ns: start };
+    let mut summary = RecordSummary {
+        bag_dir: out.to_path_buf(),
+        frames: 0,
+        messages: 2,
+        first_stamp_ns: start,
+        last_stamp_ns: start,
+    };
     while sim.step_into(&mut frame) {
         let stamp = time(frame.stamp_ns);
         let log = frame.stamp_ns as i64;
@@ -163,11 +191,22 @@ pub fn record(
         let odom = Odometry {
             header: Header::new(stamp, ODOM_FRAME),
             child_frame_id: BASE_FRAME.to_string(),
-            pose: PoseWithCovariance { pose: pose_msg(frame.robot), ..PoseWithCovariance::default() },
+            pose: PoseWithCovariance {
+                pose: pose_msg(frame.robot),
+                ..PoseWithCovariance::default()
+            },
             twist: TwistWithCovariance {
                 twist: Twist {
-                    linear: Vector3 { x: frame.robot_twist.linear, y: 0.0, z: 0.0 },
-                    angular: Vector3 { x: 0.0, y: 0.0, z: frame.robot_twist.angular },
+                    linear: Vector3 {
+                        x: frame.robot_twist.linear,
+                        y: 0.0,
+                        z: 0.0,
+                    },
+                    angular: Vector3 {
+                        x: 0.0,
+                        y: 0.0,
+                        z: frame.robot_twist.angular,
+                    },
                 },
                 ..TwistWithCovariance::default()
             },
@@ -176,7 +215,14 @@ pub fn record(
         bag.write_message(scan_t, log, &laser_scan_msg(sim, &frame))?;
         summary.messages += 4;
         if let (Some((pose_t, activity_t)), Some(person)) = (truth_t, &frame.person) {
-            bag.write_message(pose_t, log, &PoseStamped { header: Header::new(stamp, MAP_FRAME), pose: pose_msg(person.pose) })?;
+            bag.write_message(
+                pose_t,
+                log,
+                &PoseStamped {
+                    header: Header::new(stamp, MAP_FRAME),
+                    pose: pose_msg(person.pose),
+                },
+            )?;
             let class = person.activity.index();
             let mut probabilities = vec![0.0f32; lidar_har_core::activity::Activity::COUNT];
             probabilities[class] = 1.0;

@@ -18,15 +18,15 @@ use crate::world::BeamLabel;
 
 /// One colour per activity, in class order (crawling .. walking_unsteadily).
 pub const ACTIVITY_COLOURS: [RGBColor; Activity::COUNT] = [
-    RGBColor(141, 85, 36),   // crawling: brown
-    RGBColor(230, 25, 75),   // falling_down: red
-    RGBColor(245, 130, 48),  // getting_up: orange
-    RGBColor(145, 30, 180),  // lying_down: purple
-    RGBColor(0, 130, 200),   // running: blue
-    RGBColor(70, 240, 240),  // sitting_on_floor: cyan
-    RGBColor(60, 180, 75),   // standing: green
-    RGBColor(128, 128, 0),   // walking: olive
-    RGBColor(240, 50, 230),  // walking_unsteadily: magenta
+    RGBColor(141, 85, 36),  // crawling: brown
+    RGBColor(230, 25, 75),  // falling_down: red
+    RGBColor(245, 130, 48), // getting_up: orange
+    RGBColor(145, 30, 180), // lying_down: purple
+    RGBColor(0, 130, 200),  // running: blue
+    RGBColor(70, 240, 240), // sitting_on_floor: cyan
+    RGBColor(60, 180, 75),  // standing: green
+    RGBColor(128, 128, 0),  // walking: olive
+    RGBColor(240, 50, 230), // walking_unsteadily: magenta
 ];
 
 fn label_colour(l: BeamLabel) -> Option<RGBColor> {
@@ -51,7 +51,12 @@ pub struct Trace {
 impl Trace {
     /// Keeps the scan points of every `scan_every`-th frame (paths use every frame).
     pub fn new(scan_every: u64) -> Self {
-        Self { scan_every: scan_every.max(1), robot: Vec::new(), person: Vec::new(), points: Vec::new() }
+        Self {
+            scan_every: scan_every.max(1),
+            robot: Vec::new(),
+            person: Vec::new(),
+            points: Vec::new(),
+        }
     }
 
     pub fn add(&mut self, frame: &Frame, geometry: &ScanGeometry) {
@@ -59,11 +64,13 @@ impl Trace {
         if let Some(p) = &frame.person {
             self.person.push((p.pose.position(), p.activity));
         }
-        if frame.index % self.scan_every == 0 {
+        if frame.index.is_multiple_of(self.scan_every) {
             for (i, (r, l)) in frame.ranges.iter().zip(&frame.labels).enumerate() {
                 if r.is_finite() {
                     let a = geometry.angle_min + geometry.angle_increment * i as f64;
-                    let p = frame.laser.transform_point(DVec2::from_angle(a) * *r as f64);
+                    let p = frame
+                        .laser
+                        .transform_point(DVec2::from_angle(a) * *r as f64);
                     self.points.push((p, *l));
                 }
             }
@@ -85,8 +92,14 @@ const LEGEND: u32 = 30;
 
 /// Draws the picture as a PNG at `path`.
 pub fn render_png(path: &Path, map: &OccupancyMap, trace: &Trace) -> Result<(), RenderError> {
-    let err = |message: String| RenderError { path: path.display().to_string(), message };
-    let (w_m, h_m) = (map.width as f64 * map.resolution, map.height as f64 * map.resolution);
+    let err = |message: String| RenderError {
+        path: path.display().to_string(),
+        message,
+    };
+    let (w_m, h_m) = (
+        map.width as f64 * map.resolution,
+        map.height as f64 * map.resolution,
+    );
     let scale = SCALE.min(2000.0 / w_m.max(h_m));
     let (w, h) = ((w_m * scale).ceil() as u32, (h_m * scale).ceil() as u32);
     let root = BitMapBackend::new(path, (w, h + LEGEND)).into_drawing_area();
@@ -104,26 +117,45 @@ pub fn render_png(path: &Path, map: &OccupancyMap, trace: &Trace) -> Result<(), 
                 _ => RGBColor(205, 205, 205),
             };
             let (x, y) = px(map.origin + DVec2::new(i as f64, j as f64 + 1.0) * map.resolution);
-            root.draw(&Rectangle::new([(x, y), (x + cell, y + cell)], colour.filled())).map_err(|e| err(e.to_string()))?;
+            root.draw(&Rectangle::new(
+                [(x, y), (x + cell, y + cell)],
+                colour.filled(),
+            ))
+            .map_err(|e| err(e.to_string()))?;
         }
     }
     for (p, l) in &trace.points {
         if let Some(c) = label_colour(*l) {
-            root.draw(&Circle::new(px(*p), 1, c.filled())).map_err(|e| err(e.to_string()))?;
+            root.draw(&Circle::new(px(*p), 1, c.filled()))
+                .map_err(|e| err(e.to_string()))?;
         }
     }
     let robot: Vec<(i32, i32)> = trace.robot.iter().map(|p| px(*p)).collect();
-    root.draw(&PathElement::new(robot, RGBColor(0, 0, 255).stroke_width(2))).map_err(|e| err(e.to_string()))?;
+    root.draw(&PathElement::new(
+        robot,
+        RGBColor(0, 0, 255).stroke_width(2),
+    ))
+    .map_err(|e| err(e.to_string()))?;
     for w in trace.person.windows(2) {
         let c = ACTIVITY_COLOURS[w[1].1.index()];
-        root.draw(&PathElement::new(vec![px(w[0].0), px(w[1].0)], c.stroke_width(3))).map_err(|e| err(e.to_string()))?;
+        root.draw(&PathElement::new(
+            vec![px(w[0].0), px(w[1].0)],
+            c.stroke_width(3),
+        ))
+        .map_err(|e| err(e.to_string()))?;
     }
     // A dot where each activity starts.
     let mut last: Option<Activity> = None;
     for (p, a) in &trace.person {
         if last != Some(*a) {
-            root.draw(&Circle::new(px(*p), 6, ACTIVITY_COLOURS[a.index()].filled())).map_err(|e| err(e.to_string()))?;
-            root.draw(&Circle::new(px(*p), 6, BLACK.stroke_width(1))).map_err(|e| err(e.to_string()))?;
+            root.draw(&Circle::new(
+                px(*p),
+                6,
+                ACTIVITY_COLOURS[a.index()].filled(),
+            ))
+            .map_err(|e| err(e.to_string()))?;
+            root.draw(&Circle::new(px(*p), 6, BLACK.stroke_width(1)))
+                .map_err(|e| err(e.to_string()))?;
             last = Some(*a);
         }
     }
@@ -131,8 +163,11 @@ pub fn render_png(path: &Path, map: &OccupancyMap, trace: &Trace) -> Result<(), 
     let sw = (w / Activity::COUNT as u32).max(1) as i32;
     for (k, c) in ACTIVITY_COLOURS.iter().enumerate() {
         let x = k as i32 * sw;
-        root.draw(&Rectangle::new([(x + 2, h as i32 + 4), (x + sw - 2, (h + LEGEND) as i32 - 4)], c.filled()))
-            .map_err(|e| err(e.to_string()))?;
+        root.draw(&Rectangle::new(
+            [(x + 2, h as i32 + 4), (x + sw - 2, (h + LEGEND) as i32 - 4)],
+            c.filled(),
+        ))
+        .map_err(|e| err(e.to_string()))?;
     }
     root.present().map_err(|e| err(e.to_string()))
 }

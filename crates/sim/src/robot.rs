@@ -27,8 +27,16 @@ pub struct Twist2 {
 
 #[derive(Debug, Clone, Copy)]
 enum Leg {
-    Turn { at: DVec2, from: f64, delta: f64 },
-    Drive { from: DVec2, to: DVec2, heading: f64 },
+    Turn {
+        at: DVec2,
+        from: f64,
+        delta: f64,
+    },
+    Drive {
+        from: DVec2,
+        to: DVec2,
+        heading: f64,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -67,25 +75,39 @@ impl Grid {
         let mut free = vec![false; width * height];
         for j in 0..height {
             for i in 0..width {
-                let c = origin + DVec2::new((i as f64 + 0.5) * GRID_RESOLUTION, (j as f64 + 0.5) * GRID_RESOLUTION);
+                let c = origin
+                    + DVec2::new(
+                        (i as f64 + 0.5) * GRID_RESOLUTION,
+                        (j as f64 + 0.5) * GRID_RESOLUTION,
+                    );
                 free[j * width + i] = world.robot_clearance(c).0 >= clearance;
             }
         }
-        Self { origin, width, height, free }
+        Self {
+            origin,
+            width,
+            height,
+            free,
+        }
     }
 
     fn cell(&self, p: DVec2) -> Option<(usize, usize)> {
         let q = (p - self.origin) / GRID_RESOLUTION;
         (q.x >= 0.0 && q.y >= 0.0 && (q.x as usize) < self.width && (q.y as usize) < self.height)
-            .then(|| (q.x as usize, q.y as usize))
+            .then_some((q.x as usize, q.y as usize))
     }
 
     fn center(&self, (i, j): (usize, usize)) -> DVec2 {
-        self.origin + DVec2::new((i as f64 + 0.5) * GRID_RESOLUTION, (j as f64 + 0.5) * GRID_RESOLUTION)
+        self.origin
+            + DVec2::new(
+                (i as f64 + 0.5) * GRID_RESOLUTION,
+                (j as f64 + 0.5) * GRID_RESOLUTION,
+            )
     }
 
     fn is_free(&self, p: DVec2) -> bool {
-        self.cell(p).is_some_and(|(i, j)| self.free[j * self.width + i])
+        self.cell(p)
+            .is_some_and(|(i, j)| self.free[j * self.width + i])
     }
 
     /// Is the straight run `a`-`b` free (sampled at a fifth of a cell)?
@@ -140,21 +162,40 @@ impl Grid {
                 break;
             }
             let c = cost[idx(cell)];
-            for (di, dj) in [(1i64, 0i64), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)] {
+            for (di, dj) in [
+                (1i64, 0i64),
+                (-1, 0),
+                (0, 1),
+                (0, -1),
+                (1, 1),
+                (1, -1),
+                (-1, 1),
+                (-1, -1),
+            ] {
                 let (ni, nj) = (cell.0 as i64 + di, cell.1 as i64 + dj);
                 if ni < 0 || nj < 0 || ni as usize >= self.width || nj as usize >= self.height {
                     continue;
                 }
                 let n = (ni as usize, nj as usize);
                 // Diagonal steps may not cut a blocked corner.
-                if !self.free[idx(n)] || !self.free[idx((n.0, cell.1))] || !self.free[idx((cell.0, n.1))] {
+                if !self.free[idx(n)]
+                    || !self.free[idx((n.0, cell.1))]
+                    || !self.free[idx((cell.0, n.1))]
+                {
                     continue;
                 }
-                let step = if di != 0 && dj != 0 { std::f64::consts::SQRT_2 } else { 1.0 };
+                let step = if di != 0 && dj != 0 {
+                    std::f64::consts::SQRT_2
+                } else {
+                    1.0
+                };
                 if c + step < cost[idx(n)] {
                     cost[idx(n)] = c + step;
                     parent[idx(n)] = idx(cell);
-                    open.push(Node { f: c + step + h(n), cell: n });
+                    open.push(Node {
+                        f: c + step + h(n),
+                        cell: n,
+                    });
                 }
             }
         }
@@ -204,7 +245,10 @@ struct Node {
 impl Eq for Node {}
 impl Ord for Node {
     fn cmp(&self, other: &Self) -> Ordering {
-        other.f.total_cmp(&self.f).then_with(|| self.cell.cmp(&other.cell))
+        other
+            .f
+            .total_cmp(&self.f)
+            .then_with(|| self.cell.cmp(&other.cell))
     }
 }
 impl PartialOrd for Node {
@@ -214,7 +258,11 @@ impl PartialOrd for Node {
 }
 
 fn motion_error(key: &str, message: String) -> SceneError {
-    SceneError::Invalid { origin: "scene".to_string(), key: key.to_string(), message }
+    SceneError::Invalid {
+        origin: "scene".to_string(),
+        key: key.to_string(),
+        message,
+    }
 }
 
 impl RobotMotion {
@@ -244,9 +292,18 @@ impl RobotMotion {
             }
             Motion::Coverage { spacing, along_y } => {
                 let (lo, hi) = world.bounds();
-                let (axis_lo, axis_hi, cross_lo, cross_hi) =
-                    if *along_y { (lo.y, hi.y, lo.x, hi.x) } else { (lo.x, hi.x, lo.y, hi.y) };
-                let point = |along: f64, across: f64| if *along_y { DVec2::new(across, along) } else { DVec2::new(along, across) };
+                let (axis_lo, axis_hi, cross_lo, cross_hi) = if *along_y {
+                    (lo.y, hi.y, lo.x, hi.x)
+                } else {
+                    (lo.x, hi.x, lo.y, hi.y)
+                };
+                let point = |along: f64, across: f64| {
+                    if *along_y {
+                        DVec2::new(across, along)
+                    } else {
+                        DVec2::new(along, across)
+                    }
+                };
                 let mut lane = 0usize;
                 let mut across = cross_lo + spacing / 2.0;
                 while across < cross_hi {
@@ -285,7 +342,10 @@ impl RobotMotion {
                     across += spacing;
                 }
                 if stops.is_empty() {
-                    return Err(motion_error("robot.motion", "coverage found no free lane for the robot".to_string()));
+                    return Err(motion_error(
+                        "robot.motion",
+                        "coverage found no free lane for the robot".to_string(),
+                    ));
                 }
             }
             Motion::Bounce { runs } => {
@@ -294,7 +354,9 @@ impl RobotMotion {
                 for _ in 0..*runs {
                     let mut best: Option<(f64, DVec2)> = None;
                     for _ in 0..32 {
-                        let dir = DVec2::from_angle(rng.random_range(-std::f64::consts::PI..std::f64::consts::PI));
+                        let dir = DVec2::from_angle(
+                            rng.random_range(-std::f64::consts::PI..std::f64::consts::PI),
+                        );
                         let d = grid.free_run(p, dir);
                         if best.is_none_or(|(bd, _)| d > bd) {
                             best = Some((d, dir));
@@ -321,10 +383,18 @@ impl RobotMotion {
         for (k, stop) in stops.iter().enumerate() {
             let Some(leg) = grid.plan(at, *stop) else {
                 let key = match spec.motion {
-                    Motion::Waypoints { .. } if k < stops.len() - usize::from(repeat) => format!("robot.motion.points[{k}]"),
+                    Motion::Waypoints { .. } if k < stops.len() - usize::from(repeat) => {
+                        format!("robot.motion.points[{k}]")
+                    }
                     _ => "robot.motion".to_string(),
                 };
-                return Err(motion_error(&key, format!("no collision-free way for the robot to ({:.2}, {:.2})", stop.x, stop.y)));
+                return Err(motion_error(
+                    &key,
+                    format!(
+                        "no collision-free way for the robot to ({:.2}, {:.2})",
+                        stop.x, stop.y
+                    ),
+                ));
             };
             path.extend(leg.into_iter().skip(1));
             at = *stop;
@@ -344,11 +414,27 @@ impl RobotMotion {
             let delta = normalize_angle(target - heading);
             if delta.abs() > 1e-9 {
                 let duration = delta.abs() / self.turn_rate;
-                self.legs.push(TimedLeg { start: t, duration, leg: Leg::Turn { at: w[0], from: heading, delta } });
+                self.legs.push(TimedLeg {
+                    start: t,
+                    duration,
+                    leg: Leg::Turn {
+                        at: w[0],
+                        from: heading,
+                        delta,
+                    },
+                });
                 t += duration;
             }
             let duration = d.length() / self.speed;
-            self.legs.push(TimedLeg { start: t, duration, leg: Leg::Drive { from: w[0], to: w[1], heading: target } });
+            self.legs.push(TimedLeg {
+                start: t,
+                duration,
+                leg: Leg::Drive {
+                    from: w[0],
+                    to: w[1],
+                    heading: target,
+                },
+            });
             t += duration;
             heading = target;
         }
@@ -357,7 +443,15 @@ impl RobotMotion {
             if delta.abs() > 1e-9 {
                 let at = path.last().copied().unwrap_or(self.start.position());
                 let duration = delta.abs() / self.turn_rate;
-                self.legs.push(TimedLeg { start: t, duration, leg: Leg::Turn { at, from: heading, delta } });
+                self.legs.push(TimedLeg {
+                    start: t,
+                    duration,
+                    leg: Leg::Turn {
+                        at,
+                        from: heading,
+                        delta,
+                    },
+                });
                 t += duration;
             }
             self.period = t;
@@ -368,21 +462,50 @@ impl RobotMotion {
 
     /// Pose and velocity at `t` seconds from the start.
     pub fn at(&self, t: f64) -> (Pose2, Twist2) {
-        let Some(last) = self.legs.last() else { return (self.start, Twist2::default()) };
-        let t = if self.period.is_finite() && self.period > 0.0 { t.rem_euclid(self.period) } else { t.max(0.0) };
-        let i = self.legs.partition_point(|l| l.start <= t).saturating_sub(1);
+        let Some(last) = self.legs.last() else {
+            return (self.start, Twist2::default());
+        };
+        let t = if self.period.is_finite() && self.period > 0.0 {
+            t.rem_euclid(self.period)
+        } else {
+            t.max(0.0)
+        };
+        let i = self
+            .legs
+            .partition_point(|l| l.start <= t)
+            .saturating_sub(1);
         let l = &self.legs[i];
-        let f = if l.duration > 0.0 { ((t - l.start) / l.duration).clamp(0.0, 1.0) } else { 1.0 };
+        let f = if l.duration > 0.0 {
+            ((t - l.start) / l.duration).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
         let moving = t < last.start + last.duration;
         match l.leg {
             Leg::Turn { at, from, delta } => {
-                let w = if moving { delta.signum() * self.turn_rate } else { 0.0 };
-                (Pose2::new(at.x, at.y, normalize_angle(from + delta * f)), Twist2 { linear: 0.0, angular: w })
+                let w = if moving {
+                    delta.signum() * self.turn_rate
+                } else {
+                    0.0
+                };
+                (
+                    Pose2::new(at.x, at.y, normalize_angle(from + delta * f)),
+                    Twist2 {
+                        linear: 0.0,
+                        angular: w,
+                    },
+                )
             }
             Leg::Drive { from, to, heading } => {
                 let p = from.lerp(to, f);
                 let v = if moving { self.speed } else { 0.0 };
-                (Pose2::new(p.x, p.y, heading), Twist2 { linear: v, angular: 0.0 })
+                (
+                    Pose2::new(p.x, p.y, heading),
+                    Twist2 {
+                        linear: v,
+                        angular: 0.0,
+                    },
+                )
             }
         }
     }
@@ -411,7 +534,10 @@ mod tests {
         while t < m.period().min(2000.0) {
             let (pose, _) = m.at(t);
             let clear = world.robot_clearance(pose.position()).0;
-            assert!(clear >= s.robot.radius - 1e-9, "robot at {pose:?} (t = {t}) only {clear} m from an obstacle");
+            assert!(
+                clear >= s.robot.radius - 1e-9,
+                "robot at {pose:?} (t = {t}) only {clear} m from an obstacle"
+            );
             t += 0.25;
         }
     }
@@ -420,10 +546,17 @@ mod tests {
     fn waypoints_are_reached_around_furniture() {
         let s = scene("{kind: waypoints, points: [[5.5, 2]]}");
         let m = RobotMotion::new(&s.robot, &World::new(&s), 0).unwrap();
-        assert!(m.path.len() > 2, "the box is in the way: the path must bend");
+        assert!(
+            m.path.len() > 2,
+            "the box is in the way: the path must bend"
+        );
         check_clear(&s, &m);
         // Reaches the waypoint and comes back: periodic.
-        assert!(m.path.iter().any(|p| (*p - DVec2::new(5.5, 2.0)).length() < 1e-9));
+        assert!(
+            m.path
+                .iter()
+                .any(|p| (*p - DVec2::new(5.5, 2.0)).length() < 1e-9)
+        );
         let (p0, _) = m.at(0.0);
         let (p1, _) = m.at(m.period());
         assert!((p0.position() - p1.position()).length() < 1e-9);
@@ -431,7 +564,11 @@ mod tests {
 
     #[test]
     fn coverage_and_bounce_stay_clear() {
-        for motion in ["{kind: coverage, spacing: 0.4}", "{kind: coverage, along_y: true}", "{kind: bounce, runs: 20}"] {
+        for motion in [
+            "{kind: coverage, spacing: 0.4}",
+            "{kind: coverage, along_y: true}",
+            "{kind: bounce, runs: 20}",
+        ] {
             let s = scene(motion);
             let m = RobotMotion::new(&s.robot, &World::new(&s), 3).unwrap();
             assert!(m.period() > 10.0, "{motion}");
@@ -448,7 +585,10 @@ mod tests {
         for k in 1..5000 {
             let p = m.at(k as f64 * dt).0;
             assert!((p.position() - prev.position()).length() <= 0.2 * dt + 1e-9);
-            assert!(normalize_angle(p.theta - prev.theta).abs() <= std::f64::consts::FRAC_PI_2 * dt + 1e-9);
+            assert!(
+                normalize_angle(p.theta - prev.theta).abs()
+                    <= std::f64::consts::FRAC_PI_2 * dt + 1e-9
+            );
             prev = p;
         }
     }
@@ -460,14 +600,19 @@ mod tests {
         let t = 1.234;
         let (a, _) = m.at(t);
         let (b, _) = m.at(t + 500.0 * m.period());
-        assert!((a.position() - b.position()).length() < 1e-6 && normalize_angle(a.theta - b.theta).abs() < 1e-6);
+        assert!(
+            (a.position() - b.position()).length() < 1e-6
+                && normalize_angle(a.theta - b.theta).abs() < 1e-6
+        );
     }
 
     #[test]
     fn unreachable_waypoint_is_an_error() {
         let text = "duration: 10\nroom: {outline: [[0,0],[6,0],[6,4],[0,4]]}\nfurniture: [{kind: box, center: [3, 2], size: [0.3, 4], height: 0.8}]\nrobot: {start: {x: 0.5, y: 2}, motion: {kind: waypoints, points: [[5.5, 2]]}}\n";
         let s = Scene::parse(text, "t").unwrap();
-        let err = RobotMotion::new(&s.robot, &World::new(&s), 0).unwrap_err().to_string();
+        let err = RobotMotion::new(&s.robot, &World::new(&s), 0)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("robot.motion.points[0]"), "{err}");
     }
 }

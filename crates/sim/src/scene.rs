@@ -135,7 +135,9 @@ fn default_leg_inset() -> f64 {
 impl Furniture {
     pub fn name(&self) -> &str {
         match self {
-            Furniture::Box { name, .. } | Furniture::Cylinder { name, .. } | Furniture::Polygon { name, .. } => name,
+            Furniture::Box { name, .. }
+            | Furniture::Cylinder { name, .. }
+            | Furniture::Polygon { name, .. } => name,
             Furniture::Table(l) | Furniture::Chair(l) => &l.name,
         }
     }
@@ -293,11 +295,19 @@ impl Default for NoiseSpec {
 
 impl NoiseSpec {
     /// No errors at all: ranges are exact geometry.
-    pub const NONE: NoiseSpec =
-        NoiseSpec { distance_pct: 0.0, missing_pct: 0.0, wrong_pct: 0.0, angle_deg: 0.0, wrong_spread_deg: 30.0 };
+    pub const NONE: NoiseSpec = NoiseSpec {
+        distance_pct: 0.0,
+        missing_pct: 0.0,
+        wrong_pct: 0.0,
+        angle_deg: 0.0,
+        wrong_spread_deg: 30.0,
+    };
 
     pub fn is_none(&self) -> bool {
-        self.distance_pct == 0.0 && self.missing_pct == 0.0 && self.wrong_pct == 0.0 && self.angle_deg == 0.0
+        self.distance_pct == 0.0
+            && self.missing_pct == 0.0
+            && self.wrong_pct == 0.0
+            && self.angle_deg == 0.0
     }
 }
 
@@ -355,7 +365,14 @@ pub struct BodySpec {
 
 impl Default for BodySpec {
     fn default() -> Self {
-        Self { height: default_height(), girth: 1.0, pace: 1.0, stride: 1.0, sway: 1.0, variation: default_variation() }
+        Self {
+            height: default_height(),
+            girth: 1.0,
+            pace: 1.0,
+            stride: 1.0,
+            sway: 1.0,
+            variation: default_variation(),
+        }
     }
 }
 
@@ -405,19 +422,28 @@ pub enum SceneError {
         source: std::io::Error,
     },
     #[error("{origin}: {key}: {message}")]
-    Invalid { origin: String, key: String, message: String },
+    Invalid {
+        origin: String,
+        key: String,
+        message: String,
+    },
 }
 
 /// Activities that move the person along a path.
 pub fn is_locomotion(a: Activity) -> bool {
-    matches!(a, Activity::Walking | Activity::Running | Activity::WalkingUnsteadily | Activity::Crawling)
+    matches!(
+        a,
+        Activity::Walking | Activity::Running | Activity::WalkingUnsteadily | Activity::Crawling
+    )
 }
 
 impl Scene {
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| SceneError::Io { path: path.display().to_string(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
         Scene::parse(&text, &path.display().to_string())
     }
 
@@ -426,10 +452,24 @@ impl Scene {
         let deserializer = serde_yaml_ng::Deserializer::from_str(text);
         let scene: Scene = serde_path_to_error::deserialize(deserializer).map_err(|err| {
             let key = err.path().to_string();
-            let key = if key == "." { "(top level)".to_string() } else { key };
-            SceneError::Invalid { origin: origin.to_string(), key, message: err.into_inner().to_string() }
+            let key = if key == "." {
+                "(top level)".to_string()
+            } else {
+                key
+            };
+            SceneError::Invalid {
+                origin: origin.to_string(),
+                key,
+                message: err.into_inner().to_string(),
+            }
         })?;
-        scene.validate().map_err(|(key, message)| SceneError::Invalid { origin: origin.to_string(), key, message })?;
+        scene
+            .validate()
+            .map_err(|(key, message)| SceneError::Invalid {
+                origin: origin.to_string(),
+                key,
+                message,
+            })?;
         Ok(scene)
     }
 

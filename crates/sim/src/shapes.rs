@@ -64,7 +64,11 @@ fn ray_ball(o: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<f64> {
 pub fn point_segment_dist_sq(p: DVec3, a: DVec3, b: DVec3) -> f64 {
     let ab = b - a;
     let len_sq = ab.length_squared();
-    let s = if len_sq > 0.0 { ((p - a).dot(ab) / len_sq).clamp(0.0, 1.0) } else { 0.0 };
+    let s = if len_sq > 0.0 {
+        ((p - a).dot(ab) / len_sq).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     (a + ab * s - p).length_squared()
 }
 
@@ -99,7 +103,11 @@ pub fn ray_capsule(o: DVec3, d: DVec3, a: DVec3, b: DVec3, r: f64) -> Option<f64
                 let sq = disc.sqrt();
                 // Both roots, computed without cancellation.
                 let q = -(qb + qb.signum() * sq);
-                let roots = if q != 0.0 { [q / qa, qc / q] } else { [-qb / qa, -qb / qa] };
+                let roots = if q != 0.0 {
+                    [q / qa, qc / q]
+                } else {
+                    [-qb / qa, -qb / qa]
+                };
                 for t in roots {
                     if t >= 0.0 && t < best {
                         let along = (ao + d * t).dot(ab);
@@ -140,7 +148,11 @@ pub fn point_in_polygon(p: DVec2, poly: &[DVec2]) -> bool {
 pub fn point_segment_dist(p: DVec2, a: DVec2, b: DVec2) -> f64 {
     let ab = b - a;
     let len_sq = ab.length_squared();
-    let s = if len_sq > 0.0 { ((p - a).dot(ab) / len_sq).clamp(0.0, 1.0) } else { 0.0 };
+    let s = if len_sq > 0.0 {
+        ((p - a).dot(ab) / len_sq).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     (a + ab * s - p).length()
 }
 
@@ -150,11 +162,17 @@ pub fn segments_intersect(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
     let d2 = (b - a).perp_dot(d - a);
     let d3 = (d - c).perp_dot(a - c);
     let d4 = (d - c).perp_dot(b - c);
-    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0)) && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0)) {
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+        && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+    {
         return true;
     }
     let on = |p: DVec2, q: DVec2, r: DVec2, cross: f64| {
-        cross == 0.0 && r.x >= p.x.min(q.x) && r.x <= p.x.max(q.x) && r.y >= p.y.min(q.y) && r.y <= p.y.max(q.y)
+        cross == 0.0
+            && r.x >= p.x.min(q.x)
+            && r.x <= p.x.max(q.x)
+            && r.y >= p.y.min(q.y)
+            && r.y <= p.y.max(q.y)
     };
     on(a, b, c, d1) || on(a, b, d, d2) || on(c, d, a, d3) || on(c, d, b, d4)
 }
@@ -202,7 +220,9 @@ impl Shape {
             Shape::Circle { center, radius } => (p - *center).length() - radius,
             Shape::Polygon(poly) => {
                 let n = poly.len();
-                let d = (0..n).map(|i| point_segment_dist(p, poly[i], poly[(i + 1) % n])).fold(f64::INFINITY, f64::min);
+                let d = (0..n)
+                    .map(|i| point_segment_dist(p, poly[i], poly[(i + 1) % n]))
+                    .fold(f64::INFINITY, f64::min);
                 if point_in_polygon(p, poly) { -d } else { d }
             }
         }
@@ -211,10 +231,14 @@ impl Shape {
     /// Axis-aligned bounds (min, max).
     pub fn bounds(&self) -> (DVec2, DVec2) {
         match self {
-            Shape::Circle { center, radius } => (*center - DVec2::splat(*radius), *center + DVec2::splat(*radius)),
-            Shape::Polygon(poly) => poly.iter().fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(lo, hi), p| {
-                (lo.min(*p), hi.max(*p))
-            }),
+            Shape::Circle { center, radius } => (
+                *center - DVec2::splat(*radius),
+                *center + DVec2::splat(*radius),
+            ),
+            Shape::Polygon(poly) => poly.iter().fold(
+                (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+                |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+            ),
         }
     }
 
@@ -241,12 +265,24 @@ mod tests {
     #[test]
     fn segment_hit_miss_and_parallel() {
         let o = DVec2::ZERO;
-        assert_eq!(ray_segment(o, X, DVec2::new(2.0, -1.0), DVec2::new(2.0, 1.0)), Some(2.0));
-        assert_eq!(ray_segment(o, -X, DVec2::new(2.0, -1.0), DVec2::new(2.0, 1.0)), None);
+        assert_eq!(
+            ray_segment(o, X, DVec2::new(2.0, -1.0), DVec2::new(2.0, 1.0)),
+            Some(2.0)
+        );
+        assert_eq!(
+            ray_segment(o, -X, DVec2::new(2.0, -1.0), DVec2::new(2.0, 1.0)),
+            None
+        );
         // Along the segment's own line: no hit, no NaN.
-        assert_eq!(ray_segment(o, X, DVec2::new(1.0, 0.0), DVec2::new(3.0, 0.0)), None);
+        assert_eq!(
+            ray_segment(o, X, DVec2::new(1.0, 0.0), DVec2::new(3.0, 0.0)),
+            None
+        );
         // Degenerate (zero-length) segment.
-        assert_eq!(ray_segment(o, X, DVec2::new(1.0, 0.0), DVec2::new(1.0, 0.0)), None);
+        assert_eq!(
+            ray_segment(o, X, DVec2::new(1.0, 0.0), DVec2::new(1.0, 0.0)),
+            None
+        );
     }
 
     #[test]
@@ -313,7 +349,10 @@ mod tests {
         let expect = 2.0 - (0.01f64 - 0.0025).sqrt();
         assert!((t - expect).abs() < 1e-12);
         // Cut above its top: nothing.
-        assert_eq!(ray_capsule(DVec3::new(3.0, -2.0, 0.11), DVec3::Y, a, b, 0.1), None);
+        assert_eq!(
+            ray_capsule(DVec3::new(3.0, -2.0, 0.11), DVec3::Y, a, b, 0.1),
+            None
+        );
     }
 
     #[test]
@@ -325,7 +364,10 @@ mod tests {
             for y in [-0.1, -0.05, 0.0, 0.05, 0.0999] {
                 let hit = ray_capsule(DVec3::new(0.0, y, 0.0), DVec3::X, a, b, 0.1);
                 let t = hit.expect("beam inside the stadium's width must hit");
-                assert!(t.is_finite() && (1.89..=2.0).contains(&t), "tilt {tilt} y {y}: {t}");
+                assert!(
+                    t.is_finite() && (1.89..=2.0).contains(&t),
+                    "tilt {tilt} y {y}: {t}"
+                );
             }
         }
     }
@@ -339,12 +381,22 @@ mod tests {
 
     #[test]
     fn polygon_tests() {
-        let sq = vec![DVec2::new(0.0, 0.0), DVec2::new(1.0, 0.0), DVec2::new(1.0, 1.0), DVec2::new(0.0, 1.0)];
+        let sq = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(1.0, 1.0),
+            DVec2::new(0.0, 1.0),
+        ];
         assert!(point_in_polygon(DVec2::new(0.5, 0.5), &sq));
         assert!(!point_in_polygon(DVec2::new(1.5, 0.5), &sq));
         assert!(polygon_area2(&sq) > 0.0);
         assert_eq!(polygon_self_intersection(&sq), None);
-        let bow = vec![DVec2::new(0.0, 0.0), DVec2::new(1.0, 1.0), DVec2::new(1.0, 0.0), DVec2::new(0.0, 1.0)];
+        let bow = vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(1.0, 1.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(0.0, 1.0),
+        ];
         assert!(polygon_self_intersection(&bow).is_some());
         let s = Shape::Polygon(sq);
         assert!((s.signed_distance(DVec2::new(0.5, 0.5)) + 0.5).abs() < 1e-12);

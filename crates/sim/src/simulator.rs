@@ -71,16 +71,38 @@ impl Simulator {
     pub fn new(scene: Scene, seed: u64) -> Result<Self, SceneError> {
         scene
             .validate()
-            .map_err(|(key, message)| SceneError::Invalid { origin: "scene".to_string(), key, message })?;
+            .map_err(|(key, message)| SceneError::Invalid {
+                origin: "scene".to_string(),
+                key,
+                message,
+            })?;
         let base = mix(mix(scene.seed) ^ seed);
         let world = World::new(&scene);
         let robot = RobotMotion::new(&scene.robot, &world, mix(base ^ 1))?;
-        let person = scene.person.as_ref().map(|p| Person::new(p, &world, mix(base ^ 2))).transpose()?;
+        let person = scene
+            .person
+            .as_ref()
+            .map(|p| Person::new(p, &world, mix(base ^ 2)))
+            .transpose()?;
         let lidar = Lidar::new(&scene.lidar);
-        let noise_rng = (!scene.lidar.noise.is_none()).then(|| ChaCha8Rng::seed_from_u64(mix(base ^ 3)));
-        let frames = (scene.duration * scene.lidar.rate_hz - 1e-9).ceil().max(0.0) as u64;
+        let noise_rng =
+            (!scene.lidar.noise.is_none()).then(|| ChaCha8Rng::seed_from_u64(mix(base ^ 3)));
+        let frames = (scene.duration * scene.lidar.rate_hz - 1e-9)
+            .ceil()
+            .max(0.0) as u64;
         let start_ns = scene.start_time.saturating_mul(1_000_000_000);
-        Ok(Self { mount: scene.robot.lidar_mount.to_pose(), scene, world, robot, person, lidar, noise_rng, index: 0, frames, start_ns })
+        Ok(Self {
+            mount: scene.robot.lidar_mount.to_pose(),
+            scene,
+            world,
+            robot,
+            person,
+            lidar,
+            noise_rng,
+            index: 0,
+            frames,
+            start_ns,
+        })
     }
 
     pub fn scene(&self) -> &Scene {
@@ -154,7 +176,11 @@ impl Simulator {
         let laser = robot.compose(&self.mount);
         let person = self.person.as_mut().map(|p| {
             let s = p.state_at(t);
-            PersonFrame { pose: Pose2::new(s.position.x, s.position.y, s.yaw), activity: s.activity, parts: s.parts }
+            PersonFrame {
+                pose: Pose2::new(s.position.x, s.position.y, s.yaw),
+                activity: s.activity,
+                parts: s.parts,
+            }
         });
         self.lidar.scan(
             &self.world,
@@ -187,7 +213,8 @@ mod tests {
     use super::*;
 
     fn hall(hours: f64) -> Scene {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/hall.yaml");
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/hall.yaml");
         let mut s = Scene::load(&path).unwrap();
         s.duration = hours * 3600.0;
         s
@@ -208,13 +235,28 @@ mod tests {
         let t = last as f64 / 20.0;
         let (now, _) = sim.robot_motion().at(t);
         let (before, _) = sim.robot_motion().at(t - (t / period).floor() * period);
-        assert!((now.position() - before.position()).length() < 1e-6, "{now:?} vs {before:?}");
+        assert!(
+            (now.position() - before.position()).length() < 1e-6,
+            "{now:?} vs {before:?}"
+        );
         assert_eq!(f.robot, now);
         // The person is still inside the hall, on the floor, and finite.
         let p = f.person.unwrap();
-        assert!(p.pose.is_finite() && (0.0..12.0).contains(&p.pose.x) && (0.0..9.0).contains(&p.pose.y), "{:?}", p.pose);
-        assert!(p.parts.iter().all(|c| c.a.is_finite() && c.b.is_finite() && c.a.z.min(c.b.z) - c.radius > -1e-9));
-        assert!(f.ranges.iter().all(|r| r.is_infinite() || (0.15..=16.0).contains(r)));
+        assert!(
+            p.pose.is_finite() && (0.0..12.0).contains(&p.pose.x) && (0.0..9.0).contains(&p.pose.y),
+            "{:?}",
+            p.pose
+        );
+        assert!(
+            p.parts
+                .iter()
+                .all(|c| c.a.is_finite() && c.b.is_finite() && c.a.z.min(c.b.z) - c.radius > -1e-9)
+        );
+        assert!(
+            f.ranges
+                .iter()
+                .all(|r| r.is_infinite() || (0.15..=16.0).contains(r))
+        );
     }
 
     #[test]

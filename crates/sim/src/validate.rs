@@ -2,7 +2,7 @@
 
 use glam::DVec2;
 
-use crate::scene::{Furniture, Motion, Scene, is_locomotion, MAX_ROBOT_SPEED};
+use crate::scene::{Furniture, MAX_ROBOT_SPEED, Motion, Scene, is_locomotion};
 use crate::shapes::{polygon_area2, polygon_self_intersection};
 use crate::world::World;
 
@@ -19,16 +19,28 @@ fn positive(key: &str, v: f64) -> Check {
     if !v.is_finite() {
         return fail(key, format!("must be a finite number, got {v}"));
     }
-    if v <= 0.0 { fail(key, format!("must be positive, got {v}")) } else { Ok(()) }
+    if v <= 0.0 {
+        fail(key, format!("must be positive, got {v}"))
+    } else {
+        Ok(())
+    }
 }
 
 fn finite(key: &str, v: f64) -> Check {
-    if v.is_finite() { Ok(()) } else { fail(key, format!("must be a finite number, got {v}")) }
+    if v.is_finite() {
+        Ok(())
+    } else {
+        fail(key, format!("must be a finite number, got {v}"))
+    }
 }
 
 fn in_range(key: &str, v: f64, lo: f64, hi: f64) -> Check {
     finite(key, v)?;
-    if v < lo || v > hi { fail(key, format!("must be within [{lo}, {hi}], got {v}")) } else { Ok(()) }
+    if v < lo || v > hi {
+        fail(key, format!("must be within [{lo}, {hi}], got {v}"))
+    } else {
+        Ok(())
+    }
 }
 
 fn points(key: &str, pts: &[[f64; 2]]) -> Check {
@@ -41,12 +53,18 @@ fn points(key: &str, pts: &[[f64; 2]]) -> Check {
 
 fn polygon(key: &str, pts: &[[f64; 2]]) -> Check {
     if pts.len() < 3 {
-        return fail(key, format!("a polygon needs at least 3 points, got {}", pts.len()));
+        return fail(
+            key,
+            format!("a polygon needs at least 3 points, got {}", pts.len()),
+        );
     }
     points(key, pts)?;
     let poly: Vec<DVec2> = pts.iter().map(|p| DVec2::new(p[0], p[1])).collect();
     if let Some((i, j)) = polygon_self_intersection(&poly) {
-        return fail(key, format!("edges {i} and {j} cross or touch: the polygon must be simple"));
+        return fail(
+            key,
+            format!("edges {i} and {j} cross or touch: the polygon must be simple"),
+        );
     }
     if polygon_area2(&poly).abs() < 1e-9 {
         return fail(key, "the polygon has no area");
@@ -68,19 +86,34 @@ pub fn validate(scene: &Scene) -> Check {
     for (i, f) in scene.furniture.iter().enumerate() {
         let k = format!("furniture[{i}]");
         match f {
-            Furniture::Box { center, size, yaw_deg, height, .. } => {
+            Furniture::Box {
+                center,
+                size,
+                yaw_deg,
+                height,
+                ..
+            } => {
                 points(&format!("{k}.center"), &[*center])?;
                 positive(&format!("{k}.size[0]"), size[0])?;
                 positive(&format!("{k}.size[1]"), size[1])?;
                 finite(&format!("{k}.yaw_deg"), *yaw_deg)?;
                 positive(&format!("{k}.height"), *height)?;
             }
-            Furniture::Cylinder { center, radius, height, .. } => {
+            Furniture::Cylinder {
+                center,
+                radius,
+                height,
+                ..
+            } => {
                 points(&format!("{k}.center"), &[*center])?;
                 positive(&format!("{k}.radius"), *radius)?;
                 positive(&format!("{k}.height"), *height)?;
             }
-            Furniture::Polygon { points: pts, height, .. } => {
+            Furniture::Polygon {
+                points: pts,
+                height,
+                ..
+            } => {
                 polygon(&format!("{k}.points"), pts)?;
                 positive(&format!("{k}.height"), *height)?;
             }
@@ -94,7 +127,13 @@ pub fn validate(scene: &Scene) -> Check {
                 in_range(&format!("{k}.leg_inset"), l.leg_inset, 0.0, f64::MAX)?;
                 for (axis, s) in l.size.iter().enumerate() {
                     if 2.0 * (l.leg_inset + l.leg_radius) > *s {
-                        return fail(format!("{k}.size[{axis}]"), format!("{s} m is too small for legs of radius {} set in by {} m", l.leg_radius, l.leg_inset));
+                        return fail(
+                            format!("{k}.size[{axis}]"),
+                            format!(
+                                "{s} m is too small for legs of radius {} set in by {} m",
+                                l.leg_radius, l.leg_inset
+                            ),
+                        );
                     }
                 }
             }
@@ -112,32 +151,61 @@ pub fn validate(scene: &Scene) -> Check {
     finite("robot.start.yaw_deg", r.start.yaw_deg)?;
     positive("robot.speed", r.speed)?;
     if r.speed > MAX_ROBOT_SPEED {
-        return fail("robot.speed", format!("at most {MAX_ROBOT_SPEED} m/s (the paper's robot), got {}", r.speed));
+        return fail(
+            "robot.speed",
+            format!(
+                "at most {MAX_ROBOT_SPEED} m/s (the paper's robot), got {}",
+                r.speed
+            ),
+        );
     }
     positive("robot.turn_rate_deg", r.turn_rate_deg)?;
 
     let l = &scene.lidar;
     positive("lidar.rate_hz", l.rate_hz)?;
     if l.rate_hz > 1000.0 {
-        return fail("lidar.rate_hz", format!("at most 1000 Hz, got {}", l.rate_hz));
+        return fail(
+            "lidar.rate_hz",
+            format!("at most 1000 Hz, got {}", l.rate_hz),
+        );
     }
     if l.beams == 0 || l.beams > 100_000 {
-        return fail("lidar.beams", format!("must be within [1, 100000], got {}", l.beams));
+        return fail(
+            "lidar.beams",
+            format!("must be within [1, 100000], got {}", l.beams),
+        );
     }
     in_range("lidar.range_min", l.range_min, 0.0, 1e4)?;
     in_range("lidar.range_max", l.range_max, 0.0, 1e6)?;
     if l.range_max <= l.range_min {
-        return fail("lidar.range_max", format!("must exceed range_min ({}), got {}", l.range_min, l.range_max));
+        return fail(
+            "lidar.range_max",
+            format!(
+                "must exceed range_min ({}), got {}",
+                l.range_min, l.range_max
+            ),
+        );
     }
     let n = &l.noise;
     in_range("lidar.noise.distance_pct", n.distance_pct, 0.0, 100.0)?;
     in_range("lidar.noise.missing_pct", n.missing_pct, 0.0, 100.0)?;
     in_range("lidar.noise.wrong_pct", n.wrong_pct, 0.0, 100.0)?;
     if n.missing_pct + n.wrong_pct > 100.0 {
-        return fail("lidar.noise.wrong_pct", format!("missing_pct + wrong_pct must not exceed 100, got {}", n.missing_pct + n.wrong_pct));
+        return fail(
+            "lidar.noise.wrong_pct",
+            format!(
+                "missing_pct + wrong_pct must not exceed 100, got {}",
+                n.missing_pct + n.wrong_pct
+            ),
+        );
     }
     in_range("lidar.noise.angle_deg", n.angle_deg, 0.0, 10.0)?;
-    in_range("lidar.noise.wrong_spread_deg", n.wrong_spread_deg, 0.0, 180.0)?;
+    in_range(
+        "lidar.noise.wrong_spread_deg",
+        n.wrong_spread_deg,
+        0.0,
+        180.0,
+    )?;
 
     // Placement: needs the room's geometry.
     let world = World::new(scene);
@@ -148,7 +216,10 @@ pub fn validate(scene: &Scene) -> Check {
             (true, Some(_)) => format!("inside {}", describe(&world, what)),
             (false, _) => format!("overlapping {}", describe(&world, what)),
         };
-        return fail("robot.start", format!("the robot (radius {} m) starts {place}", r.radius));
+        return fail(
+            "robot.start",
+            format!("the robot (radius {} m) starts {place}", r.radius),
+        );
     }
     match &r.motion {
         Motion::Static => {}
@@ -160,11 +231,20 @@ pub fn validate(scene: &Scene) -> Check {
             for (i, p) in pts.iter().enumerate() {
                 let (clear, what) = world.robot_clearance(DVec2::new(p[0], p[1]));
                 if clear < r.radius {
-                    return fail(format!("robot.motion.points[{i}]"), format!("the robot (radius {} m) cannot stand here: it would touch {}", r.radius, describe(&world, what)));
+                    return fail(
+                        format!("robot.motion.points[{i}]"),
+                        format!(
+                            "the robot (radius {} m) cannot stand here: it would touch {}",
+                            r.radius,
+                            describe(&world, what)
+                        ),
+                    );
                 }
             }
         }
-        Motion::Coverage { spacing, .. } => in_range("robot.motion.spacing", *spacing, 0.05, 100.0)?,
+        Motion::Coverage { spacing, .. } => {
+            in_range("robot.motion.spacing", *spacing, 0.05, 100.0)?
+        }
         Motion::Bounce { runs } => {
             if *runs == 0 {
                 return fail("robot.motion.runs", "must be at least 1");
@@ -209,19 +289,31 @@ pub fn validate(scene: &Scene) -> Check {
             }
             if is_locomotion(s.activity) {
                 if s.path.is_empty() {
-                    return fail(format!("{k}.path"), format!("{} needs a path of at least one point", s.activity));
+                    return fail(
+                        format!("{k}.path"),
+                        format!("{} needs a path of at least one point", s.activity),
+                    );
                 }
             } else if !s.path.is_empty() {
-                return fail(format!("{k}.path"), format!("{} does not move along a path", s.activity));
+                return fail(
+                    format!("{k}.path"),
+                    format!("{} does not move along a path", s.activity),
+                );
             }
             if s.fall.is_some() && s.activity != A::FallingDown {
-                return fail(format!("{k}.fall"), "only a falling_down step has a fall direction");
+                return fail(
+                    format!("{k}.fall"),
+                    "only a falling_down step has a fall direction",
+                );
             }
             points(&format!("{k}.path"), &s.path)?;
             for (j, q) in s.path.iter().enumerate() {
                 let (clear, what) = world.person_clearance(DVec2::new(q[0], q[1]));
                 if clear < PERSON_START_CLEARANCE {
-                    return fail(format!("{k}.path[{j}]"), format!("too close to {}", describe(&world, what)));
+                    return fail(
+                        format!("{k}.path[{j}]"),
+                        format!("too close to {}", describe(&world, what)),
+                    );
                 }
             }
         }
@@ -236,7 +328,9 @@ mod tests {
     const BASE: &str = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nfurniture:\n  - {kind: box, name: sofa, center: [2.5, 2], size: [1, 1], height: 0.8}\n  - {kind: table, center: [1, 3], size: [1, 0.6], height: 0.7}\n";
 
     fn error(text: &str) -> String {
-        Scene::parse(text, "bad.yaml").expect_err("the scene must be rejected").to_string()
+        Scene::parse(text, "bad.yaml")
+            .expect_err("the scene must be rejected")
+            .to_string()
     }
 
     fn with(robot: &str, rest: &str) -> String {
@@ -247,23 +341,89 @@ mod tests {
     fn each_bad_value_names_its_key() {
         let ok_robot = "{start: {x: 0.5, y: 0.5}}";
         let cases = [
-            (with(ok_robot, "lidar: {rate_hz: 0}"), "bad.yaml: lidar.rate_hz: must be positive"),
-            (with(ok_robot, "lidar: {noise: {missing_pct: 120}}"), "lidar.noise.missing_pct: must be within [0, 100]"),
-            (with(ok_robot, "lidar: {noise: {missing_pct: 60, wrong_pct: 50}}"), "lidar.noise.wrong_pct: missing_pct + wrong_pct"),
-            (with(ok_robot, "lidar: {range_min: 2, range_max: 1}"), "lidar.range_max: must exceed range_min"),
+            (
+                with(ok_robot, "lidar: {rate_hz: 0}"),
+                "bad.yaml: lidar.rate_hz: must be positive",
+            ),
+            (
+                with(ok_robot, "lidar: {noise: {missing_pct: 120}}"),
+                "lidar.noise.missing_pct: must be within [0, 100]",
+            ),
+            (
+                with(ok_robot, "lidar: {noise: {missing_pct: 60, wrong_pct: 50}}"),
+                "lidar.noise.wrong_pct: missing_pct + wrong_pct",
+            ),
+            (
+                with(ok_robot, "lidar: {range_min: 2, range_max: 1}"),
+                "lidar.range_max: must exceed range_min",
+            ),
             (with(ok_robot, "lidar: {beams: 0}"), "lidar.beams"),
-            (with("{start: {x: 2.5, y: 2}}", ""), "robot.start: the robot (radius 0.17 m) starts inside furniture[0] 'sofa'"),
-            (with("{start: {x: 1.85, y: 2}}", ""), "robot.start: the robot (radius 0.17 m) starts overlapping furniture[0] 'sofa'"),
-            (with("{start: {x: 7, y: 2}}", ""), "robot.start: the robot (radius 0.17 m) starts outside the room"),
-            (with("{start: {x: 0.5, y: 0.5}, speed: 0.5}", ""), "robot.speed: at most 0.2"),
-            (with("{start: {x: 0.5, y: 0.5}, motion: {kind: waypoints, points: [[0.5, 0.5], [2.5, 2.2]]}}", ""), "robot.motion.points[1]"),
-            (with(ok_robot, "person: {start: {x: 1, y: 3}, script: [{activity: standing, duration: 1}]}"), "person.start: the person starts inside furniture[1]"),
-            (with(ok_robot, "person: {start: {x: 4, y: 1}, script: []}"), "person.script: needs at least one step"),
-            (with(ok_robot, "person: {start: {x: 4, y: 1}, script: [{activity: walking, duration: 3}]}"), "person.script[0].path: walking needs a path"),
-            (with(ok_robot, "person: {start: {x: 4, y: 1}, script: [{activity: standing, duration: -3}]}"), "person.script[0].duration"),
-            (with(ok_robot, "person: {start: {x: 4, y: 1}, script: [{activity: falling_down, duration: 9}]}"), "person.script[0].duration: must be within [0.4, 5]"),
-            (with(ok_robot, "person: {start: {x: 4, y: 1}, body: {height: 4}, script: [{activity: standing, duration: 1}]}"), "person.body.height"),
-            (format!("{BASE}robot: {ok_robot}\nfurniture: []\n"), "duplicate"),
+            (
+                with("{start: {x: 2.5, y: 2}}", ""),
+                "robot.start: the robot (radius 0.17 m) starts inside furniture[0] 'sofa'",
+            ),
+            (
+                with("{start: {x: 1.85, y: 2}}", ""),
+                "robot.start: the robot (radius 0.17 m) starts overlapping furniture[0] 'sofa'",
+            ),
+            (
+                with("{start: {x: 7, y: 2}}", ""),
+                "robot.start: the robot (radius 0.17 m) starts outside the room",
+            ),
+            (
+                with("{start: {x: 0.5, y: 0.5}, speed: 0.5}", ""),
+                "robot.speed: at most 0.2",
+            ),
+            (
+                with(
+                    "{start: {x: 0.5, y: 0.5}, motion: {kind: waypoints, points: [[0.5, 0.5], [2.5, 2.2]]}}",
+                    "",
+                ),
+                "robot.motion.points[1]",
+            ),
+            (
+                with(
+                    ok_robot,
+                    "person: {start: {x: 1, y: 3}, script: [{activity: standing, duration: 1}]}",
+                ),
+                "person.start: the person starts inside furniture[1]",
+            ),
+            (
+                with(ok_robot, "person: {start: {x: 4, y: 1}, script: []}"),
+                "person.script: needs at least one step",
+            ),
+            (
+                with(
+                    ok_robot,
+                    "person: {start: {x: 4, y: 1}, script: [{activity: walking, duration: 3}]}",
+                ),
+                "person.script[0].path: walking needs a path",
+            ),
+            (
+                with(
+                    ok_robot,
+                    "person: {start: {x: 4, y: 1}, script: [{activity: standing, duration: -3}]}",
+                ),
+                "person.script[0].duration",
+            ),
+            (
+                with(
+                    ok_robot,
+                    "person: {start: {x: 4, y: 1}, script: [{activity: falling_down, duration: 9}]}",
+                ),
+                "person.script[0].duration: must be within [0.4, 5]",
+            ),
+            (
+                with(
+                    ok_robot,
+                    "person: {start: {x: 4, y: 1}, body: {height: 4}, script: [{activity: standing, duration: 1}]}",
+                ),
+                "person.body.height",
+            ),
+            (
+                format!("{BASE}robot: {ok_robot}\nfurniture: []\n"),
+                "duplicate",
+            ),
         ];
         for (text, expect) in cases {
             let e = error(&text);
@@ -274,20 +434,41 @@ mod tests {
     #[test]
     fn negative_size_and_unknown_keys_name_their_path() {
         let neg = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nfurniture:\n  - {kind: cylinder, center: [4, 3], radius: 0.2, height: 1}\n  - {kind: box, center: [2, 2], size: [1, 1], height: 1}\n  - {kind: box, center: [2, 2], size: [-1, 1], height: 1}\nrobot: {start: {x: 0.5, y: 0.5}}\n";
-        assert!(error(neg).contains("furniture[2].size[0]: must be positive, got -1"), "{}", error(neg));
+        assert!(
+            error(neg).contains("furniture[2].size[0]: must be positive, got -1"),
+            "{}",
+            error(neg)
+        );
         let unknown = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nfurniture:\n  - {kind: box, center: [2, 2], size: [1, 1], height: 1, colour: red}\nrobot: {start: {x: 0.5, y: 0.5}}\n";
         let e = error(unknown);
-        assert!(e.contains("furniture[0]") && e.contains("unknown field `colour`"), "{e}");
+        assert!(
+            e.contains("furniture[0]") && e.contains("unknown field `colour`"),
+            "{e}"
+        );
         let nested = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nrobot: {start: {x: 0.5, y: 0.5}, lidar_hieght: 0.2}\n";
         let e = error(nested);
-        assert!(e.contains("robot") && e.contains("unknown field `lidar_hieght`"), "{e}");
+        assert!(
+            e.contains("robot") && e.contains("unknown field `lidar_hieght`"),
+            "{e}"
+        );
         let kind = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nfurniture: [{kind: sofa, center: [1, 1]}]\nrobot: {start: {x: 0.5, y: 0.5}}\n";
-        assert!(error(kind).contains("furniture[0]") && error(kind).contains("sofa"), "{}", error(kind));
+        assert!(
+            error(kind).contains("furniture[0]") && error(kind).contains("sofa"),
+            "{}",
+            error(kind)
+        );
         let activity = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nrobot: {start: {x: 0.5, y: 0.5}}\nperson: {start: {x: 3, y: 3}, script: [{activity: dancing, duration: 1}]}\n";
         let e = error(activity);
-        assert!(e.contains("person.script[0].activity") && e.contains("dancing"), "{e}");
+        assert!(
+            e.contains("person.script[0].activity") && e.contains("dancing"),
+            "{e}"
+        );
         let nan = "duration: .nan\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nrobot: {start: {x: 0.5, y: 0.5}}\n";
-        assert!(error(nan).contains("duration: must be a finite number"), "{}", error(nan));
+        assert!(
+            error(nan).contains("duration: must be a finite number"),
+            "{}",
+            error(nan)
+        );
         let bow = "duration: 5\nroom: {outline: [[0,0],[5,4],[5,0],[0,4]]}\nrobot: {start: {x: 0.5, y: 0.5}}\n";
         assert!(error(bow).contains("room.outline: edges"), "{}", error(bow));
         assert!(error("").contains("bad.yaml"), "{}", error(""));

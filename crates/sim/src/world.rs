@@ -76,7 +76,13 @@ pub fn rectangle(center: [f64; 2], size: [f64; 2], yaw_deg: f64) -> Vec<DVec2> {
 
 fn legs(l: &Legged) -> Vec<Shape> {
     let inner = [l.size[0] - 2.0 * l.leg_inset, l.size[1] - 2.0 * l.leg_inset];
-    rectangle(l.center, inner, l.yaw_deg).into_iter().map(|center| Shape::Circle { center, radius: l.leg_radius }).collect()
+    rectangle(l.center, inner, l.yaw_deg)
+        .into_iter()
+        .map(|center| Shape::Circle {
+            center,
+            radius: l.leg_radius,
+        })
+        .collect()
 }
 
 /// A polygon made counter-clockwise (edges then face outward consistently).
@@ -91,17 +97,50 @@ impl FurnitureShapes {
     pub fn new(f: &Furniture) -> Self {
         let name = f.name().to_string();
         match f {
-            Furniture::Box { center, size, yaw_deg, height, .. } => {
+            Furniture::Box {
+                center,
+                size,
+                yaw_deg,
+                height,
+                ..
+            } => {
                 let s = vec![Shape::Polygon(rectangle(*center, *size, *yaw_deg))];
-                Self { name, person_blocks: s.clone(), robot_blocks: s, height: *height }
+                Self {
+                    name,
+                    person_blocks: s.clone(),
+                    robot_blocks: s,
+                    height: *height,
+                }
             }
-            Furniture::Cylinder { center, radius, height, .. } => {
-                let s = vec![Shape::Circle { center: to_v(*center), radius: *radius }];
-                Self { name, person_blocks: s.clone(), robot_blocks: s, height: *height }
+            Furniture::Cylinder {
+                center,
+                radius,
+                height,
+                ..
+            } => {
+                let s = vec![Shape::Circle {
+                    center: to_v(*center),
+                    radius: *radius,
+                }];
+                Self {
+                    name,
+                    person_blocks: s.clone(),
+                    robot_blocks: s,
+                    height: *height,
+                }
             }
             Furniture::Polygon { points, height, .. } => {
-                let s = vec![Shape::Polygon(ccw(points.iter().copied().map(to_v).collect()))];
-                Self { name, person_blocks: s.clone(), robot_blocks: s, height: *height }
+                let s = vec![Shape::Polygon(ccw(points
+                    .iter()
+                    .copied()
+                    .map(to_v)
+                    .collect()))];
+                Self {
+                    name,
+                    person_blocks: s.clone(),
+                    robot_blocks: s,
+                    height: *height,
+                }
             }
             Furniture::Table(l) | Furniture::Chair(l) => Self {
                 name,
@@ -117,14 +156,24 @@ impl World {
     /// Builds the room of a scene, cut at the robot's Lidar height.
     pub fn new(scene: &Scene) -> Self {
         let outline = ccw(scene.room.outline.iter().copied().map(to_v).collect());
-        let furniture: Vec<FurnitureShapes> = scene.furniture.iter().map(FurnitureShapes::new).collect();
+        let furniture: Vec<FurnitureShapes> =
+            scene.furniture.iter().map(FurnitureShapes::new).collect();
         Self::from_parts(outline, furniture, scene.robot.lidar_height)
     }
 
-    pub fn from_parts(outline: Vec<DVec2>, furniture: Vec<FurnitureShapes>, lidar_height: f64) -> Self {
+    pub fn from_parts(
+        outline: Vec<DVec2>,
+        furniture: Vec<FurnitureShapes>,
+        lidar_height: f64,
+    ) -> Self {
         let n = outline.len();
-        let mut segments: Vec<Segment> =
-            (0..n).map(|i| Segment { a: outline[i], b: outline[(i + 1) % n], label: BeamLabel::Wall }).collect();
+        let mut segments: Vec<Segment> = (0..n)
+            .map(|i| Segment {
+                a: outline[i],
+                b: outline[(i + 1) % n],
+                label: BeamLabel::Wall,
+            })
+            .collect();
         let mut circles = Vec::new();
         for f in &furniture {
             // Legs and solids reach from the floor to `height`: seen when above the plane.
@@ -135,15 +184,26 @@ impl World {
                 match shape {
                     Shape::Polygon(p) => {
                         let m = p.len();
-                        segments.extend(
-                            (0..m).map(|i| Segment { a: p[i], b: p[(i + 1) % m], label: BeamLabel::Furniture }),
-                        );
+                        segments.extend((0..m).map(|i| Segment {
+                            a: p[i],
+                            b: p[(i + 1) % m],
+                            label: BeamLabel::Furniture,
+                        }));
                     }
-                    Shape::Circle { center, radius } => circles.push(Circle { center: *center, radius: *radius }),
+                    Shape::Circle { center, radius } => circles.push(Circle {
+                        center: *center,
+                        radius: *radius,
+                    }),
                 }
             }
         }
-        Self { outline, furniture, segments, circles, lidar_height }
+        Self {
+            outline,
+            furniture,
+            segments,
+            circles,
+            lidar_height,
+        }
     }
 
     /// Axis-aligned bounds of the room.
@@ -167,7 +227,11 @@ impl World {
         self.clearance(p, |f| &f.person_blocks)
     }
 
-    fn clearance(&self, p: DVec2, shapes: impl Fn(&FurnitureShapes) -> &Vec<Shape>) -> (f64, Option<usize>) {
+    fn clearance(
+        &self,
+        p: DVec2,
+        shapes: impl Fn(&FurnitureShapes) -> &Vec<Shape>,
+    ) -> (f64, Option<usize>) {
         let mut best = (self.wall_clearance(p), None);
         for (i, f) in self.furniture.iter().enumerate() {
             for s in shapes(f) {

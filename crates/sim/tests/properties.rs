@@ -21,10 +21,22 @@ const ACTIVITIES: [&str; 9] = [
 
 /// A rectangular room `w` x `h` with a box and a table, the robot in one corner region and
 /// the person in the middle doing two activities.
-fn scene_text(w: f64, h: f64, first: usize, second: usize, noise: &str, lidar_height: f64, beams: u32) -> String {
+fn scene_text(
+    w: f64,
+    h: f64,
+    first: usize,
+    second: usize,
+    noise: &str,
+    lidar_height: f64,
+    beams: u32,
+) -> String {
     let step = |a: usize, dur: f64| {
         let name = ACTIVITIES[a];
-        let path = if matches!(a, 0 | 4 | 7 | 8) { format!(", path: [[{:.2}, {:.2}]]", w * 0.5, h * 0.3) } else { String::new() };
+        let path = if matches!(a, 0 | 4 | 7 | 8) {
+            format!(", path: [[{:.2}, {:.2}]]", w * 0.5, h * 0.3)
+        } else {
+            String::new()
+        };
         let dur = match a {
             1 => 1.0,
             2 => 2.0,
@@ -70,7 +82,10 @@ fn brute(sim: &Simulator, frame: &Frame, i: usize) -> f64 {
     }
     if let Some(p) = &frame.person {
         for c in &p.parts {
-            best = best.min(ray_capsule(o.extend(w.lidar_height), d.extend(0.0), c.a, c.b, c.radius).unwrap_or(f64::INFINITY));
+            best = best.min(
+                ray_capsule(o.extend(w.lidar_height), d.extend(0.0), c.a, c.b, c.radius)
+                    .unwrap_or(f64::INFINITY),
+            );
         }
     }
     best

@@ -28,7 +28,10 @@ fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
         .unwrap()
         .map(|e| {
             let e = e.unwrap();
-            (e.file_name().to_string_lossy().into_owned(), std::fs::read(e.path()).unwrap())
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                std::fs::read(e.path()).unwrap(),
+            )
         })
         .collect()
 }
@@ -44,9 +47,15 @@ fn same_scene_and_seed_give_byte_identical_bags() {
         record(&mut sim, &dir, 0.05, |_| {}).unwrap();
         outputs.push(files(&dir));
     }
-    assert_eq!(outputs[0].keys().collect::<Vec<_>>(), vec!["bag_0.mcap", "map.pgm", "map.yaml", "metadata.yaml"]);
+    assert_eq!(
+        outputs[0].keys().collect::<Vec<_>>(),
+        vec!["bag_0.mcap", "map.pgm", "map.yaml", "metadata.yaml"]
+    );
     assert!(outputs[0] == outputs[1], "same seed, different bytes");
-    assert_ne!(outputs[0]["bag_0.mcap"], outputs[2]["bag_0.mcap"], "another seed must change the noise");
+    assert_ne!(
+        outputs[0]["bag_0.mcap"], outputs[2]["bag_0.mcap"],
+        "another seed must change the noise"
+    );
     assert_eq!(outputs[0]["map.pgm"], outputs[2]["map.pgm"]);
 }
 
@@ -59,7 +68,14 @@ fn bag_holds_the_contract_topics_with_consistent_stamps() {
     assert_eq!(summary.frames, 30);
     let bag = BagReader::open(&dir).unwrap();
     let count = |t: &str| bag.topic(t).map(|t| t.message_count).unwrap_or(0);
-    for t in ["/scan", "/odom", "/tf", "/clock", "/ground_truth/human_pose", "/ground_truth/activity"] {
+    for t in [
+        "/scan",
+        "/odom",
+        "/tf",
+        "/clock",
+        "/ground_truth/human_pose",
+        "/ground_truth/activity",
+    ] {
         assert_eq!(count(t), 30, "{t}");
     }
     assert_eq!(count("/map"), 1);
@@ -77,7 +93,11 @@ fn bag_holds_the_contract_topics_with_consistent_stamps() {
                 assert_eq!(s.ranges.len(), 720);
                 assert_eq!(s.header.stamp.to_nanos(), m.log_time_ns);
                 assert_eq!(m.log_time_ns, start + scans * 50_000_000);
-                assert!(s.ranges.iter().all(|r| r.is_infinite() || (s.range_min..=s.range_max).contains(r)));
+                assert!(
+                    s.ranges
+                        .iter()
+                        .all(|r| r.is_infinite() || (s.range_min..=s.range_max).contains(r))
+                );
                 scans += 1;
             }
             "/clock" => {
@@ -86,7 +106,10 @@ fn bag_holds_the_contract_topics_with_consistent_stamps() {
             }
             "/odom" => {
                 let o: Odometry = bag.decode(&m).unwrap();
-                assert_eq!((o.header.frame_id.as_str(), o.child_frame_id.as_str()), ("odom", "base_link"));
+                assert_eq!(
+                    (o.header.frame_id.as_str(), o.child_frame_id.as_str()),
+                    ("odom", "base_link")
+                );
                 assert!(o.twist.twist.linear.x.abs() <= 0.2 + 1e-12);
             }
             "/tf_static" => {
@@ -121,7 +144,8 @@ fn every_shipped_scene_simulates() {
     names.sort();
     assert!(names.len() >= 6, "{names:?}");
     for (name, seed) in names.iter().flat_map(|n| (0..4u64).map(move |s| (n, s))) {
-        let mut sim = Simulator::new(short(name, 1.0), seed).unwrap_or_else(|e| panic!("{name} seed {seed}: {e}"));
+        let mut sim = Simulator::new(short(name, 1.0), seed)
+            .unwrap_or_else(|e| panic!("{name} seed {seed}: {e}"));
         let mut n = 0;
         while let Some(f) = sim.step() {
             assert!(f.robot.is_finite(), "{name}");
@@ -135,5 +159,10 @@ fn every_shipped_scene_simulates() {
 fn living_room_script_contains_a_fall() {
     let scene = short("living_room.yaml", 60.0);
     let person = scene.person.as_ref().unwrap();
-    assert!(person.script.iter().any(|s| s.activity == lidar_har_core::activity::Activity::FallingDown));
+    assert!(
+        person
+            .script
+            .iter()
+            .any(|s| s.activity == lidar_har_core::activity::Activity::FallingDown)
+    );
 }
