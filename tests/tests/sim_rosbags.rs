@@ -40,13 +40,24 @@ print(dict(sorted(counts.items())))
 
 #[test]
 fn simulated_bag_reads_in_rosbags_and_mcap() {
-    let Some(mut python) = checker_python() else { return };
+    let Some(mut python) = checker_python() else {
+        return;
+    };
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("living");
     let png = tmp.path().join("living.png");
     let status = Command::new(workspace_bin("lidar-har"))
         .current_dir(repo_root())
-        .args(["simulate", "--scene", "config/scenes/living_room.yaml", "--duration", "2", "--seed", "3", "--out"])
+        .args([
+            "simulate",
+            "--scene",
+            "config/scenes/living_room.yaml",
+            "--duration",
+            "2",
+            "--seed",
+            "3",
+            "--out",
+        ])
         .arg(&out)
         .arg("--render")
         .arg(&png)
@@ -57,8 +68,21 @@ fn simulated_bag_reads_in_rosbags_and_mcap() {
     assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
     let result = python.arg("-c").arg(CHECK).arg(&out).output().unwrap();
     let stdout = String::from_utf8_lossy(&result.stdout);
-    assert!(result.status.success(), "checker failed:\n{stdout}\n{}", String::from_utf8_lossy(&result.stderr));
-    for topic in ["'/scan': 40", "'/odom': 40", "'/tf': 40", "'/clock': 40", "'/map': 1", "'/tf_static': 1", "'/ground_truth/activity': 40", "'/ground_truth/human_pose': 40"] {
+    assert!(
+        result.status.success(),
+        "checker failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    for topic in [
+        "'/scan': 40",
+        "'/odom': 40",
+        "'/tf': 40",
+        "'/clock': 40",
+        "'/map': 1",
+        "'/tf_static': 1",
+        "'/ground_truth/activity': 40",
+        "'/ground_truth/human_pose': 40",
+    ] {
         assert!(stdout.contains(topic), "{topic} missing from {stdout}");
     }
 }
@@ -81,5 +105,8 @@ fn simulate_rejects_a_bad_scene_naming_the_key() {
         .unwrap();
     assert!(!output.status.success());
     let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(stderr.contains("furniture[0].size[0]: must be positive"), "{stderr}");
+    assert!(
+        stderr.contains("furniture[0].size[0]: must be positive"),
+        "{stderr}"
+    );
 }

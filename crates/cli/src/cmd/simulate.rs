@@ -33,11 +33,21 @@ pub struct SimulateArgs {
 
 pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.render {
-        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or_default().to_ascii_lowercase();
-        anyhow::ensure!(ext == "png", "--render {}: only .png pictures are supported", path.display());
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or_default()
+            .to_ascii_lowercase();
+        anyhow::ensure!(
+            ext == "png",
+            "--render {}: only .png pictures are supported",
+            path.display()
+        );
     }
     anyhow::ensure!(
-        args.map_resolution.is_finite() && args.map_resolution >= 0.005 && args.map_resolution <= 1.0,
+        args.map_resolution.is_finite()
+            && args.map_resolution >= 0.005
+            && args.map_resolution <= 1.0,
         "--map-resolution {}: must be within [0.005, 1] m",
         args.map_resolution
     );
@@ -48,7 +58,8 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
             .validate()
             .map_err(|(key, message)| anyhow::anyhow!("--duration {d}: {key}: {message}"))?;
     }
-    let mut sim = Simulator::new(scene, args.seed).with_context(|| format!("scene {}", args.scene.display()))?;
+    let mut sim = Simulator::new(scene, args.seed)
+        .with_context(|| format!("scene {}", args.scene.display()))?;
     let geometry = sim.scan_geometry();
     let total = sim.frame_count();
     let progress = indicatif::ProgressBar::new(total);
@@ -57,7 +68,10 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     // About 40 scans drawn in a render, whatever the duration.
-    let mut trace = args.render.as_ref().map(|_| Trace::new((total / 40).max(1)));
+    let mut trace = args
+        .render
+        .as_ref()
+        .map(|_| Trace::new((total / 40).max(1)));
     let summary = record(&mut sim, &args.out, args.map_resolution, |frame| {
         if let Some(t) = trace.as_mut() {
             t.add(frame, &geometry);
@@ -75,7 +89,11 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         summary.messages,
         summary.bag_dir.display()
     );
-    println!("map: {} and {}", args.out.join("map.pgm").display(), args.out.join("map.yaml").display());
+    println!(
+        "map: {} and {}",
+        args.out.join("map.pgm").display(),
+        args.out.join("map.yaml").display()
+    );
     if let (Some(path), Some(trace)) = (&args.render, &trace) {
         let map = OccupancyMap::from_world(sim.world(), args.map_resolution);
         render_png(path, &map, trace)?;
