@@ -19,7 +19,10 @@ pub fn shared_real_data() -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!("SKIP: {} not found (the shared real recordings are not beside this clone)", dir.display());
+        eprintln!(
+            "SKIP: {} not found (the shared real recordings are not beside this clone)",
+            dir.display()
+        );
         None
     }
 }
@@ -29,7 +32,11 @@ pub fn workspace_bin(name: &str) -> PathBuf {
     let target = std::env::var_os("CARGO_TARGET_DIR")
         .map(PathBuf::from)
         .unwrap_or_else(|| repo_root().join("target"));
-    let profile = if cfg!(debug_assertions) { "debug" } else { "release" };
+    let profile = if cfg!(debug_assertions) {
+        "debug"
+    } else {
+        "release"
+    };
     let path = target.join(profile).join(name);
     assert!(
         path.is_file(),
@@ -53,6 +60,9 @@ pub fn checker_python() -> Option<Command> {
     if std::env::var_os("LIDAR_HAR_REQUIRE_CHECKERS").is_some() {
         panic!("{} missing: run scripts/setup.sh", python.display());
     }
-    eprintln!("SKIP: {} missing (run scripts/setup.sh for the external checkers)", python.display());
+    eprintln!(
+        "SKIP: {} missing (run scripts/setup.sh for the external checkers)",
+        python.display()
+    );
     None
 }

@@ -62,7 +62,7 @@ impl BagInfo {
 }
 
 enum StorageFile {
-    Mcap(McapFile),
+    Mcap(Box<McapFile>),
     Sqlite(SqliteFile),
 }
 
@@ -141,9 +141,9 @@ impl BagReader {
                 return Err(BagError::NotFound { path: file_path });
             }
             let file = match storage {
-                StorageId::Mcap => {
-                    StorageFile::Mcap(McapFile::open(McapInput::File(file_path.clone()))?)
-                }
+                StorageId::Mcap => StorageFile::Mcap(Box::new(McapFile::open(McapInput::File(
+                    file_path.clone(),
+                ))?)),
                 StorageId::Sqlite3 => StorageFile::Sqlite(SqliteFile::open(&file_path)?),
             };
             files.push((file_path, file));
@@ -176,7 +176,7 @@ impl BagReader {
     ) -> Self {
         let files: Vec<_> = files
             .into_iter()
-            .map(|(p, f)| (p, StorageFile::Mcap(f)))
+            .map(|(p, f)| (p, StorageFile::Mcap(Box::new(f))))
             .collect();
         let mut reader = Self {
             path,

@@ -67,7 +67,7 @@ fn child_writer() {
             .write_message(topic, 1_000 + i64::from(i) * 50_000_000, &scan(i))
             .unwrap();
         i += 1;
-        if i % 25 == 0 {
+        if i.is_multiple_of(25) {
             writer.flush().unwrap();
             println!("flushed {i}");
         }
@@ -93,10 +93,9 @@ fn wait_for_flushes(lines: &mut impl Iterator<Item = String>, at_least: u32) -> 
         if let Some(n) = line
             .strip_prefix("flushed ")
             .and_then(|n| n.trim().parse::<u32>().ok())
+            && n >= at_least
         {
-            if n >= at_least {
-                return n;
-            }
+            return n;
         }
         assert!(Instant::now() < deadline, "child too slow");
     }

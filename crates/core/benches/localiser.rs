@@ -82,7 +82,7 @@ fn cast(
             *rng ^= *rng << 13;
             *rng ^= *rng >> 7;
             *rng ^= *rng << 17;
-            if *rng % 50 == 0 {
+            if (*rng).is_multiple_of(50) {
                 return (*rng % 800) as f32 / 100.0;
             }
             let d = DVec2::from_angle(laser.theta - std::f64::consts::PI + i as f64 * inc);

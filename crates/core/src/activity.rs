@@ -60,7 +60,10 @@ impl Activity {
 
     /// On the floor: the postures after which a person who does not get up needs help.
     pub const fn is_on_floor(self) -> bool {
-        matches!(self, Activity::LyingDown | Activity::SittingOnFloor | Activity::Crawling)
+        matches!(
+            self,
+            Activity::LyingDown | Activity::SittingOnFloor | Activity::Crawling
+        )
     }
 }
 

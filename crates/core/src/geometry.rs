@@ -12,7 +12,11 @@ pub struct Pose2 {
 }
 
 impl Pose2 {
-    pub const IDENTITY: Pose2 = Pose2 { x: 0.0, y: 0.0, theta: 0.0 };
+    pub const IDENTITY: Pose2 = Pose2 {
+        x: 0.0,
+        y: 0.0,
+        theta: 0.0,
+    };
 
     pub const fn new(x: f64, y: f64, theta: f64) -> Self {
         Self { x, y, theta }
@@ -36,7 +40,11 @@ impl Pose2 {
 
     pub fn inverse(&self) -> Pose2 {
         let (s, c) = self.theta.sin_cos();
-        Pose2::new(-(c * self.x + s * self.y), s * self.x - c * self.y, normalize_angle(-self.theta))
+        Pose2::new(
+            -(c * self.x + s * self.y),
+            s * self.x - c * self.y,
+            normalize_angle(-self.theta),
+        )
     }
 
     pub fn is_finite(&self) -> bool {

@@ -3,14 +3,14 @@
 //! plain computation on plain data, tested without ROS, files or threads.
 
 pub mod activity;
+pub mod background;
 pub mod classifier;
+pub mod cluster;
 pub mod fall;
 pub mod geometry;
+pub mod localiser;
+pub mod map;
 pub mod metrics;
 pub mod representation;
 pub mod scan;
-pub mod map;
-pub mod background;
-pub mod cluster;
 pub mod tracker;
-pub mod localiser;

@@ -518,7 +518,7 @@ other:
         let p = Parameters::resolve(
             &decls(),
             "/replay",
-            &[file.clone()],
+            std::slice::from_ref(&file),
             &[("loop".into(), ParamValue::Bool(true))],
         )
         .unwrap();

@@ -436,7 +436,7 @@ fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
     if args.stride == 0 {
         bail!("--stride must be at least 1");
     }
-    if args.size % 4 != 0 {
+    if !args.size.is_multiple_of(4) {
         bail!(
             "--size {} must be a multiple of 4 (the model's encoder halves it twice)",
             args.size
