@@ -38,33 +38,35 @@ fn npy_shape(path: &Path) -> (Vec<usize>, usize, String) {
     (shape, bytes.len() - start - header_len, header)
 }
 
-fn make_dataset(out: &Path, extra: &[&str]) -> std::process::Output {
+/// Runs `lidar-har dataset` on a tiny configuration; `overrides` are `--flag value` pairs
+/// that replace the defaults (clap refuses a flag given twice).
+fn make_dataset(out: &Path, overrides: &[&str]) -> std::process::Output {
+    let mut options: Vec<[&str; 2]> = vec![
+        ["--scenes", "config/scenes/[ko]*.yaml"],
+        ["--held-out", "office"],
+        ["--episodes", "4"],
+        ["--episode-seconds", "6"],
+        ["--window", "8"],
+        ["--stride", "4"],
+        ["--size", "16"],
+        ["--test-fraction", "0.25"],
+        ["--seed", "3"],
+    ];
+    for pair in overrides.chunks(2) {
+        let [flag, value] = pair else {
+            panic!("overrides come in --flag value pairs: {overrides:?}")
+        };
+        match options.iter_mut().find(|[f, _]| f == flag) {
+            Some(option) => option[1] = value,
+            None => options.push([flag, value]),
+        }
+    }
     Command::new(workspace_bin("lidar-har"))
         .current_dir(repo_root())
-        .args([
-            "dataset",
-            "--scenes",
-            "config/scenes/[ko]*.yaml",
-            "--held-out",
-            "office",
-            "--episodes",
-            "4",
-        ])
-        .args([
-            "--episode-seconds",
-            "6",
-            "--window",
-            "8",
-            "--stride",
-            "4",
-            "--size",
-            "16",
-            "--test-fraction",
-            "0.25",
-        ])
-        .args(["--seed", "3", "--out"])
+        .arg("dataset")
+        .args(options.iter().flatten())
+        .arg("--out")
         .arg(out)
-        .args(extra)
         .output()
         .expect("lidar-har runs")
 }
