@@ -7,18 +7,6 @@ use lidar_har_sim::shapes::{ray_capsule, ray_circle, ray_segment};
 use lidar_har_sim::{BeamLabel, Frame, Scene, Simulator};
 use proptest::prelude::*;
 
-const ACTIVITIES: [&str; 9] = [
-    "crawling",
-    "falling_down",
-    "getting_up",
-    "lying_down",
-    "running",
-    "sitting_on_floor",
-    "standing",
-    "walking",
-    "walking_unsteadily",
-];
-
 /// A rectangular room `w` x `h` with a box and a table, the robot in one corner region and
 /// the person in the middle doing two activities.
 fn scene_text(
@@ -31,7 +19,7 @@ fn scene_text(
     beams: u32,
 ) -> String {
     let step = |a: usize, dur: f64| {
-        let name = ACTIVITIES[a];
+        let name = lidar_har_core::activity::Activity::ALL[a].label();
         let path = if matches!(a, 0 | 4 | 7 | 8) {
             format!(", path: [[{:.2}, {:.2}]]", w * 0.5, h * 0.3)
         } else {
