@@ -24,6 +24,8 @@ if [ "$QUICK" = 0 ]; then
     cargo fmt --all -- --check
     say "cargo clippy"
     cargo clippy --workspace --all-targets --locked -- -D warnings
+    say "cargo check of the r2r (rcl) backend without ROS 2 (r2r doc-only)"
+    cargo check -p lidar-har-ros --features r2r-doc-only --locked
 fi
 
 say "building binaries used by the cross-process tests"

@@ -26,7 +26,9 @@ fn qos_profile(qos: &QosProfile) -> r2r::QosProfile {
         Durability::TransientLocal => p.transient_local(),
     };
     match qos.history {
-        History::KeepLast(depth) => p.keep_last(depth.max(1)),
+        History::KeepLast(depth) => {
+            p.keep_last(usize::try_from(depth.max(1)).unwrap_or(usize::MAX))
+        }
         History::KeepAll => p.keep_all(),
     }
 }
@@ -70,7 +72,7 @@ impl NodeBackend for RclNode {
             })?;
         Ok(Box::new(RclPublisher {
             topic: topic.to_string(),
-            publisher,
+            publisher: Mutex::new(publisher),
         }))
     }
 
@@ -100,7 +102,8 @@ impl NodeBackend for RclNode {
 
     fn now_ns(&self) -> i64 {
         let Ok(node) = self.lock() else { return 0 };
-        let Ok(mut clock) = node.get_ros_clock().lock() else {
+        let clock = node.get_ros_clock();
+        let Ok(mut clock) = clock.lock() else {
             return 0;
         };
         clock
@@ -147,22 +150,30 @@ impl NodeBackend for RclNode {
 
 struct RclPublisher {
     topic: String,
-    publisher: r2r::PublisherUntyped,
+    /// r2r's publisher may move between threads but not be shared (`Send`, not `Sync`).
+    publisher: Mutex<r2r::PublisherUntyped>,
+}
+
+impl RclPublisher {
+    fn lock(&self) -> Result<std::sync::MutexGuard<'_, r2r::PublisherUntyped>, RosError> {
+        self.publisher
+            .lock()
+            .map_err(|_| RosError::Dds(format!("rcl publisher lock poisoned ({})", self.topic)))
+    }
 }
 
 impl PublisherBackend for RclPublisher {
     fn publish(&self, cdr: &[u8]) -> Result<(), RosError> {
-        self.publisher
-            .publish_raw(cdr)
-            .map_err(|e| RosError::Topic {
-                topic: self.topic.clone(),
-                reason: e.to_string(),
-            })
+        self.lock()?.publish_raw(cdr).map_err(|e| RosError::Topic {
+            topic: self.topic.clone(),
+            reason: e.to_string(),
+        })
     }
 
     fn subscription_count(&self) -> usize {
-        self.publisher
-            .get_inter_process_subscription_count()
+        self.lock()
+            .ok()
+            .and_then(|publisher| publisher.get_inter_process_subscription_count().ok())
             .unwrap_or(0)
     }
 }
