@@ -686,6 +686,35 @@ mod tests {
     }
 
     #[test]
+    fn the_centroid_offset_moves_the_estimate_to_the_body_centre() {
+        let person = DVec2::new(2.0, 0.5);
+        let error_with = |offset: f64| {
+            let config = LocaliserConfig {
+                centroid_offset_m: offset,
+                ..LocaliserConfig::default()
+            };
+            let mut loc = Localiser::new(
+                config,
+                Reference::Map(room()),
+                Motion::Stationary(Pose2::IDENTITY),
+            )
+            .unwrap();
+            let mut est = None;
+            for k in 0..10 {
+                est = loc
+                    .process_scan(&cast(k * PERIOD_NS, Pose2::IDENTITY, Some(person)))
+                    .output
+                    .unwrap()
+                    .person;
+            }
+            est.expect("tracked").position.distance(person)
+        };
+        // The near arc of a 0.2 m cylinder has its centroid about pi/4 x 0.2 m in front.
+        assert!(error_with(0.0) > 0.12, "{}", error_with(0.0));
+        assert!(error_with(0.157) < 0.03, "{}", error_with(0.157));
+    }
+
+    #[test]
     fn points_near_walls_are_room_and_an_empty_room_has_nobody() {
         let mut loc = map_localiser(Motion::Stationary(Pose2::IDENTITY));
         for k in 0..10 {

@@ -242,6 +242,9 @@ impl Tracker {
             let Some((c, _)) = nearest else { continue };
             self.taken[c] = true;
             let mut points = clusters[c].points.clone();
+            // Cluster centroids, weighted by their points, keep the localiser's centroid
+            // offset (the points themselves are where the Lidar saw them).
+            let mut weighted = clusters[c].centroid * clusters[c].points.len() as f64;
             if Some(track.id) == person {
                 for (other, cl) in clusters.iter().enumerate() {
                     if !self.taken[other]
@@ -249,11 +252,11 @@ impl Tracker {
                     {
                         self.taken[other] = true;
                         points.extend_from_slice(&cl.points);
+                        weighted += cl.centroid * cl.points.len() as f64;
                     }
                 }
             }
-            let centroid = points.iter().copied().sum::<DVec2>() / points.len() as f64;
-            assigned[i] = Some(centroid);
+            assigned[i] = Some(weighted / points.len().max(1) as f64);
             self.tracks[i].points = points;
         }
 
