@@ -7,6 +7,7 @@
 //! flushes regularly so a killed recorder loses at most one flush interval.
 
 mod error;
+mod mcap_records;
 mod mcap_storage;
 pub mod metadata;
 pub mod qos;

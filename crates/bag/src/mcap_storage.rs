@@ -15,6 +15,7 @@ use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader, SummaryRead
 use mcap::{McapError, Summary};
 
 use crate::error::{BagError, Result, io_error, mcap_error};
+use crate::mcap_records::{ChunkRecords, check_summary_section, decompress_chunk, parse_checked};
 use crate::metadata::{BagMetadata, METADATA_VERSION};
 use crate::qos;
 use crate::reader::{BagMessage, TopicInfo};
@@ -342,6 +343,8 @@ fn read_summary(
     reader: &mut dyn ReadSeek,
     len: u64,
 ) -> std::result::Result<Option<Summary>, McapError> {
+    check_summary_section(reader, len, RECORD_LENGTH_LIMIT)?;
+    reader.seek(SeekFrom::Start(0))?;
     let mut summary_reader = SummaryReader::new_with_options(
         SummaryReaderOptions::default()
             .with_file_size(len)
@@ -529,8 +532,9 @@ impl Iterator for IndexedMessages {
     }
 }
 
-/// File-order reading of every record, for files without a summary. Checks each chunk's CRC
-/// before yielding any of its messages, so a chunk cut short yields nothing corrupt.
+/// File-order reading of every record, for files without a summary. Each chunk is read whole
+/// and its CRC checked before any of its messages is yielded, so a chunk cut short yields
+/// nothing corrupt.
 pub(crate) struct LinearMessages {
     path: PathBuf,
     file: Box<dyn ReadSeek + Send>,
@@ -540,6 +544,8 @@ pub(crate) struct LinearMessages {
     pub(crate) topics: Vec<TopicInfo>,
     filter: Option<BTreeSet<String>>,
     messages_read: u64,
+    /// The records of the chunk being read, checked and decompressed by `mcap_records`.
+    chunk: Option<ChunkRecords>,
     done: bool,
 }
 
@@ -549,7 +555,7 @@ impl LinearMessages {
         let (file, _) = input.open()?;
         let reader = LinearReader::new_with_options(
             LinearReaderOptions::default()
-                .with_prevalidate_chunk_crcs(true)
+                .with_emit_chunks(true)
                 .with_record_length_limit(RECORD_LENGTH_LIMIT),
         );
         Ok(Self {
@@ -561,6 +567,7 @@ impl LinearMessages {
             topics: Vec::new(),
             filter: topics.cloned(),
             messages_read: 0,
+            chunk: None,
             done: false,
         })
     }
@@ -583,10 +590,23 @@ impl LinearMessages {
 
     /// The next message as (channel id, log time, bytes), whatever its topic.
     fn next_raw(&mut self) -> Option<Result<(u16, i64, Vec<u8>)>> {
-        if self.done {
-            return None;
-        }
         loop {
+            if self.done {
+                return None;
+            }
+            if let Some(mut chunk) = self.chunk.take() {
+                let (opcode, range) = match chunk.next_record() {
+                    None => continue,
+                    Some(Ok(record)) => record,
+                    Some(Err(e)) => return Some(Err(self.fail(e))),
+                };
+                let outcome = self.on_record(opcode, chunk.body(range));
+                self.chunk = Some(chunk);
+                match outcome {
+                    Some(message) => return Some(message),
+                    None => continue,
+                }
+            }
             let event = match self.reader.next_event() {
                 None => {
                     self.done = true;
@@ -595,7 +615,7 @@ impl LinearMessages {
                 Some(Ok(event)) => event,
                 Some(Err(e)) => return Some(Err(self.fail(e))),
             };
-            let (opcode, data) = match event {
+            match event {
                 LinearReadEvent::ReadRequest(need) => {
                     match self.file.read(self.reader.insert(need)) {
                         Ok(n) => self.reader.notify_read(n),
@@ -608,63 +628,81 @@ impl LinearMessages {
                             }));
                         }
                     }
-                    continue;
                 }
-                LinearReadEvent::Record { opcode, data } => (opcode, data),
-            };
-            let record = match mcap::parse_record(opcode, data) {
-                Ok(record) => record,
-                Err(e) => return Some(Err(self.fail(e))),
-            };
-            match record {
-                Record::Schema { header, data } => {
-                    self.schemas
-                        .insert(header.id, (header.name, header.encoding, data.into_owned()));
-                }
-                Record::Channel(channel) => {
-                    if self.channels.contains_key(&channel.id) {
-                        continue;
+                LinearReadEvent::Record { opcode, data } => {
+                    // The borrow of the reader's buffer ends with this copy; records are small
+                    // except messages and chunks, which are copied (or decompressed) anyway.
+                    let data = data.to_vec();
+                    if let Some(message) = self.on_record(opcode, &data) {
+                        return Some(message);
                     }
-                    let schema = self.schemas.get(&channel.schema_id).cloned();
-                    let info = match topic_info(
-                        &self.path,
-                        channel.id,
-                        &channel.topic,
-                        &channel.message_encoding,
-                        &channel.metadata,
-                        schema,
-                    ) {
-                        Ok(info) => info,
-                        Err(e) => {
-                            self.done = true;
-                            return Some(Err(e));
-                        }
-                    };
-                    self.channels
-                        .insert(channel.id, Arc::from(channel.topic.as_str()));
-                    self.topics.push(info);
                 }
-                Record::Message { header, data } => {
-                    if !self.channels.contains_key(&header.channel_id) {
-                        self.done = true;
-                        return Some(Err(BagError::UnknownTopicId {
-                            path: self.path.clone(),
-                            id: i64::from(header.channel_id),
-                        }));
-                    }
-                    let log_time = match to_i64(&self.path, "", header.log_time) {
-                        Ok(t) => t,
-                        Err(e) => {
-                            self.done = true;
-                            return Some(Err(e));
-                        }
-                    };
-                    self.messages_read += 1;
-                    return Some(Ok((header.channel_id, log_time, data.into_owned())));
-                }
-                _ => {}
             }
         }
+    }
+
+    /// Takes in one record of the file or of a chunk; `Some` for a message or an error.
+    fn on_record(&mut self, opcode: u8, body: &[u8]) -> Option<Result<(u16, i64, Vec<u8>)>> {
+        let record = match parse_checked(opcode, body) {
+            Ok(Some(record)) => record,
+            Ok(None) => return None,
+            Err(e) => return Some(Err(self.fail(e))),
+        };
+        match record {
+            Record::Chunk { header, data } => {
+                match decompress_chunk(&header, &data, RECORD_LENGTH_LIMIT) {
+                    Ok(records) => self.chunk = Some(ChunkRecords::new(records)),
+                    Err(e) => return Some(Err(self.fail(e))),
+                }
+            }
+            Record::Schema { header, data } => {
+                self.schemas
+                    .insert(header.id, (header.name, header.encoding, data.into_owned()));
+            }
+            Record::Channel(channel) => {
+                if self.channels.contains_key(&channel.id) {
+                    return None;
+                }
+                let schema = self.schemas.get(&channel.schema_id).cloned();
+                let info = match topic_info(
+                    &self.path,
+                    channel.id,
+                    &channel.topic,
+                    &channel.message_encoding,
+                    &channel.metadata,
+                    schema,
+                ) {
+                    Ok(info) => info,
+                    Err(e) => {
+                        self.done = true;
+                        return Some(Err(e));
+                    }
+                };
+                self.channels
+                    .insert(channel.id, Arc::from(channel.topic.as_str()));
+                self.topics.push(info);
+            }
+            Record::Message { header, data } => {
+                if !self.channels.contains_key(&header.channel_id) {
+                    self.done = true;
+                    return Some(Err(BagError::UnknownTopicId {
+                        path: self.path.clone(),
+                        id: i64::from(header.channel_id),
+                    }));
+                }
+                let log_time = match to_i64(&self.path, "", header.log_time) {
+                    Ok(t) => t,
+                    Err(e) => {
+                        self.done = true;
+                        return Some(Err(e));
+                    }
+                };
+                self.messages_read += 1;
+                return Some(Ok((header.channel_id, log_time, data.into_owned())));
+            }
+            _ => {}
+        }
+        None
     }
 }
 
