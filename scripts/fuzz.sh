@@ -56,14 +56,8 @@ for target in "${targets[@]}"; do
     log="$TARGET_DIR/$target.log"
     mkdir -p "$TARGET_DIR"
     # -rss_limit_mb also limits single allocations: unbounded allocation is a finding.
-    # Except for mcap_read: the upstream `mcap` crate (0.26, through binrw) reserves a record's
-    # string or chunk length straight from the file before reading it, so a corrupt length
-    # reserves up to 4 GiB (untouched, freed when the read fails with an error). Known,
-    # documented in docs/bag.md; the limit below still catches anything larger.
-    extra=()
-    [ "$target" = mcap_read ] && extra=(-malloc_limit_mb=4352)
     if ! cargo fuzz run --sanitizer "$SANITIZER" --target-dir "$TARGET_DIR" "$target" "$corpus" "${seeds[@]}" -- \
-        -runs="$RUNS" -seed="$SEED" -max_len=65536 -rss_limit_mb=1024 -timeout=10 -print_final_stats=1 "${extra[@]}" \
+        -runs="$RUNS" -seed="$SEED" -max_len=65536 -rss_limit_mb=1024 -timeout=10 -print_final_stats=1 \
         >"$log" 2>&1; then
         tail -n 80 "$log" >&2
         echo "fuzz: $target FAILED (full log: $log; the input is under fuzz/artifacts/$target/)" >&2

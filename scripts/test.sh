@@ -35,9 +35,6 @@ cargo test --workspace --locked
 
 if [ "$QUICK" = 0 ] && [ -x scripts/fuzz.sh ]; then
     say "fuzzing (short, fixed number of runs)"
-    # mcap_read is left out here: it finds a panic inside the upstream `mcap` crate (an
-    # integer overflow in its linear reader on a corrupt file; docs/bag.md). Run it by hand
-    # with `scripts/fuzz.sh mcap_read` while that is being fixed.
-    scripts/fuzz.sh cdr_decode rplidar_decode
+    scripts/fuzz.sh cdr_decode rplidar_decode mcap_read
 fi
 say "all tests passed"
