@@ -9,6 +9,7 @@ pub mod cluster;
 pub mod fall;
 pub mod geometry;
 pub mod localiser;
+pub mod localiser_accuracy;
 pub mod map;
 pub mod metrics;
 pub mod representation;

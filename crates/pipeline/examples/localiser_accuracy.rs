@@ -1,0 +1,324 @@
+//! Localiser accuracy over the simulator's scene set (docs/localiser.md, "Accuracy").
+//!
+//! Every scene in `--scenes` is simulated in memory with several robot motions (its own, and
+//! parked / bounce / coverage where those differ) and `--seeds` seeds each; the real
+//! localiser (map subtraction, clustering, tracker) runs on each scan with the odometry and
+//! mount the robot would publish, and is scored against the simulator's ground truth with
+//! `lidar_har_core::localiser_accuracy` (definitions there). Prints per scene, per activity
+//! and overall: position error (median, p95), continuity, visible and in-sight ratios, and
+//! the radial bias of the person's points (what `centroid_offset_m` corrects).
+//!
+//! ```sh
+//! cargo run --release -p lidar-har-pipeline --example localiser_accuracy -- --seeds 3
+//! ```
+
+use std::collections::BTreeMap;
+use std::error::Error;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Parser;
+use glam::DVec2;
+use lidar_har_core::activity::Activity;
+use lidar_har_core::geometry::Pose2;
+use lidar_har_core::localiser::{Localiser, LocaliserConfig, Motion, Reference};
+use lidar_har_core::localiser_accuracy::{
+    AccuracyCriteria, AccuracyReport, AccuracyTally, ReportedPerson, ScanOutcome,
+};
+use lidar_har_core::map::{MapGeometry, OccupancyMap as CoreMap};
+use lidar_har_core::scan::Scan;
+use lidar_har_pipeline::files::load_config;
+use lidar_har_sim::map::{DEFAULT_RESOLUTION, OccupancyMap as SimMap};
+use lidar_har_sim::scene::Motion as RobotMotion;
+use lidar_har_sim::{BeamLabel, Scene, Simulator};
+
+#[derive(Parser, Debug)]
+#[command(about = "Localiser accuracy over the simulator's scenes")]
+struct Args {
+    /// Directory of scene files (every *.yaml in it).
+    #[arg(long, default_value = "config/scenes")]
+    scenes: PathBuf,
+    /// Seeds per scene and robot motion.
+    #[arg(long, default_value_t = 3)]
+    seeds: u64,
+    /// Localiser parameters (YAML); default: the built-in defaults (= config/localiser.yaml).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Overrides `centroid_offset_m` (for calibration sweeps).
+    #[arg(long)]
+    centroid_offset: Option<f64>,
+    /// Beams on the body for a scan to count as "in sight".
+    #[arg(long, default_value_t = AccuracyCriteria::default().min_person_beams)]
+    min_person_beams: usize,
+    /// Largest distance from the truth at which the track is "on the person" (m).
+    #[arg(long, default_value_t = AccuracyCriteria::default().on_person_m)]
+    on_person_m: f64,
+    /// Also print one line per run (scene, motion, seed).
+    #[arg(long)]
+    per_run: bool,
+    /// Write the per-scene, per-activity and overall figures as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+/// A tally plus the radial offsets of the person's visible points (truth minus centroid,
+/// along the line of sight from the Lidar: positive when the truth lies beyond the points).
+#[derive(Default, Clone)]
+struct Group {
+    tally: AccuracyTally,
+    radial_m: Vec<f64>,
+}
+
+impl Group {
+    fn merge(&mut self, other: &Group) {
+        self.tally.merge(&other.tally);
+        self.radial_m.extend_from_slice(&other.radial_m);
+    }
+
+    fn radial_median(&self) -> Option<f64> {
+        let mut v = self.radial_m.clone();
+        v.sort_by(f64::total_cmp);
+        (!v.is_empty()).then(|| v[(v.len() - 1) / 2])
+    }
+}
+
+#[derive(serde::Serialize)]
+struct Row {
+    name: String,
+    #[serde(flatten)]
+    report: AccuracyReport,
+    radial_bias_median_m: Option<f64>,
+}
+
+fn main() -> Result<(), Box<dyn Error>> {
+    let args = Args::parse();
+    let mut config = match &args.config {
+        Some(path) => load_config(path)?,
+        None => LocaliserConfig::default(),
+    };
+    if let Some(offset) = args.centroid_offset {
+        config.centroid_offset_m = offset;
+    }
+    config.validate()?;
+    let criteria = AccuracyCriteria {
+        min_person_beams: args.min_person_beams,
+        on_person_m: args.on_person_m,
+    };
+
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(&args.scenes)
+        .map_err(|e| format!("scenes directory {}: {e}", args.scenes.display()))?
+        .filter_map(|entry| entry.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "yaml"))
+        .collect();
+    paths.sort();
+    if paths.is_empty() {
+        return Err(format!("no *.yaml scenes in {}", args.scenes.display()).into());
+    }
+
+    let started = Instant::now();
+    let mut by_scene: BTreeMap<String, Group> = BTreeMap::new();
+    let mut by_activity: BTreeMap<usize, Group> = BTreeMap::new();
+    let mut by_motion: BTreeMap<&'static str, Group> = BTreeMap::new();
+    let mut runs = 0;
+    for path in &paths {
+        let scene = Scene::load(path)?;
+        for (motion_name, motion) in motions(&scene.robot.motion) {
+            let mut variant = scene.clone();
+            variant.robot.motion = motion;
+            for seed in 0..args.seeds {
+                let sim = Simulator::new(variant.clone(), seed)
+                    .map_err(|e| format!("{} with {motion_name} robot: {e}", path.display()))?;
+                let mut run_activity: BTreeMap<usize, Group> = BTreeMap::new();
+                run_scene(sim, &config, &criteria, &mut run_activity)?;
+                runs += 1;
+                let mut run = Group::default();
+                for (activity, group) in &run_activity {
+                    run.merge(group);
+                    by_activity.entry(*activity).or_default().merge(group);
+                }
+                if args.per_run {
+                    print_row(&format!("{} {motion_name} {seed}", scene.name), &run);
+                }
+                by_scene.entry(scene.name.clone()).or_default().merge(&run);
+                by_motion.entry(motion_name).or_default().merge(&run);
+            }
+        }
+    }
+    let mut overall = Group::default();
+    for group in by_scene.values() {
+        overall.merge(group);
+    }
+
+    println!(
+        "{runs} runs ({} scenes x robot motions x {} seeds) in {:.1} s; in sight: >= {} beams on \
+         the body; on the person: within {} m; centroid_offset_m = {}",
+        paths.len(),
+        args.seeds,
+        started.elapsed().as_secs_f64(),
+        criteria.min_person_beams,
+        criteria.on_person_m,
+        config.centroid_offset_m
+    );
+    print_header("scene");
+    for (name, group) in &by_scene {
+        print_row(name, group);
+    }
+    print_row("overall", &overall);
+    print_header("robot motion");
+    for (name, group) in &by_motion {
+        print_row(name, group);
+    }
+    print_header("activity");
+    for (index, group) in &by_activity {
+        print_row(activity_name(*index), group);
+    }
+
+    if let Some(path) = &args.json {
+        let rows = |groups: Vec<(String, &Group)>| -> Vec<Row> {
+            groups
+                .into_iter()
+                .map(|(name, g)| Row {
+                    name,
+                    report: g.tally.report(),
+                    radial_bias_median_m: g.radial_median(),
+                })
+                .collect()
+        };
+        let json = serde_json::json!({
+            "seeds": args.seeds,
+            "runs": runs,
+            "criteria": criteria,
+            "centroid_offset_m": config.centroid_offset_m,
+            "overall": rows(vec![("overall".into(), &overall)]),
+            "scenes": rows(by_scene.iter().map(|(n, g)| (n.clone(), g)).collect()),
+            "motions": rows(by_motion.iter().map(|(n, g)| (n.to_string(), g)).collect()),
+            "activities": rows(by_activity.iter().map(|(i, g)| (activity_name(*i).to_string(), g)).collect()),
+        });
+        std::fs::write(path, serde_json::to_string_pretty(&json)?)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// The scene's own robot motion, then parked, bounce and coverage where they differ from it.
+fn motions(own: &RobotMotion) -> Vec<(&'static str, RobotMotion)> {
+    let kind = |m: &RobotMotion| match m {
+        RobotMotion::Static => "parked",
+        RobotMotion::Waypoints { .. } => "waypoints",
+        RobotMotion::Coverage { .. } => "coverage",
+        RobotMotion::Bounce { .. } => "bounce",
+    };
+    let mut list = vec![(kind(own), own.clone())];
+    for m in [
+        RobotMotion::Static,
+        RobotMotion::Bounce { runs: 64 },
+        RobotMotion::Coverage {
+            spacing: 0.35,
+            along_y: false,
+        },
+    ] {
+        if kind(&m) != kind(own) {
+            list.push((kind(&m), m));
+        }
+    }
+    list
+}
+
+/// Runs the localiser over one simulation, adding each scan to its activity's group.
+fn run_scene(
+    mut sim: Simulator,
+    config: &LocaliserConfig,
+    criteria: &AccuracyCriteria,
+    by_activity: &mut BTreeMap<usize, Group>,
+) -> Result<(), Box<dyn Error>> {
+    let map = core_map(&SimMap::from_world(sim.world(), DEFAULT_RESOLUTION))?;
+    let config = LocaliserConfig {
+        mount: sim.lidar_mount(),
+        ..config.clone()
+    };
+    let mut localiser = Localiser::new(config, Reference::Map(map), Motion::Odometry)?;
+    let geometry = sim.scan_geometry();
+    while let Some(frame) = sim.step() {
+        let stamp = frame.stamp_ns as i64;
+        localiser.add_odometry(stamp, frame.robot);
+        let person_beams = frame
+            .labels
+            .iter()
+            .filter(|&&l| l == BeamLabel::Person)
+            .count();
+        let scan = Scan {
+            stamp_ns: stamp,
+            angle_min: geometry.angle_min as f32,
+            angle_increment: geometry.angle_increment as f32,
+            range_min: geometry.range_min as f32,
+            range_max: geometry.range_max as f32,
+            ranges: frame.ranges,
+        };
+        let result = localiser.process_scan(&scan);
+        let estimate = result.output.as_ref().and_then(|o| o.person.as_ref());
+        let truth = frame.person.map(|p| p.pose.position());
+        let activity = frame.person.map_or(0, |p| p.activity.index());
+        let group = by_activity.entry(activity).or_default();
+        group.tally.add(
+            &ScanOutcome {
+                truth,
+                person_beams,
+                reported: estimate.map(|e| ReportedPerson {
+                    position: e.position,
+                    visible: e.visible,
+                }),
+            },
+            criteria,
+        );
+        if let (Some(e), Some(truth)) = (estimate, truth)
+            && e.visible
+            && !e.points.is_empty()
+        {
+            let centroid = e.points.iter().copied().sum::<DVec2>() / e.points.len() as f64;
+            let sight = (centroid - frame.laser.position()).normalize_or_zero();
+            if centroid.distance(truth) <= criteria.on_person_m {
+                group.radial_m.push((truth - centroid).dot(sight));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The simulator's grid as the localiser's map (map_server's default threshold, as /map is
+/// read by the pipeline).
+fn core_map(sim_map: &SimMap) -> Result<CoreMap, Box<dyn Error>> {
+    let geometry = MapGeometry {
+        resolution: sim_map.resolution,
+        origin: Pose2::new(sim_map.origin.x, sim_map.origin.y, 0.0),
+        width: sim_map.width as usize,
+        height: sim_map.height as usize,
+    };
+    Ok(CoreMap::from_grid_values(geometry, &sim_map.data, 0.65)?)
+}
+
+fn activity_name(index: usize) -> &'static str {
+    Activity::from_index(index).map_or("?", Activity::label)
+}
+
+fn print_header(what: &str) {
+    println!(
+        "\n{what:<22} {:>7} {:>8} {:>8} {:>8} {:>8} {:>10} {:>9}",
+        "scans", "in sight", "visible", "median", "p95", "continuity", "radial"
+    );
+}
+
+fn print_row(name: &str, group: &Group) {
+    let r = group.tally.report();
+    let pct = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.1} %", 100.0 * v));
+    let m = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.3}"));
+    println!(
+        "{name:<22} {:>7} {:>8} {:>8} {:>8} {:>8} {:>10} {:>9}",
+        r.scans,
+        pct(r.in_sight_ratio),
+        pct(r.visible_ratio),
+        m(r.error_median_m),
+        m(r.error_p95_m),
+        pct(r.continuity),
+        m(group.radial_median()),
+    );
+}
