@@ -110,3 +110,36 @@ fn simulate_rejects_a_bad_scene_naming_the_key() {
         "{stderr}"
     );
 }
+
+#[test]
+fn simulate_renders_an_animation_and_refuses_other_formats() {
+    let tmp = tempfile::tempdir().unwrap();
+    let simulate = |render: &str| {
+        Command::new(workspace_bin("lidar-har"))
+            .current_dir(repo_root())
+            .args(["simulate", "--duration", "2", "--out"])
+            .arg(tmp.path().join(render.replace('.', "_")))
+            .arg("--render")
+            .arg(tmp.path().join(render))
+            .output()
+            .unwrap()
+    };
+    let output = simulate("top.gif");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(
+        std::fs::read(tmp.path().join("top.gif"))
+            .unwrap()
+            .starts_with(b"GIF89a")
+    );
+    let output = simulate("top.jpg");
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("top.jpg") && stderr.contains(".gif"),
+        "{stderr}"
+    );
+}

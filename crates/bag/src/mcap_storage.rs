@@ -538,7 +538,8 @@ impl Iterator for IndexedMessages {
 pub(crate) struct LinearMessages {
     path: PathBuf,
     file: Box<dyn ReadSeek + Send>,
-    reader: LinearReader,
+    /// Boxed: `mcap`'s reader state is large, and this path serves only unfinished files.
+    reader: Box<LinearReader>,
     schemas: HashMap<u16, (String, String, Vec<u8>)>,
     channels: HashMap<u16, Arc<str>>,
     pub(crate) topics: Vec<TopicInfo>,
@@ -553,11 +554,11 @@ impl LinearMessages {
     fn new(input: &McapInput, topics: Option<&BTreeSet<String>>) -> Result<Self> {
         let path = input.path();
         let (file, _) = input.open()?;
-        let reader = LinearReader::new_with_options(
+        let reader = Box::new(LinearReader::new_with_options(
             LinearReaderOptions::default()
                 .with_emit_chunks(true)
                 .with_record_length_limit(RECORD_LENGTH_LIMIT),
-        );
+        ));
         Ok(Self {
             path,
             file,

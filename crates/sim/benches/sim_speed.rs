@@ -1,6 +1,7 @@
 //! Simulated seconds per wall-clock second on one core, for living_room.yaml, and how the
 //! cost grows with beams per rotation and with the number of furniture pieces.
-//! Run: `cargo bench -p lidar-har-sim --bench sim_speed`. Prints a table; asserts nothing.
+//! Run: `cargo bench -p lidar-har-sim --bench sim_speed [-- ROW_FILTER]`. Prints a table;
+//! asserts nothing.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -50,7 +51,7 @@ fn with_furniture(mut scene: Scene, n: usize) -> Scene {
 }
 
 fn main() {
-    let seconds = 60.0;
+    let seconds = 300.0;
     println!(
         "sim_speed: living_room.yaml, {seconds} s simulated per row, one thread, no recording"
     );
@@ -58,7 +59,13 @@ fn main() {
         "{:<44} {:>14} {:>12}",
         "case", "sim s / wall s", "us / scan"
     );
+    // `cargo bench -p lidar-har-sim --bench sim_speed -- TEXT` runs only rows whose name
+    // contains TEXT (for profiling one case).
+    let filter: Option<String> = std::env::args().skip(1).find(|a| !a.starts_with('-'));
     let row = |name: &str, scene: Scene| {
+        if filter.as_ref().is_some_and(|f| !name.contains(f.as_str())) {
+            return;
+        }
         let (speed, us) = measure(scene, seconds);
         println!("{name:<44} {speed:>14.0} {us:>12.1}");
     };
@@ -66,6 +73,36 @@ fn main() {
     let mut quiet = living_room();
     quiet.lidar.noise = NoiseSpec::NONE;
     row("living_room, no noise", quiet);
+    let paper = NoiseSpec::default();
+    for (name, noise) in [
+        (
+            "noise: angle error only",
+            NoiseSpec {
+                angle_deg: paper.angle_deg,
+                ..NoiseSpec::NONE
+            },
+        ),
+        (
+            "noise: distance error only",
+            NoiseSpec {
+                distance_pct: paper.distance_pct,
+                ..NoiseSpec::NONE
+            },
+        ),
+        (
+            "noise: missing + wrong only",
+            NoiseSpec {
+                missing_pct: paper.missing_pct,
+                wrong_pct: paper.wrong_pct,
+                wrong_spread_deg: paper.wrong_spread_deg,
+                ..NoiseSpec::NONE
+            },
+        ),
+    ] {
+        let mut s = living_room();
+        s.lidar.noise = noise;
+        row(name, s);
+    }
     for beams in [180u32, 360, 720, 1440, 2880, 5760] {
         let mut s = living_room();
         s.lidar.beams = beams;

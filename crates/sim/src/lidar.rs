@@ -16,7 +16,7 @@ use rand_distr::{Distribution, StandardNormal};
 
 use crate::body::Capsule;
 use crate::scene::{LidarSpec, NoiseSpec};
-use crate::shapes::{point_segment_dist, ray_capsule, ray_circle, ray_segment};
+use crate::shapes::{SegmentFromOrigin, point_segment_dist, ray_capsule, ray_circle};
 use crate::world::{BeamLabel, World};
 
 /// Beam geometry of one rotation, as LaserScan states it.
@@ -69,6 +69,8 @@ pub struct Lidar {
     exact: Vec<f64>,
     hit: Vec<BeamLabel>,
     margin: i64,
+    /// Segments by distance from the Lidar, nearest first (kept to reuse its allocation).
+    segment_order: Vec<(f64, usize)>,
 }
 
 /// Beam directions are bent by the angle error; drawn errors are cut at 4 sigma so that the
@@ -93,6 +95,7 @@ impl Lidar {
             exact: vec![f64::INFINITY; n],
             hit: vec![BeamLabel::Nothing; n],
             margin,
+            segment_order: Vec::new(),
         }
     }
 
@@ -102,15 +105,32 @@ impl Lidar {
     }
 
     /// Paints `test` over the beams whose (unperturbed) angle lies in `[lo, hi]` relative to
-    /// the Lidar's heading, widened by the margin.
-    fn paint(&mut self, lo: f64, hi: f64, label: BeamLabel, test: impl Fn(DVec2) -> Option<f64>) {
+    /// the Lidar's heading, widened by the margin. `near` is a lower bound of the object's
+    /// distance: beams that already hit something nearer are not tested (objects are painted
+    /// nearest first, so most far ones cost a comparison per beam).
+    fn paint(
+        &mut self,
+        lo: f64,
+        hi: f64,
+        near: f64,
+        label: BeamLabel,
+        test: impl Fn(DVec2) -> Option<f64>,
+    ) {
         let g = &self.geometry;
         let n = g.beams as i64;
         let k_lo = ((lo - g.angle_min) / g.angle_increment).floor() as i64 - self.margin;
         let k_hi = ((hi - g.angle_min) / g.angle_increment).ceil() as i64 + self.margin;
         let k_hi = k_hi.min(k_lo + n - 1);
-        for k in k_lo..=k_hi {
-            let i = k.rem_euclid(n) as usize;
+        // The beam range may wrap around the scan's start: paint it as two plain ranges.
+        let first = k_lo.rem_euclid(n);
+        let count = k_hi - k_lo + 1;
+        let end = first + count;
+        let (head, tail) = (first..end.min(n), 0..(end - n).max(0));
+        for i in head.chain(tail) {
+            let i = i as usize;
+            if self.exact[i] <= near {
+                continue;
+            }
             if let Some(t) = test(self.dirs[i])
                 && t < self.exact[i]
             {
@@ -122,7 +142,7 @@ impl Lidar {
 
     fn paint_all(&mut self, label: BeamLabel, test: impl Fn(DVec2) -> Option<f64>) {
         let (lo, hi) = (self.geometry.angle_min, self.geometry.angle_min + TAU);
-        self.paint(lo, hi, label, test);
+        self.paint(lo, hi, 0.0, label, test);
     }
 
     /// Angular interval (relative to `heading`) of a circle seen from `o`, or the whole
@@ -143,7 +163,7 @@ impl Lidar {
         } else {
             let mid = wrap(v.to_angle() - heading);
             let half = (r / d).asin();
-            self.paint(mid - half, mid + half, label, test);
+            self.paint(mid - half, mid + half, d - r, label, test);
         }
     }
 
@@ -181,21 +201,6 @@ impl Lidar {
         self.hit.fill(BeamLabel::Nothing);
 
         let o = laser.position();
-        for s in &world.segments {
-            let (a, b) = (s.a, s.b);
-            if point_segment_dist(o, a, b) < 1e-12 {
-                self.paint_all(s.label, |d| ray_segment(o, d, a, b));
-                continue;
-            }
-            let ra = wrap((a - o).to_angle() - laser.theta);
-            let delta = wrap((b - o).to_angle() - (a - o).to_angle());
-            let (lo, hi) = if delta >= 0.0 {
-                (ra, ra + delta)
-            } else {
-                (ra + delta, ra)
-            };
-            self.paint(lo, hi, s.label, |d| ray_segment(o, d, a, b));
-        }
         for c in &world.circles {
             let (center, radius) = (c.center, c.radius);
             self.paint_circle(o, laser.theta, center, radius, BeamLabel::Furniture, |d| {
@@ -215,6 +220,34 @@ impl Lidar {
                 });
             }
         }
+        let mut order = std::mem::take(&mut self.segment_order);
+        order.clear();
+        order.extend(
+            world
+                .segments
+                .iter()
+                .enumerate()
+                .map(|(k, s)| (point_segment_dist(o, s.a, s.b), k)),
+        );
+        order.sort_unstable_by(|x, y| x.0.total_cmp(&y.0));
+        for &(near, k) in &order {
+            let s = &world.segments[k];
+            let (a, b) = (s.a, s.b);
+            let seg = SegmentFromOrigin::new(o, a, b);
+            if near < 1e-12 {
+                self.paint_all(s.label, |d| seg.hit(d));
+                continue;
+            }
+            let ra = wrap((a - o).to_angle() - laser.theta);
+            let delta = wrap((b - o).to_angle() - (a - o).to_angle());
+            let (lo, hi) = if delta >= 0.0 {
+                (ra, ra + delta)
+            } else {
+                (ra + delta, ra)
+            };
+            self.paint(lo, hi, near, s.label, |d| seg.hit(d));
+        }
+        self.segment_order = order;
 
         ranges.clear();
         labels.clear();
@@ -227,23 +260,38 @@ impl Lidar {
             }
             return;
         };
+        // Missing and wrong returns are rare: draw the gap to the next such beam (geometric
+        // distribution) instead of a uniform number for every beam.
         let missing = self.noise.missing_pct / 100.0;
-        let wrong = missing + self.noise.wrong_pct / 100.0;
+        let event = (missing + self.noise.wrong_pct / 100.0).min(1.0);
+        let ln_keep = (1.0 - event).ln();
+        let gap = |rng: &mut ChaCha8Rng| -> usize {
+            if event <= 0.0 {
+                return usize::MAX;
+            }
+            let u: f64 = rng.random();
+            // Both logarithms are <= 0; `as` saturates (and maps -0 to 0).
+            ((1.0 - u).ln() / ln_keep) as usize
+        };
         let sigma = self.noise.distance_pct / 100.0;
         let spread = (self.noise.wrong_spread_deg.to_radians() / g.angle_increment).round() as i64;
+        let mut next_event = gap(rng);
         for i in 0..n {
-            let u: f64 = if wrong > 0.0 { rng.random() } else { 1.0 };
-            let (mut r, label) = if u < missing {
-                (f64::INFINITY, BeamLabel::Missing)
-            } else if u < wrong {
-                // Multipath: the return of a point at another angle, reported at this one.
-                let k = if spread > 0 {
-                    rng.random_range(-spread..=spread)
+            let (mut r, label) = if i == next_event {
+                next_event = i.saturating_add(1).saturating_add(gap(rng));
+                let u: f64 = rng.random();
+                if u * event < missing {
+                    (f64::INFINITY, BeamLabel::Missing)
                 } else {
-                    0
-                };
-                let j = (i as i64 + k).rem_euclid(n as i64) as usize;
-                (self.exact[j], BeamLabel::Wrong)
+                    // Multipath: the return of a point at another angle, reported at this one.
+                    let k = if spread > 0 {
+                        rng.random_range(-spread..=spread)
+                    } else {
+                        0
+                    };
+                    let j = (i as i64 + k).rem_euclid(n as i64) as usize;
+                    (self.exact[j], BeamLabel::Wrong)
+                }
             } else {
                 (self.exact[i], self.hit[i])
             };
@@ -271,14 +319,20 @@ fn wrap(a: f64) -> f64 {
     (a + PI).rem_euclid(TAU) - PI
 }
 
-/// Rotation by a small angle without a trigonometric call (exact to double precision for
-/// the angle errors used here, which stay below 0.01 rad).
+/// Rotation by a small angle without a trigonometric call (error below 2e-15 for the angle
+/// errors used here, which stay below 0.01 rad). Multiplies by the reciprocal
+/// factorials: divisions by constants are not turned into multiplications by the compiler,
+/// and three divisions per beam cost as much as casting it.
 fn small_rotation(delta: f64) -> DVec2 {
+    const INV_2: f64 = 1.0 / 2.0;
+    const INV_6: f64 = 1.0 / 6.0;
+    const INV_24: f64 = 1.0 / 24.0;
+    const INV_120: f64 = 1.0 / 120.0;
     if delta.abs() < 0.01 {
         let d2 = delta * delta;
         DVec2::new(
-            1.0 - d2 / 2.0 + d2 * d2 / 24.0,
-            delta * (1.0 - d2 / 6.0 + d2 * d2 / 120.0),
+            1.0 - d2 * INV_2 + d2 * d2 * INV_24,
+            delta * (1.0 - d2 * INV_6 + d2 * d2 * INV_120),
         )
     } else {
         DVec2::from_angle(delta)
@@ -289,6 +343,7 @@ fn small_rotation(delta: f64) -> DVec2 {
 mod tests {
     use super::*;
     use crate::scene::Scene;
+    use crate::shapes::ray_segment;
     use rand::SeedableRng;
 
     fn world(extra: &str) -> (Scene, World) {
@@ -426,6 +481,67 @@ mod tests {
         assert_eq!(r[360], f32::INFINITY, "50 m wall past a 30 m range");
         assert!((r[540] - 1.0).abs() < 1e-6);
         assert!((lidar.exact_ranges()[360] - 50.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn small_rotation_matches_the_trigonometric_one() {
+        for delta in [0.0, 1e-9, -3e-4, 7e-4, 2.8e-3, -0.0099, 0.05] {
+            let err = (small_rotation(delta) - DVec2::from_angle(delta)).length();
+            assert!(err < 2e-15, "delta {delta}: error {err}");
+        }
+    }
+
+    #[test]
+    fn extreme_missing_and_wrong_rates_are_exact() {
+        let (s, w) = world("");
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let (mut r, mut l) = (Vec::new(), Vec::new());
+        let count = |labels: &[BeamLabel], which| labels.iter().filter(|&&x| x == which).count();
+        for (missing, wrong) in [(100.0, 0.0), (0.0, 100.0), (0.0, 0.0), (60.0, 40.0)] {
+            let mut spec = s.lidar.clone();
+            spec.noise.missing_pct = missing;
+            spec.noise.wrong_pct = wrong;
+            let mut lidar = Lidar::new(&spec);
+            lidar.scan(&w, Pose2::IDENTITY, None, Some(&mut rng), &mut r, &mut l);
+            let n = l.len();
+            let (m, wr) = (count(&l, BeamLabel::Missing), count(&l, BeamLabel::Wrong));
+            match (missing, wrong) {
+                (100.0, _) => assert_eq!(m, n),
+                (_, 100.0) => assert_eq!(wr, n),
+                (0.0, 0.0) => assert_eq!(m + wr, 0),
+                _ => {
+                    assert_eq!(m + wr, n, "every beam is an event at 100 % in all");
+                    assert!(
+                        (m as f64 / n as f64 - 0.6).abs() < 0.08,
+                        "missing share {m}/{n}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn missing_returns_are_independent_between_neighbouring_beams() {
+        let (s, w) = world("");
+        let mut spec = s.lidar.clone();
+        spec.noise.missing_pct = 20.0;
+        spec.noise.wrong_pct = 0.0;
+        let mut lidar = Lidar::new(&spec);
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let (mut r, mut l) = (Vec::new(), Vec::new());
+        let (mut pairs, mut both) = (0usize, 0usize);
+        for _ in 0..100 {
+            lidar.scan(&w, Pose2::IDENTITY, None, Some(&mut rng), &mut r, &mut l);
+            for k in l.windows(2) {
+                pairs += 1;
+                both += usize::from(k[0] == BeamLabel::Missing && k[1] == BeamLabel::Missing);
+            }
+        }
+        let p_both = both as f64 / pairs as f64;
+        assert!(
+            (p_both - 0.04).abs() < 0.005,
+            "P(two missing in a row) {p_both}"
+        );
     }
 
     #[test]

@@ -1,6 +1,7 @@
-//! Top-view picture of a simulation: the map, the robot's path, the person's path coloured
-//! by activity (a dot where each activity starts), and scan points coloured by what they hit.
-//! Drawn with plotters' bitmap backend. The workspace builds plotters without font support,
+//! Top view of a simulation, as a picture (PNG) or an animation (GIF): the map, the robot's
+//! path, the person's path coloured by activity (a dot where each activity starts), and scan
+//! points coloured by what they hit. Drawn with plotters' bitmap backend; GIF frames encoded
+//! by `image`. The workspace builds plotters without font support,
 //! so the picture has no text: colours are fixed (see [`ACTIVITY_COLOURS`] and
 //! docs/simulator.md) and a strip of nine swatches along the bottom, in class order, is the
 //! legend.
@@ -45,6 +46,15 @@ pub struct Trace {
     scan_every: u64,
     robot: Vec<DVec2>,
     person: Vec<(DVec2, Activity)>,
+    scans: Vec<KeptScan>,
+}
+
+/// The scan points of one kept frame, and how long the paths were at that frame (what an
+/// animation frame shows).
+#[derive(Debug, Clone)]
+struct KeptScan {
+    robot_len: usize,
+    person_len: usize,
     points: Vec<(DVec2, BeamLabel)>,
 }
 
@@ -55,7 +65,7 @@ impl Trace {
             scan_every: scan_every.max(1),
             robot: Vec::new(),
             person: Vec::new(),
-            points: Vec::new(),
+            scans: Vec::new(),
         }
     }
 
@@ -65,16 +75,31 @@ impl Trace {
             self.person.push((p.pose.position(), p.activity));
         }
         if frame.index.is_multiple_of(self.scan_every) {
-            for (i, (r, l)) in frame.ranges.iter().zip(&frame.labels).enumerate() {
-                if r.is_finite() {
+            let points = frame
+                .ranges
+                .iter()
+                .zip(&frame.labels)
+                .enumerate()
+                .filter(|(_, (r, _))| r.is_finite())
+                .map(|(i, (r, l))| {
                     let a = geometry.angle_min + geometry.angle_increment * i as f64;
                     let p = frame
                         .laser
                         .transform_point(DVec2::from_angle(a) * *r as f64);
-                    self.points.push((p, *l));
-                }
-            }
+                    (p, *l)
+                })
+                .collect();
+            self.scans.push(KeptScan {
+                robot_len: self.robot.len(),
+                person_len: self.person.len(),
+                points,
+            });
         }
+    }
+
+    /// How many frames an animation of this trace has.
+    pub fn animation_frames(&self) -> usize {
+        self.scans.len()
     }
 }
 
@@ -86,29 +111,58 @@ pub struct RenderError {
     pub message: String,
 }
 
-/// Pixels per metre of the picture.
+/// Pixels per metre of the picture (smaller for rooms over 20 m).
 const SCALE: f64 = 100.0;
 const LEGEND: u32 = 30;
 
-/// Draws the picture as a PNG at `path`.
-pub fn render_png(path: &Path, map: &OccupancyMap, trace: &Trace) -> Result<(), RenderError> {
-    let err = |message: String| RenderError {
-        path: path.display().to_string(),
-        message,
-    };
-    let (w_m, h_m) = (
-        map.width as f64 * map.resolution,
-        map.height as f64 * map.resolution,
-    );
-    let scale = SCALE.min(2000.0 / w_m.max(h_m));
-    let (w, h) = ((w_m * scale).ceil() as u32, (h_m * scale).ceil() as u32);
-    let root = BitMapBackend::new(path, (w, h + LEGEND)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-    let px = |p: DVec2| -> (i32, i32) {
-        let q = (p - map.origin) * scale;
-        (q.x.round() as i32, (h as f64 - q.y).round() as i32)
-    };
-    let cell = (map.resolution * scale).ceil() as i32;
+/// Map coordinates to pixels.
+struct View {
+    origin: DVec2,
+    scale: f64,
+    /// Picture size without the legend strip.
+    width: u32,
+    height: u32,
+}
+
+impl View {
+    fn new(map: &OccupancyMap, max_side_px: f64) -> Self {
+        let (w_m, h_m) = (
+            map.width as f64 * map.resolution,
+            map.height as f64 * map.resolution,
+        );
+        let scale = SCALE.min(max_side_px / w_m.max(h_m));
+        Self {
+            origin: map.origin,
+            scale,
+            width: (w_m * scale).ceil() as u32,
+            height: (h_m * scale).ceil() as u32,
+        }
+    }
+
+    fn size(&self) -> (u32, u32) {
+        (self.width, self.height + LEGEND)
+    }
+
+    fn px(&self, p: DVec2) -> (i32, i32) {
+        let q = (p - self.origin) * self.scale;
+        (
+            q.x.round() as i32,
+            (self.height as f64 - q.y).round() as i32,
+        )
+    }
+}
+
+type Area<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
+type DrawResult = Result<(), String>;
+
+fn drawn<E: std::error::Error>(r: Result<(), E>) -> DrawResult {
+    r.map_err(|e| e.to_string())
+}
+
+/// White page, the map's cells, and the legend: nine activity colours in class order.
+fn draw_background(root: &Area, view: &View, map: &OccupancyMap) -> DrawResult {
+    drawn(root.fill(&WHITE))?;
+    let cell = (map.resolution * view.scale).ceil() as i32;
     for j in 0..map.height {
         for i in 0..map.width {
             let colour = match map.data[(j * map.width + i) as usize] {
@@ -116,58 +170,241 @@ pub fn render_png(path: &Path, map: &OccupancyMap, trace: &Trace) -> Result<(), 
                 FREE => RGBColor(250, 250, 250),
                 _ => RGBColor(205, 205, 205),
             };
-            let (x, y) = px(map.origin + DVec2::new(i as f64, j as f64 + 1.0) * map.resolution);
-            root.draw(&Rectangle::new(
+            let (x, y) =
+                view.px(map.origin + DVec2::new(i as f64, j as f64 + 1.0) * map.resolution);
+            drawn(root.draw(&Rectangle::new(
                 [(x, y), (x + cell, y + cell)],
                 colour.filled(),
-            ))
-            .map_err(|e| err(e.to_string()))?;
+            )))?;
         }
     }
-    for (p, l) in &trace.points {
-        if let Some(c) = label_colour(*l) {
-            root.draw(&Circle::new(px(*p), 1, c.filled()))
-                .map_err(|e| err(e.to_string()))?;
-        }
-    }
-    let robot: Vec<(i32, i32)> = trace.robot.iter().map(|p| px(*p)).collect();
-    root.draw(&PathElement::new(
-        robot,
-        RGBColor(0, 0, 255).stroke_width(2),
-    ))
-    .map_err(|e| err(e.to_string()))?;
-    for w in trace.person.windows(2) {
-        let c = ACTIVITY_COLOURS[w[1].1.index()];
-        root.draw(&PathElement::new(
-            vec![px(w[0].0), px(w[1].0)],
-            c.stroke_width(3),
-        ))
-        .map_err(|e| err(e.to_string()))?;
-    }
-    // A dot where each activity starts.
-    let mut last: Option<Activity> = None;
-    for (p, a) in &trace.person {
-        if last != Some(*a) {
-            root.draw(&Circle::new(
-                px(*p),
-                6,
-                ACTIVITY_COLOURS[a.index()].filled(),
-            ))
-            .map_err(|e| err(e.to_string()))?;
-            root.draw(&Circle::new(px(*p), 6, BLACK.stroke_width(1)))
-                .map_err(|e| err(e.to_string()))?;
-            last = Some(*a);
-        }
-    }
-    // Legend: the nine activity colours in class order.
+    let (w, h) = (view.width, view.height);
     let sw = (w / Activity::COUNT as u32).max(1) as i32;
     for (k, c) in ACTIVITY_COLOURS.iter().enumerate() {
         let x = k as i32 * sw;
-        root.draw(&Rectangle::new(
+        drawn(root.draw(&Rectangle::new(
             [(x + 2, h as i32 + 4), (x + sw - 2, (h + LEGEND) as i32 - 4)],
             c.filled(),
-        ))
-        .map_err(|e| err(e.to_string()))?;
+        )))?;
     }
-    root.present().map_err(|e| err(e.to_string()))
+    Ok(())
+}
+
+fn draw_points(root: &Area, view: &View, points: &[(DVec2, BeamLabel)]) -> DrawResult {
+    for (p, l) in points {
+        if let Some(c) = label_colour(*l) {
+            drawn(root.draw(&Circle::new(view.px(*p), 1, c.filled())))?;
+        }
+    }
+    Ok(())
+}
+
+/// The robot's path (blue) and the person's path coloured by activity, with a dot where each
+/// activity starts.
+fn draw_paths(
+    root: &Area,
+    view: &View,
+    robot: &[DVec2],
+    person: &[(DVec2, Activity)],
+) -> DrawResult {
+    let path: Vec<(i32, i32)> = robot.iter().map(|p| view.px(*p)).collect();
+    drawn(root.draw(&PathElement::new(path, RGBColor(0, 0, 255).stroke_width(2))))?;
+    for w in person.windows(2) {
+        let c = ACTIVITY_COLOURS[w[1].1.index()];
+        drawn(root.draw(&PathElement::new(
+            vec![view.px(w[0].0), view.px(w[1].0)],
+            c.stroke_width(3),
+        )))?;
+    }
+    let mut last: Option<Activity> = None;
+    for (p, a) in person {
+        if last != Some(*a) {
+            drawn(root.draw(&Circle::new(
+                view.px(*p),
+                6,
+                ACTIVITY_COLOURS[a.index()].filled(),
+            )))?;
+            drawn(root.draw(&Circle::new(view.px(*p), 6, BLACK.stroke_width(1))))?;
+            last = Some(*a);
+        }
+    }
+    Ok(())
+}
+
+/// Where robot and person are now: a blue ring, and a disc in the current activity's colour.
+fn draw_now(
+    root: &Area,
+    view: &View,
+    robot: Option<&DVec2>,
+    person: Option<&(DVec2, Activity)>,
+) -> DrawResult {
+    if let Some(r) = robot {
+        drawn(root.draw(&Circle::new(
+            view.px(*r),
+            9,
+            RGBColor(0, 0, 255).stroke_width(3),
+        )))?;
+    }
+    if let Some((p, a)) = person {
+        drawn(root.draw(&Circle::new(
+            view.px(*p),
+            12,
+            ACTIVITY_COLOURS[a.index()].filled(),
+        )))?;
+        drawn(root.draw(&Circle::new(view.px(*p), 12, BLACK.stroke_width(2))))?;
+    }
+    Ok(())
+}
+
+fn render_error(path: &Path) -> impl Fn(String) -> RenderError + '_ {
+    move |message| RenderError {
+        path: path.display().to_string(),
+        message,
+    }
+}
+
+/// Draws the picture as a PNG at `path`: every kept scan, the whole paths.
+pub fn render_png(path: &Path, map: &OccupancyMap, trace: &Trace) -> Result<(), RenderError> {
+    let view = View::new(map, 2000.0);
+    let root = BitMapBackend::new(path, view.size()).into_drawing_area();
+    draw_background(&root, &view, map)
+        .and_then(|_| {
+            trace
+                .scans
+                .iter()
+                .try_for_each(|scan| draw_points(&root, &view, &scan.points))
+        })
+        .and_then(|_| draw_paths(&root, &view, &trace.robot, &trace.person))
+        .and_then(|_| drawn(root.present()))
+        .map_err(render_error(path))
+}
+
+/// Draws an animated GIF at `path`, one frame per kept scan: that scan's points, the paths
+/// so far, where robot and person are. `frame_delay_ms` is rounded to GIF's 10 ms steps.
+pub fn render_gif(
+    path: &Path,
+    map: &OccupancyMap,
+    trace: &Trace,
+    frame_delay_ms: u32,
+) -> Result<(), RenderError> {
+    use image::codecs::gif::{GifEncoder, Repeat};
+
+    let err = render_error(path);
+    if trace.scans.is_empty() {
+        return Err(err("the trace holds no scan to animate".into()));
+    }
+    let view = View::new(map, 800.0);
+    let (w, h) = view.size();
+    let mut background = vec![0u8; w as usize * h as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut background, (w, h)).into_drawing_area();
+        draw_background(&root, &view, map)
+            .and_then(|_| drawn(root.present()))
+            .map_err(&err)?;
+    }
+    let file = std::fs::File::create(path).map_err(|e| err(e.to_string()))?;
+    let mut encoder = GifEncoder::new_with_speed(std::io::BufWriter::new(file), 10);
+    encoder
+        .set_repeat(Repeat::Infinite)
+        .map_err(|e| err(e.to_string()))?;
+    let delay = image::Delay::from_numer_denom_ms(frame_delay_ms.max(20), 1);
+    for scan in &trace.scans {
+        let mut pixels = background.clone();
+        {
+            let root = BitMapBackend::with_buffer(&mut pixels, (w, h)).into_drawing_area();
+            let robot = &trace.robot[..scan.robot_len];
+            let person = &trace.person[..scan.person_len];
+            draw_points(&root, &view, &scan.points)
+                .and_then(|_| draw_paths(&root, &view, robot, person))
+                .and_then(|_| draw_now(&root, &view, robot.last(), person.last()))
+                .and_then(|_| drawn(root.present()))
+                .map_err(&err)?;
+        }
+        let rgb = image::RgbImage::from_raw(w, h, pixels)
+            .ok_or_else(|| err("frame buffer size mismatch".into()))?;
+        let frame =
+            image::Frame::from_parts(image::DynamicImage::from(rgb).to_rgba8(), 0, 0, delay);
+        encoder
+            .encode_frame(frame)
+            .map_err(|e| err(e.to_string()))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Scene, Simulator};
+    use image::AnimationDecoder;
+
+    fn living_room_trace(seconds: f64, scan_every: u64) -> (OccupancyMap, Trace) {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../config/scenes/living_room.yaml"
+        );
+        let mut scene = Scene::load(Path::new(path)).unwrap();
+        scene.duration = seconds;
+        let mut sim = Simulator::new(scene, 1).unwrap();
+        let geometry = sim.scan_geometry();
+        let mut trace = Trace::new(scan_every);
+        while let Some(frame) = sim.step() {
+            trace.add(&frame, &geometry);
+        }
+        (OccupancyMap::from_world(sim.world(), 0.05), trace)
+    }
+
+    fn has_colour(pixels: impl IntoIterator<Item = [u8; 3]>, c: RGBColor) -> bool {
+        pixels.into_iter().any(|p| p == [c.0, c.1, c.2])
+    }
+
+    #[test]
+    fn png_shows_map_scan_points_and_the_activity_legend() {
+        let (map, trace) = living_room_trace(2.0, 10);
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("top.png");
+        render_png(&png, &map, &trace).unwrap();
+        let img = image::open(&png).unwrap().to_rgb8();
+        let view = View::new(&map, 2000.0);
+        assert_eq!(img.dimensions(), view.size());
+        let pixels = || img.pixels().map(|p| p.0);
+        assert!(has_colour(pixels(), RGBColor(40, 40, 40)), "walls");
+        assert!(has_colour(pixels(), RGBColor(90, 90, 90)), "wall hits");
+        assert!(has_colour(pixels(), RGBColor(220, 0, 0)), "person hits");
+        for c in ACTIVITY_COLOURS {
+            assert!(has_colour(pixels(), c), "legend swatch {c:?}");
+        }
+    }
+
+    #[test]
+    fn gif_has_one_frame_per_kept_scan_and_moves() {
+        let (map, trace) = living_room_trace(2.0, 10);
+        assert_eq!(trace.animation_frames(), 4);
+        let dir = tempfile::tempdir().unwrap();
+        let gif = dir.path().join("top.gif");
+        render_gif(&gif, &map, &trace, 100).unwrap();
+        let file = std::io::BufReader::new(std::fs::File::open(&gif).unwrap());
+        let frames = image::codecs::gif::GifDecoder::new(file)
+            .unwrap()
+            .into_frames()
+            .collect_frames()
+            .unwrap();
+        assert_eq!(frames.len(), 4);
+        assert_eq!(frames[0].delay().numer_denom_ms(), (100, 1));
+        let (w, h) = View::new(&map, 800.0).size();
+        assert_eq!(frames[0].buffer().dimensions(), (w, h));
+        assert_ne!(
+            frames[0].buffer().as_raw(),
+            frames[3].buffer().as_raw(),
+            "successive frames differ (scan points, robot)"
+        );
+    }
+
+    #[test]
+    fn an_empty_trace_is_an_error_naming_the_file() {
+        let (map, _) = living_room_trace(0.1, 1);
+        let e = render_gif(Path::new("/tmp/empty.gif"), &map, &Trace::new(1), 100).unwrap_err();
+        assert!(e.to_string().contains("/tmp/empty.gif"), "{e}");
+        let e = render_png(Path::new("/nonexistent/dir/x.png"), &map, &Trace::new(1)).unwrap_err();
+        assert!(e.to_string().contains("/nonexistent/dir/x.png"), "{e}");
+    }
 }

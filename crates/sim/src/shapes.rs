@@ -12,15 +12,48 @@ const SEGMENT_PARAM_SLACK: f64 = 1e-9;
 /// A ray running along the segment's own line does not hit it (a wall seen edge-on has no
 /// width); the obstacle's neighbouring edges are hit instead.
 pub fn ray_segment(o: DVec2, d: DVec2, a: DVec2, b: DVec2) -> Option<f64> {
-    let e = b - a;
-    let denom = d.perp_dot(e);
-    if denom.abs() <= 1e-12 * e.length() {
-        return None;
+    SegmentFromOrigin::new(o, a, b).hit(d)
+}
+
+/// One segment seen from one origin, with what does not depend on the ray's direction
+/// computed once: a scan tests hundreds of directions against each segment.
+#[derive(Debug, Clone, Copy)]
+pub struct SegmentFromOrigin {
+    e: DVec2,
+    ao: DVec2,
+    ao_perp_e: f64,
+    parallel_tolerance: f64,
+}
+
+impl SegmentFromOrigin {
+    pub fn new(o: DVec2, a: DVec2, b: DVec2) -> Self {
+        let e = b - a;
+        let ao = a - o;
+        Self {
+            e,
+            ao,
+            ao_perp_e: ao.perp_dot(e),
+            parallel_tolerance: 1e-12 * e.length(),
+        }
     }
-    let ao = a - o;
-    let t = ao.perp_dot(e) / denom;
-    let s = ao.perp_dot(d) / denom;
-    (t >= 0.0 && (-SEGMENT_PARAM_SLACK..=1.0 + SEGMENT_PARAM_SLACK).contains(&s)).then_some(t)
+
+    /// As [`ray_segment`], for the direction `d` (unit).
+    #[inline]
+    pub fn hit(&self, d: DVec2) -> Option<f64> {
+        let denom = d.perp_dot(self.e);
+        if denom.abs() <= self.parallel_tolerance {
+            return None;
+        }
+        let inv = 1.0 / denom;
+        let t = self.ao_perp_e * inv;
+        if t < 0.0 {
+            return None;
+        }
+        let s = self.ao.perp_dot(d) * inv;
+        (-SEGMENT_PARAM_SLACK..=1.0 + SEGMENT_PARAM_SLACK)
+            .contains(&s)
+            .then_some(t)
+    }
 }
 
 /// Distance along the ray to the circle (filled disc) at `c` of radius `r`. An origin on or

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use lidar_har_sim::map::OccupancyMap;
 use lidar_har_sim::record::record;
-use lidar_har_sim::render::{Trace, render_png};
+use lidar_har_sim::render::{Trace, render_gif, render_png};
 use lidar_har_sim::{Scene, Simulator};
 
 #[derive(clap::Args)]
@@ -23,27 +23,47 @@ pub struct SimulateArgs {
     /// Simulated seconds, overriding the scene's `duration`.
     #[arg(long)]
     pub duration: Option<f64>,
-    /// Also draw a top view (PNG) of the map, paths and scan points.
-    #[arg(long, value_name = "FILE.png")]
+    /// Also draw a top view of the map, paths and scan points: a picture (.png) or an
+    /// animation played at 4x real time (.gif).
+    #[arg(long, value_name = "FILE.png|FILE.gif")]
     pub render: Option<PathBuf>,
     /// Cell size of the recorded map, metres.
     #[arg(long, default_value_t = lidar_har_sim::map::DEFAULT_RESOLUTION)]
     pub map_resolution: f64,
 }
 
+/// What `--render` draws.
+#[derive(Clone, Copy, PartialEq)]
+enum RenderKind {
+    Picture,
+    Animation,
+}
+
+/// Playback speed of `--render FILE.gif`, and how many scans it shows.
+const GIF_SPEED_UP: f64 = 4.0;
+const GIF_FRAMES: u64 = 100;
+/// Scans drawn on a `--render FILE.png`, whatever the duration.
+const PNG_SCANS: u64 = 40;
+
 pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
-    if let Some(path) = &args.render {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .unwrap_or_default()
-            .to_ascii_lowercase();
-        anyhow::ensure!(
-            ext == "png",
-            "--render {}: only .png pictures are supported",
-            path.display()
-        );
-    }
+    let render = match &args.render {
+        None => None,
+        Some(path) => {
+            let ext = path
+                .extension()
+                .and_then(|e| e.to_str())
+                .unwrap_or_default()
+                .to_ascii_lowercase();
+            Some(match ext.as_str() {
+                "png" => RenderKind::Picture,
+                "gif" => RenderKind::Animation,
+                _ => anyhow::bail!(
+                    "--render {}: give a .png (picture) or .gif (animation) file",
+                    path.display()
+                ),
+            })
+        }
+    };
     anyhow::ensure!(
         args.map_resolution.is_finite()
             && args.map_resolution >= 0.005
@@ -67,11 +87,11 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} scans {elapsed} (eta {eta})")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    // About 40 scans drawn in a render, whatever the duration.
-    let mut trace = args
-        .render
-        .as_ref()
-        .map(|_| Trace::new((total / 40).max(1)));
+    let scan_every = match render {
+        Some(RenderKind::Animation) => (total / GIF_FRAMES).max(1),
+        _ => (total / PNG_SCANS).max(1),
+    };
+    let mut trace = render.map(|_| Trace::new(scan_every));
     let summary = record(&mut sim, &args.out, args.map_resolution, |frame| {
         if let Some(t) = trace.as_mut() {
             t.add(frame, &geometry);
@@ -96,7 +116,12 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     );
     if let (Some(path), Some(trace)) = (&args.render, &trace) {
         let map = OccupancyMap::from_world(sim.world(), args.map_resolution);
-        render_png(path, &map, trace)?;
+        if render == Some(RenderKind::Animation) {
+            let delay_ms = scan_every as f64 * geometry.scan_time * 1000.0 / GIF_SPEED_UP;
+            render_gif(path, &map, trace, delay_ms.round() as u32)?;
+        } else {
+            render_png(path, &map, trace)?;
+        }
         println!("render: {}", path.display());
     }
     Ok(())
