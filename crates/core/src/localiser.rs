@@ -29,6 +29,14 @@ use crate::tracker::{PersonEstimate, Tracker, TrackerConfig};
 pub struct LocaliserConfig {
     /// Returns closer than this to a mapped obstacle belong to the room (m; paper: 0.2).
     pub obstacle_margin_m: f64,
+    /// The margin widens with range, because range noise grows with it: a return at range
+    /// `r` is room within `sqrt(obstacle_margin_m^2 + (range_margin_fraction * r)^2)` of an
+    /// obstacle. 0.05 is 2.5 standard deviations of the paper's 2 % range noise: at 10 m
+    /// it keeps far walls' noisy returns (sigma 0.2 m) from becoming clutter.
+    pub range_margin_fraction: f64,
+    /// Returns in cells of unknown state (behind the walls, where range noise puts some wall
+    /// returns) belong to the room too; off the map always does.
+    pub unknown_is_room: bool,
     /// The Lidar sees only the near side of a person, so the centroid of their points lies
     /// closer to it than their centre; clusters are moved this far away from the Lidar (m).
     pub centroid_offset_m: f64,
@@ -45,6 +53,8 @@ impl Default for LocaliserConfig {
     fn default() -> Self {
         Self {
             obstacle_margin_m: 0.2,
+            range_margin_fraction: 0.05,
+            unknown_is_room: true,
             centroid_offset_m: 0.0,
             cluster: ClusterConfig::default(),
             tracker: TrackerConfig::default(),
@@ -70,6 +80,7 @@ impl LocaliserConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         let non_negative = [
             ("obstacle_margin_m", self.obstacle_margin_m),
+            ("range_margin_fraction", self.range_margin_fraction),
             ("cluster.tolerance_m", self.cluster.tolerance_m),
             ("tracker.gate_growth_mps", self.tracker.gate_growth_mps),
             ("tracker.part_merge_m", self.tracker.part_merge_m),
@@ -535,14 +546,21 @@ impl Localiser {
                 return result;
             }
             Reference::Map(map) => {
-                let margin = self.config.obstacle_margin_m as f32;
+                let margin2 = self.config.obstacle_margin_m.powi(2) as f32;
+                let fraction2 = self.config.range_margin_fraction.powi(2) as f32;
+                let unknown_is_room = self.config.unknown_is_room;
                 for (&r, &dir) in scan.ranges.iter().zip(directions) {
                     if !scan.is_return(r) {
                         continue;
                     }
                     let p = to_map.transform_point2(dir * f64::from(r));
                     // Off the map is outside the room: never the person.
-                    if map.distance_to_obstacle(p).is_some_and(|d| d >= margin) {
+                    let clearance = if unknown_is_room {
+                        map.free_clearance(p)
+                    } else {
+                        map.distance_to_obstacle(p)
+                    };
+                    if clearance.is_some_and(|d| d * d >= margin2 + fraction2 * r * r) {
                         self.foreground.push(p);
                     }
                 }

@@ -53,6 +53,8 @@ pub struct OccupancyMap {
     /// Map frame -> grid coordinates (in cells), precomputed so a lookup needs no `sin_cos`.
     map_to_grid: DAffine2,
     occupied: Vec<bool>,
+    /// Cells whose state is unknown (outside the walls, never scanned); empty when all are known.
+    unknown: Vec<bool>,
     /// Metres to the nearest occupied cell, row-major; `f32::INFINITY` when there is none.
     distance_m: Vec<f32>,
 }
@@ -98,13 +100,36 @@ impl OccupancyMap {
             geometry,
             map_to_grid,
             occupied,
+            unknown: Vec::new(),
             distance_m,
         })
     }
 
+    /// Like [`OccupancyMap::new`], with the cells whose state is unknown (same layout).
+    pub fn with_unknown(
+        geometry: MapGeometry,
+        occupied: Vec<bool>,
+        unknown: Vec<bool>,
+    ) -> Result<Self, MapError> {
+        if unknown.len() != occupied.len() {
+            return Err(MapError::CellCount {
+                width: geometry.width,
+                height: geometry.height,
+                expected: occupied.len(),
+                got: unknown.len(),
+            });
+        }
+        let mut map = Self::new(geometry, occupied)?;
+        if unknown.contains(&true) {
+            map.unknown = unknown;
+        }
+        Ok(map)
+    }
+
     /// Builds the map from `nav_msgs/OccupancyGrid` values: 0..=100 is the occupancy
     /// probability in percent, -1 (or anything outside 0..=100) unknown. A cell is an obstacle
-    /// when its probability exceeds `occupied_thresh` (map_server's meaning; 0.65 there).
+    /// when its probability exceeds `occupied_thresh` (map_server's meaning; 0.65 there); -1 is
+    /// unknown.
     pub fn from_grid_values(
         geometry: MapGeometry,
         values: &[i8],
@@ -118,7 +143,8 @@ impl OccupancyMap {
             .iter()
             .map(|&v| (0..=100).contains(&v) && f64::from(v) > limit)
             .collect();
-        Self::new(geometry, occupied)
+        let unknown = values.iter().map(|v| !(0..=100).contains(v)).collect();
+        Self::with_unknown(geometry, occupied, unknown)
     }
 
     pub fn geometry(&self) -> &MapGeometry {
@@ -144,6 +170,24 @@ impl OccupancyMap {
         col < self.geometry.width
             && row < self.geometry.height
             && self.occupied[row * self.geometry.width + col]
+    }
+
+    /// Whether the cell `(col, row)` is of unknown state (false off the map).
+    pub fn is_unknown(&self, col: usize, row: usize) -> bool {
+        col < self.geometry.width
+            && row < self.geometry.height
+            && self.unknown.get(row * self.geometry.width + col) == Some(&true)
+    }
+
+    /// Metres from the cell holding `p` to the nearest obstacle when that cell is known to be
+    /// free; `None` when `p` is off the map, in an unknown cell or in an obstacle.
+    pub fn free_clearance(&self, p: DVec2) -> Option<f32> {
+        let (col, row) = self.cell_of(p)?;
+        let i = row * self.geometry.width + col;
+        if self.occupied[i] || self.unknown.get(i) == Some(&true) {
+            return None;
+        }
+        Some(self.distance_m[i])
     }
 
     /// Metres from the cell holding `p` to the nearest obstacle (`INFINITY` on a map without
@@ -350,6 +394,33 @@ mod tests {
             occ,
             [false, false, false, true, true, false, false, false, true]
         );
+        let unknown: Vec<bool> = (0..9).map(|c| map.is_unknown(c, 0)).collect();
+        assert_eq!(
+            unknown,
+            [false, false, false, false, false, true, true, true, false]
+        );
+        // Only known free cells have a clearance; occupied, unknown and off-map have none.
+        let at = |x: f64| map.free_clearance(DVec2::new(x, 0.5));
+        assert_eq!(at(0.5), Some(3.0));
+        assert_eq!(at(2.5), Some(1.0));
+        assert_eq!((at(3.5), at(5.5), at(-0.5)), (None, None, None));
+        assert_eq!(map.distance_to_obstacle(DVec2::new(5.5, 0.5)), Some(1.0));
+    }
+
+    #[test]
+    fn unknown_flags_must_match_the_grid() {
+        assert!(matches!(
+            OccupancyMap::with_unknown(geometry(2, 2, 0.1), vec![false; 4], vec![true; 3]),
+            Err(MapError::CellCount {
+                expected: 4,
+                got: 3,
+                ..
+            })
+        ));
+        let all_known =
+            OccupancyMap::with_unknown(geometry(2, 1, 1.0), vec![true, false], vec![false; 2])
+                .unwrap();
+        assert_eq!(all_known.free_clearance(DVec2::new(1.5, 0.5)), Some(1.0));
     }
 
     #[test]

@@ -28,6 +28,7 @@ use lidar_har_core::localiser_accuracy::{
 use lidar_har_core::map::{MapGeometry, OccupancyMap as CoreMap};
 use lidar_har_core::scan::Scan;
 use lidar_har_pipeline::files::load_config;
+use lidar_har_sim::body::Capsule;
 use lidar_har_sim::map::{DEFAULT_RESOLUTION, OccupancyMap as SimMap};
 use lidar_har_sim::scene::Motion as RobotMotion;
 use lidar_har_sim::{BeamLabel, Scene, Simulator};
@@ -56,23 +57,40 @@ struct Args {
     /// Also print one line per run (scene, motion, seed).
     #[arg(long)]
     per_run: bool,
+    /// Print every scan of the runs of this scene (by name) to stderr, for diagnosis.
+    #[arg(long)]
+    trace: Option<String>,
     /// Write the per-scene, per-activity and overall figures as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
 }
 
-/// A tally plus the radial offsets of the person's visible points (truth minus centroid,
-/// along the line of sight from the Lidar: positive when the truth lies beyond the points).
+/// Tallies against the two truths, the radial offsets of the person's visible points (truth
+/// minus centroid along the line of sight from the Lidar: positive when the truth lies
+/// beyond the points) and why in-sight scans were off the person.
 #[derive(Default, Clone)]
 struct Group {
+    /// Against the published ground truth (/ground_truth/human_pose: the pelvis on the floor).
     tally: AccuracyTally,
+    /// Against the centre of the body's cut by the scan plane.
+    centre_tally: AccuracyTally,
     radial_m: Vec<f64>,
+    /// In-sight scans with no person reported.
+    missed: u64,
+    /// In-sight scans with the person reported farther than `FAR_M` from the body centre.
+    far: u64,
 }
+
+/// A reported person this far from the body centre is on something else.
+const FAR_M: f64 = 1.5;
 
 impl Group {
     fn merge(&mut self, other: &Group) {
         self.tally.merge(&other.tally);
+        self.centre_tally.merge(&other.centre_tally);
         self.radial_m.extend_from_slice(&other.radial_m);
+        self.missed += other.missed;
+        self.far += other.far;
     }
 
     fn radial_median(&self) -> Option<f64> {
@@ -85,9 +103,13 @@ impl Group {
 #[derive(serde::Serialize)]
 struct Row {
     name: String,
-    #[serde(flatten)]
-    report: AccuracyReport,
+    /// Against /ground_truth/human_pose (the pelvis).
+    pelvis: AccuracyReport,
+    /// Against the centre of the body's cut by the scan plane.
+    body_centre: AccuracyReport,
     radial_bias_median_m: Option<f64>,
+    in_sight_missed: u64,
+    in_sight_far: u64,
 }
 
 fn main() -> Result<(), Box<dyn Error>> {
@@ -129,7 +151,8 @@ fn main() -> Result<(), Box<dyn Error>> {
                 let sim = Simulator::new(variant.clone(), seed)
                     .map_err(|e| format!("{} with {motion_name} robot: {e}", path.display()))?;
                 let mut run_activity: BTreeMap<usize, Group> = BTreeMap::new();
-                run_scene(sim, &config, &criteria, &mut run_activity)?;
+                let trace = args.trace.as_deref() == Some(scene.name.as_str());
+                run_scene(sim, &config, &criteria, trace, &mut run_activity)?;
                 runs += 1;
                 let mut run = Group::default();
                 for (activity, group) in &run_activity {
@@ -159,6 +182,12 @@ fn main() -> Result<(), Box<dyn Error>> {
         criteria.on_person_m,
         config.centroid_offset_m
     );
+    println!(
+        "columns: scans; % in sight; % seen | error (m) median, p95, % continuity against \
+         /ground_truth/human_pose (the pelvis) | the same against the centre of the body's cut \
+         by the scan plane | radial bias (m) | % of in-sight scans with no person reported, \
+         with the person reported > {FAR_M} m away"
+    );
     print_header("scene");
     for (name, group) in &by_scene {
         print_row(name, group);
@@ -179,8 +208,11 @@ fn main() -> Result<(), Box<dyn Error>> {
                 .into_iter()
                 .map(|(name, g)| Row {
                     name,
-                    report: g.tally.report(),
+                    pelvis: g.tally.report(),
+                    body_centre: g.centre_tally.report(),
                     radial_bias_median_m: g.radial_median(),
+                    in_sight_missed: g.missed,
+                    in_sight_far: g.far,
                 })
                 .collect()
         };
@@ -229,6 +261,7 @@ fn run_scene(
     mut sim: Simulator,
     config: &LocaliserConfig,
     criteria: &AccuracyCriteria,
+    trace: bool,
     by_activity: &mut BTreeMap<usize, Group>,
 ) -> Result<(), Box<dyn Error>> {
     let map = core_map(&SimMap::from_world(sim.world(), DEFAULT_RESOLUTION))?;
@@ -238,6 +271,7 @@ fn run_scene(
     };
     let mut localiser = Localiser::new(config, Reference::Map(map), Motion::Odometry)?;
     let geometry = sim.scan_geometry();
+    let plane_height = sim.scene().robot.lidar_height;
     while let Some(frame) = sim.step() {
         let stamp = frame.stamp_ns as i64;
         localiser.add_odometry(stamp, frame.robot);
@@ -258,18 +292,53 @@ fn run_scene(
         let estimate = result.output.as_ref().and_then(|o| o.person.as_ref());
         let truth = frame.person.map(|p| p.pose.position());
         let activity = frame.person.map_or(0, |p| p.activity.index());
+        if trace && let (Some(output), Some(person)) = (&result.output, frame.person) {
+            let reported = output.person.as_ref();
+            eprintln!(
+                "{} t={:.2} truth=({:.2}, {:.2}) {} beams={person_beams} clusters={} reported={:?}",
+                sim.scene().name,
+                frame.index as f64 / sim.scene().lidar.rate_hz,
+                person.pose.x,
+                person.pose.y,
+                person.activity,
+                output.clusters,
+                reported.map(|e| (e.track_id, e.position, e.visible)),
+            );
+        }
+        let centre = frame
+            .person
+            .and_then(|p| plane_centre(&p.parts, plane_height))
+            .or(truth);
         let group = by_activity.entry(activity).or_default();
+        let reported = estimate.map(|e| ReportedPerson {
+            position: e.position,
+            visible: e.visible,
+        });
         group.tally.add(
             &ScanOutcome {
                 truth,
                 person_beams,
-                reported: estimate.map(|e| ReportedPerson {
-                    position: e.position,
-                    visible: e.visible,
-                }),
+                reported,
             },
             criteria,
         );
+        group.centre_tally.add(
+            &ScanOutcome {
+                truth: centre,
+                person_beams,
+                reported,
+            },
+            criteria,
+        );
+        if let Some(centre) = centre
+            && person_beams >= criteria.min_person_beams
+        {
+            match reported {
+                None => group.missed += 1,
+                Some(r) if r.position.distance(centre) > FAR_M => group.far += 1,
+                Some(_) => {}
+            }
+        }
         if let (Some(e), Some(truth)) = (estimate, truth)
             && e.visible
             && !e.points.is_empty()
@@ -296,29 +365,65 @@ fn core_map(sim_map: &SimMap) -> Result<CoreMap, Box<dyn Error>> {
     Ok(CoreMap::from_grid_values(geometry, &sim_map.data, 0.65)?)
 }
 
+/// Centre of the body's cut by the plane `z = height`: capsule axes sampled every ~2 cm,
+/// each sample inside the plane's reach weighted by the half-width of its cut there.
+fn plane_centre(parts: &[Capsule], height: f64) -> Option<DVec2> {
+    let (mut sum, mut weight) = (DVec2::ZERO, 0.0);
+    for part in parts {
+        let samples = ((part.a.distance(part.b) / 0.02).ceil() as usize).max(1);
+        for k in 0..=samples {
+            let p = part.a.lerp(part.b, k as f64 / samples as f64);
+            let dz = p.z - height;
+            if dz.abs() < part.radius {
+                let w = (part.radius * part.radius - dz * dz).sqrt();
+                sum += w * p.truncate();
+                weight += w;
+            }
+        }
+    }
+    (weight > 0.0).then(|| sum / weight)
+}
+
 fn activity_name(index: usize) -> &'static str {
     Activity::from_index(index).map_or("?", Activity::label)
 }
 
 fn print_header(what: &str) {
     println!(
-        "\n{what:<22} {:>7} {:>8} {:>8} {:>8} {:>8} {:>10} {:>9}",
-        "scans", "in sight", "visible", "median", "p95", "continuity", "radial"
+        "\n{what:<20} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>5} {:>5}",
+        "scans",
+        "insght",
+        "seen",
+        "median",
+        "p95",
+        "contin",
+        "median",
+        "p95",
+        "contin",
+        "radial",
+        "miss",
+        "far"
     );
 }
 
 fn print_row(name: &str, group: &Group) {
-    let r = group.tally.report();
-    let pct = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.1} %", 100.0 * v));
+    let (r, c) = (group.tally.report(), group.centre_tally.report());
+    let pct = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.1}", 100.0 * v));
     let m = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.3}"));
+    let share = |n: u64| pct((r.in_sight_scans > 0).then(|| n as f64 / r.in_sight_scans as f64));
     println!(
-        "{name:<22} {:>7} {:>8} {:>8} {:>8} {:>8} {:>10} {:>9}",
+        "{name:<20} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>5} {:>5}",
         r.scans,
         pct(r.in_sight_ratio),
         pct(r.visible_ratio),
         m(r.error_median_m),
         m(r.error_p95_m),
         pct(r.continuity),
+        m(c.error_median_m),
+        m(c.error_p95_m),
+        pct(c.continuity),
         m(group.radial_median()),
+        share(group.missed),
+        share(group.far),
     );
 }

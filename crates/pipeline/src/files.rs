@@ -176,6 +176,7 @@ pub fn load_map(yaml_path: &Path) -> Result<OccupancyMap, FileError> {
         .to_luma8();
     let (width, height) = (image.width() as usize, image.height() as usize);
     let mut occupied = vec![false; width * height];
+    let mut unknown = vec![false; width * height];
     for (x, y, pixel) in image.enumerate_pixels() {
         let value = f64::from(pixel.0[0]);
         let occupancy = match (spec.mode == MapMode::Raw, spec.negate.is_set()) {
@@ -185,7 +186,14 @@ pub fn load_map(yaml_path: &Path) -> Result<OccupancyMap, FileError> {
         };
         // Image row 0 is the top of the map, grid row 0 its bottom (at the origin).
         let row = height - 1 - y as usize;
-        occupied[row * width + x as usize] = occupancy > spec.occupied_thresh;
+        let cell = row * width + x as usize;
+        occupied[cell] = occupancy > spec.occupied_thresh;
+        // map_server: between the thresholds is unknown; in raw mode, values above 100 are.
+        unknown[cell] = if spec.mode == MapMode::Raw {
+            value > 100.0
+        } else {
+            !occupied[cell] && occupancy >= spec.free_thresh
+        };
     }
     let [x, y, theta] = spec.origin;
     let geometry = MapGeometry {
@@ -194,7 +202,7 @@ pub fn load_map(yaml_path: &Path) -> Result<OccupancyMap, FileError> {
         width,
         height,
     };
-    OccupancyMap::new(geometry, occupied).map_err(|source| FileError::Map {
+    OccupancyMap::with_unknown(geometry, occupied, unknown).map_err(|source| FileError::Map {
         path: path(),
         source,
     })
@@ -240,6 +248,9 @@ mod tests {
         );
         // Centre of that cell in the map frame: (-1 + 0.25, -1 + 1.25).
         assert_eq!(map.distance_to_obstacle(DVec2::new(-0.75, 0.25)), Some(0.0));
+        // The grey pixel (bottom-right of the image: grid row 0, column 3) is unknown.
+        assert!(map.is_unknown(3, 0));
+        assert!(!map.is_unknown(2, 0) && !map.is_unknown(0, 2));
     }
 
     #[test]
