@@ -302,7 +302,13 @@ fn run_scene(
                 person.pose.y,
                 person.activity,
                 output.clusters,
-                reported.map(|e| (e.track_id, e.position, e.visible)),
+                reported.map(|e| (
+                    e.track_id,
+                    e.position,
+                    e.visible,
+                    e.velocity,
+                    e.points.iter().sum::<DVec2>() / e.points.len().max(1) as f64
+                )),
             );
         }
         let centre = frame
