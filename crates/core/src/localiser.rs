@@ -34,6 +34,10 @@ pub struct LocaliserConfig {
     /// obstacle. 0.05 is 2.5 standard deviations of the paper's 2 % range noise: at 10 m
     /// it keeps far walls' noisy returns (sigma 0.2 m) from becoming clutter.
     pub range_margin_fraction: f64,
+    /// Inside the tracked person's gate the margin is this instead of `obstacle_margin_m`
+    /// (still widened with range), so a person lying or sitting against a wall or furniture
+    /// keeps their points; range noise rarely pushes a wall's returns this far (m).
+    pub near_person_margin_m: f64,
     /// Returns in cells of unknown state (behind the walls, where range noise puts some wall
     /// returns) belong to the room too; off the map always does.
     pub unknown_is_room: bool,
@@ -57,6 +61,7 @@ impl Default for LocaliserConfig {
         Self {
             obstacle_margin_m: 0.2,
             range_margin_fraction: 0.05,
+            near_person_margin_m: 0.08,
             unknown_is_room: true,
             centroid_offset_m: 0.06,
             cluster: ClusterConfig::default(),
@@ -84,6 +89,7 @@ impl LocaliserConfig {
         let non_negative = [
             ("obstacle_margin_m", self.obstacle_margin_m),
             ("range_margin_fraction", self.range_margin_fraction),
+            ("near_person_margin_m", self.near_person_margin_m),
             ("cluster.tolerance_m", self.cluster.tolerance_m),
             ("tracker.gate_growth_mps", self.tracker.gate_growth_mps),
             ("tracker.part_merge_m", self.tracker.part_merge_m),
@@ -551,6 +557,8 @@ impl Localiser {
             Reference::Map(map) => {
                 let margin2 = self.config.obstacle_margin_m.powi(2) as f32;
                 let fraction2 = self.config.range_margin_fraction.powi(2) as f32;
+                let near2 = self.config.near_person_margin_m.powi(2) as f32;
+                let person_zone = self.tracker.person_prediction(scan.stamp_ns);
                 let unknown_is_room = self.config.unknown_is_room;
                 for (&r, &dir) in scan.ranges.iter().zip(directions) {
                     if !scan.is_return(r) {
@@ -563,7 +571,12 @@ impl Localiser {
                     } else {
                         map.distance_to_obstacle(p)
                     };
-                    if clearance.is_some_and(|d| d * d >= margin2 + fraction2 * r * r) {
+                    let Some(clearance) = clearance else { continue };
+                    let (d2, noise2) = (clearance * clearance, fraction2 * r * r);
+                    let near_person = || {
+                        person_zone.is_some_and(|(c, gate)| p.distance_squared(c) <= gate * gate)
+                    };
+                    if d2 >= margin2 + noise2 || (d2 >= near2 + noise2 && near_person()) {
                         self.foreground.push(p);
                     }
                 }
@@ -624,6 +637,11 @@ mod tests {
 
     /// Ray-casts a 720-beam scan from `laser` in the room with a round person of radius 0.2 m.
     fn cast(stamp_ns: i64, laser: Pose2, person: Option<DVec2>) -> Scan {
+        cast_with_radius(stamp_ns, laser, person, 0.2)
+    }
+
+    /// [`cast`] with a person of any radius.
+    fn cast_with_radius(stamp_ns: i64, laser: Pose2, person: Option<DVec2>, radius: f64) -> Scan {
         let n = 720;
         let inc = std::f64::consts::TAU / n as f64;
         let ranges = (0..n)
@@ -646,7 +664,7 @@ mod tests {
                 if let Some(c) = person {
                     let oc = o - c;
                     let b = oc.dot(d);
-                    let disc = b * b - (oc.length_squared() - 0.04);
+                    let disc = b * b - (oc.length_squared() - radius * radius);
                     if disc >= 0.0 {
                         let t = -b - disc.sqrt();
                         if t > 0.0 {
@@ -733,6 +751,33 @@ mod tests {
         // The near arc of a 0.2 m cylinder has its centroid about pi/4 x 0.2 m in front.
         assert!(error_with(0.0) > 0.12, "{}", error_with(0.0));
         assert!(error_with(0.157) < 0.03, "{}", error_with(0.157));
+    }
+
+    #[test]
+    fn a_tracked_person_who_lies_down_against_a_wall_keeps_their_points() {
+        // A thin body (radius 8 cm, a torso seen edge-on) moves up to the wall at y = 4.95:
+        // its points end 0.11-0.19 m from the wall, inside the 0.2 m margin.
+        let laser = Pose2::new(1.0, 4.0, 0.0);
+        let seen_at_the_wall = |near_person_margin_m: f64| {
+            let config = LocaliserConfig {
+                near_person_margin_m,
+                ..LocaliserConfig::default()
+            };
+            let mut loc =
+                Localiser::new(config, Reference::Map(room()), Motion::Stationary(laser)).unwrap();
+            let mut seen = 0;
+            for k in 0..40 {
+                let y = (4.3 + 0.03 * k as f64).min(4.95 - 0.08 - 0.03);
+                let scan = cast_with_radius(k * PERIOD_NS, laser, Some(DVec2::new(1.0, y)), 0.08);
+                let out = loc.process_scan(&scan).output.unwrap();
+                if k >= 30 && out.person.is_some_and(|p| p.visible) {
+                    seen += 1;
+                }
+            }
+            seen
+        };
+        assert_eq!(seen_at_the_wall(0.08), 10);
+        assert_eq!(seen_at_the_wall(0.2), 0, "the plain margin hides them");
     }
 
     #[test]

@@ -348,6 +348,18 @@ impl Tracker {
         })
     }
 
+    /// Where the person's track expects them at `stamp_ns` (not before its last update), and
+    /// the radius of its gate there; `None` when no person is tracked.
+    pub fn person_prediction(&self, stamp_ns: i64) -> Option<(DVec2, f64)> {
+        let track = self.person_track()?;
+        let dt = ((stamp_ns - track.stamp_ns) as f64 * 1e-9).max(0.0);
+        let velocity = DVec2::new(track.x.vel, track.y.vel);
+        Some((
+            track.position() + velocity * dt,
+            track.gate(stamp_ns, &self.config),
+        ))
+    }
+
     fn person_track(&self) -> Option<&Track> {
         self.person
             .and_then(|id| self.tracks.iter().find(|t| t.id == id))
