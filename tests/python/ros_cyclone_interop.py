@@ -1,13 +1,17 @@
 """Eclipse Cyclone DDS on the other side of the lidar_har nodes (run inside a private network
 namespace by tests/tests/ros_nodes.rs).
 
-    ros_cyclone_interop.py receive TOPIC COUNT TIMEOUT   JSON line per message on stdout
+    ros_cyclone_interop.py receive TOPIC COUNT TIMEOUT [MIN]   JSON line per message on stdout
+                                   (SIGTERM: stop waiting, succeed if MIN came)
+    ros_cyclone_interop.py receive-topics TIMEOUT TOPIC=COUNT...
+                                   every reader made first; {"topic", "msg"} JSON lines
     ros_cyclone_interop.py publish-scan COUNT RATE_HZ    LaserScans with ranges [i, i, ...]
 
 Topics use ROS 2 naming (`rt/` prefix) and the QoS of DESIGN.md's contract.
 """
 
 import json
+import signal
 import sys
 import time
 from dataclasses import asdict
@@ -30,19 +34,64 @@ TYPES = {
 }
 
 
+def valid_samples(reader):
+    """Takes up to 16 samples, leaving out the data-less ones Cyclone delivers when an
+    instance changes state (e.g. no writers left after the publisher exits)."""
+    for sample in reader.take(N=16):
+        info = getattr(sample, "sample_info", None)
+        if info is None or info.valid_data:
+            yield sample
+
+
+STOP = []
+
+
+def stop_on_sigterm():
+    """SIGTERM ends a receive loop early (the publisher is known to be done), not the process."""
+    signal.signal(signal.SIGTERM, lambda *_: STOP.append(True))
+
+
 def receive(participant, topic_name, count, timeout, minimum):
     """Prints up to `count` samples as JSON lines; succeeds when at least `minimum` came
-    (best-effort topics may lose the first samples while discovery completes)."""
+    (best-effort topics may lose the first samples while discovery completes). SIGTERM stops
+    the wait early."""
     cls, qos = TYPES[topic_name]
     reader = DataReader(participant, Topic(participant, "rt" + topic_name, cls), qos=qos)
     got = 0
     end = time.monotonic() + timeout
-    while got < count and time.monotonic() < end:
-        for sample in reader.take(N=16):
+    stop_on_sigterm()
+    while got < count and time.monotonic() < end and not STOP:
+        for sample in valid_samples(reader):
             print(json.dumps(asdict(sample)), flush=True)
             got += 1
         time.sleep(0.005)
     return 0 if got >= minimum else 1
+
+
+def receive_topics(participant, timeout, wanted):
+    """Reads every topic of `wanted` ({topic: count}) at once, all readers created before
+    the first take, and prints {"topic", "msg"} JSON lines; succeeds when each topic brought
+    its count (meant for reliable topics, where nothing may be lost)."""
+    readers = {}
+    for topic_name in wanted:
+        cls, qos = TYPES[topic_name]
+        readers[topic_name] = DataReader(participant, Topic(participant, "rt" + topic_name, cls),
+                                         qos=qos)
+    stamps = {topic_name: [] for topic_name in wanted}
+    end = time.monotonic() + timeout
+    while any(len(stamps[t]) < wanted[t] for t in wanted) and time.monotonic() < end:
+        for topic_name, reader in readers.items():
+            for sample in valid_samples(reader):
+                print(json.dumps({"topic": topic_name, "msg": asdict(sample)}), flush=True)
+                stamps[topic_name].append(f"{sample.header.stamp.sec}.{sample.header.stamp.nanosec:09d}")
+        time.sleep(0.005)
+    ok = True
+    for topic_name in wanted:
+        if len(stamps[topic_name]) != wanted[topic_name]:
+            ok = False
+            print(f"{topic_name}: received {len(stamps[topic_name])} of {wanted[topic_name]}"
+                  f" (stamps {' '.join(stamps[topic_name])})", file=sys.stderr)
+    return 0 if ok else 1
 
 
 def publish_scans(participant, count, rate_hz):
@@ -66,6 +115,9 @@ def main(argv):
     if argv[1] == "receive":
         minimum = int(argv[5]) if len(argv) > 5 else int(argv[3])
         return receive(participant, argv[2], int(argv[3]), float(argv[4]), minimum)
+    if argv[1] == "receive-topics":
+        wanted = {t: int(n) for t, n in (arg.split("=", 1) for arg in argv[3:])}
+        return receive_topics(participant, float(argv[2]), wanted)
     if argv[1] == "publish-scan":
         return publish_scans(participant, int(argv[2]), float(argv[3]))
     print(f"unknown mode {argv[1]!r}", file=sys.stderr)

@@ -11,6 +11,8 @@ use std::time::Duration;
 use lidar_har_bag::{BagWriter, WriterOptions};
 use lidar_har_e2e::{checker_python, repo_root, workspace_bin};
 use lidar_har_msgs::builtin_interfaces::Time;
+use lidar_har_msgs::geometry_msgs::Point;
+use lidar_har_msgs::lidar_har_msgs::{Activity, FallAlert};
 use lidar_har_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
 use lidar_har_msgs::sensor_msgs::LaserScan;
 use lidar_har_msgs::std_msgs::Header;
@@ -340,6 +342,79 @@ echo "zombies=$(ps -o stat= --ppid $$ | grep -c Z)"
     }
 }
 
+/// Activity `i` of the alert bag: every field set to something that tells messages apart.
+fn activity(i: usize) -> Activity {
+    let class = (i % usize::from(Activity::NUM_CLASSES)) as u8;
+    let mut probabilities = vec![0.0125 * (i % 7) as f32; usize::from(Activity::NUM_CLASSES)];
+    probabilities[usize::from(class)] = 0.6 + 0.01 * i as f32;
+    Activity {
+        header: Header::new(Time::from_nanos(T0_NS + 50_000_000 * i as i64), "map"),
+        activity: class,
+        label: Activity::LABELS[usize::from(class)].to_string(),
+        confidence: probabilities[usize::from(class)],
+        probabilities,
+    }
+}
+
+/// The fall alerts of the alert bag, with their log times.
+fn fall_alerts() -> Vec<(i64, FallAlert)> {
+    let alert = |t_ns: i64, kind: u8, x: f64, description: &str| {
+        let alert = FallAlert {
+            header: Header::new(Time::from_nanos(t_ns), "map"),
+            kind,
+            position: Point {
+                x,
+                y: -1.0 / 3.0,
+                z: 0.0,
+            },
+            confidence: 0.875,
+            event_time: Time::from_nanos(t_ns - 400_000_000),
+            description: description.to_string(),
+        };
+        (t_ns, alert)
+    };
+    vec![
+        alert(
+            T0_NS + 500_000_000,
+            FallAlert::FALL_DETECTED,
+            2.25,
+            "fall detected: falling_down",
+        ),
+        alert(
+            T0_NS + 1_200_000_000,
+            FallAlert::PERSON_DOWN,
+            2.5e-3,
+            "person down for 0.8 s (lying_down) \u{2014} near the bed",
+        ),
+    ]
+}
+
+const ALERT_BAG_ACTIVITIES: usize = 30;
+
+/// A bag with 1.5 s of /human/activity at 20 Hz and two /human/fall_alert messages.
+fn write_alert_bag(dir: &Path) -> PathBuf {
+    let path = dir.join("alerts");
+    let mut w = BagWriter::create(&path, WriterOptions::default()).unwrap();
+    let activity_topic = w
+        .add_topic_for::<Activity>(topics::HUMAN_ACTIVITY.name, topics::HUMAN_ACTIVITY.qos)
+        .unwrap();
+    let alert_topic = w
+        .add_topic_for::<FallAlert>(topics::FALL_ALERT.name, topics::FALL_ALERT.qos)
+        .unwrap();
+    let mut alerts = fall_alerts().into_iter().peekable();
+    for i in 0..ALERT_BAG_ACTIVITIES {
+        let a = activity(i);
+        let t = a.header.stamp.to_nanos();
+        while let Some((_, alert)) = alerts.next_if(|(at, _)| *at <= t) {
+            w.write_message(alert_topic, alert.header.stamp.to_nanos(), &alert)
+                .unwrap();
+        }
+        w.write_message(activity_topic, t, &a).unwrap();
+    }
+    w.finish().unwrap();
+    path
+}
+
 #[test]
 fn ros_cyclone_dds_interoperates_with_replay_and_topic_echo() {
     if !netns_available() {
@@ -351,12 +426,21 @@ fn ros_cyclone_dds_interoperates_with_replay_and_topic_echo() {
     let python = PathBuf::from(python.get_program());
     let dir = tempfile::tempdir().unwrap();
     let bag = write_bag(dir.path(), 40);
+    let alert_bag = write_alert_bag(dir.path());
     let script = r#"
 cd "$PYDIR"
+# Cyclone decodes our lidar_har_msgs (ROS 2 naming: rt/human/activity,
+# lidar_har_msgs::msg::dds_::Activity_), every reader created before the replay starts.
+"$PY" ros_cyclone_interop.py receive-topics 15 /human/fall_alert=2 /human/activity=30 > "$OUT/cyclone_alerts.jsonl" &
+C=$!
+"$REPLAY" --ros-args -p bag:="$ALERT_BAG" -p wait_for_subscriber:=/human/activity; echo "alert_replay=$?"
+wait $C; echo "cyclone_alerts=$?"
 # Cyclone receives what our replay publishes ...
 "$PY" ros_cyclone_interop.py receive /scan 40 15 36 > "$OUT/cyclone_scan.jsonl" &
 C=$!
 "$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan; echo "replay=$?"
+# Best effort: what has not come a second after the replay ended will not come.
+sleep 1; kill -TERM $C 2>/dev/null
 wait $C; echo "cyclone_receive=$?"
 # ... and our transport receives what Cyclone publishes.
 "$LH" topic echo /scan --count 20 --timeout 15 --require-count > "$OUT/echo_scan.jsonl" &
@@ -370,6 +454,7 @@ wait $E; echo "echo=$?"
             ("LH", &workspace_bin("lidar-har")),
             ("REPLAY", &workspace_bin("replay")),
             ("BAG", &bag),
+            ("ALERT_BAG", &alert_bag),
             ("OUT", dir.path()),
             ("PY", &python),
             ("PYDIR", &repo_root().join("tests/python")),
@@ -378,6 +463,8 @@ wait $E; echo "echo=$?"
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
     for want in [
+        "alert_replay=0",
+        "cyclone_alerts=0",
         "replay=0",
         "cyclone_receive=0",
         "cyclone_publish=0",
@@ -385,6 +472,27 @@ wait $E; echo "echo=$?"
     ] {
         assert!(stdout.contains(want), "expected {want}");
     }
+    // Field by field what was written, in order (reliable topics: nothing lost).
+    let (mut got_activities, mut got_alerts) = (Vec::new(), Vec::new());
+    for line in json_lines(&dir.path().join("cyclone_alerts.jsonl")) {
+        let msg = line["msg"].clone();
+        match line["topic"].as_str() {
+            Some("/human/activity") => got_activities.push(
+                serde_json::from_value::<Activity>(msg)
+                    .expect("Cyclone's Activity has the fields of ours"),
+            ),
+            Some("/human/fall_alert") => got_alerts.push(
+                serde_json::from_value::<FallAlert>(msg)
+                    .expect("Cyclone's FallAlert has the fields of ours"),
+            ),
+            other => panic!("unexpected topic {other:?}"),
+        }
+    }
+    let want_activities: Vec<Activity> = (0..ALERT_BAG_ACTIVITIES).map(activity).collect();
+    assert_eq!(got_activities, want_activities);
+    let want_alerts: Vec<FallAlert> = fall_alerts().into_iter().map(|(_, a)| a).collect();
+    assert_eq!(got_alerts, want_alerts);
+
     let received = json_lines(&dir.path().join("cyclone_scan.jsonl"));
     let indices: Vec<usize> = received.iter().map(scan_index).collect();
     assert!(

@@ -400,6 +400,15 @@ impl PublisherBackend for DdsPublisher {
         }
         self.matched.load(Ordering::Relaxed)
     }
+
+    fn wait_for_acknowledgments(&self, timeout: Duration) -> Result<bool, RosError> {
+        self.writer
+            .wait_for_acknowledgments(timeout)
+            .map_err(|e| RosError::Topic {
+                topic: self.topic.clone(),
+                reason: format!("waiting for acknowledgements: {e}"),
+            })
+    }
 }
 
 struct DdsSubscriber {

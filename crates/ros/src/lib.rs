@@ -150,6 +150,7 @@ trait NodeBackend: Send + Sync {
 trait PublisherBackend: Send + Sync {
     fn publish(&self, cdr: &[u8]) -> Result<(), RosError>;
     fn subscription_count(&self) -> usize;
+    fn wait_for_acknowledgments(&self, timeout: Duration) -> Result<bool, RosError>;
 }
 
 trait SubscriberBackend: Send + Sync {
@@ -321,6 +322,14 @@ impl Publisher {
     /// Subscribers matched so far.
     pub fn subscription_count(&self) -> usize {
         self.inner.subscription_count()
+    }
+
+    /// Blocks until every matched reliable subscriber has acknowledged all that was
+    /// published, or `timeout` passes; true when they have (at once for best-effort topics).
+    /// A process that exits right after publishing would otherwise lose what was still
+    /// being sent or repaired.
+    pub fn wait_for_acknowledgments(&self, timeout: Duration) -> Result<bool, RosError> {
+        self.inner.wait_for_acknowledgments(timeout)
     }
 }
 

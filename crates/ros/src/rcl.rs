@@ -176,6 +176,14 @@ impl PublisherBackend for RclPublisher {
             .and_then(|publisher| publisher.get_inter_process_subscription_count().ok())
             .unwrap_or(0)
     }
+
+    /// r2r 0.9 does not expose `rcl_publisher_wait_for_all_acked` (nor the rcl handle).
+    fn wait_for_acknowledgments(&self, _timeout: Duration) -> Result<bool, RosError> {
+        Err(RosError::Topic {
+            topic: self.topic.clone(),
+            reason: "waiting for acknowledgements is not available through r2r".into(),
+        })
+    }
 }
 
 type RawStream = Box<dyn Stream<Item = Vec<u8>> + Unpin + Send>;

@@ -4,7 +4,9 @@
 //!
 //! Parameters: `bag` (required), `rate` (1.0; 0 = as fast as possible), `loop`,
 //! `start_offset` (s into the bag), `topics` (only these; empty = all), `publish_clock`,
-//! `wait_for_subscriber` (a topic to wait on before playing, up to `wait_timeout` s).
+//! `wait_for_subscriber` (a topic to wait on before playing, up to `wait_timeout` s),
+//! `wait_for_all_acked` (s to wait at the end for reliable subscribers to acknowledge
+//! everything, so the last messages are not lost when the process exits; 0 = don't wait).
 
 use std::collections::HashMap;
 use std::process::ExitCode;
@@ -62,6 +64,11 @@ fn decls() -> Vec<ParamDecl> {
             V::Double(10.0),
             "seconds to wait for that subscriber",
         ),
+        ParamDecl::new(
+            "wait_for_all_acked",
+            V::Double(2.0),
+            "seconds to wait at the end for reliable subscribers to acknowledge all messages",
+        ),
     ]
 }
 
@@ -74,6 +81,7 @@ struct Settings {
     publish_clock: bool,
     wait_for: String,
     wait_timeout: Duration,
+    acked_timeout: Duration,
 }
 
 impl Settings {
@@ -89,6 +97,7 @@ impl Settings {
         let rate = p.f64_checked("rate", ">= 0 (0 = as fast as possible)", |v| v >= 0.0)?;
         let offset = p.f64_checked("start_offset", ">= 0 seconds", |v| v >= 0.0)?;
         let wait = p.f64_checked("wait_timeout", ">= 0 seconds", |v| v >= 0.0)?;
+        let acked = p.f64_checked("wait_for_all_acked", ">= 0 seconds", |v| v >= 0.0)?;
         Ok(Self {
             bag,
             rate,
@@ -98,6 +107,7 @@ impl Settings {
             publish_clock: p.bool("publish_clock")?,
             wait_for: p.string("wait_for_subscriber")?,
             wait_timeout: Duration::from_secs_f64(wait),
+            acked_timeout: Duration::from_secs_f64(acked),
         })
     }
 }
@@ -196,5 +206,27 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
         }
     }
     log::info!("replay: played {played} messages from {}", settings.bag);
+    if !shutdown.requested() && !settings.acked_timeout.is_zero() {
+        wait_for_all_acked(publishers.values(), settings.acked_timeout);
+    }
     Ok(())
+}
+
+/// Waits, up to `timeout` in all, until the reliable subscribers acknowledged everything.
+fn wait_for_all_acked<'a>(publishers: impl Iterator<Item = &'a Publisher>, timeout: Duration) {
+    let deadline = Instant::now() + timeout;
+    for publisher in publishers {
+        let left = deadline.saturating_duration_since(Instant::now());
+        match publisher.wait_for_acknowledgments(left) {
+            Ok(true) => {}
+            Ok(false) => log::warn!(
+                "replay: {}: not every subscriber acknowledged within {timeout:?}",
+                publisher.topic()
+            ),
+            Err(e) => {
+                log::warn!("replay: {e}");
+                return;
+            }
+        }
+    }
 }
