@@ -151,3 +151,58 @@ fn run_with_a_model_records_activities_and_scores_them() {
     }
     assert_eq!(count, classified);
 }
+
+#[test]
+fn alerts_measures_latency_and_false_alerts_end_to_end() {
+    if !runtime_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let report = tmp.path().join("alerts.json");
+    let out = lidar_har(&[
+        "alerts",
+        "--model",
+        path(&repo_root().join("models/activity.onnx")),
+        "--scenes",
+        "config/scenes/living_room.yaml",
+        "--fall-episodes",
+        "1",
+        "--no-fall-hours",
+        "0.01",
+        "--episode-seconds",
+        "20",
+        "--out",
+        path(&report),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("falls:") && stdout.contains("without falls:"),
+        "{stdout}"
+    );
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let falls = r["falls"].as_u64().unwrap();
+    assert!(falls >= 1, "a fall episode's script has a fall: {r}");
+    assert_eq!(r["outcomes"].as_array().unwrap().len() as u64, falls);
+    assert!(r["falls_alerted_within_target"].as_u64() <= r["falls_alerted"].as_u64());
+    assert!((r["no_fall_hours"].as_f64().unwrap() - 20.0 * 2.0 / 3600.0).abs() < 1e-9);
+    let false_alerts = r["false_alerts"].as_u64().unwrap();
+    assert_eq!(
+        false_alerts,
+        r["false_fall_detected"].as_u64().unwrap() + r["false_person_down"].as_u64().unwrap()
+    );
+}
+
+#[test]
+fn alerts_without_a_model_names_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let missing = tmp.path().join("none.onnx");
+    let out = lidar_har(&["alerts", "--model", path(&missing)]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(path(&missing)), "{err}");
+}

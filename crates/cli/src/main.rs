@@ -28,6 +28,8 @@ enum Command {
     Dataset(cmd::dataset::DatasetArgs),
     /// Evaluate a model on a dataset against the paper's tables.
     Evaluate(cmd::evaluate::EvaluateArgs),
+    /// Measure the fall alerts end to end: latency after falls, false alerts without falls.
+    Alerts(cmd::alerts::AlertsArgs),
     /// The embedded demo: simulate a fall in the default scene, detect it, show the result.
     Demo(cmd::demo::DemoArgs),
     /// List and echo ROS 2 topics over DDS, without ROS 2 installed.
@@ -43,6 +45,7 @@ fn main() -> ExitCode {
         Command::Run(a) => cmd::run::run(a),
         Command::Dataset(a) => cmd::dataset::run(a),
         Command::Evaluate(a) => cmd::evaluate::run(a),
+        Command::Alerts(a) => cmd::alerts::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::Topic(c) => cmd::topic::run(c),
     };

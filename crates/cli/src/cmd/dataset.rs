@@ -19,6 +19,7 @@ use lidar_har_core::localiser::{Localiser, LocaliserConfig, Motion, Reference};
 use lidar_har_core::map::{MapGeometry, OccupancyMap as CoreMap};
 use lidar_har_core::representation::{Framing, Renderer, RepresentationKind, RepresentationSpec};
 use lidar_har_core::scan::Scan;
+use lidar_har_sim::lidar::ScanGeometry;
 use lidar_har_sim::map::{DEFAULT_RESOLUTION, OccupancyMap as SimMap};
 use lidar_har_sim::person::Person;
 use lidar_har_sim::scene::{
@@ -458,7 +459,7 @@ fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
 }
 
 /// Scenes matching the glob, sorted by path, each with a person (the activities come from it).
-fn load_scenes(pattern: &str) -> anyhow::Result<Vec<(String, Scene)>> {
+pub(crate) fn load_scenes(pattern: &str) -> anyhow::Result<Vec<(String, Scene)>> {
     let mut paths: Vec<PathBuf> = glob::glob(pattern)
         .with_context(|| format!("--scenes '{pattern}' is not a valid glob"))?
         .collect::<Result<_, _>>()
@@ -471,10 +472,7 @@ fn load_scenes(pattern: &str) -> anyhow::Result<Vec<(String, Scene)>> {
     for path in paths {
         let scene = Scene::load(&path)?;
         if scene.person.is_none() {
-            eprintln!(
-                "dataset: skipping {} (no person in the scene)",
-                path.display()
-            );
+            eprintln!("skipping {} (no person in the scene)", path.display());
             continue;
         }
         scenes.push((path.display().to_string(), scene));
@@ -535,54 +533,9 @@ fn run_episode(
     args: &DatasetArgs,
     renderer: &Renderer,
 ) -> anyhow::Result<EpisodeWindows> {
-    let mut rng = ChaCha8Rng::seed_from_u64(plan.seed ^ 0x5eed_da7a);
-    let mut scene = plan.scene.clone();
-    let world = World::new(&scene);
-    if args.fixed_lidar {
-        let spot = random_free_point(&world, &mut rng, 0.5).ok_or_else(|| {
-            anyhow::anyhow!("no free spot for a fixed Lidar in scene '{}'", scene.name)
-        })?;
-        scene.robot.start = PoseSpec {
-            x: spot.x,
-            y: spot.y,
-            yaw_deg: rng.random_range(-180.0..180.0),
-        };
-        scene.robot.motion = RobotMotionSpec::Static;
-    }
-    let mut simulator = None;
-    let mut last_error = None;
-    for attempt in 0..30 {
-        let Some(person) = random_person(&scene, &world, &mut rng, plan.seed + attempt) else {
-            continue;
-        };
-        let mut candidate = scene.clone();
-        candidate.person = Some(person);
-        match Simulator::new(candidate, plan.seed) {
-            Ok(sim) => {
-                simulator = Some(sim);
-                break;
-            }
-            Err(e) => last_error = Some(e),
-        }
-    }
-    let Some(mut sim) = simulator else {
-        bail!("no valid random activity script after 30 attempts (last error: {last_error:?})");
-    };
-
-    let map = core_map(&SimMap::from_world(sim.world(), DEFAULT_RESOLUTION))?;
-    let config = LocaliserConfig {
-        mount: sim.lidar_mount(),
-        ..LocaliserConfig::default()
-    };
-    let motion = if args.fixed_lidar {
-        Motion::Stationary(scene.robot.start.to_pose())
-    } else {
-        Motion::Odometry
-    };
-    let mut localiser =
-        Localiser::new(config, Reference::Map(map), motion).context("localiser configuration")?;
+    let mut sim = episode_simulator(&plan.scene, plan.seed, args.fixed_lidar, true)?;
+    let mut localiser = episode_localiser(&sim, args.fixed_lidar)?;
     let geometry = sim.scan_geometry();
-
     // Per scan: the person's points, the track position (if any), the Lidar position, the truth.
     let mut points: Vec<Vec<DVec2>> = Vec::new();
     let mut positions: Vec<Option<DVec2>> = Vec::new();
@@ -594,15 +547,7 @@ fn run_episode(
         if !args.fixed_lidar {
             localiser.add_odometry(stamp, frame.robot);
         }
-        let scan = Scan {
-            stamp_ns: stamp,
-            angle_min: geometry.angle_min as f32,
-            angle_increment: geometry.angle_increment as f32,
-            range_min: geometry.range_min as f32,
-            range_max: geometry.range_max as f32,
-            ranges: frame.ranges,
-        };
-        let result = localiser.process_scan(&scan);
+        let result = localiser.process_scan(&core_scan(&geometry, stamp, frame.ranges));
         let person = result.output.as_ref().and_then(|o| o.person.as_ref());
         match person {
             Some(p) if p.visible => {
@@ -671,6 +616,75 @@ fn run_episode(
         scans,
         visible,
     })
+}
+
+/// A simulator for one episode: `scene` with a random activity script covering the classes
+/// (with falls or without), the robot static at a random free spot when `fixed_lidar`.
+pub(crate) fn episode_simulator(
+    scene: &Scene,
+    seed: u64,
+    fixed_lidar: bool,
+    falls: bool,
+) -> anyhow::Result<Simulator> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_da7a);
+    let mut scene = scene.clone();
+    let world = World::new(&scene);
+    if fixed_lidar {
+        let spot = random_free_point(&world, &mut rng, 0.5).ok_or_else(|| {
+            anyhow::anyhow!("no free spot for a fixed Lidar in scene '{}'", scene.name)
+        })?;
+        scene.robot.start = PoseSpec {
+            x: spot.x,
+            y: spot.y,
+            yaw_deg: rng.random_range(-180.0..180.0),
+        };
+        scene.robot.motion = RobotMotionSpec::Static;
+    }
+    let mut last_error = None;
+    for attempt in 0..30 {
+        let Some(person) = random_person(&scene, &world, &mut rng, seed + attempt, falls) else {
+            continue;
+        };
+        let mut candidate = scene.clone();
+        candidate.person = Some(person);
+        match Simulator::new(candidate, seed) {
+            Ok(sim) => return Ok(sim),
+            Err(e) => last_error = Some(e),
+        }
+    }
+    let why = match last_error {
+        Some(e) => format!("the last one was refused: {e}"),
+        None => "no free reachable spots for the person's steps were found".to_string(),
+    };
+    bail!("no valid random activity script in 30 attempts ({why})");
+}
+
+/// The real localiser for a simulated episode: the simulator's map, its Lidar mount, and
+/// odometry (or a static pose for a fixed Lidar).
+pub(crate) fn episode_localiser(sim: &Simulator, fixed_lidar: bool) -> anyhow::Result<Localiser> {
+    let map = core_map(&SimMap::from_world(sim.world(), DEFAULT_RESOLUTION))?;
+    let config = LocaliserConfig {
+        mount: sim.lidar_mount(),
+        ..LocaliserConfig::default()
+    };
+    let motion = if fixed_lidar {
+        Motion::Stationary(sim.scene().robot.start.to_pose())
+    } else {
+        Motion::Odometry
+    };
+    Localiser::new(config, Reference::Map(map), motion).context("localiser configuration")
+}
+
+/// A simulated frame's scan in the core's form.
+pub(crate) fn core_scan(geometry: &ScanGeometry, stamp_ns: i64, ranges: Vec<f32>) -> Scan {
+    Scan {
+        stamp_ns,
+        angle_min: geometry.angle_min as f32,
+        angle_increment: geometry.angle_increment as f32,
+        range_min: geometry.range_min as f32,
+        range_max: geometry.range_max as f32,
+        ranges,
+    }
 }
 
 /// The simulator's grid as the localiser's map (map_server's default threshold).
@@ -768,11 +782,14 @@ fn still_step(activity: Activity, duration: f64) -> ScriptStep {
 /// The scene's person with a random start and a random script that covers the nine
 /// activities in plausible orders (falls end on the floor, the floor ends by getting up).
 /// The rarer, shorter activities (falls, getting up, crawling, running) come often.
+/// A random script of activity blocks filling the scene's duration; `falls: false` leaves
+/// out the fall blocks (fall, lying, getting up) and draws another block instead.
 fn random_person(
     scene: &Scene,
     world: &World,
     rng: &mut ChaCha8Rng,
     person_seed: u64,
+    falls: bool,
 ) -> Option<PersonSpec> {
     let base = scene.person.clone()?;
     let start = random_free_point(world, rng, 0.6)?;
@@ -803,7 +820,11 @@ fn random_person(
         }
         let mut block: Vec<ScriptStep> = Vec::new();
         let mut end_here = None;
-        match rng.random_range(0..10) {
+        let kind = rng.random_range(0..10);
+        if !falls && (5..=7).contains(&kind) {
+            continue;
+        }
+        match kind {
             0 => block.push(still_step(Activity::Standing, rng.random_range(1.5..4.0))),
             1 | 2 => {
                 let (s, p) =

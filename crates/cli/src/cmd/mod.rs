@@ -1,5 +1,6 @@
 //! One module per subcommand. Each defines its clap arguments and a `run` function.
 
+pub mod alerts;
 pub mod bag;
 pub mod dataset;
 pub mod demo;

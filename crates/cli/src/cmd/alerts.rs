@@ -1,0 +1,383 @@
+//! `lidar-har alerts`: how the fall alerts behave over simulated episodes, end to end (the
+//! simulator, the real localiser, the activity model, the fall-alert logic): how soon after a
+//! fall's end an alert comes, and how many alerts come in hours of activity without a fall.
+//!
+//! Episodes use the dataset's random activity scripts: with falls (a fall, lying 2-6 s,
+//! sometimes sitting, getting up) for the latency, without them for the false alerts.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use lidar_har_core::activity::Activity;
+use lidar_har_core::classifier::{PersonScan, StreamingClassifier};
+use lidar_har_core::fall::{AlertKind, FallAlert, FallDetector, FallInput};
+use lidar_har_infer::ActivityModel;
+use lidar_har_pipeline::bag_run::Spread;
+use lidar_har_pipeline::classifier::{ClassifierConfig, load_classifier_config};
+use serde::Serialize;
+
+use super::dataset::{core_scan, episode_localiser, episode_simulator, load_scenes};
+
+#[derive(clap::Args)]
+pub struct AlertsArgs {
+    /// The activity model (ONNX step model).
+    #[arg(long, default_value = "models/activity.onnx")]
+    pub model: PathBuf,
+    /// Classifier parameters (YAML; the `fall_alert` block is used); defaults when absent.
+    #[arg(long)]
+    pub classifier_config: Option<PathBuf>,
+    /// Scene files, as a glob; episodes go round-robin over them.
+    #[arg(long, default_value = "config/scenes/*.yaml")]
+    pub scenes: String,
+    /// Episodes whose scripts contain falls.
+    #[arg(long, default_value_t = 40)]
+    pub fall_episodes: usize,
+    /// Simulated hours of activity without any fall.
+    #[arg(long, default_value_t = 1.0)]
+    pub no_fall_hours: f64,
+    /// Length of one episode, seconds.
+    #[arg(long, default_value_t = 60.0)]
+    pub episode_seconds: f64,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// An alert later than this after a fall's end does not count as detecting it.
+    #[arg(long, default_value_t = 1.0)]
+    pub latency_target_s: f64,
+    /// Write the report as JSON here too.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// One fall of the ground truth and the alert that answered it, if any.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct FallOutcome {
+    pub episode: usize,
+    pub start_s: f64,
+    pub end_s: f64,
+    /// The first alert raised from the fall's start until the next fall (or the episode's
+    /// end), minus the fall's end; `None` when there was none.
+    pub latency_s: Option<f64>,
+    pub alert: Option<&'static str>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct AlertsReport {
+    pub model: String,
+    pub scenes: Vec<String>,
+    pub seed: u64,
+    pub fall_episodes: usize,
+    pub falls: usize,
+    pub falls_alerted: usize,
+    pub falls_alerted_within_target: usize,
+    pub latency_target_s: f64,
+    pub latency_s: Option<Spread>,
+    /// Alerts in the fall episodes that answered no fall.
+    pub unmatched_alerts_in_fall_episodes: usize,
+    pub no_fall_hours: f64,
+    pub false_alerts: usize,
+    pub false_fall_detected: usize,
+    pub false_person_down: usize,
+    pub false_alerts_per_hour: f64,
+    pub outcomes: Vec<FallOutcome>,
+}
+
+/// What one episode gave: the truth's falls (start, end) and the alerts raised.
+struct Episode {
+    falls: Vec<(f64, f64)>,
+    alerts: Vec<FallAlert>,
+}
+
+pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.episode_seconds.is_finite() && args.episode_seconds >= 5.0,
+        "--episode-seconds {}: must be at least 5",
+        args.episode_seconds
+    );
+    anyhow::ensure!(
+        args.no_fall_hours.is_finite() && args.no_fall_hours >= 0.0,
+        "--no-fall-hours {}: must be a finite number >= 0",
+        args.no_fall_hours
+    );
+    let config = match &args.classifier_config {
+        Some(path) => load_classifier_config(path)?,
+        None => ClassifierConfig::default(),
+    };
+    let model = ActivityModel::load(&args.model, 1)
+        .with_context(|| format!("--model {}", args.model.display()))?;
+    let stream = model.info().stream;
+    let mut classifier = StreamingClassifier::new(model, stream)
+        .with_context(|| format!("--model {}", args.model.display()))?;
+    let scenes = load_scenes(&args.scenes)?;
+    let no_fall_episodes = (args.no_fall_hours * 3600.0 / args.episode_seconds).ceil() as usize;
+
+    let total = args.fall_episodes + no_fall_episodes;
+    let progress = ProgressBar::new(total as u64).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed} (eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut outcomes = Vec::new();
+    let mut unmatched = 0;
+    let mut false_alerts: Vec<FallAlert> = Vec::new();
+    for id in 0..total {
+        let falls = id < args.fall_episodes;
+        let (_, scene) = &scenes[id % scenes.len()];
+        let mut scene = scene.clone();
+        scene.duration = args.episode_seconds;
+        let seed = args.seed.wrapping_mul(1_000_003).wrapping_add(id as u64);
+        let episode = match run_episode(&scene, seed, falls, &config, &mut classifier) {
+            Ok(episode) => episode,
+            Err(e) => {
+                progress.suspend(|| eprintln!("alerts: skipping episode {id}: {e:#}"));
+                progress.inc(1);
+                continue;
+            }
+        };
+        if falls {
+            let (matched, rest) = match_alerts(id, &episode.falls, &episode.alerts);
+            outcomes.extend(matched);
+            unmatched += rest;
+        } else {
+            false_alerts.extend(episode.alerts);
+        }
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+
+    let latencies: Vec<f64> = outcomes.iter().filter_map(|o| o.latency_s).collect();
+    let count = |kind| false_alerts.iter().filter(|a| a.kind == kind).count();
+    let report = AlertsReport {
+        model: args.model.display().to_string(),
+        scenes: scenes.iter().map(|(_, s)| s.name.clone()).collect(),
+        seed: args.seed,
+        fall_episodes: args.fall_episodes,
+        falls: outcomes.len(),
+        falls_alerted: latencies.len(),
+        falls_alerted_within_target: latencies
+            .iter()
+            .filter(|&&l| l <= args.latency_target_s)
+            .count(),
+        latency_target_s: args.latency_target_s,
+        latency_s: Spread::of(latencies),
+        unmatched_alerts_in_fall_episodes: unmatched,
+        no_fall_hours: no_fall_episodes as f64 * args.episode_seconds / 3600.0,
+        false_alerts: false_alerts.len(),
+        false_fall_detected: count(AlertKind::FallDetected),
+        false_person_down: count(AlertKind::PersonDown),
+        false_alerts_per_hour: if no_fall_episodes == 0 {
+            0.0
+        } else {
+            false_alerts.len() as f64 * 3600.0 / (no_fall_episodes as f64 * args.episode_seconds)
+        },
+        outcomes,
+    };
+    print_report(&report);
+    if let Some(path) = &args.out {
+        let text = serde_json::to_string_pretty(&report)?;
+        std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+        println!("report: {}", path.display());
+    }
+    Ok(())
+}
+
+/// Simulates one episode and runs localiser, classifier and fall alerts over it.
+fn run_episode(
+    scene: &lidar_har_sim::Scene,
+    seed: u64,
+    falls: bool,
+    config: &ClassifierConfig,
+    classifier: &mut StreamingClassifier<ActivityModel>,
+) -> anyhow::Result<Episode> {
+    let mut sim = episode_simulator(scene, seed, false, falls)?;
+    let mut localiser = episode_localiser(&sim, false)?;
+    let mut detector = FallDetector::new(config.fall_alert).context("fall_alert parameters")?;
+    classifier.reset();
+    let geometry = sim.scan_geometry();
+    let start_s = sim.start_ns() as f64 * 1e-9;
+    let mut truth: Vec<(f64, Activity)> = Vec::new();
+    let mut alerts = Vec::new();
+    while let Some(frame) = sim.step() {
+        let stamp_ns = frame.stamp_ns as i64;
+        let stamp_s = frame.stamp_ns as f64 * 1e-9 - start_s;
+        if let Some(p) = &frame.person {
+            truth.push((stamp_s, p.activity));
+        }
+        localiser.add_odometry(stamp_ns, frame.robot);
+        let sensor = frame.laser.position();
+        let result = localiser.process_scan(&core_scan(&geometry, stamp_ns, frame.ranges));
+        let person = result.output.as_ref().and_then(|o| o.person.as_ref());
+        let visible = person.filter(|p| p.visible);
+        let scan = PersonScan {
+            stamp_s,
+            points: visible.map_or(&[][..], |p| &p.points),
+            position: visible.map(|p| p.position),
+            sensor,
+        };
+        let prediction = classifier.classify(&scan)?;
+        alerts.extend(detector.update(&FallInput {
+            stamp_s,
+            position: visible.filter(|_| prediction.ready).map(|p| p.position),
+            probabilities: prediction.probabilities,
+        }));
+    }
+    Ok(Episode {
+        falls: fall_intervals(&truth),
+        alerts,
+    })
+}
+
+/// The (start, end) of every run of `falling_down` in the truth; the end is the first scan
+/// after the run.
+fn fall_intervals(truth: &[(f64, Activity)]) -> Vec<(f64, f64)> {
+    let mut falls = Vec::new();
+    let mut start = None;
+    for &(t, activity) in truth {
+        match (activity == Activity::FallingDown, start) {
+            (true, None) => start = Some(t),
+            (false, Some(s)) => {
+                falls.push((s, t));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let (Some(s), Some(&(t, _))) = (start, truth.last()) {
+        falls.push((s, t));
+    }
+    falls
+}
+
+/// Pairs each fall with the first alert raised from its start until the next fall's start;
+/// returns the outcomes and how many alerts answered no fall.
+fn match_alerts(
+    episode: usize,
+    falls: &[(f64, f64)],
+    alerts: &[FallAlert],
+) -> (Vec<FallOutcome>, usize) {
+    let mut used = vec![false; alerts.len()];
+    let mut outcomes = Vec::new();
+    for (k, &(start, end)) in falls.iter().enumerate() {
+        let until = falls.get(k + 1).map_or(f64::INFINITY, |next| next.0);
+        let first = alerts
+            .iter()
+            .enumerate()
+            .find(|(i, a)| !used[*i] && a.raised_at_s >= start && a.raised_at_s < until);
+        if let Some((i, _)) = first {
+            used[i] = true;
+        }
+        outcomes.push(FallOutcome {
+            episode,
+            start_s: start,
+            end_s: end,
+            latency_s: first.map(|(_, a)| a.raised_at_s - end),
+            alert: first.map(|(_, a)| a.kind.name()),
+        });
+    }
+    // Later alerts for the same fall (a PERSON_DOWN after its FALL_DETECTED) are not false.
+    let unmatched = alerts
+        .iter()
+        .zip(&used)
+        .filter(|(a, used)| {
+            !**used
+                && !falls.iter().enumerate().any(|(k, &(start, _))| {
+                    let until = falls.get(k + 1).map_or(f64::INFINITY, |next| next.0);
+                    a.raised_at_s >= start && a.raised_at_s < until
+                })
+        })
+        .count();
+    (outcomes, unmatched)
+}
+
+fn print_report(r: &AlertsReport) {
+    println!(
+        "falls: {} in {} episodes; alerted {} ({:.1} %), within {:.1} s of the fall's end {} ({:.1} %)",
+        r.falls,
+        r.fall_episodes,
+        r.falls_alerted,
+        percent(r.falls_alerted, r.falls),
+        r.latency_target_s,
+        r.falls_alerted_within_target,
+        percent(r.falls_alerted_within_target, r.falls),
+    );
+    if let Some(l) = &r.latency_s {
+        println!(
+            "latency after the fall's end: median {:.2} s, p95 {:.2} s, max {:.2} s",
+            l.median, l.p95, l.max
+        );
+    }
+    println!(
+        "alerts in fall episodes before any fall: {}",
+        r.unmatched_alerts_in_fall_episodes
+    );
+    println!(
+        "without falls: {:.2} h simulated, {} false alerts ({} FALL_DETECTED, {} PERSON_DOWN), {:.2} per hour",
+        r.no_fall_hours,
+        r.false_alerts,
+        r.false_fall_detected,
+        r.false_person_down,
+        r.false_alerts_per_hour
+    );
+}
+
+fn percent(part: usize, whole: usize) -> f64 {
+    if whole == 0 {
+        0.0
+    } else {
+        100.0 * part as f64 / whole as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec2;
+
+    fn alert(kind: AlertKind, raised_at_s: f64) -> FallAlert {
+        FallAlert {
+            kind,
+            event_time_s: raised_at_s,
+            raised_at_s,
+            down_since_s: raised_at_s,
+            position: DVec2::ZERO,
+            confidence: 0.9,
+        }
+    }
+
+    #[test]
+    fn falls_are_the_runs_of_falling_down() {
+        use Activity::*;
+        let truth: Vec<(f64, Activity)> = [
+            Walking,
+            FallingDown,
+            FallingDown,
+            LyingDown,
+            GettingUp,
+            FallingDown,
+        ]
+        .into_iter()
+        .enumerate()
+        .map(|(i, a)| (i as f64, a))
+        .collect();
+        assert_eq!(fall_intervals(&truth), vec![(1.0, 3.0), (5.0, 5.0)]);
+        assert!(fall_intervals(&[]).is_empty());
+    }
+
+    #[test]
+    fn each_fall_takes_the_first_alert_after_its_start() {
+        let falls = [(10.0, 11.0), (30.0, 31.0), (50.0, 51.0)];
+        let alerts = [
+            alert(AlertKind::FallDetected, 5.0), // before any fall: unmatched
+            alert(AlertKind::FallDetected, 11.4),
+            alert(AlertKind::PersonDown, 26.0), // same fall, later: not false
+            alert(AlertKind::PersonDown, 45.0), // the second fall, late
+        ];
+        let (outcomes, unmatched) = match_alerts(3, &falls, &alerts);
+        assert_eq!(unmatched, 1);
+        let latencies: Vec<Option<f64>> = outcomes.iter().map(|o| o.latency_s).collect();
+        assert!((latencies[0].unwrap() - 0.4).abs() < 1e-9);
+        assert!((latencies[1].unwrap() - 14.0).abs() < 1e-9);
+        assert_eq!(latencies[2], None);
+        assert_eq!(outcomes[1].alert, Some("PERSON_DOWN"));
+        assert!(outcomes.iter().all(|o| o.episode == 3));
+    }
+}
