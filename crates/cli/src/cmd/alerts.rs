@@ -66,6 +66,7 @@ pub struct AlertsReport {
     pub model: String,
     pub scenes: Vec<String>,
     pub seed: u64,
+    /// Episodes run (a scene too small for a random script is skipped).
     pub fall_episodes: usize,
     pub falls: usize,
     pub falls_alerted: usize,
@@ -119,6 +120,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     let mut outcomes = Vec::new();
     let mut unmatched = 0;
     let mut false_alerts: Vec<FallAlert> = Vec::new();
+    let (mut fall_episodes_run, mut no_fall_episodes_run) = (0, 0);
     for id in 0..total {
         let falls = id < args.fall_episodes;
         let (_, scene) = &scenes[id % scenes.len()];
@@ -134,10 +136,12 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
             }
         };
         if falls {
+            fall_episodes_run += 1;
             let (matched, rest) = match_alerts(id, &episode.falls, &episode.alerts);
             outcomes.extend(matched);
             unmatched += rest;
         } else {
+            no_fall_episodes_run += 1;
             false_alerts.extend(episode.alerts);
         }
         progress.inc(1);
@@ -146,11 +150,12 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
 
     let latencies: Vec<f64> = outcomes.iter().filter_map(|o| o.latency_s).collect();
     let count = |kind| false_alerts.iter().filter(|a| a.kind == kind).count();
+    let no_fall_hours = no_fall_episodes_run as f64 * args.episode_seconds / 3600.0;
     let report = AlertsReport {
         model: args.model.display().to_string(),
         scenes: scenes.iter().map(|(_, s)| s.name.clone()).collect(),
         seed: args.seed,
-        fall_episodes: args.fall_episodes,
+        fall_episodes: fall_episodes_run,
         falls: outcomes.len(),
         falls_alerted: latencies.len(),
         falls_alerted_within_target: latencies
@@ -160,14 +165,14 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         latency_target_s: args.latency_target_s,
         latency_s: Spread::of(latencies),
         unmatched_alerts_in_fall_episodes: unmatched,
-        no_fall_hours: no_fall_episodes as f64 * args.episode_seconds / 3600.0,
+        no_fall_hours,
         false_alerts: false_alerts.len(),
         false_fall_detected: count(AlertKind::FallDetected),
         false_person_down: count(AlertKind::PersonDown),
-        false_alerts_per_hour: if no_fall_episodes == 0 {
-            0.0
+        false_alerts_per_hour: if no_fall_hours > 0.0 {
+            false_alerts.len() as f64 / no_fall_hours
         } else {
-            false_alerts.len() as f64 * 3600.0 / (no_fall_episodes as f64 * args.episode_seconds)
+            0.0
         },
         outcomes,
     };
