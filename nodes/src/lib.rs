@@ -8,10 +8,16 @@ use std::time::{Duration, Instant};
 
 use lidar_har_ros::RosError;
 
-/// Runs a node's body: logs to stderr (`RUST_LOG`, default info), and turns an error into a
-/// one-line message and a non-zero exit code: 2 for a bad argument or parameter, 1 otherwise.
+/// What the nodes log without `RUST_LOG`: their own info, only warnings from the DDS stack
+/// (whose info level describes every discovery packet).
+const DEFAULT_LOG_FILTER: &str = "info,rustdds=warn,ros2_client=warn";
+
+/// Runs a node's body: logs to stderr (`RUST_LOG`, default [`DEFAULT_LOG_FILTER`]), and turns
+/// an error into a one-line message and a non-zero exit code: 2 for a bad argument or
+/// parameter, 1 otherwise.
 pub fn run(node: &str, body: impl FnOnce(&Shutdown) -> anyhow::Result<()>) -> ExitCode {
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info")).init();
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(DEFAULT_LOG_FILTER))
+        .init();
     let shutdown = match Shutdown::install() {
         Ok(s) => s,
         Err(e) => {
