@@ -11,6 +11,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
 use lidar_har_msgs::qos::{Durability, History, QosProfile, Reliability};
+use lidar_har_msgs::rosgraph_msgs::Clock;
+use lidar_har_msgs::topics;
 use ros2_client::dds::rustdds;
 use ros2_client::{MessageTypeName, Name, NodeName, NodeOptions, ParameterValue as Ros2Value};
 use rustdds::mio1;
@@ -162,6 +164,39 @@ pub(crate) struct DdsNode {
     poll: Mutex<(mio1::Poll, mio1::Events)>,
     registry: mio1::Registry,
     next_token: Mutex<usize>,
+    /// /clock when `use_sim_time` is true. Our own reader, because ros2-client 0.12's
+    /// spinner subscribes /clock as `builtin_interfaces/msg/Time`, a type name that ROS 2's
+    /// `rosgraph_msgs/msg/Clock` publishers (e.g. Cyclone DDS, Fast DDS) do not match.
+    sim_clock: Option<SimClock>,
+}
+
+/// The newest time received on /clock.
+struct SimClock {
+    reader: DdsSubscriber,
+    latest_ns: Mutex<i64>,
+}
+
+impl SimClock {
+    /// The newest /clock time, 0 before the first one (as rclcpp's ROS time).
+    fn now_ns(&self) -> i64 {
+        let Ok(mut latest) = self.latest_ns.lock() else {
+            return 0;
+        };
+        loop {
+            match self.reader.try_take() {
+                Ok(Some(sample)) => match sample.decode::<Clock>() {
+                    Ok(clock) => *latest = clock.clock.to_nanos(),
+                    Err(e) => log::warn!("/clock: {e}"),
+                },
+                Ok(None) => break,
+                Err(e) => {
+                    log::warn!("/clock: {e}");
+                    break;
+                }
+            }
+        }
+        *latest
+    }
 }
 
 impl DdsNode {
@@ -213,8 +248,8 @@ impl DdsNode {
             }
         }));
         let mut node = context.new_node(node_name, options).map_err(dds_err)?;
-        // The spinner serves parameter services and follows /clock for use_sim_time; it ends
-        // when the node is dropped.
+        // The spinner serves parameter services (and the graph); it ends when the node is
+        // dropped.
         let spinner = node.spinner().map_err(dds_err)?;
         std::thread::Builder::new()
             .name("ros2-spinner".into())
@@ -233,7 +268,7 @@ impl DdsNode {
             .map_err(dds_err)?;
         let poll = mio1::Poll::new().map_err(dds_err)?;
         let registry = poll.registry().try_clone().map_err(dds_err)?;
-        Ok(Self {
+        let mut this = Self {
             context,
             node,
             publisher,
@@ -242,6 +277,37 @@ impl DdsNode {
             poll: Mutex::new((poll, mio1::Events::with_capacity(64))),
             registry,
             next_token: Mutex::new(0),
+            sim_clock: None,
+        };
+        if params.bool("use_sim_time")? {
+            let clock = &topics::CLOCK;
+            this.sim_clock = Some(SimClock {
+                // Not registered with the node's poll: /clock alone need not wake `wait`.
+                reader: this.reader(clock.name, clock.type_name, &clock.qos)?,
+                latest_ns: Mutex::new(0),
+            });
+        }
+        Ok(this)
+    }
+
+    fn reader(
+        &self,
+        topic: &str,
+        type_name: &str,
+        qos: &QosProfile,
+    ) -> Result<DdsSubscriber, RosError> {
+        let policies = qos_policies(qos);
+        let t = self.topic(topic, type_name, &policies)?;
+        let reader = self
+            .subscriber
+            .create_simple_datareader_no_key::<RawCdr, RawAdapter>(&t, Some(policies))
+            .map_err(|e| RosError::Topic {
+                topic: topic.into(),
+                reason: e.to_string(),
+            })?;
+        Ok(DdsSubscriber {
+            topic: topic.to_string(),
+            reader,
         })
     }
 
@@ -298,31 +364,20 @@ impl NodeBackend for DdsNode {
         type_name: &str,
         qos: &QosProfile,
     ) -> Result<Box<dyn SubscriberBackend>, RosError> {
-        let policies = qos_policies(qos);
-        let t = self.topic(topic, type_name, &policies)?;
-        let mut reader = self
-            .subscriber
-            .create_simple_datareader_no_key::<RawCdr, RawAdapter>(&t, Some(policies))
-            .map_err(|e| RosError::Topic {
-                topic: topic.into(),
-                reason: e.to_string(),
-            })?;
+        let mut subscriber = self.reader(topic, type_name, qos)?;
         let token = {
             let mut next = self.next_token.lock().map_err(lock_poisoned)?;
             *next += 1;
             *next
         };
         mio1::event::Source::register(
-            &mut reader,
+            &mut subscriber.reader,
             &self.registry,
             mio1::Token(token),
             mio1::Interest::READABLE,
         )
         .map_err(dds_err)?;
-        Ok(Box::new(DdsSubscriber {
-            topic: topic.to_string(),
-            reader,
-        }))
+        Ok(Box::new(subscriber))
     }
 
     fn wait(&self, timeout: Duration) -> Result<(), RosError> {
@@ -336,7 +391,10 @@ impl NodeBackend for DdsNode {
     }
 
     fn now_ns(&self) -> i64 {
-        self.node.time_now().to_nanos()
+        match &self.sim_clock {
+            Some(clock) => clock.now_ns(),
+            None => self.node.time_now().to_nanos(),
+        }
     }
 
     fn parameter(&self, name: &str) -> Option<ParamValue> {
