@@ -569,6 +569,24 @@ impl Person {
             lying,
             motion_time: step.duration.min(15.0),
         };
+        // A fall needs room on the floor: the body may twist as it goes down, or fall
+        // another way, so that it lands clear of walls and furniture.
+        let mut heading = heading;
+        if a == Activity::FallingDown
+            && let Some(world) = &self.world_check
+        {
+            let (lying, twist) =
+                fall_direction(world, root, heading, self.traits.dims.height, plan.lying).map_err(
+                    |message| SceneError::Invalid {
+                        origin: "scene".to_string(),
+                        key: format!("person.script[{index}].fall"),
+                        message,
+                    },
+                )?;
+            plan.lying = lying;
+            heading += twist;
+            plan.heading0 = heading;
+        }
         // Re-anchor the root so the pelvis stays where the previous step left it.
         let nominal_pelvis = plan.raw_pose(&self.traits, start).pelvis;
         let root = match prev {
@@ -679,6 +697,60 @@ impl Person {
     }
 }
 
+/// Room a fallen body needs on each side of its axis, metres.
+const FALLEN_BODY_HALF_WIDTH: f64 = 0.12;
+
+/// How a fall lands clear of walls and furniture: `wanted` straight on when it fits, else
+/// the smallest twist of the body (up to 60 degrees either way), else another direction with
+/// the smallest twist. A scripted direction is a preference: the person's random size and
+/// sway decide where exactly they stand and face when they fall. Returns the direction and
+/// the twist (radians, added to the heading).
+fn fall_direction(
+    world: &World,
+    feet: DVec2,
+    heading: f64,
+    height: f64,
+    wanted: FallDirection,
+) -> Result<(FallDirection, f64), String> {
+    let blocker = |dir: FallDirection, twist: f64| {
+        let axis = rotate(lying_vector(dir), heading + twist);
+        (1..=9).find_map(|k| {
+            let p = feet + axis * (height * k as f64 / 10.0);
+            let (clearance, what) = world.person_clearance(p);
+            (clearance < FALLEN_BODY_HALF_WIDTH).then_some(what)
+        })
+    };
+    let order = [
+        FallDirection::Forward,
+        FallDirection::Backward,
+        FallDirection::Left,
+        FallDirection::Right,
+    ];
+    let first = order.iter().position(|&d| d == wanted).unwrap_or(0);
+    let twists = [0.0, 15.0, -15.0, 30.0, -30.0, 45.0, -45.0, 60.0, -60.0_f64];
+    let mut wanted_blocker = None;
+    for k in 0..order.len() {
+        let dir = order[(first + k) % order.len()];
+        for twist in twists.map(f64::to_radians) {
+            match blocker(dir, twist) {
+                None => return Ok((dir, twist)),
+                Some(what) if k == 0 && twist == 0.0 => wanted_blocker = Some(what),
+                Some(_) => {}
+            }
+        }
+    }
+    let what = match wanted_blocker.flatten() {
+        Some(i) => format!(
+            "furniture[{i}] '{}'",
+            world.furniture.get(i).map_or("", |f| f.name.as_str())
+        ),
+        None => "a wall".to_string(),
+    };
+    Err(format!(
+        "no room to fall here: the body would hit {what}, and walls or furniture every other way"
+    ))
+}
+
 fn path_error(step: usize, point: usize, message: String) -> SceneError {
     SceneError::Invalid {
         origin: "scene".to_string(),
@@ -749,6 +821,39 @@ mod tests {
         assert!(
             (after.position - before.position).length() > 0.7,
             "the pelvis ends about a leg's length away"
+        );
+    }
+
+    #[test]
+    fn a_fall_lands_clear_of_walls_and_furniture() {
+        // Standing 0.4 m from the wall at x = 0, facing +x: a backward fall would go through
+        // the wall; with a box behind and beside, only forward (or a twist) is free.
+        let text = "duration: 60\nroom: {outline: [[0,0],[8,0],[8,6],[0,6]]}\nfurniture: [{kind: box, center: [0.6, 1.9], size: [1.0, 1.0], height: 0.5}]\nrobot: {start: {x: 6, y: 5}}\nperson:\n  start: {x: 0.4, y: 3, yaw_deg: 0}\n  script:\n    - {activity: standing, duration: 1}\n    - {activity: falling_down, duration: 1, fall: backward}\n    - {activity: lying_down, duration: 5}\n";
+        let s = Scene::parse(text, "test").unwrap();
+        let world = World::new(&s);
+        for seed in 0..6 {
+            let mut p = Person::new(s.person.as_ref().unwrap(), &world, seed).unwrap();
+            let lying = p.state_at(3.0);
+            assert_eq!(lying.activity, Activity::LyingDown);
+            for part in &lying.parts {
+                for end in [part.a, part.b] {
+                    let (clearance, what) = world.person_clearance(end.truncate());
+                    assert!(
+                        clearance > 0.0,
+                        "seed {seed}: body part at {end} inside {what:?} (clearance {clearance})"
+                    );
+                }
+            }
+        }
+        // A spot boxed in on every side has no room to fall: a clear error naming the step.
+        let cramped = "duration: 60\nroom: {outline: [[0,0],[1.2,0],[1.2,1.2],[0,1.2]]}\nrobot: {start: {x: 0.2, y: 0.2}}\nperson:\n  start: {x: 0.6, y: 0.6}\n  script:\n    - {activity: standing, duration: 1}\n    - {activity: falling_down, duration: 1}\n";
+        let s = Scene::parse(cramped, "test").unwrap();
+        let world = World::new(&s);
+        let err = Person::new(s.person.as_ref().unwrap(), &world, 1).unwrap_err();
+        assert!(
+            err.to_string().contains("person.script[1].fall")
+                && err.to_string().contains("no room"),
+            "{err}"
         );
     }
 
