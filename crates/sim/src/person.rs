@@ -242,19 +242,40 @@ impl Traits {
             FallDirection::Left => (0.0, -FRAC_PI_2, 0.0),
             FallDirection::Right => (0.0, FRAC_PI_2, 0.0),
         };
+        // Legs bent slightly towards the floor so they rest on it beside the thicker trunk.
         let leg = 0.08 * down;
         let breath = 0.03 * self.wave(t, 0.25, 4);
-        PoseParams {
-            pelvis: lying_vector(dir) * (self.dims.leg_length() + 0.05),
-            pitch,
-            roll,
-            hip_flex: [leg, leg],
-            hip_abduct: [0.1, 0.1],
-            knee_flex: [0.1, 0.15],
-            shoulder_flex: [0.1 * down, 0.1 * down],
-            shoulder_abduct: [0.35 + breath, 0.35 + breath],
-            elbow_flex: [0.15, 0.15],
-            ..PoseParams::default()
+        let pelvis = lying_vector(dir) * (self.dims.leg_length() + 0.05);
+        match dir {
+            // On the back or front: arms out on the floor. Face down, the feet are stretched
+            // along the shins (a foot at a right angle would prop the body up on its toes).
+            FallDirection::Forward | FallDirection::Backward => PoseParams {
+                pelvis,
+                pitch,
+                roll,
+                hip_flex: [leg, leg],
+                hip_abduct: [0.1, 0.1],
+                knee_flex: [0.1, 0.15],
+                ankle: if down > 0.0 { [-1.5, -1.5] } else { [0.0, 0.0] },
+                shoulder_flex: [0.1 * down, 0.1 * down],
+                shoulder_abduct: [0.35 + breath, 0.35 + breath],
+                elbow_flex: [0.15, 0.15],
+                ..PoseParams::default()
+            },
+            // On the side: legs stacked with the knees a little bent, arms forward in front
+            // of the chest (spread arms or legs would point into the floor and lift the body).
+            FallDirection::Left | FallDirection::Right => PoseParams {
+                pelvis,
+                pitch,
+                roll,
+                hip_flex: [0.3, 0.3],
+                hip_abduct: [0.0, 0.0],
+                knee_flex: [0.5, 0.5],
+                shoulder_flex: [1.2 + breath, 1.2 + breath],
+                shoulder_abduct: [0.0, 0.0],
+                elbow_flex: [0.4, 0.4],
+                ..PoseParams::default()
+            },
         }
     }
 
@@ -822,6 +843,38 @@ mod tests {
             (after.position - before.position).length() > 0.7,
             "the pelvis ends about a leg's length away"
         );
+    }
+
+    #[test]
+    fn a_body_lying_after_a_fall_rests_on_the_floor_every_way() {
+        // A foot at a right angle (face down) or a spread arm (on the side) once propped the
+        // body up, so that a Lidar 10 cm above the floor saw little more than the feet.
+        for dir in ["forward", "backward", "left", "right"] {
+            let s = scene(&format!(
+                "    - {{activity: standing, duration: 1}}\n    - {{activity: falling_down, duration: 1, fall: {dir}}}\n    - {{activity: lying_down, duration: 5}}\n"
+            ));
+            let world = World::new(&s);
+            let mut p = Person::new(s.person.as_ref().unwrap(), &world, 1).unwrap();
+            let st = p.state_at(4.0);
+            let low = |c: &Capsule| c.a.z.min(c.b.z) - c.radius;
+            let high = |c: &Capsule| c.a.z.max(c.b.z) + c.radius;
+            let cut = st
+                .parts
+                .iter()
+                .filter(|c| low(c) < 0.10 && high(c) > 0.10)
+                .count();
+            let top = st.parts.iter().map(high).fold(0.0, f64::max);
+            let torso = &st.parts[10];
+            assert!(
+                low(torso) < 0.10 && high(torso) > 0.10,
+                "{dir}: the trunk misses the 0.10 m scan plane"
+            );
+            assert!(
+                cut >= 4,
+                "{dir}: only {cut} of 12 parts reach the 0.10 m scan plane"
+            );
+            assert!(top < 0.5, "{dir}: lying body reaches {top:.2} m");
+        }
     }
 
     #[test]

@@ -231,7 +231,8 @@ fn draw_paths(
     Ok(())
 }
 
-/// Where robot and person are now: a blue ring, and a disc in the current activity's colour.
+/// Where robot and person are now: a blue ring, and a ring in the current activity's colour
+/// (rings, so the scan points on the body stay visible).
 fn draw_now(
     root: &Area,
     view: &View,
@@ -246,12 +247,12 @@ fn draw_now(
         )))?;
     }
     if let Some((p, a)) = person {
+        drawn(root.draw(&Circle::new(view.px(*p), 16, BLACK.stroke_width(1))))?;
         drawn(root.draw(&Circle::new(
             view.px(*p),
-            12,
-            ACTIVITY_COLOURS[a.index()].filled(),
+            14,
+            ACTIVITY_COLOURS[a.index()].stroke_width(4),
         )))?;
-        drawn(root.draw(&Circle::new(view.px(*p), 12, BLACK.stroke_width(2))))?;
     }
     Ok(())
 }
@@ -314,9 +315,9 @@ pub fn render_gif(
             let root = BitMapBackend::with_buffer(&mut pixels, (w, h)).into_drawing_area();
             let robot = &trace.robot[..scan.robot_len];
             let person = &trace.person[..scan.person_len];
-            draw_points(&root, &view, &scan.points)
-                .and_then(|_| draw_paths(&root, &view, robot, person))
+            draw_paths(&root, &view, robot, person)
                 .and_then(|_| draw_now(&root, &view, robot.last(), person.last()))
+                .and_then(|_| draw_points(&root, &view, &scan.points))
                 .and_then(|_| drawn(root.present()))
                 .map_err(&err)?;
         }
