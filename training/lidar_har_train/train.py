@@ -6,7 +6,8 @@ Loss: cross-entropy at every step from T/2 on (docs/model_contract.md), each ste
 activity at that step's scan. Class balance: windows are drawn with probability inversely
 proportional to their class's count (by the window's last label). Early stopping on a
 validation split made of whole training episodes. Augmentation: the eight rotations/flips of
-the square image (the map frame has no preferred direction for a person).
+the square image (the map frame has no preferred direction for a person), and small shifts
+(the localiser's position error).
 """
 
 from __future__ import annotations
@@ -44,6 +45,8 @@ def parse_args(argv):
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--seed", type=int, default=7)
     p.add_argument("--no-augment", action="store_true")
+    p.add_argument("--shift-px", type=int, default=2,
+                   help="augmentation: random shift of each window by up to this many pixels")
     p.add_argument("--skip-test-eval", action="store_true",
                    help="skip PyTorch metrics on the test splits (`lidar-har evaluate` gives them through ONNX Runtime)")
     return p.parse_args(argv)
@@ -72,14 +75,29 @@ def to_tensor(images: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(images.astype(np.float32) / 255.0)
 
 
-def augment(batch: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """One of the eight square symmetries per window (same for all its frames)."""
+def shift(window: np.ndarray, dy: int, dx: int) -> np.ndarray:
+    """Moves every frame of `[T, S, S]` by whole pixels; what moves in is empty."""
+    out = np.zeros_like(window)
+    size = window.shape[1]
+    src_y, dst_y = slice(max(0, -dy), size - max(0, dy)), slice(max(0, dy), size - max(0, -dy))
+    src_x, dst_x = slice(max(0, -dx), size - max(0, dx)), slice(max(0, dx), size - max(0, -dx))
+    out[:, dst_y, dst_x] = window[:, src_y, src_x]
+    return out
+
+
+def augment(batch: np.ndarray, rng: np.random.Generator, shift_px: int = 0) -> np.ndarray:
+    """One of the eight square symmetries per window (same for all its frames), then a shift
+    of up to `shift_px` pixels each way: the localiser's position error moves the person in
+    the image, and the model should not care."""
     out = np.empty_like(batch)
     for i, window in enumerate(batch):
         k = int(rng.integers(4))
         w = np.rot90(window, k, axes=(1, 2))
         if rng.integers(2):
             w = w[:, :, ::-1]
+        if shift_px > 0:
+            dy, dx = (int(v) for v in rng.integers(-shift_px, shift_px + 1, size=2))
+            w = shift(w, dy, dx)
         out[i] = w
     return out
 
@@ -155,7 +173,7 @@ def train(args) -> int:
             rows = np.sort(rng.choice(len(train_split), size=args.batch, p=sampling))
             images = train_split.images[rows]
             if not args.no_augment:
-                images = augment(images, rng)
+                images = augment(images, rng, args.shift_px)
             logits = model(to_tensor(np.ascontiguousarray(images)))
             loss = loss_on_second_half(logits, torch.from_numpy(train_split.labels[rows]))
             optimiser.zero_grad()
