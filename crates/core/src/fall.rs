@@ -2,7 +2,9 @@
 //!
 //! Two alerts, each raised once per incident:
 //! - `FallDetected`: `falling_down` is the most likely class with probability at least
-//!   `fall_probability` on `fall_min_scans` consecutive visible scans.
+//!   `fall_probability` on `fall_min_scans` consecutive visible scans; or a descent: lying
+//!   down is confirmed at most `descent_max_s` after the person was last classified upright
+//!   (a fall is short and easily missed, the lying that follows is not).
 //! - `PersonDown`: the person has been on the floor (lying, sitting on the floor or crawling,
 //!   [`Activity::is_on_floor`]) for `down_after_s` without being seen getting up. The clock
 //!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
@@ -39,6 +41,10 @@ pub struct FallAlertConfig {
     pub confirm_scans: u32,
     /// Time the person must be seen upright before a new incident can raise alerts, seconds.
     pub rearm_upright_s: f64,
+    /// Seen upright, then confirmed lying on the floor within this time: `FallDetected`
+    /// even when no scan looked like `falling_down` (a fall is short; lying is not).
+    /// Seconds; 0 turns this off.
+    pub descent_max_s: f64,
 }
 
 impl Default for FallAlertConfig {
@@ -49,6 +55,7 @@ impl Default for FallAlertConfig {
             down_after_s: 15.0,
             confirm_scans: 5,
             rearm_upright_s: 3.0,
+            descent_max_s: 3.0,
         }
     }
 }
@@ -90,6 +97,13 @@ impl FallAlertConfig {
             "rearm_upright_s",
             r,
             r.is_finite() && r >= 0.0,
+            "finite, >= 0",
+        )?;
+        let d = self.descent_max_s;
+        check(
+            "descent_max_s",
+            d,
+            d.is_finite() && d >= 0.0,
             "finite, >= 0",
         )
     }
@@ -169,6 +183,8 @@ pub struct FallDetector {
     candidate: Option<(Posture, f64, u32)>,
     /// Confirmed posture and since when.
     posture: Option<(Posture, f64)>,
+    /// The last visible scan classified upright.
+    last_upright_s: Option<f64>,
     /// Since when the person is down, with summed on-floor probability and scan count.
     down: Option<(f64, f64, u32)>,
     /// When each alert was last raised; `None` while armed.
@@ -190,6 +206,7 @@ impl FallDetector {
             fall_run: None,
             candidate: None,
             posture: None,
+            last_upright_s: None,
             down: None,
             fall_disarmed_at: None,
             down_disarmed_at: None,
@@ -297,7 +314,10 @@ impl FallDetector {
         if n >= self.config.confirm_scans && self.posture.map(|(p, _)| p) != Some(posture) {
             self.posture = Some((posture, since));
             match posture {
-                Posture::OnFloor => self.start_down(since),
+                Posture::OnFloor => {
+                    self.start_down(since);
+                    self.check_descent(t, since, best, on_floor_p, alerts);
+                }
                 Posture::Upright | Posture::GettingUp => self.down = None,
                 Posture::Falling => {}
             }
@@ -305,6 +325,9 @@ impl FallDetector {
         if let Some((_, sum, count)) = self.down.as_mut() {
             *sum += on_floor_p as f64;
             *count += 1;
+        }
+        if seen == Posture::Upright {
+            self.last_upright_s = Some(t);
         }
         // Re-arm once upright long enough, counting only uprightness that began after the alert.
         if let Some((Posture::Upright, since)) = self.posture
@@ -316,6 +339,36 @@ impl FallDetector {
                 }
             }
         }
+    }
+
+    /// Lying confirmed soon after the person was last upright: a fall, seen or not.
+    fn check_descent(
+        &mut self,
+        t: f64,
+        lying_since: f64,
+        best: Activity,
+        on_floor_p: f32,
+        alerts: &mut Vec<FallAlert>,
+    ) {
+        let Some(upright_at) = self.last_upright_s else {
+            return;
+        };
+        if best != Activity::LyingDown
+            || self.fall_disarmed_at.is_some()
+            || self.config.descent_max_s <= 0.0
+            || lying_since - upright_at > self.config.descent_max_s
+        {
+            return;
+        }
+        self.fall_disarmed_at = Some(t);
+        alerts.push(FallAlert {
+            kind: AlertKind::FallDetected,
+            event_time_s: upright_at,
+            raised_at_s: t,
+            down_since_s: lying_since,
+            position: self.last_position.unwrap_or(DVec2::ZERO),
+            confidence: on_floor_p,
+        });
     }
 
     fn start_down(&mut self, since: f64) {
@@ -373,6 +426,65 @@ mod tests {
 
     fn detector() -> FallDetector {
         FallDetector::new(FallAlertConfig::default()).unwrap()
+    }
+
+    /// Tests of `PersonDown` alone script people lying down from standing in no time, which
+    /// the descent rule takes for a fall.
+    fn without_descent() -> FallDetector {
+        FallDetector::new(FallAlertConfig {
+            descent_max_s: 0.0,
+            ..FallAlertConfig::default()
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn lying_soon_after_being_upright_is_a_fall_even_unseen_as_falling() {
+        let mut d = detector();
+        // The classifier never says falling_down: walking, then lying (after a second it
+        // could not make sense of), then staying down.
+        let alerts = run(
+            &mut d,
+            &[
+                (Walking, 5.0, true),
+                (SittingOnFloor, 0.2, true),
+                (LyingDown, 30.0, true),
+            ],
+        );
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::PersonDown]
+        );
+        let fall = alerts[0];
+        assert!((fall.event_time_s - 4.95).abs() < 1e-9, "{fall:?}");
+        // Lying confirmed after confirm_scans: 0.45 s after the person was last upright.
+        assert!(fall.raised_at_s - fall.event_time_s < 0.5, "{fall:?}");
+    }
+
+    #[test]
+    fn sitting_down_or_lying_down_slowly_is_not_a_fall() {
+        let mut d = detector();
+        let sit = run(
+            &mut d,
+            &[
+                (Walking, 5.0, true),
+                (SittingOnFloor, 5.0, true),
+                (Walking, 5.0, true),
+            ],
+        );
+        assert!(sit.is_empty(), "{sit:?}");
+        let mut d = detector();
+        let slow = run(
+            &mut d,
+            &[
+                (Walking, 5.0, true),
+                (SittingOnFloor, 4.0, true),
+                (LyingDown, 5.0, true),
+                (GettingUp, 2.0, true),
+                (Walking, 5.0, true),
+            ],
+        );
+        assert!(slow.is_empty(), "{slow:?}");
     }
 
     #[test]
@@ -500,7 +612,7 @@ mod tests {
 
     #[test]
     fn hiding_while_down_does_not_reset_the_clock() {
-        let mut d = detector();
+        let mut d = without_descent();
         let alerts = run(
             &mut d,
             &[
@@ -542,7 +654,7 @@ mod tests {
 
     #[test]
     fn person_down_rearms_only_after_standing_a_while() {
-        let mut d = detector();
+        let mut d = without_descent();
         let alerts = run(
             &mut d,
             &[
