@@ -8,6 +8,7 @@
 //! bytes that are really present before `mcap::parse_record` sees a record, and chunks are
 //! decompressed, CRC-checked and split into records by this module.
 
+use std::borrow::Cow;
 use std::io::{Read, Seek, SeekFrom};
 use std::ops::Range;
 
@@ -124,7 +125,7 @@ pub(crate) fn check_summary_section(
 /// The uncompressed records of a chunk, with its CRC checked (when the writer stored one).
 pub(crate) fn decompress_chunk(
     header: &ChunkHeader,
-    compressed: &[u8],
+    compressed: Cow<'_, [u8]>,
     limit: usize,
 ) -> Result<Vec<u8>, McapError> {
     let size = usize::try_from(header.uncompressed_size)
@@ -132,12 +133,12 @@ pub(crate) fn decompress_chunk(
         .filter(|&size| size <= limit)
         .ok_or(McapError::ChunkTooLarge(header.uncompressed_size))?;
     let data = match header.compression.as_str() {
-        "" => compressed.to_vec(),
-        "zstd" => zstd::bulk::decompress(compressed, size)
+        "" => compressed.into_owned(),
+        "zstd" => zstd::bulk::decompress(&compressed, size)
             .map_err(|e| McapError::DecompressionError(e.to_string()))?,
         "lz4" => {
             let mut out = Vec::with_capacity(size);
-            lz4::Decoder::new(compressed)?
+            lz4::Decoder::new(&*compressed)?
                 .take(size as u64 + 1)
                 .read_to_end(&mut out)
                 .map_err(|e| McapError::DecompressionError(e.to_string()))?;
@@ -378,14 +379,14 @@ mod tests {
             compression: String::new(),
             compressed_size: data.len() as u64,
         };
-        assert!(decompress_chunk(&header, &data, 1 << 20).is_err());
+        assert!(decompress_chunk(&header, Cow::Borrowed(&data), 1 << 20).is_err());
         let header = ChunkHeader {
             uncompressed_size: data.len() as u64,
             uncompressed_crc: crc32fast::hash(&data) ^ 1,
             ..header
         };
         assert!(matches!(
-            decompress_chunk(&header, &data, 1 << 20),
+            decompress_chunk(&header, Cow::Borrowed(&data), 1 << 20),
             Err(McapError::BadChunkCrc { .. })
         ));
     }
@@ -408,10 +409,10 @@ mod tests {
                 compressed_size: compressed.len() as u64,
             };
             assert_eq!(
-                decompress_chunk(&header, &compressed, 1 << 20).unwrap(),
+                decompress_chunk(&header, Cow::Borrowed(&compressed), 1 << 20).unwrap(),
                 data
             );
-            assert!(decompress_chunk(&header, &compressed, 10).is_err());
+            assert!(decompress_chunk(&header, Cow::Borrowed(&compressed), 10).is_err());
         }
     }
 }

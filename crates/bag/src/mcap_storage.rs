@@ -328,6 +328,10 @@ impl McapFile {
     }
 }
 
+fn owned(record: Option<Record<'_>>) -> Option<Record<'static>> {
+    record.map(Record::into_owned)
+}
+
 fn read_fully(reader: &mut dyn Read, buf: &mut [u8]) -> std::io::Result<usize> {
     let mut filled = 0;
     while filled < buf.len() {
@@ -601,8 +605,9 @@ impl LinearMessages {
                     Some(Ok(record)) => record,
                     Some(Err(e)) => return Some(Err(self.fail(e))),
                 };
-                let outcome = self.on_record(opcode, chunk.body(range));
+                let parsed = parse_checked(opcode, chunk.body(range)).map(owned);
                 self.chunk = Some(chunk);
+                let outcome = self.on_record(parsed);
                 match outcome {
                     Some(message) => return Some(message),
                     None => continue,
@@ -631,10 +636,10 @@ impl LinearMessages {
                     }
                 }
                 LinearReadEvent::Record { opcode, data } => {
-                    // The borrow of the reader's buffer ends with this copy; records are small
-                    // except messages and chunks, which are copied (or decompressed) anyway.
-                    let data = data.to_vec();
-                    if let Some(message) = self.on_record(opcode, &data) {
+                    // Owning the parsed record ends the borrow of the reader's buffer; records
+                    // the scan skips are never copied.
+                    let parsed = parse_checked(opcode, data).map(owned);
+                    if let Some(message) = self.on_record(parsed) {
                         return Some(message);
                     }
                 }
@@ -642,16 +647,19 @@ impl LinearMessages {
         }
     }
 
-    /// Takes in one record of the file or of a chunk; `Some` for a message or an error.
-    fn on_record(&mut self, opcode: u8, body: &[u8]) -> Option<Result<(u16, i64, Vec<u8>)>> {
-        let record = match parse_checked(opcode, body) {
+    /// Takes in one parsed record of the file or of a chunk; `Some` for a message or an error.
+    fn on_record(
+        &mut self,
+        parsed: std::result::Result<Option<Record<'static>>, McapError>,
+    ) -> Option<Result<(u16, i64, Vec<u8>)>> {
+        let record = match parsed {
             Ok(Some(record)) => record,
             Ok(None) => return None,
             Err(e) => return Some(Err(self.fail(e))),
         };
         match record {
             Record::Chunk { header, data } => {
-                match decompress_chunk(&header, &data, RECORD_LENGTH_LIMIT) {
+                match decompress_chunk(&header, data, RECORD_LENGTH_LIMIT) {
                     Ok(records) => self.chunk = Some(ChunkRecords::new(records)),
                     Err(e) => return Some(Err(self.fail(e))),
                 }
