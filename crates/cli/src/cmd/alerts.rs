@@ -253,43 +253,30 @@ fn fall_intervals(truth: &[(f64, Activity)]) -> Vec<(f64, f64)> {
 }
 
 /// Pairs each fall with the first alert raised from its start until the next fall's start;
-/// returns the outcomes and how many alerts answered no fall.
+/// returns the outcomes and how many alerts came before any fall. Later alerts in a fall's
+/// window (a PERSON_DOWN after its FALL_DETECTED) are not false.
 fn match_alerts(
     episode: usize,
     falls: &[(f64, f64)],
     alerts: &[FallAlert],
 ) -> (Vec<FallOutcome>, usize) {
-    let mut used = vec![false; alerts.len()];
-    let mut outcomes = Vec::new();
-    for (k, &(start, end)) in falls.iter().enumerate() {
-        let until = falls.get(k + 1).map_or(f64::INFINITY, |next| next.0);
-        let first = alerts
-            .iter()
-            .enumerate()
-            .find(|(i, a)| !used[*i] && a.raised_at_s >= start && a.raised_at_s < until);
-        if let Some((i, _)) = first {
-            used[i] = true;
-        }
-        outcomes.push(FallOutcome {
-            episode,
-            start_s: start,
-            end_s: end,
-            latency_s: first.map(|(_, a)| a.raised_at_s - end),
-            alert: first.map(|(_, a)| a.kind.name()),
-        });
-    }
-    // Later alerts for the same fall (a PERSON_DOWN after its FALL_DETECTED) are not false.
-    let unmatched = alerts
+    // The fall whose window [start, next start) holds the alert; `None` before the first.
+    let window = |a: &FallAlert| falls.iter().rposition(|&(start, _)| a.raised_at_s >= start);
+    let outcomes = falls
         .iter()
-        .zip(&used)
-        .filter(|(a, used)| {
-            !**used
-                && !falls.iter().enumerate().any(|(k, &(start, _))| {
-                    let until = falls.get(k + 1).map_or(f64::INFINITY, |next| next.0);
-                    a.raised_at_s >= start && a.raised_at_s < until
-                })
+        .enumerate()
+        .map(|(k, &(start, end))| {
+            let first = alerts.iter().find(|a| window(a) == Some(k));
+            FallOutcome {
+                episode,
+                start_s: start,
+                end_s: end,
+                latency_s: first.map(|a| a.raised_at_s - end),
+                alert: first.map(|a| a.kind.name()),
+            }
         })
-        .count();
+        .collect();
+    let unmatched = alerts.iter().filter(|a| window(a).is_none()).count();
     (outcomes, unmatched)
 }
 
