@@ -80,13 +80,31 @@ pub struct AlertsReport {
     pub false_fall_detected: usize,
     pub false_person_down: usize,
     pub false_alerts_per_hour: f64,
+    /// False alerts by what the person was really doing when each was raised (the
+    /// misreadings to fix), most frequent first.
+    pub false_alerts_by_activity: Vec<(&'static str, usize)>,
     pub outcomes: Vec<FallOutcome>,
+    pub false_alert_details: Vec<FalseAlert>,
 }
 
-/// What one episode gave: the truth's falls (start, end) and the alerts raised.
+/// An alert in an episode without falls, with the truth around it.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct FalseAlert {
+    pub episode: usize,
+    pub scene: String,
+    pub kind: &'static str,
+    pub raised_at_s: f64,
+    /// The true activity when the alert was raised, and one second before.
+    pub activity: &'static str,
+    pub activity_1s_before: &'static str,
+}
+
+/// What one episode gave: the truth's falls (start, end), the alerts raised and the true
+/// activity at every scan.
 struct Episode {
     falls: Vec<(f64, f64)>,
     alerts: Vec<FallAlert>,
+    truth: Vec<(f64, Activity)>,
 }
 
 pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
@@ -119,7 +137,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     );
     let mut outcomes = Vec::new();
     let mut unmatched = 0;
-    let mut false_alerts: Vec<FallAlert> = Vec::new();
+    let mut false_alerts: Vec<FalseAlert> = Vec::new();
     let (mut fall_episodes_run, mut no_fall_episodes_run) = (0, 0);
     for id in 0..total {
         let falls = id < args.fall_episodes;
@@ -142,14 +160,30 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
             unmatched += rest;
         } else {
             no_fall_episodes_run += 1;
-            false_alerts.extend(episode.alerts);
+            false_alerts.extend(episode.alerts.iter().map(|a| FalseAlert {
+                episode: id,
+                scene: scene.name.clone(),
+                kind: a.kind.name(),
+                raised_at_s: a.raised_at_s,
+                activity: activity_at(&episode.truth, a.raised_at_s).label(),
+                activity_1s_before: activity_at(&episode.truth, a.raised_at_s - 1.0).label(),
+            }));
         }
         progress.inc(1);
     }
     progress.finish_and_clear();
 
     let latencies: Vec<f64> = outcomes.iter().filter_map(|o| o.latency_s).collect();
-    let count = |kind| false_alerts.iter().filter(|a| a.kind == kind).count();
+    let count = |kind: AlertKind| false_alerts.iter().filter(|a| a.kind == kind.name()).count();
+    let mut by_activity: Vec<(&'static str, usize)> = Activity::ALL
+        .iter()
+        .map(|a| {
+            let n = false_alerts.iter().filter(|f| f.activity == a.label()).count();
+            (a.label(), n)
+        })
+        .filter(|&(_, n)| n > 0)
+        .collect();
+    by_activity.sort_by(|a, b| b.1.cmp(&a.1));
     let no_fall_hours = no_fall_episodes_run as f64 * args.episode_seconds / 3600.0;
     let report = AlertsReport {
         model: args.model.display().to_string(),
@@ -174,7 +208,9 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         } else {
             0.0
         },
+        false_alerts_by_activity: by_activity,
         outcomes,
+        false_alert_details: false_alerts,
     };
     print_report(&report);
     if let Some(path) = &args.out {
@@ -228,7 +264,16 @@ fn run_episode(
     Ok(Episode {
         falls: fall_intervals(&truth),
         alerts,
+        truth,
     })
+}
+
+/// The true activity at `t` (the last scan at or before it; the first scan before that).
+fn activity_at(truth: &[(f64, Activity)], t: f64) -> Activity {
+    let i = truth.partition_point(|&(s, _)| s <= t);
+    truth
+        .get(i.saturating_sub(1))
+        .map_or(Activity::Standing, |&(_, a)| a)
 }
 
 /// The (start, end) of every run of `falling_down` in the truth; the end is the first scan
@@ -309,6 +354,14 @@ fn print_report(r: &AlertsReport) {
         r.false_person_down,
         r.false_alerts_per_hour
     );
+    if !r.false_alerts_by_activity.is_empty() {
+        let list: Vec<String> = r
+            .false_alerts_by_activity
+            .iter()
+            .map(|(a, n)| format!("{a} {n}"))
+            .collect();
+        println!("false alerts raised while the person was: {}", list.join(", "));
+    }
 }
 
 fn percent(part: usize, whole: usize) -> f64 {
@@ -333,6 +386,17 @@ mod tests {
             position: DVec2::ZERO,
             confidence: 0.9,
         }
+    }
+
+    #[test]
+    fn activity_at_takes_the_last_scan_at_or_before() {
+        use Activity::*;
+        let truth = [(0.0, Standing), (1.0, Walking), (2.0, SittingOnFloor)];
+        assert_eq!(activity_at(&truth, 1.5), Walking);
+        assert_eq!(activity_at(&truth, 2.0), SittingOnFloor);
+        assert_eq!(activity_at(&truth, -3.0), Standing);
+        assert_eq!(activity_at(&truth, 9.0), SittingOnFloor);
+        assert_eq!(activity_at(&[], 1.0), Standing);
     }
 
     #[test]

@@ -108,6 +108,10 @@ pub struct EpisodeEntry {
     /// Scans in which the localiser had the person in view.
     pub person_visible_scans: usize,
     pub windows: usize,
+    /// Where the Lidar stood (map frame, metres) in a `--fixed-lidar` dataset: each episode
+    /// has its own spot, so per-episode accuracy compares Lidar placements.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_lidar_at: Option<[f64; 2]>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -254,6 +258,7 @@ struct EpisodeWindows {
     starts: Vec<usize>,
     scans: usize,
     visible: usize,
+    fixed_lidar_at: Option<[f64; 2]>,
 }
 
 pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
@@ -334,6 +339,7 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
             scans: windows.scans,
             person_visible_scans: windows.visible,
             windows: windows.starts.len(),
+            fixed_lidar_at: windows.fixed_lidar_at,
         });
         let k = SPLITS.iter().position(|s| *s == plan.split).unwrap_or(0);
         per_split[k].0.push(windows);
@@ -609,12 +615,14 @@ fn run_episode(
             }
         }
     }
+    let start = sim.scene().robot.start;
     Ok(EpisodeWindows {
         images,
         labels,
         starts,
         scans,
         visible,
+        fixed_lidar_at: args.fixed_lidar.then_some([start.x, start.y]),
     })
 }
 

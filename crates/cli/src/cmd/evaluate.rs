@@ -66,7 +66,33 @@ struct SplitMetrics {
     macro_f1: f64,
     weighted_f1: f64,
     confusion: Vec<Vec<u64>>,
+    /// Accuracy per episode (one room, one robot path or fixed Lidar spot, one person).
+    per_episode: Option<EpisodeSpread>,
 }
+
+/// How accuracy varies between episodes; in a `--fixed-lidar` dataset, between Lidar spots
+/// (the paper's best and worst fixed positions).
+#[derive(Serialize)]
+struct EpisodeSpread {
+    /// Episodes with at least [`MIN_EPISODE_WINDOWS`] windows (the others are too short to
+    /// score).
+    episodes: usize,
+    median: f64,
+    best: EpisodeAccuracy,
+    worst: EpisodeAccuracy,
+}
+
+#[derive(Serialize, Clone)]
+struct EpisodeAccuracy {
+    episode: usize,
+    scene: String,
+    accuracy: f64,
+    windows: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    fixed_lidar_at: Option<[f64; 2]>,
+}
+
+const MIN_EPISODE_WINDOWS: usize = 20;
 
 #[derive(Serialize)]
 struct Metrics {
@@ -98,7 +124,9 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
         let Some((images, labels)) = index.read_split(&args.data, split)? else {
             continue;
         };
-        let (metrics, confusion) = evaluate_split(&mut model, &images, &labels, &mut step_times)?;
+        let (mut metrics, confusion, correct) =
+            evaluate_split(&mut model, &images, &labels, &mut step_times)?;
+        metrics.per_episode = episode_spread(&index, split, &correct);
         draw_confusion(&confusion, &args.out.join(format!("confusion_{split}.png")))?;
         splits.insert(split.to_string(), metrics);
     }
@@ -185,11 +213,12 @@ fn evaluate_split(
     images: &ndarray::Array4<u8>,
     labels: &Array2<u8>,
     step_times: &mut Vec<f64>,
-) -> anyhow::Result<(SplitMetrics, ConfusionMatrix)> {
+) -> anyhow::Result<(SplitMetrics, ConfusionMatrix, Vec<bool>)> {
     let (n, t, size, _) = images.dim();
     let half = t / 2;
     let mut confusion = ConfusionMatrix::new();
     let mut half_right = 0usize;
+    let mut correct = Vec::with_capacity(n);
     let mut frame = Array2::<f32>::zeros((size, size));
     let mut state = model.initial_state();
     for w in 0..n {
@@ -208,6 +237,7 @@ fn evaluate_split(
             }
             if k == t - 1 {
                 confusion.add(truth, predicted);
+                correct.push(predicted == truth);
             }
         }
     }
@@ -229,8 +259,44 @@ fn evaluate_split(
         macro_f1: report.macro_f1,
         weighted_f1: report.weighted_f1,
         confusion: confusion_rows(&report),
+        per_episode: None,
     };
-    Ok((metrics, confusion))
+    Ok((metrics, confusion, correct))
+}
+
+/// Per-episode accuracy of one split from each window's outcome (`correct[row]`).
+fn episode_spread(index: &DatasetIndex, split: &str, correct: &[bool]) -> Option<EpisodeSpread> {
+    let mut counts: std::collections::BTreeMap<usize, (usize, usize)> = Default::default();
+    for w in index.windows.iter().filter(|w| w.split == split) {
+        if let Some(&ok) = correct.get(w.row) {
+            let c = counts.entry(w.episode).or_default();
+            c.0 += usize::from(ok);
+            c.1 += 1;
+        }
+    }
+    let mut scored: Vec<EpisodeAccuracy> = index
+        .episodes
+        .iter()
+        .filter_map(|e| {
+            let &(right, windows) = counts.get(&e.id)?;
+            (windows >= MIN_EPISODE_WINDOWS).then(|| EpisodeAccuracy {
+                episode: e.id,
+                scene: e.scene.clone(),
+                accuracy: right as f64 / windows as f64,
+                windows,
+                fixed_lidar_at: e.fixed_lidar_at,
+            })
+        })
+        .collect();
+    scored.sort_by(|a, b| a.accuracy.total_cmp(&b.accuracy));
+    let worst = scored.first()?.clone();
+    let best = scored.last()?.clone();
+    Some(EpisodeSpread {
+        episodes: scored.len(),
+        median: scored[scored.len() / 2].accuracy,
+        best,
+        worst,
+    })
 }
 
 fn confusion_rows(report: &MetricsReport) -> Vec<Vec<u64>> {
@@ -299,6 +365,33 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
         m.test.windows,
         unseen.map(|u| u.windows).unwrap_or(0)
     );
+    if let Some(spread) = &m.test.per_episode {
+        let at = |e: &EpisodeAccuracy| {
+            e.fixed_lidar_at
+                .map(|[x, y]| format!(", Lidar at ({x:.2}, {y:.2}) m"))
+                .unwrap_or_default()
+        };
+        let what = if index.spec.fixed_lidar {
+            "Fixed Lidar, one random spot per test episode (paper, fixed Lidar: 82.9 % at the best \
+             position, 74.0 % at the worst)"
+        } else {
+            "Moving robot, per test episode"
+        };
+        out += &format!(
+            "{what}: best {} % (episode {}, {}{}), median {} %, worst {} % (episode {}, {}{}) \
+             over {} episodes of at least {MIN_EPISODE_WINDOWS} windows.\n\n",
+            pct(spread.best.accuracy),
+            spread.best.episode,
+            spread.best.scene,
+            at(&spread.best),
+            pct(spread.median),
+            pct(spread.worst.accuracy),
+            spread.worst.episode,
+            spread.worst.scene,
+            at(&spread.worst),
+            spread.episodes
+        );
+    }
     out += "Per class on the test split, recall / precision in % (paper: Boolean grid):\n\n";
     out += "| class | ours recall | ours precision | ours F1 | paper recall | paper precision |\n|---|---|---|---|---|---|\n";
     for a in Activity::ALL {

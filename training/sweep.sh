@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Accuracy against run time (docs/training.md): one dataset, training and evaluation per
+# configuration of training/sweep.toml. About an hour on 2 CPU cores.
+#
+#   training/sweep.sh [--out out/sweep] [--only NAME ...] [--report-only]
+set -euo pipefail
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+ROOT="$(cd "$HERE/.." && pwd)"
+cd "$ROOT"
+"$HERE/train.sh" --help >/dev/null # creates training/.venv when missing
+cargo build --release --locked --bin lidar-har
+# The sweep's own copy: rebuilding while it runs must not change the binary half-way.
+mkdir -p out/sweep
+cp target/release/lidar-har out/sweep/lidar-har
+export ORT_DYLIB_PATH="${ORT_DYLIB_PATH:-$ROOT/.deps/onnxruntime/libonnxruntime.so}"
+export PYTHONPATH="$HERE${PYTHONPATH:+:$PYTHONPATH}"
+exec "$HERE/.venv/bin/python" -m lidar_har_train.sweep --config "$HERE/sweep.toml" --out out/sweep \
+    --lidar-har out/sweep/lidar-har "$@"
