@@ -93,6 +93,12 @@ impl LocaliserConfig {
             ("cluster.tolerance_m", self.cluster.tolerance_m),
             ("tracker.gate_growth_mps", self.tracker.gate_growth_mps),
             ("tracker.part_merge_m", self.tracker.part_merge_m),
+            ("tracker.midpoint_length_m", self.tracker.midpoint_length_m),
+            (
+                "tracker.part_merge_still_m",
+                self.tracker.part_merge_still_m,
+            ),
+            ("tracker.still_speed_mps", self.tracker.still_speed_mps),
             ("tracker.max_coast_s", self.tracker.max_coast_s),
             (
                 "background.learn_duration_s",
@@ -461,6 +467,12 @@ impl Localiser {
 
     pub fn reference(&self) -> &Reference {
         &self.reference
+    }
+
+    /// The clusters of the latest localised scan (map frame, centroid offset applied), for
+    /// diagnosis.
+    pub fn clusters(&self) -> &[Cluster] {
+        &self.clusters
     }
 
     /// Tracks ever confirmed: the people (and persistent unmapped objects) seen so far.

@@ -4,8 +4,9 @@
 //! the person for good when they are hidden for one scan. Here every cluster feeds a
 //! constant-velocity Kalman filter track:
 //! - the person's track predicts through short occlusions (behind furniture) and its gate
-//!   grows with the person's top speed while it is unseen, so it re-acquires them where they
-//!   reappear;
+//!   grows with the person's top speed while it is unseen, around both the predicted and the
+//!   last seen position (a hidden runner may have turned back), so it re-acquires them where
+//!   they reappear;
 //! - a new cluster only becomes a confirmed track after `confirm_hits` detections, so
 //!   transient clutter (multipath, a stray return) never takes over;
 //! - when the person's track has been unseen for `max_coast_s`, it is dropped and the most
@@ -31,9 +32,22 @@ pub struct TrackerConfig {
     pub gate_growth_mps: f64,
     /// ...up to this radius (m).
     pub max_gate_m: f64,
-    /// Other clusters whose centroid is this close to the person's cluster are parts of the
-    /// person (an arm, the second leg) and join its points (m).
+    /// Other clusters whose centroid is this close to the person's cluster, or to the
+    /// person's predicted position, are parts of the person (an arm, the second leg: in a
+    /// long stride the legs are 0.7 m apart at ankle height, each 0.35 m from the person)
+    /// and join its points (m).
     pub part_merge_m: f64,
+    /// While the person moves slower than `still_speed_mps` (sitting or lying on the floor,
+    /// whose hands, feet and trunk are separate clusters up to a metre apart) parts join
+    /// within this distance instead (m).
+    pub part_merge_still_m: f64,
+    /// Below this speed the person is still (m/s).
+    pub still_speed_mps: f64,
+    /// The person's points stretching farther than this along their main axis (a body lying
+    /// on the floor) put the person at the middle of that stretch rather than at the points'
+    /// centroid, which the more densely sampled near end drags towards it (m; an upright
+    /// person is under 0.8 m across at ankle height, even in a long stride).
+    pub midpoint_length_m: f64,
     /// Detections before a new track is trusted.
     pub confirm_hits: u32,
     /// A tentative track missed this many scans in a row is clutter and is dropped.
@@ -46,6 +60,10 @@ pub struct TrackerConfig {
     /// swing, one hides the other, so a walking person's centroid scatters ~0.15 m (measured
     /// with the `localiser_accuracy` example; 0.05 made the velocity jitter by +-1 m/s).
     pub measurement_std_m: f64,
+    /// A person seen with fewer points than this is a partial view (one leg hiding the other,
+    /// a few beams at range): the measurement variance is scaled by this over the points, so
+    /// one noisy scan moves the velocity less (a walker's velocity had jumped by +-1 m/s).
+    pub full_view_points: u32,
     /// Standard deviation of the unknown velocity of a new track (m/s).
     pub initial_velocity_std_mps: f64,
     /// Speeds above this are clamped: nobody indoors moves faster (m/s).
@@ -59,11 +77,15 @@ impl Default for TrackerConfig {
             gate_growth_mps: 2.5,
             max_gate_m: 2.0,
             part_merge_m: 0.6,
+            part_merge_still_m: 1.0,
+            still_speed_mps: 0.3,
+            midpoint_length_m: 0.8,
             confirm_hits: 3,
             tentative_max_misses: 2,
             max_coast_s: 2.0,
             accel_std_mps2: 2.0,
             measurement_std_m: 0.15,
+            full_view_points: 10,
             initial_velocity_std_mps: 1.0,
             max_speed_mps: 3.0,
         }
@@ -123,6 +145,9 @@ struct Track {
     y: AxisFilter,
     stamp_ns: i64,
     last_seen_ns: i64,
+    /// The filtered position when last seen: while unseen, the person can be anywhere
+    /// within the grown gate of it, whichever way they turned.
+    last_seen_at: DVec2,
     hits: u32,
     misses_in_a_row: u32,
     confirmed: bool,
@@ -142,6 +167,18 @@ impl Track {
     fn gate(&self, stamp_ns: i64, config: &TrackerConfig) -> f64 {
         (config.gate_m + config.gate_growth_mps * self.unseen_s(stamp_ns))
             .min(config.max_gate_m.max(config.gate_m))
+    }
+
+    /// How far `p` is from where the track may be: the nearer of the predicted position and,
+    /// while unseen, the last seen one (a hidden runner who turned back is near where they
+    /// vanished, not where a straight line would have taken them).
+    fn distance(&self, p: DVec2) -> f64 {
+        let predicted = p.distance(self.position());
+        if self.last_seen_ns == self.stamp_ns {
+            predicted
+        } else {
+            predicted.min(p.distance(self.last_seen_at))
+        }
     }
 }
 
@@ -239,7 +276,7 @@ impl Tracker {
                 .iter()
                 .enumerate()
                 .filter(|(c, _)| !self.taken[*c])
-                .map(|(c, cl)| (c, cl.centroid.distance(predicted)))
+                .map(|(c, cl)| (c, track.distance(cl.centroid)))
                 .filter(|&(_, d)| d <= gate)
                 .min_by(|a, b| a.1.total_cmp(&b.1));
             let Some((c, _)) = nearest else { continue };
@@ -249,9 +286,17 @@ impl Tracker {
             // offset (the points themselves are where the Lidar saw them).
             let mut weighted = clusters[c].centroid * clusters[c].points.len() as f64;
             if Some(track.id) == person {
+                let merge = if DVec2::new(track.x.vel, track.y.vel).length()
+                    < self.config.still_speed_mps
+                {
+                    self.config.part_merge_still_m.max(self.config.part_merge_m)
+                } else {
+                    self.config.part_merge_m
+                };
                 for (other, cl) in clusters.iter().enumerate() {
                     if !self.taken[other]
-                        && cl.centroid.distance(clusters[c].centroid) <= self.config.part_merge_m
+                        && (cl.centroid.distance(clusters[c].centroid) <= merge
+                            || cl.centroid.distance(predicted) <= merge)
                     {
                         self.taken[other] = true;
                         points.extend_from_slice(&cl.points);
@@ -259,15 +304,24 @@ impl Tracker {
                     }
                 }
             }
-            assigned[i] = Some(weighted / points.len().max(1) as f64);
+            let mut z = weighted / points.len().max(1) as f64;
+            if Some(track.id) == person {
+                z = body_position(&points, z, self.config.midpoint_length_m);
+            }
+            assigned[i] = Some(z);
             self.tracks[i].points = points;
         }
 
         let meas_var = self.config.measurement_std_m.powi(2);
         let max_speed = self.config.max_speed_mps;
+        let full_view = f64::from(self.config.full_view_points);
         for (track, z) in self.tracks.iter_mut().zip(&assigned) {
             match z {
                 Some(z) => {
+                    // A partial view (one leg, a few beams at range) places the person less
+                    // well: its variance grows as the points fall short of a full view.
+                    let n = track.points.len().max(1) as f64;
+                    let meas_var = meas_var * (full_view / n).max(1.0);
                     track.x.update(z.x, meas_var);
                     track.y.update(z.y, meas_var);
                     let v = DVec2::new(track.x.vel, track.y.vel);
@@ -278,6 +332,7 @@ impl Tracker {
                     track.hits += 1;
                     track.misses_in_a_row = 0;
                     track.last_seen_ns = stamp_ns;
+                    track.last_seen_at = track.position();
                     if !track.confirmed && track.hits >= self.config.confirm_hits {
                         track.confirmed = true;
                         self.confirmed_total += 1;
@@ -313,6 +368,7 @@ impl Tracker {
                 y: AxisFilter::new(cl.centroid.y, pos_var, vel_var),
                 stamp_ns,
                 last_seen_ns: stamp_ns,
+                last_seen_at: cl.centroid,
                 hits: 1,
                 misses_in_a_row: 0,
                 confirmed: self.config.confirm_hits <= 1,
@@ -366,6 +422,34 @@ impl Tracker {
     }
 }
 
+/// Where the person is, from their points and `centroid`, the (offset) centroid of the
+/// clusters: a body longer than `midpoint_length_m` along its main axis is placed at the
+/// middle of its extent along that axis (keeping the clusters' offset from the points'
+/// plain centroid), since beams sample its near end more densely than its far end.
+fn body_position(points: &[DVec2], centroid: DVec2, midpoint_length_m: f64) -> DVec2 {
+    if points.len() < 2 {
+        return centroid;
+    }
+    let mean = points.iter().copied().sum::<DVec2>() / points.len() as f64;
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in points {
+        let d = *p - mean;
+        (sxx, sxy, syy) = (sxx + d.x * d.x, sxy + d.x * d.y, syy + d.y * d.y);
+    }
+    // Main axis of the scatter: the eigenvector of the larger eigenvalue.
+    let axis = DVec2::from_angle(0.5 * (2.0 * sxy).atan2(sxx - syy));
+    let (lo, hi) = points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            let t = (*p - mean).dot(axis);
+            (lo.min(t), hi.max(t))
+        });
+    if hi - lo <= midpoint_length_m {
+        return centroid;
+    }
+    centroid + axis * (0.5 * (lo + hi))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -402,7 +486,12 @@ mod tests {
             "{:?}",
             est.velocity
         );
-        assert!(est.covariance[0][0] > 0.0 && est.covariance[0][0] < 0.01);
+        // Below the variance of one centroid (0.15 m squared): the filter averages scans.
+        assert!(
+            est.covariance[0][0] > 0.0 && est.covariance[0][0] < 0.15f64.powi(2),
+            "{:?}",
+            est.covariance
+        );
         assert_eq!(est.points.len(), 6);
     }
 
@@ -433,6 +522,151 @@ mod tests {
             .expect("reacquired");
         assert!(est.visible);
         assert_eq!(Some(est.track_id), id, "same track after the occlusion");
+    }
+
+    #[test]
+    fn a_hidden_runner_who_turns_back_is_reacquired_where_they_vanished() {
+        let mut tracker = Tracker::new(TrackerConfig::default());
+        // Running at 2.5 m/s along x for 1 s.
+        let mut id = None;
+        for k in 0..20 {
+            let p = DVec2::new(0.125 * k as f64, 0.0);
+            id = tracker
+                .update(k * PERIOD_NS, &[blob(p)])
+                .map(|e| e.track_id);
+        }
+        let vanished = DVec2::new(0.125 * 19.0, 0.0);
+        // Hidden for 0.55 s, in which they turned round: they reappear 0.8 m behind where
+        // they vanished, 2.2 m behind the straight-line prediction (its gate is 2 m).
+        for k in 20..30 {
+            let est = tracker.update(k * PERIOD_NS, &[]).expect("coasting");
+            assert!(!est.visible);
+        }
+        let back = vanished - DVec2::new(0.8, 0.0);
+        let est = tracker
+            .update(30 * PERIOD_NS, &[blob(back)])
+            .expect("tracked");
+        assert!(est.visible, "re-acquired at once: {est:?}");
+        assert_eq!(Some(est.track_id), id);
+    }
+
+    #[test]
+    fn both_legs_of_a_long_stride_join_the_person() {
+        // Legs 0.7 m apart (a full stride at ankle height), each 0.35 m from the person's
+        // centre: farther apart than part_merge_m, but both near the predicted position.
+        let mut tracker = Tracker::new(TrackerConfig::default());
+        let mut est = None;
+        for k in 0..11 {
+            let centre = DVec2::new(0.05 * k as f64, 0.0);
+            let (back, front) = if k % 2 == 0 {
+                (-0.35, 0.35)
+            } else {
+                (-0.1, 0.1)
+            };
+            est = tracker.update(
+                k * PERIOD_NS,
+                &[
+                    blob(centre + DVec2::new(back, 0.0)),
+                    blob(centre + DVec2::new(front, 0.0)),
+                ],
+            );
+        }
+        let est = est.expect("tracked");
+        assert_eq!(est.points.len(), 12, "both legs");
+        assert_eq!(tracker.live_tracks(), 1);
+    }
+
+    #[test]
+    fn a_still_person_gathers_parts_a_metre_apart_a_walking_one_does_not() {
+        // A person sitting on the floor: feet and hands 0.9 m apart, no trunk in the plane.
+        let parts = |centre: DVec2| {
+            [
+                blob(centre + DVec2::new(0.45, 0.0)),
+                blob(centre - DVec2::new(0.45, 0.0)),
+            ]
+        };
+        let sitting = |config: TrackerConfig| {
+            let mut tracker = Tracker::new(config);
+            let mut est = None;
+            for k in 0..10 {
+                est = tracker.update(k * PERIOD_NS, &parts(DVec2::ZERO));
+            }
+            est.expect("tracked")
+        };
+        let est = sitting(TrackerConfig::default());
+        assert_eq!(est.points.len(), 12);
+        assert!(est.position.length() < 0.05, "{:?}", est.position);
+        let moving_merge_only = TrackerConfig {
+            part_merge_still_m: 0.6,
+            ..TrackerConfig::default()
+        };
+        assert_eq!(sitting(moving_merge_only).points.len(), 6);
+
+        // Walking at 1 m/s: a blob 0.9 m beside them is not a part of them.
+        let mut walking = Tracker::new(TrackerConfig::default());
+        let mut est = None;
+        for k in 0..20 {
+            let p = DVec2::new(0.05 * k as f64, 0.0);
+            let clusters = if k < 19 {
+                vec![blob(p)]
+            } else {
+                vec![blob(p), blob(p + DVec2::new(0.0, 0.9))]
+            };
+            est = walking.update(k * PERIOD_NS, &clusters);
+        }
+        assert_eq!(est.expect("tracked").points.len(), 6);
+    }
+
+    #[test]
+    fn a_long_body_is_placed_at_the_middle_of_its_extent() {
+        // A body 1.6 m long along x, sampled four times as densely on its near half (x < 0).
+        let mut points: Vec<DVec2> = (0..64)
+            .map(|i| DVec2::new(-0.8 + 0.0125 * i as f64, 0.0))
+            .collect();
+        points.extend((0..16).map(|i| DVec2::new(0.05 * i as f64, 0.02)));
+        let centroid = points.iter().copied().sum::<DVec2>() / points.len() as f64;
+        assert!(centroid.x < -0.2, "dragged to the near half: {centroid:?}");
+        let shift = DVec2::new(0.0, 0.06); // the clusters' offset away from the Lidar
+        let placed = body_position(&points, centroid + shift, 0.8);
+        assert!(
+            (placed - (DVec2::new(-0.025, centroid.y) + shift)).length() < 0.01,
+            "{placed:?}"
+        );
+        // A short body (two legs) keeps its centroid.
+        assert_eq!(
+            body_position(&points[..20], centroid + shift, 0.8),
+            centroid + shift
+        );
+        assert_eq!(body_position(&[], shift, 0.8), shift);
+    }
+
+    #[test]
+    fn partial_views_move_the_velocity_less() {
+        // A walker at 1 m/s seen as 3-point fragments whose centroid jumps +-0.15 m (one leg,
+        // then the other).
+        let worst_speed_error = |full_view_points: u32| {
+            let mut tracker = Tracker::new(TrackerConfig {
+                full_view_points,
+                ..TrackerConfig::default()
+            });
+            let mut worst: f64 = 0.0;
+            for k in 0..60 {
+                let jitter = if k % 4 < 2 { 0.15 } else { -0.15 };
+                let p = DVec2::new(0.05 * k as f64 + jitter, 0.0);
+                let fragment = Cluster {
+                    centroid: p,
+                    points: vec![p; 3],
+                    extent_m: 0.1,
+                };
+                let est = tracker.update(k * PERIOD_NS, &[fragment]);
+                if k >= 30 {
+                    worst = worst.max((est.expect("tracked").velocity.x - 1.0).abs());
+                }
+            }
+            worst
+        };
+        let (plain, scaled) = (worst_speed_error(0), worst_speed_error(10));
+        assert!(scaled < 0.7 * plain, "scaled {scaled} vs plain {plain}");
     }
 
     #[test]

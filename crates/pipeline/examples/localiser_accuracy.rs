@@ -14,6 +14,8 @@
 
 use std::collections::BTreeMap;
 use std::error::Error;
+use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -60,6 +62,10 @@ struct Args {
     /// Print every scan of the runs of this scene (by name) to stderr, for diagnosis.
     #[arg(long)]
     trace: Option<String>,
+    /// Write one JSON line per scan in which the person is seen (truths, Lidar position,
+    /// report, the person's points) here, for offline study of position estimators.
+    #[arg(long)]
+    dump_points: Option<PathBuf>,
     /// Write the per-scene, per-activity and overall figures as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -137,6 +143,12 @@ fn main() -> Result<(), Box<dyn Error>> {
         return Err(format!("no *.yaml scenes in {}", args.scenes.display()).into());
     }
 
+    let mut dump = match &args.dump_points {
+        Some(path) => Some(BufWriter::new(
+            File::create(path).map_err(|e| format!("{}: {e}", path.display()))?,
+        )),
+        None => None,
+    };
     let started = Instant::now();
     let mut by_scene: BTreeMap<String, Group> = BTreeMap::new();
     let mut by_activity: BTreeMap<usize, Group> = BTreeMap::new();
@@ -152,7 +164,14 @@ fn main() -> Result<(), Box<dyn Error>> {
                     .map_err(|e| format!("{} with {motion_name} robot: {e}", path.display()))?;
                 let mut run_activity: BTreeMap<usize, Group> = BTreeMap::new();
                 let trace = args.trace.as_deref() == Some(scene.name.as_str());
-                run_scene(sim, &config, &criteria, trace, &mut run_activity)?;
+                run_scene(
+                    sim,
+                    &config,
+                    &criteria,
+                    trace,
+                    dump.as_mut(),
+                    &mut run_activity,
+                )?;
                 runs += 1;
                 let mut run = Group::default();
                 for (activity, group) in &run_activity {
@@ -166,6 +185,9 @@ fn main() -> Result<(), Box<dyn Error>> {
                 by_motion.entry(motion_name).or_default().merge(&run);
             }
         }
+    }
+    if let Some(out) = dump.as_mut() {
+        out.flush()?;
     }
     let mut overall = Group::default();
     for group in by_scene.values() {
@@ -262,6 +284,7 @@ fn run_scene(
     config: &LocaliserConfig,
     criteria: &AccuracyCriteria,
     trace: bool,
+    mut dump: Option<&mut BufWriter<File>>,
     by_activity: &mut BTreeMap<usize, Group>,
 ) -> Result<(), Box<dyn Error>> {
     let map = core_map(&SimMap::from_world(sim.world(), DEFAULT_RESOLUTION))?;
@@ -292,29 +315,53 @@ fn run_scene(
         let estimate = result.output.as_ref().and_then(|o| o.person.as_ref());
         let truth = frame.person.map(|p| p.pose.position());
         let activity = frame.person.map_or(0, |p| p.activity.index());
-        if trace && let (Some(output), Some(person)) = (&result.output, frame.person) {
-            let reported = output.person.as_ref();
-            eprintln!(
-                "{} t={:.2} truth=({:.2}, {:.2}) {} beams={person_beams} clusters={} reported={:?}",
-                sim.scene().name,
-                frame.index as f64 / sim.scene().lidar.rate_hz,
-                person.pose.x,
-                person.pose.y,
-                person.activity,
-                output.clusters,
-                reported.map(|e| (
-                    e.track_id,
-                    e.position,
-                    e.visible,
-                    e.velocity,
-                    e.points.iter().sum::<DVec2>() / e.points.len().max(1) as f64
-                )),
-            );
-        }
         let centre = frame
             .person
             .and_then(|p| plane_centre(&p.parts, plane_height))
             .or(truth);
+        if trace && let (Some(output), Some(person)) = (&result.output, frame.person) {
+            let reported = output.person.as_ref();
+            let fmt = |p: DVec2| format!("({:.2}, {:.2})", p.x, p.y);
+            let clusters: Vec<String> = localiser
+                .clusters()
+                .iter()
+                .map(|c| format!("{}:{}:{:.2}", fmt(c.centroid), c.points.len(), c.extent_m))
+                .collect();
+            eprintln!(
+                "{} t={:.2} truth={} centre={} laser={} {} beams={person_beams} clusters=[{}] \
+                 reported={}",
+                sim.scene().name,
+                frame.index as f64 / sim.scene().lidar.rate_hz,
+                fmt(person.pose.position()),
+                centre.map_or("-".into(), fmt),
+                fmt(frame.laser.position()),
+                person.activity,
+                clusters.join(" "),
+                reported.map_or("none".into(), |e| format!(
+                    "id={} pos={} vis={} vel={} pts={} err={:.2}",
+                    e.track_id,
+                    fmt(e.position),
+                    e.visible,
+                    fmt(e.velocity),
+                    e.points.len(),
+                    centre.map_or(f64::NAN, |c| c.distance(e.position))
+                )),
+            );
+        }
+        if let (Some(out), Some(e), Some(person), Some(c)) =
+            (dump.as_mut(), estimate, frame.person, centre)
+            && e.visible
+        {
+            let points: Vec<[f64; 2]> = e.points.iter().map(|p| [p.x, p.y]).collect();
+            let line = serde_json::json!({
+                "scene": sim.scene().name, "activity": person.activity.to_string(),
+                "pelvis": [person.pose.x, person.pose.y, person.pose.theta],
+                "centre": [c.x, c.y], "laser": [frame.laser.x, frame.laser.y],
+                "reported": [e.position.x, e.position.y], "velocity": [e.velocity.x, e.velocity.y],
+                "person_beams": person_beams, "points": points,
+            });
+            writeln!(out, "{line}")?;
+        }
         let group = by_activity.entry(activity).or_default();
         let reported = estimate.map(|e| ReportedPerson {
             position: e.position,
