@@ -2,9 +2,12 @@
 //!
 //! Two alerts, each raised once per incident:
 //! - `FallDetected`: `falling_down` is the most likely class with probability at least
-//!   `fall_probability` on `fall_min_scans` consecutive visible scans; or a descent: lying
-//!   down is confirmed at most `descent_max_s` after the person was last classified upright
-//!   (a fall is short and easily missed, the lying that follows is not).
+//!   `fall_probability` on `fall_min_scans` consecutive visible scans, starting at most
+//!   `fall_from_upright_s` after the person was last upright; or a descent: lying down is
+//!   confirmed at most `descent_max_s` after the person was last upright (a fall is short
+//!   and easily missed, the lying that follows is not). "Upright" is the confirmed posture,
+//!   not one scan: a person crawling or getting up from the floor whom the classifier takes
+//!   for walking for a scan or two has not been upright, and cannot fall from there.
 //! - `PersonDown`: the person has been on the floor (lying, sitting on the floor or crawling,
 //!   [`Activity::is_on_floor`]) for `down_after_s` without being seen getting up. The clock
 //!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
@@ -45,6 +48,10 @@ pub struct FallAlertConfig {
     /// even when no scan looked like `falling_down` (a fall is short; lying is not).
     /// Seconds; 0 turns this off.
     pub descent_max_s: f64,
+    /// A run of `falling_down` scans counts only when it starts at most this long after the
+    /// person was last confirmed upright: a fall starts from standing or walking, and getting
+    /// up or crawling misread as falling does not. Seconds; 0 drops the requirement.
+    pub fall_from_upright_s: f64,
 }
 
 impl Default for FallAlertConfig {
@@ -56,6 +63,7 @@ impl Default for FallAlertConfig {
             confirm_scans: 5,
             rearm_upright_s: 3.0,
             descent_max_s: 3.0,
+            fall_from_upright_s: 3.0,
         }
     }
 }
@@ -104,6 +112,13 @@ impl FallAlertConfig {
             "descent_max_s",
             d,
             d.is_finite() && d >= 0.0,
+            "finite, >= 0",
+        )?;
+        let u = self.fall_from_upright_s;
+        check(
+            "fall_from_upright_s",
+            u,
+            u.is_finite() && u >= 0.0,
             "finite, >= 0",
         )
     }
@@ -183,7 +198,7 @@ pub struct FallDetector {
     candidate: Option<(Posture, f64, u32)>,
     /// Confirmed posture and since when.
     posture: Option<(Posture, f64)>,
-    /// The last visible scan classified upright.
+    /// The last visible scan classified upright while the confirmed posture was upright.
     last_upright_s: Option<f64>,
     /// Since when the person is down, with summed on-floor probability and scan count.
     down: Option<(f64, f64, u32)>,
@@ -286,7 +301,7 @@ impl FallDetector {
             let (start, n, sum) = self.fall_run.unwrap_or((t, 0, 0.0));
             let run = (start, n + 1, sum + p_fall as f64);
             self.fall_run = Some(run);
-            if run.1 == self.config.fall_min_scans {
+            if run.1 == self.config.fall_min_scans && self.fell_from_upright(start) {
                 self.start_down(start);
                 if self.fall_disarmed_at.is_none() {
                     self.fall_disarmed_at = Some(t);
@@ -326,7 +341,7 @@ impl FallDetector {
             *sum += on_floor_p as f64;
             *count += 1;
         }
-        if seen == Posture::Upright {
+        if seen == Posture::Upright && self.posture.map(|(p, _)| p) == Some(Posture::Upright) {
             self.last_upright_s = Some(t);
         }
         // Re-arm once upright long enough, counting only uprightness that began after the alert.
@@ -339,6 +354,12 @@ impl FallDetector {
                 }
             }
         }
+    }
+
+    /// Whether a fall starting at `start` follows being upright closely enough.
+    fn fell_from_upright(&self, start: f64) -> bool {
+        let limit = self.config.fall_from_upright_s;
+        limit <= 0.0 || self.last_upright_s.is_some_and(|at| start - at <= limit)
     }
 
     /// Lying confirmed soon after the person was last upright: a fall, seen or not.
@@ -485,6 +506,52 @@ mod tests {
             ],
         );
         assert!(slow.is_empty(), "{slow:?}");
+    }
+
+    #[test]
+    fn moves_on_the_floor_misread_for_a_moment_are_not_falls() {
+        // Sitting, starting to get up, a two-scan flicker of walking, then lying: never
+        // confirmed upright since the sitting, so no descent.
+        let mut d = detector();
+        let flicker = run(
+            &mut d,
+            &[
+                (Walking, 5.0, true),
+                (SittingOnFloor, 5.0, true),
+                (GettingUp, 0.5, true),
+                (Walking, 0.1, true),
+                (LyingDown, 5.0, true),
+            ],
+        );
+        assert!(flicker.is_empty(), "{flicker:?}");
+        // Crawling, then getting up taken for a fall: nobody falls from the floor.
+        let mut d = detector();
+        let from_floor = run(
+            &mut d,
+            &[
+                (Walking, 5.0, true),
+                (Crawling, 5.0, true),
+                (FallingDown, 0.5, true),
+                (GettingUp, 1.0, true),
+                (Walking, 5.0, true),
+            ],
+        );
+        assert!(from_floor.is_empty(), "{from_floor:?}");
+        // Without the requirement, the same misreading is an alert.
+        let mut d = FallDetector::new(FallAlertConfig {
+            fall_from_upright_s: 0.0,
+            ..FallAlertConfig::default()
+        })
+        .unwrap();
+        let loose = run(
+            &mut d,
+            &[
+                (Walking, 5.0, true),
+                (Crawling, 5.0, true),
+                (FallingDown, 0.5, true),
+            ],
+        );
+        assert_eq!(kinds(&loose), [AlertKind::FallDetected]);
     }
 
     #[test]
@@ -725,6 +792,12 @@ mod tests {
         };
         let e = FallDetector::new(config).unwrap_err().to_string();
         assert!(e.contains("fall_probability"), "{e}");
+        let config = FallAlertConfig {
+            fall_from_upright_s: -1.0,
+            ..Default::default()
+        };
+        let e = FallDetector::new(config).unwrap_err().to_string();
+        assert!(e.contains("fall_from_upright_s"), "{e}");
         let config = FallAlertConfig {
             down_after_s: f64::NAN,
             ..Default::default()
