@@ -95,6 +95,10 @@ impl LocaliserConfig {
             ("tracker.part_merge_m", self.tracker.part_merge_m),
             ("tracker.midpoint_length_m", self.tracker.midpoint_length_m),
             (
+                "tracker.long_body_offset_m",
+                self.tracker.long_body_offset_m,
+            ),
+            (
                 "tracker.part_merge_still_m",
                 self.tracker.part_merge_still_m,
             ),

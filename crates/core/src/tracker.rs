@@ -48,6 +48,11 @@ pub struct TrackerConfig {
     /// centroid, which the more densely sampled near end drags towards it (m; an upright
     /// person is under 0.8 m across at ankle height, even in a long stride).
     pub midpoint_length_m: f64,
+    /// Such a long body is moved this much farther away from the Lidar than the clusters'
+    /// centroid offset (m): a trunk (radius ~0.13 m) is thicker than a leg, so its near
+    /// surface lies farther in front of its centre. 0.06 = the median radial bias left over
+    /// bodies longer than `midpoint_length_m` in the simulator's scenes (0.057 m).
+    pub long_body_offset_m: f64,
     /// Detections before a new track is trusted.
     pub confirm_hits: u32,
     /// A tentative track missed this many scans in a row is clutter and is dropped.
@@ -80,6 +85,7 @@ impl Default for TrackerConfig {
             part_merge_still_m: 1.0,
             still_speed_mps: 0.3,
             midpoint_length_m: 0.8,
+            long_body_offset_m: 0.06,
             confirm_hits: 3,
             tentative_max_misses: 2,
             max_coast_s: 2.0,
@@ -306,7 +312,7 @@ impl Tracker {
             }
             let mut z = weighted / points.len().max(1) as f64;
             if Some(track.id) == person {
-                z = body_position(&points, z, self.config.midpoint_length_m);
+                z = body_position(&points, z, &self.config);
             }
             assigned[i] = Some(z);
             self.tracks[i].points = points;
@@ -423,10 +429,12 @@ impl Tracker {
 }
 
 /// Where the person is, from their points and `centroid`, the (offset) centroid of the
-/// clusters: a body longer than `midpoint_length_m` along its main axis is placed at the
-/// middle of its extent along that axis (keeping the clusters' offset from the points'
-/// plain centroid), since beams sample its near end more densely than its far end.
-fn body_position(points: &[DVec2], centroid: DVec2, midpoint_length_m: f64) -> DVec2 {
+/// clusters: a body longer than `midpoint_length_m` along its main axis (lying, crawling) is
+/// placed at the middle of its extent along that axis, since beams sample its near end more
+/// densely than its far end, and moved `long_body_offset_m` further in the direction of the
+/// clusters' offset from the points' plain centroid (away from the Lidar): a trunk is
+/// thicker than a leg, so its near surface lies farther in front of its centre.
+fn body_position(points: &[DVec2], centroid: DVec2, config: &TrackerConfig) -> DVec2 {
     if points.len() < 2 {
         return centroid;
     }
@@ -444,10 +452,11 @@ fn body_position(points: &[DVec2], centroid: DVec2, midpoint_length_m: f64) -> D
             let t = (*p - mean).dot(axis);
             (lo.min(t), hi.max(t))
         });
-    if hi - lo <= midpoint_length_m {
+    if hi - lo <= config.midpoint_length_m {
         return centroid;
     }
-    centroid + axis * (0.5 * (lo + hi))
+    let away = (centroid - mean).normalize_or_zero();
+    centroid + axis * (0.5 * (lo + hi)) + away * config.long_body_offset_m
 }
 
 #[cfg(test)]
@@ -627,17 +636,16 @@ mod tests {
         let centroid = points.iter().copied().sum::<DVec2>() / points.len() as f64;
         assert!(centroid.x < -0.2, "dragged to the near half: {centroid:?}");
         let shift = DVec2::new(0.0, 0.06); // the clusters' offset away from the Lidar
-        let placed = body_position(&points, centroid + shift, 0.8);
-        assert!(
-            (placed - (DVec2::new(-0.025, centroid.y) + shift)).length() < 0.01,
-            "{placed:?}"
-        );
+        let config = TrackerConfig::default();
+        let placed = body_position(&points, centroid + shift, &config);
+        let expected = DVec2::new(-0.025, centroid.y) + shift * (1.0 + 0.06 / 0.06);
+        assert!((placed - expected).length() < 0.01, "{placed:?}");
         // A short body (two legs) keeps its centroid.
         assert_eq!(
-            body_position(&points[..20], centroid + shift, 0.8),
+            body_position(&points[..20], centroid + shift, &config),
             centroid + shift
         );
-        assert_eq!(body_position(&[], shift, 0.8), shift);
+        assert_eq!(body_position(&[], shift, &config), shift);
     }
 
     #[test]
