@@ -299,10 +299,26 @@ impl Tracker {
                 } else {
                     self.config.part_merge_m
                 };
+                // Beyond part_merge_m, a cluster that another moving confirmed track follows
+                // more closely (someone walking up to a person on the floor) stays theirs.
+                let tracks = &self.tracks;
+                let followed_by_another = |p: DVec2| {
+                    tracks.iter().any(|t| {
+                        t.confirmed
+                            && Some(t.id) != person
+                            && DVec2::new(t.x.vel, t.y.vel).length() >= self.config.still_speed_mps
+                            && t.position().distance(p)
+                                <= self.config.gate_m.min(p.distance(predicted))
+                    })
+                };
                 for (other, cl) in clusters.iter().enumerate() {
+                    let near = cl
+                        .centroid
+                        .distance(clusters[c].centroid)
+                        .min(cl.centroid.distance(predicted));
                     if !self.taken[other]
-                        && (cl.centroid.distance(clusters[c].centroid) <= merge
-                            || cl.centroid.distance(predicted) <= merge)
+                        && (near <= self.config.part_merge_m
+                            || (near <= merge && !followed_by_another(cl.centroid)))
                     {
                         self.taken[other] = true;
                         points.extend_from_slice(&cl.points);
@@ -624,6 +640,25 @@ mod tests {
             est = walking.update(k * PERIOD_NS, &clusters);
         }
         assert_eq!(est.expect("tracked").points.len(), 6);
+    }
+
+    #[test]
+    fn someone_walking_up_to_a_person_on_the_floor_is_not_merged_into_them() {
+        let mut tracker = Tracker::new(TrackerConfig::default());
+        for k in 0..20 {
+            tracker.update(k * PERIOD_NS, &[blob(DVec2::ZERO)]);
+        }
+        // A walker comes from 3 m away at 1 m/s and is 0.9 m from the person at k = 62:
+        // inside part_merge_still_m, but followed by their own moving track.
+        let mut est = None;
+        for k in 20..=62 {
+            let walker = DVec2::new(3.0 - 0.05 * (k - 20) as f64, 0.0);
+            est = tracker.update(k * PERIOD_NS, &[blob(DVec2::ZERO), blob(walker)]);
+        }
+        let est = est.expect("tracked");
+        assert_eq!(est.points.len(), 6, "only the person's own points");
+        assert!(est.position.length() < 0.05, "{:?}", est.position);
+        assert_eq!(tracker.live_tracks(), 2);
     }
 
     #[test]
