@@ -94,6 +94,7 @@ impl LocaliserConfig {
             ("tracker.gate_growth_mps", self.tracker.gate_growth_mps),
             ("tracker.part_merge_m", self.tracker.part_merge_m),
             ("tracker.midpoint_length_m", self.tracker.midpoint_length_m),
+            ("tracker.still_window_s", self.tracker.still_window_s),
             (
                 "tracker.long_body_offset_m",
                 self.tracker.long_body_offset_m,

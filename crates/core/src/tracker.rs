@@ -43,8 +43,11 @@ pub struct TrackerConfig {
     /// another moving track follows them more closely (m; 1.0 and 1.4 measured too: the
     /// simulator's figures rise up to 1.2 and hardly after).
     pub part_merge_still_m: f64,
-    /// Below this speed the person is still (m/s).
+    /// Below this speed, averaged over `still_window_s`, the person is still (m/s).
     pub still_speed_mps: f64,
+    /// Time constant of that average (s): about a gait cycle, as the filter's velocity swings
+    /// with every step and every part that comes into view.
+    pub still_window_s: f64,
     /// The person's points stretching farther than this along their main axis (a body lying
     /// on the floor) put the person at the middle of that stretch rather than at the points'
     /// centroid, which the more densely sampled near end drags towards it (m; an upright
@@ -86,6 +89,7 @@ impl Default for TrackerConfig {
             part_merge_m: 0.6,
             part_merge_still_m: 1.2,
             still_speed_mps: 0.3,
+            still_window_s: 2.0,
             midpoint_length_m: 0.8,
             long_body_offset_m: 0.06,
             confirm_hits: 3,
@@ -156,6 +160,9 @@ struct Track {
     /// The filtered position when last seen: while unseen, the person can be anywhere
     /// within the grown gate of it, whichever way they turned.
     last_seen_at: DVec2,
+    /// The velocity averaged over about `still_window_s`: whether the person is still. The
+    /// filter's own velocity swings with every leg and every part coming into view.
+    mean_velocity: DVec2,
     hits: u32,
     misses_in_a_row: u32,
     confirmed: bool,
@@ -294,9 +301,7 @@ impl Tracker {
             // offset (the points themselves are where the Lidar saw them).
             let mut weighted = clusters[c].centroid * clusters[c].points.len() as f64;
             if Some(track.id) == person {
-                let merge = if DVec2::new(track.x.vel, track.y.vel).length()
-                    < self.config.still_speed_mps
-                {
+                let merge = if track.mean_velocity.length() < self.config.still_speed_mps {
                     self.config.part_merge_still_m.max(self.config.part_merge_m)
                 } else {
                     self.config.part_merge_m
@@ -308,7 +313,7 @@ impl Tracker {
                     tracks.iter().any(|t| {
                         t.confirmed
                             && Some(t.id) != person
-                            && DVec2::new(t.x.vel, t.y.vel).length() >= self.config.still_speed_mps
+                            && t.mean_velocity.length() >= self.config.still_speed_mps
                             && t.position().distance(p)
                                 <= self.config.gate_m.min(p.distance(predicted))
                     })
@@ -355,6 +360,10 @@ impl Tracker {
                     }
                     track.hits += 1;
                     track.misses_in_a_row = 0;
+                    let seen_dt = (stamp_ns - track.last_seen_ns) as f64 * 1e-9;
+                    let weight = 1.0 - (-seen_dt / self.config.still_window_s).exp();
+                    let velocity = DVec2::new(track.x.vel, track.y.vel);
+                    track.mean_velocity += (velocity - track.mean_velocity) * weight;
                     track.last_seen_ns = stamp_ns;
                     track.last_seen_at = track.position();
                     if !track.confirmed && track.hits >= self.config.confirm_hits {
@@ -393,6 +402,7 @@ impl Tracker {
                 stamp_ns,
                 last_seen_ns: stamp_ns,
                 last_seen_at: cl.centroid,
+                mean_velocity: DVec2::ZERO,
                 hits: 1,
                 misses_in_a_row: 0,
                 confirmed: self.config.confirm_hits <= 1,
@@ -642,6 +652,39 @@ mod tests {
             est = walking.update(k * PERIOD_NS, &clusters);
         }
         assert_eq!(est.expect("tracked").points.len(), 6);
+    }
+
+    #[test]
+    fn a_still_person_whose_parts_come_and_go_stays_still() {
+        // Sitting: hands and feet 1 m apart; the feet vanish every third scan, so the
+        // measurement jumps by 0.5 m and the filter's velocity swings well above
+        // still_speed_mps. Averaged, the person is still and both parts keep joining.
+        let merged_scans = |still_window_s: f64| {
+            let mut tracker = Tracker::new(TrackerConfig {
+                still_window_s,
+                ..TrackerConfig::default()
+            });
+            let (hands, feet) = (blob(DVec2::new(-0.5, 0.0)), blob(DVec2::new(0.5, 0.0)));
+            let mut merged = 0;
+            for k in 0..60 {
+                let clusters = if k % 3 == 0 {
+                    vec![hands.clone()]
+                } else {
+                    vec![hands.clone(), feet.clone()]
+                };
+                let est = tracker.update(k * PERIOD_NS, &clusters);
+                if k >= 30 && k % 3 != 0 && est.is_some_and(|e| e.points.len() == 12) {
+                    merged += 1;
+                }
+            }
+            merged
+        };
+        assert_eq!(merged_scans(TrackerConfig::default().still_window_s), 20);
+        assert!(
+            merged_scans(0.01) < 20,
+            "the raw velocity swings: {}",
+            merged_scans(0.01)
+        );
     }
 
     #[test]
