@@ -43,7 +43,8 @@ pub struct TrackerConfig {
     /// another moving track follows them more closely (m; 1.0 and 1.4 measured too: the
     /// simulator's figures rise up to 1.2 and hardly after).
     pub part_merge_still_m: f64,
-    /// Below this speed, averaged over `still_window_s`, the person is still (m/s).
+    /// Below this speed, averaged over `still_window_s`, the person is still (m/s; below a
+    /// slow walk, 0.6 m/s; 0.3 and 0.6 measured too).
     pub still_speed_mps: f64,
     /// Time constant of that average (s): about a gait cycle, as the filter's velocity swings
     /// with every step and every part that comes into view.
@@ -88,7 +89,7 @@ impl Default for TrackerConfig {
             max_gate_m: 2.0,
             part_merge_m: 0.6,
             part_merge_still_m: 1.2,
-            still_speed_mps: 0.3,
+            still_speed_mps: 0.45,
             still_window_s: 2.0,
             midpoint_length_m: 0.8,
             long_body_offset_m: 0.06,
@@ -160,8 +161,9 @@ struct Track {
     /// The filtered position when last seen: while unseen, the person can be anywhere
     /// within the grown gate of it, whichever way they turned.
     last_seen_at: DVec2,
-    /// The velocity averaged over about `still_window_s`: whether the person is still. The
-    /// filter's own velocity swings with every leg and every part coming into view.
+    /// The velocity averaged over about `still_window_s` (from rest when the track is new):
+    /// whether the person is still. The filter's own velocity swings with every leg and
+    /// every part coming into view.
     mean_velocity: DVec2,
     hits: u32,
     misses_in_a_row: u32,
@@ -639,12 +641,13 @@ mod tests {
         };
         assert_eq!(sitting(moving_merge_only).points.len(), 6);
 
-        // Walking at 1 m/s: a blob 0.9 m beside them is not a part of them.
+        // Walking at 1 m/s for 3 s (the averaged velocity, starting from rest, is well above
+        // still_speed_mps by then): a blob 0.9 m beside them is not a part of them.
         let mut walking = Tracker::new(TrackerConfig::default());
         let mut est = None;
-        for k in 0..20 {
+        for k in 0..60 {
             let p = DVec2::new(0.05 * k as f64, 0.0);
-            let clusters = if k < 19 {
+            let clusters = if k < 59 {
                 vec![blob(p)]
             } else {
                 vec![blob(p), blob(p + DVec2::new(0.0, 0.9))]
