@@ -206,3 +206,96 @@ fn alerts_without_a_model_names_it() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains(path(&missing)), "{err}");
 }
+
+#[test]
+fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
+    if !runtime_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    // The committed model's image settings (its metadata must match the dataset's).
+    let out = lidar_har(&[
+        "dataset",
+        "--scenes",
+        "config/scenes/[kl]*.yaml",
+        "--episodes",
+        "3",
+        "--test-fraction",
+        "0.67",
+        "--episode-seconds",
+        "8",
+        "--window",
+        "20",
+        "--stride",
+        "5",
+        "--size",
+        "32",
+        "--resolution",
+        "0.08",
+        "--seed",
+        "5",
+        "--fixed-lidar",
+        "--out",
+        path(&data),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let index: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(data.join("index.json")).unwrap()).unwrap();
+    for e in index["episodes"].as_array().unwrap() {
+        let at = e["fixed_lidar_at"]
+            .as_array()
+            .expect("a fixed Lidar's spot per episode");
+        assert!(
+            at.iter().all(|v| v.as_f64().is_some_and(f64::is_finite)),
+            "{e}"
+        );
+    }
+
+    let eval = tmp.path().join("eval");
+    let out = lidar_har(&[
+        "evaluate",
+        "--model",
+        "models/activity.onnx",
+        "--data",
+        path(&data),
+        "--out",
+        path(&eval),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(eval.join("metrics.json")).unwrap()).unwrap();
+    let windows = metrics["windows"].as_u64().unwrap();
+    let confusion: u64 = metrics["confusion"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|row| row.as_array().unwrap())
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(
+        confusion, windows,
+        "every test window is in the confusion matrix"
+    );
+    let spread = &metrics["per_episode"];
+    let (best, worst) = (&spread["best"], &spread["worst"]);
+    assert!(
+        best["accuracy"].as_f64() >= worst["accuracy"].as_f64(),
+        "{spread}"
+    );
+    assert!(best["fixed_lidar_at"].is_array(), "{spread}");
+    let report = std::fs::read_to_string(eval.join("report.md")).unwrap();
+    assert!(
+        report.contains("Fixed Lidar") && report.contains("82.9"),
+        "{report}"
+    );
+    assert!(eval.join("confusion_test.png").is_file());
+}

@@ -174,16 +174,24 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     progress.finish_and_clear();
 
     let latencies: Vec<f64> = outcomes.iter().filter_map(|o| o.latency_s).collect();
-    let count = |kind: AlertKind| false_alerts.iter().filter(|a| a.kind == kind.name()).count();
+    let count = |kind: AlertKind| {
+        false_alerts
+            .iter()
+            .filter(|a| a.kind == kind.name())
+            .count()
+    };
     let mut by_activity: Vec<(&'static str, usize)> = Activity::ALL
         .iter()
         .map(|a| {
-            let n = false_alerts.iter().filter(|f| f.activity == a.label()).count();
+            let n = false_alerts
+                .iter()
+                .filter(|f| f.activity == a.label())
+                .count();
             (a.label(), n)
         })
         .filter(|&(_, n)| n > 0)
         .collect();
-    by_activity.sort_by(|a, b| b.1.cmp(&a.1));
+    by_activity.sort_by_key(|&(_, n)| std::cmp::Reverse(n));
     let no_fall_hours = no_fall_episodes_run as f64 * args.episode_seconds / 3600.0;
     let report = AlertsReport {
         model: args.model.display().to_string(),
@@ -360,7 +368,10 @@ fn print_report(r: &AlertsReport) {
             .iter()
             .map(|(a, n)| format!("{a} {n}"))
             .collect();
-        println!("false alerts raised while the person was: {}", list.join(", "));
+        println!(
+            "false alerts raised while the person was: {}",
+            list.join(", ")
+        );
     }
 }
 
