@@ -92,7 +92,7 @@ pub struct AlertsReport {
 pub struct FalseAlert {
     pub episode: usize,
     pub scene: String,
-    pub kind: &'static str,
+    pub kind: AlertKind,
     pub raised_at_s: f64,
     /// The true activity when the alert was raised, and one second before.
     pub activity: &'static str,
@@ -163,7 +163,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
             false_alerts.extend(episode.alerts.iter().map(|a| FalseAlert {
                 episode: id,
                 scene: scene.name.clone(),
-                kind: a.kind.name(),
+                kind: a.kind,
                 raised_at_s: a.raised_at_s,
                 activity: activity_at(&episode.truth, a.raised_at_s).label(),
                 activity_1s_before: activity_at(&episode.truth, a.raised_at_s - 1.0).label(),
@@ -174,12 +174,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     progress.finish_and_clear();
 
     let latencies: Vec<f64> = outcomes.iter().filter_map(|o| o.latency_s).collect();
-    let count = |kind: AlertKind| {
-        false_alerts
-            .iter()
-            .filter(|a| a.kind == kind.name())
-            .count()
-    };
+    let count = |kind: AlertKind| false_alerts.iter().filter(|a| a.kind == kind).count();
     let mut by_activity: Vec<(&'static str, usize)> = Activity::ALL
         .iter()
         .map(|a| {
