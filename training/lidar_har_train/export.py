@@ -2,8 +2,11 @@
 
 The exported graph is `(frame, h, c) -> (logits, h_next, c_next)` (docs/model_contract.md).
 Parity: whole windows are stepped through ONNX Runtime and through PyTorch from zero states;
-the largest absolute difference of logits and states must be at most 1e-5, else the export
-fails and the file is removed.
+the largest difference of logits and states must be at most 1e-5 absolute for values up to 1
+in magnitude, and 1e-5 of the largest magnitude above that (float32 keeps about seven digits:
+a cell state of 20 cannot agree to 1e-5 absolute once the two runtimes sum in different
+orders); else the export fails and the file is removed. The report keeps the raw absolute
+figure too.
 """
 
 from __future__ import annotations
@@ -25,8 +28,10 @@ class ExportError(Exception):
     pass
 
 
-def export_step_model(model: ActivityConvLSTM, spec: dict, out: Path, windows_u8: np.ndarray) -> float:
-    """Writes `out` and returns the parity figure (max abs difference over `windows_u8`)."""
+def export_step_model(model: ActivityConvLSTM, spec: dict, out: Path,
+                      windows_u8: np.ndarray) -> tuple[float, float]:
+    """Writes `out`; returns the parity figures over `windows_u8`: the max absolute difference,
+    and the max difference over max(1, the tensor's largest magnitude) that the check uses."""
     model.eval()
     out.parent.mkdir(parents=True, exist_ok=True)
     size, hidden, hs = model.size, model.hidden, model.state_size
@@ -63,14 +68,15 @@ def export_step_model(model: ActivityConvLSTM, spec: dict, out: Path, windows_u8
     check_io(proto, size, hidden, hs)
     onnx.save(proto, str(out))
     try:
-        diff = parity(model, out, windows_u8)
+        diff, scaled = parity(model, out, windows_u8)
     except Exception:
         out.unlink(missing_ok=True)
         raise
-    if not diff <= PARITY_TOLERANCE:
+    if not scaled <= PARITY_TOLERANCE:
         out.unlink(missing_ok=True)
-        raise ExportError(f"parity check failed: max abs difference {diff:.3e} > {PARITY_TOLERANCE:.0e}")
-    return diff
+        raise ExportError(f"parity check failed: max difference {scaled:.3e} of the tensors' scale "
+                          f"(absolute {diff:.3e}) > {PARITY_TOLERANCE:.0e}")
+    return diff, scaled
 
 
 def check_io(proto, size: int, hidden: int, hs: int):
@@ -85,11 +91,11 @@ def check_io(proto, size: int, hidden: int, hs: int):
 
 
 @torch.no_grad()
-def parity(model: ActivityConvLSTM, path: Path, windows_u8: np.ndarray) -> float:
+def parity(model: ActivityConvLSTM, path: Path, windows_u8: np.ndarray) -> tuple[float, float]:
     options = ort.SessionOptions()
     options.intra_op_num_threads = 1
     session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-    worst = 0.0
+    worst, worst_scaled = 0.0, 0.0
     for window in windows_u8:
         frames = window.astype(np.float32) / 255.0
         h_t, c_t = model.zero_state(1)
@@ -99,5 +105,7 @@ def parity(model: ActivityConvLSTM, path: Path, windows_u8: np.ndarray) -> float
             logits_t, h_t, c_t = model.step(torch.from_numpy(x), h_t, c_t)
             logits_o, h_o, c_o = session.run(["logits", "h_next", "c_next"], {"frame": x, "h": h_o, "c": c_o})
             for a, b in ((logits_t, logits_o), (h_t, h_o), (c_t, c_o)):
-                worst = max(worst, float(np.abs(a.numpy() - b).max()))
-    return worst
+                diff = float(np.abs(a.numpy() - b).max())
+                worst = max(worst, diff)
+                worst_scaled = max(worst_scaled, diff / max(1.0, float(np.abs(a.numpy()).max())))
+    return worst, worst_scaled

@@ -108,6 +108,7 @@ def run_one(run: dict, common: dict, args) -> dict:
                   "--encoder-channels", str(run["encoder_channels"]), "--batch", str(common["batch"]),
                   "--steps-per-epoch", str(common["steps_per_epoch"]), "--max-epochs", str(common["epochs"]),
                   "--patience", str(common["epochs"]), "--time-budget-min", "1000",
+                  "--lr", str(common.get("lr", 3e-3)), "--lr-final", str(common.get("lr_final", 1e-4)),
                   "--val-fraction", "0.08", "--threads", str(common["threads"]), "--skip-test-eval"]
     print("  $ python -m lidar_har_train.train " + " ".join(train_args), flush=True)
     with log.open("a") as out:
@@ -115,6 +116,9 @@ def run_one(run: dict, common: dict, args) -> dict:
         sys.stdout = out
         try:
             code = train_module.train(train_module.parse_args(train_args))
+        except (train_module.DatasetError, train_module.ExportError) as err:
+            print(f"train: error: {err}", file=out)
+            code = 1
         finally:
             sys.stdout = saved
     if code != 0:
@@ -224,6 +228,7 @@ def main(argv=None) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
         results_path = args.out / "sweep.json"
         results = json.loads(results_path.read_text()) if results_path.exists() else []
+        failed = []
         if not args.report_only:
             if not args.lidar_har.exists():
                 raise SweepError(f"--lidar-har {args.lidar_har}: not found (cargo build --release --bin lidar-har)")
@@ -231,7 +236,13 @@ def main(argv=None) -> int:
                 if args.only is not None and run["name"] not in args.only:
                     continue
                 print(f"sweep: {run['name']}", flush=True)
-                result = run_one(run, common, args)
+                try:
+                    result = run_one(run, common, args)
+                except SweepError as err:
+                    # One failed configuration must not cost the rest of a three-hour sweep.
+                    print(f"sweep: {run['name']} failed, going on: {err}", file=sys.stderr, flush=True)
+                    failed.append(run["name"])
+                    continue
                 results = [r for r in results if r["name"] != run["name"]] + [result]
                 order = [r["name"] for r in runs]
                 results.sort(key=lambda r: order.index(r["name"]) if r["name"] in order else len(order))
@@ -239,6 +250,9 @@ def main(argv=None) -> int:
                 print(f"  accuracy {100 * result['accuracy']:.1f} %, {result['scan_ms']:.3f} ms/scan", flush=True)
         write_report(results, common, args.out)
         print(f"sweep: wrote {args.out / 'sweep.md'} and {args.out / 'sweep.png'}")
+        if failed:
+            print(f"sweep: failed configurations (see their log.txt): {', '.join(failed)}", file=sys.stderr)
+            return 1
         return 0
     except SweepError as err:
         print(f"sweep: error: {err}", file=sys.stderr)

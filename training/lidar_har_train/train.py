@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import random
 import sys
 import time
@@ -36,7 +37,10 @@ def parse_args(argv):
     p.add_argument("--hidden", type=int, default=16, help="ConvLSTM hidden channels")
     p.add_argument("--encoder-channels", type=int, default=8)
     p.add_argument("--batch", type=int, default=64)
-    p.add_argument("--lr", type=float, default=3e-3)
+    p.add_argument("--lr", type=float, default=3e-3, help="learning rate at the start")
+    p.add_argument("--lr-final", type=float, default=1e-4,
+                   help="learning rate at the end: a cosine from --lr reaches it when --max-epochs or "
+                        "--time-budget-min runs out, whichever comes first (equal to --lr: constant)")
     p.add_argument("--max-epochs", type=int, default=40)
     p.add_argument("--patience", type=int, default=5, help="epochs without validation gain before stopping")
     p.add_argument("--steps-per-epoch", type=int, default=150, help="balanced batches drawn per epoch")
@@ -146,6 +150,20 @@ def summarise(logits: np.ndarray, split: Split) -> dict:
     }
 
 
+def set_learning_rate(optimiser, args, epochs_done: int, step: int, elapsed_s: float) -> None:
+    """Cosine decay over the training's progress: by steps, or by time when the budget binds.
+
+    A fixed rate left the validation accuracy jumping by several points between epochs at the
+    end; decaying it settles the weights into the best of the last basin.
+    """
+    by_steps = (epochs_done * args.steps_per_epoch + step) / (args.max_epochs * args.steps_per_epoch)
+    by_time = elapsed_s / (60 * args.time_budget_min)
+    progress = min(1.0, max(by_steps, by_time))
+    lr = args.lr_final + 0.5 * (args.lr - args.lr_final) * (1 + math.cos(math.pi * progress))
+    for group in optimiser.param_groups:
+        group["lr"] = lr
+
+
 def train(args) -> int:
     seed_everything(args.seed, args.threads)
     rng = np.random.default_rng(args.seed)
@@ -169,13 +187,14 @@ def train(args) -> int:
     for epoch in range(1, args.max_epochs + 1):
         model.train()
         total = 0.0
-        for _ in range(args.steps_per_epoch):
+        for step in range(args.steps_per_epoch):
             rows = np.sort(rng.choice(len(train_split), size=args.batch, p=sampling))
             images = train_split.images[rows]
             if not args.no_augment:
                 images = augment(images, rng, args.shift_px)
             logits = model(to_tensor(np.ascontiguousarray(images)))
             loss = loss_on_second_half(logits, torch.from_numpy(train_split.labels[rows]))
+            set_learning_rate(optimiser, args, epoch - 1, step, time.monotonic() - started)
             optimiser.zero_grad()
             loss.backward()
             nn.utils.clip_grad_norm_(model.parameters(), 5.0)
@@ -212,7 +231,7 @@ def train(args) -> int:
                   f"at T/2 {results[name]['accuracy_at_T_half']:.4f} ({len(split)} windows)", flush=True)
 
     parity_split = load_split(args.data, index, "test") or val_split
-    parity = export_step_model(model, spec, args.out, parity_split.images[:16])
+    parity, parity_scaled = export_step_model(model, spec, args.out, parity_split.images[:16])
     report = {
         "date_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "data": str(args.data),
@@ -226,10 +245,12 @@ def train(args) -> int:
         "history": history,
         "results": results,
         "parity_max_abs_diff": parity,
+        "parity_max_scaled_diff": parity_scaled,
     }
     report_path = args.out.with_suffix(".training.json")
     report_path.write_text(json.dumps(report, indent=2) + "\n")
-    print(f"wrote {args.out} and {report_path} (parity max abs diff {parity:.2e})", flush=True)
+    print(f"wrote {args.out} and {report_path} (parity: max abs diff {parity:.2e}, "
+          f"{parity_scaled:.2e} of the tensors' scale)", flush=True)
     return 0
 
 
