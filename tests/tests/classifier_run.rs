@@ -233,6 +233,8 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
         "32",
         "--resolution",
         "0.08",
+        "--framing",
+        "room_fixed",
         "--seed",
         "5",
         "--fixed-lidar",
