@@ -154,7 +154,7 @@ def retime(results: list[dict], out: Path) -> None:
     """Per-scan time (render + two steps + softmax, one thread) from `cargo bench ... classify`."""
     for r in results:
         model = out / r["name"] / "model.onnx"
-        cmd = ["cargo", "bench", "-q", "-p", "lidar-har-infer", "--bench", "classify", "--locked", "--", str(model)]
+        cmd = ["cargo", "bench", "-q", "-p", "lidar-har-infer", "--bench", "classify", "--locked", "--", str(model.resolve())]
         print("  $ " + " ".join(cmd), flush=True)
         run = subprocess.run(cmd, capture_output=True, text=True)
         found = re.search(r"per scan .*?: ([0-9.]+) ms", run.stdout)
