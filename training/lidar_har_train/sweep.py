@@ -182,18 +182,19 @@ def pareto(results: list[dict]) -> set[str]:
 def write_report(results: list[dict], common: dict, out: Path) -> None:
     front = pareto(results)
     pct = lambda x: "-" if x is None else f"{100 * x:.1f}"  # noqa: E731
+    if all(r.get("timed_by") for r in results):
+        timing = ("Per-scan time: rendering, two model steps (streaming runs two staggered lanes) and softmax, "
+                  "one thread, re-measured for all models one after another (`training/sweep.sh --retime`). ")
+    else:
+        timing = ("Per-scan time: two model steps (streaming runs two staggered lanes), one ONNX Runtime thread, "
+                  "measured by `lidar-har evaluate` while the sweep ran (noisy: `--retime` re-measures). ")
     lines = [
         "# Accuracy against run time",
         "",
         f"Each configuration: {common['episodes']} episodes of {common['episode_seconds']} s over "
         f"`{common['scenes']}` (held out: {', '.join(common.get('held_out', [])) or 'none'}), seed {common['seed']}; "
         f"{common['epochs'] * common['steps_per_epoch']} training steps of {common['batch']} windows. "
-        + ("Per-scan time: rendering, two model steps (streaming runs two staggered lanes) and softmax, one "
-           "thread, re-measured for all models one after another (`training/sweep.sh --retime`). "
-           if all(r.get("timed_by") for r in results) else
-           "Per-scan time: two model steps (streaming runs two staggered lanes), one ONNX Runtime thread, "
-           "measured by `lidar-har evaluate` while the sweep ran (noisy: `--retime` re-measures). ")
-        + 
+        + timing +
         "`*`: on the Pareto front (no other moving-robot configuration is both more accurate and faster).",
         "",
         "| configuration | representation | framing | px | m/px | T | hidden | params | test % | unseen % "
