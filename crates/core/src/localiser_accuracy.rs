@@ -12,6 +12,12 @@
 //!   truth (default 0.5 m: well inside the tracker's 0.8 m gate, farther than any body part
 //!   from the pelvis of a standing person);
 //! - **continuity**: the fraction of in-sight scans in which the track is on the person;
+//! - **identity continuity**: the same with "on the person" decided by whose returns the track
+//!   took, where the host knows (the simulator labels every beam): a seen track is on the
+//!   person when most of the points it took for them are returns from the person's body, so
+//!   a track holding the person's own legs is on them even when the truth (the pelvis of
+//!   someone sitting on the floor) lies 0.5 m away, and a track on a chair leg beside them is
+//!   not. A predicted track, which took no points, is judged by distance as above;
 //! - **visible ratio**: the fraction of all scans in which the localiser saw the person.
 //!
 //! Quantiles are nearest-rank (the smallest value with at least that fraction of the values
@@ -44,6 +50,26 @@ pub struct ReportedPerson {
     pub position: DVec2,
     /// Seen in this scan (false: predicted through an occlusion).
     pub visible: bool,
+    /// Whose returns the points taken for the person were; `None` when the host cannot tell.
+    pub points: Option<PointOwners>,
+}
+
+/// Of the points the localiser took for the person, how many came from the person's body.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointOwners {
+    pub from_person: usize,
+    pub total: usize,
+}
+
+impl ReportedPerson {
+    /// Whether the track is on the person: by the owners of its points when seen and known,
+    /// else by its distance to the truth.
+    fn is_on_person(&self, error_m: f64, criteria: &AccuracyCriteria) -> bool {
+        match self.points {
+            Some(owners) if self.visible => 2 * owners.from_person > owners.total,
+            _ => error_m <= criteria.on_person_m,
+        }
+    }
 }
 
 /// One scan: the truth and what was reported.
@@ -62,6 +88,7 @@ pub struct AccuracyTally {
     scans: u64,
     in_sight: u64,
     on_person_in_sight: u64,
+    identity_in_sight: u64,
     visible: u64,
     reported: u64,
     errors_m: Vec<f64>,
@@ -85,12 +112,14 @@ impl AccuracyTally {
             self.errors_m.push(error);
         }
         self.on_person_in_sight += u64::from(in_sight && error <= criteria.on_person_m);
+        self.identity_in_sight += u64::from(in_sight && reported.is_on_person(error, criteria));
     }
 
     pub fn merge(&mut self, other: &AccuracyTally) {
         self.scans += other.scans;
         self.in_sight += other.in_sight;
         self.on_person_in_sight += other.on_person_in_sight;
+        self.identity_in_sight += other.identity_in_sight;
         self.visible += other.visible;
         self.reported += other.reported;
         self.errors_m.extend_from_slice(&other.errors_m);
@@ -107,6 +136,7 @@ impl AccuracyTally {
             error_p95_m: nearest_rank(&errors, 0.95),
             error_max_m: errors.last().copied(),
             continuity: ratio(self.on_person_in_sight, self.in_sight),
+            identity_continuity: ratio(self.identity_in_sight, self.in_sight),
             visible_ratio: ratio(self.visible, self.scans),
             in_sight_ratio: ratio(self.in_sight, self.scans),
             reported_ratio: ratio(self.reported, self.scans),
@@ -130,6 +160,9 @@ pub struct AccuracyReport {
     pub error_max_m: Option<f64>,
     /// In-sight scans with the track on the person, over in-sight scans.
     pub continuity: Option<f64>,
+    /// In-sight scans with the track on the person by the owners of its points, over in-sight
+    /// scans.
+    pub identity_continuity: Option<f64>,
     /// Scans in which the person was seen, over all scans.
     pub visible_ratio: Option<f64>,
     /// Scans with the person in sight (ground truth), over all scans.
@@ -149,8 +182,14 @@ mod tests {
             reported: reported.map(|(x, visible)| ReportedPerson {
                 position: DVec2::new(x, 0.0),
                 visible,
+                points: None,
             }),
         }
+    }
+
+    fn owned_by(mut s: ScanOutcome, from_person: usize, total: usize) -> ScanOutcome {
+        s.reported.as_mut().unwrap().points = Some(PointOwners { from_person, total });
+        s
     }
 
     #[test]
@@ -172,6 +211,8 @@ mod tests {
         assert_eq!(r.scans, 6);
         assert_eq!(r.in_sight_scans, 4);
         assert_eq!(r.continuity, Some(0.5));
+        // Without point owners identity is judged by distance too.
+        assert_eq!(r.identity_continuity, r.continuity);
         assert_eq!(r.visible_ratio, Some(0.5));
         assert_eq!(r.in_sight_ratio, Some(4.0 / 6.0));
         assert_eq!(r.reported_ratio, Some(5.0 / 6.0));
@@ -183,12 +224,38 @@ mod tests {
     }
 
     #[test]
+    fn identity_follows_the_owners_of_a_seen_tracks_points_and_distance_otherwise() {
+        let criteria = AccuracyCriteria::default();
+        let scans = [
+            // Holding the person's own points 0.6 m from the truth (sitting: legs, not pelvis).
+            owned_by(scan(0.0, 10, Some((0.6, true))), 8, 10),
+            // Right beside the truth but on something else (a chair leg).
+            owned_by(scan(0.0, 10, Some((0.1, true))), 2, 10),
+            // Half and half is not on the person.
+            owned_by(scan(0.0, 10, Some((0.0, true))), 5, 10),
+            // Predicted through an occlusion: by distance, owners or not.
+            owned_by(scan(0.0, 10, Some((0.3, false))), 0, 0),
+            owned_by(scan(0.0, 10, Some((0.7, false))), 0, 0),
+        ];
+        let mut tally = AccuracyTally::default();
+        for s in &scans {
+            tally.add(s, &criteria);
+        }
+        let r = tally.report();
+        assert_eq!(r.identity_continuity, Some(2.0 / 5.0), "{r:?}");
+        assert_eq!(r.continuity, Some(3.0 / 5.0), "{r:?}");
+    }
+
+    #[test]
     fn merged_tallies_equal_one_tally_over_all_scans() {
         let criteria = AccuracyCriteria::default();
         let scans: Vec<ScanOutcome> = (0..20)
             .map(|i| {
                 let reported = (i % 3 != 0).then_some((i as f64 * 0.07, i % 2 == 0));
-                scan(0.0, i % 5, reported)
+                match reported {
+                    Some(_) if i % 4 < 2 => owned_by(scan(0.0, i % 5, reported), i % 3, 2),
+                    _ => scan(0.0, i % 5, reported),
+                }
             })
             .collect();
         let (mut a, mut b, mut whole) = (
@@ -214,6 +281,7 @@ mod tests {
             reported: Some(ReportedPerson {
                 position: DVec2::ZERO,
                 visible: true,
+                points: None,
             }),
         };
         tally.add(&empty_room, &AccuracyCriteria::default());

@@ -20,12 +20,12 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Parser;
-use glam::DVec2;
+use glam::{DAffine2, DVec2};
 use lidar_har_core::activity::Activity;
 use lidar_har_core::geometry::Pose2;
 use lidar_har_core::localiser::{Localiser, LocaliserConfig, Motion, Reference};
 use lidar_har_core::localiser_accuracy::{
-    AccuracyCriteria, AccuracyReport, AccuracyTally, ReportedPerson, ScanOutcome,
+    AccuracyCriteria, AccuracyReport, AccuracyTally, PointOwners, ReportedPerson, ScanOutcome,
 };
 use lidar_har_core::map::{MapGeometry, OccupancyMap as CoreMap};
 use lidar_har_core::scan::Scan;
@@ -207,8 +207,11 @@ fn main() -> Result<(), Box<dyn Error>> {
     println!(
         "columns: scans; % in sight; % seen | error (m) median, p95, % continuity against \
          /ground_truth/human_pose (the pelvis) | the same against the centre of the body's cut \
-         by the scan plane | radial bias (m) | % of in-sight scans with no person reported, \
-         with the person reported > {FAR_M} m away"
+         by the scan plane | % identity continuity (a seen track on the person's own returns, \
+         by the simulator's beam labels; a predicted one within {} m of the body centre) | \
+         radial bias (m) | % of in-sight scans with no person reported, \
+         with the person reported > {FAR_M} m away",
+        criteria.on_person_m
     );
     print_header("scene");
     for (name, group) in &by_scene {
@@ -366,6 +369,10 @@ fn run_scene(
         let reported = estimate.map(|e| ReportedPerson {
             position: e.position,
             visible: e.visible,
+            points: result
+                .output
+                .as_ref()
+                .map(|o| point_owners(&scan, &frame.labels, o.laser_pose, &e.points)),
         });
         group.tally.add(
             &ScanOutcome {
@@ -406,6 +413,31 @@ fn run_scene(
     Ok(())
 }
 
+/// How many of `taken` (map-frame points the localiser took for the person) are returns the
+/// simulator labelled as the person's: the same beams moved by the same pose give the same
+/// points, to rounding.
+fn point_owners(scan: &Scan, labels: &[BeamLabel], laser: Pose2, taken: &[DVec2]) -> PointOwners {
+    let to_map = DAffine2::from_angle_translation(laser.theta, laser.position());
+    let person: Vec<DVec2> = scan
+        .points()
+        .filter(|p| labels.get(p.beam) == Some(&BeamLabel::Person))
+        .map(|p| to_map.transform_point2(p.point))
+        .collect();
+    const SAME_POINT_M2: f64 = 1e-6;
+    let from_person = taken
+        .iter()
+        .filter(|t| {
+            person
+                .iter()
+                .any(|p| p.distance_squared(**t) < SAME_POINT_M2)
+        })
+        .count();
+    PointOwners {
+        from_person,
+        total: taken.len(),
+    }
+}
+
 /// The simulator's grid as the localiser's map (map_server's default threshold, as /map is
 /// read by the pipeline).
 fn core_map(sim_map: &SimMap) -> Result<CoreMap, Box<dyn Error>> {
@@ -443,7 +475,7 @@ fn activity_name(index: usize) -> &'static str {
 
 fn print_header(what: &str) {
     println!(
-        "\n{what:<20} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>5} {:>5}",
+        "\n{what:<20} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} | {:>6} {:>5} {:>5}",
         "scans",
         "insght",
         "seen",
@@ -453,6 +485,7 @@ fn print_header(what: &str) {
         "median",
         "p95",
         "contin",
+        "ident",
         "radial",
         "miss",
         "far"
@@ -465,7 +498,7 @@ fn print_row(name: &str, group: &Group) {
     let m = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.3}"));
     let share = |n: u64| pct((r.in_sight_scans > 0).then(|| n as f64 / r.in_sight_scans as f64));
     println!(
-        "{name:<20} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>5} {:>5}",
+        "{name:<20} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} | {:>6} {:>5} {:>5}",
         r.scans,
         pct(r.in_sight_ratio),
         pct(r.visible_ratio),
@@ -475,6 +508,7 @@ fn print_row(name: &str, group: &Group) {
         m(c.error_median_m),
         m(c.error_p95_m),
         pct(c.continuity),
+        pct(c.identity_continuity),
         m(group.radial_median()),
         share(group.missed),
         share(group.far),
