@@ -275,18 +275,28 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     );
     let metrics: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(eval.join("metrics.json")).unwrap()).unwrap();
+    let confusion_total = |scores: &serde_json::Value| -> u64 {
+        scores["confusion"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|row| row.as_array().unwrap())
+            .map(|v| v.as_u64().unwrap())
+            .sum()
+    };
     let windows = metrics["windows"].as_u64().unwrap();
-    let confusion: u64 = metrics["confusion"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .flat_map(|row| row.as_array().unwrap())
-        .map(|v| v.as_u64().unwrap())
-        .sum();
     assert_eq!(
-        confusion, windows,
+        confusion_total(&metrics),
+        windows,
         "every test window is in the confusion matrix"
     );
+    let within = &metrics["within_one_activity"];
+    let within_windows = within["windows"].as_u64().unwrap();
+    assert!(
+        within_windows > 0 && within_windows < windows,
+        "some, not all, windows lie within one activity: {within_windows} of {windows}"
+    );
+    assert_eq!(confusion_total(within), within_windows);
     let spread = &metrics["per_episode"];
     let (best, worst) = (&spread["best"], &spread["worst"]);
     assert!(
