@@ -7,7 +7,9 @@
 //!   confirmed at most `descent_max_s` after the person was last upright (a fall is short
 //!   and easily missed, the lying that follows is not). "Upright" is the confirmed posture,
 //!   not one scan: a person crawling or getting up from the floor whom the classifier takes
-//!   for walking for a scan or two has not been upright, and cannot fall from there.
+//!   for walking for a scan or two has not been upright, and cannot fall from there. The
+//!   lying that makes a descent must also look like a body on the floor: its points stretch
+//!   at least `descent_min_length_m` (a standing person misread as lying is one or two legs).
 //! - `PersonDown`: the person has been on the floor (lying, sitting on the floor or crawling,
 //!   [`Activity::is_on_floor`]) for `down_after_s` without being seen getting up. The clock
 //!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
@@ -52,6 +54,11 @@ pub struct FallAlertConfig {
     /// person was last confirmed upright: a fall starts from standing or walking, and getting
     /// up or crawling misread as falling does not. Seconds; 0 drops the requirement.
     pub fall_from_upright_s: f64,
+    /// A descent counts only when, as lying is confirmed, the person's points stretch at least
+    /// this far along their main axis: a body on the floor is over a metre long at ankle
+    /// height, while a standing person the classifier takes for lying for a few scans is one
+    /// or two legs. Metres; 0 drops the check (as does an unknown length).
+    pub descent_min_length_m: f64,
 }
 
 impl Default for FallAlertConfig {
@@ -64,6 +71,7 @@ impl Default for FallAlertConfig {
             rearm_upright_s: 3.0,
             descent_max_s: 3.0,
             fall_from_upright_s: 3.0,
+            descent_min_length_m: 0.8,
         }
     }
 }
@@ -120,6 +128,13 @@ impl FallAlertConfig {
             u,
             u.is_finite() && u >= 0.0,
             "finite, >= 0",
+        )?;
+        let l = self.descent_min_length_m;
+        check(
+            "descent_min_length_m",
+            l,
+            l.is_finite() && l >= 0.0,
+            "finite, >= 0",
         )
     }
 }
@@ -167,6 +182,9 @@ pub struct FallInput {
     /// Class probabilities (class order) from a classifier with enough history; ignored when
     /// the person is not visible (the model then only sees an empty image).
     pub probabilities: [f32; Activity::COUNT],
+    /// How far the person's points stretch along their main axis
+    /// ([`MainAxisSpan::length`](crate::geometry::MainAxisSpan::length)); `None` when unknown.
+    pub body_length_m: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -258,7 +276,7 @@ impl FallDetector {
         let probabilities_ok = input.probabilities.iter().all(|p| p.is_finite());
         if let (Some(position), true) = (visible, probabilities_ok) {
             self.last_position = Some(position);
-            self.observe(t, &input.probabilities, &mut alerts);
+            self.observe(t, &input.probabilities, input.body_length_m, &mut alerts);
         }
 
         if let (Some((since, sum, count)), Some(position)) = (self.down, self.last_position)
@@ -286,6 +304,7 @@ impl FallDetector {
         &mut self,
         t: f64,
         probabilities: &[f32; Activity::COUNT],
+        body_length_m: Option<f64>,
         alerts: &mut Vec<FallAlert>,
     ) {
         let (best, best_p) = argmax(probabilities);
@@ -331,7 +350,10 @@ impl FallDetector {
             match posture {
                 Posture::OnFloor => {
                     self.start_down(since);
-                    self.check_descent(t, since, best, on_floor_p, alerts);
+                    let min_length = self.config.descent_min_length_m;
+                    if min_length <= 0.0 || body_length_m.is_none_or(|l| l >= min_length) {
+                        self.check_descent(t, since, best, on_floor_p, alerts);
+                    }
                 }
                 Posture::Upright | Posture::GettingUp => self.down = None,
                 Posture::Falling => {}
@@ -425,15 +447,36 @@ mod tests {
 
     /// Runs a script of (activity, seconds, visible) segments at 20 Hz; returns the alerts.
     fn run(detector: &mut FallDetector, script: &[(Activity, f64, bool)]) -> Vec<FallAlert> {
+        let script: Vec<_> = script.iter().map(|&(a, s, v)| (a, s, v, None)).collect();
+        run_scans(detector, &script)
+    }
+
+    /// [`run`] with the person always seen, at a body length per segment.
+    fn run_with_lengths(
+        detector: &mut FallDetector,
+        script: &[(Activity, f64, f64)],
+    ) -> Vec<FallAlert> {
+        let script: Vec<_> = script
+            .iter()
+            .map(|&(a, s, length)| (a, s, true, Some(length)))
+            .collect();
+        run_scans(detector, &script)
+    }
+
+    fn run_scans(
+        detector: &mut FallDetector,
+        script: &[(Activity, f64, bool, Option<f64>)],
+    ) -> Vec<FallAlert> {
         let mut t = 0.0;
         let mut alerts = Vec::new();
-        for &(activity, seconds, visible) in script {
+        for &(activity, seconds, visible, body_length_m) in script {
             let scans = (seconds / DT).round() as usize;
             for _ in 0..scans {
                 alerts.extend(detector.update(&FallInput {
                     stamp_s: t,
                     position: visible.then_some(DVec2::new(1.0, 2.0)),
                     probabilities: one_hot(activity, 0.9),
+                    body_length_m,
                 }));
                 t += DT;
             }
@@ -552,6 +595,31 @@ mod tests {
             ],
         );
         assert_eq!(kinds(&loose), [AlertKind::FallDetected]);
+    }
+
+    #[test]
+    fn a_descent_needs_a_body_stretched_on_the_floor() {
+        // Standing, then half a second the classifier reads as lying, on the same two legs.
+        let script = |lying_length: f64| {
+            [
+                (Standing, 5.0, 0.4),
+                (LyingDown, 0.5, lying_length),
+                (Standing, 5.0, 0.4),
+            ]
+        };
+        let legs = run_with_lengths(&mut detector(), &script(0.4));
+        assert!(legs.is_empty(), "{legs:?}");
+        // A body stretched on the floor is a descent.
+        let body = run_with_lengths(&mut detector(), &script(1.4));
+        assert_eq!(kinds(&body), [AlertKind::FallDetected]);
+        // ... and so are the two legs with the check off.
+        let mut unchecked = FallDetector::new(FallAlertConfig {
+            descent_min_length_m: 0.0,
+            ..FallAlertConfig::default()
+        })
+        .unwrap();
+        let unchecked = run_with_lengths(&mut unchecked, &script(0.4));
+        assert_eq!(kinds(&unchecked), [AlertKind::FallDetected]);
     }
 
     #[test]
@@ -747,6 +815,7 @@ mod tests {
                 stamp_s: t,
                 position: Some(DVec2::ZERO),
                 probabilities: one_hot(FallingDown, 0.5),
+                body_length_m: None,
             });
             assert!(alerts.is_empty());
             t += DT;
@@ -761,7 +830,8 @@ mod tests {
             d.update(&FallInput {
                 stamp_s: 0.0,
                 position: Some(DVec2::ZERO),
-                probabilities: nan
+                probabilities: nan,
+                body_length_m: None,
             })
             .is_empty()
         );
@@ -769,7 +839,8 @@ mod tests {
             d.update(&FallInput {
                 stamp_s: f64::NAN,
                 position: Some(DVec2::ZERO),
-                probabilities: one_hot(LyingDown, 0.9)
+                probabilities: one_hot(LyingDown, 0.9),
+                body_length_m: None,
             })
             .is_empty()
         );
@@ -780,6 +851,7 @@ mod tests {
             stamp_s: 0.0,
             position: None,
             probabilities: one_hot(Walking, 0.9),
+            body_length_m: None,
         });
         assert!(d.down_since_s().is_none());
     }
@@ -798,6 +870,12 @@ mod tests {
         };
         let e = FallDetector::new(config).unwrap_err().to_string();
         assert!(e.contains("fall_from_upright_s"), "{e}");
+        let config = FallAlertConfig {
+            descent_min_length_m: f64::INFINITY,
+            ..Default::default()
+        };
+        let e = FallDetector::new(config).unwrap_err().to_string();
+        assert!(e.contains("descent_min_length_m"), "{e}");
         let config = FallAlertConfig {
             down_after_s: f64::NAN,
             ..Default::default()

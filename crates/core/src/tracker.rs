@@ -20,6 +20,7 @@ use glam::DVec2;
 use serde::{Deserialize, Serialize};
 
 use crate::cluster::Cluster;
+use crate::geometry::MainAxisSpan;
 
 /// Tracker parameters; the gate is the paper's.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -465,28 +466,15 @@ impl Tracker {
 /// clusters' offset from the points' plain centroid (away from the Lidar): a trunk is
 /// thicker than a leg, so its near surface lies farther in front of its centre.
 fn body_position(points: &[DVec2], centroid: DVec2, config: &TrackerConfig) -> DVec2 {
-    if points.len() < 2 {
+    let Some(span) = MainAxisSpan::of(points) else {
+        return centroid;
+    };
+    if span.length() <= config.midpoint_length_m {
         return centroid;
     }
-    let mean = points.iter().copied().sum::<DVec2>() / points.len() as f64;
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for p in points {
-        let d = *p - mean;
-        (sxx, sxy, syy) = (sxx + d.x * d.x, sxy + d.x * d.y, syy + d.y * d.y);
-    }
-    // Main axis of the scatter: the eigenvector of the larger eigenvalue.
-    let axis = DVec2::from_angle(0.5 * (2.0 * sxy).atan2(sxx - syy));
-    let (lo, hi) = points
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-            let t = (*p - mean).dot(axis);
-            (lo.min(t), hi.max(t))
-        });
-    if hi - lo <= config.midpoint_length_m {
-        return centroid;
-    }
-    let away = (centroid - mean).normalize_or_zero();
-    centroid + axis * (0.5 * (lo + hi)) + away * config.long_body_offset_m
+    let away = (centroid - span.mean).normalize_or_zero();
+    // `centroid` is offset from the points' mean (away from the Lidar); keep that offset.
+    centroid + (span.midpoint() - span.mean) + away * config.long_body_offset_m
 }
 
 #[cfg(test)]

@@ -20,6 +20,7 @@ use lidar_har_core::classifier::{
 use lidar_har_core::fall::{
     AlertKind, FallAlert, FallAlertConfig, FallConfigError, FallDetector, FallInput,
 };
+use lidar_har_core::geometry::MainAxisSpan;
 use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
 use lidar_har_infer::{ActivityModel, InferError};
 use lidar_har_msgs::builtin_interfaces::{Duration, Time};
@@ -215,6 +216,7 @@ impl<M: StepModel> ClassifierStage<M> {
             stamp_s,
             position: (obs.visible && prediction.ready).then_some(position),
             probabilities: prediction.probabilities,
+            body_length_m: MainAxisSpan::of(&self.points).map(|span| span.length()),
         });
         self.alerts_raised += alerts.len();
         if let Some(last) = alerts.last() {

@@ -12,6 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lidar_har_core::activity::Activity;
 use lidar_har_core::classifier::{PersonScan, StreamingClassifier};
 use lidar_har_core::fall::{AlertKind, FallAlert, FallDetector, FallInput};
+use lidar_har_core::geometry::MainAxisSpan;
 use lidar_har_infer::ActivityModel;
 use lidar_har_pipeline::bag_run::Spread;
 use lidar_har_pipeline::classifier::{ClassifierConfig, load_classifier_config};
@@ -258,11 +259,16 @@ fn run_episode(
             sensor,
         };
         let prediction = classifier.classify(&scan)?;
-        alerts.extend(detector.update(&FallInput {
-            stamp_s,
-            position: visible.filter(|_| prediction.ready).map(|p| p.position),
-            probabilities: prediction.probabilities,
-        }));
+        alerts.extend(
+            detector.update(&FallInput {
+                stamp_s,
+                position: visible.filter(|_| prediction.ready).map(|p| p.position),
+                probabilities: prediction.probabilities,
+                body_length_m: visible
+                    .and_then(|p| MainAxisSpan::of(&p.points))
+                    .map(|span| span.length()),
+            }),
+        );
     }
     Ok(Episode {
         falls: fall_intervals(&truth),
