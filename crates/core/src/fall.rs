@@ -4,10 +4,12 @@
 //! - `FallDetected`: `falling_down` is the most likely class with probability at least
 //!   `fall_probability` on `fall_min_scans` consecutive visible scans, starting at most
 //!   `fall_from_upright_s` after the person was last upright; or a descent: lying down is
-//!   confirmed at most `descent_max_s` after the person was last upright (a fall is short
-//!   and easily missed, the lying that follows is not). "Upright" is the confirmed posture,
-//!   not one scan: a person crawling or getting up from the floor whom the classifier takes
-//!   for walking for a scan or two has not been upright, and cannot fall from there. The
+//!   confirmed at most `descent_max_s` after the person was last upright or getting up (a
+//!   fall is short and easily missed, the lying that follows is not; a failed attempt to
+//!   stand ends lying too, while getting up misread as falling is the model's commonest
+//!   false fall, so it does not start a `falling_down` run). Both are confirmed postures,
+//!   not one scan: a person crawling whom the classifier takes for walking for a scan or two
+//!   has not left the floor, and cannot fall from there. The
 //!   lying that makes a descent must also look like a body on the floor: its points stretch
 //!   at least `descent_min_length_m` (a standing person misread as lying is one or two legs).
 //! - `PersonDown`: the person has been on the floor (lying, sitting on the floor or crawling,
@@ -46,8 +48,9 @@ pub struct FallAlertConfig {
     pub confirm_scans: u32,
     /// Time the person must be seen upright before a new incident can raise alerts, seconds.
     pub rearm_upright_s: f64,
-    /// Seen upright, then confirmed lying on the floor within this time: `FallDetected`
-    /// even when no scan looked like `falling_down` (a fall is short; lying is not).
+    /// Seen upright or getting up, then confirmed lying on the floor within this time:
+    /// `FallDetected` even when no scan looked like `falling_down` (a fall is short; lying is
+    /// not).
     /// Seconds; 0 turns this off.
     pub descent_max_s: f64,
     /// A run of `falling_down` scans counts only when it starts at most this long after the
@@ -195,6 +198,12 @@ enum Posture {
     Falling,
 }
 
+impl Posture {
+    fn is_off_floor(self) -> bool {
+        matches!(self, Posture::Upright | Posture::GettingUp)
+    }
+}
+
 fn posture_of(activity: Activity) -> Posture {
     match activity {
         Activity::FallingDown => Posture::Falling,
@@ -218,6 +227,8 @@ pub struct FallDetector {
     posture: Option<(Posture, f64)>,
     /// The last visible scan classified upright while the confirmed posture was upright.
     last_upright_s: Option<f64>,
+    /// The same for upright or getting up.
+    last_off_floor_s: Option<f64>,
     /// Since when the person is down, with summed on-floor probability and scan count.
     down: Option<(f64, f64, u32)>,
     /// When each alert was last raised; `None` while armed.
@@ -240,6 +251,7 @@ impl FallDetector {
             candidate: None,
             posture: None,
             last_upright_s: None,
+            last_off_floor_s: None,
             down: None,
             fall_disarmed_at: None,
             down_disarmed_at: None,
@@ -363,8 +375,12 @@ impl FallDetector {
             *sum += on_floor_p as f64;
             *count += 1;
         }
-        if seen == Posture::Upright && self.posture.map(|(p, _)| p) == Some(Posture::Upright) {
+        let confirmed = self.posture.map(|(p, _)| p);
+        if seen == Posture::Upright && confirmed == Some(Posture::Upright) {
             self.last_upright_s = Some(t);
+        }
+        if seen.is_off_floor() && confirmed.is_some_and(Posture::is_off_floor) {
+            self.last_off_floor_s = Some(t);
         }
         // Re-arm once upright long enough, counting only uprightness that began after the alert.
         if let Some((Posture::Upright, since)) = self.posture
@@ -384,7 +400,7 @@ impl FallDetector {
         limit <= 0.0 || self.last_upright_s.is_some_and(|at| start - at <= limit)
     }
 
-    /// Lying confirmed soon after the person was last upright: a fall, seen or not.
+    /// Lying confirmed soon after the person was last off the floor: a fall, seen or not.
     fn check_descent(
         &mut self,
         t: f64,
@@ -393,20 +409,20 @@ impl FallDetector {
         on_floor_p: f32,
         alerts: &mut Vec<FallAlert>,
     ) {
-        let Some(upright_at) = self.last_upright_s else {
+        let Some(off_floor_at) = self.last_off_floor_s else {
             return;
         };
         if best != Activity::LyingDown
             || self.fall_disarmed_at.is_some()
             || self.config.descent_max_s <= 0.0
-            || lying_since - upright_at > self.config.descent_max_s
+            || lying_since - off_floor_at > self.config.descent_max_s
         {
             return;
         }
         self.fall_disarmed_at = Some(t);
         alerts.push(FallAlert {
             kind: AlertKind::FallDetected,
-            event_time_s: upright_at,
+            event_time_s: off_floor_at,
             raised_at_s: t,
             down_since_s: lying_since,
             position: self.last_position.unwrap_or(DVec2::ZERO),
@@ -553,15 +569,15 @@ mod tests {
 
     #[test]
     fn moves_on_the_floor_misread_for_a_moment_are_not_falls() {
-        // Sitting, starting to get up, a two-scan flicker of walking, then lying: never
-        // confirmed upright since the sitting, so no descent.
+        // Sitting, three scans of getting up and two of walking (neither confirmed), then
+        // lying: never off the floor since the sitting, so no descent.
         let mut d = detector();
         let flicker = run(
             &mut d,
             &[
                 (Walking, 5.0, true),
                 (SittingOnFloor, 5.0, true),
-                (GettingUp, 0.5, true),
+                (GettingUp, 0.15, true),
                 (Walking, 0.1, true),
                 (LyingDown, 5.0, true),
             ],
@@ -595,6 +611,35 @@ mod tests {
             ],
         );
         assert_eq!(kinds(&loose), [AlertKind::FallDetected]);
+    }
+
+    #[test]
+    fn lying_again_soon_after_getting_up_is_a_fall() {
+        // Down, getting up (confirmed), then straight back to lying: a failed attempt to
+        // stand. The getting up, though, starts no `falling_down` run (the model's commonest
+        // false fall is getting up read as falling).
+        let mut d = detector();
+        let alerts = run(
+            &mut d,
+            &[
+                (Walking, 5.0, true),
+                (SittingOnFloor, 5.0, true),
+                (GettingUp, 1.0, true),
+                (LyingDown, 5.0, true),
+            ],
+        );
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+        let alerts = run(
+            &mut detector(),
+            &[
+                (Walking, 5.0, true),
+                (SittingOnFloor, 5.0, true),
+                (GettingUp, 1.0, true),
+                (FallingDown, 0.5, true),
+                (SittingOnFloor, 5.0, true),
+            ],
+        );
+        assert!(alerts.is_empty(), "{alerts:?}");
     }
 
     #[test]
