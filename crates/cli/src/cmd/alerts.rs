@@ -60,6 +60,12 @@ pub struct FallOutcome {
     /// end), minus the fall's end; `None` when there was none.
     pub latency_s: Option<f64>,
     pub alert: Option<&'static str>,
+    /// Why a fall without its own alert may have none by design: it began at the episode's
+    /// first scan (nobody was seen upright before it), or inside an incident already alerted
+    /// (since an earlier fall's alert the person was never upright for `rearm_upright_s`, so
+    /// the hysteresis keeps one incident to one alert).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unalerted_because: Option<&'static str>,
 }
 
 #[derive(Debug, Serialize)]
@@ -156,7 +162,12 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         };
         if falls {
             fall_episodes_run += 1;
-            let (matched, rest) = match_alerts(id, &episode.falls, &episode.alerts);
+            let (mut matched, rest) = match_alerts(id, &episode.falls, &episode.alerts);
+            explain_unalerted(
+                &mut matched,
+                &episode.truth,
+                config.fall_alert.rearm_upright_s,
+            );
             outcomes.extend(matched);
             unmatched += rest;
         } else {
@@ -327,11 +338,54 @@ fn match_alerts(
                 end_s: end,
                 latency_s: first.map(|a| a.raised_at_s - end),
                 alert: first.map(|a| a.kind.name()),
+                unalerted_because: None,
             }
         })
         .collect();
     let unmatched = alerts.iter().filter(|a| window(a).is_none()).count();
     (outcomes, unmatched)
+}
+
+/// Marks the falls of one episode that had no alert of their own for a reason the alert
+/// logic intends (see [`FallOutcome::unalerted_because`]).
+fn explain_unalerted(outcomes: &mut [FallOutcome], truth: &[(f64, Activity)], rearm_s: f64) {
+    let first_scan = truth.first().map(|&(t, _)| t);
+    let mut alerted_at: Option<f64> = None;
+    for outcome in outcomes.iter_mut() {
+        if let Some(latency) = outcome.latency_s {
+            alerted_at = Some(outcome.end_s + latency);
+            continue;
+        }
+        if first_scan == Some(outcome.start_s) {
+            outcome.unalerted_because = Some("at the episode's start");
+        } else if let Some(at) = alerted_at
+            && !upright_for(truth, at, outcome.start_s, rearm_s)
+        {
+            outcome.unalerted_because = Some("inside an alerted incident");
+        }
+    }
+}
+
+/// Whether the truth shows the person upright for `span_s` without a break between `from`
+/// and `to`.
+fn upright_for(truth: &[(f64, Activity)], from: f64, to: f64, span_s: f64) -> bool {
+    let mut since = None;
+    for &(t, a) in truth.iter().filter(|&&(t, _)| t >= from && t < to) {
+        let upright = matches!(
+            a,
+            Activity::Standing
+                | Activity::Walking
+                | Activity::Running
+                | Activity::WalkingUnsteadily
+        );
+        match (upright, since) {
+            (true, None) => since = Some(t),
+            (true, Some(s)) if t - s >= span_s => return true,
+            (false, _) => since = None,
+            _ => {}
+        }
+    }
+    false
 }
 
 fn print_report(r: &AlertsReport) {
@@ -350,6 +404,14 @@ fn print_report(r: &AlertsReport) {
             "latency after the fall's end: median {:.2} s, p95 {:.2} s, max {:.2} s",
             l.median, l.p95, l.max
         );
+    }
+    for reason in ["at the episode's start", "inside an alerted incident"] {
+        let n = r
+            .outcomes
+            .iter()
+            .filter(|o| o.unalerted_because == Some(reason))
+            .count();
+        println!("falls without an alert of their own, {reason}: {n}");
     }
     println!(
         "alerts in fall episodes before any fall: {}",
@@ -447,5 +509,45 @@ mod tests {
         assert_eq!(latencies[2], None);
         assert_eq!(outcomes[1].alert, Some("PERSON_DOWN"));
         assert!(outcomes.iter().all(|o| o.episode == 3));
+    }
+
+    #[test]
+    fn unalerted_falls_are_explained_only_when_the_logic_meant_no_alert() {
+        use Activity::*;
+        // 0-1 s fall (at the start), lying, 4-5 s fall (alerted at 5.2), lying, getting up,
+        // 9-10 s fall with no upright between (same incident), then 3.5 s standing, 14-15 s
+        // fall (a new incident, missed).
+        let mut truth = Vec::new();
+        let mut push = |from: f64, to: f64, a: Activity| {
+            let mut t = from;
+            while t < to - 1e-9 {
+                truth.push((t, a));
+                t += 0.05;
+            }
+        };
+        push(0.0, 1.0, FallingDown);
+        push(1.0, 4.0, LyingDown);
+        push(4.0, 5.0, FallingDown);
+        push(5.0, 7.0, LyingDown);
+        push(7.0, 9.0, GettingUp);
+        push(9.0, 10.0, FallingDown);
+        push(10.0, 10.5, GettingUp);
+        push(10.5, 14.0, Standing);
+        push(14.0, 15.0, FallingDown);
+        push(15.0, 16.0, LyingDown);
+        let falls = fall_intervals(&truth);
+        assert_eq!(falls.len(), 4);
+        let (mut outcomes, _) = match_alerts(0, &falls, &[alert(AlertKind::FallDetected, 5.2)]);
+        explain_unalerted(&mut outcomes, &truth, 3.0);
+        let reasons: Vec<_> = outcomes.iter().map(|o| o.unalerted_because).collect();
+        assert_eq!(
+            reasons,
+            [
+                Some("at the episode's start"),
+                None,
+                Some("inside an alerted incident"),
+                None
+            ]
+        );
     }
 }
