@@ -9,9 +9,9 @@
 //!   stand ends lying too, while getting up misread as falling is the model's commonest
 //!   false fall, so it does not start a `falling_down` run). Both are confirmed postures,
 //!   not one scan: a person crawling whom the classifier takes for walking for a scan or two
-//!   has not left the floor, and cannot fall from there. The
-//!   lying that makes a descent must also look like a body on the floor: its points stretch
-//!   at least `descent_min_length_m` (a standing person misread as lying is one or two legs).
+//!   has not left the floor, and cannot fall from there. The lying that makes a descent must
+//!   also look like a body on the floor: its points stretch at least `descent_min_length_m`
+//!   (a standing person misread as lying is one or two legs).
 //! - `PersonDown`: the person has been on the floor (lying, sitting on the floor or crawling,
 //!   [`Activity::is_on_floor`]) for `down_after_s` without being seen getting up. The clock
 //!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
@@ -50,8 +50,7 @@ pub struct FallAlertConfig {
     pub rearm_upright_s: f64,
     /// Seen upright or getting up, then confirmed lying on the floor within this time:
     /// `FallDetected` even when no scan looked like `falling_down` (a fall is short; lying is
-    /// not).
-    /// Seconds; 0 turns this off.
+    /// not). Seconds; 0 turns this off.
     pub descent_max_s: f64,
     /// A run of `falling_down` scans counts only when it starts at most this long after the
     /// person was last confirmed upright: a fall starts from standing or walking, and getting
