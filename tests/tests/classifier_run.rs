@@ -173,8 +173,18 @@ fn alerts_measures_latency_and_false_alerts_end_to_end() {
         "20",
         "--out",
         path(&report),
+        "--trace-episode",
+        "0",
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
+    // The trace: one line per scan of the fall episode (20 s at 20 Hz), none of the others.
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let traced = stderr.lines().filter(|l| l.starts_with("trace t=")).count();
+    assert!((395..=405).contains(&traced), "{traced} trace lines");
+    assert!(
+        stderr.lines().any(|l| l.contains("truth=falling_down")),
+        "{stderr}"
+    );
     assert!(
         out.status.success(),
         "{stdout}\n{}",

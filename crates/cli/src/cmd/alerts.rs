@@ -8,10 +8,10 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lidar_har_core::activity::Activity;
 use lidar_har_core::classifier::{PersonScan, StreamingClassifier};
-use lidar_har_core::fall::{AlertKind, FallAlert, FallDetector, FallInput};
+use lidar_har_core::fall::{AlertKind, FallAlert, FallDetector, FallInput, argmax};
 use lidar_har_core::geometry::MainAxisSpan;
 use lidar_har_infer::ActivityModel;
 use lidar_har_pipeline::bag_run::Spread;
@@ -48,6 +48,11 @@ pub struct AlertsArgs {
     /// Write the report as JSON here too.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Print every scan of this episode (by number, as in the report) to stderr: the true
+    /// activity, the model's top class and its probability, p(falling_down), whether the
+    /// person was seen, the length of their points, and the alerts raised. Repeatable.
+    #[arg(long, value_name = "EPISODE")]
+    pub trace_episode: Vec<usize>,
 }
 
 /// One fall of the ground truth and the alert that answered it, if any.
@@ -142,6 +147,10 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed} (eta {eta})")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    if !args.trace_episode.is_empty() {
+        // The trace lines own stderr.
+        progress.set_draw_target(ProgressDrawTarget::hidden());
+    }
     let mut outcomes = Vec::new();
     let mut unmatched = 0;
     let mut false_alerts: Vec<FalseAlert> = Vec::new();
@@ -152,7 +161,8 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         let mut scene = scene.clone();
         scene.duration = args.episode_seconds;
         let seed = args.seed.wrapping_mul(1_000_003).wrapping_add(id as u64);
-        let episode = match run_episode(&scene, seed, falls, &config, &mut classifier) {
+        let trace = args.trace_episode.contains(&id);
+        let episode = match run_episode(&scene, seed, falls, &config, &mut classifier, trace) {
             Ok(episode) => episode,
             Err(e) => {
                 progress.suspend(|| eprintln!("alerts: skipping episode {id}: {e:#}"));
@@ -243,6 +253,7 @@ fn run_episode(
     falls: bool,
     config: &ClassifierConfig,
     classifier: &mut StreamingClassifier<ActivityModel>,
+    trace: bool,
 ) -> anyhow::Result<Episode> {
     let mut sim = episode_simulator(scene, seed, false, falls)?;
     let mut localiser = episode_localiser(&sim, false)?;
@@ -270,16 +281,33 @@ fn run_episode(
             sensor,
         };
         let prediction = classifier.classify(&scan)?;
-        alerts.extend(
-            detector.update(&FallInput {
-                stamp_s,
-                position: visible.filter(|_| prediction.ready).map(|p| p.position),
-                probabilities: prediction.probabilities,
-                body_length_m: visible
-                    .and_then(|p| MainAxisSpan::of(&p.points))
-                    .map(|span| span.length()),
-            }),
-        );
+        let body_length_m = visible
+            .and_then(|p| MainAxisSpan::of(&p.points))
+            .map(|span| span.length());
+        let raised = detector.update(&FallInput {
+            stamp_s,
+            position: visible.filter(|_| prediction.ready).map(|p| p.position),
+            probabilities: prediction.probabilities,
+            body_length_m,
+        });
+        if trace {
+            let (best, p) = argmax(&prediction.probabilities);
+            eprintln!(
+                "trace t={stamp_s:.2} truth={} model={} p={p:.2} p_fall={:.2} seen={} length={} \
+                 alerts=[{}]",
+                frame.person.map_or("-", |p| p.activity.label()),
+                best.label(),
+                prediction.probabilities[Activity::FallingDown.index()],
+                visible.is_some(),
+                body_length_m.map_or("-".into(), |l| format!("{l:.2}")),
+                raised
+                    .iter()
+                    .map(|a| a.kind.name())
+                    .collect::<Vec<_>>()
+                    .join(" "),
+            );
+        }
+        alerts.extend(raised);
     }
     Ok(Episode {
         falls: fall_intervals(&truth),
