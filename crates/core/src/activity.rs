@@ -67,6 +67,19 @@ impl Activity {
     }
 }
 
+impl Activity {
+    /// On one's feet: standing, walking, running or walking unsteadily.
+    pub const fn is_upright(self) -> bool {
+        matches!(
+            self,
+            Activity::Standing
+                | Activity::Walking
+                | Activity::Running
+                | Activity::WalkingUnsteadily
+        )
+    }
+}
+
 impl std::fmt::Display for Activity {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.label())
@@ -86,5 +99,18 @@ mod tests {
         }
         assert_eq!(Activity::from_index(9), None);
         assert_eq!(Activity::from_label("dancing"), None);
+    }
+
+    #[test]
+    fn upright_on_the_floor_falling_and_getting_up_cover_every_class_once() {
+        for a in Activity::ALL {
+            let kinds = [
+                a.is_upright(),
+                a.is_on_floor(),
+                a == Activity::FallingDown,
+                a == Activity::GettingUp,
+            ];
+            assert_eq!(kinds.iter().filter(|&&k| k).count(), 1, "{a}");
+        }
     }
 }

@@ -205,10 +205,10 @@ impl Posture {
 
 fn posture_of(activity: Activity) -> Posture {
     match activity {
-        Activity::FallingDown => Posture::Falling,
-        Activity::GettingUp => Posture::GettingUp,
+        a if a.is_upright() => Posture::Upright,
         a if a.is_on_floor() => Posture::OnFloor,
-        _ => Posture::Upright,
+        Activity::GettingUp => Posture::GettingUp,
+        _ => Posture::Falling,
     }
 }
 

@@ -11,7 +11,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lidar_har_core::activity::Activity;
 use lidar_har_core::classifier::{PersonScan, StreamingClassifier};
-use lidar_har_core::fall::{AlertKind, FallAlert, FallDetector, FallInput, argmax};
+use lidar_har_core::fall::{AlertKind, FallAlert, FallDetector, FallInput};
 use lidar_har_core::geometry::MainAxisSpan;
 use lidar_har_infer::ActivityModel;
 use lidar_har_pipeline::bag_run::Spread;
@@ -291,12 +291,12 @@ fn run_episode(
             body_length_m,
         });
         if trace {
-            let (best, p) = argmax(&prediction.probabilities);
             eprintln!(
-                "trace t={stamp_s:.2} truth={} model={} p={p:.2} p_fall={:.2} seen={} length={} \
+                "trace t={stamp_s:.2} truth={} model={} p={:.2} p_fall={:.2} seen={} length={} \
                  alerts=[{}]",
                 frame.person.map_or("-", |p| p.activity.label()),
-                best.label(),
+                prediction.activity.label(),
+                prediction.confidence,
                 prediction.probabilities[Activity::FallingDown.index()],
                 visible.is_some(),
                 body_length_m.map_or("-".into(), |l| format!("{l:.2}")),
@@ -399,14 +399,7 @@ fn explain_unalerted(outcomes: &mut [FallOutcome], truth: &[(f64, Activity)], re
 fn upright_for(truth: &[(f64, Activity)], from: f64, to: f64, span_s: f64) -> bool {
     let mut since = None;
     for &(t, a) in truth.iter().filter(|&&(t, _)| t >= from && t < to) {
-        let upright = matches!(
-            a,
-            Activity::Standing
-                | Activity::Walking
-                | Activity::Running
-                | Activity::WalkingUnsteadily
-        );
-        match (upright, since) {
+        match (a.is_upright(), since) {
             (true, None) => since = Some(t),
             (true, Some(s)) if t - s >= span_s => return true,
             (false, _) => since = None,
