@@ -91,6 +91,10 @@ pub struct AlertsReport {
     pub false_alerts: usize,
     pub false_fall_detected: usize,
     pub false_person_down: usize,
+    /// Of those, the ones raised after the ground truth had the person off their feet for at
+    /// least `down_after_s` without a break: the alert doing its job on a script that stays
+    /// down that long (still counted as false).
+    pub false_person_down_truly_down: usize,
     pub false_alerts_per_hour: f64,
     /// False alerts by what the person was really doing when each was raised (the
     /// misreadings to fix), most frequent first.
@@ -109,6 +113,9 @@ pub struct FalseAlert {
     /// The true activity when the alert was raised, and one second before.
     pub activity: &'static str,
     pub activity_1s_before: &'static str,
+    /// How long the ground truth had the person off their feet (on the floor or getting up)
+    /// without a break when the alert was raised, seconds.
+    pub truth_down_s: f64,
 }
 
 /// What one episode gave: the truth's falls (start, end), the alerts raised and the true
@@ -189,6 +196,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
                 raised_at_s: a.raised_at_s,
                 activity: activity_at(&episode.truth, a.raised_at_s).label(),
                 activity_1s_before: activity_at(&episode.truth, a.raised_at_s - 1.0).label(),
+                truth_down_s: down_for(&episode.truth, a.raised_at_s),
             }));
         }
         progress.inc(1);
@@ -228,6 +236,13 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         false_alerts: false_alerts.len(),
         false_fall_detected: count(AlertKind::FallDetected),
         false_person_down: count(AlertKind::PersonDown),
+        false_person_down_truly_down: false_alerts
+            .iter()
+            .filter(|a| {
+                a.kind == AlertKind::PersonDown
+                    && a.truth_down_s >= config.fall_alert.down_after_s
+            })
+            .count(),
         false_alerts_per_hour: if no_fall_hours > 0.0 {
             false_alerts.len() as f64 / no_fall_hours
         } else {
@@ -322,6 +337,18 @@ fn activity_at(truth: &[(f64, Activity)], t: f64) -> Activity {
     truth
         .get(i.saturating_sub(1))
         .map_or(Activity::Standing, |&(_, a)| a)
+}
+
+/// How long the truth had the person off their feet (not upright) without a break up to `t`
+/// (0 when upright at `t`).
+fn down_for(truth: &[(f64, Activity)], t: f64) -> f64 {
+    let upto = truth.partition_point(|&(s, _)| s <= t);
+    let down_since = truth[..upto]
+        .iter()
+        .rev()
+        .take_while(|&&(_, a)| !a.is_upright())
+        .last();
+    down_since.map_or(0.0, |&(s, _)| t - s)
 }
 
 /// The (start, end) of every run of `falling_down` in the truth; the end is the first scan
@@ -446,6 +473,10 @@ fn print_report(r: &AlertsReport) {
         r.false_person_down,
         r.false_alerts_per_hour
     );
+    println!(
+        "of them PERSON_DOWN after the person had truly been off their feet for down_after_s: {}",
+        r.false_person_down_truly_down
+    );
     if !r.false_alerts_by_activity.is_empty() {
         let list: Vec<String> = r
             .false_alerts_by_activity
@@ -492,6 +523,24 @@ mod tests {
         assert_eq!(activity_at(&truth, -3.0), Standing);
         assert_eq!(activity_at(&truth, 9.0), SittingOnFloor);
         assert_eq!(activity_at(&[], 1.0), Standing);
+    }
+
+    #[test]
+    fn time_down_counts_back_to_the_last_upright_scan() {
+        use Activity::*;
+        let truth = [
+            (0.0, Walking),
+            (1.0, SittingOnFloor),
+            (2.0, Crawling),
+            (3.0, GettingUp),
+            (4.0, Standing),
+        ];
+        assert_eq!(down_for(&truth, 3.5), 2.5);
+        assert_eq!(down_for(&truth, 1.0), 0.0);
+        assert_eq!(down_for(&truth, 4.0), 0.0);
+        assert_eq!(down_for(&truth, 0.5), 0.0);
+        assert_eq!(down_for(&[], 1.0), 0.0);
+        assert_eq!(down_for(&[(0.0, LyingDown)], 7.0), 7.0);
     }
 
     #[test]
