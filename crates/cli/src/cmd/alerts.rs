@@ -239,8 +239,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         false_person_down_truly_down: false_alerts
             .iter()
             .filter(|a| {
-                a.kind == AlertKind::PersonDown
-                    && a.truth_down_s >= config.fall_alert.down_after_s
+                a.kind == AlertKind::PersonDown && a.truth_down_s >= config.fall_alert.down_after_s
             })
             .count(),
         false_alerts_per_hour: if no_fall_hours > 0.0 {
