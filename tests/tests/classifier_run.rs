@@ -205,6 +205,25 @@ fn alerts_measures_latency_and_false_alerts_end_to_end() {
         false_alerts,
         r["false_fall_detected"].as_u64().unwrap() + r["false_person_down"].as_u64().unwrap()
     );
+    // Streaming classification: one sample per published scan of the three 20 s episodes
+    // (1,200 scans; the first half-window of each and unseen scans publish nothing).
+    let scans = &r["scans"];
+    let samples = scans["samples"].as_u64().unwrap();
+    assert!((300..1200).contains(&samples), "{scans}");
+    let confused: u64 = scans["confusion"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|row| row.as_array().unwrap())
+        .map(|n| n.as_u64().unwrap())
+        .sum();
+    assert_eq!(confused, samples);
+    let accuracy = scans["accuracy"].as_f64().unwrap();
+    assert!(
+        accuracy > 0.3,
+        "the committed model reads most scans right: {accuracy}"
+    );
+    assert!(stdout.contains("streaming classification:"), "{stdout}");
 }
 
 #[test]
