@@ -326,6 +326,28 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
         "some, not all, windows lie within one activity: {within_windows} of {windows}"
     );
     assert_eq!(confusion_total(within), within_windows);
+    // The person is hidden from some fixed spots for part of an episode, never from most.
+    let in_view = &metrics["in_full_view"];
+    let in_view_windows = in_view["windows"].as_u64().unwrap();
+    let images: ndarray::Array4<u8> = ndarray_npy::read_npy(data.join("test_images.npy")).unwrap();
+    let seen_throughout = images
+        .outer_iter()
+        .filter(|window| {
+            window
+                .outer_iter()
+                .all(|frame| frame.iter().any(|&v| v > 0))
+        })
+        .count() as u64;
+    assert_eq!(in_view_windows, seen_throughout);
+    assert!(
+        in_view_windows > 0 && in_view_windows <= windows,
+        "{in_view_windows} of {windows} windows in full view"
+    );
+    assert_eq!(confusion_total(in_view), in_view_windows);
+    let both = &metrics["within_one_activity_in_full_view"];
+    let both_windows = both["windows"].as_u64().unwrap();
+    assert!(both_windows <= within_windows.min(in_view_windows));
+    assert_eq!(confusion_total(both), both_windows);
     let spread = &metrics["per_episode"];
     let (best, worst) = (&spread["best"], &spread["worst"]);
     assert!(
