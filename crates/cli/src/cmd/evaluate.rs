@@ -363,6 +363,9 @@ fn argmax(logits: &[f32; Activity::COUNT]) -> Activity {
     Activity::from_index(best).unwrap_or(Activity::Standing)
 }
 
+/// Picks one subset's scores out of a split's metrics (for the report's rows).
+type SubsetOf = fn(&SplitMetrics) -> &Scores;
+
 fn report(m: &Metrics, index: &DatasetIndex) -> String {
     let mut out = String::new();
     let pct = |x: f64| format!("{:.1}", 100.0 * x);
@@ -418,30 +421,32 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
         m.test.all.windows,
         unseen.map(|u| u.all.windows).unwrap_or(0)
     );
-    let subset = |w: &Scores| format!("{} ({} windows)", pct(w.accuracy), w.windows);
-    out += &format!(
-        "| accuracy, windows within one activity (%) | {} | {} | {} |\n",
-        subset(&m.test.within_one_activity),
-        unseen
-            .map(|u| subset(&u.within_one_activity))
-            .unwrap_or("-".into()),
-        paper_acc.clone().unwrap_or("-".into())
-    );
-    out += &format!(
-        "| accuracy, windows in full view (%) | {} | {} | - |\n",
-        subset(&m.test.in_full_view),
-        unseen
-            .map(|u| subset(&u.in_full_view))
-            .unwrap_or("-".into()),
-    );
-    out += &format!(
-        "| accuracy, within one activity and in full view (%) | {} | {} | {} |\n\n",
-        subset(&m.test.within_one_activity_in_full_view),
-        unseen
-            .map(|u| subset(&u.within_one_activity_in_full_view))
-            .unwrap_or("-".into()),
-        paper_acc.unwrap_or("-".into())
-    );
+    let paper = paper_acc.unwrap_or("-".into());
+    let subsets: [(&str, SubsetOf, &str); 3] = [
+        (
+            "windows within one activity",
+            |s| &s.within_one_activity,
+            &paper,
+        ),
+        ("windows in full view", |s| &s.in_full_view, "-"),
+        (
+            "within one activity and in full view",
+            |s| &s.within_one_activity_in_full_view,
+            &paper,
+        ),
+    ];
+    for (title, scores, paper) in subsets {
+        let cell = |s: &SplitMetrics| {
+            let w = scores(s);
+            format!("{} ({} windows)", pct(w.accuracy), w.windows)
+        };
+        out += &format!(
+            "| accuracy, {title} (%) | {} | {} | {paper} |\n",
+            cell(&m.test),
+            unseen.map(cell).unwrap_or("-".into()),
+        );
+    }
+    out += "\n";
     out += "A window is scored at its last scan. \"Within one activity\": only windows whose scans \
             all show one activity, as each of the paper's samples is cut from one activity; the \
             others end just after a change (the last two scans falling after 18 of walking). \
