@@ -308,7 +308,8 @@ fn run_episode(
             sensor,
         };
         let prediction = classifier.classify(&scan)?;
-        if let (Some(person), Some(_), true) = (&frame.person, visible, prediction.ready) {
+        let published = visible.is_some() && prediction.ready;
+        if let Some(person) = frame.person.as_ref().filter(|_| published) {
             scans.add(person.activity, prediction.activity);
         }
         let body_length_m = visible

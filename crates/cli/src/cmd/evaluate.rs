@@ -89,7 +89,8 @@ struct Scores {
 }
 
 impl Scores {
-    fn new(confusion: &ConfusionMatrix, windows: usize) -> Self {
+    /// One window is one sample of the matrix.
+    fn new(confusion: &ConfusionMatrix) -> Self {
         let report = confusion.report();
         let by_class = |f: fn(&lidar_har_core::metrics::ClassMetrics) -> f64| {
             report
@@ -99,7 +100,7 @@ impl Scores {
                 .collect()
         };
         Self {
-            windows,
+            windows: report.samples as usize,
             accuracy: report.accuracy,
             precision: by_class(|c| c.precision),
             recall: by_class(|c| c.recall),
@@ -259,11 +260,8 @@ fn evaluate_split(
     let half = t / 2;
     let mut confusion = ConfusionMatrix::new();
     let mut within_one = ConfusionMatrix::new();
-    let mut within_one_windows = 0usize;
     let mut in_view = ConfusionMatrix::new();
-    let mut in_view_windows = 0usize;
     let mut within_one_in_view = ConfusionMatrix::new();
-    let mut within_one_in_view_windows = 0usize;
     let mut half_right = 0usize;
     let mut correct = Vec::with_capacity(n);
     let mut frame = Array2::<f32>::zeros((size, size));
@@ -293,28 +291,22 @@ fn evaluate_split(
                     .all(|frame| frame.iter().any(|&v| v > 0));
                 if one_activity {
                     within_one.add(truth, predicted);
-                    within_one_windows += 1;
                 }
                 if seen_throughout {
                     in_view.add(truth, predicted);
-                    in_view_windows += 1;
                 }
                 if one_activity && seen_throughout {
                     within_one_in_view.add(truth, predicted);
-                    within_one_in_view_windows += 1;
                 }
             }
         }
     }
     let metrics = SplitMetrics {
-        all: Scores::new(&confusion, n),
+        all: Scores::new(&confusion),
         accuracy_at_half_window: half_right as f64 / n.max(1) as f64,
-        within_one_activity: Scores::new(&within_one, within_one_windows),
-        in_full_view: Scores::new(&in_view, in_view_windows),
-        within_one_activity_in_full_view: Scores::new(
-            &within_one_in_view,
-            within_one_in_view_windows,
-        ),
+        within_one_activity: Scores::new(&within_one),
+        in_full_view: Scores::new(&in_view),
+        within_one_activity_in_full_view: Scores::new(&within_one_in_view),
         per_episode: None,
     };
     Ok((metrics, confusion, correct))
