@@ -344,6 +344,15 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
         "{in_view_windows} of {windows} windows in full view"
     );
     assert_eq!(confusion_total(in_view), in_view_windows);
+    let published = &metrics["seen_at_last_scan"];
+    let published_windows = published["windows"].as_u64().unwrap();
+    let seen_at_last_scan = images
+        .outer_iter()
+        .filter(|window| window.outer_iter().last().unwrap().iter().any(|&v| v > 0))
+        .count() as u64;
+    assert_eq!(published_windows, seen_at_last_scan);
+    assert!(published_windows >= in_view_windows && published_windows <= windows);
+    assert_eq!(confusion_total(published), published_windows);
     let both = &metrics["within_one_activity_in_full_view"];
     let both_windows = both["windows"].as_u64().unwrap();
     assert!(both_windows <= within_windows.min(in_view_windows));
