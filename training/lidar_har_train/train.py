@@ -54,6 +54,9 @@ def parse_args(argv):
     p.add_argument("--bf16", action="store_true",
                    help="bfloat16 autocast for the forward pass (CPUs with AVX-512 BF16 or AMX): 1.25x the "
                         "steps per second on the development machine; weights, loss and export stay float32")
+    p.add_argument("--mask-hidden-steps", action="store_true",
+                   help="leave out of the loss, and of the validation score, the steps whose scan shows nothing "
+                        "of the person: the robot publishes no activity for them")
     p.add_argument("--skip-test-eval", action="store_true",
                    help="skip PyTorch metrics on the test splits (`lidar-har evaluate` gives them through ONNX Runtime)")
     return p.parse_args(argv)
@@ -116,9 +119,20 @@ def class_weights_for_sampling(labels_last: np.ndarray) -> np.ndarray:
     return weights / weights.sum()
 
 
-def loss_on_second_half(logits: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
+def visible_steps(images: np.ndarray) -> np.ndarray:
+    """`[B, T]`: whether each step's image shows any of the person."""
+    return (images > 0).any(axis=(2, 3))
+
+
+def loss_on_second_half(logits: torch.Tensor, labels: torch.Tensor, mask: np.ndarray | None = None) -> torch.Tensor:
+    """Cross-entropy over the steps from T/2 on; with `mask` (`[B, T]`), over its true steps only."""
     half = logits.shape[1] // 2
-    return nn.functional.cross_entropy(logits[:, half:].reshape(-1, len(CLASSES)), labels[:, half:].reshape(-1))
+    losses = nn.functional.cross_entropy(
+        logits[:, half:].reshape(-1, len(CLASSES)), labels[:, half:].reshape(-1), reduction="none")
+    if mask is None:
+        return losses.mean()
+    weights = torch.from_numpy(mask[:, half:].reshape(-1).astype(np.float32))
+    return (losses * weights).sum() / weights.sum().clamp(min=1.0)
 
 
 @torch.no_grad()
@@ -131,13 +145,19 @@ def predict(model: ActivityConvLSTM, split: Split, batch: int = 256) -> np.ndarr
     return np.concatenate(out) if out else np.zeros((0, split.images.shape[1], len(CLASSES)), np.float32)
 
 
-def summarise(logits: np.ndarray, split: Split) -> dict:
-    """Accuracy at the window's last step (history T) and at step T/2 (the shortest history)."""
+def summarise(logits: np.ndarray, split: Split, only_visible_last: bool = False) -> dict:
+    """Accuracy at the window's last step (history T) and at step T/2 (the shortest history);
+    with `only_visible_last`, over the windows whose last scan shows the person."""
+    if only_visible_last:
+        keep = visible_steps(split.images[:, -1:])[:, 0]
+        logits, labels = logits[keep], split.labels[keep]
+    else:
+        labels = split.labels
     steps = logits.shape[1]
     last = logits[:, -1].argmax(-1)
     half = logits[:, steps // 2].argmax(-1)
-    truth_last = split.labels[:, -1]
-    truth_half = split.labels[:, steps // 2]
+    truth_last = labels[:, -1]
+    truth_half = labels[:, steps // 2]
     confusion = np.zeros((len(CLASSES), len(CLASSES)), dtype=np.int64)
     np.add.at(confusion, (truth_last, last), 1)
     recall = {
@@ -145,7 +165,7 @@ def summarise(logits: np.ndarray, split: Split) -> dict:
         for k in range(len(CLASSES))
     }
     return {
-        "windows": int(len(split)),
+        "windows": int(len(logits)),
         "accuracy_at_T": float((last == truth_last).mean()),
         "accuracy_at_T_half": float((half == truth_half).mean()),
         "recall_at_T": recall,
@@ -193,18 +213,19 @@ def train(args) -> int:
         for step in range(args.steps_per_epoch):
             rows = np.sort(rng.choice(len(train_split), size=args.batch, p=sampling))
             images = train_split.images[rows]
+            mask = visible_steps(images) if args.mask_hidden_steps else None
             if not args.no_augment:
                 images = augment(images, rng, args.shift_px)
             with torch.autocast("cpu", dtype=torch.bfloat16, enabled=args.bf16):
                 logits = model(to_tensor(np.ascontiguousarray(images)))
-            loss = loss_on_second_half(logits.float(), torch.from_numpy(train_split.labels[rows]))
+            loss = loss_on_second_half(logits.float(), torch.from_numpy(train_split.labels[rows]), mask)
             set_learning_rate(optimiser, args, epoch - 1, step, time.monotonic() - started)
             optimiser.zero_grad()
             loss.backward()
             nn.utils.clip_grad_norm_(model.parameters(), 5.0)
             optimiser.step()
             total += loss.item()
-        val = summarise(predict(model, val_split), val_split)
+        val = summarise(predict(model, val_split), val_split, args.mask_hidden_steps)
         # Balanced validation score: mean recall at T, so rare classes (falls) count as much.
         recalls = [r for r in val["recall_at_T"].values() if r is not None]
         score = float(np.mean(recalls)) if recalls else 0.0
@@ -226,7 +247,7 @@ def train(args) -> int:
     model.load_state_dict(best_state)
     model.eval()
 
-    results = {"validation": summarise(predict(model, val_split), val_split)}
+    results = {"validation": summarise(predict(model, val_split), val_split, args.mask_hidden_steps)}
     for name in () if args.skip_test_eval else ("test", "test_unseen"):
         split = load_split(args.data, index, name)
         if split is not None:
