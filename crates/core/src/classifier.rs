@@ -3,9 +3,10 @@
 //!
 //! The model was trained on windows of `T` scans starting from a zero state and is right
 //! after `T/2..=T` frames of history. Two states ("lanes") are stepped in parallel, each reset
-//! every `T` scans, offset by `T/2`, and the prediction comes from the lane with the longer
-//! history. So every prediction after warm-up has seen between `T/2` and `T` frames, and the
-//! state never grows stale. A gap in the scans longer than `T` scan periods, or time going
+//! every lane period `P` scans (`T` by default, or somewhat more: models stay right a little
+//! past `T`), offset by `P/2`, and the prediction comes from the lane with the longer history.
+//! So every prediction after warm-up has seen between `P/2` and `P` frames, and the state
+//! never grows stale. A gap in the scans longer than `T` scan periods, or time going
 //! backwards, restarts both lanes.
 //!
 //! The model is behind the small [`StepModel`] trait: the real one runs ONNX Runtime
@@ -59,6 +60,8 @@ pub enum StreamSpecError {
     },
     #[error(transparent)]
     Representation(#[from] SpecError),
+    #[error("a lane period of {period} scans is shorter than the model's window of {window} scans")]
+    LanePeriod { period: usize, window: usize },
 }
 
 impl StreamSpec {
@@ -164,7 +167,7 @@ pub struct Prediction {
     pub confidence: f32,
     /// Class probabilities, class order, finite and summing to 1.
     pub probabilities: [f32; Activity::COUNT],
-    /// Frames of history behind this prediction (1..=T).
+    /// Frames of history behind this prediction (1..=the lane period).
     pub history: usize,
     /// At least `T/2` frames of history: what the model was trained for.
     pub ready: bool,
@@ -208,14 +211,35 @@ pub struct StreamingClassifier<M: StepModel> {
     renderer: Renderer,
     lanes: [Lane<M::State>; 2],
     images: [Array2<f32>; 2],
-    /// Scans since the (re)start; lane 0 resets when `scans % T == 0`, lane 1 at `T/2`.
+    /// Scans after which a lane restarts (at least `T`).
+    lane_period: usize,
+    /// Scans since the (re)start; lane 0 resets when `scans % lane_period == 0`, lane 1
+    /// half a period later.
     scans: usize,
     last_stamp_s: Option<f64>,
 }
 
 impl<M: StepModel> StreamingClassifier<M> {
+    /// Lanes restart every `T` scans, the window the model was trained on.
     pub fn new(model: M, spec: StreamSpec) -> Result<Self, StreamSpecError> {
+        Self::with_lane_period(model, spec, spec.window)
+    }
+
+    /// Lanes restart every `lane_period` scans (at least `T`), so every prediction after
+    /// warm-up has between half of that and all of it behind it. A model is usually most
+    /// accurate with a little more history than it was trained on (docs/classifier.md).
+    pub fn with_lane_period(
+        model: M,
+        spec: StreamSpec,
+        lane_period: usize,
+    ) -> Result<Self, StreamSpecError> {
         spec.validate()?;
+        if lane_period < spec.window {
+            return Err(StreamSpecError::LanePeriod {
+                period: lane_period,
+                window: spec.window,
+            });
+        }
         let renderer = Renderer::new(spec.representation)?;
         let lane = |model: &M| Lane {
             state: model.initial_state(),
@@ -231,6 +255,7 @@ impl<M: StepModel> StreamingClassifier<M> {
             model,
             spec,
             renderer,
+            lane_period,
             scans: 0,
             last_stamp_s: None,
         })
@@ -282,9 +307,9 @@ impl<M: StepModel> StreamingClassifier<M> {
             self.last_stamp_s = Some(scan.stamp_s);
         }
 
-        let offsets = [0, window / 2];
+        let offsets = [0, self.lane_period / 2];
         for (lane, offset) in self.lanes.iter_mut().zip(offsets) {
-            if self.scans % window == offset {
+            if self.scans % self.lane_period == offset {
                 self.model.reset_state(&mut lane.state);
                 lane.history = 0;
                 lane.centre = None;
@@ -434,6 +459,32 @@ mod tests {
         );
         // Two steps per scan.
         assert_eq!(c.model().steps, 80);
+    }
+
+    #[test]
+    fn a_longer_lane_period_gives_every_prediction_more_history() {
+        let spec = spec(Framing::PersonCentred, 8);
+        let mut c =
+            StreamingClassifier::with_lane_period(CountingModel::default(), spec, 12).unwrap();
+        let histories: Vec<usize> = (0..48)
+            .map(|k| {
+                c.classify(&scan(k as f64 * 0.05, None, &[]))
+                    .unwrap()
+                    .history
+            })
+            .collect();
+        assert_eq!(&histories[..12], &(1..=12).collect::<Vec<_>>()[..]);
+        assert!(
+            histories[12..].iter().all(|&h| (7..=12).contains(&h)),
+            "{histories:?}"
+        );
+        assert!(matches!(
+            StreamingClassifier::with_lane_period(CountingModel::default(), spec, 7),
+            Err(StreamSpecError::LanePeriod {
+                period: 7,
+                window: 8
+            })
+        ));
     }
 
     #[test]

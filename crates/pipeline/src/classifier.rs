@@ -41,6 +41,10 @@ pub struct ClassifierConfig {
     pub model: PathBuf,
     /// ONNX Runtime intra-op threads.
     pub threads: usize,
+    /// Each of the two staggered model states restarts every this many training windows
+    /// (`T`, from the model's metadata), so every prediction has between half of that and
+    /// all of it behind it; at least 1.
+    pub lane_period_windows: f64,
     pub fall_alert: FallAlertConfig,
 }
 
@@ -49,8 +53,16 @@ impl Default for ClassifierConfig {
         Self {
             model: PathBuf::from("models/activity.onnx"),
             threads: 1,
+            lane_period_windows: 1.2,
             fall_alert: FallAlertConfig::default(),
         }
+    }
+}
+
+impl ClassifierConfig {
+    /// The lane period in scans for a model trained on windows of `window` scans.
+    pub fn lane_period(&self, window: usize) -> usize {
+        (self.lane_period_windows * window as f64).round() as usize
     }
 }
 
@@ -89,6 +101,13 @@ pub fn parse_classifier_config(text: &str) -> Result<ClassifierConfig, Classifie
         return Err(ClassifierError::Config {
             path: None,
             message: "threads must be at least 1".into(),
+        });
+    }
+    let windows = config.lane_period_windows;
+    if !(windows.is_finite() && (1.0..=10.0).contains(&windows)) {
+        return Err(ClassifierError::Config {
+            path: None,
+            message: format!("lane_period_windows = {windows} is out of range (1..=10)"),
         });
     }
     Ok(config)
@@ -158,18 +177,29 @@ impl ClassifierStage<ActivityModel> {
         let path = model.unwrap_or(&config.model);
         let model = ActivityModel::load(path, config.threads)?;
         let stream = model.info().stream;
-        Self::new(model, stream, config.fall_alert)
+        let lane_period = config.lane_period(stream.window);
+        Self::with_lane_period(model, stream, lane_period, config.fall_alert)
     }
 }
 
 impl<M: StepModel> ClassifierStage<M> {
+    /// Lanes restart every `T` scans (the model's window).
     pub fn new(
         model: M,
         stream: StreamSpec,
         fall_alert: FallAlertConfig,
     ) -> Result<Self, ClassifierError> {
+        Self::with_lane_period(model, stream, stream.window, fall_alert)
+    }
+
+    pub fn with_lane_period(
+        model: M,
+        stream: StreamSpec,
+        lane_period: usize,
+        fall_alert: FallAlertConfig,
+    ) -> Result<Self, ClassifierError> {
         Ok(Self {
-            classifier: StreamingClassifier::new(model, stream)?,
+            classifier: StreamingClassifier::with_lane_period(model, stream, lane_period)?,
             fall: FallDetector::new(fall_alert)?,
             points: Vec::new(),
             track_id: None,
@@ -954,6 +984,14 @@ mod tests {
             .to_string();
         assert!(e.contains("fall_probability"), "{e}");
         assert!(parse_classifier_config("threads: 0\n").is_err());
+        for bad in ["0.9", ".nan", "11"] {
+            let e = parse_classifier_config(&format!("lane_period_windows: {bad}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("lane_period_windows"), "{e}");
+        }
+        let c = parse_classifier_config("lane_period_windows: 1.25\n").unwrap();
+        assert_eq!(c.lane_period(20), 25);
     }
 
     #[test]

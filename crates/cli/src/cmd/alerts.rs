@@ -153,7 +153,8 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     let model = ActivityModel::load(&args.model, 1)
         .with_context(|| format!("--model {}", args.model.display()))?;
     let stream = model.info().stream;
-    let mut classifier = StreamingClassifier::new(model, stream)
+    let lane_period = config.lane_period(stream.window);
+    let mut classifier = StreamingClassifier::with_lane_period(model, stream, lane_period)
         .with_context(|| format!("--model {}", args.model.display()))?;
     let scenes = load_scenes(&args.scenes)?;
     let no_fall_episodes = (args.no_fall_hours * 3600.0 / args.episode_seconds).ceil() as usize;
