@@ -1,5 +1,5 @@
-"""What both experiments load: the model (rebuilt in PyTorch from its ONNX weights), one split
-of a dataset, and the model's output at each window's last scan."""
+"""What the experiments load: the model (rebuilt in PyTorch from its ONNX weights), one split
+of a dataset, and the model's output over each window stepped from a zero state."""
 import sys
 from pathlib import Path
 
@@ -23,12 +23,17 @@ def model_and_split_from_argv():
     return model_from_onnx(model_path), split
 
 
-def last_step_probabilities(model, split: Split, transform=lambda windows: windows) -> np.ndarray:
-    """Softmax at each window's last scan, `[N, 9]`; `transform` maps `[B, T, S, S]` windows."""
+def step_logits(model, split: Split, transform=lambda windows: windows) -> np.ndarray:
+    """Logits at every scan of every window, `[N, T, 9]`; `transform` maps `[B, T, S, S]` windows."""
     out = []
     with torch.no_grad():
         for start in range(0, len(split), 512):
             windows = np.ascontiguousarray(transform(split.images[start : start + 512]))
-            x = torch.from_numpy(windows.astype(np.float32) / 255.0)
-            out.append(torch.softmax(model(x)[:, -1], -1).numpy())
+            out.append(model(torch.from_numpy(windows.astype(np.float32) / 255.0)).numpy())
     return np.concatenate(out)
+
+
+def last_step_probabilities(model, split: Split, transform=lambda windows: windows) -> np.ndarray:
+    """Softmax at each window's last scan, `[N, 9]`."""
+    logits = step_logits(model, split, transform)[:, -1]
+    return torch.softmax(torch.from_numpy(logits), -1).numpy()

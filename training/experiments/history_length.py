@@ -7,21 +7,14 @@ publishes). On a dataset with windows longer than the model's `T`, this shows ho
     PYTHONPATH=training training/.venv/bin/python training/experiments/history_length.py \\
         models/activity.onnx out/dataset7 [test|test_unseen]
 """
-import numpy as np
-import torch
-
-from common import model_and_split_from_argv
+from common import model_and_split_from_argv, step_logits
+from lidar_har_train.data import visible_steps
 
 
 def main() -> None:
     model, split = model_and_split_from_argv()
-    predicted = []
-    with torch.no_grad():
-        for start in range(0, len(split), 512):
-            x = torch.from_numpy(split.images[start : start + 512].astype(np.float32) / 255.0)
-            predicted.append(model(x).argmax(-1).numpy())
-    predicted = np.concatenate(predicted)
-    seen = (split.images > 0).any(axis=(2, 3))
+    predicted = step_logits(model, split).argmax(-1)
+    seen = visible_steps(split.images)
     for step in range(predicted.shape[1]):
         scored = seen[:, step]
         right = predicted[scored, step] == split.labels[scored, step]

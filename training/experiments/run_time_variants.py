@@ -15,14 +15,14 @@ from pathlib import Path
 import numpy as np
 
 from common import last_step_probabilities, model_and_split_from_argv
-from lidar_har_train.data import CLASSES
+from lidar_har_train.data import CLASSES, visible_steps
 
 FALL = CLASSES.index("falling_down")
 
 
 def hold_last_seen(windows: np.ndarray) -> np.ndarray:
     held = windows.copy()
-    seen = (held > 0).any(axis=(2, 3))
+    seen = visible_steps(held)
     for t in range(1, held.shape[1]):
         fill = ~seen[:, t] & seen[:, t - 1]
         held[fill, t] = held[fill, t - 1]

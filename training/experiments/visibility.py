@@ -5,16 +5,16 @@ the others), and the share of all errors that fall in windows not seen throughou
     PYTHONPATH=training training/.venv/bin/python training/experiments/visibility.py \
         models/activity.onnx out/dataset5 [test|test_unseen]
 """
-import numpy as np
 
 from common import last_step_probabilities, model_and_split_from_argv
+from lidar_har_train.data import visible_steps
 
 
 def main() -> None:
     model, split = model_and_split_from_argv()
     right = last_step_probabilities(model, split).argmax(-1) == split.labels[:, -1]
     frames = split.images.shape[1]
-    seen = (split.images > 0).any(axis=(2, 3)).sum(axis=1)
+    seen = visible_steps(split.images).sum(axis=1)
     print(f"{split.name}: {len(right)} windows, accuracy {right.mean():.4f}")
     buckets = ((0, 0), (1, frames // 2), (frames // 2 + 1, frames * 3 // 4), (frames * 3 // 4 + 1, frames - 1),
                (frames, frames))

@@ -72,3 +72,8 @@ def load_split(data_dir: Path, index: dict, name: str) -> Split | None:
     if len(episodes) != expected[0]:
         raise DatasetError(f"{data_dir / 'index.json'}: {len(episodes)} windows listed for {name}, arrays hold {expected[0]}")
     return Split(name, images, labels.astype(np.int64), episodes)
+
+
+def visible_steps(images: np.ndarray) -> np.ndarray:
+    """`[N, T]` from `[N, T, S, S]` windows: whether each scan's image shows any of the person."""
+    return (images > 0).any(axis=(2, 3))

@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .data import CLASSES, DatasetError, Split, load_index, load_split
+from .data import CLASSES, DatasetError, Split, load_index, load_split, visible_steps
 from .export import ExportError, export_step_model
 from .model import ActivityConvLSTM
 
@@ -117,11 +117,6 @@ def class_weights_for_sampling(labels_last: np.ndarray) -> np.ndarray:
     per_class = np.where(counts > 0, 1.0 / np.maximum(counts, 1), 0.0)
     weights = per_class[labels_last]
     return weights / weights.sum()
-
-
-def visible_steps(images: np.ndarray) -> np.ndarray:
-    """`[B, T]`: whether each step's image shows any of the person."""
-    return (images > 0).any(axis=(2, 3))
 
 
 def loss_on_second_half(logits: torch.Tensor, labels: torch.Tensor, mask: np.ndarray | None = None) -> torch.Tensor:

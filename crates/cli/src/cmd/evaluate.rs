@@ -289,10 +289,12 @@ fn evaluate_split(
                 correct.push(predicted == truth);
                 let row = labels.row(w);
                 let one_activity = row.iter().all(|&l| l == row[0]);
-                let seen_throughout = images
+                let seen: Vec<bool> = images
                     .slice(s![w, .., .., ..])
                     .outer_iter()
-                    .all(|frame| frame.iter().any(|&v| v > 0));
+                    .map(|frame| frame.iter().any(|&v| v > 0))
+                    .collect();
+                let seen_throughout = seen.iter().all(|&s| s);
                 if one_activity {
                     within_one.add(truth, predicted);
                 }
@@ -302,7 +304,7 @@ fn evaluate_split(
                 if one_activity && seen_throughout {
                     within_one_in_view.add(truth, predicted);
                 }
-                if frame.iter().any(|&v| v > 0.0) {
+                if seen[t - 1] {
                     seen_last.add(truth, predicted);
                 }
             }
