@@ -62,6 +62,10 @@ pub enum StreamSpecError {
     Representation(#[from] SpecError),
     #[error("a lane period of {period} scans is shorter than the model's window of {window} scans")]
     LanePeriod { period: usize, window: usize },
+    #[error(
+        "{lanes} lanes: need at least 2 (a restarting lane has no history) and at most the lane period ({period} scans)"
+    )]
+    LaneCount { lanes: usize, period: usize },
 }
 
 impl StreamSpec {
@@ -204,58 +208,86 @@ struct Lane<S> {
 #[error("model step failed: {0}")]
 pub struct StepError(#[source] pub Box<dyn std::error::Error + Send + Sync>);
 
-/// Two staggered lanes over one model, plus the renderer and image buffers.
+/// When the model's states restart: `lanes` states, each reset every `period` scans, one
+/// every `period / lanes` scans. The prediction comes from the oldest, so every prediction
+/// after warm-up has between `period - period / lanes` (about) and `period` scans behind it;
+/// more lanes narrow that range towards `period` for one model step per lane per scan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LaneSchedule {
+    pub period: usize,
+    pub lanes: usize,
+}
+
+impl LaneSchedule {
+    /// Two lanes restarting every `window` scans: every prediction has `T/2..=T` behind it,
+    /// what training scored.
+    pub fn for_window(window: usize) -> Self {
+        Self {
+            period: window,
+            lanes: 2,
+        }
+    }
+
+    /// The scan (modulo `period`) at which lane `k` restarts.
+    fn offset(&self, k: usize) -> usize {
+        k * self.period / self.lanes
+    }
+}
+
+/// Staggered lanes over one model, plus the renderer and image buffers.
 pub struct StreamingClassifier<M: StepModel> {
     model: M,
     spec: StreamSpec,
     renderer: Renderer,
-    lanes: [Lane<M::State>; 2],
-    images: [Array2<f32>; 2],
-    /// Scans after which a lane restarts (at least `T`).
-    lane_period: usize,
-    /// Scans since the (re)start; lane 0 resets when `scans % lane_period == 0`, lane 1
-    /// half a period later.
+    lanes: Vec<Lane<M::State>>,
+    /// One image per lane (room-fixed framing centres each on its lane's first position).
+    images: Vec<Array2<f32>>,
+    schedule: LaneSchedule,
+    /// Scans since the (re)start; lane `k` resets when `scans % period` is its offset.
     scans: usize,
     last_stamp_s: Option<f64>,
 }
 
 impl<M: StepModel> StreamingClassifier<M> {
-    /// Lanes restart every `T` scans, the window the model was trained on.
+    /// Two lanes restarting every `T` scans, the window the model was trained on.
     pub fn new(model: M, spec: StreamSpec) -> Result<Self, StreamSpecError> {
-        Self::with_lane_period(model, spec, spec.window)
+        Self::with_schedule(model, spec, LaneSchedule::for_window(spec.window))
     }
 
-    /// Lanes restart every `lane_period` scans (at least `T`), so every prediction after
-    /// warm-up has between half of that and all of it behind it. A model is usually most
+    /// Lanes restart as `schedule` says (a period of at least `T`). A model is usually most
     /// accurate with a little more history than it was trained on (docs/classifier.md).
-    pub fn with_lane_period(
+    pub fn with_schedule(
         model: M,
         spec: StreamSpec,
-        lane_period: usize,
+        schedule: LaneSchedule,
     ) -> Result<Self, StreamSpecError> {
         spec.validate()?;
-        if lane_period < spec.window {
+        let LaneSchedule { period, lanes } = schedule;
+        if period < spec.window {
             return Err(StreamSpecError::LanePeriod {
-                period: lane_period,
+                period,
                 window: spec.window,
             });
         }
+        if !(2..=period).contains(&lanes) {
+            return Err(StreamSpecError::LaneCount { lanes, period });
+        }
         let renderer = Renderer::new(spec.representation)?;
-        let lane = |model: &M| Lane {
-            state: model.initial_state(),
-            history: 0,
-            centre: None,
-        };
         Ok(Self {
-            lanes: [lane(&model), lane(&model)],
-            images: [
-                spec.representation.blank_image(),
-                spec.representation.blank_image(),
-            ],
+            lanes: (0..lanes)
+                .map(|_| Lane {
+                    state: model.initial_state(),
+                    history: 0,
+                    centre: None,
+                })
+                .collect(),
+            images: (0..lanes)
+                .map(|_| spec.representation.blank_image())
+                .collect(),
             model,
             spec,
             renderer,
-            lane_period,
+            schedule,
             scans: 0,
             last_stamp_s: None,
         })
@@ -269,12 +301,17 @@ impl<M: StepModel> StreamingClassifier<M> {
         &self.model
     }
 
+    /// Gives the model back (to run it again under another schedule).
+    pub fn into_model(self) -> M {
+        self.model
+    }
+
     /// The image the last prediction was made from.
     pub fn last_image(&self) -> ArrayView2<'_, f32> {
         self.images[self.predicting_lane()].view()
     }
 
-    /// Restarts both lanes from zero state.
+    /// Restarts every lane from zero state.
     pub fn reset(&mut self) {
         self.scans = 0;
         for lane in &mut self.lanes {
@@ -284,12 +321,15 @@ impl<M: StepModel> StreamingClassifier<M> {
         }
     }
 
+    /// The lane with the longest history (the first of equals).
     fn predicting_lane(&self) -> usize {
-        if self.lanes[1].history > self.lanes[0].history {
-            1
-        } else {
-            0
+        let mut chosen = 0;
+        for (k, lane) in self.lanes.iter().enumerate() {
+            if lane.history > self.lanes[chosen].history {
+                chosen = k;
+            }
         }
+        chosen
     }
 
     /// Classifies one scan. Scans must come in time order; a gap over `T` scan periods or a
@@ -307,9 +347,9 @@ impl<M: StepModel> StreamingClassifier<M> {
             self.last_stamp_s = Some(scan.stamp_s);
         }
 
-        let offsets = [0, self.lane_period / 2];
-        for (lane, offset) in self.lanes.iter_mut().zip(offsets) {
-            if self.scans % self.lane_period == offset {
+        let phase = self.scans % self.schedule.period;
+        for (k, lane) in self.lanes.iter_mut().enumerate() {
+            if phase == self.schedule.offset(k) {
                 self.model.reset_state(&mut lane.state);
                 lane.history = 0;
                 lane.centre = None;
@@ -325,14 +365,16 @@ impl<M: StepModel> StreamingClassifier<M> {
                 }
             }
             (Some(p), Framing::PersonCentred) => {
-                let [first, second] = &mut self.images;
+                let (first, rest) = self.images.split_at_mut(1);
                 self.renderer.render(
                     scan.points.iter().copied(),
                     p,
                     scan.sensor,
-                    first.view_mut(),
+                    first[0].view_mut(),
                 );
-                second.assign(first);
+                for image in rest {
+                    image.assign(&first[0]);
+                }
             }
             (Some(p), Framing::RoomFixed) => {
                 for (lane, image) in self.lanes.iter_mut().zip(&mut self.images) {
@@ -347,16 +389,20 @@ impl<M: StepModel> StreamingClassifier<M> {
             }
         }
 
-        let mut logits = [[0.0; Activity::COUNT]; 2];
-        for ((lane, image), out) in self.lanes.iter_mut().zip(&self.images).zip(&mut logits) {
-            *out = self
+        // Every lane steps once, so the oldest now is the oldest after the step.
+        let chosen = self.predicting_lane();
+        let mut chosen_logits = [0.0; Activity::COUNT];
+        for (k, (lane, image)) in self.lanes.iter_mut().zip(&self.images).enumerate() {
+            let logits = self
                 .model
                 .step(image.view(), &mut lane.state)
                 .map_err(|e| StepError(Box::new(e)))?;
             lane.history += 1;
+            if k == chosen {
+                chosen_logits = logits;
+            }
         }
-        let chosen = self.predicting_lane();
-        let probabilities = softmax(&logits[chosen]);
+        let probabilities = softmax(&chosen_logits);
         let (activity, confidence) = crate::fall::argmax(&probabilities);
         let history = self.lanes[chosen].history;
         Ok(Prediction {
@@ -461,30 +507,75 @@ mod tests {
         assert_eq!(c.model().steps, 80);
     }
 
-    #[test]
-    fn a_longer_lane_period_gives_every_prediction_more_history() {
+    fn histories(schedule: LaneSchedule, scans: usize) -> (Vec<usize>, usize) {
         let spec = spec(Framing::PersonCentred, 8);
         let mut c =
-            StreamingClassifier::with_lane_period(CountingModel::default(), spec, 12).unwrap();
-        let histories: Vec<usize> = (0..48)
+            StreamingClassifier::with_schedule(CountingModel::default(), spec, schedule).unwrap();
+        let histories = (0..scans)
             .map(|k| {
                 c.classify(&scan(k as f64 * 0.05, None, &[]))
                     .unwrap()
                     .history
             })
             .collect();
-        assert_eq!(&histories[..12], &(1..=12).collect::<Vec<_>>()[..]);
-        assert!(
-            histories[12..].iter().all(|&h| (7..=12).contains(&h)),
-            "{histories:?}"
+        (histories, c.model().steps)
+    }
+
+    #[test]
+    fn a_longer_lane_period_gives_every_prediction_more_history() {
+        let (h, steps) = histories(
+            LaneSchedule {
+                period: 12,
+                lanes: 2,
+            },
+            48,
         );
+        assert_eq!(&h[..12], &(1..=12).collect::<Vec<_>>()[..]);
+        assert!(h[12..].iter().all(|&h| (7..=12).contains(&h)), "{h:?}");
+        assert_eq!(steps, 96);
+    }
+
+    #[test]
+    fn more_lanes_narrow_the_history_towards_the_period_for_a_step_each() {
+        let schedule = LaneSchedule {
+            period: 12,
+            lanes: 3,
+        };
+        let (h, steps) = histories(schedule, 48);
+        assert_eq!(&h[..12], &(1..=12).collect::<Vec<_>>()[..]);
+        // Restarts every 4 scans: the oldest lane always has 9..=12 behind it.
+        assert!(h[12..].iter().all(|&h| (9..=12).contains(&h)), "{h:?}");
+        assert_eq!(h[12..16], [9, 10, 11, 12]);
+        assert_eq!(steps, 3 * 48);
+    }
+
+    #[test]
+    fn impossible_schedules_are_refused() {
+        let spec = spec(Framing::PersonCentred, 8);
+        let refused = |period, lanes| {
+            StreamingClassifier::with_schedule(
+                CountingModel::default(),
+                spec,
+                LaneSchedule { period, lanes },
+            )
+            .err()
+        };
         assert!(matches!(
-            StreamingClassifier::with_lane_period(CountingModel::default(), spec, 7),
-            Err(StreamSpecError::LanePeriod {
+            refused(7, 2),
+            Some(StreamSpecError::LanePeriod {
                 period: 7,
                 window: 8
             })
         ));
+        assert!(matches!(
+            refused(8, 1),
+            Some(StreamSpecError::LaneCount { lanes: 1, .. })
+        ));
+        assert!(matches!(
+            refused(8, 9),
+            Some(StreamSpecError::LaneCount { lanes: 9, .. })
+        ));
+        assert!(refused(8, 8).is_none());
     }
 
     #[test]

@@ -26,7 +26,8 @@
 //! Hysteresis: postures change only after `confirm_scans` consecutive scans agree (one
 //! flickering scan changes nothing), and after an alert its kind is re-armed only once the
 //! person has been seen upright (standing, walking, running, walking unsteadily) for
-//! `rearm_upright_s`. Time going backwards (a replay restarting) clears everything.
+//! `rearm_upright_s` (a moment read as falling does not restart that clock: a standing person
+//! is often misread so). Time going backwards (a replay restarting) clears everything.
 
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
@@ -230,6 +231,10 @@ pub struct FallDetector {
     last_off_floor_s: Option<f64>,
     /// Since when the person is down, with summed on-floor probability and scan count.
     down: Option<(f64, f64, u32)>,
+    /// Since when the person has been upright without being confirmed on the floor or
+    /// getting up in between (a `falling_down` misreading of a standing person does not
+    /// break it): what re-arms the alerts.
+    upright_since: Option<f64>,
     /// When each alert was last raised; `None` while armed.
     fall_disarmed_at: Option<f64>,
     down_disarmed_at: Option<f64>,
@@ -252,6 +257,7 @@ impl FallDetector {
             last_upright_s: None,
             last_off_floor_s: None,
             down: None,
+            upright_since: None,
             fall_disarmed_at: None,
             down_disarmed_at: None,
         }
@@ -360,13 +366,21 @@ impl FallDetector {
             self.posture = Some((posture, since));
             match posture {
                 Posture::OnFloor => {
+                    self.upright_since = None;
                     self.start_down(since);
                     let min_length = self.config.descent_min_length_m;
                     if min_length <= 0.0 || body_length_m.is_none_or(|l| l >= min_length) {
                         self.check_descent(t, since, best, on_floor_p, alerts);
                     }
                 }
-                Posture::Upright | Posture::GettingUp => self.down = None,
+                Posture::Upright => {
+                    self.down = None;
+                    self.upright_since.get_or_insert(since);
+                }
+                Posture::GettingUp => {
+                    self.down = None;
+                    self.upright_since = None;
+                }
                 Posture::Falling => {}
             }
         }
@@ -382,7 +396,8 @@ impl FallDetector {
             self.last_off_floor_s = Some(t);
         }
         // Re-arm once upright long enough, counting only uprightness that began after the alert.
-        if let Some((Posture::Upright, since)) = self.posture
+        if let Some(since) = self.upright_since
+            && self.posture.is_some_and(|(p, _)| p == Posture::Upright)
             && t - since >= self.config.rearm_upright_s
         {
             for disarmed_at in [&mut self.fall_disarmed_at, &mut self.down_disarmed_at] {
@@ -757,6 +772,31 @@ mod tests {
                 (LyingDown, 3.0, true),
                 (GettingUp, 2.0, true),
                 (Walking, 10.0, true),
+                (FallingDown, 1.0, true),
+                (LyingDown, 3.0, true),
+            ],
+        );
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::FallDetected]
+        );
+    }
+
+    #[test]
+    fn a_standing_person_misread_as_falling_for_a_moment_still_rearms() {
+        // After the first fall: up and walking 3.8 s, with 0.3 s in the middle read as
+        // falling (a confirmed falling posture, too short for a fall), then a real fall.
+        let mut d = detector();
+        let alerts = run(
+            &mut d,
+            &[
+                (Walking, 3.0, true),
+                (FallingDown, 1.0, true),
+                (LyingDown, 3.0, true),
+                (GettingUp, 2.0, true),
+                (Walking, 1.5, true),
+                (FallingDown, 0.3, true),
+                (Walking, 2.0, true),
                 (FallingDown, 1.0, true),
                 (LyingDown, 3.0, true),
             ],

@@ -15,7 +15,8 @@ use glam::DVec2;
 use lidar_har_bag::{BagError, BagWriter, TopicHandle};
 use lidar_har_core::activity::Activity;
 use lidar_har_core::classifier::{
-    PersonScan, Prediction, StepError, StepModel, StreamSpec, StreamSpecError, StreamingClassifier,
+    LaneSchedule, PersonScan, Prediction, StepError, StepModel, StreamSpec, StreamSpecError,
+    StreamingClassifier,
 };
 use lidar_har_core::fall::{
     AlertKind, FallAlert, FallAlertConfig, FallConfigError, FallDetector, FallInput,
@@ -41,10 +42,12 @@ pub struct ClassifierConfig {
     pub model: PathBuf,
     /// ONNX Runtime intra-op threads.
     pub threads: usize,
-    /// Each of the two staggered model states restarts every this many training windows
-    /// (`T`, from the model's metadata), so every prediction has between half of that and
-    /// all of it behind it; at least 1.
+    /// Each staggered model state (lane) restarts every this many training windows (`T`,
+    /// from the model's metadata); at least 1.
     pub lane_period_windows: f64,
+    /// Model states stepped side by side, restarting in turn: every prediction has between
+    /// `1 - 1/lanes` of the lane period and all of it behind it, for one step per lane.
+    pub lanes: usize,
     pub fall_alert: FallAlertConfig,
 }
 
@@ -54,15 +57,19 @@ impl Default for ClassifierConfig {
             model: PathBuf::from("models/activity.onnx"),
             threads: 1,
             lane_period_windows: 1.2,
+            lanes: 2,
             fall_alert: FallAlertConfig::default(),
         }
     }
 }
 
 impl ClassifierConfig {
-    /// The lane period in scans for a model trained on windows of `window` scans.
-    pub fn lane_period(&self, window: usize) -> usize {
-        (self.lane_period_windows * window as f64).round() as usize
+    /// The lanes for a model trained on windows of `window` scans.
+    pub fn lane_schedule(&self, window: usize) -> LaneSchedule {
+        LaneSchedule {
+            period: (self.lane_period_windows * window as f64).round() as usize,
+            lanes: self.lanes,
+        }
     }
 }
 
@@ -108,6 +115,12 @@ pub fn parse_classifier_config(text: &str) -> Result<ClassifierConfig, Classifie
         return Err(ClassifierError::Config {
             path: None,
             message: format!("lane_period_windows = {windows} is out of range (1..=10)"),
+        });
+    }
+    if !(2..=8).contains(&config.lanes) {
+        return Err(ClassifierError::Config {
+            path: None,
+            message: format!("lanes = {} is out of range (2..=8)", config.lanes),
         });
     }
     Ok(config)
@@ -177,29 +190,34 @@ impl ClassifierStage<ActivityModel> {
         let path = model.unwrap_or(&config.model);
         let model = ActivityModel::load(path, config.threads)?;
         let stream = model.info().stream;
-        let lane_period = config.lane_period(stream.window);
-        Self::with_lane_period(model, stream, lane_period, config.fall_alert)
+        let schedule = config.lane_schedule(stream.window);
+        Self::with_schedule(model, stream, schedule, config.fall_alert)
     }
 }
 
 impl<M: StepModel> ClassifierStage<M> {
-    /// Lanes restart every `T` scans (the model's window).
+    /// Two lanes restarting every `T` scans (the model's window).
     pub fn new(
         model: M,
         stream: StreamSpec,
         fall_alert: FallAlertConfig,
     ) -> Result<Self, ClassifierError> {
-        Self::with_lane_period(model, stream, stream.window, fall_alert)
+        Self::with_schedule(
+            model,
+            stream,
+            LaneSchedule::for_window(stream.window),
+            fall_alert,
+        )
     }
 
-    pub fn with_lane_period(
+    pub fn with_schedule(
         model: M,
         stream: StreamSpec,
-        lane_period: usize,
+        schedule: LaneSchedule,
         fall_alert: FallAlertConfig,
     ) -> Result<Self, ClassifierError> {
         Ok(Self {
-            classifier: StreamingClassifier::with_lane_period(model, stream, lane_period)?,
+            classifier: StreamingClassifier::with_schedule(model, stream, schedule)?,
             fall: FallDetector::new(fall_alert)?,
             points: Vec::new(),
             track_id: None,
@@ -990,8 +1008,20 @@ mod tests {
                 .to_string();
             assert!(e.contains("lane_period_windows"), "{e}");
         }
-        let c = parse_classifier_config("lane_period_windows: 1.25\n").unwrap();
-        assert_eq!(c.lane_period(20), 25);
+        for bad in ["1", "9"] {
+            let e = parse_classifier_config(&format!("lanes: {bad}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("lanes"), "{e}");
+        }
+        let c = parse_classifier_config("lane_period_windows: 1.25\nlanes: 3\n").unwrap();
+        assert_eq!(
+            c.lane_schedule(20),
+            LaneSchedule {
+                period: 25,
+                lanes: 3
+            }
+        );
     }
 
     #[test]

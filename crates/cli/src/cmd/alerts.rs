@@ -69,10 +69,14 @@ pub struct FallOutcome {
     /// end), minus the fall's end; `None` when there was none.
     pub latency_s: Option<f64>,
     pub alert: Option<&'static str>,
+    /// Share of the fall's scans in which the localiser saw the person: a fall behind
+    /// furniture can only be found after the fact (PERSON_DOWN).
+    pub seen_share: f64,
     /// Why a fall without its own alert may have none by design: it began at the episode's
     /// first scan (nobody was seen upright before it), or inside an incident already alerted
     /// (since an earlier fall's alert the person was never upright for `rearm_upright_s`, so
-    /// the hysteresis keeps one incident to one alert).
+    /// the hysteresis keeps one incident to one alert), or it ended less than the latency
+    /// target before the episode did (an alert in time may have come after the end).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unalerted_because: Option<&'static str>,
 }
@@ -125,12 +129,14 @@ pub struct FalseAlert {
     pub truth_down_s: f64,
 }
 
-/// What one episode gave: the truth's falls (start, end), the alerts raised and the true
-/// activity at every scan.
+/// What one episode gave: the truth's falls (start, end), the alerts raised, the true
+/// activity at every scan and whether the localiser saw the person there.
 struct Episode {
     falls: Vec<(f64, f64)>,
     alerts: Vec<FallAlert>,
     truth: Vec<(f64, Activity)>,
+    /// Aligned with `truth`.
+    seen: Vec<bool>,
     /// (truth, prediction) at each scan the classifier published.
     scans: ConfusionMatrix,
 }
@@ -153,8 +159,8 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     let model = ActivityModel::load(&args.model, 1)
         .with_context(|| format!("--model {}", args.model.display()))?;
     let stream = model.info().stream;
-    let lane_period = config.lane_period(stream.window);
-    let mut classifier = StreamingClassifier::with_lane_period(model, stream, lane_period)
+    let schedule = config.lane_schedule(stream.window);
+    let mut classifier = StreamingClassifier::with_schedule(model, stream, schedule)
         .with_context(|| format!("--model {}", args.model.display()))?;
     let scenes = load_scenes(&args.scenes)?;
     let no_fall_episodes = (args.no_fall_hours * 3600.0 / args.episode_seconds).ceil() as usize;
@@ -192,10 +198,19 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         if falls {
             fall_episodes_run += 1;
             let (mut matched, rest) = match_alerts(id, &episode.falls, &episode.alerts);
+            for outcome in &mut matched {
+                outcome.seen_share = seen_share(
+                    &episode.truth,
+                    &episode.seen,
+                    outcome.start_s,
+                    outcome.end_s,
+                );
+            }
             explain_unalerted(
                 &mut matched,
                 &episode.truth,
                 config.fall_alert.rearm_upright_s,
+                args.latency_target_s,
             );
             outcomes.extend(matched);
             unmatched += rest;
@@ -289,19 +304,21 @@ fn run_episode(
     let geometry = sim.scan_geometry();
     let start_s = sim.start_ns() as f64 * 1e-9;
     let mut truth: Vec<(f64, Activity)> = Vec::new();
+    let mut seen = Vec::new();
     let mut alerts = Vec::new();
     let mut scans = ConfusionMatrix::new();
     while let Some(frame) = sim.step() {
         let stamp_ns = frame.stamp_ns as i64;
         let stamp_s = frame.stamp_ns as f64 * 1e-9 - start_s;
-        if let Some(p) = &frame.person {
-            truth.push((stamp_s, p.activity));
-        }
         localiser.add_odometry(stamp_ns, frame.robot);
         let sensor = frame.laser.position();
         let result = localiser.process_scan(&core_scan(&geometry, stamp_ns, frame.ranges));
         let person = result.output.as_ref().and_then(|o| o.person.as_ref());
         let visible = person.filter(|p| p.visible);
+        if let Some(p) = &frame.person {
+            truth.push((stamp_s, p.activity));
+            seen.push(visible.is_some());
+        }
         let scan = PersonScan {
             stamp_s,
             points: visible.map_or(&[][..], |p| &p.points),
@@ -345,8 +362,25 @@ fn run_episode(
         falls: fall_intervals(&truth),
         alerts,
         truth,
+        seen,
         scans,
     })
+}
+
+/// Share of the scans in `[start, end)` where the person was seen (1 when there are none).
+fn seen_share(truth: &[(f64, Activity)], seen_at: &[bool], start: f64, end: f64) -> f64 {
+    let (mut seen, mut all) = (0, 0);
+    for (&(t, _), &s) in truth.iter().zip(seen_at) {
+        if (start..end).contains(&t) {
+            all += 1;
+            seen += usize::from(s);
+        }
+    }
+    if all == 0 {
+        1.0
+    } else {
+        seen as f64 / all as f64
+    }
 }
 
 /// The true activity at `t` (the last scan at or before it; the first scan before that).
@@ -411,6 +445,7 @@ fn match_alerts(
                 end_s: end,
                 latency_s: first.map(|a| a.raised_at_s - end),
                 alert: first.map(|a| a.kind.name()),
+                seen_share: 1.0,
                 unalerted_because: None,
             }
         })
@@ -421,8 +456,14 @@ fn match_alerts(
 
 /// Marks the falls of one episode that had no alert of their own for a reason the alert
 /// logic intends (see [`FallOutcome::unalerted_because`]).
-fn explain_unalerted(outcomes: &mut [FallOutcome], truth: &[(f64, Activity)], rearm_s: f64) {
+fn explain_unalerted(
+    outcomes: &mut [FallOutcome],
+    truth: &[(f64, Activity)],
+    rearm_s: f64,
+    latency_target_s: f64,
+) {
     let first_scan = truth.first().map(|&(t, _)| t);
+    let last_scan = truth.last().map_or(f64::NEG_INFINITY, |&(t, _)| t);
     let mut alerted_at: Option<f64> = None;
     for outcome in outcomes.iter_mut() {
         if let Some(latency) = outcome.latency_s {
@@ -435,6 +476,8 @@ fn explain_unalerted(outcomes: &mut [FallOutcome], truth: &[(f64, Activity)], re
             && !upright_for(truth, at, outcome.start_s, rearm_s)
         {
             outcome.unalerted_because = Some("inside an alerted incident");
+        } else if last_scan - outcome.end_s < latency_target_s {
+            outcome.unalerted_because = Some("at the episode's end");
         }
     }
 }
@@ -481,7 +524,11 @@ fn print_report(r: &AlertsReport) {
             l.median, l.p95, l.max
         );
     }
-    for reason in ["at the episode's start", "inside an alerted incident"] {
+    for reason in [
+        "at the episode's start",
+        "inside an alerted incident",
+        "at the episode's end",
+    ] {
         let n = r
             .outcomes
             .iter()
@@ -489,6 +536,16 @@ fn print_report(r: &AlertsReport) {
             .count();
         println!("falls without an alert of their own, {reason}: {n}");
     }
+    let missed: Vec<&FallOutcome> = r
+        .outcomes
+        .iter()
+        .filter(|o| o.alert.is_none() && o.unalerted_because.is_none())
+        .collect();
+    println!(
+        "falls missed outright: {}, of them hidden for most of the fall (seen in under half its scans): {}",
+        missed.len(),
+        missed.iter().filter(|o| o.seen_share < 0.5).count()
+    );
     println!(
         "alerts in fall episodes before any fall: {}",
         r.unmatched_alerts_in_fall_episodes
@@ -614,7 +671,7 @@ mod tests {
         use Activity::*;
         // 0-1 s fall (at the start), lying, 4-5 s fall (alerted at 5.2), lying, getting up,
         // 9-10 s fall with no upright between (same incident), then 3.5 s standing, 14-15 s
-        // fall (a new incident, missed).
+        // fall (a new incident, missed), standing, 19.5-20 s fall 0.5 s before the end.
         let mut truth = Vec::new();
         let mut push = |from: f64, to: f64, a: Activity| {
             let mut t = from;
@@ -633,10 +690,13 @@ mod tests {
         push(10.5, 14.0, Standing);
         push(14.0, 15.0, FallingDown);
         push(15.0, 16.0, LyingDown);
+        push(16.0, 19.5, Standing);
+        push(19.5, 20.0, FallingDown);
+        push(20.0, 20.5, LyingDown);
         let falls = fall_intervals(&truth);
-        assert_eq!(falls.len(), 4);
+        assert_eq!(falls.len(), 5);
         let (mut outcomes, _) = match_alerts(0, &falls, &[alert(AlertKind::FallDetected, 5.2)]);
-        explain_unalerted(&mut outcomes, &truth, 3.0);
+        explain_unalerted(&mut outcomes, &truth, 3.0, 1.0);
         let reasons: Vec<_> = outcomes.iter().map(|o| o.unalerted_because).collect();
         assert_eq!(
             reasons,
@@ -644,8 +704,26 @@ mod tests {
                 Some("at the episode's start"),
                 None,
                 Some("inside an alerted incident"),
-                None
+                None,
+                Some("at the episode's end"),
             ]
+        );
+    }
+
+    #[test]
+    fn seen_share_counts_the_scans_inside_the_fall() {
+        let truth: Vec<(f64, Activity)> = (0..10)
+            .map(|k| (k as f64 * 0.1, Activity::FallingDown))
+            .collect();
+        let seen = [
+            true, true, false, false, false, true, true, true, false, false,
+        ];
+        assert_eq!(seen_share(&truth, &seen, 0.15, 0.45), 0.0);
+        assert_eq!(seen_share(&truth, &seen, 0.0, 0.4), 0.5);
+        assert_eq!(
+            seen_share(&truth, &seen, 5.0, 6.0),
+            1.0,
+            "no scans: nothing hidden"
         );
     }
 }
