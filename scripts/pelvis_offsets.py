@@ -1,0 +1,49 @@
+"""Where the pelvis lies from the localiser's estimate, in the body's own frame, per activity,
+and what a constant lead along the tracked velocity would do to the error. Reads the JSON
+lines of `localiser_accuracy --dump-points` (docs/localiser.md, "Accuracy"):
+
+    cargo run --release -p lidar-har-pipeline --example localiser_accuracy -- --seeds 3 \\
+        --dump-points out/points.jsonl
+    .venv/bin/python scripts/pelvis_offsets.py out/points.jsonl
+"""
+import json
+import sys
+
+import numpy as np
+
+
+def main() -> None:
+    if len(sys.argv) != 2:
+        sys.exit(f"usage: {sys.argv[0]} POINTS.jsonl")
+    rows = [json.loads(line) for line in open(sys.argv[1])]
+    activity = np.array([r["activity"] for r in rows])
+    pelvis = np.array([r["pelvis"] for r in rows])  # x, y, heading
+    reported = np.array([r["reported"] for r in rows])
+    velocity = np.array([r["velocity"] for r in rows])
+    error = pelvis[:, :2] - reported
+    heading = pelvis[:, 2]
+    forward = error[:, 0] * np.cos(heading) + error[:, 1] * np.sin(heading)
+    left = -error[:, 0] * np.sin(heading) + error[:, 1] * np.cos(heading)
+    speed = np.hypot(velocity[:, 0], velocity[:, 1])
+    unit = velocity / np.maximum(speed, 1e-9)[:, None]
+    agreement = unit[:, 0] * np.cos(heading) + unit[:, 1] * np.sin(heading)
+
+    print(f"{len(rows)} scans with the person seen; pelvis - estimate in the body's frame (median, m)")
+    for name in sorted(set(activity)):
+        k = activity == name
+        moving = k & (speed >= 0.2)
+        print(f"{name:20s} {k.sum():6d} scans: forward {np.median(forward[k]):+.3f} left {np.median(left[k]):+.3f} "
+              f"|error| {np.median(np.hypot(forward[k], left[k])):.3f}; velocity along the heading, median cosine "
+              f"{np.median(agreement[moving]) if moving.any() else float('nan'):.2f} ({moving.sum()} scans >= 0.2 m/s)")
+
+    print("a constant lead along the tracked velocity at >= 0.3 m/s: overall error median / p95")
+    for lead in (0.0, 0.03, 0.06, 0.09):
+        estimate = reported + np.where((speed >= 0.3)[:, None], lead * unit, 0.0)
+        distance = np.hypot(*(pelvis[:, :2] - estimate).T)
+        walking = distance[activity == "walking"]
+        print(f"lead {lead:.2f} m: {np.median(distance):.4f} / {np.percentile(distance, 95):.3f} m "
+              f"(walking median {np.median(walking):.3f} m)")
+
+
+if __name__ == "__main__":
+    main()
