@@ -761,50 +761,42 @@ mod tests {
         assert!(run(&mut d, &script).is_empty());
     }
 
+    /// The alert kinds raised by a seen fall, lying, getting up, then `after`.
+    fn kinds_after_a_fall_and_getting_up(after: &[(Activity, f64, bool)]) -> Vec<AlertKind> {
+        let fall_and_getting_up = [
+            (Walking, 3.0, true),
+            (FallingDown, 1.0, true),
+            (LyingDown, 3.0, true),
+            (GettingUp, 2.0, true),
+        ];
+        kinds(&run(
+            &mut detector(),
+            &[&fall_and_getting_up, after].concat(),
+        ))
+    }
+
     #[test]
     fn second_fall_after_recovery_alerts_again() {
-        let mut d = detector();
-        let alerts = run(
-            &mut d,
-            &[
-                (Walking, 3.0, true),
-                (FallingDown, 1.0, true),
-                (LyingDown, 3.0, true),
-                (GettingUp, 2.0, true),
-                (Walking, 10.0, true),
-                (FallingDown, 1.0, true),
-                (LyingDown, 3.0, true),
-            ],
-        );
-        assert_eq!(
-            kinds(&alerts),
-            [AlertKind::FallDetected, AlertKind::FallDetected]
-        );
+        let kinds = kinds_after_a_fall_and_getting_up(&[
+            (Walking, 10.0, true),
+            (FallingDown, 1.0, true),
+            (LyingDown, 3.0, true),
+        ]);
+        assert_eq!(kinds, [AlertKind::FallDetected, AlertKind::FallDetected]);
     }
 
     #[test]
     fn a_standing_person_misread_as_falling_for_a_moment_still_rearms() {
         // After the first fall: up and walking 3.8 s, with 0.3 s in the middle read as
         // falling (a confirmed falling posture, too short for a fall), then a real fall.
-        let mut d = detector();
-        let alerts = run(
-            &mut d,
-            &[
-                (Walking, 3.0, true),
-                (FallingDown, 1.0, true),
-                (LyingDown, 3.0, true),
-                (GettingUp, 2.0, true),
-                (Walking, 1.5, true),
-                (FallingDown, 0.3, true),
-                (Walking, 2.0, true),
-                (FallingDown, 1.0, true),
-                (LyingDown, 3.0, true),
-            ],
-        );
-        assert_eq!(
-            kinds(&alerts),
-            [AlertKind::FallDetected, AlertKind::FallDetected]
-        );
+        let kinds = kinds_after_a_fall_and_getting_up(&[
+            (Walking, 1.5, true),
+            (FallingDown, 0.3, true),
+            (Walking, 2.0, true),
+            (FallingDown, 1.0, true),
+            (LyingDown, 3.0, true),
+        ]);
+        assert_eq!(kinds, [AlertKind::FallDetected, AlertKind::FallDetected]);
     }
 
     #[test]

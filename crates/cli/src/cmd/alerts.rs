@@ -197,15 +197,13 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         scans.merge(&episode.scans);
         if falls {
             fall_episodes_run += 1;
-            let (mut matched, rest) = match_alerts(id, &episode.falls, &episode.alerts);
-            for outcome in &mut matched {
-                outcome.seen_share = seen_share(
-                    &episode.truth,
-                    &episode.seen,
-                    outcome.start_s,
-                    outcome.end_s,
-                );
-            }
+            let (mut matched, rest) = match_alerts(
+                id,
+                &episode.falls,
+                &episode.alerts,
+                &episode.truth,
+                &episode.seen,
+            );
             explain_unalerted(
                 &mut matched,
                 &episode.truth,
@@ -426,11 +424,14 @@ fn fall_intervals(truth: &[(f64, Activity)]) -> Vec<(f64, f64)> {
 
 /// Pairs each fall with the first alert raised from its start until the next fall's start;
 /// returns the outcomes and how many alerts came before any fall. Later alerts in a fall's
-/// window (a PERSON_DOWN after its FALL_DETECTED) are not false.
+/// window (a PERSON_DOWN after its FALL_DETECTED) are not false. `truth` and `seen` (aligned)
+/// give each fall's share of scans with the person seen.
 fn match_alerts(
     episode: usize,
     falls: &[(f64, f64)],
     alerts: &[FallAlert],
+    truth: &[(f64, Activity)],
+    seen: &[bool],
 ) -> (Vec<FallOutcome>, usize) {
     // The fall whose window [start, next start) holds the alert; `None` before the first.
     let window = |a: &FallAlert| falls.iter().rposition(|&(start, _)| a.raised_at_s >= start);
@@ -445,7 +446,7 @@ fn match_alerts(
                 end_s: end,
                 latency_s: first.map(|a| a.raised_at_s - end),
                 alert: first.map(|a| a.kind.name()),
-                seen_share: 1.0,
+                seen_share: seen_share(truth, seen, start, end),
                 unalerted_because: None,
             }
         })
@@ -656,7 +657,7 @@ mod tests {
             alert(AlertKind::PersonDown, 26.0), // same fall, later: not false
             alert(AlertKind::PersonDown, 45.0), // the second fall, late
         ];
-        let (outcomes, unmatched) = match_alerts(3, &falls, &alerts);
+        let (outcomes, unmatched) = match_alerts(3, &falls, &alerts, &[], &[]);
         assert_eq!(unmatched, 1);
         let latencies: Vec<Option<f64>> = outcomes.iter().map(|o| o.latency_s).collect();
         assert!((latencies[0].unwrap() - 0.4).abs() < 1e-9);
@@ -695,7 +696,14 @@ mod tests {
         push(20.0, 20.5, LyingDown);
         let falls = fall_intervals(&truth);
         assert_eq!(falls.len(), 5);
-        let (mut outcomes, _) = match_alerts(0, &falls, &[alert(AlertKind::FallDetected, 5.2)]);
+        let seen = vec![true; truth.len()];
+        let (mut outcomes, _) = match_alerts(
+            0,
+            &falls,
+            &[alert(AlertKind::FallDetected, 5.2)],
+            &truth,
+            &seen,
+        );
         explain_unalerted(&mut outcomes, &truth, 3.0, 1.0);
         let reasons: Vec<_> = outcomes.iter().map(|o| o.unalerted_because).collect();
         assert_eq!(
