@@ -11,7 +11,8 @@
 //!   not one scan: a person crawling whom the classifier takes for walking for a scan or two
 //!   has not left the floor, and cannot fall from there. The lying that makes a descent must
 //!   also look like a body on the floor: its points stretch at least `descent_min_length_m`
-//!   (a standing person misread as lying is one or two legs).
+//!   on most of the scans that confirm the floor posture (a standing person misread as lying
+//!   is one or two legs, and a crawler seen end-on stretches that far on a stray scan).
 //! - `PersonDown`: the person has been on the floor (lying, sitting on the floor or crawling,
 //!   [`Activity::is_on_floor`]) for `down_after_s` without being seen getting up. The clock
 //!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
@@ -57,10 +58,11 @@ pub struct FallAlertConfig {
     /// person was last confirmed upright: a fall starts from standing or walking, and getting
     /// up or crawling misread as falling does not. Seconds; 0 drops the requirement.
     pub fall_from_upright_s: f64,
-    /// A descent counts only when, as lying is confirmed, the person's points stretch at least
-    /// this far along their main axis: a body on the floor is over a metre long at ankle
-    /// height, while a standing person the classifier takes for lying for a few scans is one
-    /// or two legs. Metres; 0 drops the check (as does an unknown length).
+    /// A descent counts only when, over the scans that confirm lying, the person's points
+    /// stretch at least this far along their main axis (the median of those scans): a body on
+    /// the floor is over a metre long at ankle height, while a standing person the classifier
+    /// takes for lying for a few scans is one or two legs, and a crawler seen end-on reaches
+    /// it on a stray scan only. Metres; 0 drops the check (as do unknown lengths).
     pub descent_min_length_m: f64,
 }
 
@@ -223,6 +225,8 @@ pub struct FallDetector {
     fall_run: Option<(f64, u32, f64)>,
     /// Candidate posture, since when, how many consecutive scans.
     candidate: Option<(Posture, f64, u32)>,
+    /// The body lengths known on the candidate's scans.
+    candidate_lengths: Vec<f64>,
     /// Confirmed posture and since when.
     posture: Option<(Posture, f64)>,
     /// The last visible scan classified upright while the confirmed posture was upright.
@@ -253,6 +257,7 @@ impl FallDetector {
             last_position: None,
             fall_run: None,
             candidate: None,
+            candidate_lengths: Vec::new(),
             posture: None,
             last_upright_s: None,
             last_off_floor_s: None,
@@ -359,9 +364,17 @@ impl FallDetector {
         let seen = posture_of(best);
         let (posture, since, n) = match self.candidate {
             Some((p, since, n)) if p == seen => (p, since, n + 1),
-            _ => (seen, t, 1),
+            _ => {
+                self.candidate_lengths.clear();
+                (seen, t, 1)
+            }
         };
         self.candidate = Some((posture, since, n));
+        if let Some(length) = body_length_m.filter(|l| l.is_finite())
+            && n <= self.config.confirm_scans
+        {
+            self.candidate_lengths.push(length);
+        }
         if n >= self.config.confirm_scans && self.posture.map(|(p, _)| p) != Some(posture) {
             self.posture = Some((posture, since));
             match posture {
@@ -369,7 +382,9 @@ impl FallDetector {
                     self.upright_since = None;
                     self.start_down(since);
                     let min_length = self.config.descent_min_length_m;
-                    if min_length <= 0.0 || body_length_m.is_none_or(|l| l >= min_length) {
+                    if min_length <= 0.0
+                        || median(&mut self.candidate_lengths).is_none_or(|l| l >= min_length)
+                    {
                         self.check_descent(t, since, best, on_floor_p, alerts);
                     }
                 }
@@ -449,6 +464,16 @@ impl FallDetector {
             self.down = Some((since, 0.0, 0));
         }
     }
+}
+
+/// The median of `values` (reordered), `None` when empty.
+fn median(values: &mut [f64]) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    let middle = values.len() / 2;
+    let (_, m, _) = values.select_nth_unstable_by(middle, f64::total_cmp);
+    Some(*m)
 }
 
 /// The most likely class; the first one on ties.
@@ -679,6 +704,35 @@ mod tests {
         .unwrap();
         let unchecked = run_with_lengths(&mut unchecked, &script(0.4));
         assert_eq!(kinds(&unchecked), [AlertKind::FallDetected]);
+    }
+
+    #[test]
+    fn one_long_view_does_not_make_a_crawler_a_fallen_body() {
+        // A crawler seen end-on, read as getting up for half a second, then lying on the
+        // scan that confirms the floor again: that one scan's points happen to stretch 0.95 m.
+        let script = |spike: f64| {
+            [
+                (Crawling, 3.0, 0.5),
+                (GettingUp, 0.5, 0.45),
+                (Crawling, 0.2, 0.5),
+                (LyingDown, DT, spike),
+                (Crawling, 2.0, 0.5),
+            ]
+        };
+        let crawler = run_with_lengths(&mut detector(), &script(0.95));
+        assert!(crawler.is_empty(), "{crawler:?}");
+        // The same posture changes on a body stretched out on every scan are a descent.
+        let body = run_with_lengths(
+            &mut detector(),
+            &[
+                (Crawling, 3.0, 1.2),
+                (GettingUp, 0.5, 0.45),
+                (Crawling, 0.2, 1.2),
+                (LyingDown, DT, 1.2),
+                (Crawling, 2.0, 1.2),
+            ],
+        );
+        assert_eq!(kinds(&body), [AlertKind::FallDetected]);
     }
 
     #[test]
