@@ -1,11 +1,17 @@
 """ONNX export of the per-scan step model, with metadata and a parity check against PyTorch.
 
 The exported graph is `(frame, h, c) -> (logits, h_next, c_next)` (docs/model_contract.md).
-Parity: whole windows are stepped through ONNX Runtime and through PyTorch from zero states;
-the largest difference of logits and states must be at most 1e-5 absolute for values up to 1
-in magnitude, and 1e-5 of the largest magnitude above that (float32 keeps about seven digits:
-a state of magnitude 5 cannot agree to 1e-5 absolute once the two runtimes sum in different
-orders); else the export fails and the file is removed. The report keeps the figures per output.
+Parity: whole windows are stepped from zero states through the PyTorch model in float64 (the
+exact function of the exported weights; float32 PyTorch has rounding errors of its own, about
+as large as ONNX Runtime's) and through ONNX Runtime, which at every step is given the same
+frame and the reference's state; the largest difference of logits and states must be at most
+1e-5 absolute for values up to 1 in magnitude, and 1e-5 of the largest magnitude above that
+(float32 keeps about seven digits: a cell state of magnitude 20 is a few ulps from the exact
+value at 1e-5 absolute); else the export fails and the file is removed. Against float32
+PyTorch, free-running, one retraining of the sweep's reference failed at 1.1e-5 on h: the
+check measured two runtimes' rounding, not the export. How far ONNX Runtime drifts when it
+carries its own state through a whole window is reported too, not checked. The report keeps
+the figures per output for both (`step`, `window`).
 
 Rechecking a committed model (the PyTorch model is rebuilt from the ONNX file's weights):
 
@@ -15,6 +21,7 @@ Rechecking a committed model (the PyTorch model is rebuilt from the ONNX file's 
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import sys
 from pathlib import Path
@@ -78,7 +85,7 @@ def export_step_model(model: ActivityConvLSTM, spec: dict, out: Path, windows_u8
     except Exception:
         out.unlink(missing_ok=True)
         raise
-    failed = outside_tolerance(figures)
+    failed = outside_tolerance(figures["step"])
     if failed:
         out.unlink(missing_ok=True)
         raise ExportError(f"parity check failed (limit {PARITY_TOLERANCE:.0e} x max(1, largest magnitude)): {failed}")
@@ -86,7 +93,8 @@ def export_step_model(model: ActivityConvLSTM, spec: dict, out: Path, windows_u8
 
 
 def outside_tolerance(figures: dict) -> dict:
-    """The outputs whose difference exceeds 1e-5, absolute up to magnitude 1, relative above."""
+    """The outputs whose difference exceeds 1e-5, absolute up to magnitude 1, relative above
+    (one kind of figures: `parity(...)["step"]`)."""
     return {name: f for name, f in figures.items()
             if not f["max_abs_diff"] <= PARITY_TOLERANCE * max(1.0, f["max_abs_value"])}
 
@@ -104,22 +112,38 @@ def check_io(proto, size: int, hidden: int, hs: int):
 
 @torch.no_grad()
 def parity(model: ActivityConvLSTM, path: Path, windows_u8: np.ndarray) -> dict:
+    """Largest differences per output between ONNX Runtime and the PyTorch model run in float64
+    (the exact function of the exported weights): `step`, ONNX Runtime given the reference's
+    state at every step (what the export is checked on), and `window`, ONNX Runtime carrying
+    its own state through the window."""
     options = ort.SessionOptions()
     options.intra_op_num_threads = 1
     session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-    figures = {name: {"max_abs_diff": 0.0, "max_abs_value": 0.0} for name in ("logits", "h_next", "c_next")}
+    reference_model = copy.deepcopy(model).double()
+    names = ("logits", "h_next", "c_next")
+    figures = {kind: {name: {"max_abs_diff": 0.0, "max_abs_value": 0.0} for name in names}
+               for kind in ("step", "window")}
+
+    def record(kind, reference, outputs):
+        for name, a, b in zip(names, reference, outputs):
+            f = figures[kind][name]
+            f["max_abs_diff"] = max(f["max_abs_diff"], float(np.abs(a.numpy() - b).max()))
+            f["max_abs_value"] = max(f["max_abs_value"], float(np.abs(a.numpy()).max()))
+
     for window in windows_u8:
         frames = window.astype(np.float32) / 255.0
-        h_t, c_t = model.zero_state(1)
-        h_o, c_o = h_t.numpy(), c_t.numpy()
+        h_r, c_r = (s.double() for s in model.zero_state(1))
+        h_o, c_o = (s.numpy() for s in model.zero_state(1))
         for frame in frames:
             x = frame[None, None]
-            logits_t, h_t, c_t = model.step(torch.from_numpy(x), h_t, c_t)
-            logits_o, h_o, c_o = session.run(["logits", "h_next", "c_next"], {"frame": x, "h": h_o, "c": c_o})
-            for name, a, b in (("logits", logits_t, logits_o), ("h_next", h_t, h_o), ("c_next", c_t, c_o)):
-                f = figures[name]
-                f["max_abs_diff"] = max(f["max_abs_diff"], float(np.abs(a.numpy() - b).max()))
-                f["max_abs_value"] = max(f["max_abs_value"], float(np.abs(a.numpy()).max()))
+            state = {"h": h_r.float().numpy(), "c": c_r.float().numpy()}
+            step = session.run(list(names), {"frame": x, **state})
+            free = session.run(list(names), {"frame": x, "h": h_o, "c": c_o})
+            reference = reference_model.step(torch.from_numpy(x).double(), h_r, c_r)
+            record("step", reference, step)
+            record("window", reference, free)
+            _, h_r, c_r = reference
+            _, h_o, c_o = free
     return figures
 
 
@@ -157,8 +181,8 @@ def main(argv=None) -> int:
         print(f"export: error: {err}", file=sys.stderr)
         return 1
     print(json.dumps(figures, indent=2))
-    ok = not outside_tolerance(figures)
-    print(f"parity {'within' if ok else 'OUTSIDE'} {PARITY_TOLERANCE:.0e} x max(1, largest magnitude)")
+    ok = not outside_tolerance(figures["step"])
+    print(f"step parity {'within' if ok else 'OUTSIDE'} {PARITY_TOLERANCE:.0e} x max(1, largest magnitude)")
     return 0 if ok else 1
 
 
