@@ -1,5 +1,6 @@
-"""Where the pelvis lies from the localiser's estimate, in the body's own frame, per activity,
-and what a constant lead along the tracked velocity would do to the error. Reads the JSON
+"""Where the pelvis lies from the localiser's estimate, in the body's own frame, per activity;
+how far it is from anything the Lidar returned from the person; and what a constant lead along
+the tracked velocity would do to the error. Reads the JSON
 lines of `localiser_accuracy --dump-points` (docs/localiser.md, "Accuracy"):
 
     cargo run --release -p lidar-har-pipeline --example localiser_accuracy -- --seeds 3 \\
@@ -35,6 +36,10 @@ def main() -> None:
         print(f"{name:20s} {k.sum():6d} scans: forward {np.median(forward[k]):+.3f} left {np.median(left[k]):+.3f} "
               f"|error| {np.median(np.hypot(forward[k], left[k])):.3f}; velocity along the heading, median cosine "
               f"{np.median(agreement[moving]) if moving.any() else float('nan'):.2f} ({moving.sum()} scans >= 0.2 m/s)")
+
+    nearest = np.array([np.min(np.hypot(*(np.array(r["points"]) - p[:2]).T)) for r, p in zip(rows, pelvis)])
+    print(f"the pelvis's distance to the nearest of the person's returns: median {np.median(nearest):.3f} m, "
+          f"p95 {np.percentile(nearest, 95):.3f} m, over 0.3 m in {100 * np.mean(nearest > 0.3):.1f} % of the scans")
 
     print("a constant lead along the tracked velocity at >= 0.3 m/s: overall error median / p95")
     for lead in (0.0, 0.03, 0.06, 0.09):
