@@ -126,9 +126,10 @@ def parity(model: ActivityConvLSTM, path: Path, windows_u8: np.ndarray) -> dict:
 
     def record(kind, reference, outputs):
         for name, a, b in zip(names, reference, outputs):
+            a = a.numpy()
             f = figures[kind][name]
-            f["max_abs_diff"] = max(f["max_abs_diff"], float(np.abs(a.numpy() - b).max()))
-            f["max_abs_value"] = max(f["max_abs_value"], float(np.abs(a.numpy()).max()))
+            f["max_abs_diff"] = max(f["max_abs_diff"], float(np.abs(a - b).max()))
+            f["max_abs_value"] = max(f["max_abs_value"], float(np.abs(a).max()))
 
     for window in windows_u8:
         frames = window.astype(np.float32) / 255.0

@@ -270,9 +270,11 @@ def train(args) -> int:
     }
     report_path = args.out.with_suffix(".training.json")
     report_path.write_text(json.dumps(report, indent=2) + "\n")
+
     def per_output(kind):
         return ", ".join(f"{name} {f['max_abs_diff']:.2e} (values up to {f['max_abs_value']:.1f})"
                          for name, f in parity[kind].items())
+
     print(f"wrote {args.out} and {report_path} (parity, max abs diff per step: {per_output('step')}; "
           f"over whole windows: {per_output('window')})", flush=True)
     return 0
