@@ -30,6 +30,7 @@ import numpy as np
 import onnx
 import onnxruntime as ort
 import torch
+from google.protobuf.message import DecodeError
 from onnx import numpy_helper
 
 from .model import ActivityConvLSTM, StepModel
@@ -148,10 +149,36 @@ def parity(model: ActivityConvLSTM, path: Path, windows_u8: np.ndarray) -> dict:
     return figures
 
 
-def model_from_onnx(path: Path) -> ActivityConvLSTM:
-    """The PyTorch model whose weights an exported step model holds (export keeps the names)."""
-    proto = onnx.load(str(path))
+# The image a model was trained on: a model fine-tuned on another image would learn anew.
+IMAGE_SPEC_KEYS = ("representation", "framing", "size", "resolution_m", "scan_rate_hz")
+
+
+def same_value(model_value: str | None, dataset_value: str) -> bool:
+    """Metadata holds numbers as text: 20 and 20.0 are the same rate."""
+    try:
+        return float(model_value) == float(dataset_value)
+    except (TypeError, ValueError):
+        return model_value == dataset_value
+
+
+def model_from_onnx(path: Path, spec: dict | None = None) -> ActivityConvLSTM:
+    """The PyTorch model whose weights an exported step model holds (export keeps the names).
+
+    With `spec` (a dataset's), the model's image must be that dataset's (`IMAGE_SPEC_KEYS`);
+    the window length may differ, as the model steps one scan at a time.
+    """
+    try:
+        proto = onnx.load(str(path))
+    except (OSError, DecodeError) as err:
+        raise ExportError(f"{path}: cannot read the model: {err}") from err
     meta = {p.key: p.value for p in proto.metadata_props}
+    if spec is not None:
+        wanted = {key: str(spec.get(key, SCAN_RATE_HZ_DEFAULT if key == "scan_rate_hz" else None))
+                  for key in IMAGE_SPEC_KEYS}
+        differing = [f"{key} {meta.get('lidar_har.' + key)} (dataset: {value})" for key, value in wanted.items()
+                     if not same_value(meta.get("lidar_har." + key), value)]
+        if differing:
+            raise ExportError(f"{path}: its image is not the dataset's: {', '.join(differing)}")
     weights = {i.name.removeprefix("model."): numpy_helper.to_array(i) for i in proto.graph.initializer}
     encoder = weights.get("encoder.0.weight")
     if encoder is None or "lidar_har.hidden" not in meta:

@@ -45,6 +45,7 @@ class ActivityConvLSTM(nn.Module):
             raise ValueError(f"image size {size} must be a multiple of 4")
         self.size = size
         self.hidden = hidden
+        self.encoder_channels = encoder_channels
         self.state_size = size // 4
         self.encoder = nn.Sequential(
             nn.Conv2d(1, encoder_channels, 3, stride=2, padding=1),

@@ -26,7 +26,7 @@ import torch
 from torch import nn
 
 from .data import CLASSES, DatasetError, Split, load_index, load_split, visible_steps
-from .export import ExportError, export_step_model
+from .export import ExportError, export_step_model, model_from_onnx
 from .model import ActivityConvLSTM
 
 
@@ -57,6 +57,10 @@ def parse_args(argv):
     p.add_argument("--mask-hidden-steps", action="store_true",
                    help="leave out of the loss, and of the validation score, the steps whose scan shows nothing "
                         "of the person: the robot publishes no activity for them")
+    p.add_argument("--init-from", type=Path, metavar="MODEL.onnx",
+                   help="start from an exported model's weights instead of random ones (fine-tuning, or going on "
+                        "where a time budget stopped); its image must be the dataset's, and its hidden and encoder "
+                        "sizes replace --hidden and --encoder-channels")
     p.add_argument("--skip-test-eval", action="store_true",
                    help="skip PyTorch metrics on the test splits (`lidar-har evaluate` gives them through ONNX Runtime)")
     return p.parse_args(argv)
@@ -194,9 +198,15 @@ def train(args) -> int:
     print(f"train {len(train_split)} windows, validation {len(val_split)} windows "
           f"({len(np.unique(val_split.episodes))} episodes)", flush=True)
 
-    model = ActivityConvLSTM(spec["size"], hidden=args.hidden, encoder_channels=args.encoder_channels)
+    if args.init_from is None:
+        model = ActivityConvLSTM(spec["size"], hidden=args.hidden, encoder_channels=args.encoder_channels)
+    else:
+        model = model_from_onnx(args.init_from, spec)
+        args.hidden, args.encoder_channels = model.hidden, model.encoder_channels
+        print(f"starting from the weights of {args.init_from}", flush=True)
     params = sum(p.numel() for p in model.parameters())
-    print(f"model: size {spec['size']}, hidden {args.hidden}, {params} parameters", flush=True)
+    print(f"model: size {spec['size']}, hidden {args.hidden}, encoder {args.encoder_channels}, "
+          f"{params} parameters", flush=True)
     optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
     sampling = class_weights_for_sampling(train_split.labels[:, -1])
 
