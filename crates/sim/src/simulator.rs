@@ -49,6 +49,10 @@ fn mix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+fn base_seed(scene: &Scene, seed: u64) -> u64 {
+    mix(mix(scene.seed) ^ seed)
+}
+
 /// Simulates a scene scan by scan.
 #[derive(Debug, Clone)]
 pub struct Simulator {
@@ -76,13 +80,13 @@ impl Simulator {
                 key,
                 message,
             })?;
-        let base = mix(mix(scene.seed) ^ seed);
+        let base = base_seed(&scene, seed);
         let world = World::new(&scene);
         let robot = RobotMotion::new(&scene.robot, &world, mix(base ^ 1))?;
         let person = scene
             .person
             .as_ref()
-            .map(|p| Person::new(p, &world, mix(base ^ 2)))
+            .map(|p| Person::new(p, &world, Self::person_seed(&scene, seed)))
             .transpose()?;
         let lidar = Lidar::new(&scene.lidar);
         let noise_rng =
@@ -103,6 +107,12 @@ impl Simulator {
             frames,
             start_ns,
         })
+    }
+
+    /// The seed `new(scene, seed)` gives the scene's person (their size, sway, steps): a
+    /// script written for an episode is checked against the body that will perform it.
+    pub fn person_seed(scene: &Scene, seed: u64) -> u64 {
+        mix(base_seed(scene, seed) ^ 2)
     }
 
     pub fn scene(&self) -> &Scene {
