@@ -65,12 +65,8 @@ def export_step_model(model: ActivityConvLSTM, spec: dict, out: Path, windows_u8
     )
     proto = onnx.load(str(out))
     meta = {
-        "lidar_har.representation": spec["representation"],
-        "lidar_har.framing": spec["framing"],
-        "lidar_har.size": str(spec["size"]),
-        "lidar_har.resolution_m": str(spec["resolution_m"]),
+        **image_metadata(spec),
         "lidar_har.window": str(spec["window"]),
-        "lidar_har.scan_rate_hz": str(spec.get("scan_rate_hz", SCAN_RATE_HZ_DEFAULT)),
         "lidar_har.hidden": str(hidden),
     }
     del proto.metadata_props[:]
@@ -91,6 +87,18 @@ def export_step_model(model: ActivityConvLSTM, spec: dict, out: Path, windows_u8
         out.unlink(missing_ok=True)
         raise ExportError(f"parity check failed (limit {PARITY_TOLERANCE:.0e} x max(1, largest magnitude)): {failed}")
     return figures
+
+
+def image_metadata(spec: dict) -> dict:
+    """The metadata that says which image a model reads (a dataset's spec): a model fine-tuned
+    on another image would learn anew."""
+    return {
+        "lidar_har.representation": spec["representation"],
+        "lidar_har.framing": spec["framing"],
+        "lidar_har.size": str(spec["size"]),
+        "lidar_har.resolution_m": str(spec["resolution_m"]),
+        "lidar_har.scan_rate_hz": str(spec.get("scan_rate_hz", SCAN_RATE_HZ_DEFAULT)),
+    }
 
 
 def outside_tolerance(figures: dict) -> dict:
@@ -149,10 +157,6 @@ def parity(model: ActivityConvLSTM, path: Path, windows_u8: np.ndarray) -> dict:
     return figures
 
 
-# The image a model was trained on: a model fine-tuned on another image would learn anew.
-IMAGE_SPEC_KEYS = ("representation", "framing", "size", "resolution_m", "scan_rate_hz")
-
-
 def same_value(model_value: str | None, dataset_value: str) -> bool:
     """Metadata holds numbers as text: 20 and 20.0 are the same rate."""
     try:
@@ -164,7 +168,7 @@ def same_value(model_value: str | None, dataset_value: str) -> bool:
 def model_from_onnx(path: Path, spec: dict | None = None) -> ActivityConvLSTM:
     """The PyTorch model whose weights an exported step model holds (export keeps the names).
 
-    With `spec` (a dataset's), the model's image must be that dataset's (`IMAGE_SPEC_KEYS`);
+    With `spec` (a dataset's), the model's image must be that dataset's (`image_metadata`);
     the window length may differ, as the model steps one scan at a time.
     """
     try:
@@ -173,10 +177,8 @@ def model_from_onnx(path: Path, spec: dict | None = None) -> ActivityConvLSTM:
         raise ExportError(f"{path}: cannot read the model: {err}") from err
     meta = {p.key: p.value for p in proto.metadata_props}
     if spec is not None:
-        wanted = {key: str(spec.get(key, SCAN_RATE_HZ_DEFAULT if key == "scan_rate_hz" else None))
-                  for key in IMAGE_SPEC_KEYS}
-        differing = [f"{key} {meta.get('lidar_har.' + key)} (dataset: {value})" for key, value in wanted.items()
-                     if not same_value(meta.get("lidar_har." + key), value)]
+        differing = [f"{key.removeprefix('lidar_har.')} {meta.get(key)} (dataset: {value})"
+                     for key, value in image_metadata(spec).items() if not same_value(meta.get(key), value)]
         if differing:
             raise ExportError(f"{path}: its image is not the dataset's: {', '.join(differing)}")
     weights = {i.name.removeprefix("model."): numpy_helper.to_array(i) for i in proto.graph.initializer}
