@@ -58,7 +58,8 @@ class ActivityConvLSTM(nn.Module):
 
     def zero_state(self, batch: int):
         shape = (batch, self.hidden, self.state_size, self.state_size)
-        return torch.zeros(shape), torch.zeros(shape)
+        device = self.head.weight.device
+        return torch.zeros(shape, device=device), torch.zeros(shape, device=device)
 
     def step(self, frame, h, c):
         h_next, c_next = self.cell(self.encoder(frame), h, c)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import random
 import sys
 import time
@@ -47,13 +48,16 @@ def parse_args(argv):
     p.add_argument("--time-budget-min", type=float, default=45.0, help="stop training after this many minutes")
     p.add_argument("--val-fraction", type=float, default=0.15, help="share of training episodes held for validation")
     p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto",
+                   help="where to train: auto takes a CUDA GPU when PyTorch sees one (the export and its "
+                        "parity check always run on the CPU)")
     p.add_argument("--seed", type=int, default=7)
     p.add_argument("--no-augment", action="store_true")
     p.add_argument("--shift-px", type=int, default=2,
                    help="augmentation: random shift of each window by up to this many pixels")
     p.add_argument("--bf16", action="store_true",
-                   help="bfloat16 autocast for the forward pass (CPUs with AVX-512 BF16 or AMX): 1.25x the "
-                        "steps per second on the development machine; weights, loss and export stay float32")
+                   help="bfloat16 autocast for the forward pass (GPUs, and CPUs with AVX-512 BF16 or AMX): 1.25x "
+                        "the steps per second on the development machine; weights, loss and export stay float32")
     p.add_argument("--mask-hidden-steps", action="store_true",
                    help="leave out of the loss, and of the validation score, the steps whose scan shows nothing "
                         "of the person: the robot publishes no activity for them")
@@ -66,11 +70,27 @@ def parse_args(argv):
     return p.parse_args(argv)
 
 
-def seed_everything(seed: int, threads: int):
+class DeviceError(Exception):
+    pass
+
+
+def choose_device(name: str) -> torch.device:
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    if name == "cuda" and not torch.cuda.is_available():
+        raise DeviceError("--device cuda: PyTorch sees no CUDA GPU (torch.cuda.is_available() is false)")
+    return torch.device(name)
+
+
+def seed_everything(seed: int, threads: int, device: torch.device):
     random.seed(seed)
     np.random.seed(seed)
     torch.manual_seed(seed)
     torch.set_num_threads(threads)
+    if device.type == "cuda":
+        # cuBLAS needs this workspace setting for deterministic results; without it, the
+        # deterministic mode below refuses matrix products on the GPU.
+        os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
     torch.use_deterministic_algorithms(True)
 
 
@@ -85,8 +105,9 @@ def split_validation(train: Split, fraction: float, rng: np.random.Generator) ->
     return train.subset(~mask, "train"), train.subset(mask, "validation")
 
 
-def to_tensor(images: np.ndarray) -> torch.Tensor:
-    return torch.from_numpy(images.astype(np.float32) / 255.0)
+def to_tensor(images: np.ndarray, device: torch.device = torch.device("cpu")) -> torch.Tensor:
+    """uint8 windows to float in [0, 1]; the bytes travel to the device before the conversion."""
+    return torch.from_numpy(images).to(device).float() / 255.0
 
 
 def shift(window: np.ndarray, dy: int, dx: int) -> np.ndarray:
@@ -130,7 +151,7 @@ def loss_on_second_half(logits: torch.Tensor, labels: torch.Tensor, mask: np.nda
         logits[:, half:].reshape(-1, len(CLASSES)), labels[:, half:].reshape(-1), reduction="none")
     if mask is None:
         return losses.mean()
-    weights = torch.from_numpy(mask[:, half:].reshape(-1).astype(np.float32))
+    weights = torch.from_numpy(mask[:, half:].reshape(-1).astype(np.float32)).to(logits.device)
     return (losses * weights).sum() / weights.sum().clamp(min=1.0)
 
 
@@ -138,9 +159,10 @@ def loss_on_second_half(logits: torch.Tensor, labels: torch.Tensor, mask: np.nda
 def predict(model: ActivityConvLSTM, split: Split, batch: int = 256) -> np.ndarray:
     """Logits `[N, T, 9]` over the split's windows, each from a zero state."""
     model.eval()
+    device = model.head.weight.device
     out = []
     for start in range(0, len(split), batch):
-        out.append(model(to_tensor(split.images[start : start + batch])).numpy())
+        out.append(model(to_tensor(split.images[start : start + batch], device)).cpu().numpy())
     return np.concatenate(out) if out else np.zeros((0, split.images.shape[1], len(CLASSES)), np.float32)
 
 
@@ -187,7 +209,8 @@ def set_learning_rate(optimiser, args, epochs_done: int, step: int, elapsed_s: f
 
 
 def train(args) -> int:
-    seed_everything(args.seed, args.threads)
+    device = choose_device(args.device)
+    seed_everything(args.seed, args.threads, device)
     rng = np.random.default_rng(args.seed)
     index = load_index(args.data)
     spec = index["spec"]
@@ -206,7 +229,8 @@ def train(args) -> int:
         print(f"starting from the weights of {args.init_from}", flush=True)
     params = sum(p.numel() for p in model.parameters())
     print(f"model: size {spec['size']}, hidden {args.hidden}, encoder {args.encoder_channels}, "
-          f"{params} parameters", flush=True)
+          f"{params} parameters, training on {device}", flush=True)
+    model.to(device)
     optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
     sampling = class_weights_for_sampling(train_split.labels[:, -1])
 
@@ -221,9 +245,10 @@ def train(args) -> int:
             mask = visible_steps(images) if args.mask_hidden_steps else None
             if not args.no_augment:
                 images = augment(images, rng, args.shift_px)
-            with torch.autocast("cpu", dtype=torch.bfloat16, enabled=args.bf16):
-                logits = model(to_tensor(np.ascontiguousarray(images)))
-            loss = loss_on_second_half(logits.float(), torch.from_numpy(train_split.labels[rows]), mask)
+            with torch.autocast(device.type, dtype=torch.bfloat16, enabled=args.bf16):
+                logits = model(to_tensor(np.ascontiguousarray(images), device))
+            labels = torch.from_numpy(train_split.labels[rows]).to(device)
+            loss = loss_on_second_half(logits.float(), labels, mask)
             set_learning_rate(optimiser, args, epoch - 1, step, time.monotonic() - started)
             optimiser.zero_grad()
             loss.backward()
@@ -251,6 +276,7 @@ def train(args) -> int:
     training_s = time.monotonic() - started
     model.load_state_dict(best_state)
     model.eval()
+    print(f"best epoch {best_epoch}: validation balanced recall {best_val:.4f}", flush=True)
 
     results = {"validation": summarise(predict(model, val_split), val_split, args.mask_hidden_steps)}
     for name in () if args.skip_test_eval else ("test", "test_unseen"):
@@ -261,7 +287,7 @@ def train(args) -> int:
                   f"at T/2 {results[name]['accuracy_at_T_half']:.4f} ({len(split)} windows)", flush=True)
 
     parity_split = load_split(args.data, index, "test") or val_split
-    parity = export_step_model(model, spec, args.out, parity_split.images[:16])
+    parity = export_step_model(model.cpu(), spec, args.out, parity_split.images[:16])
     parity_max = max(f["max_abs_diff"] for f in parity["step"].values())
     report = {
         "date_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
@@ -273,6 +299,7 @@ def train(args) -> int:
         "best_epoch": best_epoch,
         "training_seconds": round(training_s, 1),
         "torch_threads": torch.get_num_threads(),
+        "device": torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu",
         "history": history,
         "results": results,
         "parity_max_abs_diff": parity_max,
@@ -294,7 +321,7 @@ def main(argv=None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     try:
         return train(args)
-    except (DatasetError, ExportError) as err:
+    except (DatasetError, DeviceError, ExportError) as err:
         print(f"train: error: {err}", file=sys.stderr)
         return 1
 
