@@ -12,7 +12,11 @@
 //!   has not left the floor, and cannot fall from there. The lying that makes a descent must
 //!   also look like a body on the floor: its points stretch at least `descent_min_length_m`
 //!   on most of the scans that confirm the floor posture (a standing person misread as lying
-//!   is one or two legs, and a crawler seen end-on stretches that far on a stray scan).
+//!   is one or two legs, and a crawler seen end-on stretches that far on a stray scan), and
+//!   the classifier is sure of it: on those of the scans it reads as lying, `lying_down` has
+//!   at least `descent_min_probability` on most (a fallen body lies still and reads as lying
+//!   at once; a crawler the model takes for lying for a moment keeps moving, and the model
+//!   hesitates).
 //! - `PersonDown`: the person has been on the floor (lying, sitting on the floor or crawling,
 //!   [`Activity::is_on_floor`]) for `down_after_s` without being seen getting up. The clock
 //!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
@@ -64,6 +68,12 @@ pub struct FallAlertConfig {
     /// takes for lying for a few scans is one or two legs, and a crawler seen end-on reaches
     /// it on a stray scan only. Metres; 0 drops the check (as do unknown lengths).
     pub descent_min_length_m: f64,
+    /// A descent counts only when, on the scans that confirm the floor posture and are read
+    /// as lying, `lying_down` has at least this probability (their median): after a fall the
+    /// model reads lying at once (0.94-1.00 on the traced falls), a crawler it takes for
+    /// lying for a moment with doubt (0.49-0.79): seed 1 of `lidar-har alerts`,
+    /// docs/classifier.md. 0 drops the check.
+    pub descent_min_probability: f64,
 }
 
 impl Default for FallAlertConfig {
@@ -77,6 +87,7 @@ impl Default for FallAlertConfig {
             descent_max_s: 3.0,
             fall_from_upright_s: 3.0,
             descent_min_length_m: 0.8,
+            descent_min_probability: 0.8,
         }
     }
 }
@@ -140,6 +151,13 @@ impl FallAlertConfig {
             l,
             l.is_finite() && l >= 0.0,
             "finite, >= 0",
+        )?;
+        let p = self.descent_min_probability;
+        check(
+            "descent_min_probability",
+            p,
+            (0.0..=1.0).contains(&p),
+            "0..=1",
         )
     }
 }
@@ -227,6 +245,8 @@ pub struct FallDetector {
     candidate: Option<(Posture, f64, u32)>,
     /// The body lengths known on the candidate's scans.
     candidate_lengths: Vec<f64>,
+    /// p(lying_down) on the candidate's scans read as lying.
+    candidate_lying: Vec<f64>,
     /// Confirmed posture and since when.
     posture: Option<(Posture, f64)>,
     /// The last visible scan classified upright while the confirmed posture was upright.
@@ -258,6 +278,7 @@ impl FallDetector {
             fall_run: None,
             candidate: None,
             candidate_lengths: Vec::new(),
+            candidate_lying: Vec::new(),
             posture: None,
             last_upright_s: None,
             last_off_floor_s: None,
@@ -366,14 +387,18 @@ impl FallDetector {
             Some((p, since, n)) if p == seen => (p, since, n + 1),
             _ => {
                 self.candidate_lengths.clear();
+                self.candidate_lying.clear();
                 (seen, t, 1)
             }
         };
         self.candidate = Some((posture, since, n));
-        if let Some(length) = body_length_m.filter(|l| l.is_finite())
-            && n <= self.config.confirm_scans
-        {
-            self.candidate_lengths.push(length);
+        if n <= self.config.confirm_scans {
+            if let Some(length) = body_length_m.filter(|l| l.is_finite()) {
+                self.candidate_lengths.push(length);
+            }
+            if best == Activity::LyingDown {
+                self.candidate_lying.push(best_p as f64);
+            }
         }
         if n >= self.config.confirm_scans && self.posture.map(|(p, _)| p) != Some(posture) {
             self.posture = Some((posture, since));
@@ -381,10 +406,7 @@ impl FallDetector {
                 Posture::OnFloor => {
                     self.upright_since = None;
                     self.start_down(since);
-                    let min_length = self.config.descent_min_length_m;
-                    if min_length <= 0.0
-                        || median(&mut self.candidate_lengths).is_none_or(|l| l >= min_length)
-                    {
+                    if self.candidate_looks_like_a_fallen_body() {
                         self.check_descent(t, since, best, on_floor_p, alerts);
                     }
                 }
@@ -421,6 +443,19 @@ impl FallDetector {
                 }
             }
         }
+    }
+
+    /// Whether the scans that confirmed the floor posture show a body stretched on the floor
+    /// that the classifier reads as lying without doubt (`descent_min_length_m`,
+    /// `descent_min_probability`, each a median over those scans).
+    fn candidate_looks_like_a_fallen_body(&mut self) -> bool {
+        let min_length = self.config.descent_min_length_m;
+        let long_enough = min_length <= 0.0
+            || median(&mut self.candidate_lengths).is_none_or(|l| l >= min_length);
+        let min_p = self.config.descent_min_probability;
+        let sure_enough =
+            min_p <= 0.0 || median(&mut self.candidate_lying).is_some_and(|p| p >= min_p);
+        long_enough && sure_enough
     }
 
     /// Whether a fall starting at `start` follows being upright closely enough.
@@ -500,9 +535,15 @@ mod tests {
         probs
     }
 
+    /// The classifier's probability of the scripted activity: a confident reading.
+    const SURE: f32 = 0.95;
+
     /// Runs a script of (activity, seconds, visible) segments at 20 Hz; returns the alerts.
     fn run(detector: &mut FallDetector, script: &[(Activity, f64, bool)]) -> Vec<FallAlert> {
-        let script: Vec<_> = script.iter().map(|&(a, s, v)| (a, s, v, None)).collect();
+        let script: Vec<_> = script
+            .iter()
+            .map(|&(a, s, v)| (a, s, v, None, SURE))
+            .collect();
         run_scans(detector, &script)
     }
 
@@ -513,24 +554,25 @@ mod tests {
     ) -> Vec<FallAlert> {
         let script: Vec<_> = script
             .iter()
-            .map(|&(a, s, length)| (a, s, true, Some(length)))
+            .map(|&(a, s, length)| (a, s, true, Some(length), SURE))
             .collect();
         run_scans(detector, &script)
     }
 
+    /// Segments of (activity, seconds, visible, body length, the activity's probability).
     fn run_scans(
         detector: &mut FallDetector,
-        script: &[(Activity, f64, bool, Option<f64>)],
+        script: &[(Activity, f64, bool, Option<f64>, f32)],
     ) -> Vec<FallAlert> {
         let mut t = 0.0;
         let mut alerts = Vec::new();
-        for &(activity, seconds, visible, body_length_m) in script {
+        for &(activity, seconds, visible, body_length_m, p) in script {
             let scans = (seconds / DT).round() as usize;
             for _ in 0..scans {
                 alerts.extend(detector.update(&FallInput {
                     stamp_s: t,
                     position: visible.then_some(DVec2::new(1.0, 2.0)),
-                    probabilities: one_hot(activity, 0.9),
+                    probabilities: one_hot(activity, p),
                     body_length_m,
                 }));
                 t += DT;
@@ -707,7 +749,40 @@ mod tests {
     }
 
     #[test]
+    fn a_descent_needs_the_classifier_to_be_sure_of_lying() {
+        // Walking, then lying on the floor for good, read as lying with probability p.
+        let script = |p: f32| {
+            [
+                (Walking, 5.0, true, Some(0.5), SURE),
+                (LyingDown, 3.0, true, Some(1.4), p),
+            ]
+        };
+        // A crawler the classifier takes for lying hesitantly is not a fall ...
+        let hesitant = run_scans(&mut detector(), &script(0.6));
+        assert!(hesitant.is_empty(), "{hesitant:?}");
+        // ... a body it reads as lying at once is.
+        let sure = run_scans(&mut detector(), &script(SURE));
+        assert_eq!(kinds(&sure), [AlertKind::FallDetected]);
+        // With the check off the hesitant reading is a descent too.
+        let mut unchecked = FallDetector::new(FallAlertConfig {
+            descent_min_probability: 0.0,
+            ..FallAlertConfig::default()
+        })
+        .unwrap();
+        let unchecked = run_scans(&mut unchecked, &script(0.6));
+        assert_eq!(kinds(&unchecked), [AlertKind::FallDetected]);
+    }
+
+    #[test]
     fn one_long_view_does_not_make_a_crawler_a_fallen_body() {
+        // The length rule alone: the classifier's doubt about lying is not checked here.
+        let detector = || {
+            FallDetector::new(FallAlertConfig {
+                descent_min_probability: 0.0,
+                ..FallAlertConfig::default()
+            })
+            .unwrap()
+        };
         // A crawler seen end-on, read as getting up for half a second, then lying on the
         // scan that confirms the floor again: that one scan's points happen to stretch 0.95 m.
         let script = |spike: f64| {
@@ -755,7 +830,7 @@ mod tests {
         // Raised after fall_min_scans (8) scans: well within 1 s.
         assert!(fall.raised_at_s - fall.event_time_s < 0.4);
         assert_eq!(fall.position, DVec2::new(1.0, 2.0));
-        assert!((fall.confidence - 0.9).abs() < 1e-6);
+        assert!((fall.confidence - SURE).abs() < 1e-6);
         let down = alerts[1];
         assert!((down.down_since_s - 5.0).abs() < 1e-9);
         assert!((down.event_time_s - 20.0).abs() < 1e-9);

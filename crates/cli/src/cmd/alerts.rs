@@ -54,7 +54,8 @@ pub struct AlertsArgs {
     pub out: Option<PathBuf>,
     /// Print every scan of this episode (by number, as in the report) to stderr: the true
     /// activity, the model's top class and its probability, p(falling_down), whether the
-    /// person was seen, the length of their points, and the alerts raised. Repeatable.
+    /// person was seen, the length of their points, where they were (map frame), and the
+    /// alerts raised. Repeatable.
     #[arg(long, value_name = "EPISODE")]
     pub trace_episode: Vec<usize>,
 }
@@ -340,13 +341,17 @@ fn run_episode(
         if trace {
             eprintln!(
                 "trace t={stamp_s:.2} truth={} model={} p={:.2} p_fall={:.2} seen={} length={} \
-                 alerts=[{}]",
+                 at={} alerts=[{}]",
                 frame.person.map_or("-", |p| p.activity.label()),
                 prediction.activity.label(),
                 prediction.confidence,
                 prediction.probabilities[Activity::FallingDown.index()],
                 visible.is_some(),
                 body_length_m.map_or("-".into(), |l| format!("{l:.2}")),
+                visible.map_or("-".into(), |p| format!(
+                    "{:.2},{:.2}",
+                    p.position.x, p.position.y
+                )),
                 raised
                     .iter()
                     .map(|a| a.kind.name())
