@@ -589,14 +589,17 @@ mod tests {
         FallDetector::new(FallAlertConfig::default()).unwrap()
     }
 
+    /// A detector with the defaults but for what `change` sets.
+    fn detector_with(change: impl FnOnce(&mut FallAlertConfig)) -> FallDetector {
+        let mut config = FallAlertConfig::default();
+        change(&mut config);
+        FallDetector::new(config).unwrap()
+    }
+
     /// Tests of `PersonDown` alone script people lying down from standing in no time, which
     /// the descent rule takes for a fall.
     fn without_descent() -> FallDetector {
-        FallDetector::new(FallAlertConfig {
-            descent_max_s: 0.0,
-            ..FallAlertConfig::default()
-        })
-        .unwrap()
+        detector_with(|c| c.descent_max_s = 0.0)
     }
 
     #[test]
@@ -678,11 +681,7 @@ mod tests {
         );
         assert!(from_floor.is_empty(), "{from_floor:?}");
         // Without the requirement, the same misreading is an alert.
-        let mut d = FallDetector::new(FallAlertConfig {
-            fall_from_upright_s: 0.0,
-            ..FallAlertConfig::default()
-        })
-        .unwrap();
+        let mut d = detector_with(|c| c.fall_from_upright_s = 0.0);
         let loose = run(
             &mut d,
             &[
@@ -739,11 +738,7 @@ mod tests {
         let body = run_with_lengths(&mut detector(), &script(1.4));
         assert_eq!(kinds(&body), [AlertKind::FallDetected]);
         // ... and so are the two legs with the check off.
-        let mut unchecked = FallDetector::new(FallAlertConfig {
-            descent_min_length_m: 0.0,
-            ..FallAlertConfig::default()
-        })
-        .unwrap();
+        let mut unchecked = detector_with(|c| c.descent_min_length_m = 0.0);
         let unchecked = run_with_lengths(&mut unchecked, &script(0.4));
         assert_eq!(kinds(&unchecked), [AlertKind::FallDetected]);
     }
@@ -764,11 +759,7 @@ mod tests {
         let sure = run_scans(&mut detector(), &script(SURE));
         assert_eq!(kinds(&sure), [AlertKind::FallDetected]);
         // With the check off the hesitant reading is a descent too.
-        let mut unchecked = FallDetector::new(FallAlertConfig {
-            descent_min_probability: 0.0,
-            ..FallAlertConfig::default()
-        })
-        .unwrap();
+        let mut unchecked = detector_with(|c| c.descent_min_probability = 0.0);
         let unchecked = run_scans(&mut unchecked, &script(0.6));
         assert_eq!(kinds(&unchecked), [AlertKind::FallDetected]);
     }
@@ -776,13 +767,7 @@ mod tests {
     #[test]
     fn one_long_view_does_not_make_a_crawler_a_fallen_body() {
         // The length rule alone: the classifier's doubt about lying is not checked here.
-        let detector = || {
-            FallDetector::new(FallAlertConfig {
-                descent_min_probability: 0.0,
-                ..FallAlertConfig::default()
-            })
-            .unwrap()
-        };
+        let detector = || detector_with(|c| c.descent_min_probability = 0.0);
         // A crawler seen end-on, read as getting up for half a second, then lying on the
         // scan that confirms the floor again: that one scan's points happen to stretch 0.95 m.
         let script = |spike: f64| {
