@@ -3,7 +3,9 @@
 //! Two alerts, each raised once per incident:
 //! - `FallDetected`: `falling_down` is the most likely class with probability at least
 //!   `fall_probability` on `fall_min_scans` consecutive visible scans, starting at most
-//!   `fall_from_upright_s` after the person was last upright; or a descent: lying down is
+//!   `fall_from_upright_s` after the person was last upright, and the person is then
+//!   confirmed on the floor within `fall_then_floor_s` (a stagger or a sudden stop the model
+//!   reads as falling ends upright; a fall ends on the floor); or a descent: lying down is
 //!   confirmed at most `descent_max_s` after the person was last upright or getting up (a
 //!   fall is short and easily missed, the lying that follows is not; a failed attempt to
 //!   stand ends lying too, while getting up misread as falling is the model's commonest
@@ -47,6 +49,12 @@ pub struct FallAlertConfig {
     pub fall_probability: f32,
     /// Consecutive such scans needed for `FallDetected`.
     pub fall_min_scans: u32,
+    /// Such a run raises `FallDetected` only once the person is then confirmed on the floor
+    /// (lying, sitting on the floor or crawling) within this time of the run: the alert
+    /// comes on landing instead of during the fall, and a stagger or a sudden stop that the
+    /// model reads as falling, after which the person is upright again, raises none. Seconds;
+    /// 0 raises it at the run itself.
+    pub fall_then_floor_s: f64,
     /// Time on the floor without getting up before `PersonDown`, seconds.
     pub down_after_s: f64,
     /// Consecutive scans that must agree before the posture (on floor / getting up / upright)
@@ -81,6 +89,7 @@ impl Default for FallAlertConfig {
         Self {
             fall_probability: 0.8,
             fall_min_scans: 8,
+            fall_then_floor_s: 3.0,
             down_after_s: 15.0,
             confirm_scans: 5,
             rearm_upright_s: 3.0,
@@ -120,6 +129,13 @@ impl FallAlertConfig {
         check("fall_probability", p, (0.0..=1.0).contains(&p), "0..=1")?;
         let n = self.fall_min_scans as f64;
         check("fall_min_scans", n, self.fall_min_scans >= 1, ">= 1")?;
+        let f = self.fall_then_floor_s;
+        check(
+            "fall_then_floor_s",
+            f,
+            f.is_finite() && f >= 0.0,
+            "finite, >= 0",
+        )?;
         let n = self.confirm_scans as f64;
         check("confirm_scans", n, self.confirm_scans >= 1, ">= 1")?;
         let d = self.down_after_s;
@@ -241,6 +257,9 @@ pub struct FallDetector {
     last_position: Option<DVec2>,
     /// Current run of fall scans: start time, count, summed probability.
     fall_run: Option<(f64, u32, f64)>,
+    /// A fall run waiting for the person to be confirmed on the floor: its start, when it
+    /// reached `fall_min_scans`, its mean probability.
+    pending_fall: Option<(f64, f64, f64)>,
     /// Candidate posture, since when, how many consecutive scans.
     candidate: Option<(Posture, f64, u32)>,
     /// The body lengths known on the candidate's scans.
@@ -276,6 +295,7 @@ impl FallDetector {
             last_stamp_s: None,
             last_position: None,
             fall_run: None,
+            pending_fall: None,
             candidate: None,
             candidate_lengths: Vec::new(),
             candidate_lying: Vec::new(),
@@ -364,17 +384,11 @@ impl FallDetector {
             let run = (start, n + 1, sum + p_fall as f64);
             self.fall_run = Some(run);
             if run.1 == self.config.fall_min_scans && self.fell_from_upright(start) {
-                self.start_down(start);
-                if self.fall_disarmed_at.is_none() {
-                    self.fall_disarmed_at = Some(t);
-                    alerts.push(FallAlert {
-                        kind: AlertKind::FallDetected,
-                        event_time_s: start,
-                        raised_at_s: t,
-                        down_since_s: start,
-                        position: self.last_position.unwrap_or(DVec2::ZERO),
-                        confidence: (run.2 / run.1 as f64) as f32,
-                    });
+                let confidence = run.2 / run.1 as f64;
+                if self.config.fall_then_floor_s > 0.0 {
+                    self.pending_fall = Some((start, t, confidence));
+                } else {
+                    self.raise_fall(t, start, confidence, alerts);
                 }
             }
         } else {
@@ -405,6 +419,11 @@ impl FallDetector {
             match posture {
                 Posture::OnFloor => {
                     self.upright_since = None;
+                    if let Some((start, run_at, confidence)) = self.pending_fall.take()
+                        && since - run_at <= self.config.fall_then_floor_s
+                    {
+                        self.raise_fall(t, start, confidence, alerts);
+                    }
                     self.start_down(since);
                     if self.candidate_looks_like_a_fallen_body() {
                         self.check_descent(t, since, best, on_floor_p, alerts);
@@ -412,6 +431,7 @@ impl FallDetector {
                 }
                 Posture::Upright => {
                     self.down = None;
+                    self.pending_fall = None;
                     self.upright_since.get_or_insert(since);
                 }
                 Posture::GettingUp => {
@@ -456,6 +476,23 @@ impl FallDetector {
         let sure_enough =
             min_p <= 0.0 || median(&mut self.candidate_lying).is_some_and(|p| p >= min_p);
         long_enough && sure_enough
+    }
+
+    /// `FallDetected` for a `falling_down` run that began at `start` (once per incident); the
+    /// person is down from then.
+    fn raise_fall(&mut self, t: f64, start: f64, confidence: f64, alerts: &mut Vec<FallAlert>) {
+        self.start_down(start);
+        if self.fall_disarmed_at.is_none() {
+            self.fall_disarmed_at = Some(t);
+            alerts.push(FallAlert {
+                kind: AlertKind::FallDetected,
+                event_time_s: start,
+                raised_at_s: t,
+                down_since_s: start,
+                position: self.last_position.unwrap_or(DVec2::ZERO),
+                confidence: confidence as f32,
+            });
+        }
     }
 
     /// Whether a fall starting at `start` follows being upright closely enough.
@@ -688,9 +725,41 @@ mod tests {
                 (Walking, 5.0, true),
                 (Crawling, 5.0, true),
                 (FallingDown, 0.5, true),
+                (Crawling, 1.0, true),
             ],
         );
         assert_eq!(kinds(&loose), [AlertKind::FallDetected]);
+    }
+
+    #[test]
+    fn a_stagger_read_as_falling_that_ends_upright_is_not_a_fall() {
+        let script = [
+            (Walking, 5.0, true),
+            (FallingDown, 0.6, true),
+            (Walking, 5.0, true),
+        ];
+        let stagger = run(&mut detector(), &script);
+        assert!(stagger.is_empty(), "{stagger:?}");
+        // Raised at the run itself, it is an alert, 0.35 s into the run.
+        let at_run = run(&mut detector_with(|c| c.fall_then_floor_s = 0.0), &script);
+        assert_eq!(kinds(&at_run), [AlertKind::FallDetected]);
+        assert!((at_run[0].raised_at_s - 5.35).abs() < 1e-6, "{at_run:?}");
+    }
+
+    #[test]
+    fn a_fall_run_must_reach_the_floor_in_time() {
+        // Read as falling, hidden, then found lying 4 s later: too late for the run (3 s);
+        // the person is still found down (PERSON_DOWN).
+        let alerts = run(
+            &mut without_descent(),
+            &[
+                (Walking, 5.0, true),
+                (FallingDown, 0.6, true),
+                (LyingDown, 4.0, false),
+                (LyingDown, 20.0, true),
+            ],
+        );
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
     }
 
     #[test]
@@ -812,8 +881,8 @@ mod tests {
         );
         let fall = alerts[0];
         assert!((fall.event_time_s - 5.0).abs() < 1e-9, "{fall:?}");
-        // Raised after fall_min_scans (8) scans: well within 1 s.
-        assert!(fall.raised_at_s - fall.event_time_s < 0.4);
+        // Raised once lying is confirmed (confirm_scans): 0.2 s after the landing at 6 s.
+        assert!((fall.raised_at_s - 6.2).abs() < 1e-6, "{fall:?}");
         assert_eq!(fall.position, DVec2::new(1.0, 2.0));
         assert!((fall.confidence - SURE).abs() < 1e-6);
         let down = alerts[1];

@@ -895,8 +895,9 @@ mod tests {
         assert_eq!(alerts[0].kind, har::FallAlert::FALL_DETECTED);
         assert_eq!(alerts[0].event_time.to_nanos(), 3_000_000_000);
         assert!(
-            (alerts[0].header.stamp.to_secs_f64() - 3.35).abs() < 1e-6,
-            "8 scans after the fall starts (fall_min_scans)"
+            (alerts[0].header.stamp.to_secs_f64() - 4.2).abs() < 1e-6,
+            "once lying is confirmed (confirm_scans) after the landing at 4 s: {}",
+            alerts[0].header.stamp.to_secs_f64()
         );
         assert_eq!((alerts[0].position.x, alerts[0].position.y), (2.0, 1.0));
         assert_eq!(alerts[1].kind, har::FallAlert::PERSON_DOWN);
