@@ -125,56 +125,28 @@ impl FallAlertConfig {
                 })
             }
         };
-        let p = self.fall_probability as f64;
-        check("fall_probability", p, (0.0..=1.0).contains(&p), "0..=1")?;
+        let at_least_zero = |name, value: f64| {
+            check(
+                name,
+                value,
+                value.is_finite() && value >= 0.0,
+                "finite, >= 0",
+            )
+        };
+        let probability =
+            |name, value: f64| check(name, value, (0.0..=1.0).contains(&value), "0..=1");
+        probability("fall_probability", self.fall_probability as f64)?;
         let n = self.fall_min_scans as f64;
         check("fall_min_scans", n, self.fall_min_scans >= 1, ">= 1")?;
-        let f = self.fall_then_floor_s;
-        check(
-            "fall_then_floor_s",
-            f,
-            f.is_finite() && f >= 0.0,
-            "finite, >= 0",
-        )?;
+        at_least_zero("fall_then_floor_s", self.fall_then_floor_s)?;
         let n = self.confirm_scans as f64;
         check("confirm_scans", n, self.confirm_scans >= 1, ">= 1")?;
-        let d = self.down_after_s;
-        check("down_after_s", d, d.is_finite() && d >= 0.0, "finite, >= 0")?;
-        let r = self.rearm_upright_s;
-        check(
-            "rearm_upright_s",
-            r,
-            r.is_finite() && r >= 0.0,
-            "finite, >= 0",
-        )?;
-        let d = self.descent_max_s;
-        check(
-            "descent_max_s",
-            d,
-            d.is_finite() && d >= 0.0,
-            "finite, >= 0",
-        )?;
-        let u = self.fall_from_upright_s;
-        check(
-            "fall_from_upright_s",
-            u,
-            u.is_finite() && u >= 0.0,
-            "finite, >= 0",
-        )?;
-        let l = self.descent_min_length_m;
-        check(
-            "descent_min_length_m",
-            l,
-            l.is_finite() && l >= 0.0,
-            "finite, >= 0",
-        )?;
-        let p = self.descent_min_probability;
-        check(
-            "descent_min_probability",
-            p,
-            (0.0..=1.0).contains(&p),
-            "0..=1",
-        )
+        at_least_zero("down_after_s", self.down_after_s)?;
+        at_least_zero("rearm_upright_s", self.rearm_upright_s)?;
+        at_least_zero("descent_max_s", self.descent_max_s)?;
+        at_least_zero("fall_from_upright_s", self.fall_from_upright_s)?;
+        at_least_zero("descent_min_length_m", self.descent_min_length_m)?;
+        probability("descent_min_probability", self.descent_min_probability)
     }
 }
 
