@@ -56,10 +56,13 @@ class ActivityConvLSTM(nn.Module):
         self.cell = ConvLSTMCell(encoder_channels, hidden)
         self.head = nn.Linear(2 * hidden, NUM_CLASSES)
 
+    @property
+    def device(self) -> torch.device:
+        return self.head.weight.device
+
     def zero_state(self, batch: int):
         shape = (batch, self.hidden, self.state_size, self.state_size)
-        device = self.head.weight.device
-        return torch.zeros(shape, device=device), torch.zeros(shape, device=device)
+        return torch.zeros(shape, device=self.device), torch.zeros(shape, device=self.device)
 
     def step(self, frame, h, c):
         h_next, c_next = self.cell(self.encoder(frame), h, c)

@@ -159,10 +159,9 @@ def loss_on_second_half(logits: torch.Tensor, labels: torch.Tensor, mask: np.nda
 def predict(model: ActivityConvLSTM, split: Split, batch: int = 256) -> np.ndarray:
     """Logits `[N, T, 9]` over the split's windows, each from a zero state."""
     model.eval()
-    device = model.head.weight.device
     out = []
     for start in range(0, len(split), batch):
-        out.append(model(to_tensor(split.images[start : start + batch], device)).cpu().numpy())
+        out.append(model(to_tensor(split.images[start : start + batch], model.device)).cpu().numpy())
     return np.concatenate(out) if out else np.zeros((0, split.images.shape[1], len(CLASSES)), np.float32)
 
 

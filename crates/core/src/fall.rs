@@ -397,9 +397,7 @@ impl FallDetector {
                         self.raise_fall(t, start, confidence, alerts);
                     }
                     self.start_down(since);
-                    if self.candidate_looks_like_a_fallen_body() {
-                        self.check_descent(t, since, best, on_floor_p, alerts);
-                    }
+                    self.check_descent(t, since, best, on_floor_p, alerts);
                 }
                 Posture::Upright => {
                     self.down = None;
@@ -473,7 +471,8 @@ impl FallDetector {
         limit <= 0.0 || self.last_upright_s.is_some_and(|at| start - at <= limit)
     }
 
-    /// Lying confirmed soon after the person was last off the floor: a fall, seen or not.
+    /// Lying confirmed soon after the person was last off the floor, by a body that looks
+    /// fallen: a fall, seen or not.
     fn check_descent(
         &mut self,
         t: f64,
@@ -489,6 +488,7 @@ impl FallDetector {
             || self.fall_disarmed_at.is_some()
             || self.config.descent_max_s <= 0.0
             || lying_since - off_floor_at > self.config.descent_max_s
+            || !self.candidate_looks_like_a_fallen_body()
         {
             return;
         }
