@@ -52,8 +52,10 @@ pub struct FallAlertConfig {
     /// Such a run raises `FallDetected` only once the person is then confirmed on the floor
     /// (lying, sitting on the floor or crawling) within this time of the run: the alert
     /// comes on landing instead of during the fall, and a stagger or a sudden stop that the
-    /// model reads as falling, after which the person is upright again, raises none. Seconds;
-    /// 0 raises it at the run itself.
+    /// model reads as falling, after which the person stays upright, raises none. Being read
+    /// upright in between does not cancel it: the model misreads a fallen person as standing
+    /// for a moment (seed 2 of `lidar-har alerts`, docs/classifier.md). Seconds; 0 raises it
+    /// at the run itself.
     pub fall_then_floor_s: f64,
     /// Time on the floor without getting up before `PersonDown`, seconds.
     pub down_after_s: f64,
@@ -401,7 +403,6 @@ impl FallDetector {
                 }
                 Posture::Upright => {
                     self.down = None;
-                    self.pending_fall = None;
                     self.upright_since.get_or_insert(since);
                 }
                 Posture::GettingUp => {
@@ -732,6 +733,24 @@ mod tests {
             ],
         );
         assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+    }
+
+    #[test]
+    fn a_fallen_person_read_as_standing_for_a_moment_still_gets_the_fall_alert() {
+        // The run, then the landing read as standing for 0.3 s (an upright posture confirmed),
+        // then lying: the fall run still alerts on the floor. (Descents off: the lying alone
+        // would make one.)
+        let alerts = run(
+            &mut without_descent(),
+            &[
+                (Walking, 5.0, true),
+                (FallingDown, 0.6, true),
+                (Standing, 0.3, true),
+                (LyingDown, 3.0, true),
+            ],
+        );
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+        assert!((alerts[0].event_time_s - 5.0).abs() < 1e-6, "{alerts:?}");
     }
 
     #[test]
