@@ -719,36 +719,26 @@ mod tests {
         assert!((at_run[0].raised_at_s - 5.35).abs() < 1e-6, "{at_run:?}");
     }
 
+    /// Walking, then a confident `falling_down` run (from 5.0 s), then `after`; descents off,
+    /// so only the run can make the fall alert.
+    fn alerts_after_a_fall_run(after: &[(Activity, f64, bool)]) -> Vec<FallAlert> {
+        let walk_and_run = [(Walking, 5.0, true), (FallingDown, 0.6, true)];
+        run(&mut without_descent(), &[&walk_and_run, after].concat())
+    }
+
     #[test]
     fn a_fall_run_must_reach_the_floor_in_time() {
         // Read as falling, hidden, then found lying 4 s later: too late for the run (3 s);
         // the person is still found down (PERSON_DOWN).
-        let alerts = run(
-            &mut without_descent(),
-            &[
-                (Walking, 5.0, true),
-                (FallingDown, 0.6, true),
-                (LyingDown, 4.0, false),
-                (LyingDown, 20.0, true),
-            ],
-        );
+        let alerts = alerts_after_a_fall_run(&[(LyingDown, 4.0, false), (LyingDown, 20.0, true)]);
         assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
     }
 
     #[test]
     fn a_fallen_person_read_as_standing_for_a_moment_still_gets_the_fall_alert() {
-        // The run, then the landing read as standing for 0.3 s (an upright posture confirmed),
-        // then lying: the fall run still alerts on the floor. (Descents off: the lying alone
-        // would make one.)
-        let alerts = run(
-            &mut without_descent(),
-            &[
-                (Walking, 5.0, true),
-                (FallingDown, 0.6, true),
-                (Standing, 0.3, true),
-                (LyingDown, 3.0, true),
-            ],
-        );
+        // The landing read as standing for 0.3 s (an upright posture confirmed), then lying:
+        // the fall run still alerts on the floor.
+        let alerts = alerts_after_a_fall_run(&[(Standing, 0.3, true), (LyingDown, 3.0, true)]);
         assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
         assert!((alerts[0].event_time_s - 5.0).abs() < 1e-6, "{alerts:?}");
     }
