@@ -84,6 +84,17 @@ pub struct FallAlertConfig {
     /// lying for a moment with doubt (0.49-0.79): seed 1 of `lidar-har alerts`,
     /// docs/classifier.md. 0 drops the check.
     pub descent_min_probability: f64,
+    /// `PersonDown` waits while the latest reading, not yet confirmed, is upright or getting
+    /// up: a person seen on the floor who gets up where the robot sees them only in glimpses
+    /// is otherwise alerted as down (seed 1 of `lidar-har alerts`, docs/classifier.md). The
+    /// alert comes once a reading on the floor follows; being confirmed upright ends it.
+    pub down_waits_on_upright_glimpse: bool,
+    /// `PersonDown` is raised only while the person was last confirmed on the floor (a run
+    /// of `confirm_scans` visible scans read on the floor) within this time; otherwise it
+    /// waits until they are found on the floor again. A person seen sitting who gets up
+    /// out of the robot's sight is otherwise alerted as down 15 s later (seeds 1 and 2 of
+    /// `lidar-har alerts`, docs/classifier.md). Seconds; 0 drops the requirement.
+    pub down_seen_within_s: f64,
 }
 
 impl Default for FallAlertConfig {
@@ -99,6 +110,8 @@ impl Default for FallAlertConfig {
             fall_from_upright_s: 3.0,
             descent_min_length_m: 0.8,
             descent_min_probability: 0.8,
+            down_waits_on_upright_glimpse: true,
+            down_seen_within_s: 5.0,
         }
     }
 }
@@ -148,6 +161,7 @@ impl FallAlertConfig {
         at_least_zero("descent_max_s", self.descent_max_s)?;
         at_least_zero("fall_from_upright_s", self.fall_from_upright_s)?;
         at_least_zero("descent_min_length_m", self.descent_min_length_m)?;
+        at_least_zero("down_seen_within_s", self.down_seen_within_s)?;
         probability("descent_min_probability", self.descent_min_probability)
     }
 }
@@ -246,6 +260,8 @@ pub struct FallDetector {
     last_upright_s: Option<f64>,
     /// The same for upright or getting up.
     last_off_floor_s: Option<f64>,
+    /// The last visible scan that ended a run of `confirm_scans` on-floor readings.
+    last_on_floor_s: Option<f64>,
     /// Since when the person is down, with summed on-floor probability and scan count.
     down: Option<(f64, f64, u32)>,
     /// Since when the person has been upright without being confirmed on the floor or
@@ -276,6 +292,7 @@ impl FallDetector {
             posture: None,
             last_upright_s: None,
             last_off_floor_s: None,
+            last_on_floor_s: None,
             down: None,
             upright_since: None,
             fall_disarmed_at: None,
@@ -319,6 +336,8 @@ impl FallDetector {
         if let (Some((since, sum, count)), Some(position)) = (self.down, self.last_position)
             && self.down_disarmed_at.is_none()
             && t - since >= self.config.down_after_s
+            && !(self.config.down_waits_on_upright_glimpse && self.glimpsed_off_floor())
+            && self.seen_on_floor_lately(t)
         {
             self.down_disarmed_at = Some(t);
             alerts.push(FallAlert {
@@ -423,6 +442,9 @@ impl FallDetector {
         if seen.is_off_floor() && confirmed.is_some_and(Posture::is_off_floor) {
             self.last_off_floor_s = Some(t);
         }
+        if seen == Posture::OnFloor && n >= self.config.confirm_scans {
+            self.last_on_floor_s = Some(t);
+        }
         // Re-arm once upright long enough, counting only uprightness that began after the alert.
         if let Some(since) = self.upright_since
             && self.posture.is_some_and(|(p, _)| p == Posture::Upright)
@@ -502,6 +524,19 @@ impl FallDetector {
             position: self.last_position.unwrap_or(DVec2::ZERO),
             confidence: on_floor_p,
         });
+    }
+
+    /// Whether the latest reading, not yet confirmed, has the person off the floor.
+    fn glimpsed_off_floor(&self) -> bool {
+        self.candidate
+            .is_some_and(|(posture, _, _)| posture.is_off_floor())
+    }
+
+    /// Whether the person was last confirmed on the floor recently enough to be alerted as
+    /// down (`down_seen_within_s`).
+    fn seen_on_floor_lately(&self, t: f64) -> bool {
+        let limit = self.config.down_seen_within_s;
+        limit <= 0.0 || self.last_on_floor_s.is_some_and(|at| t - at <= limit)
     }
 
     fn start_down(&mut self, since: f64) {
@@ -994,10 +1029,78 @@ mod tests {
                 (Standing, 3.0, true),
                 (LyingDown, 5.0, true),
                 (LyingDown, 12.0, false),
+                (LyingDown, 1.0, true),
             ],
         );
+        // Due at 18 s, but by then the person was last seen on the floor 10 s before: found
+        // lying again at 20 s, the alert comes at once, dated from when they went down.
         assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
         assert!((alerts[0].event_time_s - 18.0).abs() < 1e-9);
+        let raised = alerts[0].raised_at_s;
+        assert!((20.0..20.5).contains(&raised), "{:?}", alerts[0]);
+    }
+
+    #[test]
+    fn a_person_who_gets_up_out_of_sight_is_not_alerted_as_down() {
+        let script = [
+            (Walking, 3.0, true),
+            (SittingOnFloor, 6.0, true),
+            (GettingUp, 2.0, false),
+            (Walking, 30.0, false),
+        ];
+        let alerts = run(&mut detector(), &script);
+        assert!(alerts.is_empty(), "{alerts:?}");
+        let alerts = run(&mut detector_with(|c| c.down_seen_within_s = 0.0), &script);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+    }
+
+    #[test]
+    fn an_upright_glimpse_holds_person_down_until_read_on_the_floor_again() {
+        let script = [
+            (Walking, 3.0, true),
+            (SittingOnFloor, 14.8, true),
+            (Walking, 0.1, true), // read upright for two scans, not confirmed
+            (SittingOnFloor, 3.0, false),
+            (SittingOnFloor, 1.0, true),
+        ];
+        // Due at 18 s, held through the hidden time, raised once read sitting again at 20.9 s.
+        let alerts = run(&mut detector(), &script);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!((alerts[0].event_time_s - 18.0).abs() < 1e-9);
+        assert!(alerts[0].raised_at_s > 20.85, "{:?}", alerts[0]);
+
+        let mut d = detector_with(|c| c.down_waits_on_upright_glimpse = false);
+        let alerts = run(&mut d, &script);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!(alerts[0].raised_at_s < 18.1, "{:?}", alerts[0]);
+    }
+
+    #[test]
+    fn getting_up_and_sitting_down_again_restarts_the_clock() {
+        let alerts = run(
+            &mut without_descent(),
+            &[
+                (Walking, 3.0, true),
+                (SittingOnFloor, 8.0, true),
+                (GettingUp, 2.0, true), // all the way up, then straight down again
+                (SittingOnFloor, 8.0, true),
+            ],
+        );
+        assert!(alerts.is_empty(), "{alerts:?}");
+    }
+
+    #[test]
+    fn a_person_getting_up_slowly_is_not_alerted_as_down() {
+        let alerts = run(
+            &mut without_descent(),
+            &[
+                (Walking, 2.0, true),
+                (LyingDown, 14.5, true),
+                (GettingUp, 3.0, true), // due at 17 s, 0.5 s into getting up
+                (Walking, 5.0, true),
+            ],
+        );
+        assert!(alerts.is_empty(), "{alerts:?}");
     }
 
     #[test]

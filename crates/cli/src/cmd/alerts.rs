@@ -22,7 +22,7 @@ use lidar_har_pipeline::bag_run::Spread;
 use lidar_har_pipeline::classifier::{ClassifierConfig, load_classifier_config};
 use serde::Serialize;
 
-use super::dataset::{core_scan, episode_localiser, episode_simulator, load_scenes};
+use super::dataset::{ScriptKind, core_scan, episode_localiser, episode_simulator, load_scenes};
 
 #[derive(clap::Args)]
 pub struct AlertsArgs {
@@ -41,6 +41,10 @@ pub struct AlertsArgs {
     /// Simulated hours of activity without any fall.
     #[arg(long, default_value_t = 1.0)]
     pub no_fall_hours: f64,
+    /// Episodes that end with a fall after which the person stays on the floor (PERSON_DOWN
+    /// is due 15 s after it): run after the others, so their seeds do not move.
+    #[arg(long, default_value_t = 0)]
+    pub stay_down_episodes: usize,
     /// Length of one episode, seconds.
     #[arg(long, default_value_t = 60.0)]
     pub episode_seconds: f64,
@@ -94,8 +98,11 @@ pub struct AlertsReport {
     pub falls_alerted_within_target: usize,
     pub latency_target_s: f64,
     pub latency_s: Option<Spread>,
-    /// Alerts in the fall episodes that answered no fall.
+    /// Alerts in the fall (and stay-down) episodes that answered no fall.
     pub unmatched_alerts_in_fall_episodes: usize,
+    /// `FALL_DETECTED` alerts after the first in the same fall's window (until the next fall):
+    /// one fall alerted twice, which the hysteresis should prevent.
+    pub repeated_fall_alerts: usize,
     pub no_fall_hours: f64,
     pub false_alerts: usize,
     pub false_fall_detected: usize,
@@ -105,6 +112,17 @@ pub struct AlertsReport {
     /// down that long (still counted as false).
     pub false_person_down_truly_down: usize,
     pub false_alerts_per_hour: f64,
+    /// Over every episode: spells in which the ground truth has the person on the floor
+    /// (falling included) for at least `down_after_s` without getting up: PERSON_DOWN is due.
+    pub person_down_due: Vec<DownSpell>,
+    /// Of those, the spells with a PERSON_DOWN raised in them (or within a second of their end).
+    pub person_down_due_alerted: usize,
+    /// How long after it fell due those came, seconds.
+    pub person_down_delay_s: Option<Spread>,
+    /// Episodes ending with a fall and the person staying down (`--stay-down-episodes`), and
+    /// how many of them got a FALL_DETECTED for that fall.
+    pub stay_down_episodes: usize,
+    pub stay_down_fall_detected: usize,
     /// False alerts by what the person was really doing when each was raised (the
     /// misreadings to fix), most frequent first.
     pub false_alerts_by_activity: Vec<(&'static str, usize)>,
@@ -128,6 +146,20 @@ pub struct FalseAlert {
     /// How long the ground truth had the person off their feet (on the floor or getting up)
     /// without a break when the alert was raised, seconds.
     pub truth_down_s: f64,
+}
+
+/// A spell of the ground truth with the person on the floor for at least `down_after_s`.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct DownSpell {
+    pub episode: usize,
+    pub scene: String,
+    pub start_s: f64,
+    pub end_s: f64,
+    /// The first PERSON_DOWN raised in it (or within a second of its end), minus the moment
+    /// it fell due (`start_s` + `down_after_s`); `None` when there was none.
+    pub delay_s: Option<f64>,
+    /// Share of its scans in which the localiser saw the person.
+    pub seen_share: f64,
 }
 
 /// What one episode gave: the truth's falls (start, end), the alerts raised, the true
@@ -166,7 +198,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     let scenes = load_scenes(&args.scenes)?;
     let no_fall_episodes = (args.no_fall_hours * 3600.0 / args.episode_seconds).ceil() as usize;
 
-    let total = args.fall_episodes + no_fall_episodes;
+    let total = args.fall_episodes + no_fall_episodes + args.stay_down_episodes;
     let progress = ProgressBar::new(total as u64).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed} (eta {eta})")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
@@ -177,17 +209,26 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     }
     let mut outcomes = Vec::new();
     let mut unmatched = 0;
+    let mut repeated = 0;
+    let mut person_down_due = Vec::new();
     let mut false_alerts: Vec<FalseAlert> = Vec::new();
     let mut scans = ConfusionMatrix::new();
     let (mut fall_episodes_run, mut no_fall_episodes_run) = (0, 0);
+    let (mut stay_down_episodes_run, mut stay_down_fall_detected) = (0, 0);
     for id in 0..total {
-        let falls = id < args.fall_episodes;
+        let kind = if id < args.fall_episodes {
+            ScriptKind::WithFalls
+        } else if id < args.fall_episodes + no_fall_episodes {
+            ScriptKind::Everyday
+        } else {
+            ScriptKind::FallAndStayDown
+        };
         let (_, scene) = &scenes[id % scenes.len()];
         let mut scene = scene.clone();
         scene.duration = args.episode_seconds;
         let seed = args.seed.wrapping_mul(1_000_003).wrapping_add(id as u64);
         let trace = args.trace_episode.contains(&id);
-        let episode = match run_episode(&scene, seed, falls, &config, &mut classifier, trace) {
+        let episode = match run_episode(&scene, seed, kind, &config, &mut classifier, trace) {
             Ok(episode) => episode,
             Err(e) => {
                 progress.suspend(|| eprintln!("alerts: skipping episode {id}: {e:#}"));
@@ -196,34 +237,69 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
             }
         };
         scans.merge(&episode.scans);
-        if falls {
-            fall_episodes_run += 1;
-            let (mut matched, rest) = match_alerts(
-                id,
-                &episode.falls,
-                &episode.alerts,
-                &episode.truth,
-                &episode.seen,
-            );
-            explain_unalerted(
-                &mut matched,
-                &episode.truth,
-                config.fall_alert.rearm_upright_s,
-                args.latency_target_s,
-            );
-            outcomes.extend(matched);
-            unmatched += rest;
-        } else {
-            no_fall_episodes_run += 1;
-            false_alerts.extend(episode.alerts.iter().map(|a| FalseAlert {
+        match kind {
+            ScriptKind::WithFalls => {
+                fall_episodes_run += 1;
+                let (mut matched, rest) = match_alerts(
+                    id,
+                    &episode.falls,
+                    &episode.alerts,
+                    &episode.truth,
+                    &episode.seen,
+                );
+                explain_unalerted(
+                    &mut matched,
+                    &episode.truth,
+                    config.fall_alert.rearm_upright_s,
+                    args.latency_target_s,
+                );
+                outcomes.extend(matched);
+                unmatched += rest;
+                repeated += repeated_fall_alerts(&episode.falls, &episode.alerts);
+            }
+            ScriptKind::Everyday => {
+                no_fall_episodes_run += 1;
+                false_alerts.extend(episode.alerts.iter().map(|a| FalseAlert {
+                    episode: id,
+                    scene: scene.name.clone(),
+                    kind: a.kind,
+                    raised_at_s: a.raised_at_s,
+                    activity: activity_at(&episode.truth, a.raised_at_s).label(),
+                    activity_1s_before: activity_at(&episode.truth, a.raised_at_s - 1.0).label(),
+                    truth_down_s: down_for(&episode.truth, a.raised_at_s),
+                }));
+            }
+            ScriptKind::FallAndStayDown => {
+                stay_down_episodes_run += 1;
+                let fall_start = episode.falls.first().map_or(f64::INFINITY, |&(s, _)| s);
+                unmatched += episode
+                    .alerts
+                    .iter()
+                    .filter(|a| a.raised_at_s < fall_start)
+                    .count();
+                repeated += repeated_fall_alerts(&episode.falls, &episode.alerts);
+                stay_down_fall_detected += usize::from(
+                    episode
+                        .alerts
+                        .iter()
+                        .any(|a| a.kind == AlertKind::FallDetected && a.raised_at_s >= fall_start),
+                );
+            }
+        }
+        for (start, end) in down_spells(&episode.truth, config.fall_alert.down_after_s) {
+            let alert = episode.alerts.iter().find(|a| {
+                a.kind == AlertKind::PersonDown
+                    && a.raised_at_s >= start
+                    && a.raised_at_s <= end + 1.0
+            });
+            person_down_due.push(DownSpell {
                 episode: id,
                 scene: scene.name.clone(),
-                kind: a.kind,
-                raised_at_s: a.raised_at_s,
-                activity: activity_at(&episode.truth, a.raised_at_s).label(),
-                activity_1s_before: activity_at(&episode.truth, a.raised_at_s - 1.0).label(),
-                truth_down_s: down_for(&episode.truth, a.raised_at_s),
-            }));
+                start_s: start,
+                end_s: end,
+                delay_s: alert.map(|a| a.raised_at_s - start - config.fall_alert.down_after_s),
+                seen_share: seen_share(&episode.truth, &episode.seen, start, end),
+            });
         }
         progress.inc(1);
     }
@@ -243,6 +319,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         .filter(|&(_, n)| n > 0)
         .collect();
     by_activity.sort_by_key(|&(_, n)| std::cmp::Reverse(n));
+    let delays: Vec<f64> = person_down_due.iter().filter_map(|d| d.delay_s).collect();
     let no_fall_hours = no_fall_episodes_run as f64 * args.episode_seconds / 3600.0;
     let report = AlertsReport {
         model: args.model.display().to_string(),
@@ -258,6 +335,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         latency_target_s: args.latency_target_s,
         latency_s: Spread::of(latencies),
         unmatched_alerts_in_fall_episodes: unmatched,
+        repeated_fall_alerts: repeated,
         no_fall_hours,
         false_alerts: false_alerts.len(),
         false_fall_detected: count(AlertKind::FallDetected),
@@ -273,6 +351,11 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         } else {
             0.0
         },
+        person_down_due_alerted: delays.len(),
+        person_down_delay_s: Spread::of(delays),
+        person_down_due,
+        stay_down_episodes: stay_down_episodes_run,
+        stay_down_fall_detected,
         false_alerts_by_activity: by_activity,
         outcomes,
         false_alert_details: false_alerts,
@@ -291,12 +374,12 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
 fn run_episode(
     scene: &lidar_har_sim::Scene,
     seed: u64,
-    falls: bool,
+    kind: ScriptKind,
     config: &ClassifierConfig,
     classifier: &mut StreamingClassifier<ActivityModel>,
     trace: bool,
 ) -> anyhow::Result<Episode> {
-    let mut sim = episode_simulator(scene, seed, false, falls)?;
+    let mut sim = episode_simulator(scene, seed, false, kind)?;
     let mut localiser = episode_localiser(&sim, false)?;
     let mut detector = FallDetector::new(config.fall_alert).context("fall_alert parameters")?;
     classifier.reset();
@@ -406,6 +489,30 @@ fn down_for(truth: &[(f64, Activity)], t: f64) -> f64 {
     down_since.map_or(0.0, |&(s, _)| t - s)
 }
 
+/// The (start, end) of every spell of at least `min_s` in which the truth has the person
+/// falling or on the floor (getting up ends it: PERSON_DOWN is for not getting up); the end is
+/// the first scan after, or the last scan.
+fn down_spells(truth: &[(f64, Activity)], min_s: f64) -> Vec<(f64, f64)> {
+    let mut spells = Vec::new();
+    let mut start = None;
+    for &(t, activity) in truth {
+        let down = activity.is_on_floor() || activity == Activity::FallingDown;
+        match (down, start) {
+            (true, None) => start = Some(t),
+            (false, Some(s)) => {
+                spells.push((s, t));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let (Some(s), Some(&(t, _))) = (start, truth.last()) {
+        spells.push((s, t));
+    }
+    spells.retain(|&(s, e)| e - s >= min_s);
+    spells
+}
+
 /// The (start, end) of every run of `falling_down` in the truth; the end is the first scan
 /// after the run.
 fn fall_intervals(truth: &[(f64, Activity)]) -> Vec<(f64, f64)> {
@@ -458,6 +565,21 @@ fn match_alerts(
         .collect();
     let unmatched = alerts.iter().filter(|a| window(a).is_none()).count();
     (outcomes, unmatched)
+}
+
+/// `FALL_DETECTED` alerts beyond the first in each fall's window [start, next start).
+fn repeated_fall_alerts(falls: &[(f64, f64)], alerts: &[FallAlert]) -> usize {
+    let ends = falls.iter().skip(1).map(|&(start, _)| start);
+    falls
+        .iter()
+        .zip(ends.chain([f64::INFINITY]))
+        .map(|(&(start, _), next)| {
+            let in_window = alerts.iter().filter(|a| {
+                a.kind == AlertKind::FallDetected && a.raised_at_s >= start && a.raised_at_s < next
+            });
+            in_window.count().saturating_sub(1)
+        })
+        .sum()
 }
 
 /// Marks the falls of one episode that had no alert of their own for a reason the alert
@@ -553,8 +675,8 @@ fn print_report(r: &AlertsReport) {
         missed.iter().filter(|o| o.seen_share < 0.5).count()
     );
     println!(
-        "alerts in fall episodes before any fall: {}",
-        r.unmatched_alerts_in_fall_episodes
+        "alerts in fall episodes before any fall: {}; falls alerted twice (FALL_DETECTED): {}",
+        r.unmatched_alerts_in_fall_episodes, r.repeated_fall_alerts
     );
     println!(
         "without falls: {:.2} h simulated, {} false alerts ({} FALL_DETECTED, {} PERSON_DOWN), {:.2} per hour",
@@ -567,6 +689,21 @@ fn print_report(r: &AlertsReport) {
     println!(
         "of them PERSON_DOWN after the person had truly been off their feet for down_after_s: {}",
         r.false_person_down_truly_down
+    );
+    let delay = r.person_down_delay_s.as_ref().map_or(String::new(), |d| {
+        format!(
+            ", raised after it fell due: median {:.2} s, max {:.2} s",
+            d.median, d.max
+        )
+    });
+    println!(
+        "episodes ending with a fall and staying down: {}, FALL_DETECTED in {}",
+        r.stay_down_episodes, r.stay_down_fall_detected
+    );
+    println!(
+        "person truly on the floor for down_after_s (all episodes): {} spells, PERSON_DOWN in {}{delay}",
+        r.person_down_due.len(),
+        r.person_down_due_alerted
     );
     if !r.false_alerts_by_activity.is_empty() {
         let list: Vec<String> = r
@@ -654,6 +791,32 @@ mod tests {
     }
 
     #[test]
+    fn down_spells_are_the_long_stretches_off_the_feet() {
+        use Activity::*;
+        let truth: Vec<(f64, Activity)> = [
+            Walking,
+            FallingDown,
+            LyingDown,
+            LyingDown,
+            GettingUp,
+            SittingOnFloor,
+            Standing,
+            Crawling,
+            Crawling,
+            LyingDown,
+        ]
+        .into_iter()
+        .enumerate()
+        .map(|(i, a)| (i as f64, a))
+        .collect();
+        // Falling and lying until getting up (1-4 s) is 3 s; sitting (5-6 s) only 1; crawling
+        // and lying to the end (7-9 s) 2.
+        assert_eq!(down_spells(&truth, 2.0), vec![(1.0, 4.0), (7.0, 9.0)]);
+        assert_eq!(down_spells(&truth, 2.5), vec![(1.0, 4.0)]);
+        assert!(down_spells(&[], 0.0).is_empty());
+    }
+
+    #[test]
     fn each_fall_takes_the_first_alert_after_its_start() {
         let falls = [(10.0, 11.0), (30.0, 31.0), (50.0, 51.0)];
         let alerts = [
@@ -664,12 +827,27 @@ mod tests {
         ];
         let (outcomes, unmatched) = match_alerts(3, &falls, &alerts, &[], &[]);
         assert_eq!(unmatched, 1);
+        assert_eq!(repeated_fall_alerts(&falls, &alerts), 0);
         let latencies: Vec<Option<f64>> = outcomes.iter().map(|o| o.latency_s).collect();
         assert!((latencies[0].unwrap() - 0.4).abs() < 1e-9);
         assert!((latencies[1].unwrap() - 14.0).abs() < 1e-9);
         assert_eq!(latencies[2], None);
         assert_eq!(outcomes[1].alert, Some("PERSON_DOWN"));
         assert!(outcomes.iter().all(|o| o.episode == 3));
+    }
+
+    #[test]
+    fn a_second_fall_detected_for_the_same_fall_is_counted() {
+        let falls = [(10.0, 11.0), (30.0, 31.0)];
+        let alerts = [
+            alert(AlertKind::FallDetected, 11.2),
+            alert(AlertKind::PersonDown, 25.0),
+            alert(AlertKind::FallDetected, 27.0), // the first fall again
+            alert(AlertKind::FallDetected, 31.3),
+            alert(AlertKind::FallDetected, 40.0), // the second fall again
+        ];
+        assert_eq!(repeated_fall_alerts(&falls, &alerts), 2);
+        assert_eq!(repeated_fall_alerts(&[], &alerts), 0);
     }
 
     #[test]

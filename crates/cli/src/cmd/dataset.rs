@@ -28,7 +28,7 @@ use lidar_har_sim::scene::{
 use lidar_har_sim::world::World;
 use lidar_har_sim::{Scene, Simulator};
 use ndarray::{Array2, Array4, s};
-use rand::seq::IndexedRandom;
+use rand::seq::{IndexedRandom, SliceRandom};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -539,7 +539,12 @@ fn run_episode(
     args: &DatasetArgs,
     renderer: &Renderer,
 ) -> anyhow::Result<EpisodeWindows> {
-    let mut sim = episode_simulator(&plan.scene, plan.seed, args.fixed_lidar, true)?;
+    let mut sim = episode_simulator(
+        &plan.scene,
+        plan.seed,
+        args.fixed_lidar,
+        ScriptKind::WithFalls,
+    )?;
     let mut localiser = episode_localiser(&sim, args.fixed_lidar)?;
     let geometry = sim.scan_geometry();
     // Per scan: the person's points, the track position (if any), the Lidar position, the truth.
@@ -626,13 +631,25 @@ fn run_episode(
     })
 }
 
-/// A simulator for one episode: `scene` with a random activity script covering the classes
-/// (with falls or without), the robot static at a random free spot when `fixed_lidar`.
+/// Which random activity script an episode's person follows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum ScriptKind {
+    /// Everyday activities, time on the floor included, and no falls.
+    Everyday,
+    /// Everyday activities and falls, each fall followed by getting up.
+    WithFalls,
+    /// Everyday activities, then a fall after which the person stays on the floor (lying,
+    /// sitting up) to the end: what PERSON_DOWN is for.
+    FallAndStayDown,
+}
+
+/// A simulator for one episode: `scene` with a random activity script of `kind`, the robot
+/// static at a random free spot when `fixed_lidar`.
 pub(crate) fn episode_simulator(
     scene: &Scene,
     seed: u64,
     fixed_lidar: bool,
-    falls: bool,
+    kind: ScriptKind,
 ) -> anyhow::Result<Simulator> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_da7a);
     let mut scene = scene.clone();
@@ -651,7 +668,7 @@ pub(crate) fn episode_simulator(
     let person_seed = Simulator::person_seed(&scene, seed);
     let mut last_error = None;
     for _ in 0..30 {
-        let Some(person) = random_person(&scene, &world, &mut rng, person_seed, falls) else {
+        let Some(person) = random_person(&scene, &world, &mut rng, person_seed, kind) else {
             continue;
         };
         let mut candidate = scene.clone();
@@ -791,15 +808,21 @@ fn still_step(activity: Activity, duration: f64) -> ScriptStep {
 /// The scene's person with a random start and a random script that covers the nine
 /// activities in plausible orders (falls end on the floor, the floor ends by getting up).
 /// The rarer, shorter activities (falls, getting up, crawling, running) come often.
-/// A random script of activity blocks filling the scene's duration; `falls: false` leaves
-/// out the fall blocks (fall, lying, getting up) and draws another block instead.
+/// A random script of activity blocks filling the scene's duration; without falls
+/// (`ScriptKind::Everyday`) the fall blocks (fall, lying, getting up) are drawn again; for
+/// `FallAndStayDown` everyday blocks fill the first 5-40 % and a fall ends the script.
 fn random_person(
     scene: &Scene,
     world: &World,
     rng: &mut ChaCha8Rng,
     person_seed: u64,
-    falls: bool,
+    kind: ScriptKind,
 ) -> Option<PersonSpec> {
+    let falls = kind == ScriptKind::WithFalls;
+    let everyday_until = match kind {
+        ScriptKind::FallAndStayDown => rng.random_range(5.0..(0.4 * scene.duration).max(6.0)),
+        _ => scene.duration + 2.0,
+    };
     let base = scene.person.clone()?;
     let start = random_free_point(world, rng, 0.6)?;
     let mut script: Vec<ScriptStep> = Vec::new();
@@ -822,7 +845,7 @@ fn random_person(
         FallDirection::Right,
     ];
     let mut draws = 0;
-    while total < scene.duration + 2.0 {
+    while total < everyday_until {
         draws += 1;
         if draws > 200 {
             return None;
@@ -899,8 +922,55 @@ fn random_person(
         script.extend(block);
         here = end;
     }
+    if kind == ScriptKind::FallAndStayDown {
+        script.extend(fall_and_stay_down(
+            &spec,
+            &script,
+            world,
+            rng,
+            person_seed,
+            scene.duration + 2.0 - total,
+        )?);
+    }
     spec.script = script;
     Some(spec)
+}
+
+/// A fall after `script` (in a direction that fits), then lying, and lying or sitting up on
+/// the floor for the rest of `remaining_s`.
+fn fall_and_stay_down(
+    spec: &PersonSpec,
+    script: &[ScriptStep],
+    world: &World,
+    rng: &mut ChaCha8Rng,
+    person_seed: u64,
+    remaining_s: f64,
+) -> Option<Vec<ScriptStep>> {
+    let mut directions = [
+        FallDirection::Forward,
+        FallDirection::Backward,
+        FallDirection::Left,
+        FallDirection::Right,
+    ];
+    directions.shuffle(rng);
+    let mut fall = still_step(Activity::FallingDown, rng.random_range(0.7..1.4));
+    let lying = rng.random_range(3.0..8.0);
+    let rest = remaining_s - fall.duration - lying;
+    let last = if rng.random_bool(0.5) {
+        Activity::SittingOnFloor
+    } else {
+        Activity::LyingDown
+    };
+    directions.into_iter().find_map(|direction| {
+        fall.fall = Some(direction);
+        let mut block = vec![fall.clone(), still_step(Activity::LyingDown, lying)];
+        if rest > 0.0 {
+            block.push(still_step(last, rest));
+        }
+        let mut trial = spec.clone();
+        trial.script = script.iter().chain(block.iter()).cloned().collect();
+        Person::new(&trial, world, person_seed).ok().map(|_| block)
+    })
 }
 
 /// Where the person stands at the end of `spec`'s script.
@@ -958,7 +1028,8 @@ mod tests {
         for seed in 0..12 {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let person_seed = Simulator::person_seed(&scene, seed);
-            if let Some(person) = random_person(&scene, &world, &mut rng, person_seed, true) {
+            let kind = ScriptKind::WithFalls;
+            if let Some(person) = random_person(&scene, &world, &mut rng, person_seed, kind) {
                 let mut candidate = scene.clone();
                 candidate.person = Some(person);
                 if let Err(e) = Simulator::new(candidate, seed) {
@@ -970,13 +1041,50 @@ mod tests {
     }
 
     #[test]
+    fn a_stay_down_script_ends_with_a_fall_and_the_floor_to_the_end() {
+        for name in ["bathroom", "living_room"] {
+            let scene = shipped_scene(name);
+            let world = World::new(&scene);
+            let mut drawn = 0;
+            for seed in 0..6 {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                let person_seed = Simulator::person_seed(&scene, seed);
+                let kind = ScriptKind::FallAndStayDown;
+                let Some(person) = random_person(&scene, &world, &mut rng, person_seed, kind)
+                else {
+                    continue; // drawn again by `episode_simulator`
+                };
+                drawn += 1;
+                let script = &person.script;
+                let fall = script
+                    .iter()
+                    .rposition(|s| s.activity == Activity::FallingDown)
+                    .expect("a fall");
+                let after: Vec<Activity> = script[fall + 1..].iter().map(|s| s.activity).collect();
+                assert!(
+                    !after.is_empty() && after.iter().all(|a| a.is_on_floor()),
+                    "{name} seed {seed}: after the fall {after:?}"
+                );
+                let total: f64 = script.iter().map(|s| s.duration).sum();
+                assert!(total >= scene.duration, "{name} seed {seed}: {total} s");
+                let falls = script
+                    .iter()
+                    .filter(|s| s.activity == Activity::FallingDown);
+                assert_eq!(falls.count(), 1, "{name} seed {seed}: one fall only");
+            }
+            assert!(drawn > 0, "{name}: no script of 6 drawn");
+            assert!(episode_simulator(&scene, 7, false, ScriptKind::FallAndStayDown).is_ok());
+        }
+    }
+
+    #[test]
     fn a_small_room_gets_a_script_for_every_episode() {
         // The bathroom (2.5 x 2.2 m, a bathtub along one wall) has no room for most walks and
         // for falls in most directions: what does not fit is drawn again.
         let scene = shipped_scene("bathroom");
         let failed: Vec<String> = (0..12)
             .filter_map(|seed| {
-                episode_simulator(&scene, seed, false, true)
+                episode_simulator(&scene, seed, false, ScriptKind::WithFalls)
                     .err()
                     .map(|e| format!("seed {seed}: {e}"))
             })
