@@ -3,7 +3,8 @@
 //! fall's end an alert comes, and how many alerts come in hours of activity without a fall.
 //!
 //! Episodes use the dataset's random activity scripts: with falls (a fall, lying 2-6 s,
-//! sometimes sitting, getting up) for the latency, without them for the false alerts.
+//! sometimes sitting, getting up) for the latency, without them for the false alerts, and
+//! ending with a fall after which the person stays down for PERSON_DOWN where it is due.
 //! The report also scores the streaming classification itself, scan by scan over every
 //! episode: unlike `lidar-har evaluate`'s windows from a zero state, this is what the robot
 //! publishes, so models trained on different window lengths compare on equal terms.
@@ -41,8 +42,9 @@ pub struct AlertsArgs {
     /// Simulated hours of activity without any fall.
     #[arg(long, default_value_t = 1.0)]
     pub no_fall_hours: f64,
-    /// Episodes that end with a fall after which the person stays on the floor (PERSON_DOWN
-    /// is due 15 s after it): run after the others, so their seeds do not move.
+    /// Episodes that end with a fall after which the person stays on the floor, so that
+    /// PERSON_DOWN falls due (`down_after_s` after the fall): run after the others, so the
+    /// others' seeds do not move.
     #[arg(long, default_value_t = 0)]
     pub stay_down_episodes: usize,
     /// Length of one episode, seconds.
@@ -490,48 +492,37 @@ fn down_for(truth: &[(f64, Activity)], t: f64) -> f64 {
 }
 
 /// The (start, end) of every spell of at least `min_s` in which the truth has the person
-/// falling or on the floor (getting up ends it: PERSON_DOWN is for not getting up); the end is
-/// the first scan after, or the last scan.
+/// falling or on the floor (getting up ends it: PERSON_DOWN is for not getting up).
 fn down_spells(truth: &[(f64, Activity)], min_s: f64) -> Vec<(f64, f64)> {
-    let mut spells = Vec::new();
-    let mut start = None;
-    for &(t, activity) in truth {
-        let down = activity.is_on_floor() || activity == Activity::FallingDown;
-        match (down, start) {
-            (true, None) => start = Some(t),
-            (false, Some(s)) => {
-                spells.push((s, t));
-                start = None;
-            }
-            _ => {}
-        }
-    }
-    if let (Some(s), Some(&(t, _))) = (start, truth.last()) {
-        spells.push((s, t));
-    }
+    let mut spells = runs_where(truth, |a| a.is_on_floor() || a == Activity::FallingDown);
     spells.retain(|&(s, e)| e - s >= min_s);
     spells
 }
 
-/// The (start, end) of every run of `falling_down` in the truth; the end is the first scan
-/// after the run.
+/// The (start, end) of every run of `falling_down` in the truth.
 fn fall_intervals(truth: &[(f64, Activity)]) -> Vec<(f64, f64)> {
-    let mut falls = Vec::new();
+    runs_where(truth, |a| a == Activity::FallingDown)
+}
+
+/// The (start, end) of every run of scans whose activity passes `test`; the end is the first
+/// scan after the run, or the last scan.
+fn runs_where(truth: &[(f64, Activity)], test: impl Fn(Activity) -> bool) -> Vec<(f64, f64)> {
+    let mut runs = Vec::new();
     let mut start = None;
     for &(t, activity) in truth {
-        match (activity == Activity::FallingDown, start) {
+        match (test(activity), start) {
             (true, None) => start = Some(t),
             (false, Some(s)) => {
-                falls.push((s, t));
+                runs.push((s, t));
                 start = None;
             }
             _ => {}
         }
     }
     if let (Some(s), Some(&(t, _))) = (start, truth.last()) {
-        falls.push((s, t));
+        runs.push((s, t));
     }
-    falls
+    runs
 }
 
 /// Pairs each fall with the first alert raised from its start until the next fall's start;
