@@ -105,7 +105,7 @@ impl Default for FallAlertConfig {
             fall_then_floor_s: 3.0,
             down_after_s: 15.0,
             confirm_scans: 5,
-            rearm_upright_s: 3.0,
+            rearm_upright_s: 1.5,
             descent_max_s: 3.0,
             fall_from_upright_s: 3.0,
             descent_min_length_m: 0.8,
