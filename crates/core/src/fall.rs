@@ -260,7 +260,7 @@ pub struct FallDetector {
     last_upright_s: Option<f64>,
     /// The same for upright or getting up.
     last_off_floor_s: Option<f64>,
-    /// The last visible scan that ended a run of `confirm_scans` on-floor readings.
+    /// The last visible scan in a run of at least `confirm_scans` on-floor readings.
     last_on_floor_s: Option<f64>,
     /// Since when the person is down, with summed on-floor probability and scan count.
     down: Option<(f64, f64, u32)>,

@@ -805,6 +805,13 @@ fn still_step(activity: Activity, duration: f64) -> ScriptStep {
     }
 }
 
+const FALL_DIRECTIONS: [FallDirection; 4] = [
+    FallDirection::Forward,
+    FallDirection::Backward,
+    FallDirection::Left,
+    FallDirection::Right,
+];
+
 /// The scene's person with a random start and a random script that covers the nine
 /// activities in plausible orders (falls end on the floor, the floor ends by getting up).
 /// The rarer, shorter activities (falls, getting up, crawling, running) come often.
@@ -838,12 +845,6 @@ fn random_person(
         repeat: false,
         ..base
     };
-    let fall_dirs = [
-        FallDirection::Forward,
-        FallDirection::Backward,
-        FallDirection::Left,
-        FallDirection::Right,
-    ];
     let mut draws = 0;
     while total < everyday_until {
         draws += 1;
@@ -875,7 +876,7 @@ fn random_person(
             }
             5..=7 => {
                 let mut fall = still_step(Activity::FallingDown, rng.random_range(0.7..1.4));
-                fall.fall = fall_dirs.choose(rng).copied();
+                fall.fall = FALL_DIRECTIONS.choose(rng).copied();
                 block.push(fall);
                 block.push(still_step(Activity::LyingDown, rng.random_range(2.0..6.0)));
                 if rng.random_bool(0.3) {
@@ -946,12 +947,7 @@ fn fall_and_stay_down(
     person_seed: u64,
     remaining_s: f64,
 ) -> Option<Vec<ScriptStep>> {
-    let mut directions = [
-        FallDirection::Forward,
-        FallDirection::Backward,
-        FallDirection::Left,
-        FallDirection::Right,
-    ];
+    let mut directions = FALL_DIRECTIONS;
     directions.shuffle(rng);
     let mut fall = still_step(Activity::FallingDown, rng.random_range(0.7..1.4));
     let lying = rng.random_range(3.0..8.0);
