@@ -57,6 +57,11 @@ pub struct FallAlertConfig {
     /// for a moment (seed 2 of `lidar-har alerts`, docs/classifier.md). Seconds; 0 raises it
     /// at the run itself.
     pub fall_then_floor_s: f64,
+    /// The landing that confirms a `falling_down` run must be read as lying without doubt
+    /// (`descent_min_probability`): a person who stops short, read as falling for a moment,
+    /// and then sits down, or who sits down fast, lands sitting (seed 3 of `lidar-har
+    /// alerts`, docs/classifier.md, session 15).
+    pub fall_lands_lying: bool,
     /// Time on the floor without getting up before `PersonDown`, seconds.
     pub down_after_s: f64,
     /// Consecutive scans that must agree before the posture (on floor / getting up / upright)
@@ -95,6 +100,12 @@ pub struct FallAlertConfig {
     /// out of the robot's sight is otherwise alerted as down 15 s later (seeds 1 and 2 of
     /// `lidar-har alerts`, docs/classifier.md). Seconds; 0 drops the requirement.
     pub down_seen_within_s: f64,
+    /// Whether crawling counts as being seen on the floor for `down_seen_within_s`. Crawling
+    /// keeps the person down either way (it neither starts nor ends the clock differently),
+    /// but PERSON_DOWN is for a person lying or sitting on the floor: someone crawling is on
+    /// the move, and the only false alerts left were people found crawling after getting up
+    /// out of sight (docs/classifier.md, session 15).
+    pub crawling_shows_down: bool,
 }
 
 impl Default for FallAlertConfig {
@@ -103,6 +114,7 @@ impl Default for FallAlertConfig {
             fall_probability: 0.8,
             fall_min_scans: 8,
             fall_then_floor_s: 3.0,
+            fall_lands_lying: true,
             down_after_s: 15.0,
             confirm_scans: 5,
             rearm_upright_s: 1.5,
@@ -112,6 +124,7 @@ impl Default for FallAlertConfig {
             descent_min_probability: 0.8,
             down_waits_on_upright_glimpse: true,
             down_seen_within_s: 5.0,
+            crawling_shows_down: false,
         }
     }
 }
@@ -254,13 +267,19 @@ pub struct FallDetector {
     candidate_lengths: Vec<f64>,
     /// p(lying_down) on the candidate's scans read as lying.
     candidate_lying: Vec<f64>,
+    /// The current run of scans read as lying: since when, and p(lying_down) on its first
+    /// `confirm_scans` scans (a landing for `fall_lands_lying`).
+    lying_since: Option<f64>,
+    lying_run: Vec<f64>,
     /// Confirmed posture and since when.
     posture: Option<(Posture, f64)>,
     /// The last visible scan classified upright while the confirmed posture was upright.
     last_upright_s: Option<f64>,
     /// The same for upright or getting up.
     last_off_floor_s: Option<f64>,
-    /// The last visible scan in a run of at least `confirm_scans` on-floor readings.
+    /// Consecutive visible scans read on the floor (crawling only with `crawling_shows_down`).
+    down_evidence_scans: u32,
+    /// The last visible scan in a run of at least `confirm_scans` such readings.
     last_on_floor_s: Option<f64>,
     /// Since when the person is down, with summed on-floor probability and scan count.
     down: Option<(f64, f64, u32)>,
@@ -289,9 +308,12 @@ impl FallDetector {
             candidate: None,
             candidate_lengths: Vec::new(),
             candidate_lying: Vec::new(),
+            lying_since: None,
+            lying_run: Vec::new(),
             posture: None,
             last_upright_s: None,
             last_off_floor_s: None,
+            down_evidence_scans: 0,
             last_on_floor_s: None,
             down: None,
             upright_since: None,
@@ -388,6 +410,9 @@ impl FallDetector {
             self.fall_run = None;
         }
 
+        // Before the posture: a fall landing on this scan is dated from the fall, not a descent.
+        self.check_lying_landing(t, best, best_p, alerts);
+
         // Posture with debouncing.
         let seen = posture_of(best);
         let (posture, since, n) = match self.candidate {
@@ -412,7 +437,8 @@ impl FallDetector {
             match posture {
                 Posture::OnFloor => {
                     self.upright_since = None;
-                    if let Some((start, run_at, confidence)) = self.pending_fall.take()
+                    if !self.config.fall_lands_lying
+                        && let Some((start, run_at, confidence)) = self.pending_fall.take()
                         && since - run_at <= self.config.fall_then_floor_s
                     {
                         self.raise_fall(t, start, confidence, alerts);
@@ -442,7 +468,14 @@ impl FallDetector {
         if seen.is_off_floor() && confirmed.is_some_and(Posture::is_off_floor) {
             self.last_off_floor_s = Some(t);
         }
-        if seen == Posture::OnFloor && n >= self.config.confirm_scans {
+        let shows_down =
+            best.is_on_floor() && (self.config.crawling_shows_down || best != Activity::Crawling);
+        self.down_evidence_scans = if shows_down {
+            self.down_evidence_scans + 1
+        } else {
+            0
+        };
+        if self.down_evidence_scans >= self.config.confirm_scans {
             self.last_on_floor_s = Some(t);
         }
         // Re-arm once upright long enough, counting only uprightness that began after the alert.
@@ -469,6 +502,51 @@ impl FallDetector {
         let sure_enough =
             min_p <= 0.0 || median(&mut self.candidate_lying).is_some_and(|p| p >= min_p);
         long_enough && sure_enough
+    }
+
+    /// With `fall_lands_lying`, raises a pending fall once a run of `confirm_scans` scans
+    /// read as lying without doubt begins within `fall_then_floor_s` of it; drops it when
+    /// none can any more.
+    fn check_lying_landing(
+        &mut self,
+        t: f64,
+        best: Activity,
+        best_p: f32,
+        alerts: &mut Vec<FallAlert>,
+    ) {
+        let confirm = self.config.confirm_scans as usize;
+        if best == Activity::LyingDown {
+            self.lying_since.get_or_insert(t);
+            if self.lying_run.len() < confirm {
+                self.lying_run.push(best_p as f64);
+                if self.lying_run.len() == confirm && self.config.fall_lands_lying {
+                    self.land_pending_fall(t, alerts);
+                }
+            }
+        } else {
+            self.lying_since = None;
+            self.lying_run.clear();
+        }
+        let window = self.config.fall_then_floor_s;
+        if let Some((_, run_at, _)) = self.pending_fall
+            && t - run_at > window
+            && self.lying_since.is_none_or(|since| since - run_at > window)
+        {
+            self.pending_fall = None;
+        }
+    }
+
+    fn land_pending_fall(&mut self, t: f64, alerts: &mut Vec<FallAlert>) {
+        let min_p = self.config.descent_min_probability;
+        let sure = min_p <= 0.0 || median(&mut self.lying_run).is_some_and(|p| p >= min_p);
+        if let (Some((start, run_at, confidence)), Some(since)) =
+            (self.pending_fall, self.lying_since)
+            && since - run_at <= self.config.fall_then_floor_s
+            && sure
+        {
+            self.pending_fall = None;
+            self.raise_fall(t, start, confidence, alerts);
+        }
     }
 
     /// `FallDetected` for a `falling_down` run that began at `start` (once per incident); the
@@ -539,9 +617,12 @@ impl FallDetector {
         limit <= 0.0 || self.last_on_floor_s.is_some_and(|at| t - at <= limit)
     }
 
+    /// The person is down since `since`, or since earlier if already down: a fall raised
+    /// on a landing confirmed after the floor posture dates the incident from the fall.
     fn start_down(&mut self, since: f64) {
-        if self.down.is_none() {
-            self.down = Some((since, 0.0, 0));
+        match self.down.as_mut() {
+            Some((down_since, _, _)) => *down_since = down_since.min(since),
+            None => self.down = Some((since, 0.0, 0)),
         }
     }
 }
@@ -726,7 +807,10 @@ mod tests {
         );
         assert!(from_floor.is_empty(), "{from_floor:?}");
         // Without the requirement, the same misreading is an alert.
-        let mut d = detector_with(|c| c.fall_from_upright_s = 0.0);
+        let mut d = detector_with(|c| {
+            c.fall_from_upright_s = 0.0;
+            c.fall_lands_lying = false;
+        });
         let loose = run(
             &mut d,
             &[
@@ -752,6 +836,56 @@ mod tests {
         let at_run = run(&mut detector_with(|c| c.fall_then_floor_s = 0.0), &script);
         assert_eq!(kinds(&at_run), [AlertKind::FallDetected]);
         assert!((at_run[0].raised_at_s - 5.35).abs() < 1e-6, "{at_run:?}");
+    }
+
+    #[test]
+    fn a_stop_read_as_falling_then_sitting_down_is_not_a_fall() {
+        let script = [
+            (Walking, 5.0, true),
+            (FallingDown, 0.7, true),
+            (Standing, 1.0, true),
+            (SittingOnFloor, 5.0, true),
+        ];
+        let sat = run(&mut detector(), &script);
+        assert!(sat.is_empty(), "{sat:?}");
+        let mut d = detector_with(|c| c.fall_lands_lying = false);
+        assert_eq!(kinds(&run(&mut d, &script)), [AlertKind::FallDetected]);
+        // Landing lying, but with doubt (p 0.6, a fallen body is read at 0.94-1.00): no fall.
+        let unsure = [
+            (Walking, 5.0, true, None, SURE),
+            (FallingDown, 0.7, true, None, SURE),
+            (LyingDown, 0.25, true, None, 0.6),
+            (SittingOnFloor, 5.0, true, None, SURE),
+        ];
+        let alerts = run_scans(&mut without_descent(), &unsure);
+        assert!(alerts.is_empty(), "{alerts:?}");
+    }
+
+    #[test]
+    fn a_landing_read_as_sitting_at_first_is_a_fall_once_read_lying_in_time() {
+        // The run reaches 8 scans at 5.35 s; the landing is read as sitting from 5.6 s.
+        let landing = |sitting_s| {
+            let mut d = detector();
+            let script = [
+                (Walking, 5.0, true),
+                (FallingDown, 0.6, true),
+                (SittingOnFloor, sitting_s, true),
+                (LyingDown, 2.0, true),
+            ];
+            (run(&mut d, &script), d.down_since_s())
+        };
+        // Lying from 8.1 s, 2.75 s after the run: the fall, dated from its start.
+        let (alerts, down_since) = landing(2.5);
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+        assert!((alerts[0].event_time_s - 5.0).abs() < 1e-9, "{alerts:?}");
+        assert!((alerts[0].raised_at_s - 8.3).abs() < 1e-6, "{alerts:?}");
+        assert!(
+            down_since.is_some_and(|s| (s - 5.0).abs() < 1e-9),
+            "{down_since:?}"
+        );
+        // Lying from 8.6 s: too late.
+        let (alerts, _) = landing(3.0);
+        assert!(alerts.is_empty(), "{alerts:?}");
     }
 
     /// Walking, then a confident `falling_down` run (from 5.0 s), then `after`; descents off,
@@ -1073,6 +1207,34 @@ mod tests {
         let alerts = run(&mut d, &script);
         assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
         assert!(alerts[0].raised_at_s < 18.1, "{:?}", alerts[0]);
+    }
+
+    #[test]
+    fn a_person_crawling_about_is_alerted_as_down_only_once_seen_lying_or_sitting() {
+        let crawling_on = [
+            (Walking, 3.0, true),
+            (SittingOnFloor, 5.0, true),
+            (Crawling, 12.0, true),
+        ];
+        // Down since 3 s, due at 18 s, but last seen sitting at 8 s: crawling is not evidence.
+        let alerts = run(&mut detector(), &crawling_on);
+        assert!(alerts.is_empty(), "{alerts:?}");
+
+        let mut d = detector_with(|c| c.crawling_shows_down = true);
+        let alerts = run(&mut d, &crawling_on);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+
+        // Sitting again after the crawl: due since 18 s, raised once sitting is confirmed.
+        let mut then_sitting = crawling_on.to_vec();
+        then_sitting.push((SittingOnFloor, 1.0, true));
+        let alerts = run(&mut detector(), &then_sitting);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!((alerts[0].event_time_s - 18.0).abs() < 1e-9);
+        assert!(
+            (20.15..20.3).contains(&alerts[0].raised_at_s),
+            "{:?}",
+            alerts[0]
+        );
     }
 
     #[test]
