@@ -89,10 +89,11 @@ pub struct FallAlertConfig {
     /// lying for a moment with doubt (0.49-0.79): seed 1 of `lidar-har alerts`,
     /// docs/classifier.md. 0 drops the check.
     pub descent_min_probability: f64,
-    /// `PersonDown` waits while the latest reading, not yet confirmed, is upright or getting
-    /// up: a person seen on the floor who gets up where the robot sees them only in glimpses
-    /// is otherwise alerted as down (seed 1 of `lidar-har alerts`, docs/classifier.md). The
-    /// alert comes once a reading on the floor follows; being confirmed upright ends it.
+    /// `PersonDown` waits while any scan since the person was last confirmed on the floor
+    /// (`down_seen_within_s`) read them upright or getting up, even unconfirmed: a person
+    /// seen on the floor who gets up where the robot sees them only in glimpses is otherwise
+    /// alerted as down (seeds 1 and 4 of `lidar-har alerts`, docs/classifier.md). The alert
+    /// comes once they are confirmed on the floor again; being confirmed upright ends it.
     pub down_waits_on_upright_glimpse: bool,
     /// `PersonDown` is raised only while the person was last confirmed on the floor (a run
     /// of `confirm_scans` visible scans read on the floor) within this time; otherwise it
@@ -281,6 +282,8 @@ pub struct FallDetector {
     down_evidence_scans: u32,
     /// The last visible scan in a run of at least `confirm_scans` such readings.
     last_on_floor_s: Option<f64>,
+    /// Whether a scan since then read the person upright or getting up.
+    off_floor_since_on_floor: bool,
     /// Since when the person is down, with summed on-floor probability and scan count.
     down: Option<(f64, f64, u32)>,
     /// Since when the person has been upright without being confirmed on the floor or
@@ -315,6 +318,7 @@ impl FallDetector {
             last_off_floor_s: None,
             down_evidence_scans: 0,
             last_on_floor_s: None,
+            off_floor_since_on_floor: false,
             down: None,
             upright_since: None,
             fall_disarmed_at: None,
@@ -358,7 +362,7 @@ impl FallDetector {
         if let (Some((since, sum, count)), Some(position)) = (self.down, self.last_position)
             && self.down_disarmed_at.is_none()
             && t - since >= self.config.down_after_s
-            && !(self.config.down_waits_on_upright_glimpse && self.glimpsed_off_floor())
+            && !(self.config.down_waits_on_upright_glimpse && self.off_floor_since_on_floor)
             && self.seen_on_floor_lately(t)
         {
             self.down_disarmed_at = Some(t);
@@ -477,6 +481,10 @@ impl FallDetector {
         };
         if self.down_evidence_scans >= self.config.confirm_scans {
             self.last_on_floor_s = Some(t);
+            self.off_floor_since_on_floor = false;
+        }
+        if seen.is_off_floor() {
+            self.off_floor_since_on_floor = true;
         }
         // Re-arm once upright long enough, counting only uprightness that began after the alert.
         if let Some(since) = self.upright_since
@@ -602,12 +610,6 @@ impl FallDetector {
             position: self.last_position.unwrap_or(DVec2::ZERO),
             confidence: on_floor_p,
         });
-    }
-
-    /// Whether the latest reading, not yet confirmed, has the person off the floor.
-    fn glimpsed_off_floor(&self) -> bool {
-        self.candidate
-            .is_some_and(|(posture, _, _)| posture.is_off_floor())
     }
 
     /// Whether the person was last confirmed on the floor recently enough to be alerted as
@@ -1235,6 +1237,22 @@ mod tests {
             "{:?}",
             alerts[0]
         );
+    }
+
+    #[test]
+    fn glimpses_of_getting_up_hold_person_down_even_when_the_last_reads_the_floor() {
+        // Getting up in glimpses, the last of them read as crawling, then out of sight.
+        let script = [
+            (Walking, 3.0, true),
+            (SittingOnFloor, 14.0, true),
+            (GettingUp, 0.1, true),
+            (Crawling, 0.1, true),
+            (Walking, 10.0, false),
+        ];
+        let alerts = run(&mut detector(), &script);
+        assert!(alerts.is_empty(), "{alerts:?}");
+        let mut d = detector_with(|c| c.down_waits_on_upright_glimpse = false);
+        assert_eq!(kinds(&run(&mut d, &script)), [AlertKind::PersonDown]);
     }
 
     #[test]
