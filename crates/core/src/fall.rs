@@ -49,8 +49,8 @@ pub struct FallAlertConfig {
     pub fall_probability: f32,
     /// Consecutive such scans needed for `FallDetected`.
     pub fall_min_scans: u32,
-    /// Such a run raises `FallDetected` only once the person is then confirmed on the floor
-    /// (lying, sitting on the floor or crawling) within this time of the run: the alert
+    /// Such a run raises `FallDetected` only once the person then lands on the floor (lying,
+    /// with `fall_lands_lying`; else any floor posture) within this time of the run: the alert
     /// comes on landing instead of during the fall, and a stagger or a sudden stop that the
     /// model reads as falling, after which the person stays upright, raises none. Being read
     /// upright in between does not cancel it: the model misreads a fallen person as standing
@@ -101,11 +101,11 @@ pub struct FallAlertConfig {
     /// out of the robot's sight is otherwise alerted as down 15 s later (seeds 1 and 2 of
     /// `lidar-har alerts`, docs/classifier.md). Seconds; 0 drops the requirement.
     pub down_seen_within_s: f64,
-    /// Whether crawling counts as being seen on the floor for `down_seen_within_s`. Crawling
-    /// keeps the person down either way (it neither starts nor ends the clock differently),
-    /// but PERSON_DOWN is for a person lying or sitting on the floor: someone crawling is on
-    /// the move, and the only false alerts left were people found crawling after getting up
-    /// out of sight (docs/classifier.md, session 15).
+    /// Whether a run of crawling counts as the person confirmed on the floor: the fresh
+    /// evidence `PersonDown` waits for (`down_seen_within_s`, `down_waits_on_upright_glimpse`).
+    /// Crawling keeps the person down either way, but the alert is for a person found lying
+    /// or sitting; the false alerts left after session 14 were people found crawling after
+    /// getting up out of sight (docs/classifier.md, session 15).
     pub crawling_shows_down: bool,
 }
 
