@@ -506,10 +506,11 @@ impl FallDetector {
         let min_length = self.config.descent_min_length_m;
         let long_enough = min_length <= 0.0
             || median(&mut self.candidate_lengths).is_none_or(|l| l >= min_length);
-        let min_p = self.config.descent_min_probability;
-        let sure_enough =
-            min_p <= 0.0 || median(&mut self.candidate_lying).is_some_and(|p| p >= min_p);
-        long_enough && sure_enough
+        long_enough
+            && surely_lying(
+                &mut self.candidate_lying,
+                self.config.descent_min_probability,
+            )
     }
 
     /// With `fall_lands_lying`, raises a pending fall once a run of `confirm_scans` scans
@@ -545,12 +546,10 @@ impl FallDetector {
     }
 
     fn land_pending_fall(&mut self, t: f64, alerts: &mut Vec<FallAlert>) {
-        let min_p = self.config.descent_min_probability;
-        let sure = min_p <= 0.0 || median(&mut self.lying_run).is_some_and(|p| p >= min_p);
         if let (Some((start, run_at, confidence)), Some(since)) =
             (self.pending_fall, self.lying_since)
             && since - run_at <= self.config.fall_then_floor_s
-            && sure
+            && surely_lying(&mut self.lying_run, self.config.descent_min_probability)
         {
             self.pending_fall = None;
             self.raise_fall(t, start, confidence, alerts);
@@ -627,6 +626,12 @@ impl FallDetector {
             None => self.down = Some((since, 0.0, 0)),
         }
     }
+}
+
+/// Whether the median p(lying_down) of scans read as lying reaches `min_p` (always when
+/// `min_p` is 0, never without such scans otherwise).
+fn surely_lying(lying_probabilities: &mut [f64], min_p: f64) -> bool {
+    min_p <= 0.0 || median(lying_probabilities).is_some_and(|p| p >= min_p)
 }
 
 /// The median of `values` (reordered), `None` when empty.
