@@ -1,6 +1,8 @@
 """Where the pelvis lies from the localiser's estimate, in the body's own frame, per activity;
 how far it is from anything the Lidar returned from the person; and what a constant lead along
-the tracked velocity would do to the error. Reads the JSON
+the tracked velocity would do to the error; and an upper bound for any body model that moves
+the estimate by a fixed offset in the body's frame (an oracle told the true activity and
+heading, with each activity's median offset). Reads the JSON
 lines of `localiser_accuracy --dump-points` (docs/localiser.md, "Accuracy"):
 
     cargo run --release -p lidar-har-pipeline --example localiser_accuracy -- --seeds 3 \\
@@ -48,6 +50,19 @@ def main() -> None:
         walking = distance[activity == "walking"]
         print(f"lead {lead:.2f} m: {np.median(distance):.4f} / {np.percentile(distance, 95):.3f} m "
               f"(walking median {np.median(walking):.3f} m)")
+
+
+    print("oracle: the true activity and heading, each activity's median offset in the body's frame "
+          "(the best a fixed-offset body model could do), error median / p95 before -> after")
+    before = np.hypot(forward, left)
+    after = np.empty_like(before)
+    for name in sorted(set(activity)):
+        k = activity == name
+        after[k] = np.hypot(forward[k] - np.median(forward[k]), left[k] - np.median(left[k]))
+        print(f"{name:20s} {np.median(before[k]):.3f} / {np.percentile(before[k], 95):.3f} -> "
+              f"{np.median(after[k]):.3f} / {np.percentile(after[k], 95):.3f} m")
+    print(f"{'overall':20s} {np.median(before):.3f} / {np.percentile(before, 95):.3f} -> "
+          f"{np.median(after):.3f} / {np.percentile(after, 95):.3f} m")
 
 
 if __name__ == "__main__":
