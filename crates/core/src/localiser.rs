@@ -538,6 +538,9 @@ impl Localiser {
             result.warnings.push(Warning::TimeReset { back_s });
             self.tracker.reset();
             self.odometry.samples.clear();
+            // The new timeline starts here even when this scan cannot be localised (its
+            // odometry has not arrived yet): the next scan is not another restart.
+            self.last_scan_ns = Some(scan.stamp_ns);
         }
         let nan = scan.ranges.iter().filter(|r| r.is_nan()).count();
         if nan > 0 {
@@ -868,6 +871,27 @@ mod tests {
         assert!(matches!(result.warnings[..], [Warning::TimeReset { .. }]));
         let out = result.output.unwrap();
         assert!(out.person.is_none(), "tracks were reset");
+    }
+
+    #[test]
+    fn a_looping_bag_with_odometry_localises_again_after_the_restart() {
+        let mut loc = map_localiser(Motion::Odometry);
+        let person = Some(DVec2::new(1.0, 1.0));
+        let play = |loc: &mut Localiser| {
+            let mut localised = 0;
+            for k in 0..40 {
+                // Odometry at twice the scan rate, each sample before the scan it brackets.
+                loc.add_odometry(k * PERIOD_NS, Pose2::IDENTITY);
+                loc.add_odometry(k * PERIOD_NS + PERIOD_NS / 2, Pose2::IDENTITY);
+                let scan = cast(k * PERIOD_NS + PERIOD_NS / 4, Pose2::IDENTITY, person);
+                localised += usize::from(loc.process_scan(&scan).output.is_some());
+            }
+            localised
+        };
+        assert_eq!(play(&mut loc), 40);
+        // The restart clears the odometry (the new loop's first samples cannot be told from
+        // the old loop's), so the loop's first scan cannot be placed; every later one must be.
+        assert_eq!(play(&mut loc), 39);
     }
 
     #[test]
