@@ -468,6 +468,9 @@ impl FallDetector {
         let confirmed = self.posture.map(|(p, _)| p);
         if seen == Posture::Upright && confirmed == Some(Posture::Upright) {
             self.last_upright_s = Some(t);
+            // A fall alerted during its run (`fall_then_floor_s: 0`) marked the person down
+            // before any floor posture; one read upright again is not down.
+            self.down = None;
         }
         if seen.is_off_floor() && confirmed.is_some_and(Posture::is_off_floor) {
             self.last_off_floor_s = Some(t);
@@ -486,13 +489,13 @@ impl FallDetector {
         if seen.is_off_floor() {
             self.off_floor_since_on_floor = true;
         }
-        // Re-arm once upright long enough, counting only uprightness that began after the alert.
+        // Re-arm once upright long enough, counting only uprightness after the alert (an
+        // alert raised while the person was still confirmed upright counts from the alert).
         if let Some(since) = self.upright_since
             && self.posture.is_some_and(|(p, _)| p == Posture::Upright)
-            && t - since >= self.config.rearm_upright_s
         {
             for disarmed_at in [&mut self.fall_disarmed_at, &mut self.down_disarmed_at] {
-                if disarmed_at.is_some_and(|at| since >= at) {
+                if disarmed_at.is_some_and(|at| t - since.max(at) >= self.config.rearm_upright_s) {
                     *disarmed_at = None;
                 }
             }
@@ -843,6 +846,66 @@ mod tests {
         let at_run = run(&mut detector_with(|c| c.fall_then_floor_s = 0.0), &script);
         assert_eq!(kinds(&at_run), [AlertKind::FallDetected]);
         assert!((at_run[0].raised_at_s - 5.35).abs() < 1e-6, "{at_run:?}");
+    }
+
+    #[test]
+    fn an_alert_raised_while_still_upright_rearms_after_being_upright_past_it() {
+        // Alerted at the run (`fall_then_floor_s: 0`), a stagger leaves the person upright
+        // throughout: the next fall a minute later is alerted again.
+        let mut d = detector_with(|c| c.fall_then_floor_s = 0.0);
+        let script = [
+            (Walking, 5.0, true),
+            (FallingDown, 0.6, true),
+            (Walking, 60.0, true),
+            (FallingDown, 1.0, true),
+            (LyingDown, 30.0, true),
+        ];
+        let alerts = run(&mut d, &script);
+        assert_eq!(
+            kinds(&alerts),
+            [
+                AlertKind::FallDetected,
+                AlertKind::FallDetected,
+                AlertKind::PersonDown
+            ],
+            "{alerts:?}"
+        );
+        // PERSON_DOWN raised as walking begins, the posture not yet upright: re-armed once
+        // upright past the alert, so sitting down for long again is alerted again.
+        let mut d = detector_with(|c| {
+            c.down_waits_on_upright_glimpse = false;
+            c.descent_max_s = 0.0;
+        });
+        let due = d.config.down_after_s;
+        let script = [
+            (SittingOnFloor, due - 0.05, true),
+            (Walking, 30.0, true),
+            (SittingOnFloor, due + 5.0, true),
+        ];
+        let alerts = run(&mut d, &script);
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::PersonDown, AlertKind::PersonDown],
+            "{alerts:?}"
+        );
+    }
+
+    #[test]
+    fn a_stagger_alerted_at_its_run_does_not_leave_the_person_down() {
+        // A run shorter than `confirm_scans` never becomes a posture; the person read
+        // upright again is not down, so sitting a minute later is not PERSON_DOWN at once.
+        let mut d = detector_with(|c| {
+            c.fall_then_floor_s = 0.0;
+            c.fall_min_scans = 3;
+        });
+        let script = [
+            (Walking, 5.0, true),
+            (FallingDown, 0.2, true),
+            (Walking, 60.0, true),
+            (SittingOnFloor, 1.0, true),
+        ];
+        let alerts = run(&mut d, &script);
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected], "{alerts:?}");
     }
 
     #[test]
