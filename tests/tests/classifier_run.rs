@@ -76,6 +76,22 @@ fn demo_without_a_model_refuses_rather_than_faking() {
         "{err}"
     );
     assert!(!demo_out.exists(), "nothing is written without a model");
+
+    // The model a classifier configuration names counts as much as --model.
+    let config = tmp.path().join("classifier.yaml");
+    let other = tmp.path().join("other.onnx");
+    std::fs::write(&config, format!("model: {}\n", path(&other))).unwrap();
+    let out = lidar_har(&[
+        "demo",
+        "--out",
+        path(&demo_out),
+        "--classifier-config",
+        path(&config),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("other.onnx"), "{err}");
+    assert!(!demo_out.exists(), "nothing is written without a model");
 }
 
 #[test]

@@ -1,7 +1,8 @@
 //! `lidar-har run` end to end on a hand-made robot bag: a square room on /map, a robot
 //! driving with /odom and a Lidar mounted off-centre (/tf_static), a person walking round,
-//! ground truth on /ground_truth/human_pose. Checks the output bag and summary.json, and the
-//! errors for a missing map, a garbled map and a missing bag.
+//! ground truth on /ground_truth/human_pose. Checks the output bag and summary.json, the
+//! errors for a missing map, a garbled map, a missing bag and a bag without scans, odometry
+//! given only on /tf, a map file against the bag's /map, and a bag cut short.
 
 use std::path::Path;
 use std::process::Command;
@@ -20,6 +21,8 @@ use lidar_har_msgs::std_msgs::Header;
 use lidar_har_msgs::tf2_msgs::TFMessage;
 use lidar_har_msgs::topics;
 use lidar_har_msgs::visualization_msgs::MarkerArray;
+use lidar_har_pipeline::bag_run::{RunOptions, RunSummary, run_bag};
+use lidar_har_pipeline::files;
 
 const HALF: f64 = 5.0;
 const RES: f64 = 0.05;
@@ -69,17 +72,37 @@ fn header(t: f64, frame: &str) -> Header {
 }
 
 /// Writes the robot bag: 10 s, scans at 20 Hz, odometry at 50 Hz.
+/// Where the robot's odometry is recorded.
+#[derive(Clone, Copy, PartialEq)]
+enum OdometryOn {
+    /// nav_msgs/Odometry on /odom.
+    Topic,
+    /// Only the `odom -> base_link` transform on /tf (bases that publish no /odom).
+    Tf,
+}
+
 fn write_bag(dir: &Path) {
-    let mut w = BagWriter::create(dir, WriterOptions::default()).unwrap();
+    write_robot_bag(dir, OdometryOn::Topic);
+}
+
+fn write_robot_bag(dir: &Path, odometry_on: OdometryOn) {
+    // Small chunks, so a file cut short still holds complete ones.
+    let options = WriterOptions {
+        chunk_size: 64 * 1024,
+        ..WriterOptions::default()
+    };
+    let mut w = BagWriter::create(dir, options).unwrap();
     let map_t = w
         .add_topic_for::<OccupancyGrid>(topics::MAP.name, topics::MAP.qos)
         .unwrap();
     let tf_t = w
         .add_topic_for::<TFMessage>(topics::TF_STATIC.name, topics::TF_STATIC.qos)
         .unwrap();
-    let odom_t = w
-        .add_topic_for::<Odometry>(topics::ODOM.name, topics::ODOM.qos)
-        .unwrap();
+    let odom_t = match odometry_on {
+        OdometryOn::Topic => w.add_topic_for::<Odometry>(topics::ODOM.name, topics::ODOM.qos),
+        OdometryOn::Tf => w.add_topic_for::<TFMessage>(topics::TF.name, topics::TF.qos),
+    }
+    .unwrap();
     let scan_t = w
         .add_topic_for::<LaserScan>(topics::SCAN.name, topics::SCAN.qos)
         .unwrap();
@@ -153,7 +176,7 @@ fn write_bag(dir: &Path) {
                 pose: Pose::from_xy_yaw(p.x, p.y, 0.0),
             };
             w.write_message(gt_t, ns, &gt).unwrap();
-        } else {
+        } else if odometry_on == OdometryOn::Topic {
             let mut odom = Odometry {
                 header: header(t, "odom"),
                 child_frame_id: "base_link".into(),
@@ -161,6 +184,20 @@ fn write_bag(dir: &Path) {
             };
             odom.pose.pose = Pose::from_xy_yaw(base.x, base.y, heading);
             w.write_message(odom_t, ns, &odom).unwrap();
+        } else {
+            let pose = Pose::from_xy_yaw(base.x, base.y, heading);
+            let transform = TransformStamped {
+                header: header(t, "odom"),
+                child_frame_id: "base_link".into(),
+                transform: Transform {
+                    translation: Vector3::new(pose.position.x, pose.position.y, 0.0),
+                    rotation: pose.orientation,
+                },
+            };
+            let tf = TFMessage {
+                transforms: vec![transform],
+            };
+            w.write_message(odom_t, ns, &tf).unwrap();
         }
     }
     w.finish().unwrap();
@@ -341,4 +378,98 @@ fn bad_inputs_give_clear_errors() {
         stderr.contains("bad_config.yaml") && stderr.contains("unknown field `gate`"),
         "{stderr}"
     );
+}
+
+/// The bag's summary after `run_bag` with the defaults (localiser only) and `map`.
+fn run_localiser(input: &Path, out: &Path, map: Option<&Path>) -> RunSummary {
+    let options = RunOptions {
+        map: map.map(|m| files::load_map(m).unwrap()),
+        ..RunOptions::default()
+    };
+    run_bag(input, out, options).unwrap()
+}
+
+#[test]
+fn odometry_given_only_on_tf_moves_the_robot() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in");
+    write_robot_bag(&input, OdometryOn::Tf);
+    let summary = run_localiser(&input, &tmp.path().join("out"), None);
+    assert_eq!(summary.motion, "odometry");
+    assert!(summary.visible_ratio > 0.95, "{summary:?}");
+    let error = summary.position_error_m.unwrap();
+    assert!(error.median < 0.2 && error.p95 < 0.3, "{error:?}");
+}
+
+#[test]
+fn a_map_file_given_wins_over_the_bags_map() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in");
+    write_bag(&input);
+    // A map of a room full of furniture: everywhere is an obstacle, so nobody can be seen.
+    let n = (2.0 * HALF / RES) as usize;
+    let mut pgm = format!("P5\n{n} {n}\n255\n").into_bytes();
+    pgm.extend(std::iter::repeat_n(0u8, n * n));
+    std::fs::write(tmp.path().join("full.pgm"), pgm).unwrap();
+    let yaml = tmp.path().join("full.yaml");
+    std::fs::write(&yaml, format!("image: full.pgm\nresolution: {RES}\norigin: [{}, {}, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n", -HALF, -HALF)).unwrap();
+    let summary = run_localiser(&input, &tmp.path().join("out"), Some(&yaml));
+    assert_eq!(
+        summary.visible_ratio, 0.0,
+        "the bag's /map was used instead"
+    );
+}
+
+#[test]
+fn a_bag_without_scans_is_an_error_naming_its_topics() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in");
+    let mut w = BagWriter::create(&input, WriterOptions::default()).unwrap();
+    let odom = w
+        .add_topic_for::<Odometry>(topics::ODOM.name, topics::ODOM.qos)
+        .unwrap();
+    w.write_message(odom, 0, &Odometry::default()).unwrap();
+    w.finish().unwrap();
+    let error = run_bag(&input, &tmp.path().join("out"), RunOptions::default()).unwrap_err();
+    let text = error.to_string();
+    assert!(
+        text.contains("no /scan topic") && text.contains("/odom") && text.contains("in"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_bag_cut_short_keeps_the_outputs_and_summary_of_what_was_read() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in");
+    write_bag(&input);
+    let file = std::fs::read_dir(&input)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "mcap"))
+        .expect("an MCAP file");
+    let bytes = std::fs::read(&file).unwrap();
+    std::fs::write(&file, &bytes[..bytes.len() * 3 / 5]).unwrap();
+    let out = tmp.path().join("out");
+    let output = lidar_har(&[
+        "--bag".as_ref(),
+        input.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--no-classifier".as_ref(),
+    ]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(stderr.contains("reading stopped early"), "{stderr}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let scans = summary["scans"].as_u64().unwrap();
+    assert!((50..199).contains(&scans), "{scans} scans read");
+    assert!(summary["read_error"].is_string(), "{summary:#}");
+    let observations = BagReader::open(&out)
+        .unwrap()
+        .messages_on(&[topics::HUMAN_OBSERVATION.name])
+        .unwrap()
+        .count() as u64;
+    assert!(observations + 10 >= scans, "{observations} of {scans}");
 }

@@ -203,10 +203,11 @@ struct Lane<S> {
     centre: Option<DVec2>,
 }
 
-/// Why classification failed: the model's step failed.
+/// Why classification failed: the model's step failed. The cause is in the text, not a
+/// `source()`, so a printed chain says it once.
 #[derive(Debug, thiserror::Error)]
 #[error("model step failed: {0}")]
-pub struct StepError(#[source] pub Box<dyn std::error::Error + Send + Sync>);
+pub struct StepError(pub Box<dyn std::error::Error + Send + Sync>);
 
 /// When the model's states restart: `lanes` states, each reset every `period` scans, one
 /// every `period / lanes` scans. The prediction comes from the oldest, so every prediction

@@ -36,11 +36,10 @@ pub enum InferError {
     ModelLoad { path: PathBuf, message: String },
     #[error("model {path} does not follow docs/model_contract.md: {problem}")]
     Contract { path: PathBuf, problem: String },
-    #[error("model {path} has unusable metadata: {source}")]
+    #[error("model {path} has unusable metadata: {cause}")]
     Metadata {
         path: PathBuf,
-        #[source]
-        source: StreamSpecError,
+        cause: StreamSpecError,
     },
     #[error("frame is {got:?} pixels, the model takes {expected}x{expected}")]
     FrameShape {
@@ -160,7 +159,7 @@ impl ActivityModel {
         let stream = StreamSpec::from_metadata(|key| metadata.custom(key)).map_err(|source| {
             InferError::Metadata {
                 path: path.clone(),
-                source,
+                cause: source,
             }
         })?;
         drop(metadata);

@@ -7,10 +7,11 @@ use std::time::Instant;
 
 use glam::DVec2;
 use lidar_har_bag::{BagError, BagReader, BagWriter, TopicHandle, WriterOptions};
-use lidar_har_core::localiser::{ConfigError, LocaliserConfig};
+use lidar_har_core::localiser::{ConfigError, FrameConfig, LocaliserConfig};
 use lidar_har_core::map::OccupancyMap;
 use lidar_har_msgs::geometry_msgs::{PoseStamped, PoseWithCovarianceStamped};
 use lidar_har_msgs::lidar_har_msgs::HumanObservation;
+use lidar_har_msgs::tf2_msgs::TFMessage;
 use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_msgs::visualization_msgs::MarkerArray;
 use serde::Serialize;
@@ -18,6 +19,7 @@ use serde::Serialize;
 use crate::classifier::{
     ActivitySummary, ClassifierConfig, ClassifierError, ClassifierRun, ClassifierRunError,
 };
+use crate::localiser_stage::carries_odometry;
 use crate::{LocaliserStage, Pipeline, RoomSource};
 
 /// What to run with.
@@ -34,29 +36,22 @@ pub struct RunOptions {
 /// Why a run failed.
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
-    #[error("input bag {}: {source}", path.display())]
-    Input {
-        path: PathBuf,
-        #[source]
-        source: BagError,
-    },
-    #[error("output bag {}: {source}", path.display())]
-    Output {
-        path: PathBuf,
-        #[source]
-        source: BagError,
-    },
+    #[error("input bag {}: {cause}", path.display())]
+    Input { path: PathBuf, cause: BagError },
+    #[error("output bag {}: {cause}", path.display())]
+    Output { path: PathBuf, cause: BagError },
     #[error(transparent)]
     Config(#[from] ConfigError),
     #[error(transparent)]
     Classifier(#[from] ClassifierError),
     #[error(transparent)]
     ClassifierRun(#[from] ClassifierRunError),
-    #[error("cannot write {}: {source}", path.display())]
+    #[error("input bag {}: no {} topic to localise from (topics: {topics})", path.display(), topics::SCAN.name)]
+    NoScans { path: PathBuf, topics: String },
+    #[error("cannot write {}: {cause}", path.display())]
     Summary {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
 }
 
@@ -120,6 +115,9 @@ pub struct RunSummary {
     pub warnings: std::collections::BTreeMap<&'static str, u64>,
     /// Messages that could not be decoded and were skipped.
     pub decode_errors: u64,
+    /// Why reading the input stopped before its end (a file cut short, corrupt data); the
+    /// outputs cover the messages read before it. `None` when the whole bag was read.
+    pub read_error: Option<String>,
     /// The classifier's results (activities, accuracy, alerts), when it ran.
     pub activity: Option<ActivitySummary>,
 }
@@ -168,14 +166,27 @@ impl Outputs {
 pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunSummary, RunError> {
     let input_error = |source| RunError::Input {
         path: input.to_path_buf(),
-        source,
+        cause: source,
     };
     let output_error = |source| RunError::Output {
         path: out_dir.to_path_buf(),
-        source,
+        cause: source,
     };
     let reader = BagReader::open(input).map_err(input_error)?;
-    let has_odometry = reader.topic(topics::ODOM.name).is_some();
+    // A file cut short may not list its topics; reading it says what is wrong instead.
+    if reader.topic(topics::SCAN.name).is_none() && !reader.metadata().truncated {
+        let names: Vec<&str> = reader.topics().iter().map(|t| t.name.as_str()).collect();
+        return Err(RunError::NoScans {
+            path: input.to_path_buf(),
+            topics: if names.is_empty() {
+                "none".into()
+            } else {
+                names.join(", ")
+            },
+        });
+    }
+    let has_odometry = reader.topic(topics::ODOM.name).is_some()
+        || tf_carries_odometry(&reader, &options.config.frames);
     let room = match options.map {
         Some(map) => RoomSource::Map(map),
         None if reader.topic(topics::MAP.name).is_some() => RoomSource::MapTopic,
@@ -211,8 +222,16 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
     let mut estimates: Vec<(i64, DVec2)> = Vec::new();
     let mut ground_truth: Vec<(i64, DVec2)> = Vec::new();
 
+    let mut read_error = None;
     for message in reader.messages().map_err(input_error)? {
-        let message = message.map_err(input_error)?;
+        let message = match message {
+            Ok(message) => message,
+            Err(e) => {
+                // Keep what was read: finish the outputs and the summary, then report it.
+                read_error = Some(error_chain(&e));
+                break;
+            }
+        };
         let topic = &*message.topic;
         if classifier
             .as_mut()
@@ -297,12 +316,44 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         pipeline_time_us: Spread::of(pipeline_times),
         warnings: pipeline.localiser.warning_counts().clone(),
         decode_errors,
+        read_error,
         activity: classifier.map(ClassifierRun::finish),
     };
     let path = out_dir.join("summary.json");
     let json = serde_json::to_string_pretty(&summary).expect("the summary is plain data");
-    std::fs::write(&path, json + "\n").map_err(|source| RunError::Summary { path, source })?;
+    std::fs::write(&path, json + "\n").map_err(|cause| RunError::Summary { path, cause })?;
     Ok(summary)
+}
+
+/// An error and its causes, each once, for the summary.
+fn error_chain(error: &dyn std::error::Error) -> String {
+    let mut text = error.to_string();
+    let mut source = error.source();
+    while let Some(cause) = source {
+        let cause_text = cause.to_string();
+        if !text.ends_with(&cause_text) {
+            text = format!("{text}: {cause_text}");
+        }
+        source = cause.source();
+    }
+    text
+}
+
+/// /tf messages looked at for `odom -> base_link` before deciding the bag has no odometry.
+const TF_MESSAGES_TO_PROBE: usize = 100;
+
+/// Whether the bag's /tf carries the odometry transform (a base that publishes no /odom).
+fn tf_carries_odometry(reader: &BagReader, frames: &FrameConfig) -> bool {
+    let Ok(messages) = reader.messages_on(&[topics::TF.name]) else {
+        return false;
+    };
+    messages
+        .take(TF_MESSAGES_TO_PROBE)
+        .map_while(Result::ok)
+        .any(|m| {
+            lidar_har_msgs::decode::<TFMessage>(&m.data)
+                .is_ok_and(|tf| carries_odometry(&tf, frames))
+        })
 }
 
 /// Ground truth samples farther apart than this are not interpolated between.

@@ -75,11 +75,10 @@ impl ClassifierConfig {
 
 #[derive(Debug, thiserror::Error)]
 pub enum ClassifierError {
-    #[error("cannot read classifier configuration {}: {source}", path.display())]
+    #[error("cannot read classifier configuration {}: {cause}", path.display())]
     ConfigRead {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     #[error("classifier configuration{}: {message}", path.as_ref().map(|p| format!(" {}", p.display())).unwrap_or_default())]
     Config {
@@ -130,7 +129,7 @@ pub fn parse_classifier_config(text: &str) -> Result<ClassifierConfig, Classifie
 pub fn load_classifier_config(path: &Path) -> Result<ClassifierConfig, ClassifierError> {
     let text = std::fs::read_to_string(path).map_err(|source| ClassifierError::ConfigRead {
         path: path.into(),
-        source,
+        cause: source,
     })?;
     parse_classifier_config(&text).map_err(|e| match e {
         ClassifierError::Config { message, .. } => ClassifierError::Config {
@@ -176,6 +175,7 @@ pub struct ClassifierMessages {
 /// Streaming classifier plus fall alerts over a step model (the ONNX one in production).
 pub struct ClassifierStage<M: StepModel = ActivityModel> {
     classifier: StreamingClassifier<M>,
+    scan_rate: ScanRate,
     fall: FallDetector,
     points: Vec<DVec2>,
     track_id: Option<u32>,
@@ -218,6 +218,7 @@ impl<M: StepModel> ClassifierStage<M> {
     ) -> Result<Self, ClassifierError> {
         Ok(Self {
             classifier: StreamingClassifier::with_schedule(model, stream, schedule)?,
+            scan_rate: ScanRate::default(),
             fall: FallDetector::new(fall_alert)?,
             points: Vec::new(),
             track_id: None,
@@ -230,6 +231,11 @@ impl<M: StepModel> ClassifierStage<M> {
         &self.classifier
     }
 
+    /// The rate the scans come at (the median period of the first ones), once measured.
+    pub fn measured_scan_rate_hz(&self) -> Option<f64> {
+        self.scan_rate.measured_hz
+    }
+
     /// Classifies one observation and runs the fall alerts.
     pub fn on_observation(
         &mut self,
@@ -237,6 +243,16 @@ impl<M: StepModel> ClassifierStage<M> {
     ) -> Result<ClassifierOutput, ClassifierError> {
         let stamp_ns = obs.header.stamp.to_nanos();
         let stamp_s = stamp_ns as f64 * 1e-9;
+        let model_hz = self.classifier.spec().scan_rate_hz;
+        if let Some(hz) = self.scan_rate.observe(stamp_ns)
+            && (hz / model_hz - 1.0).abs() > SCAN_RATE_TOLERANCE
+        {
+            log::warn!(
+                "classifier: scans come at {hz:.1} Hz but the model was trained at {model_hz:.1} \
+                 Hz: its windows and the alerts' scan counts span other times than intended; \
+                 run the Lidar at the model's rate or train a model at this one"
+            );
+        }
         let position = DVec2::new(obs.position.x, obs.position.y);
         // A new track may be another person, or the same one found far away: start afresh.
         if obs.visible && self.track_id.is_some_and(|id| id != obs.track_id) {
@@ -292,7 +308,7 @@ impl<M: StepModel> ClassifierStage<M> {
         let alerts = out
             .alerts
             .iter()
-            .map(|a| alert_msg(&out.frame_id, a))
+            .map(|a| alert_msg(header.clone(), a))
             .collect();
         ClassifierMessages {
             activity,
@@ -309,7 +325,7 @@ impl<M: StepModel> ClassifierStage<M> {
         let obs: HumanObservation =
             lidar_har_msgs::decode(cdr).map_err(|source| PipelineError::Decode {
                 topic: topics::HUMAN_OBSERVATION.name.to_string(),
-                source,
+                cause: source,
             })?;
         let out = self.on_observation(&obs)?;
         let outgoing = self.outgoing(&out)?;
@@ -451,6 +467,42 @@ pub enum ClassifierStageError {
     Classifier(#[from] ClassifierError),
 }
 
+/// Scan periods measured before the rate is compared with the model's.
+const SCAN_RATE_SAMPLES: usize = 40;
+/// A rate off the model's by more than this fraction is warned about: the model's window
+/// and the alerts' scan counts then span other times than they were tuned for.
+const SCAN_RATE_TOLERANCE: f64 = 0.25;
+
+/// Measures the scan rate once, from the median period of the first scans.
+#[derive(Debug, Default)]
+struct ScanRate {
+    last_ns: Option<i64>,
+    periods_s: Vec<f64>,
+    measured_hz: Option<f64>,
+}
+
+impl ScanRate {
+    /// Takes a scan's stamp; returns the rate on the scan that completes the measurement.
+    fn observe(&mut self, stamp_ns: i64) -> Option<f64> {
+        if self.measured_hz.is_some() {
+            return None;
+        }
+        let last = self.last_ns.replace(stamp_ns);
+        let period_s = (stamp_ns - last?) as f64 * 1e-9;
+        // Restarts and gaps are not periods.
+        if period_s > 0.0 && period_s < 1.0 {
+            self.periods_s.push(period_s);
+        }
+        if self.periods_s.len() < SCAN_RATE_SAMPLES {
+            return None;
+        }
+        self.periods_s.sort_by(f64::total_cmp);
+        let hz = 1.0 / self.periods_s[SCAN_RATE_SAMPLES / 2];
+        self.measured_hz = Some(hz);
+        Some(hz)
+    }
+}
+
 /// The /human/activity message of a prediction.
 pub fn activity_msg(header: Header, prediction: &Prediction) -> har::Activity {
     har::Activity {
@@ -462,8 +514,9 @@ pub fn activity_msg(header: Header, prediction: &Prediction) -> har::Activity {
     }
 }
 
-/// The /human/fall_alert message of an alert.
-pub fn alert_msg(frame_id: &str, alert: &FallAlert) -> har::FallAlert {
+/// The /human/fall_alert message of an alert raised on the scan of `header` (its stamp
+/// exact: seconds since the epoch as f64 lose the nanoseconds).
+pub fn alert_msg(header: Header, alert: &FallAlert) -> har::FallAlert {
     let secs_to_time = |s: f64| Time::from_nanos((s * 1e9).round() as i64);
     let (kind, event_time_s, description) = match alert.kind {
         AlertKind::FallDetected => (
@@ -486,10 +539,7 @@ pub fn alert_msg(frame_id: &str, alert: &FallAlert) -> har::FallAlert {
         ),
     };
     har::FallAlert {
-        header: Header {
-            stamp: secs_to_time(alert.raised_at_s),
-            frame_id: frame_id.into(),
-        },
+        header,
         kind,
         position: Point {
             x: alert.position.x,
@@ -556,6 +606,10 @@ pub struct ActivitySummary {
     pub segments: Vec<Segment>,
     /// Classifier time per scan (decode, render, two model steps, alerts, encode), microseconds.
     pub classify_time_us: Option<crate::bag_run::Spread>,
+    /// The rate the scans came at (after the first 40), and the model's: a log warning
+    /// says when they differ by more than 25 %.
+    pub scan_rate_hz: Option<f64>,
+    pub model_scan_rate_hz: Option<f64>,
 }
 
 /// Ground truth older than this is not matched to a prediction.
@@ -674,6 +728,8 @@ impl ActivityLog {
                 .collect(),
             segments: self.segments(),
             classify_time_us: None,
+            scan_rate_hz: None,
+            model_scan_rate_hz: None,
         }
     }
 }
@@ -758,6 +814,8 @@ impl ClassifierRun {
     pub fn finish(mut self) -> ActivitySummary {
         let mut summary = self.log.summary();
         summary.classify_time_us = crate::bag_run::Spread::of(std::mem::take(&mut self.times_us));
+        summary.scan_rate_hz = self.stage.measured_scan_rate_hz();
+        summary.model_scan_rate_hz = Some(self.stage.classifier().spec().scan_rate_hz);
         summary
     }
 }
@@ -768,7 +826,13 @@ pub enum ClassifierRunError {
     #[error(transparent)]
     Stage(#[from] ClassifierStageError),
     #[error("writing the classifier's outputs: {0}")]
-    Bag(#[from] BagError),
+    Bag(BagError),
+}
+
+impl From<BagError> for ClassifierRunError {
+    fn from(cause: BagError) -> Self {
+        Self::Bag(cause)
+    }
 }
 
 #[cfg(test)]
@@ -943,6 +1007,58 @@ mod tests {
             "{}",
             early.markers.markers[0].text
         );
+    }
+
+    #[test]
+    fn alerts_carry_their_scan_stamp_to_the_nanosecond() {
+        let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
+        let model = TimelineModel {
+            timeline: vec![
+                (0.0, Activity::Walking),
+                (3.0, Activity::FallingDown),
+                (4.0, Activity::LyingDown),
+            ],
+            now: now.clone(),
+        };
+        let mut stage = ClassifierStage::new(model, stream(), FallAlertConfig::default()).unwrap();
+        let epoch_ns = 1_700_000_000_000_000_000;
+        let mut alerts = 0;
+        for k in 0..120 {
+            now.set(k as f64 * 0.05);
+            let mut obs = observation(k as f64 * 0.05, true);
+            obs.header.stamp = Time::from_nanos(epoch_ns + 21_250_000_000 + k * 50_000_000);
+            let out = stage.on_observation(&obs).unwrap();
+            for alert in stage.messages(&out).alerts {
+                assert_eq!(alert.header.stamp.to_nanos(), out.stamp_ns);
+                alerts += 1;
+            }
+        }
+        assert_eq!(alerts, 1, "FALL_DETECTED");
+    }
+
+    #[test]
+    fn the_scan_rate_is_measured_from_the_first_scans() {
+        let rate_of = |period_ns: i64| {
+            let model = TimelineModel {
+                timeline: vec![],
+                now: Default::default(),
+            };
+            let mut stage =
+                ClassifierStage::new(model, stream(), FallAlertConfig::default()).unwrap();
+            for k in 0..60 {
+                // A restart and a hidden stretch on the way do not count as periods.
+                let k = if k < 20 { k } else { k + 100 };
+                let mut obs = observation(0.0, true);
+                obs.header.stamp = Time::from_nanos(k * period_ns);
+                stage.on_observation(&obs).unwrap();
+                if k == 10 {
+                    assert_eq!(stage.measured_scan_rate_hz(), None, "not yet");
+                }
+            }
+            stage.measured_scan_rate_hz().unwrap()
+        };
+        assert!((rate_of(50_000_000) - 20.0).abs() < 1e-9);
+        assert!((rate_of(100_000_000) - 10.0).abs() < 1e-9);
     }
 
     #[test]

@@ -11,39 +11,28 @@ use serde::Deserialize;
 /// Why a configuration or map file cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum FileError {
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}: {cause}", path.display())]
     Read {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
-    #[error("{} is not a valid {what}: {source}", path.display())]
+    #[error("{} is not a valid {what}: {cause}", path.display())]
     Yaml {
         path: PathBuf,
         what: &'static str,
-        #[source]
-        source: serde_yaml_ng::Error,
+        cause: serde_yaml_ng::Error,
     },
-    #[error("{}: {source}", path.display())]
-    Config {
-        path: PathBuf,
-        #[source]
-        source: ConfigError,
-    },
-    #[error("cannot load map image {}: {source}", path.display())]
+    #[error("{}: {cause}", path.display())]
+    Config { path: PathBuf, cause: ConfigError },
+    #[error("cannot load map image {}: {cause}", path.display())]
     Image {
         path: PathBuf,
-        #[source]
-        source: image::ImageError,
+        cause: image::ImageError,
     },
     #[error("map {}: {why}", path.display())]
     MapSpec { path: PathBuf, why: String },
-    #[error("map {}: {source}", path.display())]
-    Map {
-        path: PathBuf,
-        #[source]
-        source: MapError,
-    },
+    #[error("map {}: {cause}", path.display())]
+    Map { path: PathBuf, cause: MapError },
 }
 
 /// Loads a localiser configuration (`config/localiser.yaml`); unknown keys are errors, and
@@ -51,17 +40,17 @@ pub enum FileError {
 pub fn load_config(path: &Path) -> Result<LocaliserConfig, FileError> {
     let text = std::fs::read_to_string(path).map_err(|source| FileError::Read {
         path: path.into(),
-        source,
+        cause: source,
     })?;
     parse_config(&text).map_err(|e| match e {
         ParseConfigError::Yaml(source) => FileError::Yaml {
             path: path.into(),
             what: "localiser configuration",
-            source,
+            cause: source,
         },
         ParseConfigError::Invalid(source) => FileError::Config {
             path: path.into(),
-            source,
+            cause: source,
         },
     })
 }
@@ -139,12 +128,12 @@ pub fn load_map(yaml_path: &Path) -> Result<OccupancyMap, FileError> {
     let path = || yaml_path.to_path_buf();
     let text = std::fs::read_to_string(yaml_path).map_err(|source| FileError::Read {
         path: path(),
-        source,
+        cause: source,
     })?;
     let spec: MapSpec = serde_yaml_ng::from_str(&text).map_err(|source| FileError::Yaml {
         path: path(),
         what: "map_server map",
-        source,
+        cause: source,
     })?;
     let thresholds_ok = (0.0..=1.0).contains(&spec.occupied_thresh)
         && (0.0..=1.0).contains(&spec.free_thresh)
@@ -171,7 +160,7 @@ pub fn load_map(yaml_path: &Path) -> Result<OccupancyMap, FileError> {
     let image = image::open(&image_path)
         .map_err(|source| FileError::Image {
             path: image_path.clone(),
-            source,
+            cause: source,
         })?
         .to_luma8();
     let (width, height) = (image.width() as usize, image.height() as usize);
@@ -204,7 +193,7 @@ pub fn load_map(yaml_path: &Path) -> Result<OccupancyMap, FileError> {
     };
     OccupancyMap::with_unknown(geometry, occupied, unknown).map_err(|source| FileError::Map {
         path: path(),
-        source,
+        cause: source,
     })
 }
 
@@ -313,7 +302,7 @@ mod tests {
         assert!(matches!(
             load_map(&yaml).unwrap_err(),
             FileError::Map {
-                source: MapError::Resolution(_),
+                cause: MapError::Resolution(_),
                 ..
             }
         ));

@@ -49,14 +49,16 @@ impl Outgoing {
 /// Why an incoming message could not be used.
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {
-    #[error("message on {topic} cannot be decoded: {source}")]
-    Decode {
-        topic: String,
-        #[source]
-        source: CdrError,
-    },
+    #[error("message on {topic} cannot be decoded: {cause}")]
+    Decode { topic: String, cause: CdrError },
     #[error("an output message cannot be encoded: {0}")]
-    Encode(#[from] CdrError),
+    Encode(CdrError),
+}
+
+impl From<CdrError> for PipelineError {
+    fn from(cause: CdrError) -> Self {
+        Self::Encode(cause)
+    }
 }
 
 /// What one incoming message produced.
@@ -97,7 +99,7 @@ impl Pipeline {
         let mut step = Step::default();
         let decode_error = |source| PipelineError::Decode {
             topic: topic.to_string(),
-            source,
+            cause: source,
         };
         match topic {
             t if t == topics::SCAN.name => {

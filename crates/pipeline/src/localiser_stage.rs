@@ -22,7 +22,7 @@ use crate::convert;
 /// How the room is told apart from the person.
 #[derive(Debug, Clone)]
 pub enum RoomSource {
-    /// A map known in advance (a map_server file); /map messages replace it.
+    /// A map given by the user (a map_server file): /map messages are ignored.
     Map(OccupancyMap),
     /// The map will come on /map; scans before it are skipped.
     MapTopic,
@@ -87,6 +87,12 @@ pub struct LocaliserStage {
     localiser: Localiser,
     frames: FrameConfig,
     learned_background: bool,
+    /// A map file was given, so /map is not used (and that is logged once).
+    map_given: bool,
+    map_topic_ignored: bool,
+    /// Whether /odom has spoken: until it does, `odom -> base_link` on /tf is the odometry
+    /// (bases that publish only the transform).
+    odom_topic_seen: bool,
     /// The scan's frame (from its header), where the mount ends.
     laser_frame: Option<String>,
     /// child frame -> (parent frame, pose in parent), from /tf_static.
@@ -112,6 +118,7 @@ impl LocaliserStage {
     ) -> Result<Self, ConfigError> {
         let frames = config.frames.clone();
         let learned_background = matches!(room, RoomSource::LearnedBackground);
+        let map_given = matches!(room, RoomSource::Map(_));
         let localiser = match room {
             RoomSource::LearnedBackground => Localiser::with_learned_background(config)?,
             RoomSource::Map(map) => Localiser::new(config, Reference::Map(map), motion(moving))?,
@@ -121,6 +128,9 @@ impl LocaliserStage {
             localiser,
             frames,
             learned_background,
+            map_given,
+            map_topic_ignored: false,
+            odom_topic_seen: false,
             laser_frame: None,
             static_tf: HashMap::new(),
             warnings: WarningLog::default(),
@@ -184,6 +194,7 @@ impl LocaliserStage {
 
     /// Odometry: the pose of the base in the odom frame.
     pub fn on_odom(&mut self, msg: &Odometry) {
+        self.odom_topic_seen = true;
         let stamp_ns = msg.header.stamp.to_nanos();
         self.last_stamp_ns = stamp_ns;
         let w = self
@@ -192,9 +203,16 @@ impl LocaliserStage {
         self.warn(w);
     }
 
-    /// A new map replaces the previous one (not the learned background, which needs none).
+    /// A new map replaces the previous one (not a map file the user gave, nor the learned
+    /// background, which needs none).
     pub fn on_map(&mut self, msg: &OccupancyGrid) {
         if self.learned_background {
+            return;
+        }
+        if self.map_given {
+            if !std::mem::replace(&mut self.map_topic_ignored, true) {
+                log::warn!("localiser: /map ignored: the map file given is used instead");
+            }
             return;
         }
         match convert::map_from_grid(msg, self.occupied_thresh) {
@@ -203,7 +221,8 @@ impl LocaliserStage {
         }
     }
 
-    /// Dynamic transforms: the `map -> odom` correction, or a moving mount.
+    /// Dynamic transforms: the `map -> odom` correction, and `odom -> base_link` as the
+    /// odometry while no /odom message has come.
     pub fn on_tf(&mut self, msg: &TFMessage) {
         for t in &msg.transforms {
             let parent = t.header.frame_id.trim_start_matches('/');
@@ -211,6 +230,14 @@ impl LocaliserStage {
             let pose = convert::pose2_from_transform(&t.transform);
             if parent == self.frames.map && child == self.frames.odom {
                 let w = self.localiser.set_map_to_odom(pose);
+                self.warn(w);
+            } else if parent == self.frames.odom
+                && child == self.frames.base
+                && !self.odom_topic_seen
+            {
+                let stamp_ns = t.header.stamp.to_nanos();
+                self.last_stamp_ns = stamp_ns;
+                let w = self.localiser.add_odometry(stamp_ns, pose);
                 self.warn(w);
             }
         }
@@ -266,6 +293,14 @@ impl LocaliserStage {
             markers: convert::markers_msg(output, frame),
         }
     }
+}
+
+/// Whether a /tf message carries the odometry transform (`odom -> base_link` in `frames`).
+pub fn carries_odometry(msg: &TFMessage, frames: &FrameConfig) -> bool {
+    msg.transforms.iter().any(|t| {
+        t.header.frame_id.trim_start_matches('/') == frames.odom
+            && t.child_frame_id.trim_start_matches('/') == frames.base
+    })
 }
 
 fn motion(moving: bool) -> Motion {

@@ -33,12 +33,8 @@ pub const LASER_FRAME: &str = "laser";
 pub enum RecordError {
     #[error(transparent)]
     Bag(#[from] lidar_har_bag::BagError),
-    #[error("cannot write the map beside the bag in {path}: {source}")]
-    Map {
-        path: String,
-        #[source]
-        source: std::io::Error,
-    },
+    #[error("cannot write the map beside the bag in {path}: {cause}")]
+    Map { path: String, cause: std::io::Error },
 }
 
 /// What was recorded.
@@ -151,7 +147,7 @@ pub fn record(
     map.write_map_server(out, "map")
         .map_err(|source| RecordError::Map {
             path: out.display().to_string(),
-            source,
+            cause: source,
         })?;
     let t0 = time(start);
     let log0 = start as i64;

@@ -415,12 +415,8 @@ pub enum FallDirection {
 /// A scene that cannot be used, with where in the file the problem is.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("cannot read scene {path}: {source}")]
-    Io {
-        path: String,
-        #[source]
-        source: std::io::Error,
-    },
+    #[error("cannot read scene {path}: {cause}")]
+    Io { path: String, cause: std::io::Error },
     #[error("{origin}: {key}: {message}")]
     Invalid {
         origin: String,
@@ -442,7 +438,7 @@ impl Scene {
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
             path: path.display().to_string(),
-            source,
+            cause: source,
         })?;
         Scene::parse(&text, &path.display().to_string())
     }

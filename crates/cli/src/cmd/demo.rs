@@ -30,9 +30,10 @@ pub struct DemoArgs {
     /// Mixed with the scene's seed.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// The activity model (ONNX step model, see docs/model_contract.md).
-    #[arg(long, default_value = "models/activity.onnx")]
-    pub model: PathBuf,
+    /// The activity model (ONNX step model, see docs/model_contract.md) [default: the
+    /// classifier configuration's `model`, models/activity.onnx].
+    #[arg(long)]
+    pub model: Option<PathBuf>,
     /// Classifier parameters (YAML, see config/classifier.yaml); defaults when absent.
     #[arg(long)]
     pub classifier_config: Option<PathBuf>,
@@ -45,7 +46,9 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
         Some(path) => load_classifier_config(path)?,
         None => ClassifierConfig::default(),
     };
-    config.model = args.model.clone();
+    if let Some(model) = &args.model {
+        config.model = model.clone();
+    }
     anyhow::ensure!(
         config.model.is_file(),
         "no activity model at {}: the demo needs a trained model and does not fake results. \

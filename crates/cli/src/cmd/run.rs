@@ -87,5 +87,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         args.out.display(),
         args.out.join("summary.json").display()
     );
+    if let Some(error) = &summary.read_error {
+        anyhow::bail!(
+            "input bag {}: reading stopped early ({error}); the outputs cover the {} scans read",
+            args.bag.display(),
+            summary.scans
+        );
+    }
     Ok(())
 }
