@@ -1,4 +1,9 @@
 //! Errors of the bag reader and writer. Each names the path it concerns and what is wrong.
+//!
+//! Every message is complete on its own: the underlying error's text is part of it, and that
+//! error is kept in a `cause` field, not exposed as `source()`. Callers print bag errors both
+//! with `{}` (log lines) and as a chain with `{:#}` (the `lidar-har` binary); a cause that were
+//! both in the text and the chain would be printed twice.
 
 use std::path::PathBuf;
 
@@ -9,12 +14,11 @@ pub enum BagError {
     NotFound { path: PathBuf },
     #[error("{path}: not a rosbag2 bag: {reason}")]
     NotABag { path: PathBuf, reason: String },
-    #[error("{path}: {action}: {source}")]
+    #[error("{path}: {action}: {cause}")]
     Io {
         path: PathBuf,
         action: &'static str,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     #[error("{path}: malformed metadata.yaml: {message}")]
     Metadata { path: PathBuf, message: String },
@@ -30,26 +34,25 @@ pub enum BagError {
         format: String,
         mode: String,
     },
-    #[error("{path}: invalid MCAP: {source}")]
+    #[error("{path}: invalid MCAP: {cause}")]
     Mcap {
         path: PathBuf,
-        #[source]
-        source: mcap::McapError,
+        cause: mcap::McapError,
     },
+    /// The file ends inside a record (cut short, or a chunk still open when the recorder was
+    /// killed); `reason` says which. Every complete message before it was read.
     #[error(
-        "{path}: MCAP file ends early (truncated, e.g. the recorder was killed) after {messages_read} complete messages: {source}"
+        "{path}: MCAP file is truncated (e.g. the recorder was killed) after {messages_read} complete messages: {reason}"
     )]
     Truncated {
         path: PathBuf,
         messages_read: u64,
-        #[source]
-        source: mcap::McapError,
+        reason: String,
     },
-    #[error("{path}: sqlite3 storage: {source}")]
+    #[error("{path}: sqlite3 storage: {cause}")]
     Sqlite {
         path: PathBuf,
-        #[source]
-        source: rusqlite::Error,
+        cause: rusqlite::Error,
     },
     #[error("{path}: topic `{topic}` has no schema (message definition); every channel needs one")]
     MissingSchema { path: PathBuf, topic: String },
@@ -69,12 +72,11 @@ pub enum BagError {
     },
     #[error("topic `{topic}` is not in this bag")]
     UnknownTopic { topic: String },
-    #[error("message on `{topic}` at {log_time_ns} ns: {source}")]
+    #[error("message on `{topic}` at {log_time_ns} ns: {cause}")]
     Decode {
         topic: String,
         log_time_ns: i64,
-        #[source]
-        source: lidar_har_msgs::CdrError,
+        cause: lidar_har_msgs::CdrError,
     },
     #[error("{path}: cannot write: {message}")]
     Write { path: PathBuf, message: String },
@@ -87,19 +89,19 @@ pub(crate) fn io_error(
     action: &'static str,
 ) -> impl FnOnce(std::io::Error) -> BagError {
     let path = path.into();
-    move |source| BagError::Io {
+    move |cause| BagError::Io {
         path,
         action,
-        source,
+        cause,
     }
 }
 
 pub(crate) fn sqlite_error(path: impl Into<PathBuf>) -> impl FnOnce(rusqlite::Error) -> BagError {
     let path = path.into();
-    move |source| BagError::Sqlite { path, source }
+    move |cause| BagError::Sqlite { path, cause }
 }
 
 pub(crate) fn mcap_error(path: impl Into<PathBuf>) -> impl FnOnce(mcap::McapError) -> BagError {
     let path = path.into();
-    move |source| BagError::Mcap { path, source }
+    move |cause| BagError::Mcap { path, cause }
 }

@@ -4,7 +4,8 @@
 //!
 //! The API is byte-level: messages are CDR bytes made by `lidar-har-msgs`; a bag stores them
 //! with their type name and `ros2msg` schema text. Reading streams in constant memory; writing
-//! flushes regularly so a killed recorder loses at most one flush interval.
+//! flushes at the first write after each flush interval, so a recorder killed while messages
+//! keep coming loses about one interval at most.
 
 mod error;
 mod mcap_records;

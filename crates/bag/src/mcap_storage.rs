@@ -8,7 +8,7 @@ use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use mcap::records::{self, MessageHeader, Record};
+use mcap::records::{self, MessageHeader, Record, op};
 use mcap::sans_io::indexed_reader::{IndexedReadEvent, IndexedReader, IndexedReaderOptions};
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
@@ -130,9 +130,10 @@ impl StorageSink for McapSink {
     }
 
     fn finish(&mut self, metadata: &BagMetadata) -> Result<()> {
-        let Some(mut writer) = self.writer.take() else {
-            return Ok(());
-        };
+        let mut writer = self.writer.take().ok_or_else(|| BagError::Write {
+            path: self.path.clone(),
+            message: "the bag is already finished".into(),
+        })?;
         let path = self.path.clone();
         let mut record = BTreeMap::new();
         record.insert(
@@ -150,7 +151,7 @@ impl StorageSink for McapSink {
         let file = writer.into_inner().into_inner().map_err(|e| BagError::Io {
             path: path.clone(),
             action: "cannot flush",
-            source: e.into_error(),
+            cause: e.into_error(),
         })?;
         file.sync_all().map_err(io_error(&path, "cannot sync"))
     }
@@ -233,11 +234,20 @@ impl McapFile {
 
     fn from_summary(input: McapInput, summary: Summary) -> Result<Self> {
         let path = input.path();
-        let counts = summary
-            .stats
-            .as_ref()
-            .map(|s| s.channel_message_counts.clone())
-            .unwrap_or_default();
+        let (counts, time_bounds) = match &summary.stats {
+            Some(stats) => {
+                let bounds = if stats.message_count > 0 {
+                    Some((
+                        to_i64(&path, "", stats.message_start_time)?,
+                        to_i64(&path, "", stats.message_end_time)?,
+                    ))
+                } else {
+                    None
+                };
+                (stats.channel_message_counts.clone(), bounds)
+            }
+            None => count_messages(&input, &summary)?,
+        };
         let mut ids: Vec<_> = summary.channels.keys().copied().collect();
         ids.sort_unstable();
         let mut topics = Vec::new();
@@ -259,13 +269,6 @@ impl McapFile {
                 topic.message_count = counts.get(&id).copied().unwrap_or(0);
             }
         }
-        let time_bounds = match &summary.stats {
-            Some(stats) if stats.message_count > 0 => Some((
-                to_i64(&path, "", stats.message_start_time)?,
-                to_i64(&path, "", stats.message_end_time)?,
-            )),
-            _ => None,
-        };
         Ok(Self {
             input,
             summary: Some(summary),
@@ -369,6 +372,34 @@ fn read_summary(
     Ok(summary_reader.finish())
 }
 
+/// Message counts per channel, and the (first, last) log time when there are messages.
+type Counts = (BTreeMap<u16, u64>, Option<(i64, i64)>);
+
+/// Per-channel counts and time bounds of a file whose summary has no Statistics record (the
+/// record is optional: e.g. Python's `mcap` writer with `use_statistics=False`), by reading
+/// every chunk once. Chunk indexes alone would give the time span but not the counts.
+fn count_messages(input: &McapInput, summary: &Summary) -> Result<Counts> {
+    let path = input.path();
+    let mut stream = IndexedMessages::new(input, summary, None)?;
+    let mut counts = BTreeMap::new();
+    let mut bounds: Option<(u64, u64)> = None;
+    while let Some(item) =
+        stream.next_with(|_, _, header, _| Ok((header.channel_id, header.log_time)))
+    {
+        let (channel_id, log_time) = item?;
+        *counts.entry(channel_id).or_insert(0) += 1;
+        bounds = Some(match bounds {
+            None => (log_time, log_time),
+            Some((lo, hi)) => (lo.min(log_time), hi.max(log_time)),
+        });
+    }
+    let bounds = match bounds {
+        Some((lo, hi)) => Some((to_i64(&path, "", lo)?, to_i64(&path, "", hi)?)),
+        None => None,
+    };
+    Ok((counts, bounds))
+}
+
 fn to_i64(path: &Path, topic: &str, log_time: u64) -> Result<i64> {
     i64::try_from(log_time).map_err(|_| BagError::BadTime {
         path: path.to_path_buf(),
@@ -467,11 +498,13 @@ impl IndexedMessages {
             failed: false,
         })
     }
-}
 
-impl Iterator for IndexedMessages {
-    type Item = Result<BagMessage>;
-    fn next(&mut self) -> Option<Self::Item> {
+    /// Reads on to the next message and hands its header and bytes to `take` (with the path
+    /// and the channels' topics, for error messages and names).
+    fn next_with<T>(
+        &mut self,
+        take: impl FnOnce(&Path, &HashMap<u16, Arc<str>>, &MessageHeader, &[u8]) -> Result<T>,
+    ) -> Option<Result<T>> {
         if self.failed {
             return None;
         }
@@ -481,7 +514,7 @@ impl Iterator for IndexedMessages {
                 Err(e) => {
                     break Err(BagError::Mcap {
                         path: self.path.clone(),
-                        source: e,
+                        cause: e,
                     });
                 }
             };
@@ -497,42 +530,49 @@ impl Iterator for IndexedMessages {
                         break Err(if truncated {
                             BagError::Mcap {
                                 path: self.path.clone(),
-                                source: McapError::BadIndex,
+                                cause: McapError::BadIndex,
                             }
                         } else {
                             BagError::Io {
                                 path: self.path.clone(),
                                 action: "cannot read",
-                                source: e,
+                                cause: e,
                             }
                         });
                     }
                     if let Err(e) = self.reader.insert_chunk_record_data(offset, &self.chunk) {
                         break Err(BagError::Mcap {
                             path: self.path.clone(),
-                            source: e,
+                            cause: e,
                         });
                     }
                 }
                 IndexedReadEvent::Message { header, data } => {
-                    let Some(topic) = self.channels.get(&header.channel_id) else {
-                        break Err(BagError::UnknownTopicId {
-                            path: self.path.clone(),
-                            id: i64::from(header.channel_id),
-                        });
-                    };
-                    break to_i64(&self.path, topic, header.log_time).map(|log_time_ns| {
-                        BagMessage {
-                            topic: topic.clone(),
-                            log_time_ns,
-                            data: data.to_vec(),
-                        }
-                    });
+                    break take(&self.path, &self.channels, &header, data);
                 }
             }
         };
         self.failed = result.is_err();
         Some(result)
+    }
+}
+
+impl Iterator for IndexedMessages {
+    type Item = Result<BagMessage>;
+    fn next(&mut self) -> Option<Self::Item> {
+        self.next_with(|path, channels, header, data| {
+            let Some(topic) = channels.get(&header.channel_id) else {
+                return Err(BagError::UnknownTopicId {
+                    path: path.to_path_buf(),
+                    id: i64::from(header.channel_id),
+                });
+            };
+            to_i64(path, topic, header.log_time).map(|log_time_ns| BagMessage {
+                topic: topic.clone(),
+                log_time_ns,
+                data: data.to_vec(),
+            })
+        })
     }
 }
 
@@ -542,6 +582,8 @@ impl Iterator for IndexedMessages {
 pub(crate) struct LinearMessages {
     path: PathBuf,
     file: Box<dyn ReadSeek + Send>,
+    /// The file's size: a record longer than this was never finished.
+    file_len: u64,
     /// Boxed: `mcap`'s reader state is large, and this path serves only unfinished files.
     reader: Box<LinearReader>,
     schemas: HashMap<u16, (String, String, Vec<u8>)>,
@@ -557,7 +599,7 @@ pub(crate) struct LinearMessages {
 impl LinearMessages {
     fn new(input: &McapInput, topics: Option<&BTreeSet<String>>) -> Result<Self> {
         let path = input.path();
-        let (file, _) = input.open()?;
+        let (file, file_len) = input.open()?;
         let reader = Box::new(LinearReader::new_with_options(
             LinearReaderOptions::default()
                 .with_emit_chunks(true)
@@ -566,6 +608,7 @@ impl LinearMessages {
         Ok(Self {
             path,
             file,
+            file_len,
             reader,
             schemas: HashMap::new(),
             channels: HashMap::new(),
@@ -577,19 +620,33 @@ impl LinearMessages {
         })
     }
 
-    fn fail(&mut self, source: McapError) -> BagError {
+    /// Ends the scan with `cause`. A file that ends inside a record is truncated, not invalid:
+    /// it ends before a record's end, or a record claims more bytes than the whole file has
+    /// (`mcap`'s writer leaves `u64::MAX` as the length of the chunk it is writing until the
+    /// chunk is complete, so that is what a killed recorder leaves).
+    fn fail(&mut self, cause: McapError) -> BagError {
         self.done = true;
-        if matches!(source, McapError::UnexpectedEof) {
-            BagError::Truncated {
-                path: self.path.clone(),
-                messages_read: self.messages_read,
-                source,
+        let reason = match cause {
+            McapError::UnexpectedEof => "the file ends before its summary and footer".to_string(),
+            McapError::RecordTooLarge { opcode, len } if opcode == op::CHUNK && len == u64::MAX => {
+                "the last chunk was still being written (its length is the writer's placeholder)"
+                    .to_string()
             }
-        } else {
-            BagError::Mcap {
-                path: self.path.clone(),
-                source,
+            McapError::RecordTooLarge { opcode, len } if len > self.file_len => format!(
+                "the last record (opcode {opcode:#04x}) claims {len} bytes, more than the {}-byte file",
+                self.file_len
+            ),
+            cause => {
+                return BagError::Mcap {
+                    path: self.path.clone(),
+                    cause,
+                };
             }
+        };
+        BagError::Truncated {
+            path: self.path.clone(),
+            messages_read: self.messages_read,
+            reason,
         }
     }
 
@@ -630,7 +687,7 @@ impl LinearMessages {
                             return Some(Err(BagError::Io {
                                 path: self.path.clone(),
                                 action: "cannot read",
-                                source: e,
+                                cause: e,
                             }));
                         }
                     }

@@ -1,7 +1,7 @@
 //! Reading rosbag2 bags: a directory with `metadata.yaml` (MCAP or sqlite3 storage, one or
 //! more files) or a bare `.mcap` file. Messages stream in log-time order in constant memory.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -136,7 +136,7 @@ impl BagReader {
         }
         let mut files = Vec::new();
         for name in relative {
-            let file_path = path.join(&name);
+            let file_path = storage_file_path(&path, metadata.version, &name);
             if !file_path.is_file() {
                 return Err(BagError::NotFound { path: file_path });
             }
@@ -305,8 +305,7 @@ impl BagReader {
             sources,
             heads,
             primed: false,
-            pending: None,
-            failed: false,
+            errors: VecDeque::new(),
         })
     }
 
@@ -324,12 +323,31 @@ impl BagReader {
                 found: topic.type_name.clone(),
             });
         }
-        lidar_har_msgs::decode::<M>(&message.data).map_err(|source| BagError::Decode {
+        lidar_har_msgs::decode::<M>(&message.data).map_err(|cause| BagError::Decode {
             topic: topic.name.clone(),
             log_time_ns: message.log_time_ns,
-            source,
+            cause,
         })
     }
+}
+
+/// Where a storage file listed in `relative_file_paths` is. Versions 1 to 3 listed it with the
+/// bag directory's name in front (`old/old_0.db3`), and rosbag2_cpp resolves those from the
+/// directory's parent; from version 4 on the name is relative to the bag directory. When the
+/// old form does not lead to a file (the directory was renamed, or opened as `.`), the file
+/// name alone is looked up in the bag directory, as `rosbags` does.
+fn storage_file_path(dir: &Path, version: u32, listed: &str) -> PathBuf {
+    let in_dir = dir.join(listed);
+    if version >= 4 {
+        return in_dir;
+    }
+    let from_parent = dir.parent().map(|parent| parent.join(listed));
+    let by_name = Path::new(listed).file_name().map(|name| dir.join(name));
+    [from_parent, by_name]
+        .into_iter()
+        .flatten()
+        .find(|candidate| candidate.is_file())
+        .unwrap_or(in_dir)
 }
 
 fn list_mcap_files(dir: &Path) -> Result<Vec<PathBuf>> {
@@ -357,33 +375,24 @@ impl Iterator for Source {
     }
 }
 
-/// Messages of a bag, merged across its storage files by log time. An error (e.g. a
-/// truncated file, reported after its complete messages) ends the stream.
+/// Messages of a bag, merged across its storage files by log time. An error in one file (e.g.
+/// a truncated one, after its complete messages) ends that file only: the other files' messages
+/// still come, and the errors follow the last message, one item each, as they occurred. Callers
+/// that stop at the first error therefore lose no message of a good file.
 pub struct Messages {
     sources: Vec<Source>,
     heads: Vec<Option<BagMessage>>,
     primed: bool,
-    pending: Option<BagError>,
-    failed: bool,
+    errors: VecDeque<BagError>,
 }
 
 impl Iterator for Messages {
     type Item = Result<BagMessage>;
     fn next(&mut self) -> Option<Self::Item> {
-        if self.failed {
-            return None;
-        }
-        if let Some(e) = self.pending.take() {
-            self.failed = true;
-            return Some(Err(e));
-        }
         if !self.primed {
             self.primed = true;
             for i in 0..self.sources.len() {
-                if let Err(e) = self.refill(i) {
-                    self.failed = true;
-                    return Some(Err(e));
-                }
+                self.refill(i);
             }
         }
         let earliest = self
@@ -391,23 +400,27 @@ impl Iterator for Messages {
             .iter()
             .enumerate()
             .filter_map(|(i, h)| h.as_ref().map(|m| (m.log_time_ns, i)))
-            .min()?
-            .1;
+            .min()
+            .map(|(_, i)| i);
+        let Some(earliest) = earliest else {
+            return self.errors.pop_front().map(Err);
+        };
         let message = self.heads[earliest].take()?;
-        if let Err(e) = self.refill(earliest) {
-            self.pending = Some(e);
-        }
+        self.refill(earliest);
         Some(Ok(message))
     }
 }
 
 impl Messages {
-    fn refill(&mut self, i: usize) -> Result<()> {
+    /// Reads the next message of file `i`; an error ends that file and waits its turn.
+    fn refill(&mut self, i: usize) {
         self.heads[i] = match self.sources[i].next() {
             Some(Ok(m)) => Some(m),
-            Some(Err(e)) => return Err(e),
+            Some(Err(e)) => {
+                self.errors.push_back(e);
+                None
+            }
             None => None,
         };
-        Ok(())
     }
 }

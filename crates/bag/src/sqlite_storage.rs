@@ -117,9 +117,10 @@ impl StorageSink for SqliteSink {
     }
 
     fn finish(&mut self, metadata: &BagMetadata) -> Result<()> {
-        let Some(conn) = self.conn.take() else {
-            return Ok(());
-        };
+        let conn = self.conn.take().ok_or_else(|| BagError::Write {
+            path: self.path.clone(),
+            message: "the bag is already finished".into(),
+        })?;
         let path = self.path.clone();
         conn.execute(
             "INSERT INTO metadata(metadata_version, metadata) VALUES (?1, ?2)",
@@ -128,7 +129,7 @@ impl StorageSink for SqliteSink {
         .map_err(sqlite_error(&path))?;
         conn.execute_batch("COMMIT").map_err(sqlite_error(&path))?;
         conn.close()
-            .map_err(|(_, e)| BagError::Sqlite { path, source: e })
+            .map_err(|(_, e)| BagError::Sqlite { path, cause: e })
     }
 }
 
@@ -160,7 +161,7 @@ impl SqliteFile {
         let conn = open_read_only(path)?;
         let err = |e| BagError::Sqlite {
             path: path.to_path_buf(),
-            source: e,
+            cause: e,
         };
         let has_qos = has_column(&conn, "topics", "offered_qos_profiles").map_err(err)?;
         let has_hash = has_column(&conn, "topics", "type_description_hash").map_err(err)?;
@@ -324,7 +325,7 @@ impl Iterator for SqliteMessages {
                     self.done = true;
                     return Some(Err(BagError::Sqlite {
                         path: self.path.clone(),
-                        source: e,
+                        cause: e,
                     }));
                 }
                 if self.batch.is_empty() {

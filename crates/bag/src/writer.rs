@@ -1,6 +1,7 @@
 //! Writing rosbag2 directories: `metadata.yaml` plus one storage file (`<dir>_0.mcap` or
-//! `<dir>_0.db3`). Data is flushed regularly and `metadata.yaml` rewritten at each flush, so a
-//! process killed mid-recording leaves a bag that reads back up to its last flush.
+//! `<dir>_0.db3`). Data is flushed at the first write after each flush interval (and on
+//! `flush()`), and `metadata.yaml` rewritten at each flush, so a process killed mid-recording
+//! leaves a bag that reads back up to its last flush.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -92,8 +93,9 @@ pub struct WriterOptions {
     pub compression: Compression,
     /// Target uncompressed MCAP chunk size in bytes; a full chunk is written out at once.
     pub chunk_size: u64,
-    /// Longest time data may sit in memory: after it, the current chunk (or sqlite
-    /// transaction) is written out and `metadata.yaml` rewritten. Bounds what a kill loses.
+    /// At the first write this long after the last flush, the current chunk (or sqlite
+    /// transaction) is written out and `metadata.yaml` rewritten: bounds what a kill loses
+    /// while messages keep coming. Only writes check it; during a pause call `flush()`.
     pub flush_interval: Duration,
     /// `ros_distro` recorded in the metadata (the format written is rosbag2 Jazzy's).
     pub ros_distro: String,
@@ -145,6 +147,15 @@ pub struct BagSummary {
     pub metadata: BagMetadata,
 }
 
+/// Where a writer is: a `finish` that failed leaves an incomplete storage file, which later
+/// calls (and `Drop`) must not report as finished.
+enum State {
+    Open,
+    Finished(Box<BagSummary>),
+    /// The text of the error the failed `finish` returned.
+    FinishFailed(String),
+}
+
 /// Writes one rosbag2 directory. Dropping it finishes the bag (best effort, errors ignored);
 /// call [`BagWriter::finish`] to see errors.
 pub struct BagWriter {
@@ -155,7 +166,7 @@ pub struct BagWriter {
     topics: Vec<WriterTopic>,
     time_bounds: Option<(i64, i64)>,
     last_flush: Instant,
-    finished: Option<BagSummary>,
+    state: State,
 }
 
 impl BagWriter {
@@ -198,7 +209,7 @@ impl BagWriter {
             topics: Vec::new(),
             time_bounds: None,
             last_flush: Instant::now(),
-            finished: None,
+            state: State::Open,
         };
         writer.metadata().write(&writer.dir)?;
         Ok(writer)
@@ -255,8 +266,8 @@ impl BagWriter {
         qos: Vec<OfferedQos>,
         type_description_hash: &str,
     ) -> Result<TopicHandle> {
-        let problem = if self.finished.is_some() {
-            Some("the bag is already finished".to_string())
+        let problem = if let Some(closed) = self.closed() {
+            Some(closed)
         } else if self.topics.iter().any(|t| t.name == name) {
             Some(format!("topic `{name}` added twice"))
         } else if schema_text.trim().is_empty() {
@@ -294,10 +305,10 @@ impl BagWriter {
 
     /// Writes one serialised (CDR, with encapsulation header) message received at `log_time_ns`.
     pub fn write(&mut self, topic: TopicHandle, log_time_ns: i64, cdr: &[u8]) -> Result<()> {
-        if self.finished.is_some() {
+        if let Some(message) = self.closed() {
             return Err(BagError::Write {
                 path: self.dir.clone(),
-                message: "the bag is already finished".into(),
+                message,
             });
         }
         let Some(entry) = self.topics.get_mut(topic.0) else {
@@ -344,10 +355,10 @@ impl BagWriter {
                 found: entry.type_name.clone(),
             });
         }
-        let cdr = lidar_har_msgs::encode(msg).map_err(|source| BagError::Decode {
+        let cdr = lidar_har_msgs::encode(msg).map_err(|cause| BagError::Decode {
             topic: entry.name.clone(),
             log_time_ns,
-            source,
+            cause,
         })?;
         self.write(topic, log_time_ns, &cdr)
     }
@@ -355,8 +366,14 @@ impl BagWriter {
     /// Writes buffered messages to disk and rewrites `metadata.yaml`: after this returns,
     /// a kill loses nothing written so far.
     pub fn flush(&mut self) -> Result<()> {
-        if self.finished.is_some() {
+        if matches!(self.state, State::Finished(_)) {
             return Ok(());
+        }
+        if let Some(message) = self.closed() {
+            return Err(BagError::Write {
+                path: self.dir.clone(),
+                message,
+            });
         }
         self.sink.flush()?;
         self.metadata().write(&self.dir)?;
@@ -366,20 +383,44 @@ impl BagWriter {
 
     /// Completes the storage file (MCAP summary, statistics and `rosbag2` record; sqlite
     /// metadata row) and writes the final `metadata.yaml`. Calling it again returns the same
-    /// summary; signal handlers in binaries can call it from their shutdown path.
+    /// summary, or an error again when it failed; signal handlers in binaries can call it from
+    /// their shutdown path.
     pub fn finish(&mut self) -> Result<BagSummary> {
-        if let Some(summary) = &self.finished {
-            return Ok(summary.clone());
+        if let State::Finished(summary) = &self.state {
+            return Ok(BagSummary::clone(summary));
+        }
+        if let Some(message) = self.closed() {
+            return Err(BagError::Write {
+                path: self.dir.clone(),
+                message,
+            });
         }
         let metadata = self.metadata();
-        self.sink.finish(&metadata)?;
-        metadata.write(&self.dir)?;
+        let done = self
+            .sink
+            .finish(&metadata)
+            .and_then(|()| metadata.write(&self.dir));
+        if let Err(e) = done {
+            self.state = State::FinishFailed(e.to_string());
+            return Err(e);
+        }
         let summary = BagSummary {
             dir: self.dir.clone(),
             metadata,
         };
-        self.finished = Some(summary.clone());
+        self.state = State::Finished(Box::new(summary.clone()));
         Ok(summary)
+    }
+
+    /// Why nothing more can be written, once the bag is finished or finishing it failed.
+    fn closed(&self) -> Option<String> {
+        match &self.state {
+            State::Open => None,
+            State::Finished(_) => Some("the bag is already finished".to_string()),
+            State::FinishFailed(error) => Some(format!(
+                "finishing the bag failed earlier, its storage file is incomplete ({error})"
+            )),
+        }
     }
 
     fn metadata(&self) -> BagMetadata {

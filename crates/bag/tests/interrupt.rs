@@ -191,3 +191,92 @@ fn sigterm_finishes_the_bag() {
     assert_eq!(reader.bag_metadata().unwrap().message_count, finished);
     assert_eq!(reader.metadata().message_count, finished);
 }
+
+/// Where the last chunk written by `mcap`'s writer still has its placeholder length: the chunk
+/// opcode followed by `u64::MAX`, as the file stands while a chunk is being written.
+fn open_chunk_at(bytes: &[u8]) -> Option<usize> {
+    let mut placeholder = vec![0x06];
+    placeholder.extend_from_slice(&u64::MAX.to_le_bytes());
+    bytes
+        .windows(placeholder.len())
+        .rposition(|w| w == placeholder)
+}
+
+/// The file exactly as a recorder killed while writing a chunk leaves it (a copy of its bytes
+/// taken with the chunk open), for each compression: every flushed message comes back, then a
+/// `Truncated` error naming the file.
+#[test]
+fn a_chunk_left_open_by_a_killed_writer_reads_as_truncated() {
+    let tmp = tempfile::tempdir().unwrap();
+    for compression in [Compression::None, Compression::Zstd, Compression::Lz4] {
+        let dir = tmp.path().join(format!("rec_{compression:?}"));
+        let options = WriterOptions {
+            compression,
+            chunk_size: 64 << 20,
+            flush_interval: Duration::from_secs(3600),
+            ..WriterOptions::default()
+        };
+        let mut writer = BagWriter::create(&dir, options).unwrap();
+        let topic = writer
+            .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
+            .unwrap();
+        let file = dir.join(format!("rec_{compression:?}_0.mcap"));
+        let flushed = 40u32;
+        let mut snapshot = None;
+        for i in 0..2000u32 {
+            writer
+                .write_message(topic, 1_000 + i64::from(i) * 50_000_000, &scan(i))
+                .unwrap();
+            if i + 1 == flushed {
+                writer.flush().unwrap();
+            }
+            if i >= flushed {
+                let bytes = std::fs::read(&file).unwrap();
+                if open_chunk_at(&bytes).is_some() {
+                    snapshot = Some(bytes);
+                    break;
+                }
+            }
+        }
+        let snapshot = snapshot.expect("the open chunk reached the file");
+        let metadata = std::fs::read(dir.join("metadata.yaml")).unwrap();
+        drop(writer);
+
+        let killed = tmp.path().join(format!("killed_{compression:?}"));
+        std::fs::create_dir(&killed).unwrap();
+        std::fs::write(killed.join("metadata.yaml"), metadata).unwrap();
+        let killed_file = killed.join(file.file_name().unwrap());
+        std::fs::write(&killed_file, &snapshot).unwrap();
+
+        let reader = BagReader::open(&killed).unwrap();
+        let info = reader.metadata();
+        assert!(info.truncated, "{compression:?}");
+        assert_eq!(info.message_count, u64::from(flushed), "{compression:?}");
+        assert_eq!(info.start_ns, 1_000);
+        let (scans, error) = read_back(&killed);
+        assert_eq!(scans.len(), flushed as usize, "{compression:?}");
+        for (i, got) in scans.iter().enumerate() {
+            assert_eq!(
+                got.header,
+                scan(i as u32).header,
+                "{compression:?} message {i}"
+            );
+        }
+        let error = error.expect("the truncation is reported");
+        assert!(
+            matches!(
+                error,
+                BagError::Truncated {
+                    messages_read: 40,
+                    ..
+                }
+            ),
+            "{error}"
+        );
+        let text = error.to_string();
+        assert!(
+            text.contains(&killed_file.display().to_string()) && text.contains("truncated"),
+            "{text}"
+        );
+    }
+}

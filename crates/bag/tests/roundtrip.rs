@@ -303,3 +303,193 @@ fn truncated_mcap_yields_complete_messages_then_an_error() {
         }
     }
 }
+
+/// `{:#}` of anyhow: the error, then each `source()`, joined by ": ".
+fn chain(error: &dyn std::error::Error) -> String {
+    let mut text = error.to_string();
+    let mut next = error.source();
+    while let Some(cause) = next {
+        text = format!("{text}: {cause}");
+        next = cause.source();
+    }
+    text
+}
+
+#[test]
+fn a_printed_error_chain_says_the_cause_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("t");
+    write_bag(&dir, StorageId::Mcap, Compression::None, 30);
+    let file = dir.join("t_0.mcap");
+    let bytes = std::fs::read(&file).unwrap();
+    std::fs::write(&file, &bytes[..bytes.len() / 2]).unwrap();
+    let reader = BagReader::open(&dir).unwrap();
+    let error = reader.messages().unwrap().find_map(Result::err).unwrap();
+    let text = chain(&error);
+    assert_eq!(text, error.to_string(), "no cause repeated: {text}");
+    assert!(
+        text.contains("t_0.mcap") && text.contains("truncated") && text.contains("footer"),
+        "{text}"
+    );
+
+    std::fs::write(dir.join("metadata.yaml"), b"version: \xff").unwrap();
+    let error = BagReader::open(&dir).err().unwrap();
+    let text = chain(&error);
+    assert!(
+        text.contains("metadata.yaml: cannot read: ") && text.matches("UTF-8").count() == 1,
+        "{text}"
+    );
+}
+
+/// A split bag (several storage files, here without metadata.yaml) where one file was cut
+/// before its first complete chunk: every message of the good file comes out, then the error.
+#[test]
+fn a_cut_file_of_a_split_bag_loses_no_message_of_the_others() {
+    let tmp = tempfile::tempdir().unwrap();
+    let good = tmp.path().join("good");
+    let written = write_bag(&good, StorageId::Mcap, Compression::Zstd, 30);
+    let good_bytes = std::fs::read(good.join("good_0.mcap")).unwrap();
+    let cut_bytes = &good_bytes[..200];
+    for (first, second) in [(&good_bytes[..], cut_bytes), (cut_bytes, &good_bytes[..])] {
+        let split = tmp.path().join("split");
+        let _ = std::fs::remove_dir_all(&split);
+        std::fs::create_dir(&split).unwrap();
+        std::fs::write(split.join("split_0.mcap"), first).unwrap();
+        std::fs::write(split.join("split_1.mcap"), second).unwrap();
+        let cut_name = if first.len() == 200 {
+            "split_0.mcap"
+        } else {
+            "split_1.mcap"
+        };
+
+        let reader = BagReader::open(&split).unwrap();
+        assert!(reader.metadata().truncated);
+        assert_eq!(reader.metadata().message_count, 31);
+        let items: Vec<_> = reader.messages().unwrap().collect();
+        assert_eq!(items.len(), 32, "31 messages and one error");
+        let scans: Vec<_> = items[..31]
+            .iter()
+            .map(|m| m.as_ref().unwrap())
+            .filter(|m| &*m.topic == "/scan")
+            .map(|m| m.data.clone())
+            .collect();
+        assert_eq!(scans, written);
+        let Err(error) = &items[31] else {
+            panic!("the last item is the error");
+        };
+        assert!(
+            matches!(
+                error,
+                BagError::Truncated {
+                    messages_read: 0,
+                    ..
+                }
+            ) && error.to_string().contains(cut_name),
+            "{error}"
+        );
+    }
+}
+
+/// A valid MCAP whose summary has chunk indexes but no Statistics record (optional in the
+/// specification): counts and time span come from reading it.
+#[test]
+fn an_mcap_without_statistics_has_its_counts_and_time_span() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("nostats.mcap");
+    {
+        let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        let mut writer = mcap::WriteOptions::new()
+            .profile("ros2")
+            .emit_statistics(false)
+            .chunk_size(Some(64))
+            .create(file)
+            .unwrap();
+        let schema = writer
+            .add_schema("std_msgs/msg/String", "ros2msg", b"string data")
+            .unwrap();
+        let chatter = writer
+            .add_channel(schema, "/chatter", "cdr", &Default::default())
+            .unwrap();
+        let other = writer
+            .add_channel(schema, "/other", "cdr", &Default::default())
+            .unwrap();
+        for i in 0..10u64 {
+            let channel_id = if i % 3 == 0 { other } else { chatter };
+            let header = mcap::records::MessageHeader {
+                channel_id,
+                sequence: i as u32,
+                log_time: 5_000 + i * 7,
+                publish_time: 5_000 + i * 7,
+            };
+            writer
+                .write_to_known_channel(&header, &[0, 1, 0, 0, 2, 0, 0, 0, b'x', 0])
+                .unwrap();
+        }
+        writer.finish().unwrap();
+    }
+    let summary = mcap::Summary::read(&std::fs::read(&path).unwrap())
+        .unwrap()
+        .unwrap();
+    assert!(summary.stats.is_none() && summary.chunk_indexes.len() > 1);
+    let reader = BagReader::open(&path).unwrap();
+    let info = reader.metadata();
+    assert_eq!(info.message_count, 10);
+    assert_eq!((info.start_ns, info.end_ns), (5_000, 5_063));
+    assert!(!info.truncated);
+    assert_eq!(reader.topic("/chatter").unwrap().message_count, 6);
+    assert_eq!(reader.topic("/other").unwrap().message_count, 4);
+    let times: Vec<_> = reader
+        .messages()
+        .unwrap()
+        .map(|m| m.unwrap().log_time_ns)
+        .collect();
+    assert_eq!(times, (0..10).map(|i| 5_000 + i * 7).collect::<Vec<_>>());
+}
+
+/// metadata.yaml versions 1 to 3 listed storage files with the bag directory's name in front;
+/// rosbag2 resolves them from the parent directory (and `rosbags` by file name alone).
+#[test]
+fn old_metadata_lists_files_with_the_bag_directory_in_front() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("old");
+    let written = write_bag(&dir, StorageId::Sqlite3, Compression::None, 5);
+    let mut metadata = lidar_har_bag::metadata::BagMetadata::read(&dir).unwrap();
+    metadata.version = 3;
+    metadata.relative_file_paths = vec!["old/old_0.db3".into()];
+    metadata.files.clear();
+    metadata.write(&dir).unwrap();
+    check_bag(&dir, StorageId::Sqlite3, &written);
+
+    let renamed = tmp.path().join("renamed");
+    std::fs::rename(&dir, &renamed).unwrap();
+    check_bag(&renamed, StorageId::Sqlite3, &written);
+
+    metadata.version = 4;
+    metadata.write(&renamed).unwrap();
+    let err = BagReader::open(&renamed).err().unwrap();
+    assert!(
+        matches!(err, BagError::NotFound { .. }) && err.to_string().contains("old/old_0.db3"),
+        "from version 4 on the path is relative to the bag directory: {err}"
+    );
+}
+
+/// A `finish` that failed leaves an incomplete bag: calling it again (as `Drop` does) must not
+/// report success, and nothing more can be written.
+#[test]
+fn finish_after_a_failed_finish_is_an_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("f");
+    let mut writer = BagWriter::create(&dir, WriterOptions::default()).unwrap();
+    let topic = writer
+        .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
+        .unwrap();
+    writer.write_message(topic, 1, &scan(0)).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let first = writer.finish().unwrap_err();
+    assert!(first.to_string().contains("metadata.yaml"), "{first}");
+    std::fs::create_dir(&dir).unwrap();
+    let second = writer.finish().unwrap_err();
+    assert!(second.to_string().contains("failed earlier"), "{second}");
+    assert!(writer.write_message(topic, 2, &scan(1)).is_err());
+    assert!(writer.flush().is_err());
+}
