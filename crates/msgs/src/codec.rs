@@ -26,11 +26,10 @@ pub enum CdrError {
         type_name: &'static str,
         header: [u8; 4],
     },
-    #[error("{type_name}: malformed CDR payload: {source}")]
+    #[error("{type_name}: malformed CDR payload: {cause}")]
     Malformed {
         type_name: &'static str,
-        #[source]
-        source: cdr_encoding::Error,
+        cause: cdr_encoding::Error,
     },
     #[error(
         "{type_name}: {trailing} bytes left after the message ({len}-byte payload); wrong message type or corrupt length"
@@ -45,10 +44,10 @@ pub enum CdrError {
 /// Serialises `msg` as ROS 2 does: encapsulation header, then little-endian CDR.
 pub fn encode<M: RosMessage>(msg: &M) -> Result<Vec<u8>, CdrError> {
     let mut out = CDR_LE_HEADER.to_vec();
-    cdr_encoding::to_writer::<M, byteorder::LittleEndian, _>(&mut out, msg).map_err(|source| {
+    cdr_encoding::to_writer::<M, byteorder::LittleEndian, _>(&mut out, msg).map_err(|cause| {
         CdrError::Malformed {
             type_name: M::TYPE_NAME,
-            source,
+            cause,
         }
     })?;
     Ok(out)
@@ -78,7 +77,7 @@ pub fn decode<M: RosMessage>(bytes: &[u8]) -> Result<M, CdrError> {
             });
         }
     };
-    let (msg, consumed) = decoded.map_err(|source| CdrError::Malformed { type_name, source })?;
+    let (msg, consumed) = decoded.map_err(|cause| CdrError::Malformed { type_name, cause })?;
     let trailing = body.len().saturating_sub(consumed);
     if trailing > MAX_TRAILING_PADDING {
         return Err(CdrError::TrailingBytes {

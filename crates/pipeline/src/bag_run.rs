@@ -228,7 +228,7 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
             Ok(message) => message,
             Err(e) => {
                 // Keep what was read: finish the outputs and the summary, then report it.
-                read_error = Some(error_chain(&e));
+                read_error = Some(e.to_string());
                 break;
             }
         };
@@ -323,20 +323,6 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
     let json = serde_json::to_string_pretty(&summary).expect("the summary is plain data");
     std::fs::write(&path, json + "\n").map_err(|cause| RunError::Summary { path, cause })?;
     Ok(summary)
-}
-
-/// An error and its causes, each once, for the summary.
-fn error_chain(error: &dyn std::error::Error) -> String {
-    let mut text = error.to_string();
-    let mut source = error.source();
-    while let Some(cause) = source {
-        let cause_text = cause.to_string();
-        if !text.ends_with(&cause_text) {
-            text = format!("{text}: {cause_text}");
-        }
-        source = cause.source();
-    }
-    text
 }
 
 /// /tf messages looked at for `odom -> base_link` before deciding the bag has no odometry.
