@@ -35,6 +35,8 @@ def generate_launch_description():
                  "rate": ParameterValue(arg("rate"), value_type=float),
                  "loop": ParameterValue(arg("loop"), value_type=bool),
                  # Topics the nodes below publish themselves are not replayed from the bag.
+                 # Those the bag lacks (a fixed Lidar has no /odom or /map) are skipped with a
+                 # warning; replay fails only when the bag has none of them.
                  "topics": ["/scan", "/odom", "/map", "/tf", "/tf_static"],
              }]),
         Node(package="lidar_har", executable="localiser", name="localiser", output="screen",

@@ -133,3 +133,52 @@ pub fn bad_parameter(name: &str, reason: impl std::fmt::Display) -> RosError {
         reason: format!("{reason:#}"),
     }
 }
+
+/// A parameter in seconds within `range` (finite), as a `Duration`: checked first because
+/// `Duration::from_secs_f64` panics on values it cannot hold.
+pub fn seconds(
+    params: &lidar_har_ros::Parameters,
+    name: &str,
+    range: std::ops::RangeInclusive<f64>,
+) -> Result<Duration, RosError> {
+    let rule = format!("seconds in {}..={}", range.start(), range.end());
+    let v = params.f64_checked(name, &rule, |v| range.contains(&v))?;
+    Duration::try_from_secs_f64(v).map_err(|e| bad_parameter(name, format!("{v}: {e}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lidar_har_ros::{ParamDecl, ParamValue, Parameters};
+
+    fn params(value: f64) -> Parameters {
+        let decls = [ParamDecl::new("period", ParamValue::Double(1.0), "s")];
+        Parameters::resolve(
+            &decls,
+            "/test",
+            &[],
+            &[("period".into(), ParamValue::Double(value))],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn seconds_in_range_become_a_duration() {
+        let d = seconds(&params(0.25), "period", 0.0..=5.0).unwrap();
+        assert_eq!(d, Duration::from_millis(250));
+    }
+
+    #[test]
+    fn seconds_out_of_range_or_not_finite_are_errors_naming_the_parameter() {
+        // 1e300 used to pass a `> 0` check and then panic in Duration::from_secs_f64.
+        for bad in [1e300, f64::INFINITY, f64::NAN, -1.0, 5.5] {
+            let err = seconds(&params(bad), "period", 0.0..=5.0)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains("`period`") && err.contains("0..=5"),
+                "{bad}: {err}"
+            );
+        }
+    }
+}

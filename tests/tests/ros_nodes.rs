@@ -147,7 +147,7 @@ fn scan_index(msg: &serde_json::Value) -> usize {
 }
 
 #[test]
-fn ros_replay_reaches_topic_echo_and_map_is_latched_for_late_subscribers() {
+fn ros_replay_reaches_topic_echo_skips_missing_topics_and_latches_map() {
     if !netns_available() {
         return;
     }
@@ -156,7 +156,8 @@ fn ros_replay_reaches_topic_echo_and_map_is_latched_for_late_subscribers() {
     let script = r#"
 "$LH" topic echo /scan --count 60 --timeout 15 > "$OUT/scan.jsonl" &
 E=$!
-"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan &
+# What replay.launch.py asks for; the bag has only /map and /scan, which is fine.
+RUST_LOG=warn "$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan -p topics:="[/scan, /odom, /map, /tf, /tf_static]" 2> "$OUT/replay_err.txt" &
 R=$!
 # /map was published when the replay started; a subscriber joining a second later still gets it.
 sleep 1
@@ -178,6 +179,11 @@ wait $E; echo "scan_echo=$?"
     for want in ["map_echo=0", "replay=0", "scan_echo=0"] {
         assert!(stdout.contains(want), "expected {want}");
     }
+    let replay_err = std::fs::read_to_string(dir.path().join("replay_err.txt")).unwrap();
+    assert!(
+        replay_err.contains("skipping /odom, /tf, /tf_static") && replay_err.contains("/scan"),
+        "replay must warn about the requested topics the bag lacks: {replay_err}"
+    );
     let map = json_lines(&dir.path().join("map.jsonl"));
     assert_eq!(map.len(), 1);
     assert_eq!(map[0]["type"], "nav_msgs/msg/OccupancyGrid");

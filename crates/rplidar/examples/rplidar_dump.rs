@@ -12,6 +12,22 @@ use std::time::{Duration, Instant};
 use lidar_har_rplidar::fake::{FakeConfig, FakeLidar, SyntheticRoom};
 use lidar_har_rplidar::{Config, Driver, Event, ScanModeChoice};
 
+/// How long to run without a SECONDS argument.
+const DEFAULT_RUN: Duration = Duration::from_secs(5);
+/// Longest run: a day, so that the end time cannot overflow.
+const MAX_RUN_S: f64 = 86_400.0;
+
+/// The SECONDS argument: positive and at most a day (`Duration::from_secs_f64` panics on
+/// negative or huge values).
+fn parse_seconds(text: &str) -> Result<Duration, String> {
+    match text.parse::<f64>() {
+        Ok(s) if s > 0.0 && s <= MAX_RUN_S => Ok(Duration::from_secs_f64(s)),
+        _ => Err(format!(
+            "SECONDS `{text}` must be a number of seconds in (0, {MAX_RUN_S}]"
+        )),
+    }
+}
+
 fn main() {
     env_logger::init();
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -21,26 +37,9 @@ fn main() {
         eprintln!("{usage}");
         std::process::exit(2);
     };
-    let mut fake_dir = None;
-    let mut fake = None;
-    let (mut config, rest) = if first == "--fake" {
-        let dir = std::env::temp_dir().join(format!("rplidar-dump-{}", std::process::id()));
-        if let Err(e) = std::fs::create_dir_all(&dir) {
-            eprintln!("cannot create {}: {e}", dir.display());
-            std::process::exit(1);
-        }
-        let link = dir.join("rplidar");
-        fake_dir = Some(dir);
-        let device = match FakeLidar::spawn(&link, FakeConfig::default(), SyntheticRoom::default())
-        {
-            Ok(device) => device,
-            Err(e) => {
-                eprintln!("cannot start the fake device: {e}");
-                std::process::exit(1);
-            }
-        };
-        fake = Some(device);
-        (Config::new(link.to_string_lossy()), &args[1..])
+    // Arguments first, so that a bad one leaves no fake device or temporary directory behind.
+    let (config, rest) = if first == "--fake" {
+        (None, &args[1..])
     } else {
         let mut config = Config::new(first.clone());
         let mut rest = &args[1..];
@@ -48,18 +47,47 @@ fn main() {
             config.baud = baud;
             rest = &rest[1..];
         }
-        (config, rest)
+        (Some(config), rest)
     };
-    if let Some(mode) = rest.first() {
-        match mode.parse::<ScanModeChoice>() {
-            Ok(m) => config.scan_mode = m,
-            Err(e) => {
-                eprintln!("{e}\n{usage}");
-                std::process::exit(2);
-            }
+    let mode = match rest.first().map(|m| m.parse::<ScanModeChoice>()) {
+        None => ScanModeChoice::Auto,
+        Some(Ok(m)) => m,
+        Some(Err(e)) => {
+            eprintln!("{e}\n{usage}");
+            std::process::exit(2);
         }
-    }
-    let seconds: f64 = rest.get(1).and_then(|s| s.parse().ok()).unwrap_or(5.0);
+    };
+    let run = match rest.get(1).map_or(Ok(DEFAULT_RUN), |s| parse_seconds(s)) {
+        Ok(run) => run,
+        Err(e) => {
+            eprintln!("{e}\n{usage}");
+            std::process::exit(2);
+        }
+    };
+    let mut fake_dir = None;
+    let mut fake = None;
+    let mut config = match config {
+        Some(config) => config,
+        None => {
+            let dir = std::env::temp_dir().join(format!("rplidar-dump-{}", std::process::id()));
+            if let Err(e) = std::fs::create_dir_all(&dir) {
+                eprintln!("cannot create {}: {e}", dir.display());
+                std::process::exit(1);
+            }
+            let link = dir.join("rplidar");
+            fake_dir = Some(dir);
+            match FakeLidar::spawn(&link, FakeConfig::default(), SyntheticRoom::default()) {
+                Ok(device) => fake = Some(device),
+                Err(e) => {
+                    eprintln!("cannot start the fake device: {e}");
+                    std::process::exit(1);
+                }
+            }
+            Config::new(link.to_string_lossy())
+        }
+    };
+    config.scan_mode = mode;
+    let end = Instant::now() + run;
     let mut driver = match Driver::new(config) {
         Ok(d) => d,
         Err(e) => {
@@ -67,7 +95,6 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let end = Instant::now() + Duration::from_secs_f64(seconds);
     while Instant::now() < end {
         match driver.next_event() {
             Event::Scan(scan) => {
@@ -110,5 +137,19 @@ fn main() {
     drop(fake);
     if let Some(dir) = fake_dir {
         let _ = std::fs::remove_dir(dir);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seconds_must_be_positive_finite_and_at_most_a_day() {
+        assert_eq!(parse_seconds("2.5"), Ok(Duration::from_millis(2500)));
+        for bad in ["-1", "0", "inf", "NaN", "1e300", "ten"] {
+            let err = parse_seconds(bad).unwrap_err();
+            assert!(err.contains(&format!("`{bad}`")), "{err}");
+        }
     }
 }

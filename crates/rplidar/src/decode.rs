@@ -9,8 +9,10 @@
 //! spread between its start angle and the *next* capsule's start angle, so the samples of a
 //! capsule are only known once the next capsule has arrived. The difference of the two
 //! start angles is taken modulo 360 degrees, so a rotation's wrap-around is handled, and a
-//! difference that is much larger than usual (a capsule lost in between) drops the samples
-//! instead of smearing them over the gap.
+//! difference that is much larger than usual (a capsule lost in between) spreads the
+//! samples over the usual step instead of smearing them over the gap. The usual step is
+//! learnt from the stream; when several "gaps" in a row agree with each other, they are the
+//! real step and replace it (a falsely accepted packet can seed a wrong one).
 
 use crate::protocol::{answer, hq_crc32};
 
@@ -109,7 +111,8 @@ pub struct DecodeStats {
     pub skipped_bytes: u64,
     /// Candidate packets that had a valid start but a wrong checksum or check bit.
     pub rejected_packets: u64,
-    /// Capsules whose samples were dropped because the capsule after them was lost.
+    /// Capsules followed by a gap (the capsule after them lost): their samples were spread
+    /// over the usual step, or dropped when bytes were skipped before any step was known.
     pub gaps: u64,
 }
 
@@ -124,8 +127,14 @@ pub struct StreamDecoder {
     last_nominal_deg: Option<f32>,
     /// Usual angle between consecutive capsule starts, to detect lost capsules.
     typical_step_deg: Option<f32>,
+    /// The last step taken for a gap and how many gaps in a row agreed with it.
+    gap_run: Option<(f32, u32)>,
     stats: DecodeStats,
 }
+
+/// Gaps in a row of about the same size that replace the usual step: lost capsules give
+/// gaps of varying size, a wrong usual step gives the same "gap" every capsule.
+const RESEED_AFTER_GAPS: u32 = 3;
 
 enum Check {
     /// Not the start of a packet: skip one byte.
@@ -145,6 +154,7 @@ impl StreamDecoder {
             prev_capsule: None,
             last_nominal_deg: None,
             typical_step_deg: None,
+            gap_run: None,
             stats: DecodeStats::default(),
         }
     }
@@ -163,6 +173,7 @@ impl StreamDecoder {
         self.prev_capsule = None;
         self.last_nominal_deg = None;
         self.typical_step_deg = None;
+        self.gap_run = None;
     }
 
     /// Decodes `bytes` (appended to what is buffered) and appends the samples to `out`.
@@ -297,13 +308,23 @@ impl StreamDecoder {
         if let Some(typical) = self.typical_step_deg
             && step_total > 1.5 * typical + 1.0
         {
-            // Capsules were lost in between: use the usual step, and the rotation's
-            // continuity is broken.
-            self.stats.gaps += 1;
-            self.decode_capsule(prev, typical, None, out);
-            self.last_nominal_deg = None;
-            return;
+            let run = match self.gap_run {
+                Some((last, n)) if (step_total - last).abs() <= 0.1 * last + 0.1 => n + 1,
+                _ => 1,
+            };
+            if run < RESEED_AFTER_GAPS {
+                // Capsules were lost in between: use the usual step, and the rotation's
+                // continuity is broken.
+                self.gap_run = Some((step_total, run));
+                self.stats.gaps += 1;
+                self.decode_capsule(prev, typical, None, out);
+                self.last_nominal_deg = None;
+                return;
+            }
+            // The same "gap" every capsule: it is the real step, the usual one was wrong.
+            self.typical_step_deg = None;
         }
+        self.gap_run = None;
         self.typical_step_deg = Some(match self.typical_step_deg {
             Some(t) => 0.8 * t + 0.2 * step_total,
             None => step_total,
@@ -639,6 +660,38 @@ mod tests {
                 s.angle_deg
             );
         }
+    }
+
+    #[test]
+    fn a_wrong_first_step_is_replaced_and_later_capsules_decode_normally() {
+        let (bytes, truth) = express_stream(720, 2, 2.0);
+        // Start mid-rotation (capsule 1, no start flag) behind a false capsule that passes
+        // the checksum and starts 0.2 degrees before it: the first step learnt is 0.2, not
+        // the real 16, so every real step looks like a gap.
+        let false_capsule = encode::express_capsule(15.8, 16.0, 2.0, &[(15.8, 1.0); 32], false);
+        let mut stream = false_capsule;
+        stream.extend_from_slice(&bytes[84..]);
+        let (out, stats) = decode_all(ScanFormat::Express, &stream, 84);
+        assert_eq!(
+            stats.gaps,
+            u64::from(RESEED_AFTER_GAPS - 1),
+            "gaps until the step is replaced"
+        );
+        // Out: the false capsule, capsules 1 and 2 (gaps), then from capsule 3 on every
+        // capsule decodes to the served samples (all but the last, which waits for a
+        // successor).
+        let good = &out[3 * 32..];
+        assert_eq!(good.len(), truth.len() - 4 * 32);
+        for (s, (a, d)) in good.iter().zip(&truth[3 * 32..]) {
+            let err = (s.angle_deg - a + 540.0).rem_euclid(360.0) - 180.0;
+            assert!(err.abs() <= 0.07, "angle {} vs {a}", s.angle_deg);
+            assert!((s.distance_mm - d).abs() < 1.0, "{} vs {d}", s.distance_mm);
+        }
+        assert_eq!(
+            good.iter().filter(|s| s.start_of_rotation).count(),
+            1,
+            "the wrap of the second rotation"
+        );
     }
 
     #[test]

@@ -28,8 +28,9 @@ use crate::config::{Config, ScanModeChoice};
 use crate::decode::{DecodeStats, Sample, ScanFormat, StreamDecoder};
 use crate::error::{Error, Result};
 use crate::protocol::{
-    DESCRIPTOR_LEN, Descriptor, DeviceHealth, DeviceInfo, HealthStatus, RESPONSE_SYNC, Request,
-    SampleRate, ScanModeInfo, answer, conf, conf_string, conf_u32, parse_conf_answer,
+    ACC_BOARD_MOTOR_CTRL, DESCRIPTOR_LEN, Descriptor, DeviceHealth, DeviceInfo, HealthStatus,
+    RESPONSE_SYNC, Request, SampleRate, ScanModeInfo, answer, conf, conf_string, conf_u32,
+    parse_conf_answer,
 };
 use crate::rotation::{Rotation, RotationAssembler};
 use crate::scan::ScanFrame;
@@ -53,6 +54,8 @@ const POLL: Duration = Duration::from_millis(50);
 const AFTER_STOP: Duration = Duration::from_millis(20);
 /// Scan-mode queries on old firmware get no answer: do not wait long for them.
 const CONF_PROBE_TIMEOUT: Duration = Duration::from_millis(300);
+/// Motor duty cycle Slamtec's SDK starts an accessory-board motor with (`DEFAULT_MOTOR_PWM`).
+pub const DEFAULT_MOTOR_PWM: u16 = 660;
 /// Answers longer than this are not single answers of this protocol.
 const MAX_ANSWER_LEN: u32 = 4096;
 
@@ -77,6 +80,8 @@ pub struct DriverStatus {
     /// Measured rotation rate (smoothed) and samples in the last rotation.
     pub rotation_hz: Option<f64>,
     pub samples_per_rotation: Option<usize>,
+    /// Motor duty cycle sent through the accessory board this session (`None`: not used).
+    pub motor_pwm: Option<u16>,
     pub last_error: Option<String>,
 }
 
@@ -260,6 +265,8 @@ struct Session {
     /// When the last rotation completed (or the scan started).
     last_rotation: Instant,
     baud_readback: Option<u32>,
+    /// Duty cycle sent with `SET_MOTOR_PWM`, so that shutting down sends 0.
+    motor_pwm: Option<u16>,
 }
 
 enum State {
@@ -402,6 +409,7 @@ impl Driver {
         self.status.format = Some(session.decoder.format());
         self.status.nominal_sample_rate_hz = session.nominal_rate_hz;
         self.status.baud_readback = session.baud_readback;
+        self.status.motor_pwm = session.motor_pwm;
         self.state = State::Scanning(Box::new(session));
     }
 
@@ -462,12 +470,20 @@ impl Driver {
             warn!("{}: {message}", self.config.port);
             self.report(DiagnosticStatus::WARN, message);
         }
+        let mut motor_pwm = None;
         if info.is_time_of_flight() {
             if let Some(rpm) = self.config.motor_rpm {
                 link.send(&Request::SetMotorRpm(rpm))?;
             }
-        } else if let Some(pwm) = self.config.motor_pwm {
-            link.send(&Request::SetMotorPwm(pwm))?;
+        } else {
+            // A2/A3 motors on the accessory board stand still until told a duty cycle.
+            motor_pwm = self.config.motor_pwm.or_else(|| {
+                self.accessory_board_motor(&mut link, &info)
+                    .then_some(DEFAULT_MOTOR_PWM)
+            });
+            if let Some(pwm) = motor_pwm {
+                link.send(&Request::SetMotorPwm(pwm))?;
+            }
         }
         let mut plan = self.plan_scan(&mut link, &info)?;
         if plan.nominal_rate_hz.is_none() && info.supports_express() {
@@ -502,7 +518,42 @@ impl Driver {
             last_data: Instant::now(),
             last_rotation: Instant::now(),
             baud_readback,
+            motor_pwm,
         })
+    }
+
+    /// Whether the device's motor is driven by the accessory board (`GET_ACC_BOARD_FLAG`,
+    /// bit 0), asked of A2/A3 only as Slamtec's SDK does. No answer (older firmware) or a
+    /// malformed one means no: the motor is then run by DTR.
+    fn accessory_board_motor(&self, link: &mut Link, info: &DeviceInfo) -> bool {
+        if !(2..6).contains(&info.major_model()) {
+            return false;
+        }
+        let probe = self.config.request_timeout.min(CONF_PROBE_TIMEOUT);
+        match link.request(
+            &Request::GetAccBoardFlag,
+            answer::ACC_BOARD_FLAG,
+            probe,
+            "accessory board flag",
+        ) {
+            Ok(payload) if payload.len() >= 4 => {
+                let flag = u32::from_le_bytes([payload[0], payload[1], payload[2], payload[3]]);
+                flag & ACC_BOARD_MOTOR_CTRL != 0
+            }
+            Ok(payload) => {
+                debug!(
+                    "{}: accessory board flag of {} bytes ignored",
+                    self.config.port,
+                    payload.len()
+                );
+                false
+            }
+            Err(e) => {
+                debug!("{}: no accessory board flag: {e}", self.config.port);
+                link.clear_input();
+                false
+            }
+        }
     }
 
     /// `GET_SAMPLERATE` (firmware 1.17 and later): samples per second of the standard or
@@ -908,6 +959,9 @@ impl Driver {
         if let Some(baud) = s.baud_readback {
             values.push(KeyValue::new("baud_readback", baud.to_string()));
         }
+        if let Some(pwm) = s.motor_pwm {
+            values.push(KeyValue::new("motor_pwm", pwm.to_string()));
+        }
         if let Some(hz) = s.rotation_hz {
             values.push(KeyValue::new("rotation_hz", format!("{hz:.2}")));
         }
@@ -939,10 +993,15 @@ impl Driver {
 }
 
 impl Drop for Driver {
-    /// Leaves the device stopped with its motor off.
+    /// Leaves the device stopped with its motor off: `STOP` ends the measurements only; an
+    /// accessory-board motor needs PWM 0 (as Slamtec's SDK `stopMotor`), the others DTR.
     fn drop(&mut self) {
         if let State::Scanning(session) = &mut self.state {
             let _ = session.link.send(&Request::Stop);
+            if session.motor_pwm.is_some() {
+                std::thread::sleep(AFTER_STOP);
+                let _ = session.link.send(&Request::SetMotorPwm(0));
+            }
             session.link.set_motor_dtr(false);
         }
     }

@@ -143,6 +143,9 @@ pub struct FakeConfig {
     pub express_lead_deg: f32,
     /// Print a boot text after `RESET`, as real devices do.
     pub boot_banner: bool,
+    /// Answer `GET_ACC_BOARD_FLAG` with the motor-control bit: an A2/A3 whose motor runs
+    /// only on `SET_MOTOR_PWM`.
+    pub accessory_board_motor: bool,
 }
 
 impl Default for FakeConfig {
@@ -161,6 +164,7 @@ impl Default for FakeConfig {
             typical_mode: 1,
             express_lead_deg: 2.0,
             boot_banner: true,
+            accessory_board_motor: false,
         }
     }
 }
@@ -523,7 +527,10 @@ impl Device {
                 lock(&self.shared.log).motor_rpm =
                     Some(u16::from_le_bytes([payload[0], payload[1]]));
             }
-            command::GET_ACC_BOARD_FLAG => self.answer(answer::ACC_BOARD_FLAG, &1u32.to_le_bytes()),
+            command::GET_ACC_BOARD_FLAG => {
+                let flag = u32::from(self.config.accessory_board_motor);
+                self.answer(answer::ACC_BOARD_FLAG, &flag.to_le_bytes());
+            }
             _ => {}
         }
     }

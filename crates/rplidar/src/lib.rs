@@ -20,7 +20,7 @@ pub mod scan;
 
 pub use config::{Config, ScanModeChoice};
 pub use decode::{DecodeStats, Sample, ScanFormat, StreamDecoder};
-pub use driver::{Driver, Event};
+pub use driver::{DEFAULT_MOTOR_PWM, Driver, Event};
 pub use error::{Error, Result};
 pub use rotation::{Rotation, RotationAssembler, RotationSample};
 pub use scan::{ScanFrame, ScanGeometry};

@@ -48,6 +48,10 @@ pub mod answer {
     pub const ACC_BOARD_FLAG: u8 = 0xFF;
 }
 
+/// Bit of the `GET_ACC_BOARD_FLAG` answer: the accessory board drives the motor
+/// (`SET_MOTOR_PWM` works).
+pub const ACC_BOARD_MOTOR_CTRL: u32 = 0x1;
+
 /// Configuration entries readable with `GET_LIDAR_CONF`.
 pub mod conf {
     pub const SCAN_MODE_COUNT: u32 = 0x70;

@@ -8,7 +8,9 @@ use lidar_har_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
 use lidar_har_msgs::sensor_msgs::LaserScan;
 use lidar_har_rplidar::fake::{FakeConfig, FakeLidar, SyntheticRoom};
 use lidar_har_rplidar::protocol::HealthStatus;
-use lidar_har_rplidar::{Config, Driver, Event, ScanFormat, ScanGeometry, ScanModeChoice};
+use lidar_har_rplidar::{
+    Config, DEFAULT_MOTOR_PWM, Driver, Event, ScanFormat, ScanGeometry, ScanModeChoice,
+};
 
 const SAMPLES: usize = 720;
 
@@ -511,4 +513,70 @@ fn stamps_follow_the_callers_clock_and_drop_stops_the_device() {
     drop(driver);
     std::thread::sleep(Duration::from_millis(50));
     assert_eq!(fake.log().commands.last(), Some(&0x25), "STOP sent on drop");
+}
+
+#[test]
+fn accessory_board_motor_gets_the_default_pwm_and_pwm_0_on_drop() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut info = FakeConfig::default().info;
+    info.model = 0x28; // A2
+    let fake = spawn(
+        dir.path(),
+        FakeConfig {
+            info,
+            accessory_board_motor: true,
+            ..FakeConfig::default()
+        },
+    );
+    let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Express)).unwrap();
+    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |s, d| {
+        s.len() >= 2 && !d.is_empty()
+    });
+    // No motor_pwm configured: the SDK's default duty cycle starts the motor.
+    assert_eq!(fake.log().motor_pwm, Some(DEFAULT_MOTOR_PWM));
+    assert_eq!(driver.status().motor_pwm, Some(DEFAULT_MOTOR_PWM));
+    let connected = diags
+        .iter()
+        .find(|d| d.message.starts_with("scanning:"))
+        .expect("a connect report");
+    assert_eq!(value(connected, "motor_pwm"), Some("660"));
+    drop(driver);
+    std::thread::sleep(Duration::from_millis(100));
+    let log = fake.log();
+    assert_eq!(log.motor_pwm, Some(0), "the motor is switched off on drop");
+    assert_eq!(
+        log.commands[log.commands.len() - 2..],
+        [0x25, 0xF0],
+        "STOP, then PWM 0"
+    );
+}
+
+#[test]
+fn motor_without_accessory_board_control_gets_no_pwm() {
+    // An A2 whose board does not drive the motor (DTR does), and an A1, which is not asked.
+    for (model, asked) in [(0x28, true), (0x18, false)] {
+        let dir = tempfile::tempdir().unwrap();
+        let mut info = FakeConfig::default().info;
+        info.model = model;
+        let fake = spawn(
+            dir.path(),
+            FakeConfig {
+                info,
+                ..FakeConfig::default()
+            },
+        );
+        let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Express)).unwrap();
+        run_until(&mut driver, Duration::from_secs(10), scans(1));
+        assert_eq!(driver.status().motor_pwm, None, "model 0x{model:02X}");
+        drop(driver);
+        std::thread::sleep(Duration::from_millis(50));
+        let log = fake.log();
+        assert_eq!(log.motor_pwm, None, "model 0x{model:02X}");
+        assert_eq!(
+            log.commands.contains(&0xFF),
+            asked,
+            "GET_ACC_BOARD_FLAG asked of A2/A3 only (model 0x{model:02X})"
+        );
+        assert_eq!(log.commands.last(), Some(&0x25), "STOP last");
+    }
 }

@@ -1,5 +1,5 @@
-//! `localiser`: finds and tracks the person in each scan. Subscribes /scan, /odom, /map, /tf,
-//! /tf_static; publishes /human/pose, /human/observation and /human/markers. The work is the
+//! `localiser`: finds and tracks the person in each scan. Subscribes /scan, /odom (best
+//! effort), /map, /tf, /tf_static; publishes /human/pose, /human/observation and /human/markers. The work is the
 //! pipeline's localiser stage, the same code `lidar-har run` runs over a bag.
 //!
 //! Parameters: `config` (a `config/localiser.yaml`-format file; empty = defaults),
@@ -10,7 +10,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use lidar_har::{Outputs, Shutdown, bad_parameter, optional_path};
-use lidar_har_msgs::topics;
+use lidar_har_msgs::qos::{QosProfile, Reliability};
+use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_pipeline::{LocaliserStage, Pipeline, RoomSource, files};
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, RosError};
 
@@ -67,6 +68,22 @@ fn stage(node: &Node) -> Result<LocaliserStage, RosError> {
     LocaliserStage::new(config, room, p.bool("moving")?).map_err(|e| bad_parameter("config", e))
 }
 
+/// The QoS the localiser asks for on an input. The contract gives what a topic is offered
+/// with; /odom is asked best effort, which matches reliable and best-effort publishers
+/// alike (robot bases such as the iRobot Create 3 publish their sensor topics best effort,
+/// and a reliable subscription would never match them). A lost odometry message only
+/// widens the interpolation between its neighbours.
+fn subscription_qos(spec: &TopicSpec) -> QosProfile {
+    if spec.name == topics::ODOM.name {
+        QosProfile {
+            reliability: Reliability::BestEffort,
+            ..spec.qos
+        }
+    } else {
+        spec.qos
+    }
+}
+
 fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = Node::new(NodeSetup::new("localiser").parameters(decls()))?;
     let mut pipeline = Pipeline::new(stage(&node)?);
@@ -78,7 +95,10 @@ fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
         topics::TF_STATIC,
     ]
     .into_iter()
-    .map(|spec| Ok((spec.name, node.subscriber_for(&spec)?)))
+    .map(|spec| {
+        let sub = node.subscriber(spec.name, spec.type_name, subscription_qos(&spec))?;
+        Ok((spec.name, sub))
+    })
     .collect::<Result<Vec<_>, RosError>>()?;
     let outputs = Outputs::new(
         &node,
@@ -117,4 +137,19 @@ fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
     }
     log::info!("localiser: stopped; {decode_errors} undecodable messages");
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn odom_is_asked_best_effort_and_the_rest_as_offered() {
+        let odom = subscription_qos(&topics::ODOM);
+        assert_eq!(odom.reliability, Reliability::BestEffort);
+        assert_eq!(odom.history, topics::ODOM.qos.history);
+        for spec in [topics::SCAN, topics::MAP, topics::TF, topics::TF_STATIC] {
+            assert_eq!(subscription_qos(&spec), spec.qos, "{}", spec.name);
+        }
+    }
 }

@@ -3,7 +3,8 @@
 //! available to late subscribers), and /clock from the bag's time line for `use_sim_time`.
 //!
 //! Parameters: `bag` (required), `rate` (1.0; 0 = as fast as possible), `loop`,
-//! `start_offset` (s into the bag), `topics` (only these; empty = all), `publish_clock`,
+//! `start_offset` (s into the bag), `topics` (only these; empty = all; those the bag lacks
+//! are skipped with a warning, none present is an error), `publish_clock`,
 //! `wait_for_subscriber` (a topic to wait on before playing, up to `wait_timeout` s),
 //! `wait_for_all_acked` (s to wait at the end for reliable subscribers to acknowledge
 //! everything, so the last messages are not lost when the process exits; 0 = don't wait).
@@ -13,7 +14,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
-use lidar_har::Shutdown;
+use lidar_har::{Shutdown, seconds};
 use lidar_har_bag::BagReader;
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::qos::QosProfile;
@@ -47,7 +48,7 @@ fn decls() -> Vec<ParamDecl> {
         ParamDecl::new(
             "topics",
             V::StringArray(Vec::new()),
-            "topics to play; empty plays all",
+            "topics to play; empty plays all; those the bag lacks are skipped",
         ),
         ParamDecl::new(
             "publish_clock",
@@ -72,6 +73,13 @@ fn decls() -> Vec<ParamDecl> {
     ]
 }
 
+/// Slowest playback `rate` other than 0.
+const MIN_RATE: f64 = 0.001;
+/// Longest `start_offset`: a year of recording.
+const MAX_OFFSET_S: f64 = 365.0 * 86_400.0;
+/// Longest `wait_timeout` / `wait_for_all_acked`: a day.
+const MAX_WAIT_S: f64 = 86_400.0;
+
 struct Settings {
     bag: String,
     rate: f64,
@@ -94,22 +102,63 @@ impl Settings {
                 reason: "required: the bag directory to play".into(),
             });
         }
-        let rate = p.f64_checked("rate", ">= 0 (0 = as fast as possible)", |v| v >= 0.0)?;
-        let offset = p.f64_checked("start_offset", ">= 0 seconds", |v| v >= 0.0)?;
-        let wait = p.f64_checked("wait_timeout", ">= 0 seconds", |v| v >= 0.0)?;
-        let acked = p.f64_checked("wait_for_all_acked", ">= 0 seconds", |v| v >= 0.0)?;
+        // A tiny positive rate would stretch a message's due time past what a Duration holds.
+        let rule = format!("0 (as fast as possible) or >= {MIN_RATE}");
+        let rate = p.f64_checked("rate", &rule, |v| v == 0.0 || v >= MIN_RATE)?;
+        let offset = seconds(p, "start_offset", 0.0..=MAX_OFFSET_S)?;
         Ok(Self {
             bag,
             rate,
             looping: p.bool("loop")?,
-            start_offset_ns: (offset * 1e9) as i64,
+            start_offset_ns: i64::try_from(offset.as_nanos()).unwrap_or(i64::MAX),
             topics: p.string_array("topics")?,
             publish_clock: p.bool("publish_clock")?,
             wait_for: p.string("wait_for_subscriber")?,
-            wait_timeout: Duration::from_secs_f64(wait),
-            acked_timeout: Duration::from_secs_f64(acked),
+            wait_timeout: seconds(p, "wait_timeout", 0.0..=MAX_WAIT_S)?,
+            acked_timeout: seconds(p, "wait_for_all_acked", 0.0..=MAX_WAIT_S)?,
         })
     }
+}
+
+/// Which of the bag's topics to play.
+#[derive(Debug)]
+struct Selection {
+    play: Vec<String>,
+    /// Requested topics the bag does not have.
+    missing: Vec<String>,
+}
+
+/// All of the bag's topics when none are requested, else the requested ones it has. Missing
+/// ones are only skipped: launch files ask for /odom and /map, which the bag of a fixed
+/// Lidar lacks. None present is an error (a typo, or the wrong bag).
+fn select_topics(
+    requested: &[String],
+    in_bag: &[String],
+    bag: &str,
+) -> Result<Selection, RosError> {
+    if requested.is_empty() {
+        return Ok(Selection {
+            play: in_bag.to_vec(),
+            missing: Vec::new(),
+        });
+    }
+    let (play, missing): (Vec<String>, Vec<String>) =
+        requested.iter().cloned().partition(|t| in_bag.contains(t));
+    if play.is_empty() {
+        return Err(RosError::Parameter {
+            name: "topics".into(),
+            reason: format!(
+                "none of {} is in the bag {bag}, which has {}",
+                missing.join(", "),
+                if in_bag.is_empty() {
+                    "no topics".to_string()
+                } else {
+                    in_bag.join(", ")
+                }
+            ),
+        });
+    }
+    Ok(Selection { play, missing })
 }
 
 /// The contract's QoS for a known topic, else what the bag says was offered, else reliable.
@@ -127,18 +176,19 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     let settings = Settings::from(&node)?;
     let reader = BagReader::open(&settings.bag)
         .with_context(|| format!("parameter `bag`: cannot open {}", settings.bag))?;
-    for wanted in &settings.topics {
-        if reader.topic(wanted).is_none() {
-            return Err(RosError::Parameter {
-                name: "topics".into(),
-                reason: format!("{wanted} is not in the bag {}", settings.bag),
-            }
-            .into());
-        }
+    let in_bag: Vec<String> = reader.topics().iter().map(|t| t.name.clone()).collect();
+    let selection = select_topics(&settings.topics, &in_bag, &settings.bag)?;
+    if !selection.missing.is_empty() {
+        log::warn!(
+            "replay: skipping {} (not in the bag {}, which has {})",
+            selection.missing.join(", "),
+            settings.bag,
+            in_bag.join(", ")
+        );
     }
     let mut publishers: HashMap<String, Publisher> = HashMap::new();
     for topic in reader.topics() {
-        if settings.topics.is_empty() || settings.topics.contains(&topic.name) {
+        if selection.play.contains(&topic.name) {
             let publisher = node.publisher(&topic.name, &topic.type_name, qos_for(topic))?;
             publishers.insert(topic.name.clone(), publisher);
         }
@@ -227,6 +277,42 @@ fn wait_for_all_acked<'a>(publishers: impl Iterator<Item = &'a Publisher>, timeo
                 log::warn!("replay: {e}");
                 return;
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(list: &[&str]) -> Vec<String> {
+        list.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn no_requested_topics_plays_the_whole_bag() {
+        let bag = names(&["/scan", "/map"]);
+        let s = select_topics(&[], &bag, "b").unwrap();
+        assert_eq!(s.play, bag);
+        assert!(s.missing.is_empty());
+    }
+
+    #[test]
+    fn requested_topics_the_bag_lacks_are_skipped() {
+        // What replay.launch.py asks for, on the real recording that has only /scan.
+        let launch = names(&["/scan", "/odom", "/map", "/tf", "/tf_static"]);
+        let s = select_topics(&launch, &names(&["/scan"]), "b").unwrap();
+        assert_eq!(s.play, names(&["/scan"]));
+        assert_eq!(s.missing, names(&["/odom", "/map", "/tf", "/tf_static"]));
+    }
+
+    #[test]
+    fn no_requested_topic_in_the_bag_is_an_error_naming_them_and_the_bags_topics() {
+        let err = select_topics(&names(&["/nope", "/odom"]), &names(&["/scan"]), "my_bag")
+            .unwrap_err()
+            .to_string();
+        for needle in ["`topics`", "/nope", "/odom", "my_bag", "/scan"] {
+            assert!(err.contains(needle), "{needle} missing from: {err}");
         }
     }
 }

@@ -3,16 +3,20 @@
 //! rates, faults). The driver library reconnects and resets on faults instead of exiting.
 //!
 //! Parameters: `port`, `baud`, `frame_id`, `beams`, `range_min`, `range_max`, `scan_mode`
-//! (auto, standard, express or a device mode name), `motor_pwm` / `motor_rpm` (-1 = device
-//! default), `diagnostics_period` (s).
+//! (auto, standard, express or a device mode name), `motor_pwm` (-1 = 660 where the A2/A3
+//! accessory board drives the motor, else none sent), `motor_rpm` (-1 = device default),
+//! `diagnostics_period` (s, 0.01..=5).
 
 use std::process::ExitCode;
-use std::time::Duration;
 
-use lidar_har::{Shutdown, bad_parameter};
+use lidar_har::{Shutdown, bad_parameter, seconds};
 use lidar_har_msgs::topics;
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, Parameters, RosError};
 use lidar_har_rplidar::{Config, Driver, Event, ScanModeChoice};
+
+/// Allowed `diagnostics_period`: the node sees a shutdown signal only between events, which
+/// come at least once a period, and `ros2 launch` escalates SIGINT to SIGTERM after 5 s.
+const DIAGNOSTICS_PERIOD_S: std::ops::RangeInclusive<f64> = 0.01..=5.0;
 
 fn main() -> ExitCode {
     lidar_har::run("rplidar_driver", drive)
@@ -60,7 +64,7 @@ fn decls() -> Vec<ParamDecl> {
         ParamDecl::new(
             "motor_pwm",
             V::Integer(-1),
-            "A2/A3 motor duty 0..1023; -1 = device default",
+            "A2/A3 motor duty 0..1023; -1 = 660 where the accessory board drives the motor",
         ),
         ParamDecl::new(
             "motor_rpm",
@@ -70,7 +74,7 @@ fn decls() -> Vec<ParamDecl> {
         ParamDecl::new(
             "diagnostics_period",
             V::Double(d.diagnostics_period.as_secs_f64()),
-            "s between reports",
+            "s between reports, 0.01..=5",
         ),
     ]
 }
@@ -100,8 +104,7 @@ fn config(p: &Parameters) -> Result<Config, RosError> {
         .map_err(|e| bad_parameter("scan_mode", e))?;
     c.motor_pwm = optional_u16(p, "motor_pwm")?;
     c.motor_rpm = optional_u16(p, "motor_rpm")?;
-    let period = p.f64_checked("diagnostics_period", "> 0 s", |v| v > 0.0)?;
-    c.diagnostics_period = Duration::from_secs_f64(period);
+    c.diagnostics_period = seconds(p, "diagnostics_period", DIAGNOSTICS_PERIOD_S)?;
     // The library's own checks; its messages start with the field, which is the parameter's
     // name except for the geometry fields.
     c.validate().map_err(|e| {
@@ -133,4 +136,32 @@ fn drive(shutdown: &Shutdown) -> anyhow::Result<()> {
         driver.status().scans
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params(overrides: &[(&str, ParamValue)]) -> Parameters {
+        let overrides: Vec<(String, ParamValue)> = overrides
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.clone()))
+            .collect();
+        Parameters::resolve(&decls(), "/rplidar_driver", &[], &overrides).unwrap()
+    }
+
+    #[test]
+    fn defaults_make_a_valid_config() {
+        config(&params(&[])).unwrap();
+    }
+
+    #[test]
+    fn huge_or_tiny_diagnostics_period_is_an_error_naming_it() {
+        for bad in [1e300, 1e6, 0.0, -1.0] {
+            let err = config(&params(&[("diagnostics_period", ParamValue::Double(bad))]))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("`diagnostics_period`"), "{bad}: {err}");
+        }
+    }
 }
