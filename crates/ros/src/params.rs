@@ -309,7 +309,7 @@ impl Parameters {
         } else {
             Err(RosError::Parameter {
                 name: name.to_string(),
-                reason: format!("{v} is invalid: must be {rule}"),
+                reason: format!("{v:?} is invalid: must be {rule}"),
             })
         }
     }

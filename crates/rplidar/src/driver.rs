@@ -98,9 +98,9 @@ impl Link {
         let port = serialport::new(&config.port, config.baud)
             .timeout(POLL)
             .open()
-            .map_err(|source| Error::Port {
+            .map_err(|cause| Error::Port {
                 path: config.port.clone(),
-                source,
+                cause,
             })?;
         Ok(Self {
             port,
@@ -110,10 +110,10 @@ impl Link {
         })
     }
 
-    fn io_error(&self, source: std::io::Error) -> Error {
+    fn io_error(&self, cause: std::io::Error) -> Error {
         Error::Io {
             path: self.path.clone(),
-            source,
+            cause,
         }
     }
 

@@ -5,17 +5,14 @@
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// The serial port could not be opened or configured.
-    #[error("serial port {path}: {source}")]
+    #[error("serial port {path}: {cause}")]
     Port {
         path: String,
-        source: serialport::Error,
+        cause: serialport::Error,
     },
     /// Reading or writing the port failed (e.g. the device was unplugged).
-    #[error("serial I/O on {path}: {source}")]
-    Io {
-        path: String,
-        source: std::io::Error,
-    },
+    #[error("serial I/O on {path}: {cause}")]
+    Io { path: String, cause: std::io::Error },
     /// The device did not answer in time.
     #[error("timed out after {waited_ms} ms waiting for {what}")]
     Timeout { what: String, waited_ms: u64 },

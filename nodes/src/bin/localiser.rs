@@ -121,8 +121,14 @@ fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
             continue;
         }
         // Messages of different topics that arrived together are used in publication order
-        // (odometry before the scan it positions).
-        batch.sort_by_key(|(_, sample)| sample.source_time_ns.unwrap_or(0));
+        // (odometry before the scan it positions); without source times (the rcl backend),
+        // scans go last, after the odometry, map and transforms that came with them.
+        batch.sort_by_key(|(topic, sample)| {
+            (
+                sample.source_time_ns.unwrap_or(0),
+                *topic == topics::SCAN.name,
+            )
+        });
         for (topic, sample) in batch.drain(..) {
             match pipeline.handle(topic, &sample.bytes) {
                 Ok(step) => outputs.publish(&step.outgoing)?,
