@@ -203,6 +203,27 @@ fn write_robot_bag(dir: &Path, odometry_on: OdometryOn) {
     w.finish().unwrap();
 }
 
+/// A map_server map of the bag's room in `dir` (`NAME.yaml` + `NAME.pgm`): black where
+/// `occupied(row, column, cells per side)`, white elsewhere. Returns the YAML's path.
+fn write_map_file(
+    dir: &Path,
+    name: &str,
+    occupied: impl Fn(usize, usize, usize) -> bool,
+) -> std::path::PathBuf {
+    let n = (2.0 * HALF / RES) as usize;
+    let mut pgm = format!("P5\n{n} {n}\n255\n").into_bytes();
+    pgm.extend((0..n * n).map(|i| if occupied(i / n, i % n, n) { 0u8 } else { 254 }));
+    std::fs::write(dir.join(format!("{name}.pgm")), pgm).unwrap();
+    let yaml = dir.join(format!("{name}.yaml"));
+    let text = format!(
+        "image: {name}.pgm\nresolution: {RES}\norigin: [{}, {}, 0.0]\nnegate: 0\n\
+         occupied_thresh: 0.65\nfree_thresh: 0.196\n",
+        -HALF, -HALF
+    );
+    std::fs::write(&yaml, text).unwrap();
+    yaml
+}
+
 fn lidar_har(args: &[&std::ffi::OsStr]) -> std::process::Output {
     Command::new(workspace_bin("lidar-har"))
         .arg("run")
@@ -281,18 +302,9 @@ fn run_with_a_map_file_uses_it() {
     let input = tmp.path().join("in");
     write_bag(&input);
     // The same room as a map_server map (white free space, black walls).
-    let n = (2.0 * HALF / RES) as usize;
-    let mut pgm = format!("P5\n{n} {n}\n255\n").into_bytes();
-    pgm.extend((0..n * n).map(|i| {
-        if i % n == 0 || i % n == n - 1 || i / n == 0 || i / n == n - 1 {
-            0u8
-        } else {
-            254
-        }
-    }));
-    std::fs::write(tmp.path().join("room.pgm"), pgm).unwrap();
-    let yaml = tmp.path().join("room.yaml");
-    std::fs::write(&yaml, format!("image: room.pgm\nresolution: {RES}\norigin: [{}, {}, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n", -HALF, -HALF)).unwrap();
+    let yaml = write_map_file(tmp.path(), "room", |row, column, n| {
+        row == 0 || column == 0 || row == n - 1 || column == n - 1
+    });
     let out = tmp.path().join("out");
     let output = lidar_har(&[
         "--bag".as_ref(),
@@ -407,12 +419,7 @@ fn a_map_file_given_wins_over_the_bags_map() {
     let input = tmp.path().join("in");
     write_bag(&input);
     // A map of a room full of furniture: everywhere is an obstacle, so nobody can be seen.
-    let n = (2.0 * HALF / RES) as usize;
-    let mut pgm = format!("P5\n{n} {n}\n255\n").into_bytes();
-    pgm.extend(std::iter::repeat_n(0u8, n * n));
-    std::fs::write(tmp.path().join("full.pgm"), pgm).unwrap();
-    let yaml = tmp.path().join("full.yaml");
-    std::fs::write(&yaml, format!("image: full.pgm\nresolution: {RES}\norigin: [{}, {}, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n", -HALF, -HALF)).unwrap();
+    let yaml = write_map_file(tmp.path(), "full", |_, _, _| true);
     let summary = run_localiser(&input, &tmp.path().join("out"), Some(&yaml));
     assert_eq!(
         summary.visible_ratio, 0.0,
