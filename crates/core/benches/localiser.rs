@@ -4,12 +4,14 @@
 //!
 //! Scans are ray-cast in a square room with walls, four furniture blocks and a walking
 //! person (a 0.2 m cylinder), seen from a robot driving at 0.2 m/s; with 2 % of the beams
-//! replaced by random ranges to feed the clustering some clutter.
+//! replaced by random ranges to feed the clustering some clutter. Last, the clustering alone on
+//! the worst case: every return a stray one (a garbled scan, a wrong pose).
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use glam::DVec2;
+use lidar_har_core::cluster::{ClusterConfig, Clusterer};
 use lidar_har_core::geometry::Pose2;
 use lidar_har_core::localiser::{Localiser, LocaliserConfig, Motion, Reference};
 use lidar_har_core::map::{MapGeometry, OccupancyMap};
@@ -220,4 +222,32 @@ fn main() {
             100.0 * r.tracked as f64 / SCANS as f64
         );
     }
+    println!("\nclustering alone, every point a stray return in a 20 m x 20 m square");
+    println!("{:>8} {:>12}", "points", "ms");
+    for n in [720, 2880, 20_000, 100_000] {
+        println!("{n:>8} {:>12.2}", scattered_clustering_ms(n));
+    }
+}
+
+/// One clustering pass over `n` points scattered at random (a fixed sequence), in ms.
+fn scattered_clustering_ms(n: usize) -> f64 {
+    let mut state = 0x2545_f491_4f6c_dd1d_u64;
+    let mut uniform = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let points: Vec<DVec2> = (0..n)
+        .map(|_| DVec2::new(20.0 * uniform(), 20.0 * uniform()))
+        .collect();
+    let mut clusterer = Clusterer::default();
+    let mut clusters = Vec::new();
+    let started = Instant::now();
+    clusterer.cluster(
+        black_box(&points),
+        &ClusterConfig::default(),
+        black_box(&mut clusters),
+    );
+    started.elapsed().as_secs_f64() * 1e3
 }

@@ -3,9 +3,10 @@
 //! Single-linkage clustering with a distance tolerance (DBSCAN with one point per core), done
 //! in two cheap steps that exploit the scan order: consecutive foreground points closer than
 //! the tolerance form segments in one pass, then segments are joined when any of their points
-//! are closer than the tolerance (checked only for segments whose boxes overlap). The second
-//! step joins the two legs of a person that a background surface splits in beam order, and
-//! the first and last beams of a 360-degree scan.
+//! are closer than the tolerance (checked only for segments whose boxes overlap, found by a
+//! sweep along x, so a scan of scattered returns costs n log n, not n²). The second step joins
+//! the two legs of a person that a background surface splits in beam order, and the first and
+//! last beams of a 360-degree scan.
 
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
@@ -56,6 +57,8 @@ struct Segment {
 pub struct Clusterer {
     segments: Vec<Segment>,
     parent: Vec<usize>,
+    /// Segment indices, sorted by the left edge of their boxes (the sweep), then by root.
+    order: Vec<usize>,
 }
 
 impl Clusterer {
@@ -81,38 +84,49 @@ impl Clusterer {
                 }),
             }
         }
-        let n = self.segments.len();
-        self.parent.clear();
-        self.parent.extend(0..n);
-        for a in 0..n {
-            for b in a + 1..n {
-                let (sa, sb) = (self.segments[a], self.segments[b]);
-                let boxes_touch = sa.min.x - tol <= sb.max.x
-                    && sb.min.x - tol <= sa.max.x
+        let Self {
+            segments,
+            parent,
+            order,
+        } = self;
+        let n = segments.len();
+        parent.clear();
+        parent.extend(0..n);
+        order.clear();
+        order.extend(0..n);
+        order.sort_unstable_by(|&a, &b| segments[a].min.x.total_cmp(&segments[b].min.x));
+        for (k, &a) in order.iter().enumerate() {
+            let sa = segments[a];
+            for &b in &order[k + 1..] {
+                let sb = segments[b];
+                // Sorted by left edge: every later box starts farther right.
+                if sb.min.x - tol > sa.max.x {
+                    break;
+                }
+                let (ra, rb) = (find(parent, a), find(parent, b));
+                if ra != rb
                     && sa.min.y - tol <= sb.max.y
-                    && sb.min.y - tol <= sa.max.y;
-                if boxes_touch
-                    && find(&mut self.parent, a) != find(&mut self.parent, b)
+                    && sb.min.y - tol <= sa.max.y
                     && segments_touch(&points[sa.start..sa.end], &points[sb.start..sb.end], tol2)
                 {
-                    let (ra, rb) = (find(&mut self.parent, a), find(&mut self.parent, b));
-                    self.parent[rb] = ra;
+                    // The smaller index is the root: clusters come out in beam order.
+                    parent[ra.max(rb)] = ra.min(rb);
                 }
             }
         }
-        for root in 0..n {
-            if find(&mut self.parent, root) != root {
-                continue;
-            }
+        for s in 0..n {
+            parent[s] = find(parent, s);
+        }
+        // Each cluster's segments together, in beam order.
+        order.sort_unstable_by_key(|&s| (parent[s], s));
+        for group in order.chunk_by(|&a, &b| parent[a] == parent[b]) {
             let mut cluster_points = Vec::new();
             let (mut min, mut max) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-            for s in 0..n {
-                if find(&mut self.parent, s) == root {
-                    let seg = self.segments[s];
-                    cluster_points.extend_from_slice(&points[seg.start..seg.end]);
-                    min = min.min(seg.min);
-                    max = max.max(seg.max);
-                }
+            for &s in group {
+                let seg = segments[s];
+                cluster_points.extend_from_slice(&points[seg.start..seg.end]);
+                min = min.min(seg.min);
+                max = max.max(seg.max);
             }
             let extent_m = (max - min).length();
             if cluster_points.len() < config.min_points || extent_m > config.max_extent_m {
@@ -200,5 +214,49 @@ mod tests {
     #[test]
     fn no_points_no_clusters() {
         assert!(run(&[]).is_empty());
+    }
+
+    /// Single linkage over every pair of points, the definition the two steps implement.
+    fn brute_force(points: &[DVec2], config: &ClusterConfig) -> Vec<Vec<DVec2>> {
+        let mut parent: Vec<usize> = (0..points.len()).collect();
+        for a in 0..points.len() {
+            for b in a + 1..points.len() {
+                if points[a].distance(points[b]) <= config.tolerance_m {
+                    let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+                    parent[ra.max(rb)] = ra.min(rb);
+                }
+            }
+        }
+        let mut clusters: Vec<(usize, Vec<DVec2>)> = Vec::new();
+        for (i, &p) in points.iter().enumerate() {
+            let root = find(&mut parent, i);
+            match clusters.iter_mut().find(|(r, _)| *r == root) {
+                Some((_, members)) => members.push(p),
+                None => clusters.push((root, vec![p])),
+            }
+        }
+        clusters
+            .into_iter()
+            .map(|(_, members)| members)
+            .filter(|members| {
+                let min = members.iter().fold(DVec2::INFINITY, |m, &p| m.min(p));
+                let max = members.iter().fold(DVec2::NEG_INFINITY, |m, &p| m.max(p));
+                members.len() >= config.min_points && (max - min).length() <= config.max_extent_m
+            })
+            .collect()
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn clusters_are_single_linkage_in_beam_order(
+            raw in proptest::collection::vec((0.0..4.0f64, 0.0..4.0f64), 0..120)
+        ) {
+            let points: Vec<DVec2> = raw.into_iter().map(|(x, y)| DVec2::new(x, y)).collect();
+            let config = ClusterConfig::default();
+            let mut out = Vec::new();
+            Clusterer::default().cluster(&points, &config, &mut out);
+            let got: Vec<Vec<DVec2>> = out.into_iter().map(|c| c.points).collect();
+            proptest::prop_assert_eq!(got, brute_force(&points, &config));
+        }
     }
 }
