@@ -386,4 +386,23 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
         "{report}"
     );
     assert!(eval.join("confusion_test.png").is_file());
+
+    // The same images said to be scanned at 10 Hz: the model's 20-scan window would span 2 s.
+    let index_path = data.join("index.json");
+    let mut index: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&index_path).unwrap()).unwrap();
+    index["spec"]["scan_rate_hz"] = 10.0.into();
+    std::fs::write(&index_path, index.to_string()).unwrap();
+    let out = lidar_har(&[
+        "evaluate",
+        "--model",
+        "models/activity.onnx",
+        "--data",
+        path(&data),
+        "--out",
+        path(&tmp.path().join("eval10")),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("20 Hz") && err.contains("10 Hz"), "{err}");
 }

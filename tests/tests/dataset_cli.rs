@@ -227,3 +227,28 @@ fn dataset_rejects_bad_arguments_with_a_clear_error() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("matches no file"));
 }
+
+#[test]
+fn a_run_that_gives_no_window_leaves_the_dataset_already_there_whole() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = make_dataset(dir.path(), &[]);
+    assert!(out.status.success());
+    let before: Vec<(String, Vec<u8>)> = ["index.json", "train_images.npy", "test_labels.npy"]
+        .iter()
+        .map(|f| (f.to_string(), std::fs::read(dir.path().join(f)).expect(f)))
+        .collect();
+    // Episodes of 6 s at 20 Hz have 120 scans: none holds a 400-scan window.
+    let out = make_dataset(dir.path(), &["--window", "400", "--stride", "10"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("--window 400") && stderr.contains("nothing was written"),
+        "{stderr}"
+    );
+    for (file, bytes) in before {
+        assert!(
+            std::fs::read(dir.path().join(&file)).expect("still there") == bytes,
+            "{file} changed"
+        );
+    }
+}

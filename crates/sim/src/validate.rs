@@ -80,9 +80,44 @@ fn describe(world: &World, furniture: Option<usize>) -> String {
     }
 }
 
+/// The largest room side: coordinates are metres, and a plan typed in millimetres would
+/// otherwise ask for a map of gigabytes.
+pub const MAX_ROOM_SIDE_M: f64 = 200.0;
+
+/// The last second a ROS stamp holds (`builtin_interfaces/Time.sec` is a signed 32-bit int).
+const LAST_ROS_SECOND: u64 = i32::MAX as u64;
+
 pub fn validate(scene: &Scene) -> Check {
     in_range("duration", scene.duration, 1e-3, 1e7)?;
+    if scene.start_time as f64 + scene.duration > LAST_ROS_SECOND as f64 {
+        return fail(
+            "start_time",
+            format!(
+                "{} s plus the {} s simulated passes {LAST_ROS_SECOND} (2038-01-19), the last \
+                 second a ROS stamp holds",
+                scene.start_time, scene.duration
+            ),
+        );
+    }
     polygon("room.outline", &scene.room.outline)?;
+    let (lo, hi) = scene
+        .room
+        .outline
+        .iter()
+        .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(DVec2::from(*p)), hi.max(DVec2::from(*p)))
+        });
+    let span = hi - lo;
+    if span.max_element() > MAX_ROOM_SIDE_M {
+        return fail(
+            "room.outline",
+            format!(
+                "spans {:.1} m x {:.1} m; at most {MAX_ROOM_SIDE_M} m a side (coordinates are \
+                 metres)",
+                span.x, span.y
+            ),
+        );
+    }
     for (i, f) in scene.furniture.iter().enumerate() {
         let k = format!("furniture[{i}]");
         match f {
@@ -471,6 +506,18 @@ mod tests {
         );
         let bow = "duration: 5\nroom: {outline: [[0,0],[5,4],[5,0],[0,4]]}\nrobot: {start: {x: 0.5, y: 0.5}}\n";
         assert!(error(bow).contains("room.outline: edges"), "{}", error(bow));
+        let millimetres = "duration: 5\nroom: {outline: [[0,0],[6000,0],[6000,4500],[0,4500]]}\nrobot: {start: {x: 500, y: 500}}\n";
+        assert!(
+            error(millimetres).contains("room.outline: spans 6000.0 m x 4500.0 m"),
+            "{}",
+            error(millimetres)
+        );
+        let late = "duration: 5\nstart_time: 2200000000\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nrobot: {start: {x: 0.5, y: 0.5}}\n";
+        assert!(
+            error(late).contains("start_time: 2200000000 s"),
+            "{}",
+            error(late)
+        );
         assert!(error("").contains("bad.yaml"), "{}", error(""));
         assert!(error("duration: [1").contains("bad.yaml"));
     }

@@ -23,7 +23,10 @@ use lidar_har_pipeline::bag_run::Spread;
 use lidar_har_pipeline::classifier::{ClassifierConfig, load_classifier_config};
 use serde::Serialize;
 
-use super::dataset::{ScriptKind, core_scan, episode_localiser, episode_simulator, load_scenes};
+use super::dataset::{
+    EpisodeStream, ScriptKind, core_scan, episode_localiser, episode_seed, episode_simulator,
+    load_scenes,
+};
 
 #[derive(clap::Args)]
 pub struct AlertsArgs {
@@ -199,6 +202,14 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     let mut classifier = StreamingClassifier::with_schedule(model, stream, schedule)
         .with_context(|| format!("--model {}", args.model.display()))?;
     let scenes = load_scenes(&args.scenes)?;
+    let scene_hz = scenes[0].1.lidar.rate_hz;
+    if (scene_hz / stream.scan_rate_hz - 1.0).abs() > 1e-6 {
+        anyhow::bail!(
+            "--model {} was trained at {} Hz but the scenes scan at {scene_hz} Hz",
+            args.model.display(),
+            stream.scan_rate_hz
+        );
+    }
     let no_fall_episodes = (args.no_fall_hours * 3600.0 / args.episode_seconds).ceil() as usize;
 
     let total = args.fall_episodes + no_fall_episodes + args.stay_down_episodes;
@@ -230,7 +241,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         let (_, scene) = &scenes[id % scenes.len()];
         let mut scene = scene.clone();
         scene.duration = args.episode_seconds;
-        let seed = args.seed.wrapping_mul(1_000_003).wrapping_add(id as u64);
+        let seed = episode_seed(args.seed, id, EpisodeStream::Alerts);
         let trace = args.trace_episode.contains(&id);
         let episode = match run_episode(&scene, seed, kind, &config, &mut classifier, trace) {
             Ok(episode) => episode,

@@ -377,7 +377,20 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         episodes,
         windows: Vec::new(),
     };
+    // Before anything is written: a failed run leaves a dataset already in `--out` whole.
+    if index.episodes.iter().all(|e| e.windows == 0) {
+        let longest = index.episodes.iter().map(|e| e.scans).max().unwrap_or(0);
+        bail!(
+            "no episode gave a window: the longest has {longest} scans, fewer than --window {} \
+             (raise --episode-seconds or lower --window); nothing was written to {}",
+            args.window,
+            args.out.display()
+        );
+    }
     let period_s = 1.0 / rate_hz;
+    // Arrays go to temporary names, renamed once all are written, so an interrupted run
+    // does not leave new arrays beside an old index.
+    let mut written = Vec::new();
     for (split, (parts, ids)) in SPLITS.iter().zip(per_split) {
         let total: usize = parts.iter().map(|p| p.starts.len()).sum();
         let mut images = Array4::<u8>::zeros((total, args.window, args.size, args.size));
@@ -410,12 +423,14 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
             labels: format!("{split}_labels.npy"),
             class_counts: counts,
         };
-        write_npy(&args.out.join(&entry.images), &images)?;
-        write_npy(&args.out.join(&entry.labels), &labels)?;
+        written.push(write_partial(&args.out.join(&entry.images), &images)?);
+        written.push(write_partial(&args.out.join(&entry.labels), &labels)?);
         index.splits.insert(split.to_string(), entry);
     }
-    if index.windows.is_empty() {
-        bail!("no episode gave any window (see the messages above)");
+    for (partial, path) in written {
+        std::fs::rename(&partial, &path).with_context(|| {
+            format!("cannot rename {} to {}", partial.display(), path.display())
+        })?;
     }
     let index_path = args.out.join("index.json");
     std::fs::write(&index_path, serde_json::to_string_pretty(&index)? + "\n")
@@ -429,11 +444,15 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn write_npy<A: ndarray_npy::WritableElement, D: ndarray::Dimension>(
+/// Writes `array` beside `path` under a temporary name; returns (temporary, final) paths.
+fn write_partial<A: ndarray_npy::WritableElement, D: ndarray::Dimension>(
     path: &Path,
     array: &ndarray::Array<A, D>,
-) -> anyhow::Result<()> {
-    ndarray_npy::write_npy(path, array).with_context(|| format!("cannot write {}", path.display()))
+) -> anyhow::Result<(PathBuf, PathBuf)> {
+    let partial = path.with_extension("npy.partial");
+    ndarray_npy::write_npy(&partial, array)
+        .with_context(|| format!("cannot write {}", partial.display()))?;
+    Ok((partial, path.to_path_buf()))
 }
 
 fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
@@ -486,6 +505,19 @@ pub(crate) fn load_scenes(pattern: &str) -> anyhow::Result<Vec<(String, Scene)>>
     if scenes.is_empty() {
         bail!("--scenes '{pattern}': no scene has a person");
     }
+    // A model counts scans (its window, the alerts' confirmations): one rate for all.
+    let (first_file, first) = &scenes[0];
+    if let Some((file, scene)) = scenes
+        .iter()
+        .find(|(_, s)| s.lidar.rate_hz != first.lidar.rate_hz)
+    {
+        bail!(
+            "--scenes '{pattern}': {file} scans at {} Hz but {first_file} at {} Hz; use scenes \
+             of one scan rate",
+            scene.lidar.rate_hz,
+            first.lidar.rate_hz
+        );
+    }
     Ok(scenes)
 }
 
@@ -510,7 +542,7 @@ fn plan_episodes(
     let test: std::collections::HashSet<usize> = order.into_iter().take(test_count).collect();
     let mut plans = Vec::new();
     let mut push = |id: usize, (file, scene): &(String, Scene), split: &'static str| {
-        let seed = args.seed.wrapping_mul(1_000_003).wrapping_add(id as u64);
+        let seed = episode_seed(args.seed, id, EpisodeStream::Dataset);
         let mut scene = scene.clone();
         scene.duration = args.episode_seconds;
         plans.push(EpisodePlan {
@@ -534,6 +566,25 @@ fn plan_episodes(
     Ok(plans)
 }
 
+/// Whose episodes a seed makes: `lidar-har alerts` must not replay the episodes a dataset
+/// made with the same `--seed` trained on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum EpisodeStream {
+    Dataset,
+    Alerts,
+}
+
+/// The simulator seed of episode `id` of a run with `seed`. The dataset's are those of every
+/// dataset made so far (models/MODEL_CARD.md); the alerts' differ in their top bits, which
+/// a dataset seed would reach only above 2^40.
+pub(crate) fn episode_seed(seed: u64, id: usize, stream: EpisodeStream) -> u64 {
+    let seed = seed.wrapping_mul(1_000_003).wrapping_add(id as u64);
+    match stream {
+        EpisodeStream::Dataset => seed,
+        EpisodeStream::Alerts => seed ^ 0xa1e7_0000_0000_0000,
+    }
+}
+
 fn run_episode(
     plan: &EpisodePlan,
     args: &DatasetArgs,
@@ -547,11 +598,7 @@ fn run_episode(
     )?;
     let mut localiser = episode_localiser(&sim, args.fixed_lidar)?;
     let geometry = sim.scan_geometry();
-    // Per scan: the person's points, the track position (if any), the Lidar position, the truth.
-    let mut points: Vec<Vec<DVec2>> = Vec::new();
-    let mut positions: Vec<Option<DVec2>> = Vec::new();
-    let mut sensors: Vec<DVec2> = Vec::new();
-    let mut truth: Vec<Activity> = Vec::new();
+    let mut scans: Vec<ScanRecord> = Vec::new();
     let mut visible = 0;
     while let Some(frame) = sim.step() {
         let stamp = frame.stamp_ns as i64;
@@ -559,76 +606,90 @@ fn run_episode(
             localiser.add_odometry(stamp, frame.robot);
         }
         let result = localiser.process_scan(&core_scan(&geometry, stamp, frame.ranges));
-        let person = result.output.as_ref().and_then(|o| o.person.as_ref());
-        match person {
-            Some(p) if p.visible => {
-                visible += 1;
-                points.push(p.points.clone());
-                positions.push(Some(p.position));
-            }
-            Some(p) => {
-                points.push(Vec::new());
-                positions.push(Some(p.position));
-            }
-            None => {
-                points.push(Vec::new());
-                positions.push(None);
-            }
-        }
-        sensors.push(frame.laser.position());
-        truth.push(
-            frame
+        let seen = result
+            .output
+            .as_ref()
+            .and_then(|o| o.person.as_ref())
+            .filter(|p| p.visible);
+        visible += usize::from(seen.is_some());
+        scans.push(ScanRecord {
+            seen: seen.map(|p| (p.position, p.points.clone())),
+            sensor: frame.laser.position(),
+            truth: frame
                 .person
                 .map(|p| p.activity)
                 .unwrap_or(Activity::Standing),
-        );
+        });
     }
-    let scans = truth.len();
-    let t = args.window;
-    let starts: Vec<usize> = if scans >= t {
-        (0..=scans - t).step_by(args.stride).collect()
-    } else {
-        Vec::new()
-    };
-    let size = args.size;
-    let mut images = Array4::<u8>::zeros((starts.len(), t, size, size));
-    let mut labels = Array2::<u8>::zeros((starts.len(), t));
-    let mut image = Array2::<f32>::zeros((size, size));
-    for (w, &start) in starts.iter().enumerate() {
-        // Room-fixed framing: centred on the first known position in the window.
-        let anchor = (start..start + t).find_map(|i| positions[i]);
-        for k in 0..t {
-            let i = start + k;
-            labels[[w, k]] = truth[i].index() as u8;
-            let centre = match args.framing {
-                Framing::PersonCentred => positions[i],
-                Framing::RoomFixed => anchor,
-            };
-            let mut out = images.slice_mut(s![w, k, .., ..]);
-            if let Some(centre) = centre
-                && !points[i].is_empty()
-            {
-                renderer.render(
-                    points[i].iter().copied(),
-                    centre,
-                    sensors[i],
-                    image.view_mut(),
-                );
-                out.zip_mut_with(&image, |o, &v| {
-                    *o = (v.clamp(0.0, 1.0) * 255.0).round() as u8
-                });
-            }
-        }
-    }
+    let (starts, images, labels) =
+        render_windows(&scans, args.window, args.stride, args.framing, renderer);
     let start = sim.scene().robot.start;
     Ok(EpisodeWindows {
         images,
         labels,
         starts,
-        scans,
+        scans: scans.len(),
         visible,
         fixed_lidar_at: args.fixed_lidar.then_some([start.x, start.y]),
     })
+}
+
+/// One scan of an episode, as the runtime classifier gets it.
+struct ScanRecord {
+    /// The person's position and points, when the localiser saw them (not when it only
+    /// predicted them: the runtime renders and anchors nothing on a hidden person).
+    seen: Option<(DVec2, Vec<DVec2>)>,
+    sensor: DVec2,
+    truth: Activity,
+}
+
+/// The episode's windows (every `stride` scans, `window` long): their first scans, images
+/// and per-scan labels. A room-fixed window is centred on its first seen position, as the
+/// runtime centres each streaming state (docs/model_contract.md).
+fn render_windows(
+    scans: &[ScanRecord],
+    t: usize,
+    stride: usize,
+    framing: Framing,
+    renderer: &Renderer,
+) -> (Vec<usize>, Array4<u8>, Array2<u8>) {
+    let starts: Vec<usize> = if scans.len() >= t {
+        (0..=scans.len() - t).step_by(stride).collect()
+    } else {
+        Vec::new()
+    };
+    let size = renderer.spec().size;
+    let mut images = Array4::<u8>::zeros((starts.len(), t, size, size));
+    let mut labels = Array2::<u8>::zeros((starts.len(), t));
+    let mut image = Array2::<f32>::zeros((size, size));
+    for (w, &start) in starts.iter().enumerate() {
+        let window = &scans[start..start + t];
+        let anchor = window
+            .iter()
+            .find_map(|scan| scan.seen.as_ref().map(|s| s.0));
+        for (k, scan) in window.iter().enumerate() {
+            labels[[w, k]] = scan.truth.index() as u8;
+            let Some((position, points)) = &scan.seen else {
+                continue;
+            };
+            let centre = match framing {
+                Framing::PersonCentred => *position,
+                Framing::RoomFixed => anchor.unwrap_or(*position),
+            };
+            renderer.render(
+                points.iter().copied(),
+                centre,
+                scan.sensor,
+                image.view_mut(),
+            );
+            images
+                .slice_mut(s![w, k, .., ..])
+                .zip_mut_with(&image, |o, &v| {
+                    *o = (v.clamp(0.0, 1.0) * 255.0).round() as u8
+                });
+        }
+    }
+    (starts, images, labels)
 }
 
 /// Which random activity script an episode's person follows.
@@ -1012,6 +1073,75 @@ mod tests {
         let path =
             Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../config/scenes/{name}.yaml"));
         Scene::load(&path).expect("shipped scene")
+    }
+
+    #[test]
+    fn a_room_fixed_window_is_centred_on_its_first_seen_position_not_a_predicted_one() {
+        let spec =
+            RepresentationSpec::new(RepresentationKind::BooleanGrid, Framing::RoomFixed, 16, 0.1);
+        let renderer = Renderer::new(spec).unwrap();
+        let hidden = || ScanRecord {
+            seen: None,
+            sensor: DVec2::ZERO,
+            truth: Activity::Walking,
+        };
+        let seen_at = |x: f64| ScanRecord {
+            seen: Some((DVec2::new(x, 0.0), vec![DVec2::new(x, 0.0)])),
+            sensor: DVec2::ZERO,
+            truth: Activity::Walking,
+        };
+        // Hidden for two scans (the tracker predicting them elsewhere), then seen at x = 3
+        // twice and at x = 3.2: the window is centred at 3.
+        let scans = [hidden(), hidden(), seen_at(3.0), seen_at(3.0), seen_at(3.2)];
+        let (starts, images, labels) = render_windows(&scans, 5, 5, Framing::RoomFixed, &renderer);
+        assert_eq!(starts, [0]);
+        assert_eq!(labels[[0, 4]], Activity::Walking.index() as u8);
+        let lit = |k: usize| -> Vec<(usize, usize)> {
+            images
+                .slice(s![0, k, .., ..])
+                .indexed_iter()
+                .filter(|(_, v)| **v > 0)
+                .map(|(at, _)| at)
+                .collect()
+        };
+        assert!(
+            lit(0).is_empty() && lit(1).is_empty(),
+            "nothing drawn while hidden"
+        );
+        assert_eq!(lit(2), lit(3), "the same spot, the window's anchor");
+        assert!(!lit(2).is_empty());
+        assert_ne!(lit(4), lit(2), "0.2 m further on, two pixels over");
+    }
+
+    #[test]
+    fn scenes_of_two_scan_rates_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let text = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/living_room.yaml"),
+        )
+        .unwrap();
+        std::fs::write(dir.path().join("a.yaml"), &text).unwrap();
+        let slow = text.replace("lidar: {}", "lidar: {rate_hz: 10}");
+        assert_ne!(slow, text);
+        std::fs::write(dir.path().join("b.yaml"), slow).unwrap();
+        let pattern = format!("{}/*.yaml", dir.path().display());
+        let error = load_scenes(&pattern).unwrap_err().to_string();
+        assert!(
+            error.contains("10 Hz") && error.contains("20 Hz"),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn alerts_episodes_are_not_a_datasets_with_the_same_seed() {
+        for seed in [1, 12, 13, 21] {
+            for id in 0..3000 {
+                let alerts = episode_seed(seed, id, EpisodeStream::Alerts);
+                // Dataset seeds in use are small; none of their episodes can meet these.
+                assert!(alerts >> 48 != 0, "{seed} {id}");
+                assert_ne!(alerts, episode_seed(seed, id, EpisodeStream::Dataset));
+            }
+        }
     }
 
     #[test]

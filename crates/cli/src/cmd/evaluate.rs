@@ -250,6 +250,14 @@ fn check_model_matches(
             spec.resolution_m
         );
     }
+    if (stream.scan_rate_hz - spec.scan_rate_hz).abs() > 1e-6 {
+        bail!(
+            "{}: the model was trained at {} Hz, the dataset scans at {} Hz",
+            path.display(),
+            stream.scan_rate_hz,
+            spec.scan_rate_hz
+        );
+    }
     Ok(())
 }
 
