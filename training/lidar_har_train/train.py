@@ -67,7 +67,12 @@ def parse_args(argv):
                         "sizes replace --hidden and --encoder-channels")
     p.add_argument("--skip-test-eval", action="store_true",
                    help="skip PyTorch metrics on the test splits (`lidar-har evaluate` gives them through ONNX Runtime)")
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    if args.max_epochs < 1:
+        p.error(f"--max-epochs must be at least 1, got {args.max_epochs}")
+    if not 0.0 < args.val_fraction < 1.0:
+        p.error(f"--val-fraction must be between 0 and 1, got {args.val_fraction}")
+    return args
 
 
 class DeviceError(Exception):
@@ -99,7 +104,8 @@ def split_validation(train: Split, fraction: float, rng: np.random.Generator) ->
     episodes = np.unique(train.episodes)
     if len(episodes) < 2:
         raise DatasetError("the train split has fewer than 2 episodes: cannot hold any out for validation")
-    count = max(1, int(round(fraction * len(episodes))))
+    # At least one episode on each side, whatever the fraction rounds to.
+    count = min(max(1, int(round(fraction * len(episodes)))), len(episodes) - 1)
     held = rng.choice(episodes, size=count, replace=False)
     mask = np.isin(train.episodes, held)
     return train.subset(~mask, "train"), train.subset(mask, "validation")
