@@ -122,14 +122,19 @@ impl Route {
         self.points[i - 1].lerp(self.points[i], f)
     }
 
-    /// Mean walking direction over the arc `[s - w, s + w]` (clipped at the start): turns at
-    /// corners and reversals are spread over `2 w` metres instead of happening at once.
-    fn heading(&self, s: f64, w: f64) -> Option<f64> {
+    /// Mean walking direction over the arc `[s - w, s + w]`, clipped at the start and at
+    /// `s_end` (where the step ends): turns at corners and reversals are spread over `2 w`
+    /// metres instead of happening at once, and a step ending at a turnaround ends facing
+    /// the way it arrived, not half turned.
+    fn heading(&self, s: f64, w: f64, s_end: f64) -> Option<f64> {
         let period = 2.0 * self.length();
         if self.legs.is_empty() || period <= 0.0 {
             return None;
         }
-        let (lo, hi) = ((s - w).max(0.0), s + w);
+        let (lo, hi) = ((s - w).max(0.0), (s + w).min(s_end));
+        if hi <= lo {
+            return None;
+        }
         // Count whole periods apart, so the arc is walked in small numbers: kilometres in,
         // a fixed step below the spacing of floats would never move on.
         let periods_before = (lo / period).floor();
@@ -420,9 +425,10 @@ impl Plan {
         if self.speed <= 0.0 {
             return self.heading0;
         }
+        let walked = self.speed * (self.end - self.start);
         let mut h = self
             .route
-            .heading(self.speed * self.local(t), 0.25)
+            .heading(self.speed * self.local(t), 0.25, walked)
             .unwrap_or(self.heading0);
         if self.activity == Activity::WalkingUnsteadily {
             h += 0.15 * traits.sway * traits.wave(self.local(t), 0.19, 0);
@@ -809,8 +815,10 @@ mod tests {
             // where the arc is clipped at the start).
             for k in 10..144_000 {
                 let s = 0.155 * k as f64;
-                let far = route.heading(s, 0.25).unwrap();
-                let near = route.heading(period + s.rem_euclid(period), 0.25).unwrap();
+                let far = route.heading(s, 0.25, f64::INFINITY).unwrap();
+                let near = route
+                    .heading(period + s.rem_euclid(period), 0.25, f64::INFINITY)
+                    .unwrap();
                 worst = worst.max(normalize_angle(far - near).abs());
             }
             let _ = done.send(worst);
@@ -819,6 +827,32 @@ mod tests {
             .recv_timeout(std::time::Duration::from_secs(20))
             .expect("heading() returns");
         assert!(worst < 1e-6, "{worst}");
+    }
+
+    #[test]
+    fn a_walk_ending_at_a_turnaround_ends_facing_the_way_it_came() {
+        // Out to x = 6 and back (the walk is fitted to whole laps), then a fall forward: the
+        // person arrives heading west, stands facing west and falls west.
+        for seed in 0..4 {
+            let s = scene(
+                "    - {activity: walking, duration: 3.4, path: [[6,3]]}\n    - {activity: standing, duration: 1}\n    - {activity: falling_down, duration: 1, fall: forward}\n    - {activity: lying_down, duration: 2}\n",
+            );
+            let world = World::new(&s);
+            let mut p = Person::new(s.person.as_ref().unwrap(), &world, seed).unwrap();
+            let standing = p.state_at(3.9);
+            let arrival = (p.state_at(3.4).position - p.state_at(3.0).position).to_angle();
+            assert!(
+                normalize_angle(standing.yaw - arrival).abs() < 0.35,
+                "seed {seed}: standing at yaw {} after arriving at {arrival}",
+                standing.yaw
+            );
+            let fall = p.state_at(7.0).position - standing.position;
+            assert!(
+                normalize_angle(fall.to_angle() - arrival).abs() < 0.6,
+                "seed {seed}: fell towards {} after arriving at {arrival}",
+                fall.to_angle()
+            );
+        }
     }
 
     fn max_jump(person: &mut Person, t0: f64, t1: f64, dt: f64) -> f64 {
