@@ -252,3 +252,85 @@ fn a_run_that_gives_no_window_leaves_the_dataset_already_there_whole() {
         );
     }
 }
+
+/// `lidar-har random-scenes` with `--seed` and `--count`, into `out`.
+fn random_scenes(out: &Path, seed: &str, count: &str) -> std::process::Output {
+    Command::new(workspace_bin("lidar-har"))
+        .current_dir(repo_root())
+        .args(["random-scenes", "--seed", seed, "--count", count, "--out"])
+        .arg(out)
+        .output()
+        .expect("lidar-har runs")
+}
+
+#[test]
+fn random_rooms_are_trained_on_beside_the_drawn_scenes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rooms = dir.path().join("rooms");
+    let out = random_scenes(&rooms, "5", "2");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let first = std::fs::read(rooms.join("random_5.yaml")).expect("random_5.yaml");
+    assert!(rooms.join("random_6.yaml").exists());
+    // Same seed, same file.
+    let again = dir.path().join("again");
+    assert!(random_scenes(&again, "5", "1").status.success());
+    assert_eq!(std::fs::read(again.join("random_5.yaml")).unwrap(), first);
+
+    let data = dir.path().join("data");
+    let out = Command::new(workspace_bin("lidar-har"))
+        .current_dir(repo_root())
+        .args(["dataset", "--scenes", "config/scenes/[ko]*.yaml"])
+        .arg(rooms.join("*.yaml"))
+        .args([
+            "--held-out",
+            "office",
+            "--episodes",
+            "8",
+            "--episode-seconds",
+            "6",
+        ])
+        .args([
+            "--window", "8", "--stride", "4", "--size", "16", "--seed", "3",
+        ])
+        .arg("--out")
+        .arg(&data)
+        .output()
+        .expect("lidar-har runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let index: Value =
+        serde_json::from_str(&std::fs::read_to_string(data.join("index.json")).unwrap()).unwrap();
+    let episodes = index["episodes"].as_array().expect("episodes");
+    let in_room = |name: &str| {
+        episodes
+            .iter()
+            .filter(|e| e["scene"] == name)
+            .map(|e| e["split"].as_str().unwrap().to_string())
+            .collect::<Vec<_>>()
+    };
+    // Kitchen and two random rooms share the 8 episodes; the office stays unseen.
+    for room in ["kitchen", "random_5", "random_6"] {
+        let splits = in_room(room);
+        assert!(!splits.is_empty(), "no episode in {room}");
+        assert!(
+            splits.iter().all(|s| s != "test_unseen"),
+            "{room}: {splits:?}"
+        );
+    }
+    assert!(in_room("office").iter().all(|s| s == "test_unseen"));
+}
+
+#[test]
+fn random_scenes_rejects_a_count_of_zero() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = random_scenes(dir.path(), "1", "0");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--count 0"));
+}

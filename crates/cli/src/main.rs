@@ -24,6 +24,8 @@ enum Command {
     Simulate(cmd::simulate::SimulateArgs),
     /// Run the embedded pipeline (localiser, classifier, alerts) over a bag.
     Run(cmd::run::RunArgs),
+    /// Write random furnished rooms as scene files (more rooms to train on).
+    RandomScenes(cmd::random_scenes::RandomScenesArgs),
     /// Make a labelled training/test dataset from simulated episodes.
     Dataset(cmd::dataset::DatasetArgs),
     /// Evaluate a model on a dataset against the paper's tables.
@@ -43,6 +45,7 @@ fn main() -> ExitCode {
         Command::Bag(c) => cmd::bag::run(c),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Run(a) => cmd::run::run(a),
+        Command::RandomScenes(a) => cmd::random_scenes::run(a),
         Command::Dataset(a) => cmd::dataset::run(a),
         Command::Evaluate(a) => cmd::evaluate::run(a),
         Command::Alerts(a) => cmd::alerts::run(a),

@@ -5,10 +5,12 @@
 //! - [`Simulator`]: streams [`Frame`]s (scan, robot pose and twist, person pose, activity,
 //!   per-beam hit labels) in memory, deterministically from a seed.
 //! - [`map`]: the room as an occupancy grid and map_server files.
+//! - [`generate`]: random furnished rooms, for training on more rooms than were drawn.
 //!
 //! See docs/simulator.md for the schema, the body model and the noise model.
 
 pub mod body;
+pub mod generate;
 pub mod lidar;
 pub mod map;
 pub mod person;

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use lidar_har_core::activity::Activity;
 use lidar_har_core::geometry::Pose2;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// The Lidar height used when a scene does not give one: the top of a typical cleaning
 /// robot's Lidar turret (about 10 cm), where a lying person is seen whole and a standing
@@ -20,7 +20,7 @@ pub const DEFAULT_START_TIME: u64 = 1_700_000_000;
 pub const MAX_ROBOT_SPEED: f64 = 0.2;
 
 /// A whole scene, as read from YAML.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
     /// Free text shown in logs and renders.
@@ -48,7 +48,7 @@ fn default_start_time() -> u64 {
     DEFAULT_START_TIME
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Room {
     /// The walls as a simple polygon, metres, in the map frame.
@@ -56,7 +56,7 @@ pub struct Room {
 }
 
 /// A pose in the scene file: metres and degrees.
-#[derive(Debug, Clone, Copy, Default, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PoseSpec {
     pub x: f64,
@@ -72,7 +72,7 @@ impl PoseSpec {
 }
 
 /// A piece of furniture. Everything stands on the floor; `height` is its top.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Furniture {
     /// A solid box (sofa, bed, cupboard, fridge).
@@ -107,7 +107,7 @@ pub enum Furniture {
 }
 
 /// A top on four round legs set in from its corners.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Legged {
     #[serde(default)]
@@ -143,7 +143,7 @@ impl Furniture {
     }
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RobotSpec {
     /// The robot's footprint radius; it keeps this far (plus a margin) from obstacles.
@@ -180,7 +180,7 @@ fn default_turn_rate() -> f64 {
 }
 
 /// How the robot moves. Every motion is planned around furniture on the robot's footprint.
-#[derive(Debug, Clone, Default, Deserialize)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Motion {
     /// The robot stays at its start pose.
@@ -218,7 +218,7 @@ fn default_bounce_runs() -> u32 {
     64
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LidarSpec {
     #[serde(default = "default_rate")]
@@ -261,7 +261,7 @@ fn default_range_max() -> f64 {
 }
 
 /// The paper's Lidar errors. Percentages of points (missing, wrong) or of the distance.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NoiseSpec {
     /// Standard deviation of the range error, in % of the true distance.
@@ -327,7 +327,7 @@ fn default_wrong_spread() -> f64 {
     30.0
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PersonSpec {
     #[serde(default)]
@@ -341,7 +341,7 @@ pub struct PersonSpec {
 }
 
 /// Body dimensions. Limb lengths follow anthropometric ratios of `height`.
-#[derive(Debug, Clone, Copy, Deserialize)]
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BodySpec {
     #[serde(default = "default_height")]
@@ -386,7 +386,7 @@ fn default_variation() -> f64 {
     0.05
 }
 
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ScriptStep {
     pub activity: Activity,
@@ -403,7 +403,7 @@ pub struct ScriptStep {
     pub fall: Option<FallDirection>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FallDirection {
     Forward,

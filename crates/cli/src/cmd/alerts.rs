@@ -36,9 +36,9 @@ pub struct AlertsArgs {
     /// Classifier parameters (YAML; the `fall_alert` block is used); defaults when absent.
     #[arg(long)]
     pub classifier_config: Option<PathBuf>,
-    /// Scene files, as a glob; episodes go round-robin over them.
-    #[arg(long, default_value = "config/scenes/*.yaml")]
-    pub scenes: String,
+    /// Scene files, as globs or paths; episodes go round-robin over them.
+    #[arg(long, num_args = 1.., default_value = "config/scenes/*.yaml")]
+    pub scenes: Vec<String>,
     /// Episodes whose scripts contain falls.
     #[arg(long, default_value_t = 40)]
     pub fall_episodes: usize,

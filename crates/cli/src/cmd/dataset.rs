@@ -39,9 +39,9 @@ pub const SPLITS: [&str; 3] = ["train", "test", "test_unseen"];
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct DatasetArgs {
-    /// Scene files, as a glob (e.g. 'config/scenes/*.yaml').
-    #[arg(long)]
-    pub scenes: String,
+    /// Scene files, as globs or paths (e.g. 'config/scenes/*.yaml' out/rooms/*.yaml).
+    #[arg(long, required = true, num_args = 1..)]
+    pub scenes: Vec<String>,
     /// Episodes over the training scenes (train + test); the held-out scenes get
     /// `test_fraction` of this many more.
     #[arg(long, default_value_t = 40)]
@@ -275,7 +275,7 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         if !scenes.iter().any(|(_, s)| &s.name == name) {
             bail!(
                 "--held-out '{name}' is not the name of any scene matched by '{}'",
-                args.scenes
+                args.scenes.join(" ")
             );
         }
     }
@@ -484,15 +484,21 @@ fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
 }
 
 /// Scenes matching the glob, sorted by path, each with a person (the activities come from it).
-pub(crate) fn load_scenes(pattern: &str) -> anyhow::Result<Vec<(String, Scene)>> {
-    let mut paths: Vec<PathBuf> = glob::glob(pattern)
-        .with_context(|| format!("--scenes '{pattern}' is not a valid glob"))?
-        .collect::<Result<_, _>>()
-        .with_context(|| format!("--scenes '{pattern}'"))?;
-    paths.sort();
-    if paths.is_empty() {
-        bail!("--scenes '{pattern}' matches no file");
+pub(crate) fn load_scenes(patterns: &[String]) -> anyhow::Result<Vec<(String, Scene)>> {
+    let pattern = patterns.join(" ");
+    let mut paths: Vec<PathBuf> = Vec::new();
+    for one in patterns {
+        let matched: Vec<PathBuf> = glob::glob(one)
+            .with_context(|| format!("--scenes '{one}' is not a valid glob"))?
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("--scenes '{one}'"))?;
+        if matched.is_empty() {
+            bail!("--scenes '{one}' matches no file");
+        }
+        paths.extend(matched);
     }
+    paths.sort();
+    paths.dedup();
     let mut scenes = Vec::new();
     for path in paths {
         let scene = Scene::load(&path)?;
@@ -1125,7 +1131,7 @@ mod tests {
         assert_ne!(slow, text);
         std::fs::write(dir.path().join("b.yaml"), slow).unwrap();
         let pattern = format!("{}/*.yaml", dir.path().display());
-        let error = load_scenes(&pattern).unwrap_err().to_string();
+        let error = load_scenes(&[pattern]).unwrap_err().to_string();
         assert!(
             error.contains("10 Hz") && error.contains("20 Hz"),
             "{error}"

@@ -5,6 +5,7 @@ pub mod bag;
 pub mod dataset;
 pub mod demo;
 pub mod evaluate;
+pub mod random_scenes;
 pub mod run;
 pub mod simulate;
 pub mod topic;
