@@ -19,7 +19,7 @@ use crate::scene::{
     BodySpec, Furniture, Legged, LidarSpec, Motion, PersonSpec, PoseSpec, RobotSpec, Room, Scene,
     ScriptStep,
 };
-use crate::shapes::point_in_polygon;
+use crate::shapes::{Shape, point_in_polygon};
 use crate::world::World;
 use crate::{SceneError, Simulator};
 use lidar_har_core::activity::Activity;
@@ -141,8 +141,8 @@ fn draw_scene(rng: &mut ChaCha8Rng, seed: u64) -> Option<Scene> {
         repeat: false,
     });
     tidy(&mut scene);
-    scene.validate().ok()?;
-    Some(scene)
+    // Rounding moves pieces by millimetres: check the floor again on what is written.
+    (floor_is_open(&scene) && scene.validate().is_ok()).then_some(scene)
 }
 
 /// Centimetres and tenths of a degree: the file stays readable, and every piece keeps the
@@ -346,7 +346,7 @@ fn yaw(rng: &mut ChaCha8Rng) -> f64 {
 
 /// A random point of the room's bounding box (the checks reject what lies outside).
 fn inside(rng: &mut ChaCha8Rng, outline: &[DVec2]) -> [f64; 2] {
-    let (lo, hi) = bounds(outline);
+    let (lo, hi) = Shape::Polygon(outline.to_vec()).bounds();
     [rng.random_range(lo.x..hi.x), rng.random_range(lo.y..hi.y)]
 }
 
@@ -407,7 +407,7 @@ fn fits(scene: &Scene, pieces: &[Furniture]) -> bool {
 /// Whether a person can still walk on half the floor, all of it one connected area.
 fn floor_is_open(scene: &Scene) -> bool {
     let world = World::new(scene);
-    let (lo, hi) = bounds(&world.outline);
+    let (lo, hi) = world.bounds();
     let (nx, ny) = (
         ((hi.x - lo.x) / CELL_M).ceil() as usize,
         ((hi.y - lo.y) / CELL_M).ceil() as usize,
@@ -487,14 +487,6 @@ fn grid(lo: DVec2, hi: DVec2) -> impl Iterator<Item = DVec2> {
             )
         })
     })
-}
-
-fn bounds(points: &[DVec2]) -> (DVec2, DVec2) {
-    points
-        .iter()
-        .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(*p), hi.max(*p))
-        })
 }
 
 fn polygon_area(points: &[DVec2]) -> f64 {
