@@ -483,7 +483,8 @@ fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Scenes matching the glob, sorted by path, each with a person (the activities come from it).
+/// Scenes matching the globs (each must match a file), sorted by path and each once, each with
+/// a person (the activities come from it).
 pub(crate) fn load_scenes(patterns: &[String]) -> anyhow::Result<Vec<(String, Scene)>> {
     let pattern = patterns.join(" ");
     let mut paths: Vec<PathBuf> = Vec::new();
