@@ -276,10 +276,11 @@ fn draw_pieces(rng: &mut ChaCha8Rng, outline: &[DVec2], count: usize) -> Vec<Fur
         // Free-standing solids: an armchair, an island, a chest.
         5..=6 => {
             let center = inside(rng, outline);
+            let size = [rng.random_range(0.5..1.6), rng.random_range(0.5..1.0)];
             vec![Furniture::Box {
-                name: name("armchair or island"),
+                name: name(if size[0] < 1.0 { "armchair" } else { "island" }),
                 center,
-                size: [rng.random_range(0.5..1.6), rng.random_range(0.5..1.0)],
+                size,
                 yaw_deg: yaw(rng),
                 height: rng.random_range(0.4..0.95),
             }]
