@@ -3,7 +3,8 @@
 //! Two alerts, each raised once per incident:
 //! - `FallDetected`: `falling_down` is the most likely class with probability at least
 //!   `fall_probability` on `fall_min_scans` consecutive visible scans, starting at most
-//!   `fall_from_upright_s` after the person was last upright, and the person is then
+//!   `fall_from_upright_s` after the person was last upright (or, with `fall_on_first_sight`,
+//!   on the first scan the person is seen on), and the person is then
 //!   confirmed on the floor within `fall_then_floor_s` (a stagger or a sudden stop the model
 //!   reads as falling ends upright; a fall ends on the floor); or a descent: lying down is
 //!   confirmed at most `descent_max_s` after the person was last upright or getting up (a
@@ -77,6 +78,11 @@ pub struct FallAlertConfig {
     /// person was last confirmed upright: a fall starts from standing or walking, and getting
     /// up or crawling misread as falling does not. Seconds; 0 drops the requirement.
     pub fall_from_upright_s: f64,
+    /// A run of `falling_down` scans that begins on the first scan the detector has of the
+    /// person (at start-up or after a reset) counts although nobody saw them upright before:
+    /// the robot may come upon someone as they fall. `fall_from_upright_s` cannot rule such a
+    /// run out, having nothing to go by.
+    pub fall_on_first_sight: bool,
     /// A descent counts only when, over the scans that confirm lying, the person's points
     /// stretch at least this far along their main axis (the median of those scans): a body on
     /// the floor is over a metre long at ankle height, while a standing person the classifier
@@ -121,6 +127,7 @@ impl Default for FallAlertConfig {
             rearm_upright_s: 1.5,
             descent_max_s: 3.0,
             fall_from_upright_s: 3.0,
+            fall_on_first_sight: false,
             descent_min_length_m: 0.8,
             descent_min_probability: 0.8,
             down_waits_on_upright_glimpse: true,
@@ -257,6 +264,8 @@ pub struct FallDetector {
     config: FallAlertConfig,
     last_stamp_s: Option<f64>,
     last_position: Option<DVec2>,
+    /// The first scan with the person seen since the start or the last reset.
+    first_seen_s: Option<f64>,
     /// Current run of fall scans: start time, count, summed probability.
     fall_run: Option<(f64, u32, f64)>,
     /// A fall run waiting for the person to be confirmed on the floor: its start, when it
@@ -306,6 +315,7 @@ impl FallDetector {
             config,
             last_stamp_s: None,
             last_position: None,
+            first_seen_s: None,
             fall_run: None,
             pending_fall: None,
             candidate: None,
@@ -356,6 +366,7 @@ impl FallDetector {
         let probabilities_ok = input.probabilities.iter().all(|p| p.is_finite());
         if let (Some(position), true) = (visible, probabilities_ok) {
             self.last_position = Some(position);
+            self.first_seen_s.get_or_insert(t);
             self.observe(t, &input.probabilities, input.body_length_m, &mut alerts);
         }
 
@@ -576,10 +587,13 @@ impl FallDetector {
         }
     }
 
-    /// Whether a fall starting at `start` follows being upright closely enough.
+    /// Whether a fall starting at `start` follows being upright closely enough, or began
+    /// when the person was first seen (`fall_on_first_sight`).
     fn fell_from_upright(&self, start: f64) -> bool {
         let limit = self.config.fall_from_upright_s;
-        limit <= 0.0 || self.last_upright_s.is_some_and(|at| start - at <= limit)
+        limit <= 0.0
+            || self.last_upright_s.is_some_and(|at| start - at <= limit)
+            || (self.config.fall_on_first_sight && self.first_seen_s == Some(start))
     }
 
     /// Lying confirmed soon after the person was last off the floor, by a body that looks
@@ -785,6 +799,34 @@ mod tests {
             ],
         );
         assert!(slow.is_empty(), "{slow:?}");
+    }
+
+    #[test]
+    fn a_fall_from_the_first_sight_counts_only_with_fall_on_first_sight() {
+        // The person is found falling (hidden before), then lies: nobody saw them upright.
+        let script = [
+            (Standing, 2.0, false),
+            (FallingDown, 0.6, true),
+            (LyingDown, 3.0, true),
+        ];
+        let off = run(&mut detector(), &script);
+        assert!(off.is_empty(), "{off:?}");
+        let on = run(
+            &mut detector_with(|c| c.fall_on_first_sight = true),
+            &script,
+        );
+        assert_eq!(kinds(&on), [AlertKind::FallDetected]);
+        assert!((on[0].event_time_s - 2.0).abs() < 1e-9, "{:?}", on[0]);
+        // A run that begins later, after the person was first seen on the floor, does not.
+        let later = run(
+            &mut detector_with(|c| c.fall_on_first_sight = true),
+            &[
+                (SittingOnFloor, 2.0, true),
+                (FallingDown, 0.6, true),
+                (LyingDown, 3.0, true),
+            ],
+        );
+        assert!(later.is_empty(), "{later:?}");
     }
 
     #[test]
