@@ -127,7 +127,7 @@ impl Default for FallAlertConfig {
             rearm_upright_s: 1.5,
             descent_max_s: 3.0,
             fall_from_upright_s: 3.0,
-            fall_on_first_sight: false,
+            fall_on_first_sight: true,
             descent_min_length_m: 0.8,
             descent_min_probability: 0.8,
             down_waits_on_upright_glimpse: true,
@@ -802,14 +802,17 @@ mod tests {
     }
 
     #[test]
-    fn a_fall_from_the_first_sight_counts_only_with_fall_on_first_sight() {
+    fn a_fall_seen_from_the_first_scan_counts_unless_fall_on_first_sight_is_off() {
         // The person is found falling (hidden before), then lies: nobody saw them upright.
         let script = [
             (Standing, 2.0, false),
             (FallingDown, 0.6, true),
             (LyingDown, 3.0, true),
         ];
-        let off = run(&mut detector(), &script);
+        let off = run(
+            &mut detector_with(|c| c.fall_on_first_sight = false),
+            &script,
+        );
         assert!(off.is_empty(), "{off:?}");
         let on = run(
             &mut detector_with(|c| c.fall_on_first_sight = true),
@@ -819,7 +822,7 @@ mod tests {
         assert!((on[0].event_time_s - 2.0).abs() < 1e-9, "{:?}", on[0]);
         // A run that begins later, after the person was first seen on the floor, does not.
         let later = run(
-            &mut detector_with(|c| c.fall_on_first_sight = true),
+            &mut detector(),
             &[
                 (SittingOnFloor, 2.0, true),
                 (FallingDown, 0.6, true),
