@@ -163,17 +163,16 @@ fn main() -> Result<(), Box<dyn Error>> {
             for seed in 0..args.seeds {
                 let sim = match Simulator::new(variant.clone(), seed) {
                     Ok(sim) => sim,
-                    // A motion borrowed from another scene may not fit this room (a coverage
-                    // path through a narrow gap): skip it. The scene's own motion must run.
-                    Err(e) if index > 0 => {
-                        eprintln!("skipped: {} with {motion_name} robot: {e}", path.display());
+                    Err(e) => {
+                        let failure = format!("{} with {motion_name} robot: {e}", path.display());
+                        // The scene's own motion (first) must run; one borrowed from another
+                        // scene may not fit this room (a coverage path through a narrow gap).
+                        if index == 0 {
+                            return Err(failure.into());
+                        }
+                        eprintln!("skipped: {failure}");
                         skipped += 1;
                         continue;
-                    }
-                    Err(e) => {
-                        return Err(
-                            format!("{} with {motion_name} robot: {e}", path.display()).into()
-                        );
                     }
                 };
                 let mut run_activity: BTreeMap<usize, Group> = BTreeMap::new();
