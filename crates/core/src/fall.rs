@@ -23,9 +23,11 @@
 //! - `PersonDown`: the person has been on the floor (lying, sitting on the floor or crawling,
 //!   [`Activity::is_on_floor`]) for `down_after_s` without being seen getting up. The clock
 //!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
-//!   not see still gives this alert once the robot finds the person down. Scans where the
-//!   person is hidden neither stop nor reset the clock: a person lying behind the sofa is still
-//!   down; only seeing them get up (or upright) ends the incident.
+//!   not see still gives this alert once the robot finds the person down. Time out of sight
+//!   does not reset the clock (a person lying behind the sofa is still down; only seeing them
+//!   get up or upright ends the incident), but each stretch of it counts at most
+//!   `down_unseen_counts_s`: the robot cannot vouch for a person it does not see, and people
+//!   who got up out of sight and sat down again were alerted as down.
 //!
 //! Crawling counts as on the floor: a fallen person who crawls towards a phone still needs
 //! help, and a person who crawls for `down_after_s` on purpose is rare enough in a home to
@@ -59,10 +61,14 @@ pub struct FallAlertConfig {
     /// at the run itself.
     pub fall_then_floor_s: f64,
     /// The landing that confirms a `falling_down` run must be read as lying without doubt
-    /// (`descent_min_probability`): a person who stops short, read as falling for a moment,
+    /// (`landing_min_probability`): a person who stops short, read as falling for a moment,
     /// and then sits down, or who sits down fast, lands sitting (seed 3 of `lidar-har
     /// alerts`, docs/classifier.md, session 15).
     pub fall_lands_lying: bool,
+    /// The median p(lying_down) over the `confirm_scans` scans of such a landing must reach
+    /// this. Lower than `descent_min_probability`: the `falling_down` run is evidence of its
+    /// own, and the landings that followed no false run were all sure enough (session 20).
+    pub landing_min_probability: f64,
     /// Time on the floor without getting up before `PersonDown`, seconds.
     pub down_after_s: f64,
     /// Consecutive scans that must agree before the posture (on floor / getting up / upright)
@@ -92,8 +98,9 @@ pub struct FallAlertConfig {
     /// A descent counts only when, on the scans that confirm the floor posture and are read
     /// as lying, `lying_down` has at least this probability (their median): after a fall the
     /// model reads lying at once (0.94-1.00 on the traced falls), a crawler it takes for
-    /// lying for a moment with doubt (0.49-0.79): seed 1 of `lidar-har alerts`,
-    /// docs/classifier.md. 0 drops the check.
+    /// lying for a moment with doubt (0.49-0.79; with the session-17 model the false descents
+    /// left were crawlers read at up to 0.9): `lidar-har alerts`, docs/classifier.md.
+    /// 0 drops the check.
     pub descent_min_probability: f64,
     /// `PersonDown` waits while any scan since the person was last confirmed on the floor
     /// (`down_seen_within_s`) read them upright or getting up, even unconfirmed: a person
@@ -113,6 +120,11 @@ pub struct FallAlertConfig {
     /// or sitting; the false alerts left after session 14 were people found crawling after
     /// getting up out of sight (docs/classifier.md, session 15).
     pub crawling_shows_down: bool,
+    /// Each stretch in which the person is out of sight counts towards `down_after_s` for at
+    /// most this long: the robot cannot vouch for a person it does not see staying down, and
+    /// the false `PersonDown` were people who got up out of sight and sat down again.
+    /// Seconds; 0 counts every stretch in full.
+    pub down_unseen_counts_s: f64,
 }
 
 impl Default for FallAlertConfig {
@@ -122,6 +134,7 @@ impl Default for FallAlertConfig {
             fall_min_scans: 8,
             fall_then_floor_s: 3.0,
             fall_lands_lying: true,
+            landing_min_probability: 0.8,
             down_after_s: 15.0,
             confirm_scans: 5,
             rearm_upright_s: 1.5,
@@ -129,10 +142,11 @@ impl Default for FallAlertConfig {
             fall_from_upright_s: 3.0,
             fall_on_first_sight: true,
             descent_min_length_m: 0.8,
-            descent_min_probability: 0.8,
+            descent_min_probability: 0.9,
             down_waits_on_upright_glimpse: true,
             down_seen_within_s: 5.0,
             crawling_shows_down: false,
+            down_unseen_counts_s: 1.0,
         }
     }
 }
@@ -183,6 +197,8 @@ impl FallAlertConfig {
         at_least_zero("fall_from_upright_s", self.fall_from_upright_s)?;
         at_least_zero("descent_min_length_m", self.descent_min_length_m)?;
         at_least_zero("down_seen_within_s", self.down_seen_within_s)?;
+        at_least_zero("down_unseen_counts_s", self.down_unseen_counts_s)?;
+        probability("landing_min_probability", self.landing_min_probability)?;
         probability("descent_min_probability", self.descent_min_probability)
     }
 }
@@ -293,8 +309,9 @@ pub struct FallDetector {
     last_on_floor_s: Option<f64>,
     /// Whether a scan since then read the person upright or getting up.
     off_floor_since_on_floor: bool,
-    /// Since when the person is down, with summed on-floor probability and scan count.
-    down: Option<(f64, f64, u32)>,
+    down: Option<DownSpell>,
+    /// The last scan with the person seen (and classified).
+    last_seen_s: Option<f64>,
     /// Since when the person has been upright without being confirmed on the floor or
     /// getting up in between (a `falling_down` misreading of a standing person does not
     /// break it): what re-arms the alerts.
@@ -330,6 +347,7 @@ impl FallDetector {
             last_on_floor_s: None,
             off_floor_since_on_floor: false,
             down: None,
+            last_seen_s: None,
             upright_since: None,
             fall_disarmed_at: None,
             down_disarmed_at: None,
@@ -347,7 +365,7 @@ impl FallDetector {
 
     /// Whether the person is currently considered down, and since when.
     pub fn down_since_s(&self) -> Option<f64> {
-        self.down.map(|(since, _, _)| since)
+        self.down.map(|down| down.since_s)
     }
 
     /// Processes one scan; returns the alerts it raises (usually none, at most two).
@@ -367,28 +385,32 @@ impl FallDetector {
         if let (Some(position), true) = (visible, probabilities_ok) {
             self.last_position = Some(position);
             self.first_seen_s.get_or_insert(t);
+            let unseen_s = self.unseen_beyond_count(t);
+            if let Some(down) = self.down.as_mut() {
+                down.uncounted_s += unseen_s;
+            }
+            self.last_seen_s = Some(t);
             self.observe(t, &input.probabilities, input.body_length_m, &mut alerts);
         }
 
-        if let (Some((since, sum, count)), Some(position)) = (self.down, self.last_position)
-            && self.down_disarmed_at.is_none()
-            && t - since >= self.config.down_after_s
-            && !(self.config.down_waits_on_upright_glimpse && self.off_floor_since_on_floor)
-            && self.seen_on_floor_lately(t)
-        {
-            self.down_disarmed_at = Some(t);
-            alerts.push(FallAlert {
-                kind: AlertKind::PersonDown,
-                event_time_s: since + self.config.down_after_s,
-                raised_at_s: t,
-                down_since_s: since,
-                position,
-                confidence: if count > 0 {
-                    (sum / count as f64) as f32
-                } else {
-                    0.0
-                },
-            });
+        if let (Some(down), Some(position)) = (self.down, self.last_position) {
+            // The stretch out of sight now running, if any, counts only so far too.
+            let uncounted_s = down.uncounted_s + self.unseen_beyond_count(t);
+            if self.down_disarmed_at.is_none()
+                && t - down.since_s - uncounted_s >= self.config.down_after_s
+                && !(self.config.down_waits_on_upright_glimpse && self.off_floor_since_on_floor)
+                && self.seen_on_floor_lately(t)
+            {
+                self.down_disarmed_at = Some(t);
+                alerts.push(FallAlert {
+                    kind: AlertKind::PersonDown,
+                    event_time_s: down.since_s + uncounted_s + self.config.down_after_s,
+                    raised_at_s: t,
+                    down_since_s: down.since_s,
+                    position,
+                    confidence: down.confidence(),
+                });
+            }
         }
         alerts
     }
@@ -472,9 +494,9 @@ impl FallDetector {
                 Posture::Falling => {}
             }
         }
-        if let Some((_, sum, count)) = self.down.as_mut() {
-            *sum += on_floor_p as f64;
-            *count += 1;
+        if let Some(down) = self.down.as_mut() {
+            down.on_floor_p_sum += on_floor_p as f64;
+            down.scans += 1;
         }
         let confirmed = self.posture.map(|(p, _)| p);
         if seen == Posture::Upright && confirmed == Some(Posture::Upright) {
@@ -563,7 +585,7 @@ impl FallDetector {
         if let (Some((start, run_at, confidence)), Some(since)) =
             (self.pending_fall, self.lying_since)
             && since - run_at <= self.config.fall_then_floor_s
-            && surely_lying(&mut self.lying_run, self.config.descent_min_probability)
+            && surely_lying(&mut self.lying_run, self.config.landing_min_probability)
         {
             self.pending_fall = None;
             self.raise_fall(t, start, confidence, alerts);
@@ -639,8 +661,46 @@ impl FallDetector {
     /// on a landing confirmed after the floor posture dates the incident from the fall.
     fn start_down(&mut self, since: f64) {
         match self.down.as_mut() {
-            Some((down_since, _, _)) => *down_since = down_since.min(since),
-            None => self.down = Some((since, 0.0, 0)),
+            Some(down) => down.since_s = down.since_s.min(since),
+            None => {
+                self.down = Some(DownSpell {
+                    since_s: since,
+                    on_floor_p_sum: 0.0,
+                    scans: 0,
+                    uncounted_s: 0.0,
+                })
+            }
+        }
+    }
+
+    /// How much of the time out of sight from the last scan the person was seen on (or
+    /// since they are down, if later) to `t` exceeds `down_unseen_counts_s`.
+    fn unseen_beyond_count(&self, t: f64) -> f64 {
+        let cap = self.config.down_unseen_counts_s;
+        match (self.last_seen_s, self.down) {
+            (Some(seen), Some(down)) if cap > 0.0 => (t - seen.max(down.since_s) - cap).max(0.0),
+            _ => 0.0,
+        }
+    }
+}
+
+/// The incident the person is down in.
+#[derive(Debug, Clone, Copy)]
+struct DownSpell {
+    since_s: f64,
+    /// Summed on-floor probability over the scans since: the alert's confidence.
+    on_floor_p_sum: f64,
+    scans: u32,
+    /// Time out of sight beyond `down_unseen_counts_s` a stretch: not counted as down.
+    uncounted_s: f64,
+}
+
+impl DownSpell {
+    fn confidence(&self) -> f32 {
+        if self.scans > 0 {
+            (self.on_floor_p_sum / f64::from(self.scans)) as f32
+        } else {
+            0.0
         }
     }
 }
@@ -977,6 +1037,38 @@ mod tests {
     }
 
     #[test]
+    fn a_fall_run_lands_on_less_certain_lying_than_a_descent_needs() {
+        let fall_then_lying = |p| {
+            [
+                (Walking, 5.0, true, None, SURE),
+                (FallingDown, 0.7, true, None, SURE),
+                (LyingDown, 3.0, true, Some(1.5), p),
+            ]
+        };
+        let landing_and_descent = |landing, descent| {
+            detector_with(|c| {
+                c.landing_min_probability = landing;
+                c.descent_min_probability = descent;
+            })
+        };
+        // Lying read at 0.85: enough to land the run, not enough for a descent alone.
+        let alerts = run_scans(&mut landing_and_descent(0.8, 0.9), &fall_then_lying(0.85));
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+        assert!((alerts[0].event_time_s - 5.0).abs() < 1e-9, "{alerts:?}");
+        let alerts = run_scans(&mut landing_and_descent(0.9, 0.9), &fall_then_lying(0.85));
+        assert!(alerts.is_empty(), "{alerts:?}");
+        // Without the run, the same lying is no descent at 0.9, one at 0.8.
+        let descent_only = [
+            (Walking, 5.0, true, None, SURE),
+            (LyingDown, 3.0, true, Some(1.5), 0.85),
+        ];
+        let alerts = run_scans(&mut landing_and_descent(0.8, 0.9), &descent_only);
+        assert!(alerts.is_empty(), "{alerts:?}");
+        let alerts = run_scans(&mut landing_and_descent(0.8, 0.8), &descent_only);
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+    }
+
+    #[test]
     fn a_landing_read_as_sitting_at_first_is_a_fall_once_read_lying_in_time() {
         // The run reaches 8 scans at 5.35 s; the landing is read as sitting from 5.6 s.
         let landing = |sitting_s| {
@@ -1271,7 +1363,11 @@ mod tests {
 
     #[test]
     fn hiding_while_down_does_not_reset_the_clock() {
-        let mut d = without_descent();
+        // Every unseen second counted, as before `down_unseen_counts_s`.
+        let mut d = detector_with(|c| {
+            c.descent_max_s = 0.0;
+            c.down_unseen_counts_s = 0.0;
+        });
         let alerts = run(
             &mut d,
             &[
@@ -1299,8 +1395,17 @@ mod tests {
         ];
         let alerts = run(&mut detector(), &script);
         assert!(alerts.is_empty(), "{alerts:?}");
+        // Either hold keeps it quiet alone: the fresh evidence, or counting little of the
+        // time out of sight.
         let alerts = run(&mut detector_with(|c| c.down_seen_within_s = 0.0), &script);
-        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!(alerts.is_empty(), "{alerts:?}");
+        let alerts = run(&mut detector_with(|c| c.down_unseen_counts_s = 0.0), &script);
+        assert!(alerts.is_empty(), "{alerts:?}");
+        let mut neither = detector_with(|c| {
+            c.down_seen_within_s = 0.0;
+            c.down_unseen_counts_s = 0.0;
+        });
+        assert_eq!(kinds(&run(&mut neither, &script)), [AlertKind::PersonDown]);
     }
 
     #[test]
@@ -1312,13 +1417,18 @@ mod tests {
             (SittingOnFloor, 3.0, false),
             (SittingOnFloor, 1.0, true),
         ];
-        // Due at 18 s, held through the hidden time, raised once read sitting again at 20.9 s.
-        let alerts = run(&mut detector(), &script);
+        // Every unseen second counted: due at 18 s, held through the hidden time, raised once
+        // read sitting again at 20.9 s.
+        let uncapped = |c: &mut FallAlertConfig| c.down_unseen_counts_s = 0.0;
+        let alerts = run(&mut detector_with(uncapped), &script);
         assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
         assert!((alerts[0].event_time_s - 18.0).abs() < 1e-9);
         assert!(alerts[0].raised_at_s > 20.85, "{:?}", alerts[0]);
 
-        let mut d = detector_with(|c| c.down_waits_on_upright_glimpse = false);
+        let mut d = detector_with(|c| {
+            uncapped(c);
+            c.down_waits_on_upright_glimpse = false;
+        });
         let alerts = run(&mut d, &script);
         assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
         assert!(alerts[0].raised_at_s < 18.1, "{:?}", alerts[0]);
@@ -1350,6 +1460,33 @@ mod tests {
             "{:?}",
             alerts[0]
         );
+    }
+
+    #[test]
+    fn time_out_of_sight_counts_only_so_far_towards_person_down() {
+        let script = [
+            (Standing, 3.0, true),
+            (LyingDown, 5.0, true),
+            (LyingDown, 12.0, false),
+            (LyingDown, 10.0, true),
+        ];
+        // Down since 3 s; unseen from 7.95 s to 20 s, of which 1 s counts: 11.05 s do not,
+        // so 15 s are counted at 29.05 s.
+        let alerts = run(&mut without_descent(), &script);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        let alert = alerts[0];
+        assert!((alert.down_since_s - 3.0).abs() < 1e-9, "{alert:?}");
+        assert!((alert.event_time_s - 29.05).abs() < 1e-6, "{alert:?}");
+        assert!((alert.raised_at_s - 29.05).abs() < 1e-6, "{alert:?}");
+
+        // Out of sight for less than the cap each time: all of it counts.
+        let glimpses: Vec<_> = std::iter::once((Standing, 3.0, true))
+            .chain(std::iter::once((LyingDown, 1.0, true)))
+            .chain((0..20).flat_map(|_| [(LyingDown, 0.8, false), (LyingDown, 0.2, true)]))
+            .collect();
+        let alerts = run(&mut without_descent(), &glimpses);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!(alerts[0].raised_at_s < 18.3, "{:?}", alerts[0]);
     }
 
     #[test]
