@@ -224,7 +224,8 @@ impl AlertKind {
 pub struct FallAlert {
     pub kind: AlertKind,
     /// When it happened, seconds (stream time): the first scan of the fall for
-    /// `FallDetected`, the moment `down_after_s` elapsed for `PersonDown`.
+    /// `FallDetected`, the moment `down_after_s` had been counted for `PersonDown` (time out
+    /// of sight counted as `down_unseen_counts_s` says).
     pub event_time_s: f64,
     /// When the alert was raised (the scan that confirmed it), seconds.
     pub raised_at_s: f64,
@@ -1399,7 +1400,10 @@ mod tests {
         // time out of sight.
         let alerts = run(&mut detector_with(|c| c.down_seen_within_s = 0.0), &script);
         assert!(alerts.is_empty(), "{alerts:?}");
-        let alerts = run(&mut detector_with(|c| c.down_unseen_counts_s = 0.0), &script);
+        let alerts = run(
+            &mut detector_with(|c| c.down_unseen_counts_s = 0.0),
+            &script,
+        );
         assert!(alerts.is_empty(), "{alerts:?}");
         let mut neither = detector_with(|c| {
             c.down_seen_within_s = 0.0;
