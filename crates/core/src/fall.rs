@@ -67,7 +67,7 @@ pub struct FallAlertConfig {
     pub fall_lands_lying: bool,
     /// The median p(lying_down) over the `confirm_scans` scans of such a landing must reach
     /// this. Lower than `descent_min_probability`: the `falling_down` run is evidence of its
-    /// own, and the landings that followed no false run were all sure enough (session 20).
+    /// own, and no false alert came from a run's landing (docs/classifier.md, session 20).
     pub landing_min_probability: f64,
     /// Time on the floor without getting up before `PersonDown`, seconds.
     pub down_after_s: f64,
