@@ -1363,27 +1363,45 @@ mod tests {
     }
 
     #[test]
-    fn hiding_while_down_does_not_reset_the_clock() {
-        // Every unseen second counted, as before `down_unseen_counts_s`.
+    fn hiding_while_down_does_not_reset_the_clock_but_counts_only_so_far() {
+        let script = [
+            (Standing, 3.0, true),
+            (LyingDown, 5.0, true),
+            (LyingDown, 12.0, false),
+            (LyingDown, 10.0, true),
+        ];
+        // Every unseen second counted, as before `down_unseen_counts_s`: due at 18 s, but by
+        // then the person was last seen on the floor 10 s before: found lying again at 20 s,
+        // the alert comes at once, dated from when they went down.
         let mut d = detector_with(|c| {
             c.descent_max_s = 0.0;
             c.down_unseen_counts_s = 0.0;
         });
-        let alerts = run(
-            &mut d,
-            &[
-                (Standing, 3.0, true),
-                (LyingDown, 5.0, true),
-                (LyingDown, 12.0, false),
-                (LyingDown, 1.0, true),
-            ],
-        );
-        // Due at 18 s, but by then the person was last seen on the floor 10 s before: found
-        // lying again at 20 s, the alert comes at once, dated from when they went down.
+        let alerts = run(&mut d, &script);
         assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
         assert!((alerts[0].event_time_s - 18.0).abs() < 1e-9);
         let raised = alerts[0].raised_at_s;
         assert!((20.0..20.5).contains(&raised), "{:?}", alerts[0]);
+
+        // By default unseen from 7.95 s to 20 s, of which 1 s counts: 11.05 s do not, so 15 s
+        // are counted at 29.05 s.
+        let alerts = run(&mut without_descent(), &script);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        let alert = alerts[0];
+        assert!((alert.down_since_s - 3.0).abs() < 1e-9, "{alert:?}");
+        assert!((alert.event_time_s - 29.05).abs() < 1e-6, "{alert:?}");
+        assert!((alert.raised_at_s - 29.05).abs() < 1e-6, "{alert:?}");
+    }
+
+    #[test]
+    fn stretches_out_of_sight_shorter_than_the_cap_count_in_full() {
+        let glimpses: Vec<_> = std::iter::once((Standing, 3.0, true))
+            .chain(std::iter::once((LyingDown, 1.0, true)))
+            .chain((0..20).flat_map(|_| [(LyingDown, 0.8, false), (LyingDown, 0.2, true)]))
+            .collect();
+        let alerts = run(&mut without_descent(), &glimpses);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!(alerts[0].raised_at_s < 18.3, "{:?}", alerts[0]);
     }
 
     #[test]
@@ -1464,33 +1482,6 @@ mod tests {
             "{:?}",
             alerts[0]
         );
-    }
-
-    #[test]
-    fn time_out_of_sight_counts_only_so_far_towards_person_down() {
-        let script = [
-            (Standing, 3.0, true),
-            (LyingDown, 5.0, true),
-            (LyingDown, 12.0, false),
-            (LyingDown, 10.0, true),
-        ];
-        // Down since 3 s; unseen from 7.95 s to 20 s, of which 1 s counts: 11.05 s do not,
-        // so 15 s are counted at 29.05 s.
-        let alerts = run(&mut without_descent(), &script);
-        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
-        let alert = alerts[0];
-        assert!((alert.down_since_s - 3.0).abs() < 1e-9, "{alert:?}");
-        assert!((alert.event_time_s - 29.05).abs() < 1e-6, "{alert:?}");
-        assert!((alert.raised_at_s - 29.05).abs() < 1e-6, "{alert:?}");
-
-        // Out of sight for less than the cap each time: all of it counts.
-        let glimpses: Vec<_> = std::iter::once((Standing, 3.0, true))
-            .chain(std::iter::once((LyingDown, 1.0, true)))
-            .chain((0..20).flat_map(|_| [(LyingDown, 0.8, false), (LyingDown, 0.2, true)]))
-            .collect();
-        let alerts = run(&mut without_descent(), &glimpses);
-        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
-        assert!(alerts[0].raised_at_s < 18.3, "{:?}", alerts[0]);
     }
 
     #[test]
