@@ -1,12 +1,13 @@
 //! Fall alerts from the stream of per-scan activity probabilities.
 //!
 //! Two alerts, each raised once per incident:
-//! - `FallDetected`: `falling_down` is the most likely class with probability at least
-//!   `fall_probability` on `fall_min_scans` consecutive visible scans, starting at most
-//!   `fall_from_upright_s` after the person was last upright (or, with `fall_on_first_sight`,
-//!   on the first scan the person is seen on), and the person is then
-//!   confirmed on the floor within `fall_then_floor_s` (a stagger or a sudden stop the model
-//!   reads as falling ends upright; a fall ends on the floor); or a descent: lying down is
+//! - `FallDetected`: `falling_down` is the most likely class on `fall_min_scans` consecutive
+//!   visible scans with a mean probability of at least `fall_probability`, the run starting at
+//!   most `fall_from_upright_s` after the person was last upright (or, with
+//!   `fall_on_first_sight`, on the first scan the person is seen on), and the person then
+//!   lands on the floor within `fall_then_floor_s` without being upright for
+//!   `rearm_upright_s` first (a stagger or a sudden stop the model reads as falling ends
+//!   upright; a fall ends on the floor); or a descent: lying down is
 //!   confirmed at most `descent_max_s` after the person was last upright or getting up (a
 //!   fall is short and easily missed, the lying that follows is not; a failed attempt to
 //!   stand ends lying too, while getting up misread as falling is the model's commonest
@@ -39,6 +40,8 @@
 //! `rearm_upright_s` (a moment read as falling does not restart that clock: a standing person
 //! is often misread so). Time going backwards (a replay restarting) clears everything.
 
+use std::collections::VecDeque;
+
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
 
@@ -48,27 +51,36 @@ use crate::activity::Activity;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct FallAlertConfig {
-    /// Minimum probability of `falling_down` on a scan that counts towards a fall.
+    /// Minimum mean probability of `falling_down` over `fall_min_scans` consecutive scans
+    /// that read it as the most likely class: a fall read at 0.6-0.9 scan by scan is still a
+    /// fall, where a threshold on every scan broke the run at each dip.
     pub fall_probability: f32,
-    /// Consecutive such scans needed for `FallDetected`.
+    /// Consecutive scans read as `falling_down` needed for `FallDetected`.
     pub fall_min_scans: u32,
     /// Such a run raises `FallDetected` only once the person then lands on the floor (lying,
     /// with `fall_lands_lying`; else any floor posture) within this time of the run: the alert
     /// comes on landing instead of during the fall, and a stagger or a sudden stop that the
     /// model reads as falling, after which the person stays upright, raises none. Being read
-    /// upright in between does not cancel it: the model misreads a fallen person as standing
-    /// for a moment (seed 2 of `lidar-har alerts`, docs/classifier.md). Seconds; 0 raises it
-    /// at the run itself.
+    /// upright for a moment in between does not cancel it: the model misreads a fallen person
+    /// as standing for a moment (seed 2 of `lidar-har alerts`, docs/classifier.md); being
+    /// upright for `rearm_upright_s` does. Seconds; 0 raises it at the run itself.
     pub fall_then_floor_s: f64,
     /// The landing that confirms a `falling_down` run must be read as lying without doubt
     /// (`landing_min_probability`): a person who stops short, read as falling for a moment,
     /// and then sits down, or who sits down fast, lands sitting (seed 3 of `lidar-har
     /// alerts`, docs/classifier.md, session 15).
     pub fall_lands_lying: bool,
-    /// The median p(lying_down) over the `confirm_scans` scans of such a landing must reach
-    /// this. Lower than `descent_min_probability`: the `falling_down` run is evidence of its
-    /// own, and no false alert came from a run's landing (docs/classifier.md, session 20).
+    /// The median p(lying_down) over `confirm_scans` consecutive scans read as lying must
+    /// reach this for a landing; the scans slide along the lying run. Lower than
+    /// `descent_min_probability`: the `falling_down` run is evidence of its own, and no
+    /// false alert came from a run's landing (docs/classifier.md, session 20).
     pub landing_min_probability: f64,
+    /// ... and the median length of the person's points over those scans must reach this: a
+    /// standing person read as falling and then as lying is one or two legs (0.3-0.5 m),
+    /// while 197 of 203 alerted landings on the five alert seeds stretched 0.8 m or more
+    /// and all 0.5 m or more. Lower than `descent_min_length_m`, as the run is evidence of
+    /// its own. Metres; 0 drops the check (as do unknown lengths).
+    pub landing_min_length_m: f64,
     /// Time on the floor without getting up before `PersonDown`, seconds.
     pub down_after_s: f64,
     /// Consecutive scans that must agree before the posture (on floor / getting up / upright)
@@ -130,11 +142,12 @@ pub struct FallAlertConfig {
 impl Default for FallAlertConfig {
     fn default() -> Self {
         Self {
-            fall_probability: 0.8,
+            fall_probability: 0.7,
             fall_min_scans: 8,
             fall_then_floor_s: 3.0,
             fall_lands_lying: true,
             landing_min_probability: 0.8,
+            landing_min_length_m: 0.6,
             down_after_s: 15.0,
             confirm_scans: 5,
             rearm_upright_s: 1.5,
@@ -196,6 +209,7 @@ impl FallAlertConfig {
         at_least_zero("descent_max_s", self.descent_max_s)?;
         at_least_zero("fall_from_upright_s", self.fall_from_upright_s)?;
         at_least_zero("descent_min_length_m", self.descent_min_length_m)?;
+        at_least_zero("landing_min_length_m", self.landing_min_length_m)?;
         at_least_zero("down_seen_within_s", self.down_seen_within_s)?;
         at_least_zero("down_unseen_counts_s", self.down_unseen_counts_s)?;
         probability("landing_min_probability", self.landing_min_probability)?;
@@ -283,8 +297,8 @@ pub struct FallDetector {
     last_position: Option<DVec2>,
     /// The first scan with the person seen since the start or the last reset.
     first_seen_s: Option<f64>,
-    /// Current run of fall scans: start time, count, summed probability.
-    fall_run: Option<(f64, u32, f64)>,
+    /// Current run of scans read as falling_down.
+    fall_run: Option<FallRun>,
     /// A fall run waiting for the person to be confirmed on the floor: its start, when it
     /// reached `fall_min_scans`, its mean probability.
     pending_fall: Option<(f64, f64, f64)>,
@@ -294,10 +308,9 @@ pub struct FallDetector {
     candidate_lengths: Vec<f64>,
     /// p(lying_down) on the candidate's scans read as lying.
     candidate_lying: Vec<f64>,
-    /// The current run of scans read as lying: since when, and p(lying_down) on its first
-    /// `confirm_scans` scans (a landing for `fall_lands_lying`).
-    lying_since: Option<f64>,
-    lying_run: Vec<f64>,
+    /// The last `confirm_scans` scans of the current run read as lying: stamp and
+    /// p(lying_down) (a landing for `fall_lands_lying`).
+    lying_run: VecDeque<LyingScan>,
     /// Confirmed posture and since when.
     posture: Option<(Posture, f64)>,
     /// The last visible scan classified upright while the confirmed posture was upright.
@@ -339,8 +352,7 @@ impl FallDetector {
             candidate: None,
             candidate_lengths: Vec::new(),
             candidate_lying: Vec::new(),
-            lying_since: None,
-            lying_run: Vec::new(),
+            lying_run: VecDeque::new(),
             posture: None,
             last_upright_s: None,
             last_off_floor_s: None,
@@ -430,18 +442,31 @@ impl FallDetector {
             .map(|a| probabilities[a.index()])
             .sum();
 
-        // Fall: consecutive confident falling_down scans.
-        let p_fall = probabilities[Activity::FallingDown.index()];
-        if best == Activity::FallingDown && best_p >= self.config.fall_probability {
-            let (start, n, sum) = self.fall_run.unwrap_or((t, 0, 0.0));
-            let run = (start, n + 1, sum + p_fall as f64);
-            self.fall_run = Some(run);
-            if run.1 == self.config.fall_min_scans && self.fell_from_upright(start) {
-                let confidence = run.2 / run.1 as f64;
-                if self.config.fall_then_floor_s > 0.0 {
-                    self.pending_fall = Some((start, t, confidence));
-                } else {
-                    self.raise_fall(t, start, confidence, alerts);
+        // Fall: consecutive scans read as falling_down, confidently on average.
+        if best == Activity::FallingDown {
+            let min_scans = self.config.fall_min_scans as usize;
+            let run = self.fall_run.get_or_insert_with(|| FallRun {
+                start_s: t,
+                recent: VecDeque::new(),
+                counted: false,
+            });
+            if run.recent.len() == min_scans {
+                run.recent.pop_front();
+            }
+            run.recent.push_back(f64::from(best_p));
+            let mean = run.recent.iter().sum::<f64>() / run.recent.len() as f64;
+            if !run.counted
+                && run.recent.len() == min_scans
+                && mean >= f64::from(self.config.fall_probability)
+            {
+                run.counted = true;
+                let start = run.start_s;
+                if self.fell_from_upright(start) {
+                    if self.config.fall_then_floor_s > 0.0 {
+                        self.pending_fall = Some((start, t, mean));
+                    } else {
+                        self.raise_fall(t, start, mean, alerts);
+                    }
                 }
             }
         } else {
@@ -449,7 +474,7 @@ impl FallDetector {
         }
 
         // Before the posture: a fall landing on this scan is dated from the fall, not a descent.
-        self.check_lying_landing(t, best, best_p, alerts);
+        self.check_lying_landing(t, best, best_p, body_length_m, alerts);
 
         // Posture with debouncing.
         let seen = posture_of(best);
@@ -533,6 +558,13 @@ impl FallDetector {
                     *disarmed_at = None;
                 }
             }
+            // Upright as long after a fall run: it was a stagger, or the fall is over.
+            if self
+                .pending_fall
+                .is_some_and(|(_, run_at, _)| t - since.max(run_at) >= self.config.rearm_upright_s)
+            {
+                self.pending_fall = None;
+            }
         }
     }
 
@@ -540,53 +572,71 @@ impl FallDetector {
     /// that the classifier reads as lying without doubt (`descent_min_length_m`,
     /// `descent_min_probability`, each a median over those scans).
     fn candidate_looks_like_a_fallen_body(&mut self) -> bool {
-        let min_length = self.config.descent_min_length_m;
-        let long_enough = min_length <= 0.0
-            || median(&mut self.candidate_lengths).is_none_or(|l| l >= min_length);
-        long_enough
-            && surely_lying(
-                &mut self.candidate_lying,
-                self.config.descent_min_probability,
-            )
+        stretches_at_least(
+            &mut self.candidate_lengths,
+            self.config.descent_min_length_m,
+        ) && surely_lying(
+            &mut self.candidate_lying,
+            self.config.descent_min_probability,
+        )
     }
 
-    /// With `fall_lands_lying`, raises a pending fall once a run of `confirm_scans` scans
-    /// read as lying without doubt begins within `fall_then_floor_s` of it; drops it when
-    /// none can any more.
+    /// With `fall_lands_lying`, raises a pending fall once `confirm_scans` consecutive scans
+    /// read as lying without doubt begin within `fall_then_floor_s` of it; drops it when none
+    /// can any more. The scans slide along the lying run: a landing read as lying with doubt
+    /// at first and surely a moment later is still a landing.
     fn check_lying_landing(
         &mut self,
         t: f64,
         best: Activity,
         best_p: f32,
+        body_length_m: Option<f64>,
         alerts: &mut Vec<FallAlert>,
     ) {
         let confirm = self.config.confirm_scans as usize;
         if best == Activity::LyingDown {
-            self.lying_since.get_or_insert(t);
-            if self.lying_run.len() < confirm {
-                self.lying_run.push(best_p as f64);
-                if self.lying_run.len() == confirm && self.config.fall_lands_lying {
-                    self.land_pending_fall(t, alerts);
-                }
+            if self.lying_run.len() == confirm {
+                self.lying_run.pop_front();
+            }
+            self.lying_run.push_back(LyingScan {
+                stamp_s: t,
+                probability: f64::from(best_p),
+                body_length_m: body_length_m.filter(|l| l.is_finite()),
+            });
+            if self.lying_run.len() == confirm && self.config.fall_lands_lying {
+                self.land_pending_fall(t, alerts);
             }
         } else {
-            self.lying_since = None;
             self.lying_run.clear();
         }
         let window = self.config.fall_then_floor_s;
         if let Some((_, run_at, _)) = self.pending_fall
             && t - run_at > window
-            && self.lying_since.is_none_or(|since| since - run_at > window)
+            && self
+                .lying_run
+                .front()
+                .is_none_or(|scan| scan.stamp_s - run_at > window)
         {
             self.pending_fall = None;
         }
     }
 
     fn land_pending_fall(&mut self, t: f64, alerts: &mut Vec<FallAlert>) {
-        if let (Some((start, run_at, confidence)), Some(since)) =
-            (self.pending_fall, self.lying_since)
-            && since - run_at <= self.config.fall_then_floor_s
-            && surely_lying(&mut self.lying_run, self.config.landing_min_probability)
+        let Some((start, run_at, confidence)) = self.pending_fall else {
+            return;
+        };
+        let Some(since) = self.lying_run.front().map(|scan| scan.stamp_s) else {
+            return;
+        };
+        let mut probabilities: Vec<f64> = self.lying_run.iter().map(|s| s.probability).collect();
+        let mut lengths: Vec<f64> = self
+            .lying_run
+            .iter()
+            .filter_map(|s| s.body_length_m)
+            .collect();
+        if since - run_at <= self.config.fall_then_floor_s
+            && surely_lying(&mut probabilities, self.config.landing_min_probability)
+            && stretches_at_least(&mut lengths, self.config.landing_min_length_m)
         {
             self.pending_fall = None;
             self.raise_fall(t, start, confidence, alerts);
@@ -685,6 +735,16 @@ impl FallDetector {
     }
 }
 
+/// A run of consecutive scans read as falling_down.
+#[derive(Debug, Clone)]
+struct FallRun {
+    start_s: f64,
+    /// p(falling_down) on its last `fall_min_scans` scans.
+    recent: VecDeque<f64>,
+    /// Whether it has reached `fall_probability` on average (counted once).
+    counted: bool,
+}
+
 /// The incident the person is down in.
 #[derive(Debug, Clone, Copy)]
 struct DownSpell {
@@ -710,6 +770,21 @@ impl DownSpell {
 /// `min_p` is 0, never without such scans otherwise).
 fn surely_lying(lying_probabilities: &mut [f64], min_p: f64) -> bool {
     min_p <= 0.0 || median(lying_probabilities).is_some_and(|p| p >= min_p)
+}
+
+/// Whether the median of the known body lengths reaches `min_m` (always when `min_m` is 0 or
+/// no length is known).
+fn stretches_at_least(lengths_m: &mut [f64], min_m: f64) -> bool {
+    min_m <= 0.0 || median(lengths_m).is_none_or(|l| l >= min_m)
+}
+
+/// A scan read as lying.
+#[derive(Debug, Clone, Copy)]
+struct LyingScan {
+    stamp_s: f64,
+    /// p(lying_down).
+    probability: f64,
+    body_length_m: Option<f64>,
 }
 
 /// The median of `values` (reordered), `None` when empty.
@@ -1112,12 +1187,90 @@ mod tests {
     }
 
     #[test]
-    fn a_fallen_person_read_as_standing_for_a_moment_still_gets_the_fall_alert() {
-        // The landing read as standing for 0.3 s (an upright posture confirmed), then lying:
-        // the fall run still alerts on the floor.
+    fn lying_read_with_doubt_at_first_then_surely_lands_a_fall_run() {
+        // After the run, lying is read at 0.6 for 0.2 s, then at 0.95: the last
+        // `confirm_scans` scans slide along the lying run, so the sure ones land it.
+        let alerts = run_scans(
+            &mut without_descent(),
+            &[
+                (Walking, 5.0, true, None, SURE),
+                (FallingDown, 0.6, true, None, SURE),
+                (LyingDown, 0.2, true, None, 0.6),
+                (LyingDown, 1.0, true, None, SURE),
+            ],
+        );
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+        // Landed once three of the last five scans read surely: the seventh lying scan.
+        assert!((alerts[0].raised_at_s - 5.9).abs() < 1e-6, "{alerts:?}");
+        // Sure lying that begins after `fall_then_floor_s` lands nothing.
+        let alerts = run_scans(
+            &mut without_descent(),
+            &[
+                (Walking, 5.0, true, None, SURE),
+                (FallingDown, 0.6, true, None, SURE),
+                (LyingDown, 3.2, true, None, 0.6),
+                (LyingDown, 1.0, true, None, SURE),
+            ],
+        );
+        assert!(alerts.is_empty(), "{alerts:?}");
+    }
+
+    #[test]
+    fn a_fall_run_counts_on_its_mean_probability() {
+        // falling_down the top class on every scan of the run, at p alternating between two
+        // values: the run counts once its last `fall_min_scans` scans average 0.7.
+        let fall_run = |low: f32, high: f32| {
+            let mut script = vec![(Walking, 5.0, true, None, SURE)];
+            for i in 0..12 {
+                let p = if i % 2 == 0 { low } else { high };
+                script.push((FallingDown, DT, true, None, p));
+            }
+            script.push((LyingDown, 2.0, true, None, SURE));
+            run_scans(&mut without_descent(), &script)
+        };
+        let alerts = fall_run(0.5, 0.95);
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+        assert!((alerts[0].event_time_s - 5.0).abs() < 1e-6, "{alerts:?}");
+        assert!((alerts[0].confidence - 0.725).abs() < 1e-6, "{alerts:?}");
+        let alerts = fall_run(0.5, 0.85);
+        assert!(alerts.is_empty(), "{alerts:?}");
+    }
+
+    #[test]
+    fn a_fall_run_lands_only_on_a_body_stretched_on_the_floor() {
+        // A run stopping short, then lying read surely on points 0.4 m long (the legs of a
+        // person standing): no fall. The same on a body 1.4 m long is one.
+        let landing_on = |length: f64| {
+            [
+                (Walking, 5.0, true, Some(0.5), SURE),
+                (FallingDown, 0.6, true, Some(0.5), SURE),
+                (LyingDown, 2.0, true, Some(length), SURE),
+            ]
+        };
+        let legs = run_scans(&mut without_descent(), &landing_on(0.4));
+        assert!(legs.is_empty(), "{legs:?}");
+        let body = run_scans(&mut without_descent(), &landing_on(1.4));
+        assert_eq!(kinds(&body), [AlertKind::FallDetected]);
+        // With the check off, the legs land it too.
+        let mut unchecked = detector_with(|c| {
+            c.descent_max_s = 0.0;
+            c.landing_min_length_m = 0.0;
+        });
+        let legs = run_scans(&mut unchecked, &landing_on(0.4));
+        assert_eq!(kinds(&legs), [AlertKind::FallDetected]);
+    }
+
+    #[test]
+    fn upright_for_a_while_after_a_fall_run_drops_it() {
+        // Read as falling, then standing, then lying within `fall_then_floor_s` of the run: a
+        // moment standing is the model's misreading of a fallen person; 1.5 s
+        // (`rearm_upright_s`) is a person who staggered and stood, then lay down or was
+        // misread as lying.
         let alerts = alerts_after_a_fall_run(&[(Standing, 0.3, true), (LyingDown, 3.0, true)]);
         assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
         assert!((alerts[0].event_time_s - 5.0).abs() < 1e-6, "{alerts:?}");
+        let alerts = alerts_after_a_fall_run(&[(Standing, 2.0, true), (LyingDown, 3.0, true)]);
+        assert!(alerts.is_empty(), "{alerts:?}");
     }
 
     #[test]

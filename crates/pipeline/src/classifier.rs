@@ -906,9 +906,10 @@ mod tests {
                         y: 1.0,
                         z: 0.0,
                     },
+                    // A body stretched on the floor: 1.1 m from end to end.
                     Point32 {
-                        x: 2.1,
-                        y: 1.05,
+                        x: 3.0,
+                        y: 1.5,
                         z: 0.0,
                     },
                 ]
