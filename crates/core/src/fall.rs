@@ -1188,30 +1188,25 @@ mod tests {
 
     #[test]
     fn lying_read_with_doubt_at_first_then_surely_lands_a_fall_run() {
-        // After the run, lying is read at 0.6 for 0.2 s, then at 0.95: the last
+        // After the run, lying is read at 0.6 for `doubt_s`, then at 0.95: the last
         // `confirm_scans` scans slide along the lying run, so the sure ones land it.
-        let alerts = run_scans(
-            &mut without_descent(),
-            &[
-                (Walking, 5.0, true, None, SURE),
-                (FallingDown, 0.6, true, None, SURE),
-                (LyingDown, 0.2, true, None, 0.6),
-                (LyingDown, 1.0, true, None, SURE),
-            ],
-        );
+        let landing = |doubt_s: f64| {
+            run_scans(
+                &mut without_descent(),
+                &[
+                    (Walking, 5.0, true, None, SURE),
+                    (FallingDown, 0.6, true, None, SURE),
+                    (LyingDown, doubt_s, true, None, 0.6),
+                    (LyingDown, 1.0, true, None, SURE),
+                ],
+            )
+        };
+        let alerts = landing(0.2);
         assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
         // Landed once three of the last five scans read surely: the seventh lying scan.
         assert!((alerts[0].raised_at_s - 5.9).abs() < 1e-6, "{alerts:?}");
         // Sure lying that begins after `fall_then_floor_s` lands nothing.
-        let alerts = run_scans(
-            &mut without_descent(),
-            &[
-                (Walking, 5.0, true, None, SURE),
-                (FallingDown, 0.6, true, None, SURE),
-                (LyingDown, 3.2, true, None, 0.6),
-                (LyingDown, 1.0, true, None, SURE),
-            ],
-        );
+        let alerts = landing(3.2);
         assert!(alerts.is_empty(), "{alerts:?}");
     }
 
