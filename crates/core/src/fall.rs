@@ -26,7 +26,8 @@
 //!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
 //!   not see still gives this alert once the robot finds the person down. Time out of sight
 //!   does not reset the clock (a person lying behind the sofa is still down; only seeing them
-//!   get up or upright ends the incident), but each stretch of it counts at most
+//!   get up, or upright for `down_ends_upright_s`, ends the incident), but each stretch of it
+//!   counts at most
 //!   `down_unseen_counts_s`: the robot cannot vouch for a person it does not see, and people
 //!   who got up out of sight and sat down again were alerted as down.
 //!
@@ -88,6 +89,11 @@ pub struct FallAlertConfig {
     pub confirm_scans: u32,
     /// Time the person must be seen upright before a new incident can raise alerts, seconds.
     pub rearm_upright_s: f64,
+    /// A person down is up again once confirmed getting up, or confirmed upright for this
+    /// long: a fallen person sitting on the floor is misread as walking unsteadily or
+    /// standing for a few tenths of a second every few seconds, and each such moment
+    /// restarted the `down_after_s` clock. Seconds; 0: at the upright posture's confirmation.
+    pub down_ends_upright_s: f64,
     /// Seen upright or getting up, then confirmed lying on the floor within this time:
     /// `FallDetected` even when no scan looked like `falling_down` (a fall is short; lying is
     /// not). Seconds; 0 turns this off.
@@ -151,6 +157,7 @@ impl Default for FallAlertConfig {
             down_after_s: 15.0,
             confirm_scans: 5,
             rearm_upright_s: 1.5,
+            down_ends_upright_s: 1.0,
             descent_max_s: 3.0,
             fall_from_upright_s: 3.0,
             fall_on_first_sight: true,
@@ -206,6 +213,7 @@ impl FallAlertConfig {
         check("confirm_scans", n, self.confirm_scans >= 1, ">= 1")?;
         at_least_zero("down_after_s", self.down_after_s)?;
         at_least_zero("rearm_upright_s", self.rearm_upright_s)?;
+        at_least_zero("down_ends_upright_s", self.down_ends_upright_s)?;
         at_least_zero("descent_max_s", self.descent_max_s)?;
         at_least_zero("fall_from_upright_s", self.fall_from_upright_s)?;
         at_least_zero("descent_min_length_m", self.descent_min_length_m)?;
@@ -510,11 +518,9 @@ impl FallDetector {
                     self.check_descent(t, since, best, on_floor_p, alerts);
                 }
                 Posture::Upright => {
-                    self.down = None;
                     self.upright_since.get_or_insert(since);
                 }
                 Posture::GettingUp => {
-                    self.down = None;
                     self.upright_since = None;
                 }
                 Posture::Falling => {}
@@ -527,8 +533,13 @@ impl FallDetector {
         let confirmed = self.posture.map(|(p, _)| p);
         if seen == Posture::Upright && confirmed == Some(Posture::Upright) {
             self.last_upright_s = Some(t);
-            // A fall alerted during its run (`fall_then_floor_s: 0`) marked the person down
-            // before any floor posture; one read upright again is not down.
+        }
+        // Up again: confirmed getting up, or upright for `down_ends_upright_s`.
+        if let Some((posture, since)) = self.posture
+            && seen == posture
+            && (posture == Posture::GettingUp
+                || (posture == Posture::Upright && t - since >= self.config.down_ends_upright_s))
+        {
             self.down = None;
         }
         if seen.is_off_floor() && confirmed.is_some_and(Posture::is_off_floor) {
@@ -1368,6 +1379,37 @@ mod tests {
             ],
         );
         assert_eq!(kinds(&body), [AlertKind::FallDetected]);
+    }
+
+    #[test]
+    fn a_moment_read_upright_while_down_does_not_restart_the_clock() {
+        // Fallen, then sitting on the floor, misread as walking for `walking_s` in between.
+        let script = |walking_s: f64| {
+            [
+                (Walking, 5.0, true),
+                (FallingDown, 1.0, true),
+                (LyingDown, 3.0, true),
+                (SittingOnFloor, 3.0, true),
+                (Walking, walking_s, true),
+                (SittingOnFloor, 12.0, true),
+            ]
+        };
+        let detector = || detector_with(|c| c.down_ends_upright_s = 1.0);
+        // 0.4 s upright: still down since the fall, alerted 15 s after it.
+        let alerts = run(&mut detector(), &script(0.4));
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::PersonDown]
+        );
+        assert!((alerts[1].down_since_s - 5.0).abs() < 1e-9, "{alerts:?}");
+        assert!((alerts[1].event_time_s - 20.0).abs() < 1e-9, "{alerts:?}");
+        // 1.2 s upright: up again; sitting down afterwards starts a new clock (not yet 15 s).
+        let alerts = run(&mut detector(), &script(1.2));
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+        // With 0, the 0.4 s already ends the spell.
+        let mut at_once = detector_with(|c| c.down_ends_upright_s = 0.0);
+        let alerts = run(&mut at_once, &script(0.4));
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
     }
 
     #[test]
