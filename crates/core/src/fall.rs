@@ -27,9 +27,8 @@
 //!   not see still gives this alert once the robot finds the person down. Time out of sight
 //!   does not reset the clock (a person lying behind the sofa is still down; only seeing them
 //!   get up, or upright for `down_ends_upright_s`, ends the incident), but each stretch of it
-//!   counts at most
-//!   `down_unseen_counts_s`: the robot cannot vouch for a person it does not see, and people
-//!   who got up out of sight and sat down again were alerted as down.
+//!   counts at most `down_unseen_counts_s`: the robot cannot vouch for a person it does not
+//!   see, and people who got up out of sight and sat down again were alerted as down.
 //!
 //! Crawling counts as on the floor: a fallen person who crawls towards a phone still needs
 //! help, and a person who crawls for `down_after_s` on purpose is rare enough in a home to
@@ -316,8 +315,8 @@ pub struct FallDetector {
     candidate_lengths: Vec<f64>,
     /// p(lying_down) on the candidate's scans read as lying.
     candidate_lying: Vec<f64>,
-    /// The last `confirm_scans` scans of the current run read as lying: stamp and
-    /// p(lying_down) (a landing for `fall_lands_lying`).
+    /// The last `confirm_scans` scans of the current run read as lying: what lands a fall
+    /// run (`fall_lands_lying`).
     lying_run: VecDeque<LyingScan>,
     /// Confirmed posture and since when.
     posture: Option<(Posture, f64)>,
