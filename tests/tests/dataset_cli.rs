@@ -1,5 +1,6 @@
 //! `lidar-har dataset` end to end on short episodes: the split is by episode, the held-out
-//! scene is only in `test_unseen`, class counts and the `.npy` arrays agree with the index.
+//! scene is only in `test_unseen`, class counts and the `.npy` arrays (images, labels,
+//! positions) agree with the index.
 
 use std::path::Path;
 use std::process::Command;
@@ -161,6 +162,32 @@ fn dataset_splits_by_episode_and_arrays_match_the_index() {
             labels.iter().all(|&l| l < 9),
             "{name}: class indices in 0..8"
         );
+        // Positions: the pelvis and the localiser from the image centre, which in this
+        // person-centred dataset is the localiser's position; NaN where it saw nobody.
+        let positions_file = dir
+            .path()
+            .join(split["positions"].as_str().expect("positions"));
+        let (shape, data, header) = npy_shape(&positions_file);
+        assert_eq!(shape, vec![n, 8, 4], "{name} positions");
+        assert!(header.contains("'<f4'"), "float32 positions: {header}");
+        let bytes = std::fs::read(&positions_file).expect("positions");
+        let values: Vec<f32> = bytes[bytes.len() - data..]
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        let mut seen = 0;
+        for scan in values.chunks_exact(4) {
+            if scan.iter().all(|v| v.is_nan()) {
+                continue;
+            }
+            seen += 1;
+            assert_eq!(&scan[2..], &[0.0, 0.0], "{name}: localiser at the centre");
+            assert!(
+                scan[0].hypot(scan[1]) < 1.5,
+                "{name}: the pelvis near the person the localiser saw: {scan:?}"
+            );
+        }
+        assert!(seen > 0, "{name}: some scans saw the person");
         for (row, w) in listed.iter().enumerate() {
             assert_eq!(w["row"].as_u64(), Some(row as u64));
             let last = labels[row * 8 + 7] as usize;

@@ -27,7 +27,7 @@ use lidar_har_sim::scene::{
 };
 use lidar_har_sim::world::World;
 use lidar_har_sim::{Scene, Simulator};
-use ndarray::{Array2, Array4, s};
+use ndarray::{Array2, Array3, Array4, s};
 use rand::seq::{IndexedRandom, SliceRandom};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -134,6 +134,11 @@ pub struct SplitEntry {
     pub images: String,
     /// `[windows, T]` uint8: the class index of each scan.
     pub labels: String,
+    /// `[windows, T, 4]` float32: the pelvis (ground truth) and the localiser's position,
+    /// metres from the scan's image centre along the map's x and y, NaN where the localiser
+    /// did not see the person: what a pose head learns from. Absent in older datasets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub positions: Option<String>,
     /// Windows per class (by last label), class order.
     pub class_counts: Vec<usize>,
 }
@@ -251,11 +256,9 @@ struct EpisodePlan {
     split: &'static str,
 }
 
-/// What an episode gives: its windows and their labels.
+/// What an episode gives: its windows, their labels and positions.
 struct EpisodeWindows {
-    images: Array4<u8>,
-    labels: Array2<u8>,
-    starts: Vec<usize>,
+    windows: RenderedWindows,
     scans: usize,
     visible: usize,
     fixed_lidar_at: Option<[f64; 2]>,
@@ -338,7 +341,7 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
             split: plan.split.to_string(),
             scans: windows.scans,
             person_visible_scans: windows.visible,
-            windows: windows.starts.len(),
+            windows: windows.windows.starts.len(),
             fixed_lidar_at: windows.fixed_lidar_at,
         });
         let k = SPLITS.iter().position(|s| *s == plan.split).unwrap_or(0);
@@ -392,17 +395,21 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
     // does not leave new arrays beside an old index.
     let mut written = Vec::new();
     for (split, (parts, ids)) in SPLITS.iter().zip(per_split) {
-        let total: usize = parts.iter().map(|p| p.starts.len()).sum();
+        let total: usize = parts.iter().map(|p| p.windows.starts.len()).sum();
         let mut images = Array4::<u8>::zeros((total, args.window, args.size, args.size));
         let mut labels = Array2::<u8>::zeros((total, args.window));
+        let mut positions = Array3::<f32>::zeros((total, args.window, 4));
         let mut counts = vec![0usize; Activity::COUNT];
         let mut row = 0;
-        for (part, episode) in parts.iter().zip(ids) {
+        for (part, episode) in parts.iter().map(|p| &p.windows).zip(ids) {
             let n = part.starts.len();
             images
                 .slice_mut(s![row..row + n, .., .., ..])
                 .assign(&part.images);
             labels.slice_mut(s![row..row + n, ..]).assign(&part.labels);
+            positions
+                .slice_mut(s![row..row + n, .., ..])
+                .assign(&part.positions);
             for (k, &start) in part.starts.iter().enumerate() {
                 let last = part.labels[[k, args.window - 1]] as usize;
                 counts[last] += 1;
@@ -421,10 +428,13 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
             windows: total,
             images: format!("{split}_images.npy"),
             labels: format!("{split}_labels.npy"),
+            positions: Some(format!("{split}_positions.npy")),
             class_counts: counts,
         };
         written.push(write_partial(&args.out.join(&entry.images), &images)?);
         written.push(write_partial(&args.out.join(&entry.labels), &labels)?);
+        let positions_file = format!("{split}_positions.npy");
+        written.push(write_partial(&args.out.join(positions_file), &positions)?);
         index.splits.insert(split.to_string(), entry);
     }
     for (partial, path) in written {
@@ -624,17 +634,15 @@ fn run_episode(
             sensor: frame.laser.position(),
             truth: frame
                 .person
+                .as_ref()
                 .map(|p| p.activity)
                 .unwrap_or(Activity::Standing),
+            pelvis: frame.person.as_ref().map(|p| p.pose.position()),
         });
     }
-    let (starts, images, labels) =
-        render_windows(&scans, args.window, args.stride, args.framing, renderer);
     let start = sim.scene().robot.start;
     Ok(EpisodeWindows {
-        images,
-        labels,
-        starts,
+        windows: render_windows(&scans, args.window, args.stride, args.framing, renderer),
         scans: scans.len(),
         visible,
         fixed_lidar_at: args.fixed_lidar.then_some([start.x, start.y]),
@@ -648,18 +656,30 @@ struct ScanRecord {
     seen: Option<(DVec2, Vec<DVec2>)>,
     sensor: DVec2,
     truth: Activity,
+    /// The ground-truth pelvis, when the scene has a person.
+    pelvis: Option<DVec2>,
 }
 
-/// The episode's windows (every `stride` scans, `window` long): their first scans, images
-/// and per-scan labels. A room-fixed window is centred on its first seen position, as the
-/// runtime centres each streaming state (docs/model_contract.md).
+/// An episode's windows (every `stride` scans, `window` long).
+struct RenderedWindows {
+    /// Each window's first scan.
+    starts: Vec<usize>,
+    images: Array4<u8>,
+    /// Per-scan class indices.
+    labels: Array2<u8>,
+    /// Per scan: pelvis and localiser position from the image centre (`SplitEntry::positions`).
+    positions: Array3<f32>,
+}
+
+/// Renders the episode's windows. A room-fixed window is centred on its first seen position,
+/// as the runtime centres each streaming state (docs/model_contract.md).
 fn render_windows(
     scans: &[ScanRecord],
     t: usize,
     stride: usize,
     framing: Framing,
     renderer: &Renderer,
-) -> (Vec<usize>, Array4<u8>, Array2<u8>) {
+) -> RenderedWindows {
     let starts: Vec<usize> = if scans.len() >= t {
         (0..=scans.len() - t).step_by(stride).collect()
     } else {
@@ -668,6 +688,7 @@ fn render_windows(
     let size = renderer.spec().size;
     let mut images = Array4::<u8>::zeros((starts.len(), t, size, size));
     let mut labels = Array2::<u8>::zeros((starts.len(), t));
+    let mut positions = Array3::<f32>::from_elem((starts.len(), t, 4), f32::NAN);
     let mut image = Array2::<f32>::zeros((size, size));
     for (w, &start) in starts.iter().enumerate() {
         let window = &scans[start..start + t];
@@ -683,6 +704,12 @@ fn render_windows(
                 Framing::PersonCentred => *position,
                 Framing::RoomFixed => anchor.unwrap_or(*position),
             };
+            let from_centre = |p: DVec2| [(p.x - centre.x) as f32, (p.y - centre.y) as f32];
+            let pelvis = scan.pelvis.map_or([f32::NAN; 2], from_centre);
+            let [ex, ey] = from_centre(*position);
+            positions
+                .slice_mut(s![w, k, ..])
+                .assign(&ndarray::arr1(&[pelvis[0], pelvis[1], ex, ey]));
             renderer.render(
                 points.iter().copied(),
                 centre,
@@ -696,7 +723,12 @@ fn render_windows(
                 });
         }
     }
-    (starts, images, labels)
+    RenderedWindows {
+        starts,
+        images,
+        labels,
+        positions,
+    }
 }
 
 /// Which random activity script an episode's person follows.
@@ -1091,16 +1123,23 @@ mod tests {
             seen: None,
             sensor: DVec2::ZERO,
             truth: Activity::Walking,
+            pelvis: Some(DVec2::new(2.0, 0.0)),
         };
         let seen_at = |x: f64| ScanRecord {
             seen: Some((DVec2::new(x, 0.0), vec![DVec2::new(x, 0.0)])),
             sensor: DVec2::ZERO,
             truth: Activity::Walking,
+            pelvis: Some(DVec2::new(x + 0.1, -0.05)),
         };
         // Hidden for two scans (the tracker predicting them elsewhere), then seen at x = 3
         // twice and at x = 3.2: the window is centred at 3.
         let scans = [hidden(), hidden(), seen_at(3.0), seen_at(3.0), seen_at(3.2)];
-        let (starts, images, labels) = render_windows(&scans, 5, 5, Framing::RoomFixed, &renderer);
+        let RenderedWindows {
+            starts,
+            images,
+            labels,
+            positions,
+        } = render_windows(&scans, 5, 5, Framing::RoomFixed, &renderer);
         assert_eq!(starts, [0]);
         assert_eq!(labels[[0, 4]], Activity::Walking.index() as u8);
         let lit = |k: usize| -> Vec<(usize, usize)> {
@@ -1118,6 +1157,16 @@ mod tests {
         assert_eq!(lit(2), lit(3), "the same spot, the window's anchor");
         assert!(!lit(2).is_empty());
         assert_ne!(lit(4), lit(2), "0.2 m further on, two pixels over");
+        assert!(
+            positions.slice(s![0, 0..2, ..]).iter().all(|v| v.is_nan()),
+            "no position while hidden"
+        );
+        let last: Vec<f32> = positions.slice(s![0, 4, ..]).to_vec();
+        let want = [0.3, -0.05, 0.2, 0.0];
+        assert!(
+            last.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-5),
+            "pelvis and localiser from the anchor at x = 3: {last:?}"
+        );
     }
 
     #[test]
