@@ -433,8 +433,9 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         };
         written.push(write_partial(&args.out.join(&entry.images), &images)?);
         written.push(write_partial(&args.out.join(&entry.labels), &labels)?);
-        let positions_file = format!("{split}_positions.npy");
-        written.push(write_partial(&args.out.join(positions_file), &positions)?);
+        if let Some(file) = &entry.positions {
+            written.push(write_partial(&args.out.join(file), &positions)?);
+        }
         index.splits.insert(split.to_string(), entry);
     }
     for (partial, path) in written {
