@@ -457,10 +457,7 @@ impl FallDetector {
                 recent: VecDeque::new(),
                 counted: false,
             });
-            if run.recent.len() == min_scans {
-                run.recent.pop_front();
-            }
-            run.recent.push_back(f64::from(best_p));
+            push_keeping_last(&mut run.recent, min_scans, f64::from(best_p));
             let mean = run.recent.iter().sum::<f64>() / run.recent.len() as f64;
             if !run.counted
                 && run.recent.len() == min_scans
@@ -605,14 +602,12 @@ impl FallDetector {
     ) {
         let confirm = self.config.confirm_scans as usize;
         if best == Activity::LyingDown {
-            if self.lying_run.len() == confirm {
-                self.lying_run.pop_front();
-            }
-            self.lying_run.push_back(LyingScan {
+            let scan = LyingScan {
                 stamp_s: t,
                 probability: f64::from(best_p),
                 body_length_m: body_length_m.filter(|l| l.is_finite()),
-            });
+            };
+            push_keeping_last(&mut self.lying_run, confirm, scan);
             if self.lying_run.len() == confirm && self.config.fall_lands_lying {
                 self.land_pending_fall(t, alerts);
             }
@@ -786,6 +781,14 @@ fn surely_lying(lying_probabilities: &mut [f64], min_p: f64) -> bool {
 /// no length is known).
 fn stretches_at_least(lengths_m: &mut [f64], min_m: f64) -> bool {
     min_m <= 0.0 || median(lengths_m).is_none_or(|l| l >= min_m)
+}
+
+/// Appends `value`, keeping the last `keep` values: the sliding windows over runs of scans.
+fn push_keeping_last<T>(window: &mut VecDeque<T>, keep: usize, value: T) {
+    while window.len() >= keep.max(1) {
+        window.pop_front();
+    }
+    window.push_back(value);
 }
 
 /// A scan read as lying.
