@@ -82,31 +82,14 @@ impl StreamSpec {
 
     /// Reads the spec from key/value metadata (the ONNX `metadata_props`).
     pub fn from_metadata(get: impl Fn(&str) -> Option<String>) -> Result<Self, StreamSpecError> {
-        fn parse<T: FromStr>(
-            key: &'static str,
-            get: &impl Fn(&str) -> Option<String>,
-        ) -> Result<T, StreamSpecError>
-        where
-            T::Err: std::fmt::Display,
-        {
-            let value = get(key).ok_or(StreamSpecError::Missing(key))?;
-            value
-                .trim()
-                .parse()
-                .map_err(|e: T::Err| StreamSpecError::Invalid {
-                    key,
-                    value: value.clone(),
-                    reason: e.to_string(),
-                })
-        }
         let mut representation = RepresentationSpec::new(
-            parse(Self::KEY_REPRESENTATION, &get)?,
-            parse(Self::KEY_FRAMING, &get)?,
-            parse(Self::KEY_SIZE, &get)?,
-            parse(Self::KEY_RESOLUTION, &get)?,
+            parse_metadata(Self::KEY_REPRESENTATION, &get)?,
+            parse_metadata(Self::KEY_FRAMING, &get)?,
+            parse_metadata(Self::KEY_SIZE, &get)?,
+            parse_metadata(Self::KEY_RESOLUTION, &get)?,
         );
         if get(Self::KEY_MARK_RADIUS).is_some() {
-            representation.mark_radius_m = parse(Self::KEY_MARK_RADIUS, &get)?;
+            representation.mark_radius_m = parse_metadata(Self::KEY_MARK_RADIUS, &get)?;
         }
         if let Some(axes) = get(Self::KEY_ELLIPSE_AXES) {
             let parsed: Vec<Result<f64, _>> =
@@ -124,8 +107,8 @@ impl StreamSpec {
         }
         let spec = Self {
             representation,
-            window: parse(Self::KEY_WINDOW, &get)?,
-            scan_rate_hz: parse(Self::KEY_SCAN_RATE, &get)?,
+            window: parse_metadata(Self::KEY_WINDOW, &get)?,
+            scan_rate_hz: parse_metadata(Self::KEY_SCAN_RATE, &get)?,
         };
         spec.validate()?;
         Ok(spec)
@@ -149,6 +132,25 @@ impl StreamSpec {
         }
         Ok(())
     }
+}
+
+/// Reads and parses metadata key `key`, naming it in the error.
+pub(crate) fn parse_metadata<T: FromStr>(
+    key: &'static str,
+    get: &impl Fn(&str) -> Option<String>,
+) -> Result<T, StreamSpecError>
+where
+    T::Err: std::fmt::Display,
+{
+    let value = get(key).ok_or(StreamSpecError::Missing(key))?;
+    value
+        .trim()
+        .parse()
+        .map_err(|e: T::Err| StreamSpecError::Invalid {
+            key,
+            value: value.clone(),
+            reason: e.to_string(),
+        })
 }
 
 /// One scan's input: the person as the localiser found them.
@@ -310,6 +312,17 @@ impl<M: StepModel> StreamingClassifier<M> {
     /// The image the last prediction was made from.
     pub fn last_image(&self) -> ArrayView2<'_, f32> {
         self.images[self.predicting_lane()].view()
+    }
+
+    /// The state behind the last prediction, and where `position` lies in the image that
+    /// state was last stepped on (metres from the image's centre): what the pose head reads.
+    pub fn last_state(&self, position: DVec2) -> (&M::State, DVec2) {
+        let lane = &self.lanes[self.predicting_lane()];
+        let located = match self.spec.representation.framing {
+            Framing::RoomFixed => lane.centre.map_or(DVec2::ZERO, |centre| position - centre),
+            Framing::PersonCentred => DVec2::ZERO,
+        };
+        (&lane.state, located)
     }
 
     /// Restarts every lane from zero state.

@@ -12,6 +12,7 @@ pub mod localiser;
 pub mod localiser_accuracy;
 pub mod map;
 pub mod metrics;
+pub mod pose_head;
 pub mod representation;
 pub mod scan;
 pub mod tracker;

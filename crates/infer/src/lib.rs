@@ -1,6 +1,7 @@
 //! The activity model on ONNX Runtime: loads the per-scan ConvLSTM step model of
 //! `docs/model_contract.md`, checks it against the contract, and steps it for
-//! [`lidar_har_core::classifier::StreamingClassifier`].
+//! [`lidar_har_core::classifier::StreamingClassifier`]; and the pose head that reads its
+//! state ([`PoseHeadModel`]).
 //!
 //! ONNX Runtime is loaded at run time (`ort`'s `load-dynamic`): from `$ORT_DYLIB_PATH`, else
 //! from `<repo>/.deps/onnxruntime/libonnxruntime.so`, where `scripts/setup.sh` installs it.
@@ -15,6 +16,10 @@ use ort::environment::Environment;
 use ort::session::Session;
 use ort::session::builder::GraphOptimizationLevel;
 use ort::value::{Outlet, TensorElementType, TensorRef};
+
+mod pose_head;
+
+pub use pose_head::{KEY_ACTIVITY_SHA256, PoseHeadModel};
 
 /// Where `scripts/setup.sh` puts the ONNX Runtime library, relative to the repository root.
 pub const DEFAULT_RUNTIME_RELATIVE: &str = ".deps/onnxruntime/libonnxruntime.so";
@@ -45,6 +50,17 @@ pub enum InferError {
     FrameShape {
         got: (usize, usize),
         expected: usize,
+    },
+    #[error(
+        "pose head {path} was fitted on another activity model (sha256 {fitted_on}), not on \
+         {model} (sha256 {found}): fit one for this model (python -m lidar_har_train.pose_head) \
+         or leave pose_head out of the classifier config"
+    )]
+    PoseHeadMismatch {
+        path: PathBuf,
+        model: PathBuf,
+        fitted_on: String,
+        found: String,
     },
     #[error("ONNX Runtime failed to run the model: {0}")]
     Run(String),
@@ -144,16 +160,7 @@ impl ActivityModel {
             message,
         };
         let threads = threads.max(1);
-        let session = Session::builder(env)
-            .map_err(|e| load_error(e.to_string()))?
-            .with_optimization_level(GraphOptimizationLevel::Level3)
-            .map_err(|e| load_error(e.to_string()))?
-            .with_intra_threads(threads)
-            .map_err(|e| load_error(e.to_string()))?
-            .with_inter_threads(1)
-            .map_err(|e| load_error(e.to_string()))?
-            .commit_from_file(&path)
-            .map_err(|e| load_error(e.to_string()))?;
+        let session = open_session(env, &path, threads)?;
 
         let metadata = session.metadata().map_err(|e| load_error(e.to_string()))?;
         let stream = StreamSpec::from_metadata(|key| metadata.custom(key)).map_err(|source| {
@@ -272,54 +279,79 @@ impl StepModel for ActivityModel {
     }
 }
 
+/// An ONNX Runtime session on the model file at `path` with `threads` intra-op threads.
+fn open_session(env: &Environment, path: &Path, threads: usize) -> Result<Session, InferError> {
+    let load_error = |message: String| InferError::ModelLoad {
+        path: path.to_path_buf(),
+        message,
+    };
+    Session::builder(env)
+        .map_err(|e| load_error(e.to_string()))?
+        .with_optimization_level(GraphOptimizationLevel::Level3)
+        .map_err(|e| load_error(e.to_string()))?
+        .with_intra_threads(threads)
+        .map_err(|e| load_error(e.to_string()))?
+        .with_inter_threads(1)
+        .map_err(|e| load_error(e.to_string()))?
+        .commit_from_file(path)
+        .map_err(|e| load_error(e.to_string()))
+}
+
+/// The shape of the float32 tensor `name` among `outlets` (`kind`: "input" or "output");
+/// an error names what is missing or of another type.
+fn float_outlet_shape(outlets: &[Outlet], kind: &str, name: &str) -> Result<Vec<i64>, String> {
+    let names: Vec<&str> = outlets.iter().map(|o| o.name()).collect();
+    let outlet = outlets
+        .iter()
+        .find(|o| o.name() == name)
+        .ok_or_else(|| format!("no {kind} named '{name}' (the model's {kind}s: {names:?})"))?;
+    if outlet.dtype().tensor_type() != Some(TensorElementType::Float32) {
+        return Err(format!(
+            "{kind} '{name}' is {:?}, expected a float32 tensor",
+            outlet.dtype()
+        ));
+    }
+    Ok(outlet
+        .dtype()
+        .tensor_shape()
+        .map(|s| s.to_vec())
+        .unwrap_or_default())
+}
+
+/// Whether `outlets` hold exactly the tensors `expected` (float32), no more.
+fn check_outlet_names(outlets: &[Outlet], kind: &str, expected: &[&str]) -> Result<(), String> {
+    for name in expected {
+        float_outlet_shape(outlets, kind, name)?;
+    }
+    match outlets.iter().find(|o| !expected.contains(&o.name())) {
+        Some(extra) => Err(format!(
+            "unexpected {kind} '{}' (expected exactly {expected:?})",
+            extra.name()
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Whether a model's `shape` is `expected`; the batch dimension may be symbolic (-1).
+fn shape_matches(shape: &[i64], expected: &[usize]) -> bool {
+    shape.len() == expected.len()
+        && shape
+            .iter()
+            .zip(expected)
+            .enumerate()
+            .all(|(i, (&got, &want))| got == want as i64 || (i == 0 && got == -1))
+}
+
 /// Checks names, element types and shapes against the contract; returns (hidden, state side).
 fn check_signature(
     inputs: &[Outlet],
     outputs: &[Outlet],
     size: usize,
 ) -> Result<(usize, usize), String> {
-    let find = |outlets: &[Outlet], kind: &str, name: &str| -> Result<Vec<i64>, String> {
-        let names: Vec<&str> = outlets.iter().map(|o| o.name()).collect();
-        let outlet = outlets
-            .iter()
-            .find(|o| o.name() == name)
-            .ok_or_else(|| format!("no {kind} named '{name}' (the model's {kind}s: {names:?})"))?;
-        if outlet.dtype().tensor_type() != Some(TensorElementType::Float32) {
-            return Err(format!(
-                "{kind} '{name}' is {:?}, expected a float32 tensor",
-                outlet.dtype()
-            ));
-        }
-        let shape = outlet
-            .dtype()
-            .tensor_shape()
-            .map(|s| s.to_vec())
-            .unwrap_or_default();
-        Ok(shape)
-    };
-    for (outlets, kind, expected) in [
-        (inputs, "input", ["frame", "h", "c"]),
-        (outputs, "output", ["logits", "h_next", "c_next"]),
-    ] {
-        for name in expected {
-            find(outlets, kind, name)?;
-        }
-        if let Some(extra) = outlets.iter().find(|o| !expected.contains(&o.name())) {
-            return Err(format!(
-                "unexpected {kind} '{}' (expected exactly {expected:?})",
-                extra.name()
-            ));
-        }
-    }
-    // The batch dimension may be symbolic (-1); every other one must be the number we need.
-    let matches = |shape: &[i64], expected: &[usize]| {
-        shape.len() == expected.len()
-            && shape
-                .iter()
-                .zip(expected)
-                .enumerate()
-                .all(|(i, (&got, &want))| got == want as i64 || (i == 0 && got == -1))
-    };
+    check_outlet_names(inputs, "input", &["frame", "h", "c"])?;
+    check_outlet_names(outputs, "output", &["logits", "h_next", "c_next"])?;
+    let find = float_outlet_shape;
+    let matches = shape_matches;
     let frame = find(inputs, "input", "frame")?;
     if !matches(&frame, &[1, 1, size, size]) {
         return Err(format!(

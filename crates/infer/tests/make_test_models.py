@@ -14,6 +14,7 @@ instead (state side S/2), e.g. to time a 64x64 image with 16 hidden channels:
   cargo bench -p lidar-har-infer --bench classify -- /tmp/m.onnx
 """
 
+import hashlib
 import json
 import pathlib
 
@@ -87,6 +88,56 @@ def build(w, frame_name="frame", classes=CLASSES, metadata=METADATA):
     return model
 
 
+# Where the person lies in the image for the expected pose head output (metres from its centre).
+POSE_HEAD_LOCATED = [0.3, -0.2]
+POSE_HEAD_METADATA = {
+    "lidar_har.pose_head.min_history": "3",
+    "lidar_har.pose_head.activities": "crawling,lying_down,sitting_on_floor",
+    "lidar_har.pose_head.sigma_m": "0.05",
+}
+
+
+def pose_head_weights():
+    rng = np.random.default_rng(7)
+    return {
+        "w_state": rng.normal(0.0, 0.5, (HIDDEN, 2)).astype(np.float32),
+        "w_located": rng.normal(0.0, 0.5, (2, 2)).astype(np.float32),
+        "b_offset": rng.normal(0.0, 0.1, (2,)).astype(np.float32),
+    }
+
+
+def build_pose_head(w, activity_sha256, hidden=HIDDEN):
+    """A tiny pose head with the contract's names: offset = mean(h) W_state + located
+    W_located + b."""
+    f = TensorProto.FLOAT
+    inputs = [
+        helper.make_tensor_value_info("h", f, [1, hidden, HS, HS]),
+        helper.make_tensor_value_info("located", f, [1, 2]),
+    ]
+    outputs = [helper.make_tensor_value_info("offset", f, [1, 2])]
+    init = [numpy_helper.from_array(v, k) for k, v in w.items()]
+    n = helper.make_node
+    nodes = [
+        n("GlobalAveragePool", ["h"], ["hp"]),
+        n("Flatten", ["hp"], ["hf"]),
+        n("MatMul", ["hf", "w_state"], ["from_state"]),
+        n("MatMul", ["located", "w_located"], ["from_located"]),
+        n("Add", ["from_state", "from_located"], ["sum"]),
+        n("Add", ["sum", "b_offset"], ["offset"]),
+    ]
+    graph = helper.make_graph(nodes, "pose_head_test", inputs, outputs, init)
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="lidar_har tests")
+    model.ir_version = 8
+    for k, v in {**POSE_HEAD_METADATA, "lidar_har.pose_head.activity_sha256": activity_sha256}.items():
+        model.metadata_props.add(key=k, value=v)
+    onnx.checker.check_model(model, full_check=True)
+    return model
+
+
+def reference_pose_head(w, h, located):
+    return h.mean(axis=(1, 2)) @ w["w_state"] + np.asarray(located) @ w["w_located"] + w["b_offset"]
+
+
 def sigmoid(x):
     return 1.0 / (1.0 + np.exp(-x))
 
@@ -129,6 +180,12 @@ def main():
     onnx.save(build(w, metadata={k: v for k, v in METADATA.items() if k != "lidar_har.window"}), OUT / "missing_window.onnx")
     onnx.save(build(w, metadata={**METADATA, "lidar_har.size": "32"}), OUT / "size_mismatch.onnx")
 
+    step_sha256 = hashlib.sha256((OUT / "step_model.onnx").read_bytes()).hexdigest()
+    head = pose_head_weights()
+    onnx.save(build_pose_head(head, step_sha256), OUT / "pose_head.onnx")
+    onnx.save(build_pose_head(head, hashlib.sha256(b"another model").hexdigest()), OUT / "pose_head_other_model.onnx")
+    onnx.save(build_pose_head({**head, "w_state": head["w_state"][:3]}, step_sha256, hidden=3), OUT / "pose_head_wrong_state.onnx")
+
     h = np.zeros((HIDDEN, HS, HS))
     c = np.zeros((HIDDEN, HS, HS))
     seq = frames(6)
@@ -140,6 +197,8 @@ def main():
         "frames": [[float(v) for v in f.ravel()] for f in seq],
         "logits": logits,
         "h_final_sum": float(h.sum()),
+        "pose_head": {"located": POSE_HEAD_LOCATED,
+                      "offset": [float(v) for v in reference_pose_head(head, h, POSE_HEAD_LOCATED)]},
     }
     (OUT / "step_model_expected.json").write_text(json.dumps(expected) + "\n")
 

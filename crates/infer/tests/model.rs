@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec2;
 use lidar_har_core::classifier::{PersonScan, StreamingClassifier};
-use lidar_har_infer::{ActivityModel, InferError, runtime_library_path};
+use lidar_har_core::pose_head::PoseHead;
+use lidar_har_infer::{ActivityModel, InferError, PoseHeadModel, runtime_library_path};
 use ndarray::Array2;
 
 fn fixture(name: &str) -> PathBuf {
@@ -33,6 +34,29 @@ fn load(name: &str) -> Result<ActivityModel, InferError> {
     ActivityModel::load(fixture(name), 1)
 }
 
+fn expected() -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(fixture("step_model_expected.json")).unwrap())
+        .unwrap()
+}
+
+/// The expected frames as images.
+fn expected_frames(expected: &serde_json::Value) -> Vec<Array2<f32>> {
+    expected["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|frame| {
+            let data: Vec<f32> = frame
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap() as f32)
+                .collect();
+            Array2::from_shape_vec((16, 16), data).unwrap()
+        })
+        .collect()
+}
+
 #[test]
 fn loads_the_step_model_and_reads_its_metadata() {
     if !runtime_available() {
@@ -54,23 +78,12 @@ fn steps_match_an_independent_numpy_implementation() {
     if !runtime_available() {
         return;
     }
-    let expected: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(fixture("step_model_expected.json")).unwrap(),
-    )
-    .unwrap();
+    let expected = expected();
     let mut model = load("step_model.onnx").unwrap();
     let mut state = lidar_har_core::classifier::StepModel::initial_state(&model);
-    let frames = expected["frames"].as_array().unwrap();
     let logits = expected["logits"].as_array().unwrap();
     let mut worst = 0.0f64;
-    for (frame, want) in frames.iter().zip(logits) {
-        let data: Vec<f32> = frame
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|v| v.as_f64().unwrap() as f32)
-            .collect();
-        let image = Array2::from_shape_vec((16, 16), data).unwrap();
+    for (image, want) in expected_frames(&expected).iter().zip(logits) {
         let got = model.step(image.view(), &mut state).unwrap();
         for (g, w) in got.iter().zip(want.as_array().unwrap()) {
             worst = worst.max((*g as f64 - w.as_f64().unwrap()).abs());
@@ -223,4 +236,58 @@ fn first_window_and_long_gap_start_from_zero_state() {
         before_gap.probabilities, first.probabilities,
         "history changes the output"
     );
+}
+
+#[test]
+fn pose_head_reads_the_state_and_matches_numpy() {
+    if !runtime_available() {
+        return;
+    }
+    let expected = expected();
+    let mut model = load("step_model.onnx").unwrap();
+    let mut head = PoseHeadModel::load(fixture("pose_head.onnx"), &model, 1).unwrap();
+    assert_eq!(head.spec().min_history, 3);
+    assert_eq!(head.spec().sigma_m, 0.05);
+    assert_eq!(head.spec().activities.len(), 3);
+    let mut state = lidar_har_core::classifier::StepModel::initial_state(&model);
+    for image in expected_frames(&expected) {
+        model.step(image.view(), &mut state).unwrap();
+    }
+    let want = &expected["pose_head"];
+    let located = want["located"].as_array().unwrap();
+    let located = DVec2::new(located[0].as_f64().unwrap(), located[1].as_f64().unwrap());
+    let got = head.offset(&state, located).unwrap();
+    let offset = want["offset"].as_array().unwrap();
+    let want = DVec2::new(offset[0].as_f64().unwrap(), offset[1].as_f64().unwrap());
+    assert!(got.distance(want) < 1e-5, "{got} against NumPy {want}");
+}
+
+#[test]
+fn pose_head_for_another_model_or_state_or_missing_is_refused_naming_files() {
+    if !runtime_available() {
+        return;
+    }
+    let model = load("step_model.onnx").unwrap();
+    let e = PoseHeadModel::load(fixture("pose_head_other_model.onnx"), &model, 1).unwrap_err();
+    assert!(matches!(e, InferError::PoseHeadMismatch { .. }), "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("pose_head_other_model.onnx") && text.contains("step_model.onnx"),
+        "{text}"
+    );
+
+    let e = PoseHeadModel::load(fixture("pose_head_wrong_state.onnx"), &model, 1).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("pose_head_wrong_state.onnx")
+            && text.contains("input 'h' has shape [1, 3, 8, 8]"),
+        "{text}"
+    );
+
+    let e = PoseHeadModel::load(fixture("no_such_head.onnx"), &model, 1).unwrap_err();
+    assert!(matches!(e, InferError::ModelMissing { .. }), "{e}");
+
+    // An activity model is not a pose head.
+    let e = PoseHeadModel::load(fixture("step_model.onnx"), &model, 1).unwrap_err();
+    assert!(e.to_string().contains("lidar_har.pose_head"), "{e}");
 }

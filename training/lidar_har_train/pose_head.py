@@ -1,0 +1,234 @@
+"""The pose head (issue 4): places the pelvis from the activity model's ConvLSTM state better
+than the localiser's cluster position does, and exports it as a second ONNX model that the
+classifier stage runs beside the activity model (docs/model_contract.md, "Pose head").
+
+The activity model stays frozen: the head reads the state of the lane the classifier
+predicts from, so it is fitted on the states after scans `--first-step`..T of training
+windows (the histories the runtime's predicting lane has), with the localiser's position
+in the image as a second input, to the pelvis's offset from that position. Needs a dataset
+with `*_positions.npy` (`lidar-har dataset`, since session 22).
+
+    PYTHONPATH=training training/.venv/bin/python -m lidar_har_train.pose_head \
+        models/activity.onnx out/pose81 --out models/pose_head.onnx
+
+Scores the pelvis error over the scans the localiser saw (median / p95, metres) on the test
+splits, overall and per activity, before and after the head. The head is then used only for
+the activities it helps on `test` (the drawn rooms' held-out episodes, as the classifier
+reads them); `test_unseen` (a room never trained on) is the figure to quote.
+"""
+
+import argparse
+import hashlib
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import onnx
+import onnxruntime as ort
+import torch
+from torch import nn
+
+from .data import CLASSES, load_index, load_split
+from .export import PARITY_TOLERANCE, ExportError, model_from_onnx
+
+KEY_ACTIVITY_SHA256 = "lidar_har.pose_head.activity_sha256"
+KEY_MIN_HISTORY = "lidar_har.pose_head.min_history"
+KEY_ACTIVITIES = "lidar_har.pose_head.activities"
+KEY_SIGMA = "lidar_har.pose_head.sigma_m"
+
+
+def features(model, split, positions, rows, first_step: int):
+    """For the scans the localiser saw at steps `first_step`.. of the windows `rows`: the
+    ConvLSTM state `[n, hidden, s, s]` (float16), the localiser's position from the image
+    centre `[n, 2]`, the pelvis's offset from it `[n, 2]`, the true and the predicted
+    activity `[n]`."""
+    states, located, offsets, labels, predicted = [], [], [], [], []
+    with torch.no_grad():
+        for start in range(0, len(rows), 512):
+            batch = rows[start : start + 512]
+            frames = torch.from_numpy(split.images[batch].astype(np.float32) / 255.0)
+            h, c = model.zero_state(len(batch))
+            for t in range(frames.shape[1]):
+                logits, h, c = model.step(frames[:, t : t + 1], h, c)
+                if t < first_step:
+                    continue
+                pos = positions[batch, t]
+                keep = np.isfinite(pos).all(axis=1)
+                states.append(h[torch.from_numpy(keep)].numpy().astype(np.float16))
+                located.append(pos[keep, 2:])
+                offsets.append(pos[keep, :2] - pos[keep, 2:])
+                labels.append(split.labels[batch, t][keep])
+                predicted.append(logits.argmax(dim=1).numpy()[keep])
+    return {"states": np.concatenate(states), "located": np.concatenate(located).astype(np.float32),
+            "offsets": np.concatenate(offsets).astype(np.float32), "labels": np.concatenate(labels),
+            "predicted": np.concatenate(predicted)}
+
+
+class PoseHead(nn.Module):
+    """State and localiser position in, pelvis offset from the localiser out."""
+
+    def __init__(self, hidden: int, side: int):
+        super().__init__()
+        self.conv = nn.Sequential(nn.Conv2d(hidden, 32, 3, padding=1), nn.ReLU())
+        self.mlp = nn.Sequential(nn.Linear(32 * side * side + 2, 64), nn.ReLU(), nn.Linear(64, 2))
+
+    def forward(self, h, located):
+        return self.mlp(torch.cat([self.conv(h).flatten(1), located], dim=1))
+
+
+def fit(head, data, minutes: float, seed: int):
+    states, located, offsets = data["states"], data["located"], data["offsets"]
+    rng = np.random.default_rng(seed)
+    optimiser = torch.optim.Adam(head.parameters(), lr=1e-3)
+    start, epoch = time.time(), 0
+    while time.time() - start < minutes * 60:
+        order = rng.permutation(len(states))
+        total = 0.0
+        for b in range(0, len(order), 256):
+            idx = order[b : b + 256]
+            pred = head(torch.from_numpy(states[idx].astype(np.float32)), torch.from_numpy(located[idx]))
+            loss = nn.functional.smooth_l1_loss(pred, torch.from_numpy(offsets[idx]), beta=0.05)
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+            total += loss.item() * len(idx)
+        epoch += 1
+        print(f"epoch {epoch}: loss {total / len(order):.4f} ({(time.time() - start) / 60:.1f} min)", flush=True)
+
+
+def predict(head, data):
+    out = []
+    with torch.no_grad():
+        for b in range(0, len(data["states"]), 2048):
+            out.append(head(torch.from_numpy(data["states"][b : b + 2048].astype(np.float32)),
+                            torch.from_numpy(data["located"][b : b + 2048])).numpy())
+    return np.concatenate(out)
+
+
+def pair(errors):
+    return [round(float(np.median(errors)), 3), round(float(np.percentile(errors, 95)), 3)] if len(errors) else None
+
+
+def helped_activities(before, after, predicted) -> list[str]:
+    """The activities, as the classifier reads them, whose pelvis error the head lowers at
+    the median without raising it at the p95."""
+    chosen = []
+    for k, name in enumerate(CLASSES):
+        mask = predicted == k
+        if mask.sum() >= 100:
+            b, a = pair(before[mask]), pair(after[mask])
+            if a[0] < b[0] and a[1] <= b[1]:
+                chosen.append(name)
+    return chosen
+
+
+def scores(before, after, data, used):
+    """Pelvis errors: the localiser alone, the head everywhere, the head where the predicted
+    activity is in `used` (what the runtime publishes); overall and per true activity."""
+    gated = np.where(np.isin(data["predicted"], [CLASSES.index(n) for n in used]), after, before)
+    report = {"scans": int(len(before))}
+    for name, errors in (("localiser", before), ("head", after), ("published", gated)):
+        report[name] = {"median_p95_m": pair(errors),
+                        "per_activity": {c: pair(errors[data["labels"] == k]) for k, c in enumerate(CLASSES)}}
+    return report
+
+
+def export(head, out: Path, hidden: int, side: int, metadata: dict, sample: dict):
+    """Writes the head as ONNX (`h` [1, hidden, side, side], `located` [1, 2] -> `offset`
+    [1, 2]) with `metadata`, checked against PyTorch on `sample`."""
+    head.eval()
+    torch.onnx.export(head, (torch.rand(1, hidden, side, side), torch.rand(1, 2)), str(out),
+                      input_names=["h", "located"], output_names=["offset"], opset_version=18, dynamo=False)
+    proto = onnx.load(str(out))
+    del proto.metadata_props[:]
+    for key, value in metadata.items():
+        entry = proto.metadata_props.add()
+        entry.key, entry.value = key, value
+    proto.doc_string = "lidar_har pose head: pelvis offset from the activity model's state (docs/model_contract.md)"
+    onnx.checker.check_model(proto)
+    onnx.save(proto, str(out))
+    session = ort.InferenceSession(str(out), providers=["CPUExecutionProvider"])
+    worst = 0.0
+    with torch.no_grad():
+        for i in range(len(sample["states"])):
+            h = sample["states"][i : i + 1].astype(np.float32)
+            located = sample["located"][i : i + 1]
+            reference = head.double()(torch.from_numpy(h).double(), torch.from_numpy(located).double()).numpy()
+            got = session.run(["offset"], {"h": h, "located": located})[0]
+            worst = max(worst, float(np.abs(reference - got).max()))
+    head.float()
+    if not worst <= PARITY_TOLERANCE:
+        out.unlink(missing_ok=True)
+        raise ExportError(f"pose head parity check failed: {worst:.2e} > {PARITY_TOLERANCE:.0e}")
+    return worst
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("model", type=Path, help="the activity step model (ONNX) whose state the head reads")
+    parser.add_argument("data", type=Path, help="a dataset with *_positions.npy")
+    parser.add_argument("--out", type=Path, help="where to write the head (ONNX)")
+    parser.add_argument("--train-windows", type=int, default=80000)
+    parser.add_argument("--test-windows", type=int, default=0, help="score on this many windows per test split (0: all)")
+    parser.add_argument("--first-step", type=int, default=11,
+                        help="first step (0-based) of each window fitted on: history first_step + 1")
+    parser.add_argument("--minutes", type=float, default=15.0)
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--json", type=Path, help="write the scores here")
+    args = parser.parse_args()
+    torch.set_num_threads(2)
+    torch.manual_seed(args.seed)
+    index = load_index(args.data)
+    model = model_from_onnx(args.model, index["spec"])
+    data = {}
+    for name in ("train", "test", "test_unseen"):
+        split = load_split(args.data, index, name)
+        info = index["splits"][name]
+        if "positions" not in info:
+            raise SystemExit(f"{args.data}: no positions in split {name}; remake it with today's `lidar-har dataset`")
+        positions = np.load(args.data / info["positions"])
+        rows = np.arange(len(split))
+        limit = args.train_windows if name == "train" else args.test_windows
+        if 0 < limit < len(rows):
+            rows = np.sort(np.random.default_rng(args.seed).choice(rows, limit, replace=False))
+        data[name] = features(model, split, positions, rows, args.first_step)
+        print(f"{name}: {len(data[name]['states'])} seen scans from {len(rows)} windows", flush=True)
+    head = PoseHead(model.hidden, model.state_size)
+    fit(head, data["train"], args.minutes, args.seed)
+    errors = {}
+    for name in ("train", "test", "test_unseen"):
+        before = np.linalg.norm(data[name]["offsets"], axis=1)
+        after = np.linalg.norm(data[name]["offsets"] - predict(head, data[name]), axis=1)
+        errors[name] = (before, after)
+    used = helped_activities(*errors["test"], data["test"]["predicted"])
+    # A circular Gaussian error of deviation sigma per axis has median radius sigma * sqrt(2 ln 2).
+    used_scans = np.isin(data["test"]["predicted"], [CLASSES.index(n) for n in used])
+    sigma = float(np.median(errors["test"][1][used_scans])) / np.sqrt(2 * np.log(2)) if used else 0.0
+    report = {"activities": used, "sigma_m": round(sigma, 4), "first_step": args.first_step, "train_windows": args.train_windows}
+    for name, (before, after) in errors.items():
+        report[name] = scores(before, after, data[name], used)
+        r = report[name]
+        print(f"{name}: localiser {r['localiser']['median_p95_m']}, head {r['head']['median_p95_m']}, "
+              f"published {r['published']['median_p95_m']} (median, p95 m)")
+        for c in CLASSES:
+            print(f"    {c:20s} {r['localiser']['per_activity'][c]} -> {r['head']['per_activity'][c]}"
+                  f" -> {r['published']['per_activity'][c]}")
+    print(f"head used for: {', '.join(used)}")
+    if args.out:
+        metadata = {
+            KEY_ACTIVITY_SHA256: hashlib.sha256(args.model.read_bytes()).hexdigest(),
+            KEY_MIN_HISTORY: str(args.first_step + 1),
+            KEY_ACTIVITIES: ",".join(used),
+            KEY_SIGMA: f"{sigma:.4f}",
+        }
+        sample = {k: v[:200] for k, v in data["test"].items()}
+        worst = export(head, args.out, model.hidden, model.state_size, metadata, sample)
+        report["parity_max_abs_diff"] = worst
+        print(f"wrote {args.out} (parity with PyTorch: max abs difference {worst:.1e})")
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
