@@ -6,6 +6,7 @@ use std::process::{Command, Output};
 
 use lidar_har_bag::BagReader;
 use lidar_har_e2e::{repo_root, workspace_bin};
+use lidar_har_msgs::geometry_msgs::PoseWithCovarianceStamped;
 use lidar_har_msgs::lidar_har_msgs::Activity;
 
 fn lidar_har(args: &[&str]) -> Output {
@@ -166,6 +167,102 @@ fn run_with_a_model_records_activities_and_scores_them() {
         count += 1;
     }
     assert_eq!(count, classified);
+}
+
+#[test]
+fn run_with_a_pose_head_records_the_pelvis_and_scores_it() {
+    if !runtime_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let sim = tmp.path().join("sim");
+    let out = lidar_har(&[
+        "simulate",
+        "--scene",
+        "config/scenes/living_room.yaml",
+        "--duration",
+        "3",
+        "--out",
+        path(&sim),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let fixtures = repo_root().join("crates/infer/tests/fixtures");
+    let run_with_head = |head: &str, name: &str| -> serde_json::Value {
+        let config = tmp.path().join(format!("{name}.yaml"));
+        std::fs::write(
+            &config,
+            format!(
+                "model: {}\npose_head: {}\n",
+                path(&test_model()),
+                path(&fixtures.join(head))
+            ),
+        )
+        .unwrap();
+        let run = tmp.path().join(name);
+        let out = lidar_har(&[
+            "run",
+            "--bag",
+            path(&sim),
+            "--out",
+            path(&run),
+            "--classifier-config",
+            path(&config),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap()
+    };
+
+    // The fixture head reads the test model's state and places a pelvis on every seen scan
+    // with 3 scans of history.
+    let summary = run_with_head("pose_head.onnx", "with_head");
+    let activity = &summary["activity"];
+    assert_eq!(activity["pose_head"]["status"], "used", "{activity:#}");
+    let published = activity["pelvis_published"].as_u64().unwrap();
+    assert!(published > 20, "{activity:#}");
+    assert!(
+        summary["pelvis_error_m"]["median"]
+            .as_f64()
+            .unwrap()
+            .is_finite()
+    );
+    let bag = BagReader::open(tmp.path().join("with_head")).unwrap();
+    assert_eq!(
+        bag.topic("/human/pelvis").unwrap().type_name,
+        "geometry_msgs/msg/PoseWithCovarianceStamped"
+    );
+    let mut count = 0;
+    for message in bag.messages_on(&["/human/pelvis"]).unwrap() {
+        let msg: PoseWithCovarianceStamped =
+            lidar_har_msgs::decode(&message.unwrap().data).unwrap();
+        assert_eq!(msg.header.frame_id, "map");
+        let p = msg.pose.pose.position;
+        assert!(p.x.is_finite() && p.y.is_finite());
+        // At least the head's own error (sigma 0.05 m per axis).
+        assert!(msg.pose.covariance[0] >= 0.0025 && msg.pose.covariance[7] >= 0.0025);
+        count += 1;
+    }
+    assert_eq!(count, published);
+
+    // A head fitted on another model is left out, and the run says why.
+    let summary = run_with_head("pose_head_other_model.onnx", "other_head");
+    let activity = &summary["activity"];
+    assert_eq!(activity["pose_head"]["status"], "not_used", "{activity:#}");
+    let reason = activity["pose_head"]["reason"].as_str().unwrap();
+    assert!(
+        reason.contains("fitted on another activity model"),
+        "{reason}"
+    );
+    assert_eq!(activity["pelvis_published"], 0);
+    assert!(summary["pelvis_error_m"].is_null());
+    assert!(activity["scans_classified"].as_u64().unwrap() > 20);
 }
 
 #[test]

@@ -26,6 +26,19 @@ pub trait PoseHead<S> {
     fn offset(&mut self, state: &S, located: DVec2) -> Result<DVec2, Self::Error>;
 }
 
+/// The head of a classifier that has none: there is no value of this type, so a
+/// `PelvisPlacer<NoPoseHead>` is never made and places nothing.
+#[derive(Debug)]
+pub enum NoPoseHead {}
+
+impl<S> PoseHead<S> for NoPoseHead {
+    type Error = std::convert::Infallible;
+
+    fn offset(&mut self, _: &S, _: DVec2) -> Result<DVec2, Self::Error> {
+        match *self {}
+    }
+}
+
 /// Where a pose head may be used; carried by its model file's metadata.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PoseHeadSpec {
@@ -82,7 +95,7 @@ pub struct PelvisPlacer<H> {
 }
 
 impl<H> PelvisPlacer<H> {
-    pub fn new(head: H, spec: PoseHeadSpec) -> Self {
+    pub fn new(spec: PoseHeadSpec, head: H) -> Self {
         Self { head, spec }
     }
 
@@ -190,12 +203,12 @@ mod tests {
 
     fn placer(nan: bool) -> PelvisPlacer<LinearHead> {
         PelvisPlacer::new(
-            LinearHead { nan, seen: vec![] },
             PoseHeadSpec {
                 min_history: 4,
                 activities: vec![Activity::SittingOnFloor],
                 sigma_m: 0.1,
             },
+            LinearHead { nan, seen: vec![] },
         )
     }
 

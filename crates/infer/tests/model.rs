@@ -248,7 +248,7 @@ fn pose_head_reads_the_state_and_matches_numpy() {
     let mut head = PoseHeadModel::load(fixture("pose_head.onnx"), &model, 1).unwrap();
     assert_eq!(head.spec().min_history, 3);
     assert_eq!(head.spec().sigma_m, 0.05);
-    assert_eq!(head.spec().activities.len(), 3);
+    assert_eq!(head.spec().activities.len(), 9);
     let mut state = lidar_har_core::classifier::StepModel::initial_state(&model);
     for image in expected_frames(&expected) {
         model.step(image.view(), &mut state).unwrap();

@@ -27,6 +27,9 @@ topics! {
     CLOCK = "/clock", "rosgraph_msgs/msg/Clock", QosProfile::sensor_data();
     HUMAN_POSE = "/human/pose", "geometry_msgs/msg/PoseWithCovarianceStamped", QosProfile::reliable(10);
     HUMAN_OBSERVATION = "/human/observation", "lidar_har_msgs/msg/HumanObservation", QosProfile::reliable(10);
+    /// The pelvis as the classifier's pose head places it, on the scans where it does so
+    /// better than /human/pose (docs/model_contract.md, "Pose head").
+    HUMAN_PELVIS = "/human/pelvis", "geometry_msgs/msg/PoseWithCovarianceStamped", QosProfile::reliable(10);
     HUMAN_ACTIVITY = "/human/activity", "lidar_har_msgs/msg/Activity", QosProfile::reliable(10);
     FALL_ALERT = "/human/fall_alert", "lidar_har_msgs/msg/FallAlert", QosProfile::latched(10);
     HUMAN_MARKERS = "/human/markers", "visualization_msgs/msg/MarkerArray", QosProfile::reliable(10);

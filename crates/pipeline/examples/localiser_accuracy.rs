@@ -6,10 +6,14 @@
 //! mount the robot would publish, and is scored against the simulator's ground truth with
 //! `lidar_har_core::localiser_accuracy` (definitions there). Prints per scene, per activity
 //! and overall: position error (median, p95), continuity, visible and in-sight ratios, and
-//! the radial bias of the person's points (what `centroid_offset_m` corrects).
+//! the radial bias of the person's points (what `centroid_offset_m` corrects). With
+//! `--classifier-config`, the classifier stage runs on the localiser's observations too, and
+//! the pelvis the pipeline publishes (/human/pelvis where the pose head placed it, else
+//! /human/pose) is scored against the pelvis as well.
 //!
 //! ```sh
-//! cargo run --release -p lidar-har-pipeline --example localiser_accuracy -- --seeds 3
+//! cargo run --release -p lidar-har-pipeline --example localiser_accuracy -- --seeds 3 \
+//!     [--classifier-config config/classifier.yaml]
 //! ```
 
 use std::collections::BTreeMap;
@@ -29,6 +33,8 @@ use lidar_har_core::localiser_accuracy::{
 };
 use lidar_har_core::map::{MapGeometry, OccupancyMap as CoreMap};
 use lidar_har_core::scan::Scan;
+use lidar_har_pipeline::classifier::{ClassifierConfig, ClassifierStage, load_classifier_config};
+use lidar_har_pipeline::convert::observation_msg;
 use lidar_har_pipeline::files::load_config;
 use lidar_har_sim::body::Capsule;
 use lidar_har_sim::map::{DEFAULT_RESOLUTION, OccupancyMap as SimMap};
@@ -66,6 +72,10 @@ struct Args {
     /// report, the person's points) here, for offline study of position estimators.
     #[arg(long)]
     dump_points: Option<PathBuf>,
+    /// Also run the classifier stage with this configuration (its model and pose head) and
+    /// score the published pelvis: /human/pelvis where placed, else /human/pose.
+    #[arg(long)]
+    classifier_config: Option<PathBuf>,
     /// Write the per-scene, per-activity and overall figures as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -80,6 +90,8 @@ struct Group {
     tally: AccuracyTally,
     /// Against the centre of the body's cut by the scan plane.
     centre_tally: AccuracyTally,
+    /// The published pelvis (with `--classifier-config`) against the pelvis.
+    published_tally: AccuracyTally,
     radial_m: Vec<f64>,
     /// In-sight scans with no person reported.
     missed: u64,
@@ -94,6 +106,7 @@ impl Group {
     fn merge(&mut self, other: &Group) {
         self.tally.merge(&other.tally);
         self.centre_tally.merge(&other.centre_tally);
+        self.published_tally.merge(&other.published_tally);
         self.radial_m.extend_from_slice(&other.radial_m);
         self.missed += other.missed;
         self.far += other.far;
@@ -113,6 +126,8 @@ struct Row {
     pelvis: AccuracyReport,
     /// Against the centre of the body's cut by the scan plane.
     body_centre: AccuracyReport,
+    /// The published pelvis (with `--classifier-config`) against the pelvis.
+    pelvis_published: Option<AccuracyReport>,
     radial_bias_median_m: Option<f64>,
     in_sight_missed: u64,
     in_sight_far: u64,
@@ -132,6 +147,11 @@ fn main() -> Result<(), Box<dyn Error>> {
         min_person_beams: args.min_person_beams,
         on_person_m: args.on_person_m,
     };
+    let classifier = args
+        .classifier_config
+        .as_deref()
+        .map(load_classifier_config)
+        .transpose()?;
 
     let mut paths: Vec<PathBuf> = std::fs::read_dir(&args.scenes)
         .map_err(|e| format!("scenes directory {}: {e}", args.scenes.display()))?
@@ -180,6 +200,7 @@ fn main() -> Result<(), Box<dyn Error>> {
                 run_scene(
                     sim,
                     &config,
+                    classifier.as_ref(),
                     &criteria,
                     trace,
                     dump.as_mut(),
@@ -223,7 +244,8 @@ fn main() -> Result<(), Box<dyn Error>> {
          by the scan plane | % identity continuity (a seen track on the person's own returns, \
          by the simulator's beam labels; a predicted one within {} m of the body centre) | \
          radial bias (m) | % of in-sight scans with no person reported, \
-         with the person reported > {FAR_M} m away",
+         with the person reported > {FAR_M} m away | error (m) median, p95 of the published \
+         pelvis (/human/pelvis, else /human/pose; with --classifier-config)",
         criteria.on_person_m
     );
     print_header("scene");
@@ -248,6 +270,7 @@ fn main() -> Result<(), Box<dyn Error>> {
                     name,
                     pelvis: g.tally.report(),
                     body_centre: g.centre_tally.report(),
+                    pelvis_published: classifier.is_some().then(|| g.published_tally.report()),
                     radial_bias_median_m: g.radial_median(),
                     in_sight_missed: g.missed,
                     in_sight_far: g.far,
@@ -298,6 +321,7 @@ fn motions(own: &RobotMotion) -> Vec<(&'static str, RobotMotion)> {
 fn run_scene(
     mut sim: Simulator,
     config: &LocaliserConfig,
+    classifier: Option<&ClassifierConfig>,
     criteria: &AccuracyCriteria,
     trace: bool,
     mut dump: Option<&mut BufWriter<File>>,
@@ -309,6 +333,9 @@ fn run_scene(
         ..config.clone()
     };
     let mut localiser = Localiser::new(config, Reference::Map(map), Motion::Odometry)?;
+    let mut stage = classifier
+        .map(|c| ClassifierStage::load(c, None))
+        .transpose()?;
     let geometry = sim.scan_geometry();
     let plane_height = sim.scene().robot.lidar_height;
     while let Some(frame) = sim.step() {
@@ -378,6 +405,13 @@ fn run_scene(
             });
             writeln!(out, "{line}")?;
         }
+        let pelvis = match (&mut stage, &result.output, estimate) {
+            (Some(stage), Some(output), Some(person)) => stage
+                .on_observation(&observation_msg(output, person, "map"))?
+                .pelvis
+                .map(|p| p.position),
+            _ => None,
+        };
         let group = by_activity.entry(activity).or_default();
         let reported = estimate.map(|e| ReportedPerson {
             position: e.position,
@@ -403,6 +437,20 @@ fn run_scene(
             },
             criteria,
         );
+        if stage.is_some() {
+            let published = reported.map(|r| ReportedPerson {
+                position: pelvis.unwrap_or(r.position),
+                ..r
+            });
+            group.published_tally.add(
+                &ScanOutcome {
+                    truth,
+                    person_beams,
+                    reported: published,
+                },
+                criteria,
+            );
+        }
         if let Some(centre) = centre
             && person_beams >= criteria.min_person_beams
         {
@@ -488,7 +536,7 @@ fn activity_name(index: usize) -> &'static str {
 
 fn print_header(what: &str) {
     println!(
-        "\n{what:<20} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} | {:>6} {:>5} {:>5}",
+        "\n{what:<20} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} | {:>6} {:>5} {:>5} | {:>6} {:>6}",
         "scans",
         "insght",
         "seen",
@@ -501,17 +549,23 @@ fn print_header(what: &str) {
         "ident",
         "radial",
         "miss",
-        "far"
+        "far",
+        "pubmed",
+        "pubp95"
     );
 }
 
 fn print_row(name: &str, group: &Group) {
-    let (r, c) = (group.tally.report(), group.centre_tally.report());
+    let (r, c, p) = (
+        group.tally.report(),
+        group.centre_tally.report(),
+        group.published_tally.report(),
+    );
     let pct = |v: Option<f64>| v.map_or("-".into(), |v| format!("{:.1}", 100.0 * v));
     let m = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.3}"));
     let share = |n: u64| pct((r.in_sight_scans > 0).then(|| n as f64 / r.in_sight_scans as f64));
     println!(
-        "{name:<20} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} | {:>6} {:>5} {:>5}",
+        "{name:<20} {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} | {:>6} {:>5} {:>5} | {:>6} {:>6}",
         r.scans,
         pct(r.in_sight_ratio),
         pct(r.visible_ratio),
@@ -525,5 +579,7 @@ fn print_row(name: &str, group: &Group) {
         m(group.radial_median()),
         share(group.missed),
         share(group.far),
+        m(p.error_median_m),
+        m(p.error_p95_m),
     );
 }

@@ -107,6 +107,9 @@ pub struct RunSummary {
     pub tracks_confirmed: u64,
     /// Distance from the estimate to `/ground_truth/human_pose`, when the bag has it.
     pub position_error_m: Option<Spread>,
+    /// The same with /human/pelvis in place of /human/pose on the scans the pose head placed
+    /// the pelvis on, when it did on any.
+    pub pelvis_error_m: Option<Spread>,
     /// Localiser time per scan (core only), microseconds.
     pub scan_time_us: Option<Spread>,
     /// Whole pipeline time per scan (decode, localise, encode outputs), microseconds.
@@ -311,6 +314,13 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         visible_ratio: ratio(visible),
         tracked_ratio: ratio(tracked),
         tracks_confirmed: pipeline.localiser.localiser().confirmed_tracks(),
+        pelvis_error_m: classifier
+            .as_ref()
+            .filter(|c| !c.pelvis().is_empty())
+            .and_then(|c| {
+                let placed = with_pelvis(&estimates, c.pelvis());
+                Spread::of(position_errors(&placed, ground_truth.clone()))
+            }),
         position_error_m: Spread::of(position_errors(&estimates, ground_truth)),
         scan_time_us: Spread::of(scan_times),
         pipeline_time_us: Spread::of(pipeline_times),
@@ -340,6 +350,15 @@ fn tf_carries_odometry(reader: &BagReader, frames: &FrameConfig) -> bool {
             lidar_har_msgs::decode::<TFMessage>(&m.data)
                 .is_ok_and(|tf| carries_odometry(&tf, frames))
         })
+}
+
+/// `estimates` with the pelvis in place of the position on the scans (same stamp) that have one.
+fn with_pelvis(estimates: &[(i64, DVec2)], pelvis: &[(i64, DVec2)]) -> Vec<(i64, DVec2)> {
+    let placed: std::collections::HashMap<i64, DVec2> = pelvis.iter().copied().collect();
+    estimates
+        .iter()
+        .map(|&(stamp, position)| (stamp, placed.get(&stamp).copied().unwrap_or(position)))
+        .collect()
 }
 
 /// Ground truth samples farther apart than this are not interpolated between.

@@ -8,6 +8,8 @@
 //! states step (core `StreamingClassifier`), and the probabilities feed the fall alerts (core
 //! `FallDetector`). An activity is published once the model has enough history (`T/2` scans)
 //! and only for scans where the person is visible: a hidden person's class is not known.
+//! With a pose head (core `pose_head`), the pelvis is published on /human/pelvis where the
+//! head places it better than the localiser.
 
 use std::path::{Path, PathBuf};
 
@@ -23,9 +25,12 @@ use lidar_har_core::fall::{
 };
 use lidar_har_core::geometry::MainAxisSpan;
 use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
-use lidar_har_infer::{ActivityModel, InferError};
+use lidar_har_core::pose_head::{NoPoseHead, PelvisPlacer, PoseHead};
+use lidar_har_infer::{ActivityModel, InferError, PoseHeadModel};
 use lidar_har_msgs::builtin_interfaces::{Duration, Time};
-use lidar_har_msgs::geometry_msgs::{Point, Vector3};
+use lidar_har_msgs::geometry_msgs::{
+    Point, Pose, PoseWithCovariance, PoseWithCovarianceStamped, Quaternion, Vector3,
+};
 use lidar_har_msgs::lidar_har_msgs::{self as har, HumanObservation};
 use lidar_har_msgs::std_msgs::{ColorRGBA, Header};
 use lidar_har_msgs::topics;
@@ -48,6 +53,10 @@ pub struct ClassifierConfig {
     /// Model states stepped side by side, restarting in turn: every prediction has between
     /// `1 - 1/lanes` of the lane period and all of it behind it, for one step per lane.
     pub lanes: usize,
+    /// The pose head for /human/pelvis (docs/model_contract.md, "Pose head"); `None`: none.
+    /// When it cannot be used (missing, or fitted on another activity model) the classifier
+    /// runs without it and says why: a pelvis is never worth losing the fall alerts for.
+    pub pose_head: Option<PathBuf>,
     pub fall_alert: FallAlertConfig,
 }
 
@@ -58,6 +67,7 @@ impl Default for ClassifierConfig {
             threads: 1,
             lane_period_windows: 1.2,
             lanes: 2,
+            pose_head: Some(PathBuf::from("models/pose_head.onnx")),
             fall_alert: FallAlertConfig::default(),
         }
     }
@@ -152,8 +162,34 @@ pub struct ClassifierOutput {
     /// The person's position (the localiser's prediction when not visible).
     pub position: DVec2,
     pub prediction: Prediction,
+    /// The pelvis from the pose head, when it placed one.
+    pub pelvis: Option<Pelvis>,
     /// Alerts raised by this observation.
     pub alerts: Vec<FallAlert>,
+}
+
+/// The pelvis the pose head placed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pelvis {
+    pub position: DVec2,
+    /// Covariance of (x, y), m^2: the track's and the head's own error.
+    pub covariance: [[f64; 2]; 2],
+}
+
+/// Whether the stage has a pose head, for `summary.json` and the logs.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "status", rename_all = "snake_case")]
+pub enum PoseHeadStatus {
+    /// None configured.
+    Off,
+    Used {
+        path: PathBuf,
+    },
+    /// Configured but unusable; the classifier runs without it.
+    NotUsed {
+        path: PathBuf,
+        reason: String,
+    },
 }
 
 impl ClassifierOutput {
@@ -168,13 +204,17 @@ impl ClassifierOutput {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClassifierMessages {
     pub activity: Option<har::Activity>,
+    pub pelvis: Option<PoseWithCovarianceStamped>,
     pub alerts: Vec<har::FallAlert>,
     pub markers: MarkerArray,
 }
 
-/// Streaming classifier plus fall alerts over a step model (the ONNX one in production).
-pub struct ClassifierStage<M: StepModel = ActivityModel> {
+/// Streaming classifier plus fall alerts over a step model (the ONNX one in production), and
+/// the pose head `H` that reads its state, if any.
+pub struct ClassifierStage<M: StepModel = ActivityModel, H = PoseHeadModel> {
     classifier: StreamingClassifier<M>,
+    pelvis: Option<PelvisPlacer<H>>,
+    pose_head: PoseHeadStatus,
     scan_rate: ScanRate,
     fall: FallDetector,
     points: Vec<DVec2>,
@@ -184,18 +224,41 @@ pub struct ClassifierStage<M: StepModel = ActivityModel> {
     last_alert: Option<FallAlert>,
 }
 
-impl ClassifierStage<ActivityModel> {
-    /// Loads the model named by `config` (or `model`, when given).
+impl ClassifierStage<ActivityModel, PoseHeadModel> {
+    /// Loads the model named by `config` (or `model`, when given) and the pose head, if the
+    /// configuration names one that fits the model.
     pub fn load(config: &ClassifierConfig, model: Option<&Path>) -> Result<Self, ClassifierError> {
         let path = model.unwrap_or(&config.model);
         let model = ActivityModel::load(path, config.threads)?;
+        let (pelvis, status) = match &config.pose_head {
+            None => (None, PoseHeadStatus::Off),
+            Some(head_path) => match PoseHeadModel::load(head_path, &model, config.threads) {
+                Ok(head) => (
+                    Some(PelvisPlacer::new(head.spec().clone(), head)),
+                    PoseHeadStatus::Used {
+                        path: head_path.clone(),
+                    },
+                ),
+                Err(e) => {
+                    log::warn!("classifier: no /human/pelvis: {e}");
+                    (
+                        None,
+                        PoseHeadStatus::NotUsed {
+                            path: head_path.clone(),
+                            reason: e.to_string(),
+                        },
+                    )
+                }
+            },
+        };
         let stream = model.info().stream;
         let schedule = config.lane_schedule(stream.window);
-        Self::with_schedule(model, stream, schedule, config.fall_alert)
+        let stage = ClassifierStage::with_schedule(model, stream, schedule, config.fall_alert)?;
+        Ok(stage.with_pose_head(pelvis, status))
     }
 }
 
-impl<M: StepModel> ClassifierStage<M> {
+impl<M: StepModel> ClassifierStage<M, NoPoseHead> {
     /// Two lanes restarting every `T` scans (the model's window).
     pub fn new(
         model: M,
@@ -218,6 +281,8 @@ impl<M: StepModel> ClassifierStage<M> {
     ) -> Result<Self, ClassifierError> {
         Ok(Self {
             classifier: StreamingClassifier::with_schedule(model, stream, schedule)?,
+            pelvis: None,
+            pose_head: PoseHeadStatus::Off,
             scan_rate: ScanRate::default(),
             fall: FallDetector::new(fall_alert)?,
             points: Vec::new(),
@@ -227,8 +292,33 @@ impl<M: StepModel> ClassifierStage<M> {
         })
     }
 
+    /// The same stage with a pose head (`None`: without one, for the reason `status` gives).
+    pub fn with_pose_head<H>(
+        self,
+        pelvis: Option<PelvisPlacer<H>>,
+        status: PoseHeadStatus,
+    ) -> ClassifierStage<M, H> {
+        ClassifierStage {
+            classifier: self.classifier,
+            pelvis,
+            pose_head: status,
+            scan_rate: self.scan_rate,
+            fall: self.fall,
+            points: self.points,
+            track_id: self.track_id,
+            alerts_raised: self.alerts_raised,
+            last_alert: self.last_alert,
+        }
+    }
+}
+
+impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
     pub fn classifier(&self) -> &StreamingClassifier<M> {
         &self.classifier
+    }
+
+    pub fn pose_head(&self) -> &PoseHeadStatus {
+        &self.pose_head
     }
 
     /// The rate the scans come at (the median period of the first ones), once measured.
@@ -276,6 +366,19 @@ impl<M: StepModel> ClassifierStage<M> {
             sensor: DVec2::new(obs.sensor_position.x, obs.sensor_position.y),
         };
         let prediction = self.classifier.classify(&scan)?;
+        let pelvis = match &mut self.pelvis {
+            Some(placer) => {
+                let sigma2 = placer.spec().sigma_m.powi(2);
+                let c = obs.covariance;
+                placer
+                    .place(&self.classifier, scan.position, &prediction)?
+                    .map(|position| Pelvis {
+                        position,
+                        covariance: [[c[0] + sigma2, c[1]], [c[2], c[3] + sigma2]],
+                    })
+            }
+            None => None,
+        };
         let alerts = self.fall.update(&FallInput {
             stamp_s,
             position: (obs.visible && prediction.ready).then_some(position),
@@ -292,6 +395,7 @@ impl<M: StepModel> ClassifierStage<M> {
             visible: obs.visible,
             position,
             prediction,
+            pelvis,
             alerts,
         })
     }
@@ -305,6 +409,7 @@ impl<M: StepModel> ClassifierStage<M> {
         let activity = out
             .publishable()
             .then(|| activity_msg(header.clone(), &out.prediction));
+        let pelvis = out.pelvis.map(|pelvis| pelvis_msg(header.clone(), &pelvis));
         let alerts = out
             .alerts
             .iter()
@@ -312,6 +417,7 @@ impl<M: StepModel> ClassifierStage<M> {
             .collect();
         ClassifierMessages {
             activity,
+            pelvis,
             alerts,
             markers: self.marker(out, header),
         }
@@ -335,12 +441,19 @@ impl<M: StepModel> ClassifierStage<M> {
     /// The encoded messages of an output, in publishing order.
     pub fn outgoing(&self, out: &ClassifierOutput) -> Result<Vec<Outgoing>, PipelineError> {
         let messages = self.messages(out);
-        let mut outgoing = Vec::with_capacity(2 + messages.alerts.len());
+        let mut outgoing = Vec::with_capacity(3 + messages.alerts.len());
         if let Some(activity) = &messages.activity {
             outgoing.push(Outgoing::encode(
                 topics::HUMAN_ACTIVITY,
                 out.stamp_ns,
                 activity,
+            )?);
+        }
+        if let Some(pelvis) = &messages.pelvis {
+            outgoing.push(Outgoing::encode(
+                topics::HUMAN_PELVIS,
+                out.stamp_ns,
+                pelvis,
             )?);
         }
         for alert in &messages.alerts {
@@ -516,6 +629,20 @@ pub fn activity_msg(header: Header, prediction: &Prediction) -> har::Activity {
 
 /// The /human/fall_alert message of an alert raised on the scan of `header` (its stamp
 /// exact: seconds since the epoch as f64 lose the nanoseconds).
+/// `/human/pelvis`: heading unknown (identity orientation, rotations of unknown variance).
+pub fn pelvis_msg(header: Header, pelvis: &Pelvis) -> PoseWithCovarianceStamped {
+    PoseWithCovarianceStamped {
+        header,
+        pose: PoseWithCovariance {
+            pose: Pose {
+                position: Point::new(pelvis.position.x, pelvis.position.y, 0.0),
+                orientation: Quaternion::from_yaw(0.0),
+            },
+            covariance: crate::convert::planar_covariance(pelvis.covariance),
+        },
+    }
+}
+
 pub fn alert_msg(header: Header, alert: &FallAlert) -> har::FallAlert {
     let secs_to_time = |s: f64| Time::from_nanos((s * 1e9).round() as i64);
     let (kind, event_time_s, description) = match alert.kind {
@@ -610,6 +737,9 @@ pub struct ActivitySummary {
     /// says when they differ by more than 25 %.
     pub scan_rate_hz: Option<f64>,
     pub model_scan_rate_hz: Option<f64>,
+    /// Whether a pose head ran, and the scans it placed the pelvis on (/human/pelvis).
+    pub pose_head: PoseHeadStatus,
+    pub pelvis_published: usize,
 }
 
 /// Ground truth older than this is not matched to a prediction.
@@ -730,18 +860,23 @@ impl ActivityLog {
             classify_time_us: None,
             scan_rate_hz: None,
             model_scan_rate_hz: None,
+            pose_head: PoseHeadStatus::Off,
+            pelvis_published: 0,
         }
     }
 }
 
 /// The classifier inside a bag run (`lidar-har run`, `lidar-har demo`): classifies every
-/// /human/observation the localiser produces, records /human/activity, /human/fall_alert and
-/// the text markers, and scores against /ground_truth/activity when the input has it.
+/// /human/observation the localiser produces, records /human/activity, /human/fall_alert,
+/// /human/pelvis and the text markers, and scores against /ground_truth/activity when the
+/// input has it.
 pub struct ClassifierRun {
     stage: ClassifierStage,
     log: ActivityLog,
-    topics: Option<[TopicHandle; 3]>,
+    topics: Option<[TopicHandle; 4]>,
     times_us: Vec<f64>,
+    /// The pelvis placed by the pose head, by scan stamp.
+    pelvis: Vec<(i64, DVec2)>,
 }
 
 impl ClassifierRun {
@@ -752,6 +887,7 @@ impl ClassifierRun {
             log: ActivityLog::default(),
             topics: None,
             times_us: Vec::new(),
+            pelvis: Vec::new(),
         })
     }
 
@@ -767,7 +903,11 @@ impl ClassifierRun {
         )?;
         let alert = writer
             .add_topic_for::<har::FallAlert>(topics::FALL_ALERT.name, topics::FALL_ALERT.qos)?;
-        self.topics = Some([activity, alert, markers]);
+        let pelvis = writer.add_topic_for::<PoseWithCovarianceStamped>(
+            topics::HUMAN_PELVIS.name,
+            topics::HUMAN_PELVIS.qos,
+        )?;
+        self.topics = Some([activity, alert, pelvis, markers]);
         Ok(())
     }
 
@@ -797,11 +937,15 @@ impl ClassifierRun {
         let (result, outgoing) = self.stage.handle_cdr(&out.cdr)?;
         self.times_us.push(started.elapsed().as_secs_f64() * 1e6);
         self.log.add_output(&result);
-        if let Some([activity, alert, markers]) = self.topics {
+        if let Some(pelvis) = result.pelvis {
+            self.pelvis.push((result.stamp_ns, pelvis.position));
+        }
+        if let Some([activity, alert, pelvis, markers]) = self.topics {
             for message in outgoing {
                 let handle = match message.topic.name {
                     n if n == topics::HUMAN_ACTIVITY.name => activity,
                     n if n == topics::FALL_ALERT.name => alert,
+                    n if n == topics::HUMAN_PELVIS.name => pelvis,
                     _ => markers,
                 };
                 writer.write(handle, log_time_ns, &message.cdr)?;
@@ -810,12 +954,19 @@ impl ClassifierRun {
         Ok(())
     }
 
+    /// The pelvis placed by the pose head so far, by scan stamp.
+    pub fn pelvis(&self) -> &[(i64, DVec2)] {
+        &self.pelvis
+    }
+
     /// The activity part of `summary.json`, with the classification time per scan.
     pub fn finish(mut self) -> ActivitySummary {
         let mut summary = self.log.summary();
         summary.classify_time_us = crate::bag_run::Spread::of(std::mem::take(&mut self.times_us));
         summary.scan_rate_hz = self.stage.measured_scan_rate_hz();
         summary.model_scan_rate_hz = Some(self.stage.classifier().spec().scan_rate_hz);
+        summary.pose_head = self.stage.pose_head().clone();
+        summary.pelvis_published = self.pelvis.len();
         summary
     }
 }
@@ -838,6 +989,7 @@ impl From<BagError> for ClassifierRunError {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lidar_har_core::pose_head::PoseHeadSpec;
     use lidar_har_core::representation::{Framing, RepresentationKind, RepresentationSpec};
     use lidar_har_msgs::geometry_msgs::Point32;
     use ndarray::ArrayView2;
@@ -1080,6 +1232,63 @@ mod tests {
         }
     }
 
+    /// A pose head that puts the pelvis 0.3 m along x from the localiser's position.
+    struct ShiftHead;
+
+    impl PoseHead<()> for ShiftHead {
+        type Error = std::io::Error;
+        fn offset(&mut self, _: &(), _: DVec2) -> Result<DVec2, std::io::Error> {
+            Ok(DVec2::new(0.3, 0.0))
+        }
+    }
+
+    #[test]
+    fn pose_head_publishes_the_pelvis_on_seen_scans_of_its_activities() {
+        let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
+        let model = TimelineModel {
+            timeline: vec![(0.0, Activity::Walking), (0.5, Activity::SittingOnFloor)],
+            now: now.clone(),
+        };
+        let spec = PoseHeadSpec {
+            min_history: 4,
+            activities: vec![Activity::SittingOnFloor],
+            sigma_m: 0.2,
+        };
+        let status = PoseHeadStatus::Used {
+            path: "head.onnx".into(),
+        };
+        let mut stage = ClassifierStage::new(model, stream(), FallAlertConfig::default())
+            .unwrap()
+            .with_pose_head(Some(PelvisPlacer::new(spec, ShiftHead)), status.clone());
+        assert_eq!(stage.pose_head(), &status);
+        for k in 0..20 {
+            let t = k as f64 * 0.05;
+            now.set(t);
+            let mut obs = observation(t, k != 15);
+            obs.covariance = [0.01, 0.002, 0.002, 0.03];
+            let out = stage.on_observation(&obs).unwrap();
+            let topics: Vec<&str> = stage
+                .outgoing(&out)
+                .unwrap()
+                .iter()
+                .map(|o| o.topic.name)
+                .collect();
+            let expected = k >= 10 && k != 15;
+            assert_eq!(out.pelvis.is_some(), expected, "scan {k}");
+            assert_eq!(topics.contains(&"/human/pelvis"), expected, "scan {k}");
+            if let Some(pelvis) = stage.messages(&out).pelvis {
+                let pose = &pelvis.pose;
+                assert!((pose.pose.position.x - 2.3).abs() < 1e-12);
+                assert_eq!(pose.pose.position.y, 1.0);
+                assert_eq!(pelvis.header.stamp, obs.header.stamp);
+                // The track's covariance plus the head's own error (0.2 m per axis).
+                let c = pose.covariance;
+                assert!((c[0] - 0.05).abs() < 1e-12 && (c[7] - 0.07).abs() < 1e-12);
+                assert_eq!((c[1], c[6]), (0.002, 0.002));
+            }
+        }
+    }
+
     #[test]
     fn observation_bytes_in_encoded_messages_out() {
         let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
@@ -1111,6 +1320,13 @@ mod tests {
             FallAlertConfig::default().fall_min_scans
         );
         assert_eq!(c.model, PathBuf::from("models/activity.onnx"));
+        assert_eq!(c.pose_head, Some(PathBuf::from("models/pose_head.onnx")));
+        assert_eq!(
+            parse_classifier_config("pose_head: null\n")
+                .unwrap()
+                .pose_head,
+            None
+        );
         let e = parse_classifier_config("fall_alert:\n  down_after: 3\n")
             .unwrap_err()
             .to_string();

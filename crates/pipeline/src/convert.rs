@@ -82,21 +82,26 @@ pub fn pose_msg(
     person: &PersonEstimate,
     frame_id: &str,
 ) -> PoseWithCovarianceStamped {
-    let mut covariance = [0.0; 36];
-    covariance[0] = person.covariance[0][0];
-    covariance[1] = person.covariance[0][1];
-    covariance[6] = person.covariance[1][0];
-    covariance[7] = person.covariance[1][1];
-    for i in [14, 21, 28, 35] {
-        covariance[i] = UNKNOWN_VARIANCE;
-    }
     PoseWithCovarianceStamped {
         header: Header::new(Time::from_nanos(output.stamp_ns), frame_id),
         pose: PoseWithCovariance {
             pose: person_pose(person),
-            covariance,
+            covariance: planar_covariance(person.covariance),
         },
     }
+}
+
+/// A 6x6 pose covariance from the covariance of (x, y); z and the rotations unknown.
+pub fn planar_covariance(xy: [[f64; 2]; 2]) -> [f64; 36] {
+    let mut covariance = [0.0; 36];
+    covariance[0] = xy[0][0];
+    covariance[1] = xy[0][1];
+    covariance[6] = xy[1][0];
+    covariance[7] = xy[1][1];
+    for i in [14, 21, 28, 35] {
+        covariance[i] = UNKNOWN_VARIANCE;
+    }
+    covariance
 }
 
 /// `/human/observation`: the person's state and points for the classifier.

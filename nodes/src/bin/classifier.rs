@@ -1,6 +1,6 @@
 //! `classifier`: recognises the person's activity and raises fall alerts. Subscribes
-//! /human/observation; publishes /human/activity, /human/fall_alert and a text marker on
-//! /human/markers. The work is the pipeline's classifier stage (ONNX step model), the same
+//! /human/observation; publishes /human/activity, /human/fall_alert, a text marker on
+//! /human/markers and, with a pose head in the configuration, /human/pelvis. The work is the pipeline's classifier stage (ONNX step model), the same
 //! code `lidar-har run` runs over a bag.
 //!
 //! Parameters: `config` (a `config/classifier.yaml`-format file; empty = defaults), `model`
@@ -50,6 +50,7 @@ fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
         &[
             topics::HUMAN_ACTIVITY,
             topics::FALL_ALERT,
+            topics::HUMAN_PELVIS,
             topics::HUMAN_MARKERS,
         ],
     )?;
