@@ -125,6 +125,13 @@ impl<H> PelvisPlacer<H> {
             return Ok(None);
         }
         let (state, located) = classifier.last_state(position);
+        // A person outside the image (a runner long after the lane's first position) is not
+        // in the state the head reads.
+        let representation = classifier.spec().representation;
+        let half_extent = representation.size as f64 * representation.resolution_m / 2.0;
+        if located.abs().max_element() >= half_extent {
+            return Ok(None);
+        }
         let offset = self
             .head
             .offset(state, located)
@@ -301,6 +308,27 @@ mod tests {
         let placed = run(Framing::RoomFixed, &mut broken, &[Some(DVec2::ONE); 6]);
         assert!(placed.iter().all(Option::is_none));
         assert_eq!(broken.head.seen.len(), 3, "asked from the fourth scan on");
+    }
+
+    #[test]
+    fn no_pelvis_once_the_person_has_left_the_lanes_image() {
+        // The image spans 1.6 m (16 pixels of 0.1 m): half of it is 0.8 m from the centre.
+        let mut runner = placer(false);
+        let run_by: Vec<Option<DVec2>> = (0..6)
+            .map(|k| Some(DVec2::new(0.3 * k as f64, 0.0)))
+            .collect();
+        let placed = run(Framing::RoomFixed, &mut runner, &run_by);
+        assert!(placed[3].is_none() && placed[4].is_none(), "{placed:?}");
+        assert!(runner.head.seen.is_empty());
+        let mut stroller = placer(false);
+        let stroll: Vec<Option<DVec2>> = (0..6)
+            .map(|k| Some(DVec2::new(0.1 * k as f64, 0.0)))
+            .collect();
+        assert!(
+            run(Framing::RoomFixed, &mut stroller, &stroll)[3..]
+                .iter()
+                .all(Option::is_some)
+        );
     }
 
     #[test]

@@ -1,34 +1,42 @@
 //! Per-scan classification cost on one thread: rendering plus one ConvLSTM step per
 //! staggered lane (2, 3 and 4 lanes; `lanes` in config/classifier.yaml), as the classifier
-//! node does it. Prints figures; asserts nothing.
+//! node does it; then with the pose head run on every scan (its worst case: it runs only on
+//! the activities it helps). Prints figures; asserts nothing.
 //!
-//!   cargo bench -p lidar-har-infer --bench classify [-- MODEL.onnx]
+//!   cargo bench -p lidar-har-infer --bench classify [-- MODEL.onnx [HEAD.onnx]]
 //!
 //! Default model: models/activity.onnx when present, else the tiny test fixture (which only
-//! measures the overhead around the model).
+//! measures the overhead around the model); default head: models/pose_head.onnx with the
+//! trained model, the fixture head with the fixture.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::DVec2;
+use lidar_har_core::activity::Activity;
 use lidar_har_core::classifier::{LaneSchedule, PersonScan, StreamingClassifier};
+use lidar_har_core::pose_head::{PelvisPlacer, PoseHeadSpec};
 use lidar_har_core::representation::Renderer;
-use lidar_har_infer::ActivityModel;
+use lidar_har_infer::{ActivityModel, PoseHeadModel};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let path = std::env::args()
+    let named: Vec<PathBuf> = std::env::args()
         .skip(1)
-        .find(|a| a.ends_with(".onnx"))
+        .filter(|a| a.ends_with(".onnx"))
         .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            let trained = repo.join("models/activity.onnx");
-            if trained.is_file() {
-                trained
-            } else {
-                repo.join("crates/infer/tests/fixtures/step_model.onnx")
-            }
-        });
+        .collect();
+    let trained = repo.join("models/activity.onnx");
+    let fixtures = repo.join("crates/infer/tests/fixtures");
+    let (path, head_path) = match named.as_slice() {
+        [model, head, ..] => (model.clone(), head.clone()),
+        [model] => (model.clone(), repo.join("models/pose_head.onnx")),
+        [] if trained.is_file() => (trained, repo.join("models/pose_head.onnx")),
+        [] => (
+            fixtures.join("step_model.onnx"),
+            fixtures.join("pose_head.onnx"),
+        ),
+    };
     let model = ActivityModel::load(&path, 1)?;
     let info = model.info().clone();
     let spec = info.stream;
@@ -102,5 +110,43 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
         model = classifier.into_model();
     }
+
+    let head = match PoseHeadModel::load(&head_path, &model, 1) {
+        Ok(head) => head,
+        Err(e) => {
+            println!("no pose head timed: {e}");
+            return Ok(());
+        }
+    };
+    let every_scan = PoseHeadSpec {
+        min_history: 0,
+        activities: Activity::ALL.to_vec(),
+        sigma_m: head.spec().sigma_m,
+    };
+    let mut placer = PelvisPlacer::new(every_scan, head);
+    let schedule = LaneSchedule {
+        period: spec.window,
+        lanes: 2,
+    };
+    let mut classifier = StreamingClassifier::with_schedule(model, spec, schedule)?;
+    let start = Instant::now();
+    let mut placed = 0;
+    for (t, centre, points) in &scans {
+        let position = Some(*centre);
+        let prediction = classifier.classify(&PersonScan {
+            stamp_s: *t,
+            points,
+            position,
+            sensor,
+        })?;
+        placed += usize::from(placer.place(&classifier, position, &prediction)?.is_some());
+    }
+    let per_scan_ms = start.elapsed().as_secs_f64() * 1e3 / scans.len() as f64;
+    println!(
+        "per scan (render + 2 steps + softmax + pose head on {placed} of {} scans), 1 thread: \
+         {per_scan_ms:.3} ms (target <= 0.5 ms); head {}",
+        scans.len(),
+        head_path.display()
+    );
     Ok(())
 }
