@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use lidar_har_core::activity::Activity;
-use lidar_har_pipeline::bag_run::{RunOptions, run_bag};
+use lidar_har_pipeline::bag_run::{RunOptions, RunSummary, run_bag};
 use lidar_har_pipeline::classifier::{
     ActivitySummary, ClassifierConfig, ClassifierRun, load_classifier_config,
 };
@@ -119,6 +119,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
 
     // 3. Report.
     print!("{}", timeline_text(activity, start_s));
+    print!("{}", position_text(&summary));
     let map = OccupancyMap::from_world(sim.world(), lidar_har_sim::map::DEFAULT_RESOLUTION);
     let scene_png = args.out.join("scene.png");
     render_png(&scene_png, &map, &trace)?;
@@ -181,6 +182,28 @@ fn timeline_text(activity: &ActivitySummary, start_s: f64) -> String {
             f1 * 100.0,
             activity.scans_classified
         );
+    }
+    s
+}
+
+/// Where the pipeline placed the person against the simulator's pelvis: /human/pose, and with
+/// /human/pelvis where the pose head placed it.
+fn position_text(summary: &RunSummary) -> String {
+    let Some(pose) = &summary.position_error_m else {
+        return String::new();
+    };
+    let mut s = format!(
+        "Position against the simulator's pelvis: /human/pose median {:.2} m, p95 {:.2} m",
+        pose.median, pose.p95
+    );
+    match &summary.pelvis_error_m {
+        Some(pelvis) => {
+            s += &format!(
+                "; with /human/pelvis where placed median {:.2} m, p95 {:.2} m\n",
+                pelvis.median, pelvis.p95
+            )
+        }
+        None => s += "\n",
     }
     s
 }
