@@ -215,6 +215,8 @@ pub struct ClassifierStage<M: StepModel = ActivityModel, H = PoseHeadModel> {
     classifier: StreamingClassifier<M>,
     pelvis: Option<PelvisPlacer<H>>,
     pose_head: PoseHeadStatus,
+    /// Scans on which the pose head failed (logged at powers of two).
+    pose_head_errors: u64,
     scan_rate: ScanRate,
     fall: FallDetector,
     points: Vec<DVec2>,
@@ -283,6 +285,7 @@ impl<M: StepModel> ClassifierStage<M, NoPoseHead> {
             classifier: StreamingClassifier::with_schedule(model, stream, schedule)?,
             pelvis: None,
             pose_head: PoseHeadStatus::Off,
+            pose_head_errors: 0,
             scan_rate: ScanRate::default(),
             fall: FallDetector::new(fall_alert)?,
             points: Vec::new(),
@@ -302,6 +305,7 @@ impl<M: StepModel> ClassifierStage<M, NoPoseHead> {
             classifier: self.classifier,
             pelvis,
             pose_head: status,
+            pose_head_errors: 0,
             scan_rate: self.scan_rate,
             fall: self.fall,
             points: self.points,
@@ -370,12 +374,23 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             Some(placer) => {
                 let sigma2 = placer.spec().sigma_m.powi(2);
                 let c = obs.covariance;
-                placer
-                    .place(&self.classifier, scan.position, &prediction)?
-                    .map(|position| Pelvis {
+                // A failing head costs this scan's pelvis, never its activity or alerts.
+                match placer.place(&self.classifier, scan.position, &prediction) {
+                    Ok(placed) => placed.map(|position| Pelvis {
                         position,
                         covariance: [[c[0] + sigma2, c[1]], [c[2], c[3] + sigma2]],
-                    })
+                    }),
+                    Err(e) => {
+                        self.pose_head_errors += 1;
+                        if self.pose_head_errors.is_power_of_two() {
+                            log::warn!(
+                                "classifier: pose head failed ({} times so far): {e}",
+                                self.pose_head_errors
+                            );
+                        }
+                        None
+                    }
+                }
             }
             None => None,
         };
@@ -1240,6 +1255,52 @@ mod tests {
         fn offset(&mut self, _: &(), _: DVec2) -> Result<DVec2, std::io::Error> {
             Ok(DVec2::new(0.3, 0.0))
         }
+    }
+
+    /// A pose head whose every run fails.
+    struct BrokenHead;
+
+    impl PoseHead<()> for BrokenHead {
+        type Error = std::io::Error;
+        fn offset(&mut self, _: &(), _: DVec2) -> Result<DVec2, std::io::Error> {
+            Err(std::io::Error::other("no session"))
+        }
+    }
+
+    #[test]
+    fn a_failing_pose_head_costs_the_pelvis_not_the_activity_or_the_alerts() {
+        let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
+        let stage = || {
+            let model = TimelineModel {
+                timeline: vec![(0.0, Activity::Walking), (1.0, Activity::FallingDown)],
+                now: now.clone(),
+            };
+            ClassifierStage::new(model, stream(), FallAlertConfig::default()).unwrap()
+        };
+        let mut plain = stage();
+        let spec = PoseHeadSpec {
+            min_history: 1,
+            activities: Activity::ALL.to_vec(),
+            sigma_m: 0.1,
+        };
+        let status = PoseHeadStatus::Used {
+            path: "head.onnx".into(),
+        };
+        let mut broken = stage().with_pose_head(Some(PelvisPlacer::new(spec, BrokenHead)), status);
+        for k in 0..40 {
+            let t = k as f64 * 0.05;
+            now.set(t);
+            let obs = observation(t, true);
+            let a = plain.on_observation(&obs).unwrap();
+            let b = broken.on_observation(&obs).unwrap();
+            assert_eq!(b.pelvis, None);
+            assert_eq!(
+                (a.prediction, a.alerts),
+                (b.prediction, b.alerts),
+                "scan {k}"
+            );
+        }
+        assert_eq!(broken.pose_head_errors, 40);
     }
 
     #[test]
