@@ -17,6 +17,30 @@ fn lidar_har(args: &[&str]) -> Output {
         .expect("lidar-har runs")
 }
 
+/// Runs `lidar-har` and fails the test with its stderr unless it succeeds.
+fn lidar_har_ok(args: &[&str]) -> Output {
+    let out = lidar_har(args);
+    assert!(
+        out.status.success(),
+        "lidar-har {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// Simulates `seconds` of the living room into the bag directory `out`.
+fn simulate_living_room(seconds: &str, out: &Path) {
+    lidar_har_ok(&[
+        "simulate",
+        "--scene",
+        "config/scenes/living_room.yaml",
+        "--duration",
+        seconds,
+        "--out",
+        path(out),
+    ]);
+}
+
 fn path(p: &Path) -> &str {
     p.to_str().expect("temporary paths are UTF-8")
 }
@@ -103,22 +127,9 @@ fn run_with_a_model_records_activities_and_scores_them() {
     let tmp = tempfile::tempdir().unwrap();
     let sim = tmp.path().join("sim");
     let run = tmp.path().join("run");
-    let out = lidar_har(&[
-        "simulate",
-        "--scene",
-        "config/scenes/living_room.yaml",
-        "--duration",
-        "4",
-        "--out",
-        path(&sim),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    simulate_living_room("4", &sim);
     let model = test_model();
-    let out = lidar_har(&[
+    lidar_har_ok(&[
         "run",
         "--bag",
         path(&sim),
@@ -127,11 +138,6 @@ fn run_with_a_model_records_activities_and_scores_them() {
         "--model",
         path(&model),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
 
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
@@ -176,20 +182,7 @@ fn run_with_a_pose_head_records_the_pelvis_and_scores_it() {
     }
     let tmp = tempfile::tempdir().unwrap();
     let sim = tmp.path().join("sim");
-    let out = lidar_har(&[
-        "simulate",
-        "--scene",
-        "config/scenes/living_room.yaml",
-        "--duration",
-        "3",
-        "--out",
-        path(&sim),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    simulate_living_room("3", &sim);
     let fixtures = repo_root().join("crates/infer/tests/fixtures");
     let run_with_head = |head: &str, name: &str| -> serde_json::Value {
         let config = tmp.path().join(format!("{name}.yaml"));
@@ -203,7 +196,7 @@ fn run_with_a_pose_head_records_the_pelvis_and_scores_it() {
         )
         .unwrap();
         let run = tmp.path().join(name);
-        let out = lidar_har(&[
+        lidar_har_ok(&[
             "run",
             "--bag",
             path(&sim),
@@ -212,11 +205,6 @@ fn run_with_a_pose_head_records_the_pelvis_and_scores_it() {
             "--classifier-config",
             path(&config),
         ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
         serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap()
     };
 
@@ -357,7 +345,7 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data");
     // The committed model's image settings (its metadata must match the dataset's).
-    let out = lidar_har(&[
+    lidar_har_ok(&[
         "dataset",
         "--scenes",
         "config/scenes/[kl]*.yaml",
@@ -383,11 +371,6 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
         "--out",
         path(&data),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let index: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(data.join("index.json")).unwrap()).unwrap();
     for e in index["episodes"].as_array().unwrap() {
@@ -401,7 +384,7 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     }
 
     let eval = tmp.path().join("eval");
-    let out = lidar_har(&[
+    lidar_har_ok(&[
         "evaluate",
         "--model",
         "models/activity.onnx",
@@ -410,11 +393,6 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
         "--out",
         path(&eval),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let metrics: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(eval.join("metrics.json")).unwrap()).unwrap();
     let confusion_total = |scores: &serde_json::Value| -> u64 {

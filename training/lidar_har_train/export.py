@@ -69,11 +69,7 @@ def export_step_model(model: ActivityConvLSTM, spec: dict, out: Path, windows_u8
         "lidar_har.window": str(spec["window"]),
         "lidar_har.hidden": str(hidden),
     }
-    del proto.metadata_props[:]
-    for key, value in meta.items():
-        entry = proto.metadata_props.add()
-        entry.key, entry.value = key, value
-    proto.doc_string = "lidar_har activity ConvLSTM step model (docs/model_contract.md)"
+    set_metadata(proto, meta, "lidar_har activity ConvLSTM step model (docs/model_contract.md)")
     onnx.checker.check_model(proto)
     check_io(proto, size, hidden, hs)
     onnx.save(proto, str(out))
@@ -87,6 +83,15 @@ def export_step_model(model: ActivityConvLSTM, spec: dict, out: Path, windows_u8
         out.unlink(missing_ok=True)
         raise ExportError(f"parity check failed (limit {PARITY_TOLERANCE:.0e} x max(1, largest magnitude)): {failed}")
     return figures
+
+
+def set_metadata(proto, metadata: dict, doc: str):
+    """Replaces an exported model's `metadata_props` (what the runtime reads) and doc string."""
+    del proto.metadata_props[:]
+    for key, value in metadata.items():
+        entry = proto.metadata_props.add()
+        entry.key, entry.value = key, value
+    proto.doc_string = doc
 
 
 def image_metadata(spec: dict) -> dict:

@@ -31,7 +31,7 @@ from onnx import numpy_helper
 from torch import nn
 
 from .data import CLASSES, load_index, load_split
-from .export import PARITY_TOLERANCE, ExportError, model_from_onnx
+from .export import PARITY_TOLERANCE, ExportError, model_from_onnx, set_metadata
 
 KEY_ACTIVITY_SHA256 = "lidar_har.pose_head.activity_sha256"
 KEY_MIN_HISTORY = "lidar_har.pose_head.min_history"
@@ -137,11 +137,7 @@ def export(head, out: Path, hidden: int, side: int, metadata: dict, sample: dict
     torch.onnx.export(head, (torch.rand(1, hidden, side, side), torch.rand(1, 2)), str(out),
                       input_names=["h", "located"], output_names=["offset"], opset_version=18, dynamo=False)
     proto = onnx.load(str(out))
-    del proto.metadata_props[:]
-    for key, value in metadata.items():
-        entry = proto.metadata_props.add()
-        entry.key, entry.value = key, value
-    proto.doc_string = "lidar_har pose head: pelvis offset from the activity model's state (docs/model_contract.md)"
+    set_metadata(proto, metadata, "lidar_har pose head: pelvis offset from the activity model's state (docs/model_contract.md)")
     onnx.checker.check_model(proto)
     onnx.save(proto, str(out))
     session = ort.InferenceSession(str(out), providers=["CPUExecutionProvider"])
