@@ -174,11 +174,11 @@ def main() -> None:
     parser.add_argument("data", type=Path, help="a dataset with *_positions.npy")
     parser.add_argument("--out", type=Path, help="where to write the head (ONNX)")
     parser.add_argument("--head", type=Path, help="score (and gate, with --out) this exported head instead of fitting one")
-    parser.add_argument("--train-windows", type=int, default=80000)
+    parser.add_argument("--train-windows", type=int, default=0, help="fit on this many training windows (0: all)")
     parser.add_argument("--test-windows", type=int, default=0, help="score on this many windows per test split (0: all)")
     parser.add_argument("--first-step", type=int, default=11,
                         help="first step (0-based) of each window fitted on: history first_step + 1")
-    parser.add_argument("--minutes", type=float, default=15.0)
+    parser.add_argument("--minutes", type=float, default=25.0)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--json", type=Path, help="write the scores here")
     args = parser.parse_args()
