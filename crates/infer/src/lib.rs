@@ -350,15 +350,13 @@ fn check_signature(
 ) -> Result<(usize, usize), String> {
     check_outlet_names(inputs, "input", &["frame", "h", "c"])?;
     check_outlet_names(outputs, "output", &["logits", "h_next", "c_next"])?;
-    let find = float_outlet_shape;
-    let matches = shape_matches;
-    let frame = find(inputs, "input", "frame")?;
-    if !matches(&frame, &[1, 1, size, size]) {
+    let frame = float_outlet_shape(inputs, "input", "frame")?;
+    if !shape_matches(&frame, &[1, 1, size, size]) {
         return Err(format!(
             "input 'frame' has shape {frame:?}, expected [1, 1, {size}, {size}] (lidar_har.size = {size} in the metadata)"
         ));
     }
-    let h = find(inputs, "input", "h")?;
+    let h = float_outlet_shape(inputs, "input", "h")?;
     let (hidden, side) = match h.as_slice() {
         [_, hidden, side, side2] if *hidden > 0 && side == side2 && *side > 0 => {
             (*hidden as usize, *side as usize)
@@ -376,15 +374,15 @@ fn check_signature(
         ("h_next", "output", outputs),
         ("c_next", "output", outputs),
     ] {
-        let shape = find(outlets, kind, name)?;
-        if !matches(&shape, &state_shape) {
+        let shape = float_outlet_shape(outlets, kind, name)?;
+        if !shape_matches(&shape, &state_shape) {
             return Err(format!(
                 "{kind} '{name}' has shape {shape:?}, expected {state_shape:?} (the shape of 'h')"
             ));
         }
     }
-    let logits = find(outputs, "output", "logits")?;
-    if !matches(&logits, &[1, Activity::COUNT]) {
+    let logits = float_outlet_shape(outputs, "output", "logits")?;
+    if !shape_matches(&logits, &[1, Activity::COUNT]) {
         return Err(format!(
             "output 'logits' has shape {logits:?}, expected [1, {}] (one per activity class)",
             Activity::COUNT

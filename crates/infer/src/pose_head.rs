@@ -70,15 +70,15 @@ impl PoseHeadModel {
                 problem,
             }
         })?;
+        let fitted_on = fitted_on.ok_or_else(|| InferError::Contract {
+            path: path.clone(),
+            problem: format!("metadata key '{KEY_ACTIVITY_SHA256}' is missing"),
+        })?;
         let model_bytes = std::fs::read(&info.path).map_err(|e| InferError::ModelLoad {
             path: info.path.clone(),
             message: e.to_string(),
         })?;
         let found = format!("{:x}", Sha256::digest(&model_bytes));
-        let fitted_on = fitted_on.ok_or_else(|| InferError::Contract {
-            path: path.clone(),
-            problem: format!("metadata key '{KEY_ACTIVITY_SHA256}' is missing"),
-        })?;
         if fitted_on.trim() != found {
             return Err(InferError::PoseHeadMismatch {
                 path,
