@@ -226,18 +226,39 @@ fn run_with_a_pose_head_records_the_pelvis_and_scores_it() {
         bag.topic("/human/pelvis").unwrap().type_name,
         "geometry_msgs/msg/PoseWithCovarianceStamped"
     );
-    let mut count = 0;
+    let decode = |message: Result<_, _>| -> PoseWithCovarianceStamped {
+        let message: lidar_har_bag::BagMessage = message.unwrap();
+        lidar_har_msgs::decode(&message.data).unwrap()
+    };
+    let track_covariance: std::collections::HashMap<_, _> = bag
+        .messages_on(&["/human/pose"])
+        .unwrap()
+        .map(|m| {
+            let msg = decode(m);
+            (msg.header.stamp, msg.pose.covariance)
+        })
+        .collect();
+    // The track's covariance plus the head's expected error, which follows the state.
+    let mut head_variances = Vec::new();
     for message in bag.messages_on(&["/human/pelvis"]).unwrap() {
-        let msg: PoseWithCovarianceStamped =
-            lidar_har_msgs::decode(&message.unwrap().data).unwrap();
+        let msg = decode(message);
         assert_eq!(msg.header.frame_id, "map");
         let p = msg.pose.pose.position;
         assert!(p.x.is_finite() && p.y.is_finite());
-        // At least the head's own error (sigma 0.05 m per axis).
-        assert!(msg.pose.covariance[0] >= 0.0025 && msg.pose.covariance[7] >= 0.0025);
-        count += 1;
+        let track = track_covariance[&msg.header.stamp];
+        let (x, y) = (
+            msg.pose.covariance[0] - track[0],
+            msg.pose.covariance[7] - track[7],
+        );
+        assert!(x > 0.0 && (x - y).abs() < 1e-12, "{x} {y}");
+        head_variances.push(x);
     }
-    assert_eq!(count, published);
+    assert_eq!(head_variances.len() as u64, published);
+    head_variances.sort_by(f64::total_cmp);
+    assert!(
+        head_variances[0] < head_variances[head_variances.len() - 1],
+        "the same expected error on every scan: {head_variances:?}"
+    );
 
     // A head fitted on another model is left out, and the run says why.
     let summary = run_with_head("pose_head_other_model.onnx", "other_head");

@@ -36,7 +36,7 @@ from .export import PARITY_TOLERANCE, ExportError, model_from_onnx, set_metadata
 KEY_ACTIVITY_SHA256 = "lidar_har.pose_head.activity_sha256"
 KEY_MIN_HISTORY = "lidar_har.pose_head.min_history"
 KEY_ACTIVITIES = "lidar_har.pose_head.activities"
-KEY_SIGMA = "lidar_har.pose_head.sigma_m"
+KEY_MAX_SIGMA = "lidar_har.pose_head.max_sigma_m"
 
 
 def features(model, split, positions, rows, first_step: int):
@@ -67,15 +67,27 @@ def features(model, split, positions, rows, first_step: int):
 
 
 class PoseHead(nn.Module):
-    """State and localiser position in, pelvis offset from the localiser out."""
+    """State and localiser position in; the pelvis's offset from the localiser and the head's
+    own expected error (deviation per axis of a circular Gaussian, metres) out. The error is
+    read from the offset's last hidden layer without training it: the offset is fitted as if
+    the deviation were not there."""
 
     def __init__(self, hidden: int, side: int):
         super().__init__()
         self.conv = nn.Sequential(nn.Conv2d(hidden, 32, 3, padding=1), nn.ReLU())
         self.mlp = nn.Sequential(nn.Linear(32 * side * side + 2, 64), nn.ReLU(), nn.Linear(64, 2))
+        self.log_sigma = nn.Linear(64, 1)
 
     def forward(self, h, located):
-        return self.mlp(torch.cat([self.conv(h).flatten(1), located], dim=1))
+        features = self.mlp[:2](torch.cat([self.conv(h).flatten(1), located], dim=1))
+        return self.mlp[2](features), torch.exp(self.log_sigma(features.detach()))
+
+
+def sigma_loss(sigma, error):
+    """Negative log-likelihood of a circular Gaussian error of deviation `sigma` per axis, for
+    the errors the offset made (detached, as are the features: the deviation learns how far
+    off the offset is without changing it)."""
+    return (2 * torch.log(sigma[:, 0]) + error.detach().pow(2).sum(dim=1) / (2 * sigma[:, 0] ** 2)).mean()
 
 
 def fit(head, data, minutes: float, seed: int):
@@ -88,8 +100,9 @@ def fit(head, data, minutes: float, seed: int):
         total = 0.0
         for b in range(0, len(order), 256):
             idx = order[b : b + 256]
-            pred = head(torch.from_numpy(states[idx].astype(np.float32)), torch.from_numpy(located[idx]))
-            loss = nn.functional.smooth_l1_loss(pred, torch.from_numpy(offsets[idx]), beta=0.05)
+            pred, sigma = head(torch.from_numpy(states[idx].astype(np.float32)), torch.from_numpy(located[idx]))
+            target = torch.from_numpy(offsets[idx])
+            loss = nn.functional.smooth_l1_loss(pred, target, beta=0.05) + sigma_loss(sigma, pred - target)
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
@@ -99,12 +112,15 @@ def fit(head, data, minutes: float, seed: int):
 
 
 def predict(head, data):
-    out = []
+    """The head's offsets `[n, 2]` and deviations `[n]` for every scan of `data`."""
+    offsets, sigmas = [], []
     with torch.no_grad():
         for b in range(0, len(data["states"]), 2048):
-            out.append(head(torch.from_numpy(data["states"][b : b + 2048].astype(np.float32)),
-                            torch.from_numpy(data["located"][b : b + 2048])).numpy())
-    return np.concatenate(out)
+            offset, sigma = head(torch.from_numpy(data["states"][b : b + 2048].astype(np.float32)),
+                                 torch.from_numpy(data["located"][b : b + 2048]))
+            offsets.append(offset.numpy())
+            sigmas.append(sigma.numpy()[:, 0])
+    return np.concatenate(offsets), np.concatenate(sigmas)
 
 
 def pair(errors):
@@ -119,11 +135,44 @@ def helped_activities(before, after, predicted) -> list[str]:
             if (predicted == k).sum() >= 100 and after[predicted == k].mean() < before[predicted == k].mean()]
 
 
-def scores(before, after, data, used):
-    """Pelvis errors: the localiser alone, the head everywhere, the head where the predicted
-    activity is in `used` (what the runtime publishes); overall and per true activity."""
-    gated = np.where(np.isin(data["predicted"], [CLASSES.index(n) for n in used]), after, before)
-    report = {"scans": int(len(before))}
+def placed(data, sigma, used, max_sigma: float):
+    """The scans on which the runtime places the pelvis with the head: read as an activity in
+    `used`, with the head expecting an error of at most `max_sigma`."""
+    return np.isin(data["predicted"], [CLASSES.index(n) for n in used]) & (sigma <= max_sigma)
+
+
+def doubt_threshold(before, after, sigma, used_scans) -> float:
+    """The deviation above which the localiser's position is kept instead of the head's: the
+    one, among the deviations' percentiles, that gives the lowest mean error (infinite when
+    trusting the head everywhere does best)."""
+    candidates = [np.inf, *np.percentile(sigma[used_scans], np.arange(50, 100, 2))] if used_scans.any() else [np.inf]
+    mean_error = [np.where(used_scans & (sigma <= t), after, before).mean() for t in candidates]
+    return float(candidates[int(np.argmin(mean_error))])
+
+
+def calibrate(head, error, sigma) -> float:
+    """Scales the head's deviations so that half of `error` lies within the median radius of
+    the Gaussian they describe (sigma * sqrt(2 ln 2)): fitted on its training scans, the head
+    expects the smaller errors it made there. Folded into the last layer's bias, so the
+    exported model outputs the scaled deviation; returns the scale."""
+    scale = float(np.median(error / sigma)) / np.sqrt(2 * np.log(2))
+    with torch.no_grad():
+        head.log_sigma.bias += np.log(scale)
+    return scale
+
+
+def calibration(error, sigma) -> dict:
+    """Share of errors within one and two deviations: 39 % and 86 % for a calibrated
+    circular Gaussian."""
+    return {f"within_{k}_sigma": round(float((error <= k * sigma).mean()), 3) for k in (1, 2)}
+
+
+def scores(before, after, sigma, data, used, max_sigma):
+    """Pelvis errors: the localiser alone, the head everywhere, the head where the runtime
+    places it (what it publishes); overall and per true activity."""
+    gated = np.where(placed(data, sigma, used, max_sigma), after, before)
+    report = {"scans": int(len(before)), "placed": round(float(placed(data, sigma, used, max_sigma).mean()), 3),
+              "calibration": calibration(after, sigma)}
     for name, errors in (("localiser", before), ("head", after), ("published", gated)):
         report[name] = {"median_p95_m": pair(errors),
                         "per_activity": {c: pair(errors[data["labels"] == k]) for k, c in enumerate(CLASSES)}}
@@ -132,10 +181,10 @@ def scores(before, after, data, used):
 
 def export(head, out: Path, hidden: int, side: int, metadata: dict, sample: dict):
     """Writes the head as ONNX (`h` [1, hidden, side, side], `located` [1, 2] -> `offset`
-    [1, 2]) with `metadata`, checked against PyTorch on `sample`."""
+    [1, 2], `sigma` [1, 1]) with `metadata`, checked against PyTorch on `sample`."""
     head.eval()
     torch.onnx.export(head, (torch.rand(1, hidden, side, side), torch.rand(1, 2)), str(out),
-                      input_names=["h", "located"], output_names=["offset"], opset_version=18, dynamo=False)
+                      input_names=["h", "located"], output_names=["offset", "sigma"], opset_version=18, dynamo=False)
     proto = onnx.load(str(out))
     set_metadata(proto, metadata, "lidar_har pose head: pelvis offset from the activity model's state (docs/model_contract.md)")
     onnx.checker.check_model(proto)
@@ -146,9 +195,10 @@ def export(head, out: Path, hidden: int, side: int, metadata: dict, sample: dict
         for i in range(len(sample["states"])):
             h = sample["states"][i : i + 1].astype(np.float32)
             located = sample["located"][i : i + 1]
-            reference = head.double()(torch.from_numpy(h).double(), torch.from_numpy(located).double()).numpy()
-            got = session.run(["offset"], {"h": h, "located": located})[0]
-            worst = max(worst, float(np.abs(reference - got).max()))
+            reference = head.double()(torch.from_numpy(h).double(), torch.from_numpy(located).double())
+            got = session.run(["offset", "sigma"], {"h": h, "located": located})
+            for r, g in zip(reference, got):
+                worst = max(worst, float(np.abs(r.numpy() - g).max()))
     head.float()
     if not worst <= PARITY_TOLERANCE:
         out.unlink(missing_ok=True)
@@ -207,30 +257,37 @@ def main() -> None:
         fit(head, data["train"], args.minutes, args.seed)
     errors = {}
     for name in splits:
+        offsets, sigma = predict(head, data[name])
         before = np.linalg.norm(data[name]["offsets"], axis=1)
-        after = np.linalg.norm(data[name]["offsets"] - predict(head, data[name]), axis=1)
-        errors[name] = (before, after)
-    used = helped_activities(*errors["test"], data["test"]["predicted"])
-    # A circular Gaussian error of deviation sigma per axis has median radius sigma * sqrt(2 ln 2).
-    used_scans = np.isin(data["test"]["predicted"], [CLASSES.index(n) for n in used])
-    sigma = float(np.median(errors["test"][1][used_scans])) / np.sqrt(2 * np.log(2)) if used else 0.0
-    report = {"activities": used, "sigma_m": round(sigma, 4), "first_step": args.first_step,
+        after = np.linalg.norm(data[name]["offsets"] - offsets, axis=1)
+        errors[name] = (before, after, sigma)
+    before, after, sigma = errors["test"]
+    used = helped_activities(before, after, data["test"]["predicted"])
+    scale = calibrate(head, after, sigma)
+    errors = {name: (b, a, s * scale) for name, (b, a, s) in errors.items()}
+    before, after, sigma = errors["test"]
+    max_sigma = doubt_threshold(before, after, sigma, placed(data["test"], sigma, used, np.inf))
+    report = {"activities": used, "max_sigma_m": round(max_sigma, 4) if np.isfinite(max_sigma) else None,
+              "sigma_scale": round(scale, 3),
+              "first_step": args.first_step,
               "train_windows": 0 if args.head else args.train_windows}
-    for name, (before, after) in errors.items():
-        report[name] = scores(before, after, data[name], used)
+    for name, (before, after, sigma) in errors.items():
+        report[name] = scores(before, after, sigma, data[name], used, max_sigma)
         r = report[name]
         print(f"{name}: localiser {r['localiser']['median_p95_m']}, head {r['head']['median_p95_m']}, "
-              f"published {r['published']['median_p95_m']} (median, p95 m)")
+              f"published {r['published']['median_p95_m']} (median, p95 m; placed on {r['placed']:.1%}; "
+              f"errors within 1 / 2 sigma: {r['calibration']['within_1_sigma']:.1%} / "
+              f"{r['calibration']['within_2_sigma']:.1%}, 39 % / 86 % if calibrated)")
         for c in CLASSES:
             print(f"    {c:20s} {r['localiser']['per_activity'][c]} -> {r['head']['per_activity'][c]}"
                   f" -> {r['published']['per_activity'][c]}")
-    print(f"head used for: {', '.join(used)}")
+    print(f"head used for: {', '.join(used)}; where it expects an error of at most {max_sigma:.3f} m per axis")
     if args.out:
         metadata = {
             KEY_ACTIVITY_SHA256: hashlib.sha256(args.model.read_bytes()).hexdigest(),
             KEY_MIN_HISTORY: str(args.first_step + 1),
             KEY_ACTIVITIES: ",".join(used),
-            KEY_SIGMA: f"{sigma:.4f}",
+            KEY_MAX_SIGMA: f"{max_sigma:.4f}",
         }
         sample = {k: v[:200] for k, v in data["test"].items()}
         worst = export(head, args.out, model.hidden, model.state_size, metadata, sample)

@@ -7,7 +7,8 @@
 //! a small model fitted on it predicts the pelvis's offset from the localiser's position. It
 //! runs after each classification on the state the prediction came from, and only where it
 //! was fitted and found to help: the person seen, at least `min_history` frames behind the
-//! state, an activity in `activities`.
+//! state, an activity in `activities`, the head expecting an error of at most `max_sigma_m`.
+//! The head's expected error is published with the pelvis, so a consumer can weigh it.
 
 use glam::DVec2;
 
@@ -16,14 +17,39 @@ use crate::classifier::{
     Prediction, StepError, StepModel, StreamSpecError, StreamingClassifier, parse_metadata,
 };
 
+/// What a pose head reads from one state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeadEstimate {
+    /// The pelvis's offset from the localiser's position, metres in map axes.
+    pub offset: DVec2,
+    /// The error the head expects of it: deviation per axis of a circular Gaussian, metres.
+    pub sigma_m: f64,
+}
+
 /// The model behind the pose head (ONNX Runtime in production, small stand-ins in tests).
 pub trait PoseHead<S> {
     type Error: std::error::Error + Send + Sync + 'static;
 
-    /// The pelvis's offset from the localiser's position, metres in map axes, from the state
-    /// and where that position lies in the image the state was last stepped on (metres from
-    /// the image's centre).
-    fn offset(&mut self, state: &S, located: DVec2) -> Result<DVec2, Self::Error>;
+    /// The estimate from the state and where the localiser's position lies in the image the
+    /// state was last stepped on (metres from the image's centre).
+    fn estimate(&mut self, state: &S, located: DVec2) -> Result<HeadEstimate, Self::Error>;
+}
+
+/// Where the localiser has the person on a scan.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PersonAt {
+    /// The centroid of their returns on this scan.
+    Seen(DVec2),
+    /// The track's prediction: the person is hidden.
+    Predicted(DVec2),
+}
+
+/// The pelvis a pose head placed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlacedPelvis {
+    pub position: DVec2,
+    /// The head's expected error, metres per axis (added to the track's covariance).
+    pub sigma_m: f64,
 }
 
 /// The head of a classifier that has none: there is no value of this type, so a
@@ -34,7 +60,7 @@ pub enum NoPoseHead {}
 impl<S> PoseHead<S> for NoPoseHead {
     type Error = std::convert::Infallible;
 
-    fn offset(&mut self, _: &S, _: DVec2) -> Result<DVec2, Self::Error> {
+    fn estimate(&mut self, _: &S, _: DVec2) -> Result<HeadEstimate, Self::Error> {
         match *self {}
     }
 }
@@ -47,14 +73,16 @@ pub struct PoseHeadSpec {
     /// The activities (as the classifier reads them) on which the head places the pelvis
     /// better than the localiser; on the others the localiser's position stands.
     pub activities: Vec<Activity>,
-    /// Deviation of the head's error per axis, metres (its published covariance).
-    pub sigma_m: f64,
+    /// Above this expected error (metres per axis) the localiser's position stands: where
+    /// the head doubts itself it did worse than the localiser on the data it was gated on.
+    /// Infinite: never.
+    pub max_sigma_m: f64,
 }
 
 impl PoseHeadSpec {
     pub const KEY_MIN_HISTORY: &'static str = "lidar_har.pose_head.min_history";
     pub const KEY_ACTIVITIES: &'static str = "lidar_har.pose_head.activities";
-    pub const KEY_SIGMA: &'static str = "lidar_har.pose_head.sigma_m";
+    pub const KEY_MAX_SIGMA: &'static str = "lidar_har.pose_head.max_sigma_m";
 
     /// Reads the spec from key/value metadata (the ONNX `metadata_props`).
     pub fn from_metadata(get: impl Fn(&str) -> Option<String>) -> Result<Self, StreamSpecError> {
@@ -71,18 +99,18 @@ impl PoseHeadSpec {
                 })
             })
             .collect::<Result<_, _>>()?;
-        let sigma_m: f64 = parse_metadata(Self::KEY_SIGMA, &get)?;
-        if !(sigma_m.is_finite() && sigma_m >= 0.0) {
+        let max_sigma_m: f64 = parse_metadata(Self::KEY_MAX_SIGMA, &get)?;
+        if max_sigma_m.is_nan() || max_sigma_m <= 0.0 {
             return Err(StreamSpecError::Invalid {
-                key: Self::KEY_SIGMA,
-                value: sigma_m.to_string(),
-                reason: "must be finite and not negative".into(),
+                key: Self::KEY_MAX_SIGMA,
+                value: max_sigma_m.to_string(),
+                reason: "must be positive ('inf': no limit)".into(),
             });
         }
         Ok(Self {
             min_history: parse_metadata(Self::KEY_MIN_HISTORY, &get)?,
             activities,
-            sigma_m,
+            max_sigma_m,
         })
     }
 }
@@ -92,36 +120,72 @@ impl PoseHeadSpec {
 pub struct PelvisPlacer<H> {
     head: H,
     spec: PoseHeadSpec,
+    hold_s: f64,
+    /// The last seen scan's estimate, when the pelvis was placed on it: (stamp, estimate).
+    last_placed: Option<(f64, HeadEstimate)>,
 }
 
 impl<H> PelvisPlacer<H> {
     pub fn new(spec: PoseHeadSpec, head: H) -> Self {
-        Self { head, spec }
+        Self {
+            head,
+            spec,
+            hold_s: 0.0,
+            last_placed: None,
+        }
+    }
+
+    /// Keeps placing the pelvis at the last seen offset from the track's prediction for up to
+    /// `hold_s` after the person was last seen (0: off): someone who sits down behind a chair
+    /// keeps their pose, and the pelvis where it was relative to the body is a better guess
+    /// than the track's centroid of returns no longer there.
+    pub fn holding_for(mut self, hold_s: f64) -> Self {
+        self.hold_s = hold_s;
+        self
+    }
+
+    /// Forgets the last placement: the track is another person's.
+    pub fn reset(&mut self) {
+        self.last_placed = None;
     }
 
     pub fn spec(&self) -> &PoseHeadSpec {
         &self.spec
     }
 
-    /// The pelvis after `classifier` made `prediction` from a scan where the localiser put the
-    /// person at `position` (`None`: not seen); `None` where the head is not to be used or
-    /// gave no finite offset.
+    /// The pelvis after `classifier` made `prediction` from a scan where the localiser had the
+    /// person at `person`; `None` where the head is not to be used, gave no finite estimate
+    /// or doubts it beyond `max_sigma_m`, and where a hidden person was last placed longer
+    /// than the hold ago.
     pub fn place<M>(
         &mut self,
         classifier: &StreamingClassifier<M>,
-        position: Option<DVec2>,
+        person: PersonAt,
         prediction: &Prediction,
-    ) -> Result<Option<DVec2>, StepError>
+    ) -> Result<Option<PlacedPelvis>, StepError>
     where
         M: StepModel,
         H: PoseHead<M::State>,
     {
-        let Some(position) = position.filter(|p| p.is_finite()) else {
-            return Ok(None);
+        let wanted = prediction.history >= self.spec.min_history
+            && self.spec.activities.contains(&prediction.activity);
+        let position = match person {
+            PersonAt::Predicted(position) => {
+                return Ok(self
+                    .last_placed
+                    .filter(|(stamp_s, _)| {
+                        let since = prediction.stamp_s - stamp_s;
+                        wanted && position.is_finite() && (0.0..=self.hold_s).contains(&since)
+                    })
+                    .map(|(_, held)| PlacedPelvis {
+                        position: position + held.offset,
+                        sigma_m: held.sigma_m,
+                    }));
+            }
+            PersonAt::Seen(position) => position,
         };
-        if prediction.history < self.spec.min_history
-            || !self.spec.activities.contains(&prediction.activity)
-        {
+        self.last_placed = None;
+        if !wanted || !position.is_finite() {
             return Ok(None);
         }
         let (state, located) = classifier.last_state(position);
@@ -132,11 +196,19 @@ impl<H> PelvisPlacer<H> {
         if located.abs().max_element() >= half_extent {
             return Ok(None);
         }
-        let offset = self
+        let estimate = self
             .head
-            .offset(state, located)
+            .estimate(state, located)
             .map_err(|e| StepError(Box::new(e)))?;
-        Ok(offset.is_finite().then_some(position + offset))
+        let HeadEstimate { offset, sigma_m } = estimate;
+        if !(offset.is_finite() && sigma_m >= 0.0 && sigma_m <= self.spec.max_sigma_m) {
+            return Ok(None);
+        }
+        self.last_placed = Some((prediction.stamp_s, estimate));
+        Ok(Some(PlacedPelvis {
+            position: position + offset,
+            sigma_m,
+        }))
     }
 }
 
@@ -177,7 +249,8 @@ mod tests {
         }
     }
 
-    /// Offset: (frames seen / 10, 0) minus where the person lies in the image; NaN when asked.
+    /// Offset: (frames seen / 10, 0) minus where the person lies in the image; expected
+    /// error: frames seen / 100 m; NaN when asked.
     struct LinearHead {
         nan: bool,
         seen: Vec<(usize, DVec2)>,
@@ -185,12 +258,21 @@ mod tests {
 
     impl PoseHead<usize> for LinearHead {
         type Error = std::io::Error;
-        fn offset(&mut self, frames: &usize, located: DVec2) -> Result<DVec2, Self::Error> {
+        fn estimate(
+            &mut self,
+            frames: &usize,
+            located: DVec2,
+        ) -> Result<HeadEstimate, Self::Error> {
             self.seen.push((*frames, located));
-            if self.nan {
-                return Ok(DVec2::new(f64::NAN, 0.0));
-            }
-            Ok(DVec2::new(*frames as f64 / 10.0, 0.0) - located)
+            let offset = if self.nan {
+                DVec2::new(f64::NAN, 0.0)
+            } else {
+                DVec2::new(*frames as f64 / 10.0, 0.0) - located
+            };
+            Ok(HeadEstimate {
+                offset,
+                sigma_m: *frames as f64 / 100.0,
+            })
         }
     }
 
@@ -213,20 +295,22 @@ mod tests {
             PoseHeadSpec {
                 min_history: 4,
                 activities: vec![Activity::SittingOnFloor],
-                sigma_m: 0.1,
+                max_sigma_m: f64::INFINITY,
             },
             LinearHead { nan, seen: vec![] },
         )
     }
 
-    /// Classifies the person at `positions` (one per scan, 20 Hz) and places the pelvis.
+    /// Classifies the person at `positions` (one per scan, 20 Hz; `None`: hidden, predicted
+    /// 0.1 m along x from where last seen) and places the pelvis.
     fn run(
         framing: Framing,
         placer: &mut PelvisPlacer<LinearHead>,
         positions: &[Option<DVec2>],
-    ) -> Vec<Option<DVec2>> {
+    ) -> Vec<Option<PlacedPelvis>> {
         let mut classifier = classifier(framing);
         let points = [DVec2::new(2.0, 1.0)];
+        let mut last_seen = DVec2::ZERO;
         positions
             .iter()
             .enumerate()
@@ -238,7 +322,14 @@ mod tests {
                     sensor: DVec2::ZERO,
                 };
                 let prediction = classifier.classify(&scan).unwrap();
-                placer.place(&classifier, position, &prediction).unwrap()
+                let person = match position {
+                    Some(seen) => {
+                        last_seen = seen;
+                        PersonAt::Seen(seen)
+                    }
+                    None => PersonAt::Predicted(last_seen + DVec2::new(0.1, 0.0)),
+                };
+                placer.place(&classifier, person, &prediction).unwrap()
             })
             .collect()
     }
@@ -256,10 +347,12 @@ mod tests {
             let frames = k + 1;
             let expected = walk[k].unwrap() + DVec2::new(frames as f64 / 10.0, 0.0)
                 - DVec2::new(0.1 * k as f64, 0.0);
+            let pelvis = pelvis.unwrap();
             assert!(
-                pelvis.unwrap().distance(expected) < 1e-12,
+                pelvis.position.distance(expected) < 1e-12,
                 "scan {k}: {pelvis:?}"
             );
+            assert_eq!(pelvis.sigma_m, frames as f64 / 100.0);
         }
         // Located from the first position of the lane (both lanes started at scan 0).
         assert!(placer.head.seen.iter().all(|(frames, located)| {
@@ -272,7 +365,7 @@ mod tests {
         let mut placer = placer(false);
         let still = vec![Some(DVec2::new(3.0, -1.0)); 6];
         let placed = run(Framing::PersonCentred, &mut placer, &still);
-        assert_eq!(placed[5], Some(DVec2::new(3.6, -1.0)));
+        assert_eq!(placed[5].map(|p| p.position), Some(DVec2::new(3.6, -1.0)));
         assert!(
             placer
                 .head
@@ -311,6 +404,67 @@ mod tests {
     }
 
     #[test]
+    fn a_hidden_person_keeps_the_last_seen_offset_for_the_hold_and_no_longer() {
+        let mut seen = vec![Some(DVec2::ONE); 6];
+        seen.extend([None; 4]);
+        seen.push(Some(DVec2::ONE));
+        seen.extend([None; 1]);
+        let mut holding = placer(false).holding_for(0.12);
+        let placed = run(Framing::RoomFixed, &mut holding, &seen);
+        // Scan 5 (6 frames): offset 0.6 along x, expected error 0.06 m.
+        let last = placed[5].unwrap();
+        assert_eq!(last.sigma_m, 0.06);
+        for k in [6, 7] {
+            let held = placed[k].unwrap();
+            assert!(
+                held.position.distance(last.position + DVec2::new(0.1, 0.0)) < 1e-12,
+                "scan {k}: {held:?}"
+            );
+            assert_eq!(held.sigma_m, 0.06);
+        }
+        assert_eq!(
+            &placed[8..10],
+            &[None, None],
+            "0.15 s after: beyond the hold"
+        );
+        assert!(placed[10].is_some() && placed[11].is_some());
+
+        // Off by default; and a reset (another track) forgets the last placement.
+        let placed = run(Framing::RoomFixed, &mut placer(false), &seen);
+        assert_eq!(&placed[6..8], &[None, None]);
+        let mut classifier = classifier(Framing::RoomFixed);
+        let points = [DVec2::ONE];
+        let mut reset = placer(false).holding_for(1.0);
+        for k in 0..7 {
+            let position = (k < 6).then_some(DVec2::ONE);
+            let prediction = classifier
+                .classify(&PersonScan {
+                    stamp_s: k as f64 * 0.05,
+                    points: &points,
+                    position,
+                    sensor: DVec2::ZERO,
+                })
+                .unwrap();
+            if k == 6 {
+                reset.reset();
+            }
+            let person = position.map_or(PersonAt::Predicted(DVec2::ONE), PersonAt::Seen);
+            let placed = reset.place(&classifier, person, &prediction).unwrap();
+            assert_eq!(placed.is_some(), (3..6).contains(&k), "scan {k}");
+        }
+    }
+
+    #[test]
+    fn no_pelvis_where_the_head_doubts_itself_beyond_its_limit() {
+        // Expected error frames / 100: 0.04, 0.05, 0.06 m on scans 4-6.
+        let mut doubtful = placer(false);
+        doubtful.spec.max_sigma_m = 0.05;
+        let placed = run(Framing::RoomFixed, &mut doubtful, &[Some(DVec2::ONE); 6]);
+        let sigmas: Vec<Option<f64>> = placed.iter().map(|p| p.map(|p| p.sigma_m)).collect();
+        assert_eq!(sigmas, [None, None, None, Some(0.04), Some(0.05), None]);
+    }
+
+    #[test]
     fn no_pelvis_once_the_person_has_left_the_lanes_image() {
         // The image spans 1.6 m (16 pixels of 0.1 m): half of it is 0.8 m from the centre.
         let mut runner = placer(false);
@@ -333,11 +487,11 @@ mod tests {
 
     #[test]
     fn spec_reads_its_metadata_and_names_a_bad_key() {
-        let metadata = |activities: &'static str, sigma: &'static str| {
+        let metadata = |activities: &'static str, max_sigma: &'static str| {
             move |key: &str| match key {
                 PoseHeadSpec::KEY_MIN_HISTORY => Some("12".to_string()),
                 PoseHeadSpec::KEY_ACTIVITIES => Some(activities.to_string()),
-                PoseHeadSpec::KEY_SIGMA => Some(sigma.to_string()),
+                PoseHeadSpec::KEY_MAX_SIGMA => Some(max_sigma.to_string()),
                 _ => None,
             }
         };
@@ -348,7 +502,9 @@ mod tests {
             spec.activities,
             vec![Activity::GettingUp, Activity::SittingOnFloor]
         );
-        assert_eq!(spec.sigma_m, 0.08);
+        assert_eq!(spec.max_sigma_m, 0.08);
+        let unlimited = PoseHeadSpec::from_metadata(metadata("lying_down", "inf")).unwrap();
+        assert_eq!(unlimited.max_sigma_m, f64::INFINITY);
         assert!(
             PoseHeadSpec::from_metadata(metadata("", "0.08"))
                 .unwrap()
@@ -361,8 +517,13 @@ mod tests {
             e.to_string().contains("'sitting' is not an activity"),
             "{e}"
         );
-        let e = PoseHeadSpec::from_metadata(metadata("lying_down", "nan")).unwrap_err();
-        assert!(e.to_string().contains(PoseHeadSpec::KEY_SIGMA), "{e}");
+        for bad in ["nan", "0", "-0.1"] {
+            let e = PoseHeadSpec::from_metadata(metadata("lying_down", bad)).unwrap_err();
+            assert!(
+                e.to_string().contains(PoseHeadSpec::KEY_MAX_SIGMA),
+                "{bad}: {e}"
+            );
+        }
         let e = PoseHeadSpec::from_metadata(|_: &str| None).unwrap_err();
         assert!(e.to_string().contains("is missing"), "{e}");
     }

@@ -121,7 +121,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let every_scan = PoseHeadSpec {
         min_history: 0,
         activities: Activity::ALL.to_vec(),
-        sigma_m: head.spec().sigma_m,
+        max_sigma_m: f64::INFINITY,
     };
     let mut placer = PelvisPlacer::new(every_scan, head);
     let schedule = LaneSchedule {

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::DVec2;
-use lidar_har_core::pose_head::{PoseHead, PoseHeadSpec};
+use lidar_har_core::pose_head::{HeadEstimate, PoseHead, PoseHeadSpec};
 use ort::session::Session;
 use ort::value::{Outlet, TensorRef};
 use sha2::{Digest, Sha256};
@@ -108,7 +108,7 @@ impl PoseHeadModel {
 impl PoseHead<ModelState> for PoseHeadModel {
     type Error = InferError;
 
-    fn offset(&mut self, state: &ModelState, located: DVec2) -> Result<DVec2, InferError> {
+    fn estimate(&mut self, state: &ModelState, located: DVec2) -> Result<HeadEstimate, InferError> {
         let run = |e: ort::Error| InferError::Run(e.to_string());
         let located = [located.x as f32, located.y as f32];
         let inputs = ort::inputs![
@@ -116,33 +116,42 @@ impl PoseHead<ModelState> for PoseHeadModel {
             "located" => TensorRef::from_array_view(([1usize, 2], &located[..])).map_err(run)?,
         ];
         let outputs = self.session.run(inputs).map_err(run)?;
-        let value = outputs
-            .get("offset")
-            .ok_or_else(|| InferError::Run("the pose head gave no 'offset' output".into()))?;
-        let (_, data) = value.try_extract_tensor::<f32>().map_err(run)?;
-        match data {
-            [x, y] => Ok(DVec2::new(f64::from(*x), f64::from(*y))),
-            _ => Err(InferError::Run(format!(
-                "output 'offset' has {} values, expected 2",
-                data.len()
-            ))),
-        }
+        let output = |name: &str, len: usize| -> Result<Vec<f64>, InferError> {
+            let value = outputs
+                .get(name)
+                .ok_or_else(|| InferError::Run(format!("the pose head gave no '{name}' output")))?;
+            let (_, data) = value.try_extract_tensor::<f32>().map_err(run)?;
+            if data.len() != len {
+                return Err(InferError::Run(format!(
+                    "output '{name}' has {} values, expected {len}",
+                    data.len()
+                )));
+            }
+            Ok(data.iter().map(|&v| f64::from(v)).collect())
+        };
+        let offset = output("offset", 2)?;
+        let sigma = output("sigma", 1)?;
+        Ok(HeadEstimate {
+            offset: DVec2::new(offset[0], offset[1]),
+            sigma_m: sigma[0],
+        })
     }
 }
 
-/// Inputs `h` (the activity model's state shape) and `located` `[1, 2]`, output `offset`
-/// `[1, 2]`, all float32.
+/// Inputs `h` (the activity model's state shape) and `located` `[1, 2]`, outputs `offset`
+/// `[1, 2]` and `sigma` `[1, 1]`, all float32.
 fn check_signature(
     inputs: &[Outlet],
     outputs: &[Outlet],
     state_shape: [usize; 4],
 ) -> Result<(), String> {
     check_outlet_names(inputs, "input", &["h", "located"])?;
-    check_outlet_names(outputs, "output", &["offset"])?;
+    check_outlet_names(outputs, "output", &["offset", "sigma"])?;
     for (outlets, kind, name, expected) in [
         (inputs, "input", "h", &state_shape[..]),
         (inputs, "input", "located", &[1, 2]),
         (outputs, "output", "offset", &[1, 2]),
+        (outputs, "output", "sigma", &[1, 1]),
     ] {
         let shape = float_outlet_shape(outlets, kind, name)?;
         if !shape_matches(&shape, expected) {

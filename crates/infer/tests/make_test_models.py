@@ -97,7 +97,7 @@ POSE_HEAD_LOCATED = [0.3, -0.2]
 POSE_HEAD_METADATA = {
     "lidar_har.pose_head.min_history": "3",
     "lidar_har.pose_head.activities": ",".join(ACTIVITIES),
-    "lidar_har.pose_head.sigma_m": "0.05",
+    "lidar_har.pose_head.max_sigma_m": "inf",
 }
 
 
@@ -107,18 +107,25 @@ def pose_head_weights():
         "w_state": rng.normal(0.0, 0.5, (HIDDEN, 2)).astype(np.float32),
         "w_located": rng.normal(0.0, 0.5, (2, 2)).astype(np.float32),
         "b_offset": rng.normal(0.0, 0.1, (2,)).astype(np.float32),
+        "w_sigma": rng.normal(0.0, 0.5, (HIDDEN, 1)).astype(np.float32),
+        "b_sigma": np.full((1,), -2.5, np.float32),
     }
 
 
-def build_pose_head(w, activity_sha256, hidden=HIDDEN):
+def build_pose_head(w, activity_sha256, hidden=HIDDEN, sigma=True):
     """A tiny pose head with the contract's names: offset = mean(h) W_state + located
-    W_located + b."""
+    W_located + b, sigma = exp(mean(h) W_sigma + b_sigma) (without `sigma`: a head of the
+    contract before session 24)."""
     f = TensorProto.FLOAT
     inputs = [
         helper.make_tensor_value_info("h", f, [1, hidden, HS, HS]),
         helper.make_tensor_value_info("located", f, [1, 2]),
     ]
     outputs = [helper.make_tensor_value_info("offset", f, [1, 2])]
+    if sigma:
+        outputs.append(helper.make_tensor_value_info("sigma", f, [1, 1]))
+    else:
+        w = {k: v for k, v in w.items() if "sigma" not in k}
     init = [numpy_helper.from_array(v, k) for k, v in w.items()]
     n = helper.make_node
     nodes = [
@@ -129,6 +136,12 @@ def build_pose_head(w, activity_sha256, hidden=HIDDEN):
         n("Add", ["from_state", "from_located"], ["sum"]),
         n("Add", ["sum", "b_offset"], ["offset"]),
     ]
+    if sigma:
+        nodes += [
+            n("MatMul", ["hf", "w_sigma"], ["sigma_state"]),
+            n("Add", ["sigma_state", "b_sigma"], ["log_sigma"]),
+            n("Exp", ["log_sigma"], ["sigma"]),
+        ]
     graph = helper.make_graph(nodes, "pose_head_test", inputs, outputs, init)
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="lidar_har tests")
     model.ir_version = 8
@@ -139,7 +152,10 @@ def build_pose_head(w, activity_sha256, hidden=HIDDEN):
 
 
 def reference_pose_head(w, h, located):
-    return h.mean(axis=(1, 2)) @ w["w_state"] + np.asarray(located) @ w["w_located"] + w["b_offset"]
+    """The offset and the deviation."""
+    pooled = h.mean(axis=(1, 2))
+    return (pooled @ w["w_state"] + np.asarray(located) @ w["w_located"] + w["b_offset"],
+            float(np.exp(pooled @ w["w_sigma"] + w["b_sigma"])[0]))
 
 
 def sigmoid(x):
@@ -188,7 +204,9 @@ def main():
     head = pose_head_weights()
     onnx.save(build_pose_head(head, step_sha256), OUT / "pose_head.onnx")
     onnx.save(build_pose_head(head, hashlib.sha256(b"another model").hexdigest()), OUT / "pose_head_other_model.onnx")
-    onnx.save(build_pose_head({**head, "w_state": head["w_state"][:3]}, step_sha256, hidden=3), OUT / "pose_head_wrong_state.onnx")
+    onnx.save(build_pose_head({**head, "w_state": head["w_state"][:3], "w_sigma": head["w_sigma"][:3]}, step_sha256, hidden=3),
+              OUT / "pose_head_wrong_state.onnx")
+    onnx.save(build_pose_head(head, step_sha256, sigma=False), OUT / "pose_head_without_sigma.onnx")
 
     h = np.zeros((HIDDEN, HS, HS))
     c = np.zeros((HIDDEN, HS, HS))
@@ -197,12 +215,13 @@ def main():
     for frame in seq:
         out, h, c = reference_step(w, frame.astype(np.float64), h, c)
         logits.append([float(v) for v in out])
+    offset, sigma = reference_pose_head(head, h, POSE_HEAD_LOCATED)
     expected = {
         "frames": [[float(v) for v in f.ravel()] for f in seq],
         "logits": logits,
         "h_final_sum": float(h.sum()),
         "pose_head": {"located": POSE_HEAD_LOCATED,
-                      "offset": [float(v) for v in reference_pose_head(head, h, POSE_HEAD_LOCATED)]},
+                      "offset": [float(v) for v in offset], "sigma": sigma},
     }
     (OUT / "step_model_expected.json").write_text(json.dumps(expected) + "\n")
 

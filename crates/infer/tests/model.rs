@@ -247,7 +247,7 @@ fn pose_head_reads_the_state_and_matches_numpy() {
     let mut model = load("step_model.onnx").unwrap();
     let mut head = PoseHeadModel::load(fixture("pose_head.onnx"), &model, 1).unwrap();
     assert_eq!(head.spec().min_history, 3);
-    assert_eq!(head.spec().sigma_m, 0.05);
+    assert_eq!(head.spec().max_sigma_m, f64::INFINITY);
     assert_eq!(head.spec().activities.len(), 9);
     let mut state = lidar_har_core::classifier::StepModel::initial_state(&model);
     for image in expected_frames(&expected) {
@@ -256,10 +256,18 @@ fn pose_head_reads_the_state_and_matches_numpy() {
     let want = &expected["pose_head"];
     let located = want["located"].as_array().unwrap();
     let located = DVec2::new(located[0].as_f64().unwrap(), located[1].as_f64().unwrap());
-    let got = head.offset(&state, located).unwrap();
+    let got = head.estimate(&state, located).unwrap();
     let offset = want["offset"].as_array().unwrap();
-    let want = DVec2::new(offset[0].as_f64().unwrap(), offset[1].as_f64().unwrap());
-    assert!(got.distance(want) < 1e-5, "{got} against NumPy {want}");
+    let want_offset = DVec2::new(offset[0].as_f64().unwrap(), offset[1].as_f64().unwrap());
+    assert!(
+        got.offset.distance(want_offset) < 1e-5,
+        "{got:?} against NumPy {want_offset}"
+    );
+    let want_sigma = want["sigma"].as_f64().unwrap();
+    assert!(
+        (got.sigma_m - want_sigma).abs() < 1e-6,
+        "{got:?} against NumPy sigma {want_sigma}"
+    );
 }
 
 #[test]
@@ -281,6 +289,14 @@ fn pose_head_for_another_model_or_state_or_missing_is_refused_naming_files() {
     assert!(
         text.contains("pose_head_wrong_state.onnx")
             && text.contains("input 'h' has shape [1, 3, 8, 8]"),
+        "{text}"
+    );
+
+    // A head of the contract before its expected error was an output.
+    let e = PoseHeadModel::load(fixture("pose_head_without_sigma.onnx"), &model, 1).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("pose_head_without_sigma.onnx") && text.contains("'sigma'"),
         "{text}"
     );
 

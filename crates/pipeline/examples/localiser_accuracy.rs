@@ -97,6 +97,9 @@ struct Group {
     missed: u64,
     /// In-sight scans with the person reported farther than `FAR_M` from the body centre.
     far: u64,
+    /// Scans with a pelvis placed, and of them those whose error lies within the 1- and
+    /// 2-sigma ellipses of its published covariance.
+    pelvis_calibration: [u64; 3],
 }
 
 /// A reported person this far from the body centre is on something else.
@@ -110,6 +113,13 @@ impl Group {
         self.radial_m.extend_from_slice(&other.radial_m);
         self.missed += other.missed;
         self.far += other.far;
+        for (sum, add) in self
+            .pelvis_calibration
+            .iter_mut()
+            .zip(other.pelvis_calibration)
+        {
+            *sum += add;
+        }
     }
 
     fn radial_median(&self) -> Option<f64> {
@@ -261,6 +271,16 @@ fn main() -> Result<(), Box<dyn Error>> {
     for (index, group) in &by_activity {
         print_row(activity_name(*index), group);
     }
+    let [placed, within_1, within_2] = overall.pelvis_calibration;
+    if placed > 0 {
+        let share = |n: u64| 100.0 * n as f64 / placed as f64;
+        println!(
+            "\n/human/pelvis placed on {placed} scans; its error within the 1 / 2-sigma ellipse of \
+             its covariance on {:.1} / {:.1} % of them (39.3 / 86.5 % if calibrated)",
+            share(within_1),
+            share(within_2)
+        );
+    }
 
     if let Some(path) = &args.json {
         let rows = |groups: Vec<(String, &Group)>| -> Vec<Row> {
@@ -286,6 +306,9 @@ fn main() -> Result<(), Box<dyn Error>> {
             "scenes": rows(by_scene.iter().map(|(n, g)| (n.clone(), g)).collect()),
             "motions": rows(by_motion.iter().map(|(n, g)| (n.to_string(), g)).collect()),
             "activities": rows(by_activity.iter().map(|(i, g)| (activity_name(*i).to_string(), g)).collect()),
+            "pelvis_calibration": {
+                "placed": placed, "within_1_sigma": within_1, "within_2_sigma": within_2,
+            },
         });
         std::fs::write(path, serde_json::to_string_pretty(&json)?)
             .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -406,13 +429,21 @@ fn run_scene(
             writeln!(out, "{line}")?;
         }
         let pelvis = match (&mut stage, &result.output, estimate) {
-            (Some(stage), Some(output), Some(person)) => stage
-                .on_observation(&observation_msg(output, person, "map"))?
-                .pelvis
-                .map(|p| p.position),
+            (Some(stage), Some(output), Some(person)) => {
+                stage
+                    .on_observation(&observation_msg(output, person, "map"))?
+                    .pelvis
+            }
             _ => None,
         };
         let group = by_activity.entry(activity).or_default();
+        if let (Some(pelvis), Some(truth)) = (pelvis, truth) {
+            let d2 = mahalanobis_squared(truth - pelvis.position, pelvis.covariance);
+            group.pelvis_calibration[0] += 1;
+            group.pelvis_calibration[1] += u64::from(d2 <= 1.0);
+            group.pelvis_calibration[2] += u64::from(d2 <= 4.0);
+        }
+        let pelvis = pelvis.map(|p| p.position);
         let reported = estimate.map(|e| ReportedPerson {
             position: e.position,
             visible: e.visible,
@@ -472,6 +503,13 @@ fn run_scene(
         }
     }
     Ok(())
+}
+
+/// `e` Σ⁻¹ `e` for a 2 x 2 covariance Σ: at most k² within its k-sigma ellipse (39 % of a
+/// Gaussian's draws at k = 1, 86 % at k = 2).
+fn mahalanobis_squared(e: DVec2, c: [[f64; 2]; 2]) -> f64 {
+    let det = c[0][0] * c[1][1] - c[0][1] * c[1][0];
+    (e.x * e.x * c[1][1] - e.x * e.y * (c[0][1] + c[1][0]) + e.y * e.y * c[0][0]) / det
 }
 
 /// How many of `taken` (map-frame points the localiser took for the person) are returns the

@@ -25,7 +25,7 @@ use lidar_har_core::fall::{
 };
 use lidar_har_core::geometry::MainAxisSpan;
 use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
-use lidar_har_core::pose_head::{NoPoseHead, PelvisPlacer, PoseHead};
+use lidar_har_core::pose_head::{NoPoseHead, PelvisPlacer, PersonAt, PoseHead};
 use lidar_har_infer::{ActivityModel, InferError, PoseHeadModel};
 use lidar_har_msgs::builtin_interfaces::{Duration, Time};
 use lidar_har_msgs::geometry_msgs::{
@@ -57,6 +57,9 @@ pub struct ClassifierConfig {
     /// When it cannot be used (missing, or fitted on another activity model) the classifier
     /// runs without it and says why: a pelvis is never worth losing the fall alerts for.
     pub pose_head: Option<PathBuf>,
+    /// While the person is hidden, /human/pelvis stays at the last seen offset from the
+    /// track's prediction for this long, s (0: only on seen scans).
+    pub pelvis_hold_s: f64,
     pub fall_alert: FallAlertConfig,
 }
 
@@ -68,6 +71,7 @@ impl Default for ClassifierConfig {
             lane_period_windows: 1.2,
             lanes: 2,
             pose_head: Some(PathBuf::from("models/pose_head.onnx")),
+            pelvis_hold_s: 1.0,
             fall_alert: FallAlertConfig::default(),
         }
     }
@@ -130,6 +134,13 @@ pub fn parse_classifier_config(text: &str) -> Result<ClassifierConfig, Classifie
         return Err(ClassifierError::Config {
             path: None,
             message: format!("lanes = {} is out of range (2..=8)", config.lanes),
+        });
+    }
+    let hold = config.pelvis_hold_s;
+    if !(hold.is_finite() && hold >= 0.0) {
+        return Err(ClassifierError::Config {
+            path: None,
+            message: format!("pelvis_hold_s = {hold} must be finite and not negative"),
         });
     }
     Ok(config)
@@ -236,7 +247,10 @@ impl ClassifierStage<ActivityModel, PoseHeadModel> {
             None => (None, PoseHeadStatus::Off),
             Some(head_path) => match PoseHeadModel::load(head_path, &model, config.threads) {
                 Ok(head) => (
-                    Some(PelvisPlacer::new(head.spec().clone(), head)),
+                    Some(
+                        PelvisPlacer::new(head.spec().clone(), head)
+                            .holding_for(config.pelvis_hold_s),
+                    ),
                     PoseHeadStatus::Used {
                         path: head_path.clone(),
                     },
@@ -351,6 +365,9 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
         // A new track may be another person, or the same one found far away: start afresh.
         if obs.visible && self.track_id.is_some_and(|id| id != obs.track_id) {
             self.classifier.reset();
+            if let Some(placer) = &mut self.pelvis {
+                placer.reset();
+            }
         }
         if obs.visible {
             self.track_id = Some(obs.track_id);
@@ -372,13 +389,20 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
         let prediction = self.classifier.classify(&scan)?;
         let pelvis = match &mut self.pelvis {
             Some(placer) => {
-                let sigma2 = placer.spec().sigma_m.powi(2);
                 let c = obs.covariance;
                 // A failing head costs this scan's pelvis, never its activity or alerts.
-                match placer.place(&self.classifier, scan.position, &prediction) {
-                    Ok(placed) => placed.map(|position| Pelvis {
-                        position,
-                        covariance: [[c[0] + sigma2, c[1]], [c[2], c[3] + sigma2]],
+                let person = if obs.visible {
+                    PersonAt::Seen(position)
+                } else {
+                    PersonAt::Predicted(position)
+                };
+                match placer.place(&self.classifier, person, &prediction) {
+                    Ok(placed) => placed.map(|placed| {
+                        let sigma2 = placed.sigma_m.powi(2);
+                        Pelvis {
+                            position: placed.position,
+                            covariance: [[c[0] + sigma2, c[1]], [c[2], c[3] + sigma2]],
+                        }
                     }),
                     Err(e) => {
                         self.pose_head_errors += 1;
@@ -1004,7 +1028,7 @@ impl From<BagError> for ClassifierRunError {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lidar_har_core::pose_head::PoseHeadSpec;
+    use lidar_har_core::pose_head::{HeadEstimate, PoseHeadSpec};
     use lidar_har_core::representation::{Framing, RepresentationKind, RepresentationSpec};
     use lidar_har_msgs::geometry_msgs::Point32;
     use ndarray::ArrayView2;
@@ -1247,13 +1271,17 @@ mod tests {
         }
     }
 
-    /// A pose head that puts the pelvis 0.3 m along x from the localiser's position.
+    /// A pose head that puts the pelvis 0.3 m along x from the localiser's position and
+    /// expects an error of 0.2 m.
     struct ShiftHead;
 
     impl PoseHead<()> for ShiftHead {
         type Error = std::io::Error;
-        fn offset(&mut self, _: &(), _: DVec2) -> Result<DVec2, std::io::Error> {
-            Ok(DVec2::new(0.3, 0.0))
+        fn estimate(&mut self, _: &(), _: DVec2) -> Result<HeadEstimate, std::io::Error> {
+            Ok(HeadEstimate {
+                offset: DVec2::new(0.3, 0.0),
+                sigma_m: 0.2,
+            })
         }
     }
 
@@ -1262,7 +1290,7 @@ mod tests {
 
     impl PoseHead<()> for BrokenHead {
         type Error = std::io::Error;
-        fn offset(&mut self, _: &(), _: DVec2) -> Result<DVec2, std::io::Error> {
+        fn estimate(&mut self, _: &(), _: DVec2) -> Result<HeadEstimate, std::io::Error> {
             Err(std::io::Error::other("no session"))
         }
     }
@@ -1281,7 +1309,7 @@ mod tests {
         let spec = PoseHeadSpec {
             min_history: 1,
             activities: Activity::ALL.to_vec(),
-            sigma_m: 0.1,
+            max_sigma_m: f64::INFINITY,
         };
         let status = PoseHeadStatus::Used {
             path: "head.onnx".into(),
@@ -1305,6 +1333,16 @@ mod tests {
 
     #[test]
     fn pose_head_publishes_the_pelvis_on_seen_scans_of_its_activities() {
+        publishes_the_pelvis(0.0);
+    }
+
+    #[test]
+    fn pose_head_holds_the_pelvis_through_a_short_occlusion() {
+        publishes_the_pelvis(0.5);
+    }
+
+    /// A sitter hidden on scan 15: a pelvis there only with a hold.
+    fn publishes_the_pelvis(hold_s: f64) {
         let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
         let model = TimelineModel {
             timeline: vec![(0.0, Activity::Walking), (0.5, Activity::SittingOnFloor)],
@@ -1313,14 +1351,17 @@ mod tests {
         let spec = PoseHeadSpec {
             min_history: 4,
             activities: vec![Activity::SittingOnFloor],
-            sigma_m: 0.2,
+            max_sigma_m: f64::INFINITY,
         };
         let status = PoseHeadStatus::Used {
             path: "head.onnx".into(),
         };
         let mut stage = ClassifierStage::new(model, stream(), FallAlertConfig::default())
             .unwrap()
-            .with_pose_head(Some(PelvisPlacer::new(spec, ShiftHead)), status.clone());
+            .with_pose_head(
+                Some(PelvisPlacer::new(spec, ShiftHead).holding_for(hold_s)),
+                status.clone(),
+            );
         assert_eq!(stage.pose_head(), &status);
         for k in 0..20 {
             let t = k as f64 * 0.05;
@@ -1334,7 +1375,7 @@ mod tests {
                 .iter()
                 .map(|o| o.topic.name)
                 .collect();
-            let expected = k >= 10 && k != 15;
+            let expected = k >= 10 && (k != 15 || hold_s > 0.0);
             assert_eq!(out.pelvis.is_some(), expected, "scan {k}");
             assert_eq!(topics.contains(&"/human/pelvis"), expected, "scan {k}");
             if let Some(pelvis) = stage.messages(&out).pelvis {
@@ -1408,6 +1449,12 @@ mod tests {
                 .unwrap_err()
                 .to_string();
             assert!(e.contains("lanes"), "{e}");
+        }
+        for bad in ["-1", ".inf", ".nan"] {
+            let e = parse_classifier_config(&format!("pelvis_hold_s: {bad}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("pelvis_hold_s"), "{e}");
         }
         let c = parse_classifier_config("lane_period_windows: 1.25\nlanes: 3\n").unwrap();
         assert_eq!(
