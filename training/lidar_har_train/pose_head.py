@@ -14,7 +14,9 @@ with `*_positions.npy` (`lidar-har dataset`, since session 22).
 Scores the pelvis error over the scans the localiser saw (median / p95, metres) on the test
 splits, overall and per activity, before and after the head. The head is then used only for
 the activities it helps on `test` (the drawn rooms' held-out episodes, as the classifier
-reads them); `test_unseen` (a room never trained on) is the figure to quote.
+reads them) and where the error it expects of itself (its second output, scaled on `test`)
+is below the limit that does best there; `test_unseen` (a room never trained on) is the
+figure to quote.
 """
 
 import argparse
@@ -153,8 +155,8 @@ def doubt_threshold(before, after, sigma, used_scans) -> float:
 def calibrate(head, error, sigma) -> float:
     """Scales the head's deviations so that half of `error` lies within the median radius of
     the Gaussian they describe (sigma * sqrt(2 ln 2)): fitted on its training scans, the head
-    expects the smaller errors it made there. Folded into the last layer's bias, so the
-    exported model outputs the scaled deviation; returns the scale."""
+    expects the smaller errors it made there. Folded into `log_sigma`'s bias, so the exported
+    model outputs the scaled deviation; returns the scale."""
     scale = float(np.median(error / sigma)) / np.sqrt(2 * np.log(2))
     with torch.no_grad():
         head.log_sigma.bias += np.log(scale)

@@ -15,7 +15,7 @@ use std::time::Instant;
 use glam::DVec2;
 use lidar_har_core::activity::Activity;
 use lidar_har_core::classifier::{LaneSchedule, PersonScan, StreamingClassifier};
-use lidar_har_core::pose_head::{PelvisPlacer, PoseHeadSpec};
+use lidar_har_core::pose_head::{PelvisPlacer, PersonAt, PoseHeadSpec};
 use lidar_har_core::representation::Renderer;
 use lidar_har_infer::{ActivityModel, PoseHeadModel};
 
@@ -132,14 +132,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let start = Instant::now();
     let mut placed = 0;
     for (t, centre, points) in &scans {
-        let position = Some(*centre);
         let prediction = classifier.classify(&PersonScan {
             stamp_s: *t,
             points,
-            position,
+            position: Some(*centre),
             sensor,
         })?;
-        placed += usize::from(placer.place(&classifier, position, &prediction)?.is_some());
+        let person = PersonAt::Seen(*centre);
+        placed += usize::from(placer.place(&classifier, person, &prediction)?.is_some());
     }
     let per_scan_ms = start.elapsed().as_secs_f64() * 1e3 / scans.len() as f64;
     println!(
