@@ -7,7 +7,8 @@
 //! a small model fitted on it predicts the pelvis's offset from the localiser's position. It
 //! runs after each classification on the state the prediction came from, and only where it
 //! was fitted and found to help: the person seen, at least `min_history` frames behind the
-//! state, an activity in `activities`, the head expecting an error of at most `max_sigma_m`.
+//! state, an activity in `activities`, the head expecting an error of at most `max_sigma_m`;
+//! and, for a short hold, at the last seen offset from the track while the person is hidden.
 //! The head's expected error is published with the pelvis, so a consumer can weigh it.
 
 use glam::DVec2;
