@@ -172,8 +172,9 @@ def calibration(error, sigma) -> dict:
 def scores(before, after, sigma, data, used, max_sigma):
     """Pelvis errors: the localiser alone, the head everywhere, the head where the runtime
     places it (what it publishes); overall and per true activity."""
-    gated = np.where(placed(data, sigma, used, max_sigma), after, before)
-    report = {"scans": int(len(before)), "placed": round(float(placed(data, sigma, used, max_sigma).mean()), 3),
+    placed_scans = placed(data, sigma, used, max_sigma)
+    gated = np.where(placed_scans, after, before)
+    report = {"scans": int(len(before)), "placed": round(float(placed_scans.mean()), 3),
               "calibration": calibration(after, sigma)}
     for name, errors in (("localiser", before), ("head", after), ("published", gated)):
         report[name] = {"median_p95_m": pair(errors),

@@ -13,8 +13,8 @@ use lidar_har_core::activity::Activity;
 use lidar_har_core::classifier::{StepModel, StreamSpec, StreamSpecError};
 use ndarray::ArrayView2;
 use ort::environment::Environment;
-use ort::session::Session;
 use ort::session::builder::GraphOptimizationLevel;
+use ort::session::{Session, SessionOutputs};
 use ort::value::{Outlet, TensorElementType, TensorRef};
 
 mod pose_head;
@@ -232,26 +232,42 @@ impl ActivityModel {
         ];
         let outputs = self.session.run(inputs).map_err(run)?;
         let mut logits = [0.0; Activity::COUNT];
-        for (name, target) in [
-            ("logits", &mut logits[..]),
-            ("h_next", &mut state.h[..]),
-            ("c_next", &mut state.c[..]),
-        ] {
-            let value = outputs
-                .get(name)
-                .ok_or_else(|| InferError::Run(format!("the model gave no '{name}' output")))?;
-            let (_, data) = value.try_extract_tensor::<f32>().map_err(run)?;
-            if data.len() != target.len() {
-                return Err(InferError::Run(format!(
-                    "output '{name}' has {} values, expected {}",
-                    data.len(),
-                    target.len()
-                )));
-            }
-            target.copy_from_slice(data);
-        }
+        copy_outputs(
+            &outputs,
+            "the model",
+            [
+                ("logits", &mut logits[..]),
+                ("h_next", &mut state.h[..]),
+                ("c_next", &mut state.c[..]),
+            ],
+        )?;
         Ok(logits)
     }
+}
+
+/// Copies each named float output of a run into its target, which must be its exact size.
+fn copy_outputs<const N: usize>(
+    outputs: &SessionOutputs<'_>,
+    model: &str,
+    targets: [(&str, &mut [f32]); N],
+) -> Result<(), InferError> {
+    for (name, target) in targets {
+        let value = outputs
+            .get(name)
+            .ok_or_else(|| InferError::Run(format!("{model} gave no '{name}' output")))?;
+        let (_, data) = value
+            .try_extract_tensor::<f32>()
+            .map_err(|e| InferError::Run(e.to_string()))?;
+        if data.len() != target.len() {
+            return Err(InferError::Run(format!(
+                "output '{name}' has {} values, expected {}",
+                data.len(),
+                target.len()
+            )));
+        }
+        target.copy_from_slice(data);
+    }
+    Ok(())
 }
 
 impl StepModel for ActivityModel {

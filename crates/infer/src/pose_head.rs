@@ -11,8 +11,8 @@ use ort::value::{Outlet, TensorRef};
 use sha2::{Digest, Sha256};
 
 use crate::{
-    ActivityModel, InferError, ModelState, check_outlet_names, environment, float_outlet_shape,
-    open_session, shape_matches,
+    ActivityModel, InferError, ModelState, check_outlet_names, copy_outputs, environment,
+    float_outlet_shape, open_session, shape_matches,
 };
 
 /// Metadata key: the SHA-256 (hex) of the activity model file whose state the head reads.
@@ -116,24 +116,15 @@ impl PoseHead<ModelState> for PoseHeadModel {
             "located" => TensorRef::from_array_view(([1usize, 2], &located[..])).map_err(run)?,
         ];
         let outputs = self.session.run(inputs).map_err(run)?;
-        let output = |name: &str, len: usize| -> Result<Vec<f64>, InferError> {
-            let value = outputs
-                .get(name)
-                .ok_or_else(|| InferError::Run(format!("the pose head gave no '{name}' output")))?;
-            let (_, data) = value.try_extract_tensor::<f32>().map_err(run)?;
-            if data.len() != len {
-                return Err(InferError::Run(format!(
-                    "output '{name}' has {} values, expected {len}",
-                    data.len()
-                )));
-            }
-            Ok(data.iter().map(|&v| f64::from(v)).collect())
-        };
-        let offset = output("offset", 2)?;
-        let sigma = output("sigma", 1)?;
+        let (mut offset, mut sigma) = ([0.0f32; 2], [0.0f32; 1]);
+        copy_outputs(
+            &outputs,
+            "the pose head",
+            [("offset", &mut offset[..]), ("sigma", &mut sigma[..])],
+        )?;
         Ok(HeadEstimate {
-            offset: DVec2::new(offset[0], offset[1]),
-            sigma_m: sigma[0],
+            offset: DVec2::new(f64::from(offset[0]), f64::from(offset[1])),
+            sigma_m: f64::from(sigma[0]),
         })
     }
 }
