@@ -66,6 +66,14 @@ pub enum StreamSpecError {
         "{lanes} lanes: need at least 2 (a restarting lane has no history) and at most the lane period ({period} scans)"
     )]
     LaneCount { lanes: usize, period: usize },
+    #[error(
+        "{lanes} lanes with {lanes_between} between each two: more states than the lane period ({period} scans) has scans"
+    )]
+    LanesBetween {
+        lanes: usize,
+        lanes_between: usize,
+        period: usize,
+    },
 }
 
 impl StreamSpec {
@@ -215,10 +223,16 @@ pub struct StepError(pub Box<dyn std::error::Error + Send + Sync>);
 /// every `period / lanes` scans. The prediction comes from the oldest, so every prediction
 /// after warm-up has between `period - period / lanes` (about) and `period` scans behind it;
 /// more lanes narrow that range towards `period` for one model step per lane per scan.
+///
+/// `lanes_between` more states restart between each two of those, stepped but never
+/// predicted from: for readers of the state that are best with less history than the
+/// prediction has (the pose head, [`StreamingClassifier::state_with_history`]). They leave
+/// the predictions exactly as without them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LaneSchedule {
     pub period: usize,
     pub lanes: usize,
+    pub lanes_between: usize,
 }
 
 impl LaneSchedule {
@@ -228,12 +242,24 @@ impl LaneSchedule {
         Self {
             period: window,
             lanes: 2,
+            lanes_between: 0,
         }
     }
 
-    /// The scan (modulo `period`) at which lane `k` restarts.
+    /// States stepped in all.
+    pub fn states(&self) -> usize {
+        self.lanes * (1 + self.lanes_between)
+    }
+
+    /// The scan (modulo `period`) at which state `k` restarts. The predicting lanes are
+    /// every `1 + lanes_between`-th state, so they restart when they would without the others.
     fn offset(&self, k: usize) -> usize {
-        k * self.period / self.lanes
+        k * self.period / self.states()
+    }
+
+    /// Whether state `k` is one of the `lanes` predicted from.
+    fn predicts(&self, k: usize) -> bool {
+        k.is_multiple_of(1 + self.lanes_between)
     }
 }
 
@@ -265,7 +291,11 @@ impl<M: StepModel> StreamingClassifier<M> {
         schedule: LaneSchedule,
     ) -> Result<Self, StreamSpecError> {
         spec.validate()?;
-        let LaneSchedule { period, lanes } = schedule;
+        let LaneSchedule {
+            period,
+            lanes,
+            lanes_between,
+        } = schedule;
         if period < spec.window {
             return Err(StreamSpecError::LanePeriod {
                 period,
@@ -275,16 +305,23 @@ impl<M: StepModel> StreamingClassifier<M> {
         if !(2..=period).contains(&lanes) {
             return Err(StreamSpecError::LaneCount { lanes, period });
         }
+        if schedule.states() > period {
+            return Err(StreamSpecError::LanesBetween {
+                lanes,
+                lanes_between,
+                period,
+            });
+        }
         let renderer = Renderer::new(spec.representation)?;
         Ok(Self {
-            lanes: (0..lanes)
+            lanes: (0..schedule.states())
                 .map(|_| Lane {
                     state: model.initial_state(),
                     history: 0,
                     centre: None,
                 })
                 .collect(),
-            images: (0..lanes)
+            images: (0..schedule.states())
                 .map(|_| spec.representation.blank_image())
                 .collect(),
             model,
@@ -314,15 +351,25 @@ impl<M: StepModel> StreamingClassifier<M> {
         self.images[self.predicting_lane()].view()
     }
 
-    /// The state behind the last prediction, and where `position` lies in the image that
+    /// The state with the least history of at least `min_history` scans (any state, those
+    /// between the predicting lanes included), and where `position` lies in the image that
     /// state was last stepped on (metres from the image's centre): what the pose head reads.
-    pub fn last_state(&self, position: DVec2) -> (&M::State, DVec2) {
-        let lane = &self.lanes[self.predicting_lane()];
+    /// `None` before any state has that much history.
+    pub fn state_with_history(
+        &self,
+        min_history: usize,
+        position: DVec2,
+    ) -> Option<(&M::State, DVec2)> {
+        let lane = self
+            .lanes
+            .iter()
+            .filter(|lane| lane.history >= min_history)
+            .min_by_key(|lane| lane.history)?;
         let located = match self.spec.representation.framing {
             Framing::RoomFixed => lane.centre.map_or(DVec2::ZERO, |centre| position - centre),
             Framing::PersonCentred => DVec2::ZERO,
         };
-        (&lane.state, located)
+        Some((&lane.state, located))
     }
 
     /// Restarts every lane from zero state.
@@ -335,11 +382,11 @@ impl<M: StepModel> StreamingClassifier<M> {
         }
     }
 
-    /// The lane with the longest history (the first of equals).
+    /// The predicting lane with the longest history (the first of equals).
     fn predicting_lane(&self) -> usize {
         let mut chosen = 0;
         for (k, lane) in self.lanes.iter().enumerate() {
-            if lane.history > self.lanes[chosen].history {
+            if self.schedule.predicts(k) && lane.history > self.lanes[chosen].history {
                 chosen = k;
             }
         }
@@ -541,6 +588,7 @@ mod tests {
             LaneSchedule {
                 period: 12,
                 lanes: 2,
+                lanes_between: 0,
             },
             48,
         );
@@ -554,6 +602,7 @@ mod tests {
         let schedule = LaneSchedule {
             period: 12,
             lanes: 3,
+            lanes_between: 0,
         };
         let (h, steps) = histories(schedule, 48);
         assert_eq!(&h[..12], &(1..=12).collect::<Vec<_>>()[..]);
@@ -564,16 +613,52 @@ mod tests {
     }
 
     #[test]
+    fn lanes_between_leave_predictions_alone_and_offer_less_history() {
+        let with = |lanes_between| LaneSchedule {
+            period: 12,
+            lanes: 2,
+            lanes_between,
+        };
+        let (plain, plain_steps) = histories(with(0), 48);
+        let (between, steps) = histories(with(1), 48);
+        assert_eq!(between, plain, "the predicting lanes restart as before");
+        assert_eq!((plain_steps, steps), (2 * 48, 4 * 48));
+
+        // States restart every 3 scans: one always has 6..=8 behind it.
+        let mut c = StreamingClassifier::with_schedule(
+            CountingModel::default(),
+            spec(Framing::PersonCentred, 8),
+            with(1),
+        )
+        .unwrap();
+        for k in 0..48 {
+            let p = c.classify(&scan(k as f64 * 0.05, None, &[])).unwrap();
+            match c.state_with_history(6, DVec2::ZERO) {
+                Some((state, _)) => {
+                    assert!((6..=8).contains(&state.frames), "scan {k}: {state:?}");
+                    assert!(state.frames <= p.history);
+                }
+                None => assert!(p.history < 6, "scan {k}"),
+            }
+        }
+    }
+
+    #[test]
     fn impossible_schedules_are_refused() {
         let spec = spec(Framing::PersonCentred, 8);
-        let refused = |period, lanes| {
+        let refused_between = |period, lanes, lanes_between| {
             StreamingClassifier::with_schedule(
                 CountingModel::default(),
                 spec,
-                LaneSchedule { period, lanes },
+                LaneSchedule {
+                    period,
+                    lanes,
+                    lanes_between,
+                },
             )
             .err()
         };
+        let refused = |period, lanes| refused_between(period, lanes, 0);
         assert!(matches!(
             refused(7, 2),
             Some(StreamSpecError::LanePeriod {
@@ -590,6 +675,15 @@ mod tests {
             Some(StreamSpecError::LaneCount { lanes: 9, .. })
         ));
         assert!(refused(8, 8).is_none());
+        assert!(matches!(
+            refused_between(8, 2, 4),
+            Some(StreamSpecError::LanesBetween {
+                lanes: 2,
+                lanes_between: 4,
+                period: 8
+            })
+        ));
+        assert!(refused_between(8, 2, 3).is_none());
     }
 
     #[test]

@@ -5,9 +5,10 @@
 //! floor or getting up lies a third of a metre from the pelvis. The activity model's ConvLSTM
 //! state holds what one scan does not (how the legs swing, where the hands and feet lie), and
 //! a small model fitted on it predicts the pelvis's offset from the localiser's position. It
-//! runs after each classification on the state the prediction came from, and only where it
-//! was fitted and found to help: the person seen, at least `min_history` frames behind the
-//! state, an activity in `activities`, the head expecting an error of at most `max_sigma_m`;
+//! runs after each classification, on the state with the least history it was fitted for (at
+//! least `min_history` frames: it is most accurate there, and a lane restarted between the
+//! predicting ones offers it one; docs/localiser.md, session 25), and only where it was
+//! fitted and found to help: the person seen, an activity in `activities`, the head expecting an error of at most `max_sigma_m`;
 //! and, for a short hold, at the last seen offset from the track while the person is hidden.
 //! The head's expected error is published with the pelvis, so a consumer can weigh it.
 
@@ -189,7 +190,10 @@ impl<H> PelvisPlacer<H> {
         if !wanted || !position.is_finite() {
             return Ok(None);
         }
-        let (state, located) = classifier.last_state(position);
+        let Some((state, located)) = classifier.state_with_history(self.spec.min_history, position)
+        else {
+            return Ok(None);
+        };
         // A person outside the image (a runner long after the lane's first position) is not
         // in the state the head reads.
         let representation = classifier.spec().representation;
@@ -218,7 +222,7 @@ mod tests {
     use ndarray::ArrayView2;
 
     use super::*;
-    use crate::classifier::{PersonScan, StreamSpec};
+    use crate::classifier::{LaneSchedule, PersonScan, StreamSpec};
     use crate::representation::{Framing, RepresentationKind, RepresentationSpec};
 
     /// State: frames seen. Logits: sitting on the floor from the third frame on.
@@ -278,6 +282,14 @@ mod tests {
     }
 
     fn classifier(framing: Framing) -> StreamingClassifier<FrameCounter> {
+        classifier_with_lanes_between(framing, 0)
+    }
+
+    /// Two predicting lanes restarting every 8 scans, `lanes_between` more between them.
+    fn classifier_with_lanes_between(
+        framing: Framing,
+        lanes_between: usize,
+    ) -> StreamingClassifier<FrameCounter> {
         let spec = StreamSpec {
             representation: RepresentationSpec::new(
                 RepresentationKind::BooleanGrid,
@@ -288,7 +300,12 @@ mod tests {
             window: 8,
             scan_rate_hz: 20.0,
         };
-        StreamingClassifier::new(FrameCounter, spec).unwrap()
+        let schedule = LaneSchedule {
+            period: 8,
+            lanes: 2,
+            lanes_between,
+        };
+        StreamingClassifier::with_schedule(FrameCounter, spec, schedule).unwrap()
     }
 
     fn placer(nan: bool) -> PelvisPlacer<LinearHead> {
@@ -309,7 +326,14 @@ mod tests {
         placer: &mut PelvisPlacer<LinearHead>,
         positions: &[Option<DVec2>],
     ) -> Vec<Option<PlacedPelvis>> {
-        let mut classifier = classifier(framing);
+        run_on(classifier(framing), placer, positions)
+    }
+
+    fn run_on(
+        mut classifier: StreamingClassifier<FrameCounter>,
+        placer: &mut PelvisPlacer<LinearHead>,
+        positions: &[Option<DVec2>],
+    ) -> Vec<Option<PlacedPelvis>> {
         let points = [DVec2::new(2.0, 1.0)];
         let mut last_seen = DVec2::ZERO;
         positions
@@ -359,6 +383,30 @@ mod tests {
         assert!(placer.head.seen.iter().all(|(frames, located)| {
             located.distance(DVec2::new(0.1 * (*frames as f64 - 1.0), 0.0)) < 1e-12
         }));
+    }
+
+    #[test]
+    fn head_reads_the_state_with_the_least_history_it_was_fitted_for() {
+        let still = vec![Some(DVec2::new(3.0, -1.0)); 24];
+        let mut plain = placer(false);
+        run(Framing::PersonCentred, &mut plain, &still);
+        let mut between = placer(false);
+        let placed = run_on(
+            classifier_with_lanes_between(Framing::PersonCentred, 1),
+            &mut between,
+            &still,
+        );
+        assert!(placed[3..].iter().all(Option::is_some));
+        let frames = |placer: &PelvisPlacer<LinearHead>| -> Vec<usize> {
+            placer.head.seen.iter().map(|(frames, _)| *frames).collect()
+        };
+        // Predicting lanes restart every 4 scans: the head reads the older (5..=8 behind it)
+        // or, just as the younger reaches 4, that one. With a lane between each two
+        // (restarts every 2 scans), one always has 4..=5.
+        assert!(frames(&plain).iter().all(|f| (4..=7).contains(f)));
+        assert!(frames(&plain).contains(&7));
+        assert!(frames(&between).iter().all(|f| (4..=5).contains(f)));
+        assert_eq!(frames(&between).len(), 21);
     }
 
     #[test]

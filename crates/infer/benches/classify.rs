@@ -1,7 +1,8 @@
 //! Per-scan classification cost on one thread: rendering plus one ConvLSTM step per
 //! staggered lane (2, 3 and 4 lanes; `lanes` in config/classifier.yaml), as the classifier
 //! node does it; then with the pose head run on every scan (its worst case: it runs only on
-//! the activities it helps). Prints figures; asserts nothing.
+//! the activities it helps), on two lanes alone and with one more between each two
+//! (`pose_head_lanes_between`, the default). Prints figures; asserts nothing.
 //!
 //!   cargo bench -p lidar-har-infer --bench classify [-- MODEL.onnx [HEAD.onnx]]
 //!
@@ -84,6 +85,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let schedule = LaneSchedule {
             period: spec.window,
             lanes,
+            lanes_between: 0,
         };
         let mut classifier = StreamingClassifier::with_schedule(model, spec, schedule)?;
         for (t, centre, points) in scans.iter().take(100) {
@@ -124,29 +126,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         max_sigma_m: f64::INFINITY,
     };
     let mut placer = PelvisPlacer::new(every_scan, head);
-    let schedule = LaneSchedule {
-        period: spec.window,
-        lanes: 2,
-    };
-    let mut classifier = StreamingClassifier::with_schedule(model, spec, schedule)?;
-    let start = Instant::now();
-    let mut placed = 0;
-    for (t, centre, points) in &scans {
-        let prediction = classifier.classify(&PersonScan {
-            stamp_s: *t,
-            points,
-            position: Some(*centre),
-            sensor,
-        })?;
-        let person = PersonAt::Seen(*centre);
-        placed += usize::from(placer.place(&classifier, person, &prediction)?.is_some());
+    for lanes_between in [0, 1] {
+        let schedule = LaneSchedule {
+            period: spec.window,
+            lanes: 2,
+            lanes_between,
+        };
+        let mut classifier = StreamingClassifier::with_schedule(model, spec, schedule)?;
+        let start = Instant::now();
+        let mut placed = 0;
+        for (t, centre, points) in &scans {
+            let prediction = classifier.classify(&PersonScan {
+                stamp_s: *t,
+                points,
+                position: Some(*centre),
+                sensor,
+            })?;
+            let person = PersonAt::Seen(*centre);
+            placed += usize::from(placer.place(&classifier, person, &prediction)?.is_some());
+        }
+        let per_scan_ms = start.elapsed().as_secs_f64() * 1e3 / scans.len() as f64;
+        println!(
+            "per scan (render + {} steps + softmax + pose head on {placed} of {} scans), 1 \
+             thread: {per_scan_ms:.3} ms (target <= 0.5 ms); head {}",
+            schedule.states(),
+            scans.len(),
+            head_path.display()
+        );
+        model = classifier.into_model();
     }
-    let per_scan_ms = start.elapsed().as_secs_f64() * 1e3 / scans.len() as f64;
-    println!(
-        "per scan (render + 2 steps + softmax + pose head on {placed} of {} scans), 1 thread: \
-         {per_scan_ms:.3} ms (target <= 0.5 ms); head {}",
-        scans.len(),
-        head_path.display()
-    );
     Ok(())
 }

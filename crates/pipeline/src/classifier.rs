@@ -60,6 +60,10 @@ pub struct ClassifierConfig {
     /// While the person is hidden, /human/pelvis stays at the last seen offset from the
     /// track's prediction for this long, s (0: only on seen scans).
     pub pelvis_hold_s: f64,
+    /// With a pose head, this many more states restart between each two lanes: the head
+    /// reads the one with the least history it was fitted for, where it is most accurate.
+    /// They cost a model step each and leave the activity as it is.
+    pub pose_head_lanes_between: usize,
     pub fall_alert: FallAlertConfig,
 }
 
@@ -72,17 +76,24 @@ impl Default for ClassifierConfig {
             lanes: 2,
             pose_head: Some(PathBuf::from("models/pose_head.onnx")),
             pelvis_hold_s: 1.0,
+            pose_head_lanes_between: 1,
             fall_alert: FallAlertConfig::default(),
         }
     }
 }
 
 impl ClassifierConfig {
-    /// The lanes for a model trained on windows of `window` scans.
-    pub fn lane_schedule(&self, window: usize) -> LaneSchedule {
+    /// The lanes for a model trained on windows of `window` scans, with or without a pose
+    /// head to serve.
+    pub fn lane_schedule(&self, window: usize, pose_head: bool) -> LaneSchedule {
         LaneSchedule {
             period: (self.lane_period_windows * window as f64).round() as usize,
             lanes: self.lanes,
+            lanes_between: if pose_head {
+                self.pose_head_lanes_between
+            } else {
+                0
+            },
         }
     }
 }
@@ -134,6 +145,15 @@ pub fn parse_classifier_config(text: &str) -> Result<ClassifierConfig, Classifie
         return Err(ClassifierError::Config {
             path: None,
             message: format!("lanes = {} is out of range (2..=8)", config.lanes),
+        });
+    }
+    if config.pose_head_lanes_between > 3 {
+        return Err(ClassifierError::Config {
+            path: None,
+            message: format!(
+                "pose_head_lanes_between = {} is out of range (0..=3)",
+                config.pose_head_lanes_between
+            ),
         });
     }
     let hold = config.pelvis_hold_s;
@@ -268,7 +288,7 @@ impl ClassifierStage<ActivityModel, PoseHeadModel> {
             },
         };
         let stream = model.info().stream;
-        let schedule = config.lane_schedule(stream.window);
+        let schedule = config.lane_schedule(stream.window, pelvis.is_some());
         let stage = ClassifierStage::with_schedule(model, stream, schedule, config.fall_alert)?;
         Ok(stage.with_pose_head(pelvis, status))
     }
@@ -1456,14 +1476,20 @@ mod tests {
                 .to_string();
             assert!(e.contains("pelvis_hold_s"), "{e}");
         }
+        for bad in ["-1", "4", "0.5"] {
+            let e = parse_classifier_config(&format!("pose_head_lanes_between: {bad}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("pose_head_lanes_between"), "{e}");
+        }
         let c = parse_classifier_config("lane_period_windows: 1.25\nlanes: 3\n").unwrap();
-        assert_eq!(
-            c.lane_schedule(20),
-            LaneSchedule {
-                period: 25,
-                lanes: 3
-            }
-        );
+        let schedule = |lanes_between| LaneSchedule {
+            period: 25,
+            lanes: 3,
+            lanes_between,
+        };
+        assert_eq!(c.lane_schedule(20, false), schedule(0));
+        assert_eq!(c.lane_schedule(20, true), schedule(1));
     }
 
     #[test]

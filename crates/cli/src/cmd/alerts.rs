@@ -198,7 +198,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     let model = ActivityModel::load(&args.model, 1)
         .with_context(|| format!("--model {}", args.model.display()))?;
     let stream = model.info().stream;
-    let schedule = config.lane_schedule(stream.window);
+    let schedule = config.lane_schedule(stream.window, false);
     let mut classifier = StreamingClassifier::with_schedule(model, stream, schedule)
         .with_context(|| format!("--model {}", args.model.display()))?;
     let scenes = load_scenes(&args.scenes)?;
