@@ -225,9 +225,9 @@ pub struct StepError(pub Box<dyn std::error::Error + Send + Sync>);
 /// more lanes narrow that range towards `period` for one model step per lane per scan.
 ///
 /// `lanes_between` more states restart between each two of those, stepped but never
-/// predicted from: for readers of the state that are best with less history than the
-/// prediction has (the pose head, [`StreamingClassifier::state_with_history`]). They leave
-/// the predictions exactly as without them.
+/// predicted from: more views of the same scans for readers of the state (the pose head,
+/// [`StreamingClassifier::states_with_history`]). They leave the predictions exactly as
+/// without them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LaneSchedule {
     pub period: usize,
@@ -351,25 +351,27 @@ impl<M: StepModel> StreamingClassifier<M> {
         self.images[self.predicting_lane()].view()
     }
 
-    /// The state with the least history of at least `min_history` scans (any state, those
-    /// between the predicting lanes included), and where `position` lies in the image that
-    /// state was last stepped on (metres from the image's centre): what the pose head reads.
-    /// `None` before any state has that much history.
-    pub fn state_with_history(
+    /// Every state with at least `min_history` frames behind it (those between the predicting
+    /// lanes included), and where `position` lies in the image it was last stepped on
+    /// (metres from the image's centre): what the pose head reads.
+    pub fn states_with_history(
         &self,
         min_history: usize,
         position: DVec2,
-    ) -> Option<(&M::State, DVec2)> {
-        let lane = self
-            .lanes
+    ) -> impl Iterator<Item = (&M::State, DVec2)> {
+        let framing = self.spec.representation.framing;
+        self.lanes
             .iter()
-            .filter(|lane| lane.history >= min_history)
-            .min_by_key(|lane| lane.history)?;
-        let located = match self.spec.representation.framing {
-            Framing::RoomFixed => lane.centre.map_or(DVec2::ZERO, |centre| position - centre),
-            Framing::PersonCentred => DVec2::ZERO,
-        };
-        Some((&lane.state, located))
+            .filter(move |lane| lane.history >= min_history)
+            .map(move |lane| {
+                let located = match framing {
+                    Framing::RoomFixed => {
+                        lane.centre.map_or(DVec2::ZERO, |centre| position - centre)
+                    }
+                    Framing::PersonCentred => DVec2::ZERO,
+                };
+                (&lane.state, located)
+            })
     }
 
     /// Restarts every lane from zero state.
@@ -613,7 +615,7 @@ mod tests {
     }
 
     #[test]
-    fn lanes_between_leave_predictions_alone_and_offer_less_history() {
+    fn lanes_between_leave_predictions_alone_and_offer_more_states_to_read() {
         let with = |lanes_between| LaneSchedule {
             period: 12,
             lanes: 2,
@@ -624,7 +626,7 @@ mod tests {
         assert_eq!(between, plain, "the predicting lanes restart as before");
         assert_eq!((plain_steps, steps), (2 * 48, 4 * 48));
 
-        // States restart every 3 scans: one always has 6..=8 behind it.
+        // States restart every 3 scans: two or three of the four have 6..=12 behind them.
         let mut c = StreamingClassifier::with_schedule(
             CountingModel::default(),
             spec(Framing::PersonCentred, 8),
@@ -633,12 +635,21 @@ mod tests {
         .unwrap();
         for k in 0..48 {
             let p = c.classify(&scan(k as f64 * 0.05, None, &[])).unwrap();
-            match c.state_with_history(6, DVec2::ZERO) {
-                Some((state, _)) => {
-                    assert!((6..=8).contains(&state.frames), "scan {k}: {state:?}");
-                    assert!(state.frames <= p.history);
-                }
-                None => assert!(p.history < 6, "scan {k}"),
+            let mut frames: Vec<usize> = c
+                .states_with_history(6, DVec2::ZERO)
+                .map(|(state, _)| state.frames)
+                .collect();
+            frames.sort_unstable();
+            assert!(frames.iter().all(|f| (6..=12).contains(f)), "scan {k}");
+            if p.history >= 6 {
+                assert!(
+                    frames.contains(&p.history),
+                    "the predicting lane is read too"
+                );
+            }
+            if k >= 12 {
+                assert!((2..=3).contains(&frames.len()), "scan {k}: {frames:?}");
+                assert!(frames.windows(2).all(|w| w[1] - w[0] == 3), "{frames:?}");
             }
         }
     }

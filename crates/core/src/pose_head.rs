@@ -5,11 +5,13 @@
 //! floor or getting up lies a third of a metre from the pelvis. The activity model's ConvLSTM
 //! state holds what one scan does not (how the legs swing, where the hands and feet lie), and
 //! a small model fitted on it predicts the pelvis's offset from the localiser's position. It
-//! runs after each classification, on the state with the least history it was fitted for (at
-//! least `min_history` frames: it is most accurate there, and a lane restarted between the
-//! predicting ones offers it one; docs/localiser.md, session 25), and only where it was
-//! fitted and found to help: the person seen, an activity in `activities`, the head expecting an error of at most `max_sigma_m`;
-//! and, for a short hold, at the last seen offset from the track while the person is hidden.
+//! runs after each classification on every state with at least `min_history` frames behind
+//! it (the predicting lanes' and those restarted between them), and combines what it reads
+//! from each, weighed by the error it expects of each (docs/localiser.md, session 25); and
+//! only where it was fitted and found to help: the person seen, an activity in `activities`,
+//! the head expecting an error of at most `max_sigma_m` (a state it doubts beyond that counts
+//! for nothing); and, for a short hold, at the last seen offset from the track while the
+//! person is hidden.
 //! The head's expected error is published with the pelvis, so a consumer can weigh it.
 
 use glam::DVec2;
@@ -157,8 +159,8 @@ impl<H> PelvisPlacer<H> {
 
     /// The pelvis after `classifier` made `prediction` from a scan where the localiser had the
     /// person at `person`; `None` where the head is not to be used, gave no finite estimate
-    /// or doubts it beyond `max_sigma_m`, and where a hidden person was last placed longer
-    /// than the hold ago.
+    /// it does not doubt beyond `max_sigma_m` from any state, and where a hidden person was
+    /// last placed longer than the hold ago.
     pub fn place<M>(
         &mut self,
         classifier: &StreamingClassifier<M>,
@@ -190,30 +192,63 @@ impl<H> PelvisPlacer<H> {
         if !wanted || !position.is_finite() {
             return Ok(None);
         }
-        let Some((state, located)) = classifier.state_with_history(self.spec.min_history, position)
-        else {
-            return Ok(None);
-        };
-        // A person outside the image (a runner long after the lane's first position) is not
-        // in the state the head reads.
+        // A person outside a state's image (a runner long after its lane's first position) is
+        // not in that state.
         let representation = classifier.spec().representation;
         let half_extent = representation.size as f64 * representation.resolution_m / 2.0;
-        if located.abs().max_element() >= half_extent {
-            return Ok(None);
+        let mut combined = Combination::default();
+        for (state, located) in classifier.states_with_history(self.spec.min_history, position) {
+            if located.abs().max_element() >= half_extent {
+                continue;
+            }
+            let estimate = self
+                .head
+                .estimate(state, located)
+                .map_err(|e| StepError(Box::new(e)))?;
+            let HeadEstimate { offset, sigma_m } = estimate;
+            if offset.is_finite() && sigma_m >= 0.0 && sigma_m <= self.spec.max_sigma_m {
+                combined.add(estimate);
+            }
         }
-        let estimate = self
-            .head
-            .estimate(state, located)
-            .map_err(|e| StepError(Box::new(e)))?;
+        let Some(estimate) = combined.estimate() else {
+            return Ok(None);
+        };
         let HeadEstimate { offset, sigma_m } = estimate;
-        if !(offset.is_finite() && sigma_m >= 0.0 && sigma_m <= self.spec.max_sigma_m) {
-            return Ok(None);
-        }
         self.last_placed = Some((prediction.stamp_s, estimate));
         Ok(Some(PlacedPelvis {
             position: position + offset,
             sigma_m,
         }))
+    }
+}
+
+/// The head's estimates from several states of the same scans, each weighed by the inverse
+/// of its expected variance. They are far from independent (one head, one person), so the
+/// expected error is their weighted mean rather than the smaller one independent estimates
+/// would give.
+#[derive(Default)]
+struct Combination {
+    weights: f64,
+    offset: DVec2,
+    sigma_m: f64,
+}
+
+impl Combination {
+    /// Below this the weight stops growing: a head sure to the millimetre is no surer.
+    const SIGMA_FLOOR_M: f64 = 1e-3;
+
+    fn add(&mut self, estimate: HeadEstimate) {
+        let weight = estimate.sigma_m.max(Self::SIGMA_FLOOR_M).powi(-2);
+        self.weights += weight;
+        self.offset += weight * estimate.offset;
+        self.sigma_m += weight * estimate.sigma_m;
+    }
+
+    fn estimate(&self) -> Option<HeadEstimate> {
+        (self.weights > 0.0).then(|| HeadEstimate {
+            offset: self.offset / self.weights,
+            sigma_m: self.sigma_m / self.weights,
+        })
     }
 }
 
@@ -377,7 +412,7 @@ mod tests {
                 pelvis.position.distance(expected) < 1e-12,
                 "scan {k}: {pelvis:?}"
             );
-            assert_eq!(pelvis.sigma_m, frames as f64 / 100.0);
+            assert!((pelvis.sigma_m - frames as f64 / 100.0).abs() < 1e-12);
         }
         // Located from the first position of the lane (both lanes started at scan 0).
         assert!(placer.head.seen.iter().all(|(frames, located)| {
@@ -386,27 +421,52 @@ mod tests {
     }
 
     #[test]
-    fn head_reads_the_state_with_the_least_history_it_was_fitted_for() {
+    fn head_reads_every_state_with_enough_history_and_weighs_each_by_its_doubt() {
         let still = vec![Some(DVec2::new(3.0, -1.0)); 24];
-        let mut plain = placer(false);
-        run(Framing::PersonCentred, &mut plain, &still);
         let mut between = placer(false);
         let placed = run_on(
             classifier_with_lanes_between(Framing::PersonCentred, 1),
             &mut between,
             &still,
         );
+        assert!(placed[..3].iter().all(Option::is_none));
         assert!(placed[3..].iter().all(Option::is_some));
-        let frames = |placer: &PelvisPlacer<LinearHead>| -> Vec<usize> {
-            placer.head.seen.iter().map(|(frames, _)| *frames).collect()
+        // Four states restarting every 2 scans: on scan 23 they have 8, 6, 4 and 2 frames
+        // behind them, and the head (offset frames / 10, doubt frames / 100) reads the first
+        // three, after the 21 it read on scans 3-22.
+        let last: Vec<usize> = between.head.seen[between.head.seen.len() - 3..]
+            .iter()
+            .map(|(frames, _)| *frames)
+            .collect();
+        assert_eq!(last, [8, 6, 4]);
+        let weights: Vec<f64> = last.iter().map(|&f| (f as f64 / 100.0).powi(-2)).collect();
+        let mean = |value: &dyn Fn(f64) -> f64| {
+            last.iter()
+                .zip(&weights)
+                .map(|(&f, w)| w * value(f as f64))
+                .sum::<f64>()
+                / weights.iter().sum::<f64>()
         };
-        // Predicting lanes restart every 4 scans: the head reads the older (5..=8 behind it)
-        // or, just as the younger reaches 4, that one. With a lane between each two
-        // (restarts every 2 scans), one always has 4..=5.
-        assert!(frames(&plain).iter().all(|f| (4..=7).contains(f)));
-        assert!(frames(&plain).contains(&7));
-        assert!(frames(&between).iter().all(|f| (4..=5).contains(f)));
-        assert_eq!(frames(&between).len(), 21);
+        let pelvis = placed[23].unwrap();
+        let offset = mean(&|f| f / 10.0);
+        assert!((pelvis.position - DVec2::new(3.0 + offset, -1.0)).length() < 1e-12);
+        assert!((pelvis.sigma_m - mean(&|f| f / 100.0)).abs() < 1e-12);
+        assert!(
+            offset < 0.6,
+            "the surest (least history) weighs most: {offset}"
+        );
+
+        // A state whose estimate is doubted beyond the limit counts for nothing.
+        let mut doubtful = placer(false);
+        doubtful.spec.max_sigma_m = 0.07;
+        let placed = run_on(
+            classifier_with_lanes_between(Framing::PersonCentred, 1),
+            &mut doubtful,
+            &still,
+        );
+        let weights = [6.0_f64, 4.0].map(|f| (f / 100.0).powi(-2));
+        let offset = (weights[0] * 0.6 + weights[1] * 0.4) / (weights[0] + weights[1]);
+        assert!((placed[23].unwrap().position.x - (3.0 + offset)).abs() < 1e-12);
     }
 
     #[test]
@@ -449,7 +509,8 @@ mod tests {
         let mut broken = placer(true);
         let placed = run(Framing::RoomFixed, &mut broken, &[Some(DVec2::ONE); 6]);
         assert!(placed.iter().all(Option::is_none));
-        assert_eq!(broken.head.seen.len(), 3, "asked from the fourth scan on");
+        // Asked from the fourth scan on; on the fourth of both lanes (they start together).
+        assert_eq!(broken.head.seen.len(), 4);
     }
 
     #[test]
@@ -462,14 +523,14 @@ mod tests {
         let placed = run(Framing::RoomFixed, &mut holding, &seen);
         // Scan 5 (6 frames): offset 0.6 along x, expected error 0.06 m.
         let last = placed[5].unwrap();
-        assert_eq!(last.sigma_m, 0.06);
+        assert!((last.sigma_m - 0.06).abs() < 1e-12);
         for k in [6, 7] {
             let held = placed[k].unwrap();
             assert!(
                 held.position.distance(last.position + DVec2::new(0.1, 0.0)) < 1e-12,
                 "scan {k}: {held:?}"
             );
-            assert_eq!(held.sigma_m, 0.06);
+            assert_eq!(held.sigma_m, last.sigma_m);
         }
         assert_eq!(
             &placed[8..10],
@@ -509,7 +570,10 @@ mod tests {
         let mut doubtful = placer(false);
         doubtful.spec.max_sigma_m = 0.05;
         let placed = run(Framing::RoomFixed, &mut doubtful, &[Some(DVec2::ONE); 6]);
-        let sigmas: Vec<Option<f64>> = placed.iter().map(|p| p.map(|p| p.sigma_m)).collect();
+        let sigmas: Vec<Option<f64>> = placed
+            .iter()
+            .map(|p| p.map(|p| (p.sigma_m * 1e3).round() / 1e3))
+            .collect();
         assert_eq!(sigmas, [None, None, None, Some(0.04), Some(0.05), None]);
     }
 

@@ -1,8 +1,8 @@
 //! Per-scan classification cost on one thread: rendering plus one ConvLSTM step per
 //! staggered lane (2, 3 and 4 lanes; `lanes` in config/classifier.yaml), as the classifier
 //! node does it; then with the pose head run on every scan (its worst case: it runs only on
-//! the activities it helps), on two lanes alone and with one more between each two
-//! (`pose_head_lanes_between`, the default). Prints figures; asserts nothing.
+//! the activities it helps) on every state with the history it asks for: two lanes alone, and
+//! with one more between each two (`pose_head_lanes_between`, the default). Prints figures; asserts nothing.
 //!
 //!   cargo bench -p lidar-har-infer --bench classify [-- MODEL.onnx [HEAD.onnx]]
 //!
@@ -120,15 +120,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             return Ok(());
         }
     };
+    // Every activity, every state with the history the head asks for.
     let every_scan = PoseHeadSpec {
-        min_history: 0,
+        min_history: head.spec().min_history,
         activities: Activity::ALL.to_vec(),
         max_sigma_m: f64::INFINITY,
     };
     let mut placer = PelvisPlacer::new(every_scan, head);
     for lanes_between in [0, 1] {
+        // config/classifier.yaml's lane period: 1.2 windows.
         let schedule = LaneSchedule {
-            period: spec.window,
+            period: spec.window * 6 / 5,
             lanes: 2,
             lanes_between,
         };

@@ -60,9 +60,9 @@ pub struct ClassifierConfig {
     /// While the person is hidden, /human/pelvis stays at the last seen offset from the
     /// track's prediction for this long, s (0: only on seen scans).
     pub pelvis_hold_s: f64,
-    /// With a pose head, this many more states restart between each two lanes: the head
-    /// reads the one with the least history it was fitted for, where it is most accurate.
-    /// They cost a model step each and leave the activity as it is.
+    /// With a pose head, this many more states restart between each two lanes: more views of
+    /// the same scans for the head to combine. A model step each; the activity and the
+    /// alerts stay as the lanes alone give them.
     pub pose_head_lanes_between: usize,
     pub fall_alert: FallAlertConfig,
 }
