@@ -67,7 +67,8 @@ pub enum StreamSpecError {
     )]
     LaneCount { lanes: usize, period: usize },
     #[error(
-        "{lanes} lanes with {lanes_between} between each two: more states than the lane period ({period} scans) has scans"
+        "{lanes} lanes with {lanes_between} more between each two make {states} states, more than the lane period's {period} scans (each restarts on a scan of its own)",
+        states = .lanes * (1 + .lanes_between)
     )]
     LanesBetween {
         lanes: usize,
@@ -694,6 +695,8 @@ mod tests {
                 period: 8
             })
         ));
+        let message = refused_between(8, 2, 4).unwrap().to_string();
+        assert!(message.contains("make 10 states"), "{message}");
         assert!(refused_between(8, 2, 3).is_none());
     }
 
