@@ -257,11 +257,6 @@ impl LaneSchedule {
     fn offset(&self, k: usize) -> usize {
         k * self.period / self.states()
     }
-
-    /// Whether state `k` is one of the `lanes` predicted from.
-    fn predicts(&self, k: usize) -> bool {
-        k.is_multiple_of(1 + self.lanes_between)
-    }
 }
 
 /// Staggered lanes over one model, plus the renderer and image buffers.
@@ -388,8 +383,8 @@ impl<M: StepModel> StreamingClassifier<M> {
     /// The predicting lane with the longest history (the first of equals).
     fn predicting_lane(&self) -> usize {
         let mut chosen = 0;
-        for (k, lane) in self.lanes.iter().enumerate() {
-            if self.schedule.predicts(k) && lane.history > self.lanes[chosen].history {
+        for k in (0..self.lanes.len()).step_by(1 + self.schedule.lanes_between) {
+            if self.lanes[k].history > self.lanes[chosen].history {
                 chosen = k;
             }
         }

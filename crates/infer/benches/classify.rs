@@ -15,12 +15,40 @@ use std::time::Instant;
 
 use glam::DVec2;
 use lidar_har_core::activity::Activity;
-use lidar_har_core::classifier::{LaneSchedule, PersonScan, StreamingClassifier};
+use lidar_har_core::classifier::{
+    LaneSchedule, PersonScan, Prediction, StepModel, StreamingClassifier,
+};
 use lidar_har_core::pose_head::{PelvisPlacer, PersonAt, PoseHeadSpec};
 use lidar_har_core::representation::Renderer;
 use lidar_har_infer::{ActivityModel, PoseHeadModel};
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+type BenchResult<T> = Result<T, Box<dyn std::error::Error>>;
+
+/// One scan of the benchmark's walk: stamp, the person's position, their points.
+type Scan = (f64, DVec2, Vec<DVec2>);
+
+/// Milliseconds per scan for one pass over `scans` (stamps `from_s` later), running `then`
+/// on each prediction; the sensor is at the origin.
+fn per_scan_ms<M: StepModel>(
+    classifier: &mut StreamingClassifier<M>,
+    scans: &[Scan],
+    from_s: f64,
+    mut then: impl FnMut(&StreamingClassifier<M>, &Prediction, DVec2) -> BenchResult<()>,
+) -> BenchResult<f64> {
+    let start = Instant::now();
+    for (t, centre, points) in scans {
+        let prediction = classifier.classify(&PersonScan {
+            stamp_s: t + from_s,
+            points,
+            position: Some(*centre),
+            sensor: DVec2::ZERO,
+        })?;
+        then(classifier, &prediction, *centre)?;
+    }
+    Ok(start.elapsed().as_secs_f64() * 1e3 / scans.len() as f64)
+}
+
+fn main() -> BenchResult<()> {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let named: Vec<PathBuf> = std::env::args()
         .skip(1)
@@ -56,7 +84,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
 
     // A person walking at 1 m/s past the sensor, ~25 points on a 0.4 m arc, 20 Hz.
-    let scans: Vec<(f64, DVec2, Vec<DVec2>)> = (0..2000)
+    let scans: Vec<Scan> = (0..2000)
         .map(|k| {
             let t = k as f64 / spec.scan_rate_hz;
             let centre = DVec2::new(1.0 + 0.05 * (k % 60) as f64, 0.5);
@@ -88,25 +116,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             lanes_between: 0,
         };
         let mut classifier = StreamingClassifier::with_schedule(model, spec, schedule)?;
-        for (t, centre, points) in scans.iter().take(100) {
-            classifier.classify(&PersonScan {
-                stamp_s: *t,
-                points,
-                position: Some(*centre),
-                sensor,
-            })?;
-        }
-        let start = Instant::now();
-        for (t, centre, points) in &scans {
-            let t = t + 100.0 / spec.scan_rate_hz;
-            classifier.classify(&PersonScan {
-                stamp_s: t,
-                points,
-                position: Some(*centre),
-                sensor,
-            })?;
-        }
-        let per_scan_ms = start.elapsed().as_secs_f64() * 1e3 / scans.len() as f64;
+        let nothing = |_: &_, _: &_, _| Ok(());
+        per_scan_ms(&mut classifier, &scans[..100], 0.0, nothing)?;
+        let from_s = 100.0 / spec.scan_rate_hz;
+        let per_scan_ms = per_scan_ms(&mut classifier, &scans, from_s, nothing)?;
         println!(
             "per scan (render + {lanes} steps + softmax), 1 thread: {per_scan_ms:.3} ms (target <= 0.5 ms)"
         );
@@ -135,19 +148,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             lanes_between,
         };
         let mut classifier = StreamingClassifier::with_schedule(model, spec, schedule)?;
-        let start = Instant::now();
         let mut placed = 0;
-        for (t, centre, points) in &scans {
-            let prediction = classifier.classify(&PersonScan {
-                stamp_s: *t,
-                points,
-                position: Some(*centre),
-                sensor,
-            })?;
-            let person = PersonAt::Seen(*centre);
-            placed += usize::from(placer.place(&classifier, person, &prediction)?.is_some());
-        }
-        let per_scan_ms = start.elapsed().as_secs_f64() * 1e3 / scans.len() as f64;
+        let per_scan_ms = per_scan_ms(
+            &mut classifier,
+            &scans,
+            0.0,
+            |classifier, prediction, at| {
+                let pelvis = placer.place(classifier, PersonAt::Seen(at), prediction)?;
+                placed += usize::from(pelvis.is_some());
+                Ok(())
+            },
+        )?;
         println!(
             "per scan (render + {} steps + softmax + pose head on {placed} of {} scans), 1 \
              thread: {per_scan_ms:.3} ms (target <= 0.5 ms); head {}",
