@@ -34,6 +34,7 @@ from torch import nn
 
 from .data import CLASSES, load_index, load_split
 from .export import PARITY_TOLERANCE, ExportError, model_from_onnx, set_metadata
+from .train import choose_device
 
 KEY_ACTIVITY_SHA256 = "lidar_har.pose_head.activity_sha256"
 KEY_MIN_HISTORY = "lidar_har.pose_head.min_history"
@@ -41,16 +42,21 @@ KEY_ACTIVITIES = "lidar_har.pose_head.activities"
 KEY_MAX_SIGMA = "lidar_har.pose_head.max_sigma_m"
 
 
-def features(model, split, positions, rows, first_step: int):
+def features(model, split, positions, rows, first_step: int, device: torch.device):
     """For the scans the localiser saw at steps `first_step`.. of the windows `rows`: the
-    ConvLSTM state `[n, hidden, s, s]` (float16), the localiser's position from the image
-    centre `[n, 2]`, the pelvis's offset from it `[n, 2]`, the true and the predicted
-    activity `[n]`."""
-    states, located, offsets, labels, predicted = [], [], [], [], []
+    ConvLSTM state `[n, hidden, s, s]` (float16, kept on `device`), the localiser's position
+    from the image centre `[n, 2]`, the pelvis's offset from it `[n, 2]`, the true and the
+    predicted activity `[n]` (numpy)."""
+    seen = np.isfinite(positions[rows, first_step:]).all(axis=-1)
+    # Filled in place: gathering the steps' states and joining them would need twice the memory.
+    states = torch.empty((int(seen.sum()), model.hidden, model.state_size, model.state_size),
+                         dtype=torch.float16, device=device)
+    filled = 0
+    located, offsets, labels, predicted = [], [], [], []
     with torch.no_grad():
         for start in range(0, len(rows), 512):
             batch = rows[start : start + 512]
-            frames = torch.from_numpy(split.images[batch].astype(np.float32) / 255.0)
+            frames = torch.from_numpy(split.images[batch]).to(device).float() / 255.0
             h, c = model.zero_state(len(batch))
             for t in range(frames.shape[1]):
                 logits, h, c = model.step(frames[:, t : t + 1], h, c)
@@ -58,12 +64,14 @@ def features(model, split, positions, rows, first_step: int):
                     continue
                 pos = positions[batch, t]
                 keep = np.isfinite(pos).all(axis=1)
-                states.append(h[torch.from_numpy(keep)].numpy().astype(np.float16))
+                kept = h[torch.from_numpy(keep).to(device)]
+                states[filled : filled + len(kept)] = kept
+                filled += len(kept)
                 located.append(pos[keep, 2:])
                 offsets.append(pos[keep, :2] - pos[keep, 2:])
                 labels.append(split.labels[batch, t][keep])
-                predicted.append(logits.argmax(dim=1).numpy()[keep])
-    return {"states": np.concatenate(states), "located": np.concatenate(located).astype(np.float32),
+                predicted.append(logits.argmax(dim=1).cpu().numpy()[keep])
+    return {"states": states, "located": np.concatenate(located).astype(np.float32),
             "offsets": np.concatenate(offsets).astype(np.float32), "labels": np.concatenate(labels),
             "predicted": np.concatenate(predicted)}
 
@@ -72,13 +80,14 @@ class PoseHead(nn.Module):
     """State and localiser position in; the pelvis's offset from the localiser and the head's
     own expected error (deviation per axis of a circular Gaussian, metres) out. The error is
     read from the offset's last hidden layer without training it: the offset is fitted as if
-    the deviation were not there."""
+    the deviation were not there. `channels` and `units` size its convolution and hidden
+    layer (32 and 64 in the committed head)."""
 
-    def __init__(self, hidden: int, side: int):
+    def __init__(self, hidden: int, side: int, channels: int = 32, units: int = 64):
         super().__init__()
-        self.conv = nn.Sequential(nn.Conv2d(hidden, 32, 3, padding=1), nn.ReLU())
-        self.mlp = nn.Sequential(nn.Linear(32 * side * side + 2, 64), nn.ReLU(), nn.Linear(64, 2))
-        self.log_sigma = nn.Linear(64, 1)
+        self.conv = nn.Sequential(nn.Conv2d(hidden, channels, 3, padding=1), nn.ReLU())
+        self.mlp = nn.Sequential(nn.Linear(channels * side * side + 2, units), nn.ReLU(), nn.Linear(units, 2))
+        self.log_sigma = nn.Linear(units, 1)
 
     def forward(self, h, located):
         features = self.mlp[:2](torch.cat([self.conv(h).flatten(1), located], dim=1))
@@ -92,36 +101,70 @@ def sigma_loss(sigma, error):
     return (2 * torch.log(sigma[:, 0]) + error.detach().pow(2).sum(dim=1) / (2 * sigma[:, 0] ** 2)).mean()
 
 
-def fit(head, data, minutes: float, seed: int):
-    states, located, offsets = data["states"], data["located"], data["offsets"]
+def tensors(data, rows, device: torch.device):
+    """The head's inputs and target for the scans `rows` of `data`, on `device`."""
+    return (data["states"][torch.from_numpy(rows).to(device)].float(), torch.from_numpy(data["located"][rows]).to(device),
+            torch.from_numpy(data["offsets"][rows]).to(device))
+
+
+def mean_error(head, data, rows, device: torch.device) -> float:
+    """Mean pelvis error (metres) of the head over the scans `rows` of `data`."""
+    total = 0.0
+    with torch.no_grad():
+        for b in range(0, len(rows), 8192):
+            states, located, target = tensors(data, rows[b : b + 8192], device)
+            total += float(torch.linalg.norm(head(states, located)[0] - target, dim=1).sum())
+    return total / max(len(rows), 1)
+
+
+def fit(head, data, minutes: float, seed: int, batch: int, lr: float, validation_fraction: float,
+        device: torch.device):
+    """Adam for `minutes`, the rate decaying along a cosine to 1 % of `lr`. Keeps the weights
+    of the epoch with the lowest mean error on `validation_fraction` of the scans (drawn
+    from the training windows, at random: the scans of one window are correlated, so the
+    figure watches for the fit running away rather than measuring the head)."""
     rng = np.random.default_rng(seed)
-    optimiser = torch.optim.Adam(head.parameters(), lr=1e-3)
+    order = rng.permutation(len(data["offsets"]))
+    held = int(round(validation_fraction * len(order)))
+    validation, train = np.sort(order[:held]), order[held:]
+    optimiser = torch.optim.Adam(head.parameters(), lr=lr)
+    best, best_state = np.inf, None
     start, epoch = time.time(), 0
     while time.time() - start < minutes * 60:
-        order = rng.permutation(len(states))
         total = 0.0
-        for b in range(0, len(order), 256):
-            idx = order[b : b + 256]
-            pred, sigma = head(torch.from_numpy(states[idx].astype(np.float32)), torch.from_numpy(located[idx]))
-            target = torch.from_numpy(offsets[idx])
+        for b in range(0, len(train), batch):
+            progress = min((time.time() - start) / (minutes * 60), 1.0)
+            for group in optimiser.param_groups:
+                group["lr"] = lr * (0.01 + 0.99 * 0.5 * (1 + np.cos(np.pi * progress)))
+            states, located, target = tensors(data, train[b : b + batch], device)
+            pred, sigma = head(states, located)
             loss = nn.functional.smooth_l1_loss(pred, target, beta=0.05) + sigma_loss(sigma, pred - target)
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
-            total += loss.item() * len(idx)
+            total += loss.item() * len(target)
+        rng.shuffle(train)
         epoch += 1
-        print(f"epoch {epoch}: loss {total / len(order):.4f} ({(time.time() - start) / 60:.1f} min)", flush=True)
+        report = f"epoch {epoch}: loss {total / len(train):.4f}"
+        if held:
+            error = mean_error(head, data, validation, device)
+            if error < best:
+                best, best_state = error, {k: v.detach().clone() for k, v in head.state_dict().items()}
+            report += f", validation mean error {error:.4f} m (best {best:.4f})"
+        print(f"{report} ({(time.time() - start) / 60:.1f} min)", flush=True)
+    if best_state is not None:
+        head.load_state_dict(best_state)
 
 
-def predict(head, data):
-    """The head's offsets `[n, 2]` and deviations `[n]` for every scan of `data`."""
+def predict(head, data, device: torch.device):
+    """The head's offsets `[n, 2]` and deviations `[n]` for every scan of `data` (numpy)."""
     offsets, sigmas = [], []
     with torch.no_grad():
-        for b in range(0, len(data["states"]), 2048):
-            offset, sigma = head(torch.from_numpy(data["states"][b : b + 2048].astype(np.float32)),
-                                 torch.from_numpy(data["located"][b : b + 2048]))
-            offsets.append(offset.numpy())
-            sigmas.append(sigma.numpy()[:, 0])
+        for b in range(0, len(data["offsets"]), 8192):
+            offset, sigma = head(data["states"][b : b + 8192].float(),
+                                 torch.from_numpy(data["located"][b : b + 8192]).to(device))
+            offsets.append(offset.cpu().numpy())
+            sigmas.append(sigma.cpu().numpy()[:, 0])
     return np.concatenate(offsets), np.concatenate(sigmas)
 
 
@@ -184,8 +227,9 @@ def scores(before, after, sigma, data, used, max_sigma):
 
 def export(head, out: Path, hidden: int, side: int, metadata: dict, sample: dict):
     """Writes the head as ONNX (`h` [1, hidden, side, side], `located` [1, 2] -> `offset`
-    [1, 2], `sigma` [1, 1]) with `metadata`, checked against PyTorch on `sample`."""
-    head.eval()
+    [1, 2], `sigma` [1, 1]) with `metadata`, checked against PyTorch on `sample`; the head
+    is moved to the CPU."""
+    head.cpu().eval()
     torch.onnx.export(head, (torch.rand(1, hidden, side, side), torch.rand(1, 2)), str(out),
                       input_names=["h", "located"], output_names=["offset", "sigma"], opset_version=18, dynamo=False)
     proto = onnx.load(str(out))
@@ -196,7 +240,7 @@ def export(head, out: Path, hidden: int, side: int, metadata: dict, sample: dict
     worst = 0.0
     with torch.no_grad():
         for i in range(len(sample["states"])):
-            h = sample["states"][i : i + 1].astype(np.float32)
+            h = sample["states"][i : i + 1].float().cpu().numpy()
             located = sample["located"][i : i + 1]
             reference = head.double()(torch.from_numpy(h).double(), torch.from_numpy(located).double())
             got = session.run(["offset", "sigma"], {"h": h, "located": located})
@@ -210,9 +254,11 @@ def export(head, out: Path, hidden: int, side: int, metadata: dict, sample: dict
 
 
 def load_head(path: Path, hidden: int, side: int) -> PoseHead:
-    """A head exported by this script, with its weights (to score or gate it again)."""
+    """A head exported by this script, with its weights (to score or gate it again); its
+    width is read from the weights."""
     weights = {i.name: numpy_helper.to_array(i) for i in onnx.load(str(path)).graph.initializer}
-    head = PoseHead(hidden, side)
+    channels, units = (weights[k].shape[0] if k in weights else 0 for k in ("conv.0.weight", "mlp.0.weight"))
+    head = PoseHead(hidden, side, channels or 32, units or 64)
     state = head.state_dict()
     missing = [k for k in state if k not in weights or weights[k].shape != tuple(state[k].shape)]
     if missing:
@@ -232,13 +278,23 @@ def main() -> None:
     parser.add_argument("--first-step", type=int, default=11,
                         help="first step (0-based) of each window fitted on: history first_step + 1")
     parser.add_argument("--minutes", type=float, default=25.0)
+    parser.add_argument("--batch", type=int, default=256)
+    parser.add_argument("--lr", type=float, default=1e-3, help="Adam's first rate; decays to 1 %% of it along a cosine")
+    parser.add_argument("--validation-fraction", type=float, default=0.02,
+                        help="training scans held out to keep the best epoch's weights (0: keep the last)")
+    parser.add_argument("--channels", type=int, default=32, help="the head's convolution channels")
+    parser.add_argument("--units", type=int, default=64, help="the head's hidden units")
+    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto",
+                        help="where the states are kept and the head fitted (auto: a CUDA GPU when PyTorch sees one)")
+    parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--json", type=Path, help="write the scores here")
     args = parser.parse_args()
-    torch.set_num_threads(2)
+    device = choose_device(args.device)
+    torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
     index = load_index(args.data)
-    model = model_from_onnx(args.model, index["spec"])
+    model = model_from_onnx(args.model, index["spec"]).to(device)
     data = {}
     splits = ("test", "test_unseen") if args.head else ("train", "test", "test_unseen")
     for name in splits:
@@ -251,19 +307,21 @@ def main() -> None:
         limit = args.train_windows if name == "train" else args.test_windows
         if 0 < limit < len(rows):
             rows = np.sort(np.random.default_rng(args.seed).choice(rows, limit, replace=False))
-        data[name] = features(model, split, positions, rows, args.first_step)
+        data[name] = features(model, split, positions, rows, args.first_step, device)
         print(f"{name}: {len(data[name]['states'])} seen scans from {len(rows)} windows", flush=True)
     if args.head:
-        head = load_head(args.head, model.hidden, model.state_size)
+        head = load_head(args.head, model.hidden, model.state_size).to(device)
     else:
-        head = PoseHead(model.hidden, model.state_size)
-        fit(head, data["train"], args.minutes, args.seed)
+        head = PoseHead(model.hidden, model.state_size, args.channels, args.units).to(device)
+        print(f"fitting on {device}: {sum(p.numel() for p in head.parameters())} parameters", flush=True)
+        fit(head, data["train"], args.minutes, args.seed, args.batch, args.lr, args.validation_fraction, device)
     errors = {}
     for name in splits:
-        offsets, sigma = predict(head, data[name])
+        offsets, sigma = predict(head, data[name], device)
         before = np.linalg.norm(data[name]["offsets"], axis=1)
         after = np.linalg.norm(data[name]["offsets"] - offsets, axis=1)
         errors[name] = (before, after, sigma)
+    head.cpu()
     before, after, sigma = errors["test"]
     used = helped_activities(before, after, data["test"]["predicted"])
     scale = calibrate(head, after, sigma)
@@ -273,6 +331,7 @@ def main() -> None:
     report = {"activities": used, "max_sigma_m": round(max_sigma, 4) if np.isfinite(max_sigma) else None,
               "sigma_scale": round(scale, 3),
               "first_step": args.first_step,
+              "head": {"channels": head.conv[0].out_channels, "units": head.mlp[0].out_features},
               "train_windows": 0 if args.head else args.train_windows}
     for name, (before, after, sigma) in errors.items():
         report[name] = scores(before, after, sigma, data[name], used, max_sigma)
