@@ -273,6 +273,7 @@ def main() -> None:
     parser.add_argument("data", type=Path, help="a dataset with *_positions.npy")
     parser.add_argument("--out", type=Path, help="where to write the head (ONNX)")
     parser.add_argument("--head", type=Path, help="score (and gate, with --out) this exported head instead of fitting one")
+    parser.add_argument("--init-from", type=Path, help="start the fit from this exported head's weights (its size)")
     parser.add_argument("--train-windows", type=int, default=0, help="fit on this many training windows (0: all)")
     parser.add_argument("--test-windows", type=int, default=0, help="score on this many windows per test split (0: all)")
     parser.add_argument("--first-step", type=int, default=11,
@@ -312,7 +313,8 @@ def main() -> None:
     if args.head:
         head = load_head(args.head, model.hidden, model.state_size).to(device)
     else:
-        head = PoseHead(model.hidden, model.state_size, args.channels, args.units).to(device)
+        head = (load_head(args.init_from, model.hidden, model.state_size) if args.init_from
+                else PoseHead(model.hidden, model.state_size, args.channels, args.units)).to(device)
         print(f"fitting on {device}: {sum(p.numel() for p in head.parameters())} parameters", flush=True)
         fit(head, data["train"], args.minutes, args.seed, args.batch, args.lr, args.validation_fraction, device)
     errors = {}

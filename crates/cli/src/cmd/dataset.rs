@@ -494,8 +494,9 @@ fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Scenes matching the globs (each must match a file), sorted by path and each once, each with
-/// a person (the activities come from it).
+/// Scenes matching the globs (each must match a file), each file once, each with a person (the
+/// activities come from it), in the order of their names: the episodes go round-robin over
+/// this order, so where the files lie must not change which episodes a seed draws.
 pub(crate) fn load_scenes(patterns: &[String]) -> anyhow::Result<Vec<(String, Scene)>> {
     let pattern = patterns.join(" ");
     let mut paths: Vec<PathBuf> = Vec::new();
@@ -523,6 +524,7 @@ pub(crate) fn load_scenes(patterns: &[String]) -> anyhow::Result<Vec<(String, Sc
     if scenes.is_empty() {
         bail!("--scenes '{pattern}': no scene has a person");
     }
+    scenes.sort_by(|(a_file, a), (b_file, b)| (&a.name, a_file).cmp(&(&b.name, b_file)));
     // A model counts scans (its window, the alerts' confirmations): one rate for all.
     let (first_file, first) = &scenes[0];
     if let Some((file, scene)) = scenes
@@ -1187,6 +1189,31 @@ mod tests {
             error.contains("10 Hz") && error.contains("20 Hz"),
             "{error}"
         );
+    }
+
+    #[test]
+    fn scenes_are_ordered_by_name_wherever_their_files_lie() {
+        let dir = tempfile::tempdir().unwrap();
+        let text = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/living_room.yaml"),
+        )
+        .unwrap();
+        // By path: zeta, mu, alpha; by name the other way round.
+        for (file, name) in [("a/x.yaml", "zeta"), ("b/y.yaml", "mu"), ("b/z.yaml", "alpha")] {
+            let path = dir.path().join(file);
+            std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+            let renamed = text.replace("name: living_room", &format!("name: {name}"));
+            assert_ne!(renamed, text);
+            std::fs::write(path, renamed).unwrap();
+        }
+        let root = dir.path().display();
+        let patterns = [format!("{root}/b/*.yaml"), format!("{root}/a/*.yaml")];
+        let names: Vec<String> = load_scenes(&patterns)
+            .unwrap()
+            .into_iter()
+            .map(|(_, scene)| scene.name)
+            .collect();
+        assert_eq!(names, ["alpha", "mu", "zeta"].map(String::from));
     }
 
     #[test]
