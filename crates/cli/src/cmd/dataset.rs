@@ -1199,7 +1199,11 @@ mod tests {
         )
         .unwrap();
         // By path: zeta, mu, alpha; by name the other way round.
-        for (file, name) in [("a/x.yaml", "zeta"), ("b/y.yaml", "mu"), ("b/z.yaml", "alpha")] {
+        for (file, name) in [
+            ("a/x.yaml", "zeta"),
+            ("b/y.yaml", "mu"),
+            ("b/z.yaml", "alpha"),
+        ] {
             let path = dir.path().join(file);
             std::fs::create_dir_all(path.parent().unwrap()).unwrap();
             let renamed = text.replace("name: living_room", &format!("name: {name}"));
