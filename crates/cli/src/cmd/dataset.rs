@@ -1111,10 +1111,12 @@ fn print_counts(index: &DatasetIndex) {
 mod tests {
     use super::*;
 
+    fn shipped_scene_path(name: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../config/scenes/{name}.yaml"))
+    }
+
     fn shipped_scene(name: &str) -> Scene {
-        let path =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../config/scenes/{name}.yaml"));
-        Scene::load(&path).expect("shipped scene")
+        Scene::load(&shipped_scene_path(name)).expect("shipped scene")
     }
 
     #[test]
@@ -1175,10 +1177,7 @@ mod tests {
     #[test]
     fn scenes_of_two_scan_rates_are_refused() {
         let dir = tempfile::tempdir().unwrap();
-        let text = std::fs::read_to_string(
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/living_room.yaml"),
-        )
-        .unwrap();
+        let text = std::fs::read_to_string(shipped_scene_path("living_room")).unwrap();
         std::fs::write(dir.path().join("a.yaml"), &text).unwrap();
         let slow = text.replace("lidar: {}", "lidar: {rate_hz: 10}");
         assert_ne!(slow, text);
@@ -1194,10 +1193,7 @@ mod tests {
     #[test]
     fn scenes_are_ordered_by_name_wherever_their_files_lie() {
         let dir = tempfile::tempdir().unwrap();
-        let text = std::fs::read_to_string(
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/living_room.yaml"),
-        )
-        .unwrap();
+        let text = std::fs::read_to_string(shipped_scene_path("living_room")).unwrap();
         // By path: zeta, mu, alpha; by name the other way round.
         for (file, name) in [
             ("a/x.yaml", "zeta"),
