@@ -54,11 +54,13 @@ def load_index(data_dir: Path) -> dict:
     return index
 
 
-def load_split(data_dir: Path, index: dict, name: str) -> Split | None:
+def load_split(data_dir: Path, index: dict, name: str, mapped: bool = False) -> Split | None:
+    """One split's windows; `mapped` leaves the images on disk (memory-mapped), for readers that
+    go through them once in order."""
     info = index.get("splits", {}).get(name)
     if info is None or info.get("windows", 0) == 0:
         return None
-    images = np.load(data_dir / info["images"])
+    images = np.load(data_dir / info["images"], mmap_mode="r" if mapped else None)
     labels = np.load(data_dir / info["labels"])
     spec = index["spec"]
     expected = (info["windows"], spec["window"], spec["size"], spec["size"])

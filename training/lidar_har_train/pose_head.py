@@ -299,7 +299,7 @@ def main() -> None:
     data = {}
     splits = ("test", "test_unseen") if args.head else ("train", "test", "test_unseen")
     for name in splits:
-        split = load_split(args.data, index, name)
+        split = load_split(args.data, index, name, mapped=True)
         info = index["splits"][name]
         if "positions" not in info:
             raise SystemExit(f"{args.data}: no positions in split {name}; remake it with today's `lidar-har dataset`")
