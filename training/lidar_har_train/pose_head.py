@@ -103,8 +103,8 @@ def sigma_loss(sigma, error):
 
 def tensors(data, rows, device: torch.device):
     """The head's inputs and target for the scans `rows` of `data`, on `device`."""
-    return (data["states"][torch.from_numpy(rows).to(device)].float(), torch.from_numpy(data["located"][rows]).to(device),
-            torch.from_numpy(data["offsets"][rows]).to(device))
+    states = data["states"][torch.from_numpy(rows).to(device)].float()
+    return states, torch.from_numpy(data["located"][rows]).to(device), torch.from_numpy(data["offsets"][rows]).to(device)
 
 
 def mean_error(head, data, rows, device: torch.device) -> float:
@@ -257,8 +257,8 @@ def load_head(path: Path, hidden: int, side: int) -> PoseHead:
     """A head exported by this script, with its weights (to score or gate it again); its
     width is read from the weights."""
     weights = {i.name: numpy_helper.to_array(i) for i in onnx.load(str(path)).graph.initializer}
-    channels, units = (weights[k].shape[0] if k in weights else 0 for k in ("conv.0.weight", "mlp.0.weight"))
-    head = PoseHead(hidden, side, channels or 32, units or 64)
+    width = {k: weights[k].shape[0] for k in ("conv.0.weight", "mlp.0.weight") if k in weights}
+    head = PoseHead(hidden, side, width.get("conv.0.weight", 32), width.get("mlp.0.weight", 64))
     state = head.state_dict()
     missing = [k for k in state if k not in weights or weights[k].shape != tuple(state[k].shape)]
     if missing:
@@ -334,7 +334,11 @@ def main() -> None:
               "sigma_scale": round(scale, 3),
               "first_step": args.first_step,
               "head": {"channels": head.conv[0].out_channels, "units": head.mlp[0].out_features},
-              "train_windows": 0 if args.head else args.train_windows}
+              "train_windows": 0 if args.head else args.train_windows,
+              "fit": None if args.head else {
+                  "device": str(device), "minutes": args.minutes, "batch": args.batch, "lr": args.lr,
+                  "validation_fraction": args.validation_fraction, "seed": args.seed,
+                  "init_from": str(args.init_from) if args.init_from else None}}
     for name, (before, after, sigma) in errors.items():
         report[name] = scores(before, after, sigma, data[name], used, max_sigma)
         r = report[name]
