@@ -63,7 +63,7 @@ def features(model, split, positions, rows, first_step: int, device: torch.devic
                 if t < first_step:
                     continue
                 pos = positions[batch, t]
-                keep = np.isfinite(pos).all(axis=1)
+                keep = seen[start : start + 512, t - first_step]
                 kept = h[torch.from_numpy(keep).to(device)]
                 states[filled : filled + len(kept)] = kept
                 filled += len(kept)
@@ -323,7 +323,6 @@ def main() -> None:
         before = np.linalg.norm(data[name]["offsets"], axis=1)
         after = np.linalg.norm(data[name]["offsets"] - offsets, axis=1)
         errors[name] = (before, after, sigma)
-    head.cpu()
     before, after, sigma = errors["test"]
     used = helped_activities(before, after, data["test"]["predicted"])
     scale = calibrate(head, after, sigma)
