@@ -16,3 +16,4 @@ pub mod pose_head;
 pub mod representation;
 pub mod scan;
 pub mod tracker;
+pub mod visibility;

@@ -21,6 +21,7 @@ use crate::geometry::Pose2;
 use crate::map::OccupancyMap;
 use crate::scan::{BeamDirections, Scan, ScanError};
 use crate::tracker::{PersonEstimate, Tracker, TrackerConfig};
+use crate::visibility::{ScanView, ShadowConfig};
 
 /// Every parameter of the localiser, with the paper's values as defaults
 /// (`config/localiser.yaml` holds the same values, documented).
@@ -49,6 +50,7 @@ pub struct LocaliserConfig {
     pub centroid_offset_m: f64,
     pub cluster: ClusterConfig,
     pub tracker: TrackerConfig,
+    pub shadow: ShadowConfig,
     pub background: BackgroundConfig,
     pub odometry: OdometryConfig,
     /// Lidar pose on the robot (`base_link -> laser`) until /tf_static gives one.
@@ -66,6 +68,7 @@ impl Default for LocaliserConfig {
             centroid_offset_m: 0.06,
             cluster: ClusterConfig::default(),
             tracker: TrackerConfig::default(),
+            shadow: ShadowConfig::default(),
             background: BackgroundConfig::default(),
             odometry: OdometryConfig::default(),
             mount: Pose2::IDENTITY,
@@ -105,6 +108,8 @@ impl LocaliserConfig {
             ),
             ("tracker.still_speed_mps", self.tracker.still_speed_mps),
             ("tracker.max_coast_s", self.tracker.max_coast_s),
+            ("shadow.pass_margin_m", self.shadow.pass_margin_m),
+            ("shadow.min_clearance_m", self.shadow.min_clearance_m),
             (
                 "background.learn_duration_s",
                 self.background.learn_duration_s,
@@ -126,6 +131,8 @@ impl LocaliserConfig {
                 self.tracker.initial_velocity_std_mps,
             ),
             ("tracker.max_speed_mps", self.tracker.max_speed_mps),
+            ("shadow.body_radius_m", self.shadow.body_radius_m),
+            ("shadow.search_m", self.shadow.search_m),
             (
                 "odometry.max_interpolation_gap_s",
                 self.odometry.max_interpolation_gap_s,
@@ -621,7 +628,18 @@ impl Localiser {
                 cluster.centroid += (cluster.centroid - sensor).normalize_or_zero() * offset;
             }
         }
-        let person = self.tracker.update(scan.stamp_ns, &self.clusters);
+        let mut person = self.tracker.update(scan.stamp_ns, &self.clusters);
+        if let (Reference::Map(map), Some(person)) = (&self.reference, person.as_mut())
+            && !person.visible
+            && self.config.shadow.enabled
+        {
+            let view = ScanView::new(scan, laser_pose);
+            if let Some(hidden) = view.nearest_hidden(person.position, map, &self.config.shadow)
+                && let Some(velocity) = self.tracker.place_hidden_person(hidden)
+            {
+                (person.position, person.velocity) = (hidden, velocity);
+            }
+        }
         result.output = Some(LocaliserOutput {
             stamp_ns: scan.stamp_ns,
             laser_pose,
@@ -798,6 +816,63 @@ mod tests {
         };
         assert_eq!(seen_at_the_wall(0.08), 10);
         assert_eq!(seen_at_the_wall(0.2), 0, "the plain margin hides them");
+    }
+
+    #[test]
+    fn a_hidden_person_is_kept_out_of_what_the_scan_sees_through() {
+        // The room with a box at x 1-2, y -0.2-0.2: from the Lidar at (-3, 0) its shadow
+        // covers |y| < 0.3 at x = 3. The person walks down x = 3 at 1.5 m/s into the shadow
+        // and stops in it at y = 0; the straight-line prediction walks out of it.
+        let n = 200;
+        let occupied = (0..n * n)
+            .map(|i| {
+                let (col, row) = (i % n, i / n);
+                let wall = col == 0 || col == n - 1 || row == 0 || row == n - 1;
+                wall || ((120..140).contains(&col) && (96..104).contains(&row))
+            })
+            .collect();
+        let map = OccupancyMap::new(*room().geometry(), occupied).unwrap();
+        let laser = Pose2::new(-3.0, 0.0, 0.0);
+        let person = |t: f64| DVec2::new(3.0, (3.0 - 1.5 * t).max(0.0));
+        let shadow = ShadowConfig::default();
+        let run = |enabled: bool| {
+            let config = LocaliserConfig {
+                shadow: ShadowConfig { enabled, ..shadow },
+                ..LocaliserConfig::default()
+            };
+            let reference = Reference::Map(map.clone());
+            let mut loc = Localiser::new(config, reference, Motion::Stationary(laser)).unwrap();
+            let (mut hidden, mut seen_through, mut last_error) = (0, 0, 0.0);
+            for k in 0..80 {
+                let t = k as f64 * 0.05;
+                let mut scan = crate::visibility::tests::cast(
+                    &map,
+                    laser,
+                    -std::f32::consts::PI,
+                    Some((person(t), 0.2)),
+                );
+                scan.stamp_ns = k * PERIOD_NS;
+                let out = loc.process_scan(&scan).output.unwrap();
+                let Some(estimate) = out.person.filter(|p| !p.visible) else {
+                    continue;
+                };
+                hidden += 1;
+                let view = ScanView::new(&scan, laser);
+                seen_through += usize::from(view.sees_through(estimate.position, &shadow));
+                assert!(estimate.position.is_finite() && estimate.velocity.is_finite());
+                last_error = estimate.position.distance(person(t));
+            }
+            (hidden, seen_through, last_error)
+        };
+        let (hidden, seen_through, kept_error) = run(true);
+        assert!(hidden >= 20, "hidden on {hidden} scans");
+        assert_eq!(seen_through, 0);
+        let (_, seen_through, straight_error) = run(false);
+        assert!(seen_through > 0, "the prediction never left the shadow");
+        assert!(
+            kept_error < 0.5 && kept_error < straight_error,
+            "{kept_error} vs {straight_error}"
+        );
     }
 
     #[test]

@@ -453,6 +453,21 @@ impl Tracker {
         ))
     }
 
+    /// Moves the hidden person's track to `position`, where the scan could not have seen
+    /// them, and returns its velocity: a still person (sitting, lying, fallen) is stopped
+    /// there, as what velocity they had did not take them where it pointed; a moving one keeps
+    /// theirs, as a walker hidden behind furniture most likely walks on along it.
+    pub fn place_hidden_person(&mut self, position: DVec2) -> Option<DVec2> {
+        let id = self.person?;
+        let still_speed = self.config.still_speed_mps;
+        let track = self.tracks.iter_mut().find(|t| t.id == id)?;
+        (track.x.pos, track.y.pos) = (position.x, position.y);
+        if track.mean_velocity.length() < still_speed {
+            (track.x.vel, track.y.vel) = (0.0, 0.0);
+        }
+        Some(DVec2::new(track.x.vel, track.y.vel))
+    }
+
     fn person_track(&self) -> Option<&Track> {
         self.person
             .and_then(|id| self.tracks.iter().find(|t| t.id == id))
@@ -520,6 +535,34 @@ mod tests {
             est.covariance
         );
         assert_eq!(est.points.len(), 6);
+    }
+
+    #[test]
+    fn a_hidden_person_placed_elsewhere_stops_if_still_and_walks_on_if_moving() {
+        let placed = |speed: f64| {
+            let mut tracker = Tracker::new(TrackerConfig::default());
+            for k in 0..60 {
+                let p = DVec2::new(speed * 0.05 * k as f64, 0.0);
+                tracker.update(k * PERIOD_NS, &[blob(p)]);
+            }
+            tracker.update(60 * PERIOD_NS, &[]).expect("coasting");
+            let velocity = tracker.place_hidden_person(DVec2::new(1.0, 1.0)).unwrap();
+            let est = tracker.update(61 * PERIOD_NS, &[]).unwrap();
+            (velocity, est)
+        };
+        // Swaying on the spot (0.2 m/s, under still_speed_mps): stopped where placed.
+        let (velocity, est) = placed(0.2);
+        assert_eq!(velocity, DVec2::ZERO);
+        assert_eq!(est.position, DVec2::new(1.0, 1.0));
+        // Walking (1 m/s): walks on from there.
+        let (velocity, est) = placed(1.0);
+        assert!((velocity - DVec2::new(1.0, 0.0)).length() < 0.1, "{velocity}");
+        assert!((est.position - DVec2::new(1.05, 1.0)).length() < 0.01, "{est:?}");
+        assert_eq!(
+            Tracker::new(TrackerConfig::default()).place_hidden_person(DVec2::ZERO),
+            None,
+            "nobody tracked"
+        );
     }
 
     #[test]

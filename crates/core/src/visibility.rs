@@ -1,0 +1,289 @@
+//! What a scan says about where an unseen person cannot be: the Lidar's beams pass through
+//! the free space in front of their returns, so a person predicted there would have been
+//! seen. A hidden person is somewhere the beams do not reach: behind an obstacle, in its
+//! shadow ("negative information" in tracking).
+
+use glam::DVec2;
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::{Pose2, normalize_angle};
+use crate::map::OccupancyMap;
+use crate::scan::Scan;
+
+/// How a hidden person is kept out of the space the scan saw through.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ShadowConfig {
+    /// Whether a hidden person predicted where the scan saw through is moved into the
+    /// nearest shadow (with a map only: the map says where a body fits).
+    pub enabled: bool,
+    /// Half the width of a body at the scan plane (m): a person there blocks every beam
+    /// within this distance of their centre, and stands this far behind what hides them.
+    pub body_radius_m: f64,
+    /// A beam passes a person only when it returns at least this much beyond them (m): range
+    /// noise and a body's depth.
+    pub pass_margin_m: f64,
+    /// How far from the prediction a hidden place is looked for (m); none nearer: the
+    /// prediction stands.
+    pub search_m: f64,
+    /// Least clearance from mapped obstacles of a hidden place (m).
+    pub min_clearance_m: f64,
+}
+
+impl Default for ShadowConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            body_radius_m: 0.10,
+            pass_margin_m: 0.3,
+            search_m: 1.0,
+            min_clearance_m: 0.1,
+        }
+    }
+}
+
+/// The beams of one scan, placed in the map frame, asked whether a body could hide somewhere.
+pub struct ScanView<'a> {
+    scan: &'a Scan,
+    laser: Pose2,
+}
+
+impl<'a> ScanView<'a> {
+    pub fn new(scan: &'a Scan, laser: Pose2) -> Self {
+        Self { scan, laser }
+    }
+
+    /// Whether every beam across a body centred at `p` (map frame) returned well beyond it:
+    /// the scan saw through the place, so nobody stands there. A beam without a return, or
+    /// a place outside the scan's field of view, says nothing.
+    pub fn sees_through(&self, p: DVec2, config: &ShadowConfig) -> bool {
+        let Some((distance, bearing)) = self.polar(p, config.body_radius_m) else {
+            return false;
+        };
+        let half_width = (config.body_radius_m / distance).asin();
+        let mut beams = self
+            .beams_between(bearing - half_width, bearing + half_width)
+            .peekable();
+        beams.peek().is_some()
+            && beams.all(|beam| {
+                let range = self.scan.ranges[beam];
+                self.scan.is_return(range) && f64::from(range) > distance + config.pass_margin_m
+            })
+    }
+
+    /// The place nearest `p` within `config.search_m` that this scan does not see through,
+    /// `body_radius_m` behind a return and at least `min_clearance_m` from mapped obstacles;
+    /// `None` when `p` is not seen through or no such place is near.
+    pub fn nearest_hidden(
+        &self,
+        p: DVec2,
+        map: &OccupancyMap,
+        config: &ShadowConfig,
+    ) -> Option<DVec2> {
+        if !self.sees_through(p, config) {
+            return None;
+        }
+        let (distance, bearing) = self.polar(p, config.body_radius_m)?;
+        let sensor = self.laser.position();
+        let half_width = (config.search_m / distance).min(1.0).asin();
+        let mut best: Option<(f64, DVec2)> = None;
+        for beam in self.beams_between(bearing - half_width, bearing + half_width) {
+            let range = self.scan.ranges[beam];
+            if !self.scan.is_return(range) {
+                continue;
+            }
+            let direction = DVec2::from_angle(self.scan.beam_angle(beam) + self.laser.theta);
+            // Along this beam, the point nearest `p` with a body behind the return ...
+            let along = (p - sensor).dot(direction);
+            let mut reach = along.max(f64::from(range) + config.body_radius_m);
+            // ... and clear of what is mapped behind it (the far side of a sofa).
+            let mut place = None;
+            while reach - along <= config.search_m {
+                let q = sensor + direction * reach;
+                match map.free_clearance(q).map(f64::from) {
+                    Some(c) if c >= config.min_clearance_m => {
+                        place = Some(q);
+                        break;
+                    }
+                    Some(c) => reach += (config.min_clearance_m - c).max(0.02),
+                    None => reach += 0.05,
+                }
+            }
+            let Some(q) = place else { continue };
+            let off = q.distance(p);
+            if off <= config.search_m
+                && best.is_none_or(|(d, _)| off < d)
+                && !self.sees_through(q, config)
+            {
+                best = Some((off, q));
+            }
+        }
+        best.map(|(_, q)| q)
+    }
+
+    /// Distance and bearing (map frame) of `p` from the Lidar; `None` within `min_distance`
+    /// of it (or for a non-finite `p`), where a bearing means little.
+    fn polar(&self, p: DVec2, min_distance: f64) -> Option<(f64, f64)> {
+        let offset = p - self.laser.position();
+        let distance = offset.length();
+        (distance > min_distance).then(|| (distance, offset.y.atan2(offset.x)))
+    }
+
+    /// The beams pointing between `from` and `to` (radians, map frame, `from <= to`) that
+    /// the scan has, across its seam where it wraps around; empty when none.
+    fn beams_between(&self, from: f64, to: f64) -> impl Iterator<Item = usize> {
+        let increment = f64::from(self.scan.angle_increment);
+        let beams = self.scan.ranges.len() as i64;
+        let usable = increment.is_finite() && increment != 0.0 && beams > 0 && from <= to;
+        let per_turn = if usable {
+            (std::f64::consts::TAU / increment.abs()).round().max(1.0) as i64
+        } else {
+            1
+        };
+        // Beam `k` points at angle_min + k * increment: walk from whichever end of the
+        // interval the beams' order starts at.
+        let start = if increment > 0.0 { from } else { to };
+        let relative = normalize_angle(start - self.laser.theta - self.scan.beam_angle(0));
+        let first = (relative / increment).round() as i64;
+        let count = if usable {
+            (((to - from) / increment.abs()).round() as i64 + 1).min(per_turn)
+        } else {
+            0
+        };
+        (0..count)
+            .map(move |k| (first + k).rem_euclid(per_turn))
+            .filter(move |&b| b < beams)
+            .map(|b| b as usize)
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::map::MapGeometry;
+
+    /// A 10 m x 10 m room at 5 cm, origin (0, 0), walls on its border and a sofa filling
+    /// x 3.0-3.5, y 4.0-6.0.
+    fn room_with_sofa() -> OccupancyMap {
+        let n = 200;
+        let occupied = (0..n * n)
+            .map(|i| {
+                let (col, row) = (i % n, i / n);
+                let border = col == 0 || col == n - 1 || row == 0 || row == n - 1;
+                let sofa = (60..70).contains(&col) && (80..120).contains(&row);
+                border || sofa
+            })
+            .collect();
+        let geometry = MapGeometry {
+            resolution: 0.05,
+            origin: Pose2::IDENTITY,
+            width: n,
+            height: n,
+        };
+        OccupancyMap::new(geometry, occupied).unwrap()
+    }
+
+    /// A 720-beam scan of `map` from `laser`, first beam at `angle_min`, with a round person
+    /// (centre, radius) in it: each beam's range is where it first enters an occupied cell or
+    /// the person.
+    pub(crate) fn cast(
+        map: &OccupancyMap,
+        laser: Pose2,
+        angle_min: f32,
+        person: Option<(DVec2, f64)>,
+    ) -> Scan {
+        let n = 720;
+        let increment = std::f64::consts::TAU / n as f64;
+        let ranges = (0..n)
+            .map(|i| {
+                let angle = laser.theta + f64::from(angle_min) + i as f64 * increment;
+                let direction = DVec2::from_angle(angle);
+                let mut range = 0.0;
+                // Sphere tracing: a step as long as the clearance cannot cross an obstacle.
+                while let Some(clearance) = map.free_clearance(laser.position() + direction * range)
+                {
+                    range += (f64::from(clearance) - 0.05).max(0.01);
+                }
+                if let Some((centre, radius)) = person {
+                    let to_centre = centre - laser.position();
+                    let along = to_centre.dot(direction);
+                    let miss2 = to_centre.length_squared() - along * along;
+                    if along > 0.0 && miss2 <= radius * radius {
+                        range = range.min(along - (radius * radius - miss2).sqrt());
+                    }
+                }
+                range as f32
+            })
+            .collect();
+        Scan {
+            stamp_ns: 0,
+            angle_min,
+            angle_increment: increment as f32,
+            range_min: 0.05,
+            range_max: 12.0,
+            ranges,
+        }
+    }
+
+    const LASER: Pose2 = Pose2::new(1.0, 5.0, 0.4);
+
+    #[test]
+    fn open_floor_in_view_is_seen_through_and_the_space_behind_furniture_is_not() {
+        let map = room_with_sofa();
+        let config = ShadowConfig::default();
+        for angle_min in [-std::f32::consts::PI, 0.0] {
+            let scan = cast(&map, LASER, angle_min, None);
+            let view = ScanView::new(&scan, LASER);
+            assert!(view.sees_through(DVec2::new(5.0, 8.0), &config));
+            assert!(view.sees_through(DVec2::new(2.0, 2.0), &config));
+            // Behind the sofa, just in front of it (the sofa returns within pass_margin_m of it), beside the
+            // wall; farther in front of it, the open floor.
+            assert!(!view.sees_through(DVec2::new(5.0, 5.0), &config));
+            assert!(!view.sees_through(DVec2::new(2.8, 5.0), &config));
+            assert!(view.sees_through(DVec2::new(2.4, 5.0), &config));
+            assert!(!view.sees_through(DVec2::new(9.8, 5.0), &config));
+        }
+    }
+
+    #[test]
+    fn a_seen_through_prediction_moves_to_the_nearest_place_behind_the_sofa() {
+        let map = room_with_sofa();
+        let config = ShadowConfig::default();
+        let scan = cast(&map, LASER, -std::f32::consts::PI, None);
+        let view = ScanView::new(&scan, LASER);
+        // The shadow's upper edge is the ray through the sofa's corner (3, 6): slope 1/2.
+        let predicted = DVec2::new(5.0, 7.3);
+        let hidden = view.nearest_hidden(predicted, &map, &config).unwrap();
+        assert!(!view.sees_through(hidden, &config), "{hidden}");
+        assert!(hidden.x > 3.5 && hidden.y < 7.3, "{hidden}");
+        let beyond_edge = (hidden.y - 5.0) - 0.5 * (hidden.x - 1.0);
+        assert!(beyond_edge < 0.0, "not in the shadow: {hidden}");
+        assert!(hidden.distance(predicted) < 0.6, "{hidden}");
+        // Hidden already: nothing to move; no shadow within reach: the prediction stands.
+        assert_eq!(
+            view.nearest_hidden(DVec2::new(5.0, 5.0), &map, &config),
+            None
+        );
+        assert_eq!(
+            view.nearest_hidden(DVec2::new(5.0, 1.5), &map, &config),
+            None
+        );
+    }
+
+    #[test]
+    fn beams_without_returns_and_unseen_directions_say_nothing() {
+        let map = room_with_sofa();
+        let config = ShadowConfig::default();
+        let mut scan = cast(&map, LASER, -std::f32::consts::PI, None);
+        let open = DVec2::new(5.0, 8.0);
+        for range in scan.ranges.iter_mut() {
+            *range = f32::NAN;
+        }
+        assert!(!ScanView::new(&scan, LASER).sees_through(open, &config));
+        // A 90-degree scan looking away from the place.
+        let mut narrow = cast(&map, LASER, -std::f32::consts::PI, None);
+        narrow.ranges.truncate(180);
+        assert!(!ScanView::new(&narrow, LASER).sees_through(open, &config));
+        assert!(!ScanView::new(&Scan::default(), LASER).sees_through(open, &config));
+    }
+}
