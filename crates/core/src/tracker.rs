@@ -556,8 +556,14 @@ mod tests {
         assert_eq!(est.position, DVec2::new(1.0, 1.0));
         // Walking (1 m/s): walks on from there.
         let (velocity, est) = placed(1.0);
-        assert!((velocity - DVec2::new(1.0, 0.0)).length() < 0.1, "{velocity}");
-        assert!((est.position - DVec2::new(1.05, 1.0)).length() < 0.01, "{est:?}");
+        assert!(
+            (velocity - DVec2::new(1.0, 0.0)).length() < 0.1,
+            "{velocity}"
+        );
+        assert!(
+            (est.position - DVec2::new(1.05, 1.0)).length() < 0.01,
+            "{est:?}"
+        );
         assert_eq!(
             Tracker::new(TrackerConfig::default()).place_hidden_person(DVec2::ZERO),
             None,
