@@ -277,12 +277,13 @@ fn scattered_clustering_ms(n: usize) -> f64 {
         .map(|_| DVec2::new(20.0 * uniform(), 20.0 * uniform()))
         .collect();
     let mut clusterer = Clusterer::default();
-    let mut clusters = Vec::new();
+    let (mut clusters, mut fragments) = (Vec::new(), Vec::new());
     let started = Instant::now();
     clusterer.cluster(
         black_box(&points),
         &ClusterConfig::default(),
         black_box(&mut clusters),
+        black_box(&mut fragments),
     );
     started.elapsed().as_secs_f64() * 1e3
 }

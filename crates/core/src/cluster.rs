@@ -63,9 +63,18 @@ pub struct Clusterer {
 
 impl Clusterer {
     /// Clusters `points` (foreground points in beam order, all finite) into `out`, keeping
-    /// only clusters that can be a person.
-    pub fn cluster(&mut self, points: &[DVec2], config: &ClusterConfig, out: &mut Vec<Cluster>) {
+    /// only clusters that can be a person, and the groups of fewer than `min_points` points
+    /// into `fragments`: noise on their own, but also the pieces of a person at range (a
+    /// sitting person's hands, feet and knees, a beam or two each).
+    pub fn cluster(
+        &mut self,
+        points: &[DVec2],
+        config: &ClusterConfig,
+        out: &mut Vec<Cluster>,
+        fragments: &mut Vec<Cluster>,
+    ) {
         out.clear();
+        fragments.clear();
         let tol = config.tolerance_m;
         let tol2 = tol * tol;
         self.segments.clear();
@@ -129,12 +138,17 @@ impl Clusterer {
                 max = max.max(seg.max);
             }
             let extent_m = (max - min).length();
-            if cluster_points.len() < config.min_points || extent_m > config.max_extent_m {
+            if extent_m > config.max_extent_m {
                 continue;
             }
             let centroid =
                 cluster_points.iter().copied().sum::<DVec2>() / cluster_points.len() as f64;
-            out.push(Cluster {
+            let target = if cluster_points.len() < config.min_points {
+                &mut *fragments
+            } else {
+                &mut *out
+            };
+            target.push(Cluster {
                 centroid,
                 points: cluster_points,
                 extent_m,
@@ -170,7 +184,7 @@ mod tests {
 
     fn run(points: &[DVec2]) -> Vec<Cluster> {
         let mut out = Vec::new();
-        Clusterer::default().cluster(points, &ClusterConfig::default(), &mut out);
+        Clusterer::default().cluster(points, &ClusterConfig::default(), &mut out, &mut Vec::new());
         out
     }
 
@@ -254,9 +268,31 @@ mod tests {
             let points: Vec<DVec2> = raw.into_iter().map(|(x, y)| DVec2::new(x, y)).collect();
             let config = ClusterConfig::default();
             let mut out = Vec::new();
-            Clusterer::default().cluster(&points, &config, &mut out);
+            Clusterer::default().cluster(&points, &config, &mut out, &mut Vec::new());
             let got: Vec<Vec<DVec2>> = out.into_iter().map(|c| c.points).collect();
             proptest::prop_assert_eq!(got, brute_force(&points, &config));
         }
+    }
+
+    #[test]
+    fn groups_too_small_to_be_clusters_come_out_as_fragments() {
+        let person = arc(DVec2::new(2.0, 0.0), 0.1, 6);
+        let mut points = vec![DVec2::new(0.0, 3.0)];
+        points.extend_from_slice(&person);
+        points.extend([DVec2::new(-2.0, 0.0), DVec2::new(-2.05, 0.0)]);
+        // A wall 3 m long: too long for a person, neither cluster nor fragment.
+        points.extend((0..30).map(|i| DVec2::new(-3.0 + 0.1 * i as f64, -2.0)));
+        let (mut clusters, mut fragments) = (Vec::new(), Vec::new());
+        Clusterer::default().cluster(
+            &points,
+            &ClusterConfig::default(),
+            &mut clusters,
+            &mut fragments,
+        );
+        assert_eq!(clusters.len(), 1);
+        assert_eq!(clusters[0].points.len(), 6);
+        let sizes: Vec<usize> = fragments.iter().map(|f| f.points.len()).collect();
+        assert_eq!(sizes, [1, 2]);
+        assert!((fragments[1].centroid - DVec2::new(-2.025, 0.0)).length() < 1e-9);
     }
 }

@@ -48,6 +48,10 @@ pub struct LocaliserConfig {
     /// `localiser_accuracy` example: 0.062 overall, 0.063 standing, 0.079 walking: about
     /// pi/4 of a shin's radius plus the far leg hidden behind the near one).
     pub centroid_offset_m: f64,
+    /// A group of returns too small to be a cluster can be a piece of a still person
+    /// (`tracker.still_pieces_min_points`) only when one of its points is this far from mapped
+    /// obstacles (m): stray returns of walls and furniture lie just past the margin.
+    pub piece_clearance_m: f64,
     pub cluster: ClusterConfig,
     pub tracker: TrackerConfig,
     pub shadow: ShadowConfig,
@@ -67,6 +71,7 @@ impl Default for LocaliserConfig {
             unknown_is_room: true,
             centroid_offset_m: 0.06,
             cluster: ClusterConfig::default(),
+            piece_clearance_m: 0.5,
             tracker: TrackerConfig::default(),
             shadow: ShadowConfig::default(),
             background: BackgroundConfig::default(),
@@ -93,6 +98,7 @@ impl LocaliserConfig {
             ("obstacle_margin_m", self.obstacle_margin_m),
             ("range_margin_fraction", self.range_margin_fraction),
             ("near_person_margin_m", self.near_person_margin_m),
+            ("piece_clearance_m", self.piece_clearance_m),
             ("cluster.tolerance_m", self.cluster.tolerance_m),
             ("tracker.gate_growth_mps", self.tracker.gate_growth_mps),
             ("tracker.part_merge_m", self.tracker.part_merge_m),
@@ -436,6 +442,7 @@ pub struct Localiser {
     clusterer: Clusterer,
     foreground: Vec<DVec2>,
     clusters: Vec<Cluster>,
+    fragments: Vec<Cluster>,
 }
 
 impl Localiser {
@@ -459,6 +466,7 @@ impl Localiser {
             clusterer: Clusterer::default(),
             foreground: Vec::new(),
             clusters: Vec::new(),
+            fragments: Vec::new(),
             config,
         })
     }
@@ -619,16 +627,37 @@ impl Localiser {
         }
         self.last_scan_ns = Some(scan.stamp_ns);
 
-        self.clusterer
-            .cluster(&self.foreground, &self.config.cluster, &mut self.clusters);
+        self.clusterer.cluster(
+            &self.foreground,
+            &self.config.cluster,
+            &mut self.clusters,
+            &mut self.fragments,
+        );
+        // Groups too small to be clusters may be pieces of a still person, but stray returns
+        // of walls and furniture lie just past the margin: only groups reaching clear of the
+        // mapped room count. Without a map nothing says where the room is, so none do.
+        match &self.reference {
+            Reference::Map(map) => {
+                let clear = self.config.piece_clearance_m;
+                self.fragments.retain(|piece| {
+                    piece.points.iter().any(|&p| {
+                        map.distance_to_obstacle(p)
+                            .is_some_and(|c| f64::from(c) >= clear)
+                    })
+                });
+            }
+            _ => self.fragments.clear(),
+        }
         let offset = self.config.centroid_offset_m;
         if offset != 0.0 {
             let sensor = laser_pose.position();
-            for cluster in &mut self.clusters {
+            for cluster in self.clusters.iter_mut().chain(&mut self.fragments) {
                 cluster.centroid += (cluster.centroid - sensor).normalize_or_zero() * offset;
             }
         }
-        let mut person = self.tracker.update(scan.stamp_ns, &self.clusters);
+        let mut person = self
+            .tracker
+            .update(scan.stamp_ns, &self.clusters, &self.fragments);
         if let (Reference::Map(map), Some(person)) = (&self.reference, person.as_mut())
             && !person.visible
             && self.config.shadow.enabled
@@ -873,6 +902,44 @@ mod tests {
             kept_error < 0.5 && kept_error < straight_error,
             "{kept_error} vs {straight_error}"
         );
+    }
+
+    #[test]
+    fn a_still_person_broken_into_pieces_is_seen_where_the_pieces_are_clear_of_the_room() {
+        // A person sitting 3 m away, seen whole for 3 s, then only in pieces: two beams in
+        // every sixteen across them (0.4 m apart, each too small to be a cluster).
+        let laser = Pose2::IDENTITY;
+        let person = DVec2::new(3.0, 0.0);
+        let empty = cast(0, laser, None);
+        let seen_in_pieces = |config: LocaliserConfig| {
+            let mut loc =
+                Localiser::new(config, Reference::Map(room()), Motion::Stationary(laser)).unwrap();
+            for k in 0..60 {
+                loc.process_scan(&cast_with_radius(k * PERIOD_NS, laser, Some(person), 0.5));
+            }
+            let mut scan = cast_with_radius(60 * PERIOD_NS, laser, Some(person), 0.5);
+            let mut on_body = 0;
+            for (range, wall) in scan.ranges.iter_mut().zip(&empty.ranges) {
+                if *range < *wall {
+                    if on_body % 16 >= 2 {
+                        *range = *wall;
+                    }
+                    on_body += 1;
+                }
+            }
+            let out = loc.process_scan(&scan).output.unwrap();
+            assert_eq!(out.clusters, 0);
+            out.person.expect("tracked")
+        };
+        let est = seen_in_pieces(LocaliserConfig::default());
+        assert!(est.visible);
+        assert!(est.position.distance(person) < 0.5, "{:?}", est.position);
+        // Pieces no farther from the room than its walls' stray returns are not a person.
+        let near_the_room = LocaliserConfig {
+            piece_clearance_m: 3.5,
+            ..LocaliserConfig::default()
+        };
+        assert!(!seen_in_pieces(near_the_room).visible);
     }
 
     #[test]

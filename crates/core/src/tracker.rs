@@ -44,6 +44,11 @@ pub struct TrackerConfig {
     /// another moving track follows them more closely (m; 1.0 and 1.4 measured too: the
     /// simulator's figures rise up to 1.2 and hardly after).
     pub part_merge_still_m: f64,
+    /// A still person with no cluster in their gate is seen in the pieces within
+    /// `part_merge_still_m` of where they were predicted (clusters, and the groups too small
+    /// to be clusters: at range a sitting person breaks into hands, feet and knees a beam or
+    /// two each) when these hold this many points together; 0: never.
+    pub still_pieces_min_points: usize,
     /// Below this speed, averaged over `still_window_s`, the person is still (m/s; below a
     /// slow walk, 0.6 m/s; 0.3 and 0.6 measured too).
     pub still_speed_mps: f64,
@@ -90,6 +95,7 @@ impl Default for TrackerConfig {
             max_gate_m: 2.0,
             part_merge_m: 0.6,
             part_merge_still_m: 1.2,
+            still_pieces_min_points: 3,
             still_speed_mps: 0.45,
             still_window_s: 2.0,
             midpoint_length_m: 0.8,
@@ -259,7 +265,12 @@ impl Tracker {
 
     /// Advances every track to `stamp_ns` (not earlier than the previous call) and assigns
     /// this scan's clusters; returns the person's estimate, if a person is tracked.
-    pub fn update(&mut self, stamp_ns: i64, clusters: &[Cluster]) -> Option<PersonEstimate> {
+    pub fn update(
+        &mut self,
+        stamp_ns: i64,
+        clusters: &[Cluster],
+        fragments: &[Cluster],
+    ) -> Option<PersonEstimate> {
         let accel_var = self.config.accel_std_mps2.powi(2);
         for track in &mut self.tracks {
             let dt = (stamp_ns - track.stamp_ns) as f64 * 1e-9;
@@ -297,14 +308,28 @@ impl Tracker {
                 .map(|(c, cl)| (c, track.distance(cl.centroid)))
                 .filter(|&(_, d)| d <= gate)
                 .min_by(|a, b| a.1.total_cmp(&b.1));
-            let Some((c, _)) = nearest else { continue };
-            self.taken[c] = true;
-            let mut points = clusters[c].points.clone();
-            // Cluster centroids, weighted by their points, keep the localiser's centroid
-            // offset (the points themselves are where the Lidar saw them).
-            let mut weighted = clusters[c].centroid * clusters[c].points.len() as f64;
-            if Some(track.id) == person {
-                let merge = if track.mean_velocity.length() < self.config.still_speed_mps {
+            let is_person = Some(track.id) == person;
+            let still = track.mean_velocity.length() < self.config.still_speed_mps;
+            let (mut points, mut weighted, anchor) = match nearest {
+                Some((c, _)) => {
+                    self.taken[c] = true;
+                    // Cluster centroids, weighted by their points, keep the localiser's
+                    // centroid offset (the points themselves are where the Lidar saw them).
+                    (
+                        clusters[c].points.clone(),
+                        clusters[c].centroid * clusters[c].points.len() as f64,
+                        clusters[c].centroid,
+                    )
+                }
+                // Nothing in the gate: a still person at range may be in pieces, each too
+                // small to be a cluster (sitting: hands, feet, knees a beam or two each).
+                None if is_person && still && self.config.still_pieces_min_points > 0 => {
+                    (Vec::new(), DVec2::ZERO, predicted)
+                }
+                None => continue,
+            };
+            if is_person {
+                let merge = if still {
                     self.config.part_merge_still_m.max(self.config.part_merge_m)
                 } else {
                     self.config.part_merge_m
@@ -321,23 +346,33 @@ impl Tracker {
                                 <= self.config.gate_m.min(p.distance(predicted))
                     })
                 };
-                for (other, cl) in clusters.iter().enumerate() {
+                let joins = |cl: &Cluster| {
                     let near = cl
                         .centroid
-                        .distance(clusters[c].centroid)
+                        .distance(anchor)
                         .min(cl.centroid.distance(predicted));
-                    if !self.taken[other]
-                        && (near <= self.config.part_merge_m
-                            || (near <= merge && !followed_by_another(cl.centroid)))
-                    {
+                    near <= self.config.part_merge_m
+                        || (near <= merge && !followed_by_another(cl.centroid))
+                };
+                for (other, cl) in clusters.iter().enumerate() {
+                    if !self.taken[other] && joins(cl) {
                         self.taken[other] = true;
                         points.extend_from_slice(&cl.points);
                         weighted += cl.centroid * cl.points.len() as f64;
                     }
                 }
+                if points.is_empty() {
+                    for piece in fragments.iter().filter(|f| joins(f)) {
+                        points.extend_from_slice(&piece.points);
+                        weighted += piece.centroid * piece.points.len() as f64;
+                    }
+                    if points.len() < self.config.still_pieces_min_points {
+                        continue;
+                    }
+                }
             }
             let mut z = weighted / points.len().max(1) as f64;
-            if Some(track.id) == person {
+            if is_person {
                 z = body_position(&points, z, &self.config);
             }
             assigned[i] = Some(z);
@@ -356,6 +391,7 @@ impl Tracker {
                     let meas_var = meas_var * (full_view / n).max(1.0);
                     track.x.update(z.x, meas_var);
                     track.y.update(z.y, meas_var);
+
                     let v = DVec2::new(track.x.vel, track.y.vel);
                     if v.length() > max_speed {
                         let v = v.normalize() * max_speed;
@@ -516,7 +552,7 @@ mod tests {
         let mut last = None;
         for k in 0..40 {
             let p = DVec2::new(0.05 * k as f64, 1.0); // 1 m/s along x
-            last = tracker.update(k * PERIOD_NS, &[blob(p)]);
+            last = tracker.update(k * PERIOD_NS, &[blob(p)], &[]);
             if k < 2 {
                 assert!(last.is_none(), "not confirmed before 3 hits");
             }
@@ -543,11 +579,11 @@ mod tests {
             let mut tracker = Tracker::new(TrackerConfig::default());
             for k in 0..60 {
                 let p = DVec2::new(speed * 0.05 * k as f64, 0.0);
-                tracker.update(k * PERIOD_NS, &[blob(p)]);
+                tracker.update(k * PERIOD_NS, &[blob(p)], &[]);
             }
-            tracker.update(60 * PERIOD_NS, &[]).expect("coasting");
+            tracker.update(60 * PERIOD_NS, &[], &[]).expect("coasting");
             let velocity = tracker.place_hidden_person(DVec2::new(1.0, 1.0)).unwrap();
-            let est = tracker.update(61 * PERIOD_NS, &[]).unwrap();
+            let est = tracker.update(61 * PERIOD_NS, &[], &[]).unwrap();
             (velocity, est)
         };
         // Swaying on the spot (0.2 m/s, under still_speed_mps): stopped where placed.
@@ -578,12 +614,12 @@ mod tests {
         let mut id = None;
         for k in 0..20 {
             id = tracker
-                .update(k * PERIOD_NS, &[blob(pos(k))])
+                .update(k * PERIOD_NS, &[blob(pos(k))], &[])
                 .map(|e| e.track_id);
         }
         // Hidden for 1 s (20 scans) while walking on.
         for k in 20..40 {
-            let est = tracker.update(k * PERIOD_NS, &[]).expect("coasting");
+            let est = tracker.update(k * PERIOD_NS, &[], &[]).expect("coasting");
             assert!(!est.visible);
             assert!(est.points.is_empty());
             assert!(
@@ -594,7 +630,7 @@ mod tests {
             );
         }
         let est = tracker
-            .update(40 * PERIOD_NS, &[blob(pos(40))])
+            .update(40 * PERIOD_NS, &[blob(pos(40))], &[])
             .expect("reacquired");
         assert!(est.visible);
         assert_eq!(Some(est.track_id), id, "same track after the occlusion");
@@ -608,19 +644,19 @@ mod tests {
         for k in 0..20 {
             let p = DVec2::new(0.125 * k as f64, 0.0);
             id = tracker
-                .update(k * PERIOD_NS, &[blob(p)])
+                .update(k * PERIOD_NS, &[blob(p)], &[])
                 .map(|e| e.track_id);
         }
         let vanished = DVec2::new(0.125 * 19.0, 0.0);
         // Hidden for 0.55 s, in which they turned round: they reappear 0.8 m behind where
         // they vanished, 2.2 m behind the straight-line prediction (its gate is 2 m).
         for k in 20..30 {
-            let est = tracker.update(k * PERIOD_NS, &[]).expect("coasting");
+            let est = tracker.update(k * PERIOD_NS, &[], &[]).expect("coasting");
             assert!(!est.visible);
         }
         let back = vanished - DVec2::new(0.8, 0.0);
         let est = tracker
-            .update(30 * PERIOD_NS, &[blob(back)])
+            .update(30 * PERIOD_NS, &[blob(back)], &[])
             .expect("tracked");
         assert!(est.visible, "re-acquired at once: {est:?}");
         assert_eq!(Some(est.track_id), id);
@@ -645,6 +681,7 @@ mod tests {
                     blob(centre + DVec2::new(back, 0.0)),
                     blob(centre + DVec2::new(front, 0.0)),
                 ],
+                &[],
             );
         }
         let est = est.expect("tracked");
@@ -665,7 +702,7 @@ mod tests {
             let mut tracker = Tracker::new(config);
             let mut est = None;
             for k in 0..10 {
-                est = tracker.update(k * PERIOD_NS, &parts(DVec2::ZERO));
+                est = tracker.update(k * PERIOD_NS, &parts(DVec2::ZERO), &[]);
             }
             est.expect("tracked")
         };
@@ -689,9 +726,65 @@ mod tests {
             } else {
                 vec![blob(p), blob(p + DVec2::new(0.0, 0.9))]
             };
-            est = walking.update(k * PERIOD_NS, &clusters);
+            est = walking.update(k * PERIOD_NS, &clusters, &[]);
         }
         assert_eq!(est.expect("tracked").points.len(), 6);
+    }
+
+    /// A group of `n` points around `centre`, too small to be a cluster.
+    fn piece(centre: DVec2, n: usize) -> Cluster {
+        let points: Vec<DVec2> = (0..n)
+            .map(|i| centre + DVec2::X * 0.03 * i as f64)
+            .collect();
+        Cluster {
+            centroid: points.iter().copied().sum::<DVec2>() / n as f64,
+            points,
+            extent_m: 0.03 * (n - 1) as f64,
+        }
+    }
+
+    #[test]
+    fn a_still_person_seen_only_in_pieces_is_seen_and_a_moving_one_is_not() {
+        // Hands, knees and feet of a person sitting at range: one or two returns each, 0.4 m
+        // apart, around the origin.
+        let pieces = [
+            piece(DVec2::new(-0.4, 0.0), 2),
+            piece(DVec2::new(0.0, 0.1), 1),
+            piece(DVec2::new(0.4, 0.0), 2),
+        ];
+        let seen_in_pieces = |speed: f64, config: TrackerConfig, pieces: &[Cluster]| {
+            let mut tracker = Tracker::new(config);
+            for k in 0..60 {
+                let p = DVec2::new(speed * 0.05 * (k - 59) as f64, 0.0);
+                tracker.update(k * PERIOD_NS, &[blob(p)], &[]);
+            }
+            tracker
+                .update(60 * PERIOD_NS, &[], pieces)
+                .expect("tracked")
+        };
+        let est = seen_in_pieces(0.0, TrackerConfig::default(), &pieces);
+        assert!(est.visible);
+        assert_eq!(est.points.len(), 5);
+        assert!(est.position.length() < 0.1, "{:?}", est.position);
+        // Too few points together, a walker, or the feature off: predicted, not seen.
+        let two = [piece(DVec2::ZERO, 2)];
+        assert!(!seen_in_pieces(0.0, TrackerConfig::default(), &two).visible);
+        assert!(!seen_in_pieces(1.0, TrackerConfig::default(), &pieces).visible);
+        let off = TrackerConfig {
+            still_pieces_min_points: 0,
+            ..TrackerConfig::default()
+        };
+        assert!(!seen_in_pieces(0.0, off, &pieces).visible);
+        // Pieces never start a track, and a person with a cluster in their gate leaves them
+        // (stray returns beside a person seen whole).
+        let mut tracker = Tracker::new(TrackerConfig::default());
+        for k in 0..10 {
+            assert!(tracker.update(k * PERIOD_NS, &[], &pieces).is_none());
+        }
+        for k in 10..20 {
+            let est = tracker.update(k * PERIOD_NS, &[blob(DVec2::ZERO)], &pieces);
+            assert!(est.as_ref().is_none_or(|e| e.points.len() == 6), "{est:?}");
+        }
     }
 
     #[test]
@@ -712,7 +805,7 @@ mod tests {
                 } else {
                     vec![hands.clone(), feet.clone()]
                 };
-                let est = tracker.update(k * PERIOD_NS, &clusters);
+                let est = tracker.update(k * PERIOD_NS, &clusters, &[]);
                 if k >= 30 && k % 3 != 0 && est.is_some_and(|e| e.points.len() == 12) {
                     merged += 1;
                 }
@@ -731,14 +824,14 @@ mod tests {
     fn someone_walking_up_to_a_person_on_the_floor_is_not_merged_into_them() {
         let mut tracker = Tracker::new(TrackerConfig::default());
         for k in 0..20 {
-            tracker.update(k * PERIOD_NS, &[blob(DVec2::ZERO)]);
+            tracker.update(k * PERIOD_NS, &[blob(DVec2::ZERO)], &[]);
         }
         // A walker comes from 3 m away at 1 m/s and is 0.9 m from the person at k = 62:
         // inside part_merge_still_m, but followed by their own moving track.
         let mut est = None;
         for k in 20..=62 {
             let walker = DVec2::new(3.0 - 0.05 * (k - 20) as f64, 0.0);
-            est = tracker.update(k * PERIOD_NS, &[blob(DVec2::ZERO), blob(walker)]);
+            est = tracker.update(k * PERIOD_NS, &[blob(DVec2::ZERO), blob(walker)], &[]);
         }
         let est = est.expect("tracked");
         assert_eq!(est.points.len(), 6, "only the person's own points");
@@ -786,7 +879,7 @@ mod tests {
                     points: vec![p; 3],
                     extent_m: 0.1,
                 };
-                let est = tracker.update(k * PERIOD_NS, &[fragment]);
+                let est = tracker.update(k * PERIOD_NS, &[fragment], &[]);
                 if k >= 30 {
                     worst = worst.max((est.expect("tracked").velocity.x - 1.0).abs());
                 }
@@ -807,7 +900,7 @@ mod tests {
             if k % 2 == 0 {
                 clusters.push(blob(DVec2::new(-8.0 + 1.1 * k as f64, -1.5)));
             }
-            let est = tracker.update(k * PERIOD_NS, &clusters);
+            let est = tracker.update(k * PERIOD_NS, &clusters, &[]);
             if let Some(est) = est {
                 assert!((est.position - person).length() < 0.1);
             }
@@ -820,10 +913,10 @@ mod tests {
         let config = TrackerConfig::default();
         let mut tracker = Tracker::new(config.clone());
         for k in 0..10 {
-            tracker.update(k * PERIOD_NS, &[blob(DVec2::ZERO)]);
+            tracker.update(k * PERIOD_NS, &[blob(DVec2::ZERO)], &[]);
         }
         let first = tracker
-            .update(10 * PERIOD_NS, &[blob(DVec2::ZERO)])
+            .update(10 * PERIOD_NS, &[blob(DVec2::ZERO)], &[])
             .unwrap()
             .track_id;
         // Gone for longer than max_coast_s, then someone appears far away.
@@ -832,7 +925,7 @@ mod tests {
         let start = 11 + (config.max_coast_s * 20.0) as i64 + 1;
         for k in 11..start + 5 {
             let clusters = if k >= start { vec![blob(far)] } else { vec![] };
-            last = tracker.update(k * PERIOD_NS, &clusters);
+            last = tracker.update(k * PERIOD_NS, &clusters, &[]);
         }
         let est = last.expect("new person");
         assert_ne!(est.track_id, first);
@@ -847,6 +940,7 @@ mod tests {
             est = tracker.update(
                 k * PERIOD_NS,
                 &[blob(DVec2::ZERO), blob(DVec2::new(0.45, 0.0))],
+                &[],
             );
         }
         let est = est.unwrap();
