@@ -264,7 +264,9 @@ impl Tracker {
     }
 
     /// Advances every track to `stamp_ns` (not earlier than the previous call) and assigns
-    /// this scan's clusters; returns the person's estimate, if a person is tracked.
+    /// this scan's clusters, and to a still person with none in their gate the `fragments`
+    /// (groups too small to be clusters) near them; returns the person's estimate, if a
+    /// person is tracked.
     pub fn update(
         &mut self,
         stamp_ns: i64,
@@ -391,7 +393,6 @@ impl Tracker {
                     let meas_var = meas_var * (full_view / n).max(1.0);
                     track.x.update(z.x, meas_var);
                     track.y.update(z.y, meas_var);
-
                     let v = DVec2::new(track.x.vel, track.y.vel);
                     if v.length() > max_speed {
                         let v = v.normalize() * max_speed;
