@@ -4,7 +4,9 @@
 //! odometry interpolated at the stamp, the `base_link -> laser` mount); each return moved
 //! into the map frame; returns within `obstacle_margin_m` of a mapped obstacle (or, without a
 //! map, not in front of the learned background) dropped as room; the rest clustered; the
-//! clusters handed to the tracker, which picks the person.
+//! clusters (and, with a map, the groups too small to be clusters but clear of the room)
+//! handed to the tracker, which picks the person; a hidden person's prediction kept out of
+//! what the scan sees through ([`crate::visibility`]).
 //!
 //! Nothing here logs: every problem with the input comes back as a [`Warning`] for the host
 //! to count and report (rate-limited), and what cannot be used is skipped. No `NaN` from the
