@@ -184,6 +184,11 @@ impl Track {
         DVec2::new(self.x.pos, self.y.pos)
     }
 
+    /// Slower than `still_speed_mps` on the averaged velocity: sitting, lying, standing.
+    fn is_still(&self, config: &TrackerConfig) -> bool {
+        self.mean_velocity.length() < config.still_speed_mps
+    }
+
     fn unseen_s(&self, stamp_ns: i64) -> f64 {
         (stamp_ns - self.last_seen_ns) as f64 * 1e-9
     }
@@ -311,7 +316,7 @@ impl Tracker {
                 .filter(|&(_, d)| d <= gate)
                 .min_by(|a, b| a.1.total_cmp(&b.1));
             let is_person = Some(track.id) == person;
-            let still = track.mean_velocity.length() < self.config.still_speed_mps;
+            let still = track.is_still(&self.config);
             let (mut points, mut weighted, anchor) = match nearest {
                 Some((c, _)) => {
                     self.taken[c] = true;
@@ -343,7 +348,7 @@ impl Tracker {
                     tracks.iter().any(|t| {
                         t.confirmed
                             && Some(t.id) != person
-                            && t.mean_velocity.length() >= self.config.still_speed_mps
+                            && !t.is_still(&self.config)
                             && t.position().distance(p)
                                 <= self.config.gate_m.min(p.distance(predicted))
                     })
@@ -496,10 +501,9 @@ impl Tracker {
     /// theirs, as a walker hidden behind furniture most likely walks on along it.
     pub fn place_hidden_person(&mut self, position: DVec2) -> Option<DVec2> {
         let id = self.person?;
-        let still_speed = self.config.still_speed_mps;
         let track = self.tracks.iter_mut().find(|t| t.id == id)?;
         (track.x.pos, track.y.pos) = (position.x, position.y);
-        if track.mean_velocity.length() < still_speed {
+        if track.is_still(&self.config) {
             (track.x.vel, track.y.vel) = (0.0, 0.0);
         }
         Some(DVec2::new(track.x.vel, track.y.vel))

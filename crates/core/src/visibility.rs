@@ -57,9 +57,12 @@ impl<'a> ScanView<'a> {
     /// the scan saw through the place, so nobody stands there. A beam without a return, or
     /// a place outside the scan's field of view, says nothing.
     pub fn sees_through(&self, p: DVec2, config: &ShadowConfig) -> bool {
-        let Some((distance, bearing)) = self.polar(p, config.body_radius_m) else {
-            return false;
-        };
+        self.polar(p, config.body_radius_m)
+            .is_some_and(|(distance, bearing)| self.sees_through_at(distance, bearing, config))
+    }
+
+    /// [`Self::sees_through`] for a place given by its distance and bearing from the Lidar.
+    fn sees_through_at(&self, distance: f64, bearing: f64, config: &ShadowConfig) -> bool {
         let half_width = (config.body_radius_m / distance).asin();
         let mut beams = self
             .beams_between(bearing - half_width, bearing + half_width)
@@ -80,10 +83,10 @@ impl<'a> ScanView<'a> {
         map: &OccupancyMap,
         config: &ShadowConfig,
     ) -> Option<DVec2> {
-        if !self.sees_through(p, config) {
+        let (distance, bearing) = self.polar(p, config.body_radius_m)?;
+        if !self.sees_through_at(distance, bearing, config) {
             return None;
         }
-        let (distance, bearing) = self.polar(p, config.body_radius_m)?;
         let sensor = self.laser.position();
         let half_width = (config.search_m / distance).min(1.0).asin();
         let mut best: Option<(f64, DVec2)> = None;
