@@ -116,6 +116,10 @@ impl LocaliserConfig {
             ),
             ("tracker.still_speed_mps", self.tracker.still_speed_mps),
             ("tracker.max_coast_s", self.tracker.max_coast_s),
+            (
+                "tracker.hidden_speed_decay_s",
+                self.tracker.hidden_speed_decay_s,
+            ),
             ("shadow.pass_margin_m", self.shadow.pass_margin_m),
             ("shadow.min_clearance_m", self.shadow.min_clearance_m),
             (
@@ -665,11 +669,31 @@ impl Localiser {
             && self.config.shadow.enabled
         {
             let view = ScanView::new(scan, laser_pose);
-            if let Some(hidden) = view.nearest_hidden(person.position, map, &self.config.shadow)
+            let shadow = &self.config.shadow;
+            let room_for_a_body = |p: DVec2| {
+                map.free_clearance(p)
+                    .is_some_and(|c| f64::from(c) >= shadow.min_clearance_m)
+            };
+            if let Some(hidden) = view.nearest_hidden(person.position, map, shadow)
                 && let Some(velocity) = self.tracker.place_hidden_person(hidden)
             {
                 (person.position, person.velocity) = (hidden, velocity);
+            } else if let Some(halted) = self.tracker.halt_hidden_person(room_for_a_body) {
+                (person.position, person.velocity) = (halted, DVec2::ZERO);
             }
+        }
+        if let Some(person) = person.as_mut() {
+            let view = self
+                .config
+                .shadow
+                .enabled
+                .then(|| ScanView::new(scan, laser_pose));
+            report_slowed(
+                person,
+                self.config.tracker.hidden_speed_decay_s,
+                view.as_ref(),
+                &self.config.shadow,
+            );
         }
         result.output = Some(LocaliserOutput {
             stamp_ns: scan.stamp_ns,
@@ -679,6 +703,24 @@ impl Localiser {
             person,
         });
         result
+    }
+}
+
+/// Reports a hidden person where they are if their speed decayed since they vanished
+/// ([`PersonEstimate::slowed`]), unless `view` sees through that place: then they did not
+/// stop there, and the track's straight line stands.
+fn report_slowed(
+    person: &mut PersonEstimate,
+    decay_s: f64,
+    view: Option<&ScanView>,
+    shadow: &ShadowConfig,
+) {
+    if person.visible {
+        return;
+    }
+    let (position, velocity) = person.slowed(decay_s);
+    if view.is_none_or(|view| !view.sees_through(position, shadow)) {
+        (person.position, person.velocity) = (position, velocity);
     }
 }
 
@@ -849,26 +891,37 @@ mod tests {
         assert_eq!(seen_at_the_wall(0.2), 0, "the plain margin hides them");
     }
 
-    #[test]
-    fn a_hidden_person_is_kept_out_of_what_the_scan_sees_through() {
-        // The room with a box at x 1-2, y -0.2-0.2: from the Lidar at (-3, 0) its shadow
-        // covers |y| < 0.3 at x = 3. The person walks down x = 3 at 1.5 m/s into the shadow
-        // and stops in it at y = 0; the straight-line prediction walks out of it.
+    /// [`room`] with a box at x 1-2, y `-half_width`..`half_width` (a multiple of 0.05 m).
+    fn room_with_box(half_width: f64) -> OccupancyMap {
         let n = 200;
+        let rows = (100 - (half_width / 0.05).round() as usize)
+            ..(100 + (half_width / 0.05).round() as usize);
         let occupied = (0..n * n)
             .map(|i| {
                 let (col, row) = (i % n, i / n);
                 let wall = col == 0 || col == n - 1 || row == 0 || row == n - 1;
-                wall || ((120..140).contains(&col) && (96..104).contains(&row))
+                wall || ((120..140).contains(&col) && rows.contains(&row))
             })
             .collect();
-        let map = OccupancyMap::new(*room().geometry(), occupied).unwrap();
+        OccupancyMap::new(*room().geometry(), occupied).unwrap()
+    }
+
+    #[test]
+    fn a_hidden_person_is_kept_out_of_what_the_scan_sees_through() {
+        // A box at x 1-2, y -0.2-0.2: from the Lidar at (-3, 0) its shadow covers |y| < 0.3
+        // at x = 3. The person walks down x = 3 at 1.5 m/s into the shadow and stops in it at
+        // y = 0; the straight-line prediction walks out of it.
+        let map = room_with_box(0.2);
         let laser = Pose2::new(-3.0, 0.0, 0.0);
         let person = |t: f64| DVec2::new(3.0, (3.0 - 1.5 * t).max(0.0));
         let shadow = ShadowConfig::default();
         let run = |enabled: bool| {
             let config = LocaliserConfig {
                 shadow: ShadowConfig { enabled, ..shadow },
+                tracker: TrackerConfig {
+                    hidden_speed_decay_s: 0.0,
+                    ..TrackerConfig::default()
+                },
                 ..LocaliserConfig::default()
             };
             let reference = Reference::Map(map.clone());
@@ -904,6 +957,81 @@ mod tests {
             kept_error < 0.5 && kept_error < straight_error,
             "{kept_error} vs {straight_error}"
         );
+    }
+
+    #[test]
+    fn a_walker_who_stops_out_of_sight_is_reported_nearer_where_they_stopped() {
+        // A box at x 1-2, y -1-1 hides |y| < 1.5 at x = 3 from the Lidar at (-3, 0). The
+        // person walks down x = 3 at 1.5 m/s, vanishes at y = 1.5 and stops at y = 0.9.
+        let map = room_with_box(1.0);
+        let laser = Pose2::new(-3.0, 0.0, 0.0);
+        let person = |t: f64| DVec2::new(3.0, (3.0 - 1.5 * t).max(0.9));
+        let mean_error = |hidden_speed_decay_s: f64| {
+            let config = LocaliserConfig {
+                tracker: TrackerConfig {
+                    hidden_speed_decay_s,
+                    ..TrackerConfig::default()
+                },
+                ..LocaliserConfig::default()
+            };
+            let reference = Reference::Map(map.clone());
+            let mut loc = Localiser::new(config, reference, Motion::Stationary(laser)).unwrap();
+            let mut errors = Vec::new();
+            for k in 0..60 {
+                let t = k as f64 * 0.05;
+                let mut scan = crate::visibility::tests::cast(
+                    &map,
+                    laser,
+                    -std::f32::consts::PI,
+                    Some((person(t), 0.2)),
+                );
+                scan.stamp_ns = k * PERIOD_NS;
+                let out = loc.process_scan(&scan).output.unwrap();
+                if let Some(estimate) = out.person.filter(|p| !p.visible) {
+                    assert!(estimate.position.is_finite() && estimate.velocity.is_finite());
+                    errors.push(estimate.position.distance(person(t)));
+                }
+            }
+            assert!(errors.len() >= 20, "hidden on {} scans", errors.len());
+            errors.iter().sum::<f64>() / errors.len() as f64
+        };
+        let (slowed, straight) = (mean_error(1.0), mean_error(0.0));
+        assert!(slowed < 0.7 * straight, "{slowed} vs {straight}");
+    }
+
+    #[test]
+    fn a_hidden_person_is_not_slowed_onto_floor_the_scan_sees_through() {
+        // The box of y -0.2-0.2 hides |y| < 0.3 at x = 3 from the Lidar at (-3, 0). A person
+        // predicted at (3, 0), hidden for 1 s, walking at 1.5 m/s down y: slowed, they would be
+        // at (3, 0.55), which the scan sees through.
+        let map = room_with_box(0.2);
+        let laser = Pose2::new(-3.0, 0.0, 0.0);
+        let scan = crate::visibility::tests::cast(&map, laser, -std::f32::consts::PI, None);
+        let view = ScanView::new(&scan, laser);
+        let shadow = ShadowConfig::default();
+        let hidden = PersonEstimate {
+            track_id: 1,
+            position: DVec2::new(3.0, 0.0),
+            velocity: DVec2::new(0.0, -1.5),
+            covariance: [[0.1, 0.0], [0.0, 0.1]],
+            visible: false,
+            points: Vec::new(),
+            unseen_s: 1.0,
+        };
+        let mut kept = hidden.clone();
+        report_slowed(&mut kept, 1.0, Some(&view), &shadow);
+        assert_eq!(kept, hidden);
+        // Without the scan's word, slowed; seen, never.
+        let mut slowed = hidden.clone();
+        report_slowed(&mut slowed, 1.0, None, &shadow);
+        assert!((slowed.position - DVec2::new(3.0, 0.552)).length() < 1e-3);
+        let mut seen = PersonEstimate {
+            visible: true,
+            unseen_s: 0.0,
+            ..hidden.clone()
+        };
+        report_slowed(&mut seen, 1.0, None, &shadow);
+        assert_eq!(seen.position, hidden.position);
     }
 
     #[test]

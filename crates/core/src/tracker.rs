@@ -71,6 +71,12 @@ pub struct TrackerConfig {
     pub tentative_max_misses: u32,
     /// A confirmed track unseen for longer than this is lost (s).
     pub max_coast_s: f64,
+    /// While the person is hidden, the position reported assumes their speed decays with
+    /// this time constant (s) since they were last seen: hidden, a walker may stop or turn
+    /// as well as walk on, and the mean of those is behind the straight line. The track
+    /// itself predicts straight on, so a walk behind furniture is still bridged. 0: the
+    /// straight line.
+    pub hidden_speed_decay_s: f64,
     /// Standard deviation of the person's acceleration, the filter's process noise (m/s^2).
     pub accel_std_mps2: f64,
     /// Standard deviation of a cluster centroid around the person's position (m): the legs
@@ -103,6 +109,7 @@ impl Default for TrackerConfig {
             confirm_hits: 3,
             tentative_max_misses: 2,
             max_coast_s: 2.0,
+            hidden_speed_decay_s: 1.0,
             accel_std_mps2: 2.0,
             measurement_std_m: 0.15,
             full_view_points: 10,
@@ -177,6 +184,9 @@ struct Track {
     confirmed: bool,
     /// Points of the cluster(s) assigned in the latest scan; empty when unseen.
     points: Vec<DVec2>,
+    /// Where the track was before the latest prediction: where a hidden person who cannot
+    /// have gone on stopped.
+    before_prediction: DVec2,
 }
 
 impl Track {
@@ -226,6 +236,21 @@ pub struct PersonEstimate {
     pub points: Vec<DVec2>,
     /// Seconds since the person was last seen (0 when visible).
     pub unseen_s: f64,
+}
+
+impl PersonEstimate {
+    /// Where a hidden person is, and how fast they move, if their speed has decayed with time
+    /// constant `decay_s` since they were last seen (the mean of a Singer motion model)
+    /// instead of staying as it was; as it is when seen, or with `decay_s` 0.
+    pub fn slowed(&self, decay_s: f64) -> (DVec2, DVec2) {
+        let t = self.unseen_s;
+        if decay_s <= 0.0 || t <= 0.0 {
+            return (self.position, self.velocity);
+        }
+        let kept = (-t / decay_s).exp();
+        let lag = t - decay_s * (1.0 - kept);
+        (self.position - self.velocity * lag, self.velocity * kept)
+    }
 }
 
 /// Multi-target tracker that singles out one person.
@@ -281,6 +306,7 @@ impl Tracker {
         let accel_var = self.config.accel_std_mps2.powi(2);
         for track in &mut self.tracks {
             let dt = (stamp_ns - track.stamp_ns) as f64 * 1e-9;
+            track.before_prediction = track.position();
             if dt > 0.0 {
                 track.x.predict(dt, accel_var);
                 track.y.predict(dt, accel_var);
@@ -447,6 +473,7 @@ impl Tracker {
                 stamp_ns,
                 last_seen_ns: stamp_ns,
                 last_seen_at: cl.centroid,
+                before_prediction: cl.centroid,
                 mean_velocity: DVec2::ZERO,
                 hits: 1,
                 misses_in_a_row: 0,
@@ -509,6 +536,22 @@ impl Tracker {
         Some(DVec2::new(track.x.vel, track.y.vel))
     }
 
+    /// Stops the hidden person where their track was before the latest prediction when that
+    /// prediction took them where `can_be` says nobody can be (into furniture, through a
+    /// wall), and returns that place: they met the obstacle and stopped or turned, which way
+    /// unknown. `None` when the prediction is possible, or the place before it was not either.
+    pub fn halt_hidden_person(&mut self, can_be: impl Fn(DVec2) -> bool) -> Option<DVec2> {
+        let id = self.person?;
+        let track = self.tracks.iter_mut().find(|t| t.id == id)?;
+        if can_be(track.position()) || !can_be(track.before_prediction) {
+            return None;
+        }
+        let p = track.before_prediction;
+        (track.x.pos, track.y.pos) = (p.x, p.y);
+        (track.x.vel, track.y.vel) = (0.0, 0.0);
+        Some(p)
+    }
+
     fn person_track(&self) -> Option<&Track> {
         self.person
             .and_then(|id| self.tracks.iter().find(|t| t.id == id))
@@ -549,6 +592,37 @@ mod tests {
             points,
             extent_m: 0.2,
         }
+    }
+
+    #[test]
+    fn a_hidden_person_slowed_falls_behind_the_straight_line_and_stops_within_the_decay() {
+        let hidden = |unseen_s: f64| PersonEstimate {
+            track_id: 1,
+            position: DVec2::new(1.0 + 2.0 * unseen_s, 0.0),
+            velocity: DVec2::new(2.0, 0.0),
+            covariance: [[0.1, 0.0], [0.0, 0.1]],
+            visible: false,
+            points: Vec::new(),
+            unseen_s,
+        };
+        // Last seen at (1, 0) walking at 2 m/s: after 1 s with a 1 s decay they have gone
+        // 2 (1 - 1/e) m and move at 2/e m/s.
+        let (position, velocity) = hidden(1.0).slowed(1.0);
+        let e = std::f64::consts::E;
+        assert!(
+            (position.x - (1.0 + 2.0 * (1.0 - 1.0 / e))).abs() < 1e-12,
+            "{position}"
+        );
+        assert!((velocity.x - 2.0 / e).abs() < 1e-12, "{velocity}");
+        // However long hidden, no farther than speed x decay.
+        assert!(hidden(30.0).slowed(1.0).0.x < 3.0 + 1e-9);
+        // Just seen, or no decay: the straight line.
+        let seen = hidden(0.0);
+        assert_eq!(seen.slowed(1.0), (seen.position, seen.velocity));
+        assert_eq!(
+            hidden(1.0).slowed(0.0),
+            (DVec2::new(3.0, 0.0), DVec2::new(2.0, 0.0))
+        );
     }
 
     #[test]
@@ -610,6 +684,39 @@ mod tests {
             None,
             "nobody tracked"
         );
+    }
+
+    #[test]
+    fn a_hidden_person_predicted_into_an_obstacle_stops_before_it() {
+        // Walking at 1 m/s along x towards a wall at x = 1.22, hidden from x = 1.
+        let walled = |p: DVec2| p.x < 1.22;
+        let mut tracker = Tracker::new(TrackerConfig::default());
+        for k in 0..=20 {
+            tracker.update(
+                k * PERIOD_NS,
+                &[blob(DVec2::new(0.05 * k as f64, 0.0))],
+                &[],
+            );
+        }
+        let mut halted = None;
+        for k in 21..30 {
+            let est = tracker.update(k * PERIOD_NS, &[], &[]).expect("coasting");
+            match tracker.halt_hidden_person(walled) {
+                Some(p) => {
+                    assert!(walled(p) && p.x > 1.1, "{p}");
+                    assert!(walled(est.position - est.velocity * 0.05));
+                    halted.get_or_insert(k);
+                }
+                None => assert!(walled(est.position), "{est:?}"),
+            }
+        }
+        // Stopped at the first prediction through the wall, and stays there.
+        assert_eq!(halted, Some(25));
+        let est = tracker.update(30 * PERIOD_NS, &[], &[]).unwrap();
+        assert_eq!(est.velocity, DVec2::ZERO);
+        assert!(walled(est.position) && est.position.x > 1.1, "{est:?}");
+        // Nowhere possible before either: left alone.
+        assert_eq!(tracker.halt_hidden_person(|_| false), None);
     }
 
     #[test]
