@@ -1000,6 +1000,56 @@ mod tests {
     }
 
     #[test]
+    fn a_hidden_walker_is_not_reported_through_the_wall() {
+        // The box of y -1-1 hides y < (x + 3) / 4 from the Lidar at (-3, 0). The person walks
+        // along y = 1.4 at 1.5 m/s, out of sight from x = 3.4, and stops at x = 4.6 by the
+        // wall (inner face 4.95); the straight line goes through it.
+        let map = room_with_box(1.0);
+        let laser = Pose2::new(-3.0, 0.0, 0.0);
+        let person = |t: f64| DVec2::new((1.5 * t).min(4.6), 1.4);
+        let run = |enabled: bool| {
+            let config = LocaliserConfig {
+                shadow: ShadowConfig {
+                    enabled,
+                    ..ShadowConfig::default()
+                },
+                tracker: TrackerConfig {
+                    hidden_speed_decay_s: 0.0,
+                    ..TrackerConfig::default()
+                },
+                ..LocaliserConfig::default()
+            };
+            let reference = Reference::Map(map.clone());
+            let mut loc = Localiser::new(config, reference, Motion::Stationary(laser)).unwrap();
+            let (mut hidden, mut in_the_wall, mut worst) = (0, 0, 0.0_f64);
+            for k in 0..100 {
+                let t = k as f64 * 0.05;
+                let mut scan = crate::visibility::tests::cast(
+                    &map,
+                    laser,
+                    -std::f32::consts::PI,
+                    Some((person(t), 0.2)),
+                );
+                scan.stamp_ns = k * PERIOD_NS;
+                let out = loc.process_scan(&scan).output.unwrap();
+                let Some(estimate) = out.person.filter(|p| !p.visible) else {
+                    continue;
+                };
+                hidden += 1;
+                in_the_wall += usize::from(map.free_clearance(estimate.position).is_none());
+                worst = worst.max(estimate.position.distance(person(t)));
+            }
+            (hidden, in_the_wall, worst)
+        };
+        let (hidden, in_the_wall, worst) = run(true);
+        assert!(hidden >= 20, "hidden on {hidden} scans");
+        assert_eq!(in_the_wall, 0);
+        assert!(worst < 0.5, "{worst}");
+        let (_, in_the_wall, worst) = run(false);
+        assert!(in_the_wall > 0 && worst > 1.0, "{in_the_wall} {worst}");
+    }
+
+    #[test]
     fn a_hidden_person_is_not_slowed_onto_floor_the_scan_sees_through() {
         // The box of y -0.2-0.2 hides |y| < 0.3 at x = 3 from the Lidar at (-3, 0). A person
         // predicted at (3, 0), hidden for 1 s, walking at 1.5 m/s down y: slowed, they would be

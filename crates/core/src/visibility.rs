@@ -15,7 +15,8 @@ use crate::scan::Scan;
 #[serde(deny_unknown_fields, default)]
 pub struct ShadowConfig {
     /// Whether a hidden person predicted where the scan saw through is moved into the
-    /// nearest shadow (with a map only: the map says where a body fits).
+    /// nearest shadow, and one predicted into a mapped obstacle stopped before it (with a map
+    /// only: the map says where a body fits).
     pub enabled: bool,
     /// Half the width of a body at the scan plane (m): a person there blocks every beam
     /// within this distance of their centre, and stands this far behind what hides them.
@@ -26,7 +27,8 @@ pub struct ShadowConfig {
     /// How far from the prediction a hidden place is looked for (m); none nearer: the
     /// prediction stands.
     pub search_m: f64,
-    /// Least clearance from mapped obstacles of a hidden place (m).
+    /// Least clearance from mapped obstacles of a hidden place, and of a hidden person's
+    /// prediction: closer, the person stops where the track was a scan before (m).
     pub min_clearance_m: f64,
 }
 
