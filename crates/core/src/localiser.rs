@@ -6,7 +6,8 @@
 //! map, not in front of the learned background) dropped as room; the rest clustered; the
 //! clusters (and, with a map, the groups too small to be clusters but clear of the room)
 //! handed to the tracker, which picks the person; a hidden person's prediction kept out of
-//! what the scan sees through ([`crate::visibility`]).
+//! what the scan sees through ([`crate::visibility`]) and out of mapped obstacles, and
+//! reported as slowing down ([`PersonEstimate::slowed`]).
 //!
 //! Nothing here logs: every problem with the input comes back as a [`Warning`] for the host
 //! to count and report (rate-limited), and what cannot be used is skipped. No `NaN` from the
