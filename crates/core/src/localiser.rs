@@ -907,6 +907,54 @@ mod tests {
         OccupancyMap::new(*room().geometry(), occupied).unwrap()
     }
 
+    /// The localiser's settings with the shadow step on or off and the given decay of a
+    /// hidden person's speed.
+    fn hidden_config(shadow_enabled: bool, hidden_speed_decay_s: f64) -> LocaliserConfig {
+        LocaliserConfig {
+            shadow: ShadowConfig {
+                enabled: shadow_enabled,
+                ..ShadowConfig::default()
+            },
+            tracker: TrackerConfig {
+                hidden_speed_decay_s,
+                ..TrackerConfig::default()
+            },
+            ..LocaliserConfig::default()
+        }
+    }
+
+    /// A round person (radius 0.2 m) at `person(t)` in `map`, seen by a Lidar at `laser`
+    /// for `scans` scans at 20 Hz: every scan with the person hidden, where they truly were
+    /// then, and the localiser's estimate.
+    fn hidden_walk(
+        map: &OccupancyMap,
+        laser: Pose2,
+        config: LocaliserConfig,
+        scans: i64,
+        person: impl Fn(f64) -> DVec2,
+    ) -> Vec<(Scan, DVec2, PersonEstimate)> {
+        let reference = Reference::Map(map.clone());
+        let mut loc = Localiser::new(config, reference, Motion::Stationary(laser)).unwrap();
+        let mut hidden = Vec::new();
+        for k in 0..scans {
+            let truth = person(k as f64 * 0.05);
+            let mut scan = crate::visibility::tests::cast(
+                map,
+                laser,
+                -std::f32::consts::PI,
+                Some((truth, 0.2)),
+            );
+            scan.stamp_ns = k * PERIOD_NS;
+            let out = loc.process_scan(&scan).output.unwrap();
+            if let Some(estimate) = out.person.filter(|p| !p.visible) {
+                assert!(estimate.position.is_finite() && estimate.velocity.is_finite());
+                hidden.push((scan, truth, estimate));
+            }
+        }
+        assert!(hidden.len() >= 20, "hidden on {} scans", hidden.len());
+        hidden
+    }
+
     #[test]
     fn a_hidden_person_is_kept_out_of_what_the_scan_sees_through() {
         // A box at x 1-2, y -0.2-0.2: from the Lidar at (-3, 0) its shadow covers |y| < 0.3
@@ -914,45 +962,21 @@ mod tests {
         // y = 0; the straight-line prediction walks out of it.
         let map = room_with_box(0.2);
         let laser = Pose2::new(-3.0, 0.0, 0.0);
-        let person = |t: f64| DVec2::new(3.0, (3.0 - 1.5 * t).max(0.0));
         let shadow = ShadowConfig::default();
         let run = |enabled: bool| {
-            let config = LocaliserConfig {
-                shadow: ShadowConfig { enabled, ..shadow },
-                tracker: TrackerConfig {
-                    hidden_speed_decay_s: 0.0,
-                    ..TrackerConfig::default()
-                },
-                ..LocaliserConfig::default()
-            };
-            let reference = Reference::Map(map.clone());
-            let mut loc = Localiser::new(config, reference, Motion::Stationary(laser)).unwrap();
-            let (mut hidden, mut seen_through, mut last_error) = (0, 0, 0.0);
-            for k in 0..80 {
-                let t = k as f64 * 0.05;
-                let mut scan = crate::visibility::tests::cast(
-                    &map,
-                    laser,
-                    -std::f32::consts::PI,
-                    Some((person(t), 0.2)),
-                );
-                scan.stamp_ns = k * PERIOD_NS;
-                let out = loc.process_scan(&scan).output.unwrap();
-                let Some(estimate) = out.person.filter(|p| !p.visible) else {
-                    continue;
-                };
-                hidden += 1;
-                let view = ScanView::new(&scan, laser);
-                seen_through += usize::from(view.sees_through(estimate.position, &shadow));
-                assert!(estimate.position.is_finite() && estimate.velocity.is_finite());
-                last_error = estimate.position.distance(person(t));
-            }
-            (hidden, seen_through, last_error)
+            let walk = hidden_walk(&map, laser, hidden_config(enabled, 0.0), 80, |t| {
+                DVec2::new(3.0, (3.0 - 1.5 * t).max(0.0))
+            });
+            let seen_through = walk
+                .iter()
+                .filter(|(scan, _, e)| ScanView::new(scan, laser).sees_through(e.position, &shadow))
+                .count();
+            let (_, truth, last) = walk.last().unwrap();
+            (seen_through, last.position.distance(*truth))
         };
-        let (hidden, seen_through, kept_error) = run(true);
-        assert!(hidden >= 20, "hidden on {hidden} scans");
+        let (seen_through, kept_error) = run(true);
         assert_eq!(seen_through, 0);
-        let (_, seen_through, straight_error) = run(false);
+        let (seen_through, straight_error) = run(false);
         assert!(seen_through > 0, "the prediction never left the shadow");
         assert!(
             kept_error < 0.5 && kept_error < straight_error,
@@ -966,35 +990,16 @@ mod tests {
         // person walks down x = 3 at 1.5 m/s, vanishes at y = 1.5 and stops at y = 0.9.
         let map = room_with_box(1.0);
         let laser = Pose2::new(-3.0, 0.0, 0.0);
-        let person = |t: f64| DVec2::new(3.0, (3.0 - 1.5 * t).max(0.9));
         let mean_error = |hidden_speed_decay_s: f64| {
-            let config = LocaliserConfig {
-                tracker: TrackerConfig {
-                    hidden_speed_decay_s,
-                    ..TrackerConfig::default()
-                },
-                ..LocaliserConfig::default()
-            };
-            let reference = Reference::Map(map.clone());
-            let mut loc = Localiser::new(config, reference, Motion::Stationary(laser)).unwrap();
-            let mut errors = Vec::new();
-            for k in 0..60 {
-                let t = k as f64 * 0.05;
-                let mut scan = crate::visibility::tests::cast(
-                    &map,
-                    laser,
-                    -std::f32::consts::PI,
-                    Some((person(t), 0.2)),
-                );
-                scan.stamp_ns = k * PERIOD_NS;
-                let out = loc.process_scan(&scan).output.unwrap();
-                if let Some(estimate) = out.person.filter(|p| !p.visible) {
-                    assert!(estimate.position.is_finite() && estimate.velocity.is_finite());
-                    errors.push(estimate.position.distance(person(t)));
-                }
-            }
-            assert!(errors.len() >= 20, "hidden on {} scans", errors.len());
-            errors.iter().sum::<f64>() / errors.len() as f64
+            let config = hidden_config(true, hidden_speed_decay_s);
+            let walk = hidden_walk(&map, laser, config, 60, |t| {
+                DVec2::new(3.0, (3.0 - 1.5 * t).max(0.9))
+            });
+            let total: f64 = walk
+                .iter()
+                .map(|(_, truth, e)| e.position.distance(*truth))
+                .sum();
+            total / walk.len() as f64
         };
         let (slowed, straight) = (mean_error(1.0), mean_error(0.0));
         assert!(slowed < 0.7 * straight, "{slowed} vs {straight}");
@@ -1007,46 +1012,24 @@ mod tests {
         // wall (inner face 4.95); the straight line goes through it.
         let map = room_with_box(1.0);
         let laser = Pose2::new(-3.0, 0.0, 0.0);
-        let person = |t: f64| DVec2::new((1.5 * t).min(4.6), 1.4);
         let run = |enabled: bool| {
-            let config = LocaliserConfig {
-                shadow: ShadowConfig {
-                    enabled,
-                    ..ShadowConfig::default()
-                },
-                tracker: TrackerConfig {
-                    hidden_speed_decay_s: 0.0,
-                    ..TrackerConfig::default()
-                },
-                ..LocaliserConfig::default()
-            };
-            let reference = Reference::Map(map.clone());
-            let mut loc = Localiser::new(config, reference, Motion::Stationary(laser)).unwrap();
-            let (mut hidden, mut in_the_wall, mut worst) = (0, 0, 0.0_f64);
-            for k in 0..100 {
-                let t = k as f64 * 0.05;
-                let mut scan = crate::visibility::tests::cast(
-                    &map,
-                    laser,
-                    -std::f32::consts::PI,
-                    Some((person(t), 0.2)),
-                );
-                scan.stamp_ns = k * PERIOD_NS;
-                let out = loc.process_scan(&scan).output.unwrap();
-                let Some(estimate) = out.person.filter(|p| !p.visible) else {
-                    continue;
-                };
-                hidden += 1;
-                in_the_wall += usize::from(map.free_clearance(estimate.position).is_none());
-                worst = worst.max(estimate.position.distance(person(t)));
-            }
-            (hidden, in_the_wall, worst)
+            let walk = hidden_walk(&map, laser, hidden_config(enabled, 0.0), 100, |t| {
+                DVec2::new((1.5 * t).min(4.6), 1.4)
+            });
+            let in_the_wall = walk
+                .iter()
+                .filter(|(_, _, e)| map.free_clearance(e.position).is_none())
+                .count();
+            let worst = walk
+                .iter()
+                .map(|(_, truth, e)| e.position.distance(*truth))
+                .fold(0.0, f64::max);
+            (in_the_wall, worst)
         };
-        let (hidden, in_the_wall, worst) = run(true);
-        assert!(hidden >= 20, "hidden on {hidden} scans");
+        let (in_the_wall, worst) = run(true);
         assert_eq!(in_the_wall, 0);
         assert!(worst < 0.5, "{worst}");
-        let (_, in_the_wall, worst) = run(false);
+        let (in_the_wall, worst) = run(false);
         assert!(in_the_wall > 0 && worst > 1.0, "{in_the_wall} {worst}");
     }
 
