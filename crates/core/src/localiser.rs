@@ -665,36 +665,24 @@ impl Localiser {
         let mut person = self
             .tracker
             .update(scan.stamp_ns, &self.clusters, &self.fragments);
-        if let (Reference::Map(map), Some(person)) = (&self.reference, person.as_mut())
-            && !person.visible
-            && self.config.shadow.enabled
-        {
-            let view = ScanView::new(scan, laser_pose);
+        if let Some(person) = person.as_mut().filter(|p| !p.visible) {
             let shadow = &self.config.shadow;
-            let room_for_a_body = |p: DVec2| {
-                map.free_clearance(p)
-                    .is_some_and(|c| f64::from(c) >= shadow.min_clearance_m)
-            };
-            if let Some(hidden) = view.nearest_hidden(person.position, map, shadow)
-                && let Some(velocity) = self.tracker.place_hidden_person(hidden)
-            {
-                (person.position, person.velocity) = (hidden, velocity);
-            } else if let Some(halted) = self.tracker.halt_hidden_person(room_for_a_body) {
-                (person.position, person.velocity) = (halted, DVec2::ZERO);
+            let view = shadow.enabled.then(|| ScanView::new(scan, laser_pose));
+            if let (Reference::Map(map), Some(view)) = (&self.reference, &view) {
+                let room_for_a_body = |p: DVec2| {
+                    map.free_clearance(p)
+                        .is_some_and(|c| f64::from(c) >= shadow.min_clearance_m)
+                };
+                if let Some(hidden) = view.nearest_hidden(person.position, map, shadow)
+                    && let Some(velocity) = self.tracker.place_hidden_person(hidden)
+                {
+                    (person.position, person.velocity) = (hidden, velocity);
+                } else if let Some(halted) = self.tracker.halt_hidden_person(room_for_a_body) {
+                    (person.position, person.velocity) = (halted, DVec2::ZERO);
+                }
             }
-        }
-        if let Some(person) = person.as_mut() {
-            let view = self
-                .config
-                .shadow
-                .enabled
-                .then(|| ScanView::new(scan, laser_pose));
-            report_slowed(
-                person,
-                self.config.tracker.hidden_speed_decay_s,
-                view.as_ref(),
-                &self.config.shadow,
-            );
+            let decay_s = self.config.tracker.hidden_speed_decay_s;
+            report_slowed(person, decay_s, view.as_ref(), shadow);
         }
         result.output = Some(LocaliserOutput {
             stamp_ns: scan.stamp_ns,
@@ -708,17 +696,15 @@ impl Localiser {
 }
 
 /// Reports a hidden person where they are if their speed decayed since they vanished
-/// ([`PersonEstimate::slowed`]), unless `view` sees through that place: then they did not
-/// stop there, and the track's straight line stands.
+/// ([`PersonEstimate::slowed`]; a person just seen stays where they are), unless `view`
+/// sees through that place: then they did not stop there, and the track's straight line
+/// stands.
 fn report_slowed(
     person: &mut PersonEstimate,
     decay_s: f64,
     view: Option<&ScanView>,
     shadow: &ShadowConfig,
 ) {
-    if person.visible {
-        return;
-    }
     let (position, velocity) = person.slowed(decay_s);
     if view.is_none_or(|view| !view.sees_through(position, shadow)) {
         (person.position, person.velocity) = (position, velocity);
