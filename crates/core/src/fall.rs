@@ -28,7 +28,11 @@
 //!   does not reset the clock (a person lying behind the sofa is still down; only seeing them
 //!   get up, or upright for `down_ends_upright_s`, ends the incident), but each stretch of it
 //!   counts at most `down_unseen_counts_s`: the robot cannot vouch for a person it does not
-//!   see, and people who got up out of sight and sat down again were alerted as down.
+//!   see, and people who got up out of sight and sat down again were alerted as down. Nor
+//!   does a person down who is seen to cover ground faster than anyone can on the floor
+//!   (`down_travel_m` within `down_travel_within_s`) stay down, whatever the classifier reads
+//!   of them: the clock starts again there (a walker seen in glimpses is misread as sitting
+//!   or crawling).
 //!
 //! Crawling counts as on the floor: a fallen person who crawls towards a phone still needs
 //! help, and a person who crawls for `down_after_s` on purpose is rare enough in a home to
@@ -142,6 +146,15 @@ pub struct FallAlertConfig {
     /// the false `PersonDown` were people who got up out of sight and sat down again.
     /// Seconds; 0 counts every stretch in full.
     pub down_unseen_counts_s: f64,
+    /// A person down who is seen to cover this much ground within `down_travel_within_s` is
+    /// on their feet, whatever the classifier reads: the `down_after_s` clock starts again
+    /// there. A walker seen in glimpses is misread as sitting or crawling, and covers 1 m/s;
+    /// a crawler covers 0.3 m/s. Only ground covered since the person went down counts (a
+    /// fall carries the body on), and a body on the floor seen in part, or sitting up, moves
+    /// the localiser's position by up to 1.2 m at once. Metres; 0 turns this off.
+    pub down_travel_m: f64,
+    /// The time within which `down_travel_m` must be covered, seconds.
+    pub down_travel_within_s: f64,
 }
 
 impl Default for FallAlertConfig {
@@ -166,6 +179,8 @@ impl Default for FallAlertConfig {
             down_seen_within_s: 5.0,
             crawling_shows_down: false,
             down_unseen_counts_s: 1.0,
+            down_travel_m: 2.0,
+            down_travel_within_s: 2.0,
         }
     }
 }
@@ -219,6 +234,8 @@ impl FallAlertConfig {
         at_least_zero("landing_min_length_m", self.landing_min_length_m)?;
         at_least_zero("down_seen_within_s", self.down_seen_within_s)?;
         at_least_zero("down_unseen_counts_s", self.down_unseen_counts_s)?;
+        at_least_zero("down_travel_m", self.down_travel_m)?;
+        at_least_zero("down_travel_within_s", self.down_travel_within_s)?;
         probability("landing_min_probability", self.landing_min_probability)?;
         probability("descent_min_probability", self.descent_min_probability)
     }
@@ -331,6 +348,8 @@ pub struct FallDetector {
     /// Whether a scan since then read the person upright or getting up.
     off_floor_since_on_floor: bool,
     down: Option<DownSpell>,
+    /// Where the person was seen over the last `down_travel_within_s`, oldest first.
+    recent_positions: VecDeque<(f64, DVec2)>,
     /// The last scan with the person seen (and classified).
     last_seen_s: Option<f64>,
     /// Since when the person has been upright without being confirmed on the floor or
@@ -367,6 +386,7 @@ impl FallDetector {
             last_on_floor_s: None,
             off_floor_since_on_floor: false,
             down: None,
+            recent_positions: VecDeque::new(),
             last_seen_s: None,
             upright_since: None,
             fall_disarmed_at: None,
@@ -411,6 +431,13 @@ impl FallDetector {
             }
             self.last_seen_s = Some(t);
             self.observe(t, &input.probabilities, input.body_length_m, &mut alerts);
+            if self.covered_ground(t, position)
+                && let Some(down) = self.down.as_mut()
+            {
+                *down = DownSpell::starting(t);
+                self.recent_positions.clear();
+                self.recent_positions.push_back((t, position));
+            }
         }
 
         if let (Some(down), Some(position)) = (self.down, self.last_position) {
@@ -719,14 +746,31 @@ impl FallDetector {
         match self.down.as_mut() {
             Some(down) => down.since_s = down.since_s.min(since),
             None => {
-                self.down = Some(DownSpell {
-                    since_s: since,
-                    on_floor_p_sum: 0.0,
-                    scans: 0,
-                    uncounted_s: 0.0,
-                })
+                // Only ground covered while down counts: a fall itself moves the body.
+                self.recent_positions.clear();
+                self.down = Some(DownSpell::starting(since));
             }
         }
+    }
+
+    /// Whether the person, seen at `position` now, was seen at least `down_travel_m` from
+    /// there within `down_travel_within_s`, since they went down or last covered that ground.
+    fn covered_ground(&mut self, t: f64, position: DVec2) -> bool {
+        let window = self.config.down_travel_within_s;
+        while self
+            .recent_positions
+            .front()
+            .is_some_and(|&(at, _)| t - at > window)
+        {
+            self.recent_positions.pop_front();
+        }
+        self.recent_positions.push_back((t, position));
+        let travel = self.config.down_travel_m;
+        travel > 0.0
+            && self
+                .recent_positions
+                .iter()
+                .any(|&(_, p)| p.distance(position) >= travel)
     }
 
     /// How much of the time out of sight from the last scan the person was seen on (or
@@ -762,6 +806,15 @@ struct DownSpell {
 }
 
 impl DownSpell {
+    fn starting(since_s: f64) -> Self {
+        Self {
+            since_s,
+            on_floor_p_sum: 0.0,
+            scans: 0,
+            uncounted_s: 0.0,
+        }
+    }
+
     fn confidence(&self) -> f32 {
         if self.scans > 0 {
             (self.on_floor_p_sum / f64::from(self.scans)) as f32
@@ -1554,6 +1607,80 @@ mod tests {
         );
     }
 
+    /// Runs segments of (activity read, seconds, velocity in m/s) at 20 Hz, the person always
+    /// seen, from the map origin; returns the alerts.
+    fn run_moving(
+        detector: &mut FallDetector,
+        script: &[(Activity, f64, DVec2)],
+    ) -> Vec<FallAlert> {
+        let (mut t, mut position) = (0.0, DVec2::ZERO);
+        let mut alerts = Vec::new();
+        for &(activity, seconds, velocity) in script {
+            for _ in 0..(seconds / DT).round() as usize {
+                alerts.extend(detector.update(&FallInput {
+                    stamp_s: t,
+                    position: Some(position),
+                    probabilities: one_hot(activity, SURE),
+                    body_length_m: None,
+                }));
+                t += DT;
+                position += velocity * DT;
+            }
+        }
+        alerts
+    }
+
+    #[test]
+    fn a_person_down_seen_covering_ground_like_a_walker_starts_the_clock_again() {
+        // Sitting on the floor, then walking off, read in glimpses as still sitting (the
+        // model's commonest misreading of a walker it sees only in part), then sitting down.
+        let walker = DVec2::new(1.2, 0.0);
+        let script = [
+            (SittingOnFloor, 6.0, DVec2::ZERO),
+            (SittingOnFloor, 3.0, walker),
+            (SittingOnFloor, 20.0, DVec2::ZERO),
+        ];
+        let travel =
+            |m: f64| detector_with(|c| (c.down_travel_m, c.down_travel_within_s) = (m, 2.0));
+        // Off: one spell from the start, alerted 15 s on.
+        let alerts = run_moving(&mut travel(0.0), &script);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!(alerts[0].down_since_s < 0.1, "{alerts:?}");
+        // 2 m within 2 s: covered 1.67 s into the walk, and the clock starts there.
+        let alerts = run_moving(&mut travel(2.0), &script);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!((alerts[0].down_since_s - 7.67).abs() < 0.06, "{alerts:?}");
+        // A crawler (0.3 m/s) never covers 2 m in 2 s: the clock runs on.
+        let crawl = [
+            (SittingOnFloor, 6.0, DVec2::ZERO),
+            (Crawling, 10.0, DVec2::new(0.0, 0.3)),
+            (SittingOnFloor, 5.0, DVec2::ZERO),
+        ];
+        let alerts = run_moving(&mut travel(2.0), &crawl);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!(alerts[0].down_since_s < 0.1, "{alerts:?}");
+    }
+
+    #[test]
+    fn the_ground_a_fall_covers_does_not_start_the_clock_again() {
+        // Walking at 1.2 m/s into a fall that carries the body on: only ground covered once
+        // down counts, or the walk before the landing would restart the clock.
+        let walker = DVec2::new(1.2, 0.0);
+        let alerts = run_moving(
+            &mut detector_with(|c| (c.down_travel_m, c.down_travel_within_s) = (2.0, 2.0)),
+            &[
+                (Walking, 5.0, walker),
+                (FallingDown, 1.0, walker),
+                (LyingDown, 20.0, DVec2::ZERO),
+            ],
+        );
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::PersonDown]
+        );
+        assert!((alerts[1].down_since_s - 5.0).abs() < 1e-9, "{alerts:?}");
+    }
+
     #[test]
     fn hiding_while_down_does_not_reset_the_clock_but_counts_only_so_far() {
         let script = [
@@ -1836,6 +1963,12 @@ mod tests {
         };
         let e = FallDetector::new(config).unwrap_err().to_string();
         assert!(e.contains("descent_min_length_m"), "{e}");
+        let config = FallAlertConfig {
+            down_travel_m: -2.0,
+            ..Default::default()
+        };
+        let e = FallDetector::new(config).unwrap_err().to_string();
+        assert!(e.contains("down_travel_m"), "{e}");
         let config = FallAlertConfig {
             down_after_s: f64::NAN,
             ..Default::default()
