@@ -28,11 +28,11 @@
 //!   does not reset the clock (a person lying behind the sofa is still down; only seeing them
 //!   get up, or upright for `down_ends_upright_s`, ends the incident), but each stretch of it
 //!   counts at most `down_unseen_counts_s`: the robot cannot vouch for a person it does not
-//!   see, and people who got up out of sight and sat down again were alerted as down. Nor
-//!   does a person down who is seen to cover ground faster than anyone can on the floor
-//!   (`down_travel_m` within `down_travel_within_s`) stay down, whatever the classifier reads
-//!   of them: the clock starts again there (a walker seen in glimpses is misread as sitting
-//!   or crawling).
+//!   see, and people who got up out of sight and sat down again were alerted as down. A
+//!   person down who is seen to cover ground faster than anyone can on the floor
+//!   (`down_travel_m` within `down_travel_within_s`) has evidently been up, whatever the
+//!   classifier reads of them: the clock starts again there (a walker seen in glimpses is
+//!   misread as sitting or crawling).
 //!
 //! Crawling counts as on the floor: a fallen person who crawls towards a phone still needs
 //! help, and a person who crawls for `down_after_s` on purpose is rare enough in a home to
@@ -146,14 +146,16 @@ pub struct FallAlertConfig {
     /// the false `PersonDown` were people who got up out of sight and sat down again.
     /// Seconds; 0 counts every stretch in full.
     pub down_unseen_counts_s: f64,
-    /// A person down who is seen to cover this much ground within `down_travel_within_s` is
-    /// on their feet, whatever the classifier reads: the `down_after_s` clock starts again
-    /// there. A walker seen in glimpses is misread as sitting or crawling, and covers 1 m/s;
-    /// a crawler covers 0.3 m/s. Only ground covered since the person went down counts (a
-    /// fall carries the body on), and a body on the floor seen in part, or sitting up, moves
+    /// A person down who is seen to cover this much ground within `down_travel_within_s` has
+    /// evidently been up, whatever the classifier reads: the `down_after_s` clock starts
+    /// again there (it restarts rather than ends, so that a person who then sits or lies
+    /// while still read on the floor is alerted in time). A walker seen in glimpses is
+    /// misread as sitting or crawling, and covers 1 m/s; a crawler covers 0.3 m/s. Only
+    /// positions seen since the spell began count (a fall carries the body on up to the
+    /// landing that confirms it), and a body on the floor seen in part, or sitting up, moves
     /// the localiser's position by up to 1.2 m at once. Metres; 0 turns this off.
     pub down_travel_m: f64,
-    /// The time within which `down_travel_m` must be covered, seconds.
+    /// The time within which `down_travel_m` must be covered, seconds; 0 turns it off too.
     pub down_travel_within_s: f64,
 }
 
@@ -348,8 +350,9 @@ pub struct FallDetector {
     /// Whether a scan since then read the person upright or getting up.
     off_floor_since_on_floor: bool,
     down: Option<DownSpell>,
-    /// Where the person was seen over the last `down_travel_within_s`, oldest first.
-    recent_positions: VecDeque<(f64, DVec2)>,
+    /// Where the person was seen over the last `down_travel_within_s` while down, since the
+    /// spell began or last restarted on `down_travel_m`, oldest first.
+    down_positions: VecDeque<(f64, DVec2)>,
     /// The last scan with the person seen (and classified).
     last_seen_s: Option<f64>,
     /// Since when the person has been upright without being confirmed on the floor or
@@ -386,7 +389,7 @@ impl FallDetector {
             last_on_floor_s: None,
             off_floor_since_on_floor: false,
             down: None,
-            recent_positions: VecDeque::new(),
+            down_positions: VecDeque::new(),
             last_seen_s: None,
             upright_since: None,
             fall_disarmed_at: None,
@@ -431,12 +434,12 @@ impl FallDetector {
             }
             self.last_seen_s = Some(t);
             self.observe(t, &input.probabilities, input.body_length_m, &mut alerts);
-            if self.covered_ground(t, position)
+            if self.travelled_while_down(t, position)
                 && let Some(down) = self.down.as_mut()
             {
                 *down = DownSpell::starting(t);
-                self.recent_positions.clear();
-                self.recent_positions.push_back((t, position));
+                self.down_positions.clear();
+                self.down_positions.push_back((t, position));
             }
         }
 
@@ -745,32 +748,31 @@ impl FallDetector {
     fn start_down(&mut self, since: f64) {
         match self.down.as_mut() {
             Some(down) => down.since_s = down.since_s.min(since),
-            None => {
-                // Only ground covered while down counts: a fall itself moves the body.
-                self.recent_positions.clear();
-                self.down = Some(DownSpell::starting(since));
-            }
+            None => self.down = Some(DownSpell::starting(since)),
         }
     }
 
-    /// Whether the person, seen at `position` now, was seen at least `down_travel_m` from
-    /// there within `down_travel_within_s`, since they went down or last covered that ground.
-    fn covered_ground(&mut self, t: f64, position: DVec2) -> bool {
+    /// Records where a person down is seen, and says whether they were seen at least
+    /// `down_travel_m` from there within `down_travel_within_s`. Positions from before the
+    /// spell began are dropped: a fall itself carries the body on.
+    fn travelled_while_down(&mut self, t: f64, position: DVec2) -> bool {
+        let travel = self.config.down_travel_m;
+        if self.down.is_none() || travel <= 0.0 {
+            self.down_positions.clear();
+            return false;
+        }
         let window = self.config.down_travel_within_s;
         while self
-            .recent_positions
+            .down_positions
             .front()
             .is_some_and(|&(at, _)| t - at > window)
         {
-            self.recent_positions.pop_front();
+            self.down_positions.pop_front();
         }
-        self.recent_positions.push_back((t, position));
-        let travel = self.config.down_travel_m;
-        travel > 0.0
-            && self
-                .recent_positions
-                .iter()
-                .any(|&(_, p)| p.distance(position) >= travel)
+        self.down_positions.push_back((t, position));
+        self.down_positions
+            .iter()
+            .any(|&(_, p)| p.distance(position) >= travel)
     }
 
     /// How much of the time out of sight from the last scan the person was seen on (or
@@ -1632,8 +1634,8 @@ mod tests {
 
     #[test]
     fn a_person_down_seen_covering_ground_like_a_walker_starts_the_clock_again() {
-        // Sitting on the floor, then walking off, read in glimpses as still sitting (the
-        // model's commonest misreading of a walker it sees only in part), then sitting down.
+        // Sitting on the floor, then walking off while still read as sitting (as the model
+        // misreads a walker it sees only in glimpses), then sitting down again.
         let walker = DVec2::new(1.2, 0.0);
         let script = [
             (SittingOnFloor, 6.0, DVec2::ZERO),
