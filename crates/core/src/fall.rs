@@ -434,13 +434,7 @@ impl FallDetector {
             }
             self.last_seen_s = Some(t);
             self.observe(t, &input.probabilities, input.body_length_m, &mut alerts);
-            if self.travelled_while_down(t, position)
-                && let Some(down) = self.down.as_mut()
-            {
-                *down = DownSpell::starting(t);
-                self.down_positions.clear();
-                self.down_positions.push_back((t, position));
-            }
+            self.restart_down_on_travel(t, position);
         }
 
         if let (Some(down), Some(position)) = (self.down, self.last_position) {
@@ -752,15 +746,15 @@ impl FallDetector {
         }
     }
 
-    /// Records where a person down is seen, and says whether they were seen at least
-    /// `down_travel_m` from there within `down_travel_within_s`. Positions from before the
-    /// spell began are dropped: a fall itself carries the body on.
-    fn travelled_while_down(&mut self, t: f64, position: DVec2) -> bool {
+    /// A person down who is seen at `position` at least `down_travel_m` from where they were
+    /// seen within `down_travel_within_s` has been up: their spell starts again at `t`.
+    /// Positions from before the spell began are dropped: a fall itself carries the body on.
+    fn restart_down_on_travel(&mut self, t: f64, position: DVec2) {
         let travel = self.config.down_travel_m;
-        if self.down.is_none() || travel <= 0.0 {
+        let Some(down) = self.down.as_mut().filter(|_| travel > 0.0) else {
             self.down_positions.clear();
-            return false;
-        }
+            return;
+        };
         let window = self.config.down_travel_within_s;
         while self
             .down_positions
@@ -769,10 +763,15 @@ impl FallDetector {
         {
             self.down_positions.pop_front();
         }
-        self.down_positions.push_back((t, position));
-        self.down_positions
+        if self
+            .down_positions
             .iter()
             .any(|&(_, p)| p.distance(position) >= travel)
+        {
+            *down = DownSpell::starting(t);
+            self.down_positions.clear();
+        }
+        self.down_positions.push_back((t, position));
     }
 
     /// How much of the time out of sight from the last scan the person was seen on (or
