@@ -17,7 +17,8 @@ use crate::scan::Scan;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BackgroundConfig {
-    /// Seconds of scans, from the first one, that make the background.
+    /// Seconds of scans, from the first one, that make the background (a gap between two
+    /// scans counts at most half a second).
     pub learn_duration_s: f64,
     /// A point must be this much closer than the background to be foreground (metres).
     pub margin_m: f64,
@@ -42,14 +43,22 @@ pub struct LearnedBackground {
     state: State,
 }
 
+/// The most one gap between scans adds to the learning time (nanoseconds): a clock stepped
+/// forward (NTP at boot) or a stalled driver must not end learning on one or two scans.
+const MAX_LEARNING_GAP_NS: i64 = 500_000_000;
+
+#[derive(Debug, Clone, Default)]
+struct Learning {
+    last_ns: Option<i64>,
+    learned_ns: i64,
+    scans: usize,
+    samples: Vec<Vec<f32>>,
+}
+
 #[derive(Debug, Clone)]
 enum State {
-    /// Collecting returns per beam since `start_ns`.
-    Learning {
-        start_ns: Option<i64>,
-        scans: usize,
-        samples: Vec<Vec<f32>>,
-    },
+    /// Collecting returns per beam.
+    Learning(Learning),
     /// `threshold[i]`: a return on beam `i` closer than this is foreground.
     Ready { threshold: Vec<f32> },
 }
@@ -67,11 +76,7 @@ impl LearnedBackground {
     pub fn new(config: BackgroundConfig) -> Self {
         Self {
             config,
-            state: State::Learning {
-                start_ns: None,
-                scans: 0,
-                samples: Vec::new(),
-            },
+            state: State::Learning(Learning::default()),
         }
     }
 
@@ -80,19 +85,28 @@ impl LearnedBackground {
     }
 
     /// Learns from `scan` while in the learning period; afterwards does nothing. The scan that
-    /// first falls after the period completes the background and is itself classifiable.
+    /// first falls after the period completes the background and is itself classifiable. A
+    /// stamp before the previous one (a restarted recording) starts learning again.
     pub fn observe(&mut self, scan: &Scan) -> BackgroundStatus {
-        let State::Learning {
-            start_ns,
-            scans,
-            samples,
-        } = &mut self.state
-        else {
+        let State::Learning(learning) = &mut self.state else {
             return BackgroundStatus::Ready;
         };
-        let start = *start_ns.get_or_insert(scan.stamp_ns);
-        let elapsed_s = (scan.stamp_ns.saturating_sub(start)) as f64 * 1e-9;
-        if elapsed_s < self.config.learn_duration_s || *scans == 0 {
+        match learning.last_ns {
+            Some(last) if scan.stamp_ns < last => *learning = Learning::default(),
+            Some(last) => {
+                let gap_ns = scan.stamp_ns.saturating_sub(last).min(MAX_LEARNING_GAP_NS);
+                learning.learned_ns += gap_ns;
+            }
+            None => {}
+        }
+        learning.last_ns = Some(scan.stamp_ns);
+        let Learning {
+            learned_ns,
+            scans,
+            samples,
+            ..
+        } = learning;
+        if (*learned_ns as f64) * 1e-9 < self.config.learn_duration_s || *scans == 0 {
             if samples.len() < scan.ranges.len() {
                 samples.resize_with(scan.ranges.len(), Vec::new);
             }
@@ -140,7 +154,7 @@ impl LearnedBackground {
             State::Ready { threshold } => {
                 range < threshold.get(beam).copied().unwrap_or(f32::INFINITY)
             }
-            State::Learning { .. } => false,
+            State::Learning(_) => false,
         }
     }
 }
@@ -228,5 +242,44 @@ mod tests {
     fn empty_learning_scans_give_an_all_open_background() {
         let bg = learned(|_| Vec::new());
         assert!(bg.is_foreground(0, 1.0));
+    }
+
+    #[test]
+    fn a_clock_stepped_forward_does_not_end_learning() {
+        let mut bg = LearnedBackground::new(BackgroundConfig::default());
+        bg.observe(&scan(0.0, vec![1.0; 4]));
+        // 1000 s later (NTP at boot): half a second counted, not the whole jump.
+        assert_eq!(
+            bg.observe(&scan(1000.0, vec![1.0; 4])),
+            BackgroundStatus::Learning
+        );
+        for k in 1..25 {
+            let status = bg.observe(&scan(1000.0 + k as f64 * 0.1, vec![1.0; 4]));
+            assert_eq!(status, BackgroundStatus::Learning, "scan {k}");
+        }
+        assert_eq!(
+            bg.observe(&scan(1002.5, vec![1.0; 4])),
+            BackgroundStatus::Ready
+        );
+    }
+
+    #[test]
+    fn a_clock_going_back_while_learning_starts_learning_again() {
+        let mut bg = LearnedBackground::new(BackgroundConfig::default());
+        for k in 0..20 {
+            bg.observe(&scan(100.0 + k as f64 * 0.1, vec![1.0; 4]));
+        }
+        // Back to 0 s: before, learning waited for the old 103 s (samples growing all along).
+        for k in 0..30 {
+            let status = bg.observe(&scan(k as f64 * 0.1, vec![2.0; 4]));
+            assert_eq!(status, BackgroundStatus::Learning, "scan {k}");
+        }
+        assert_eq!(
+            bg.observe(&scan(3.0, vec![2.0; 4])),
+            BackgroundStatus::Ready
+        );
+        // Only the new timeline's wall (2 m) is background.
+        assert!(!bg.is_foreground(0, 1.9));
+        assert!(bg.is_foreground(0, 1.5));
     }
 }

@@ -1129,14 +1129,17 @@ mod tests {
         scan.ranges.clear();
         let out = loc.process_scan(&scan).output.unwrap();
         assert_eq!(out.foreground_points, 0);
-        let mut broken = cast(PERIOD_NS, Pose2::IDENTITY, None);
-        broken.angle_increment = f32::NAN;
-        let result = loc.process_scan(&broken);
-        assert!(result.output.is_none());
-        assert!(matches!(
-            result.warnings[..],
-            [Warning::InvalidScan(ScanError::AngleIncrement(_))]
-        ));
+        // A tiny increment once made the shadow search walk billions of beams per scan.
+        for increment in [f32::NAN, 1e-10] {
+            let mut broken = cast(PERIOD_NS, Pose2::IDENTITY, None);
+            broken.angle_increment = increment;
+            let result = loc.process_scan(&broken);
+            assert!(result.output.is_none());
+            assert!(matches!(
+                result.warnings[..],
+                [Warning::InvalidScan(ScanError::AngleIncrement(_))]
+            ));
+        }
     }
 
     #[test]

@@ -24,7 +24,10 @@ pub struct Scan {
 pub enum ScanError {
     #[error("scan angle_min {0} is not finite")]
     AngleMin(f32),
-    #[error("scan angle_increment {0} is not a finite non-zero angle")]
+    #[error(
+        "scan angle_increment {0} is not a finite angle of at least {MIN_ANGLE_INCREMENT} rad \
+         (finer than MAX_BEAMS beams a turn)"
+    )]
     AngleIncrement(f32),
     #[error(
         "scan range interval [{min}, {max}] is not a finite interval with min >= 0 and max > min"
@@ -36,6 +39,11 @@ pub enum ScanError {
 
 /// More beams than any 2D Lidar delivers per rotation: a scan this long is garbage.
 pub const MAX_BEAMS: usize = 100_000;
+
+/// The finest beam spacing accepted (radians): a full turn of `MAX_BEAMS` beams. A finer one
+/// is garbage too, and walking the beams across an angle (the shadow search) would take
+/// billions of steps.
+pub const MIN_ANGLE_INCREMENT: f32 = std::f32::consts::TAU / MAX_BEAMS as f32;
 
 /// A usable beam: its index in `ranges`, its range and its point in the Lidar frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -51,7 +59,8 @@ impl Scan {
         if !self.angle_min.is_finite() {
             return Err(ScanError::AngleMin(self.angle_min));
         }
-        if !self.angle_increment.is_finite() || self.angle_increment == 0.0 {
+        if !(self.angle_increment.is_finite() && self.angle_increment.abs() >= MIN_ANGLE_INCREMENT)
+        {
             return Err(ScanError::AngleIncrement(self.angle_increment));
         }
         let (min, max) = (self.range_min, self.range_max);
@@ -181,6 +190,11 @@ mod tests {
         assert!(matches!(s.validate(), Err(ScanError::AngleIncrement(_))));
         s.angle_increment = 0.0;
         assert!(matches!(s.validate(), Err(ScanError::AngleIncrement(_))));
+        s.angle_increment = -1e-10;
+        assert!(matches!(s.validate(), Err(ScanError::AngleIncrement(_))));
+        // The finest real Lidars (about 0.1 degree) and a clockwise one pass.
+        s.angle_increment = -0.0017;
+        assert!(s.validate().is_ok());
         let mut s = scan(vec![1.0]);
         s.range_max = f32::INFINITY;
         assert!(matches!(s.validate(), Err(ScanError::RangeInterval { .. })));
