@@ -6,29 +6,91 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use lidar_har_ros::RosError;
+use lidar_har_ros::{ParamDecl, RosArgs, RosError};
 
 /// What the nodes log without `RUST_LOG`: their own info, only warnings from the DDS stack
 /// (whose info level describes every discovery packet).
 const DEFAULT_LOG_FILTER: &str = "info,rustdds=warn,ros2_client=warn";
 
+/// What a node is, for its `--help`: its name, one line on what it does, its parameters.
+pub struct NodeInfo {
+    pub name: &'static str,
+    pub about: &'static str,
+    pub parameters: fn() -> Vec<ParamDecl>,
+}
+
+impl NodeInfo {
+    /// The text `--help` prints.
+    pub fn usage(&self) -> String {
+        let mut text = format!(
+            "{}: {}\n\nUsage: {} [--ros-args [-p NAME:=VALUE]... [--params-file FILE]... \
+             [-r FROM:=TO]...]\n\nParameters:\n",
+            self.name, self.about, self.name
+        );
+        for p in (self.parameters)() {
+            text.push_str(&format!(
+                "  {} ({}, default {}): {}\n",
+                p.name,
+                p.default.type_name(),
+                p.default,
+                p.description
+            ));
+        }
+        text
+    }
+}
+
+/// What the program's own arguments (those outside `--ros-args`) ask for.
+#[derive(Debug)]
+enum ProgramArgs {
+    Run,
+    Help,
+}
+
+/// The nodes take no arguments of their own but `--help`: anything else is a mistake (most
+/// often a parameter without `--ros-args -p`), refused before any DDS traffic starts.
+fn program_args(args: &[String]) -> Result<ProgramArgs, RosError> {
+    let rest = RosArgs::parse(args.iter().cloned())?.rest;
+    match rest.first().map(String::as_str) {
+        None => Ok(ProgramArgs::Run),
+        Some("-h" | "--help") => Ok(ProgramArgs::Help),
+        Some(other) => Err(RosError::Args(format!(
+            "`{other}`: not an option of this node; parameters go after --ros-args \
+             (`--ros-args -p name:=value`), and --help lists them"
+        ))),
+    }
+}
+
 /// Runs a node's body: logs to stderr (`RUST_LOG`, default [`DEFAULT_LOG_FILTER`]), and turns
 /// an error into a one-line message and a non-zero exit code: 2 for a bad argument or
-/// parameter, 1 otherwise.
-pub fn run(node: &str, body: impl FnOnce(&Shutdown) -> anyhow::Result<()>) -> ExitCode {
+/// parameter, 1 otherwise. `--help` prints the node's usage instead.
+pub fn run(node: &NodeInfo, body: impl FnOnce(&Shutdown) -> anyhow::Result<()>) -> ExitCode {
+    let name = node.name;
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    match program_args(&args) {
+        Ok(ProgramArgs::Run) => {}
+        Ok(ProgramArgs::Help) => {
+            print!("{}", node.usage());
+            return ExitCode::SUCCESS;
+        }
+        Err(e) => {
+            eprintln!("{name}: error: {e}");
+            return ExitCode::from(2);
+        }
+    }
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(DEFAULT_LOG_FILTER))
         .init();
     let shutdown = match Shutdown::install() {
         Ok(s) => s,
         Err(e) => {
-            eprintln!("{node}: error: cannot install signal handlers: {e}");
+            eprintln!("{name}: error: cannot install signal handlers: {e}");
             return ExitCode::FAILURE;
         }
     };
     match body(&shutdown) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("{node}: error: {err:#}");
+            eprintln!("{name}: error: {err:#}");
             let bad_input = err.chain().any(|cause| {
                 matches!(
                     cause.downcast_ref::<RosError>(),
@@ -160,6 +222,51 @@ mod tests {
             &[("period".into(), ParamValue::Double(value))],
         )
         .unwrap()
+    }
+
+    fn args(list: &[&str]) -> Vec<String> {
+        list.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn nodes_take_only_ros_args_and_help() {
+        let run = |list: &[&str]| matches!(program_args(&args(list)), Ok(ProgramArgs::Run));
+        let help = |list: &[&str]| matches!(program_args(&args(list)), Ok(ProgramArgs::Help));
+        assert!(run(&[]));
+        assert!(run(&["--ros-args", "-p", "rate:=2.0", "--"]));
+        assert!(help(&["--help"]) && help(&["-h"]));
+        for stray in [
+            &["rate:=2.0"][..],
+            &["--ros-args", "-p", "a:=1", "--", "extra"],
+        ] {
+            let err = program_args(&args(stray)).unwrap_err().to_string();
+            assert!(
+                err.contains("not an option") && err.contains("--ros-args"),
+                "{err}"
+            );
+        }
+        assert!(program_args(&args(&["--ros-args", "-p"])).is_err());
+    }
+
+    #[test]
+    fn usage_lists_every_parameter_with_type_and_default() {
+        let info = NodeInfo {
+            name: "demo_node",
+            about: "does a thing",
+            parameters: || {
+                vec![
+                    ParamDecl::new("rate", ParamValue::Double(1.0), "speed"),
+                    ParamDecl::new("bag", ParamValue::String(String::new()), "the bag"),
+                ]
+            },
+        };
+        let usage = info.usage();
+        assert!(usage.starts_with("demo_node: does a thing"), "{usage}");
+        assert!(usage.contains("rate (double, default 1"), "{usage}");
+        assert!(
+            usage.contains("bag (string, default \"\"): the bag"),
+            "{usage}"
+        );
     }
 
     #[test]

@@ -275,8 +275,8 @@ fn ros_nodes_reject_bad_parameters_naming_them() {
         let stdout = String::from_utf8_lossy(&out.stdout);
         let stderr = std::fs::read_to_string(dir.path().join("err.txt")).unwrap();
         assert!(
-            !stdout.contains("exit=0") && stdout.contains("exit="),
-            "{command}: must fail: {stdout}"
+            stdout.contains("exit=2"),
+            "{command}: must fail with status 2 (bad argument or parameter): {stdout}"
         );
         for needle in *needles {
             assert!(
@@ -287,6 +287,40 @@ fn ros_nodes_reject_bad_parameters_naming_them() {
         assert!(
             !stderr.contains("panicked"),
             "{command}: panicked: {stderr}"
+        );
+    }
+}
+
+/// `--help` and stray arguments are answered before any DDS traffic, so no namespace is needed.
+#[test]
+fn ros_nodes_print_help_and_refuse_stray_arguments() {
+    let nodes = [
+        ("localiser", "map_file"),
+        ("classifier", "model"),
+        ("replay", "wait_for_all_acked"),
+        ("rplidar_driver", "scan_mode"),
+    ];
+    for (node, parameter) in nodes {
+        let help = Command::new(workspace_bin(node))
+            .arg("--help")
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&help.stdout);
+        assert!(help.status.success(), "{node} --help: {help:?}");
+        assert!(
+            text.contains("--ros-args") && text.contains(&format!("  {parameter} (")),
+            "{node} --help must list `{parameter}`: {text}"
+        );
+        // A parameter given without `--ros-args -p` used to be ignored: the node ran on.
+        let stray = Command::new(workspace_bin(node))
+            .args(["rate:=2.0", "--ros-args", "-r", "__ns:=/a"])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&stray.stderr);
+        assert_eq!(stray.status.code(), Some(2), "{node}: {err}");
+        assert!(
+            err.contains("`rate:=2.0`") && err.contains("--ros-args"),
+            "{node}: {err}"
         );
     }
 }

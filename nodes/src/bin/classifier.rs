@@ -9,13 +9,20 @@
 use std::process::ExitCode;
 use std::time::Duration;
 
-use lidar_har::{Outputs, Shutdown, bad_parameter, optional_path};
+use lidar_har::{NodeInfo, Outputs, Shutdown, bad_parameter, optional_path};
 use lidar_har_msgs::topics;
 use lidar_har_pipeline::classifier::{ClassifierStage, load_classifier_config};
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue};
 
 fn main() -> ExitCode {
-    lidar_har::run("classifier", classify)
+    lidar_har::run(
+        &NodeInfo {
+            name: "classifier",
+            about: "recognises the activity of the person the localiser tracks and raises fall alerts",
+            parameters: decls,
+        },
+        classify,
+    )
 }
 
 fn decls() -> Vec<ParamDecl> {

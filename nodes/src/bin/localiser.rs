@@ -9,14 +9,21 @@
 use std::process::ExitCode;
 use std::time::Duration;
 
-use lidar_har::{Outputs, Shutdown, bad_parameter, optional_path};
+use lidar_har::{NodeInfo, Outputs, Shutdown, bad_parameter, optional_path};
 use lidar_har_msgs::qos::{QosProfile, Reliability};
 use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_pipeline::{LocaliserStage, Pipeline, RoomSource, files};
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, RosError};
 
 fn main() -> ExitCode {
-    lidar_har::run("localiser", localise)
+    lidar_har::run(
+        &NodeInfo {
+            name: "localiser",
+            about: "finds and tracks the person in each Lidar scan against the room",
+            parameters: decls,
+        },
+        localise,
+    )
 }
 
 fn decls() -> Vec<ParamDecl> {

@@ -14,7 +14,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
-use lidar_har::{Shutdown, seconds};
+use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
 use lidar_har_bag::BagReader;
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::qos::QosProfile;
@@ -23,7 +23,14 @@ use lidar_har_msgs::topics;
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, Publisher, RosError};
 
 fn main() -> ExitCode {
-    lidar_har::run("replay", play)
+    lidar_har::run(
+        &NodeInfo {
+            name: "replay",
+            about: "plays a rosbag2 directory (MCAP or sqlite3) onto ROS 2 topics",
+            parameters: decls,
+        },
+        play,
+    )
 }
 
 fn decls() -> Vec<ParamDecl> {
@@ -174,8 +181,9 @@ fn qos_for(topic: &lidar_har_bag::TopicInfo) -> QosProfile {
 fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = Node::new(NodeSetup::new("replay").parameters(decls()))?;
     let settings = Settings::from(&node)?;
+    // A bag that cannot be opened is a bad parameter (exit status 2), like any other.
     let reader = BagReader::open(&settings.bag)
-        .with_context(|| format!("parameter `bag`: cannot open {}", settings.bag))?;
+        .map_err(|e| bad_parameter("bag", format!("cannot open it: {e:#}")))?;
     let in_bag: Vec<String> = reader.topics().iter().map(|t| t.name.clone()).collect();
     let selection = select_topics(&settings.topics, &in_bag, &settings.bag)?;
     if !selection.missing.is_empty() {

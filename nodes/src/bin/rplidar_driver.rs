@@ -9,7 +9,7 @@
 
 use std::process::ExitCode;
 
-use lidar_har::{Shutdown, bad_parameter, seconds};
+use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
 use lidar_har_msgs::topics;
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, Parameters, RosError};
 use lidar_har_rplidar::{Config, Driver, Event, ScanModeChoice};
@@ -19,7 +19,14 @@ use lidar_har_rplidar::{Config, Driver, Event, ScanModeChoice};
 const DIAGNOSTICS_PERIOD_S: std::ops::RangeInclusive<f64> = 0.01..=5.0;
 
 fn main() -> ExitCode {
-    lidar_har::run("rplidar_driver", drive)
+    lidar_har::run(
+        &NodeInfo {
+            name: "rplidar_driver",
+            about: "publishes an RPLIDAR's rotations on /scan and its state on /diagnostics",
+            parameters: decls,
+        },
+        drive,
+    )
 }
 
 fn decls() -> Vec<ParamDecl> {
