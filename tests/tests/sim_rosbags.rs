@@ -143,3 +143,37 @@ fn simulate_renders_an_animation_and_refuses_other_formats() {
         "{stderr}"
     );
 }
+
+/// `lidar-har simulate | head -1` and `lidar-har bag info BAG | head -1`: the report stops
+/// where the reader left (`println!` used to panic there), and the bag is written in full.
+#[test]
+fn commands_finish_their_work_when_the_reader_of_stdout_has_gone() {
+    let tmp = tempfile::tempdir().unwrap();
+    let bag = tmp.path().join("bag");
+    let with_stdout_closed = |args: &[&std::ffi::OsStr]| {
+        let mut child = Command::new(workspace_bin("lidar-har"))
+            .current_dir(repo_root())
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let output = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr).to_string();
+        assert!(output.status.success(), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    };
+    let duration = "2".as_ref();
+    with_stdout_closed(&[
+        "simulate".as_ref(),
+        "--duration".as_ref(),
+        duration,
+        "--out".as_ref(),
+        bag.as_os_str(),
+    ]);
+    with_stdout_closed(&["bag".as_ref(), "info".as_ref(), bag.as_os_str()]);
+    let reader = lidar_har_bag::BagReader::open(&bag).unwrap();
+    let scans = reader.topics().iter().find(|t| t.name == "/scan").unwrap();
+    assert_eq!(scans.message_count, 40, "2 s of 20 Hz scans");
+}

@@ -6,6 +6,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+#[macro_use]
+mod stdout;
 mod cmd;
 
 #[derive(Parser)]

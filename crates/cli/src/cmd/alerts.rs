@@ -383,7 +383,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.out {
         let text = serde_json::to_string_pretty(&report)?;
         std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
-        println!("report: {}", path.display());
+        outln!("report: {}", path.display());
     }
     Ok(())
 }
@@ -642,7 +642,7 @@ fn upright_for(truth: &[(f64, Activity)], from: f64, to: f64, span_s: f64) -> bo
 
 fn print_report(r: &AlertsReport) {
     let recall = |a: Activity| 100.0 * r.scans.per_class[a.index()].recall;
-    println!(
+    outln!(
         "streaming classification: {} scans published, {:.1} % right, macro F1 {:.1} %; \
          recall falling_down {:.1} %, running {:.1} %",
         r.scans.samples,
@@ -651,7 +651,7 @@ fn print_report(r: &AlertsReport) {
         recall(Activity::FallingDown),
         recall(Activity::Running),
     );
-    println!(
+    outln!(
         "falls: {} in {} episodes; alerted {} ({:.1} %), within {:.1} s of the fall's end {} ({:.1} %)",
         r.falls,
         r.fall_episodes,
@@ -662,9 +662,11 @@ fn print_report(r: &AlertsReport) {
         percent(r.falls_alerted_within_target, r.falls),
     );
     if let Some(l) = &r.latency_s {
-        println!(
+        outln!(
             "latency after the fall's end: median {:.2} s, p95 {:.2} s, max {:.2} s",
-            l.median, l.p95, l.max
+            l.median,
+            l.p95,
+            l.max
         );
     }
     for reason in [
@@ -677,23 +679,24 @@ fn print_report(r: &AlertsReport) {
             .iter()
             .filter(|o| o.unalerted_because == Some(reason))
             .count();
-        println!("falls without an alert of their own, {reason}: {n}");
+        outln!("falls without an alert of their own, {reason}: {n}");
     }
     let missed: Vec<&FallOutcome> = r
         .outcomes
         .iter()
         .filter(|o| o.alert.is_none() && o.unalerted_because.is_none())
         .collect();
-    println!(
+    outln!(
         "falls missed outright: {}, of them hidden for most of the fall (seen in under half its scans): {}",
         missed.len(),
         missed.iter().filter(|o| o.seen_share < 0.5).count()
     );
-    println!(
+    outln!(
         "alerts in fall episodes before any fall: {}; falls alerted twice (FALL_DETECTED): {}",
-        r.unmatched_alerts_in_fall_episodes, r.repeated_fall_alerts
+        r.unmatched_alerts_in_fall_episodes,
+        r.repeated_fall_alerts
     );
-    println!(
+    outln!(
         "without falls: {:.2} h simulated, {} false alerts ({} FALL_DETECTED, {} PERSON_DOWN), {:.2} per hour",
         r.no_fall_hours,
         r.false_alerts,
@@ -701,7 +704,7 @@ fn print_report(r: &AlertsReport) {
         r.false_person_down,
         r.false_alerts_per_hour
     );
-    println!(
+    outln!(
         "PERSON_DOWN there for someone truly on the floor for down_after_s (due, not counted as false): {}",
         r.everyday_person_down_due
     );
@@ -711,11 +714,12 @@ fn print_report(r: &AlertsReport) {
             d.median, d.max
         )
     });
-    println!(
+    outln!(
         "episodes ending with a fall and staying down: {}, FALL_DETECTED in {}",
-        r.stay_down_episodes, r.stay_down_fall_detected
+        r.stay_down_episodes,
+        r.stay_down_fall_detected
     );
-    println!(
+    outln!(
         "person truly on the floor for down_after_s (all episodes): {} spells, PERSON_DOWN in {}{delay}",
         r.person_down_due.len(),
         r.person_down_due_alerted
@@ -726,7 +730,7 @@ fn print_report(r: &AlertsReport) {
             .iter()
             .map(|(a, n)| format!("{a} {n}"))
             .collect();
-        println!(
+        outln!(
             "false alerts raised while the person was: {}",
             list.join(", ")
         );

@@ -68,21 +68,21 @@ fn info(path: &Path) -> anyhow::Result<()> {
             )
         })
         .collect();
-    println!("Files:             {}", files.join("\n                   "));
-    println!("Bag size:          {}", human_size(size));
-    println!("Storage id:        {}", info.storage);
+    outln!("Files:             {}", files.join("\n                   "));
+    outln!("Bag size:          {}", human_size(size));
+    outln!("Storage id:        {}", info.storage);
     if let Some(version) = info.metadata_version {
-        println!("Metadata version:  {version}");
+        outln!("Metadata version:  {version}");
     }
     if !info.ros_distro.is_empty() {
-        println!("ROS Distro:        {}", info.ros_distro);
+        outln!("ROS Distro:        {}", info.ros_distro);
     }
-    println!("Duration:          {}", seconds(info.duration_ns()));
-    println!("Start:             {}", timestamp(info.start_ns));
-    println!("End:               {}", timestamp(info.end_ns));
-    println!("Messages:          {}", info.message_count);
+    outln!("Duration:          {}", seconds(info.duration_ns()));
+    outln!("Start:             {}", timestamp(info.start_ns));
+    outln!("End:               {}", timestamp(info.end_ns));
+    outln!("Messages:          {}", info.message_count);
     if info.truncated {
-        println!(
+        outln!(
             "Warning:           a storage file ends early (recorder killed?); counts cover its complete part"
         );
     }
@@ -94,7 +94,7 @@ fn info(path: &Path) -> anyhow::Result<()> {
         .unwrap_or(0);
     for (i, topic) in reader.topics().iter().enumerate() {
         let qos: Vec<String> = topic.offered_qos.iter().map(|q| q.describe()).collect();
-        println!(
+        outln!(
             "{}Topic: {:width$} | Type: {} | Count: {} | Serialization Format: {} | QoS: {}",
             if i == 0 {
                 "Topic information: "
@@ -170,7 +170,7 @@ fn convert(
         count += 1;
     }
     let summary = writer.finish()?;
-    println!(
+    outln!(
         "Converted {count} messages on {} topics: {} ({}) -> {} ({storage})",
         handles.len(),
         src.display(),

@@ -447,7 +447,7 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
     std::fs::write(&index_path, serde_json::to_string_pretty(&index)? + "\n")
         .with_context(|| format!("cannot write {}", index_path.display()))?;
     print_counts(&index);
-    println!(
+    outln!(
         "wrote {} windows to {}",
         index.windows.len(),
         args.out.display()
@@ -1080,31 +1080,31 @@ fn position_after(spec: &PersonSpec, world: &World, seed: u64) -> Option<DVec2> 
 }
 
 fn print_counts(index: &DatasetIndex) {
-    print!("{:<20}", "class");
+    out!("{:<20}", "class");
     for split in SPLITS {
-        print!("{split:>12}");
+        out!("{split:>12}");
     }
-    println!();
+    outln!();
     for activity in Activity::ALL {
-        print!("{:<20}", activity.label());
+        out!("{:<20}", activity.label());
         for split in SPLITS {
             let n = index
                 .splits
                 .get(split)
                 .map(|e| e.class_counts[activity.index()])
                 .unwrap_or(0);
-            print!("{n:>12}");
+            out!("{n:>12}");
         }
-        println!();
+        outln!();
     }
-    print!("{:<20}", "episodes");
+    out!("{:<20}", "episodes");
     for split in SPLITS {
-        print!(
+        out!(
             "{:>12}",
             index.episodes.iter().filter(|e| e.split == split).count()
         );
     }
-    println!();
+    outln!();
 }
 
 #[cfg(test)]

@@ -118,8 +118,8 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
         .context("the run produced no activity results")?;
 
     // 3. Report.
-    print!("{}", timeline_text(activity, start_s));
-    print!("{}", position_text(&summary));
+    out!("{}", timeline_text(activity, start_s));
+    out!("{}", position_text(&summary));
     let map = OccupancyMap::from_world(sim.world(), lidar_har_sim::map::DEFAULT_RESOLUTION);
     let scene_png = args.out.join("scene.png");
     render_png(&scene_png, &map, &trace)?;
@@ -128,13 +128,13 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
     let timeline_png = args.out.join("timeline.png");
     draw_timeline(&timeline_png, activity, &truth, start_s)
         .with_context(|| format!("drawing {}", timeline_png.display()))?;
-    println!();
-    println!("simulated bag:  {}", sim_dir.display());
-    println!(
+    outln!();
+    outln!("simulated bag:  {}", sim_dir.display());
+    outln!(
         "pipeline bag:   {} (summary.json beside it)",
         run_dir.display()
     );
-    println!(
+    outln!(
         "pictures:       {} (top view, alerts ringed in red), {}",
         scene_png.display(),
         timeline_png.display()

@@ -202,7 +202,7 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
     let report_path = args.out.join("report.md");
     std::fs::write(&report_path, report(&metrics, &index))
         .with_context(|| format!("cannot write {}", report_path.display()))?;
-    println!(
+    outln!(
         "test accuracy {:.1} % ({} windows){}; step {:.3} ms; wrote {}",
         100.0 * metrics.test.all.accuracy,
         metrics.test.all.windows,

@@ -41,7 +41,7 @@ pub fn run(args: RandomScenesArgs) -> anyhow::Result<()> {
         );
         std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
     }
-    println!(
+    outln!(
         "wrote {} scenes to {} (random_{}.yaml .. random_{last}.yaml)",
         args.count,
         args.out.display(),

@@ -81,7 +81,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     };
     let summary = run_bag(&args.bag, &args.out, options)
         .with_context(|| format!("running the pipeline over {}", args.bag.display()))?;
-    println!("{}", serde_json::to_string_pretty(&summary)?);
+    outln!("{}", serde_json::to_string_pretty(&summary)?);
     eprintln!(
         "wrote {} (bag) and {}",
         args.out.display(),

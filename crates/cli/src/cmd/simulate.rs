@@ -102,14 +102,14 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     })
     .with_context(|| format!("recording {}", args.out.display()))?;
     progress.finish_and_clear();
-    println!(
+    outln!(
         "recorded {} scans ({:.1} s simulated), {} messages into {}",
         summary.frames,
         (summary.last_stamp_ns - summary.first_stamp_ns) as f64 * 1e-9 + geometry.scan_time,
         summary.messages,
         summary.bag_dir.display()
     );
-    println!(
+    outln!(
         "map: {} and {}",
         args.out.join("map.pgm").display(),
         args.out.join("map.yaml").display()
@@ -122,7 +122,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         } else {
             render_png(path, &map, trace)?;
         }
-        println!("render: {}", path.display());
+        outln!("render: {}", path.display());
     }
     Ok(())
 }

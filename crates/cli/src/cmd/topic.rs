@@ -130,8 +130,12 @@ fn echo(
             "source_time_ns": sample.source_time_ns,
             "msg": to_json(&type_name, &sample.bytes),
         });
-        writeln!(out, "{line}")?;
-        out.flush()?;
+        match writeln!(out, "{line}").and_then(|()| out.flush()) {
+            Ok(()) => {}
+            // The reader has gone (`| head -n 3`): the echo is over, as after `--count`.
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
+            Err(e) => return Err(e.into()),
+        }
     }
     if require_count
         && let Some(c) = count
