@@ -357,12 +357,24 @@ fn episode_spread(index: &DatasetIndex, split: &str, correct: &[bool]) -> Option
     scored.sort_by(|a, b| a.accuracy.total_cmp(&b.accuracy));
     let worst = scored.first()?.clone();
     let best = scored.last()?.clone();
+    let accuracies: Vec<f64> = scored.iter().map(|e| e.accuracy).collect();
     Some(EpisodeSpread {
         episodes: scored.len(),
-        median: scored[scored.len() / 2].accuracy,
+        median: median_of_sorted(&accuracies)?,
         best,
         worst,
     })
+}
+
+/// The median of ascending `sorted`: the mean of the middle two for an even count (the upper
+/// one alone made the median of two episodes their best).
+fn median_of_sorted(sorted: &[f64]) -> Option<f64> {
+    let middle = sorted.len() / 2;
+    match sorted.len() {
+        0 => None,
+        n if n % 2 == 0 => Some((sorted[middle - 1] + sorted[middle]) / 2.0),
+        _ => Some(sorted[middle]),
+    }
 }
 
 fn argmax(logits: &[f32; Activity::COUNT]) -> Activity {
@@ -575,4 +587,17 @@ fn draw_confusion(confusion: &ConfusionMatrix, path: &Path) -> anyhow::Result<()
     }
     root.present().map_err(|e| draw(&e))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_median_of_an_even_count_is_between_the_middle_two() {
+        assert_eq!(median_of_sorted(&[]), None);
+        assert_eq!(median_of_sorted(&[0.5]), Some(0.5));
+        assert_eq!(median_of_sorted(&[0.915, 0.949]), Some((0.915 + 0.949) / 2.0));
+        assert_eq!(median_of_sorted(&[0.1, 0.2, 0.9]), Some(0.2));
+    }
 }
