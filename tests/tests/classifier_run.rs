@@ -280,7 +280,8 @@ fn alerts_measures_latency_and_false_alerts_end_to_end() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
-    let report = tmp.path().join("alerts.json");
+    // Its folder is made up front (it used to fail only after the whole run).
+    let report = tmp.path().join("reports/alerts.json");
     let out = lidar_har(&[
         "alerts",
         "--model",
@@ -346,6 +347,41 @@ fn alerts_measures_latency_and_false_alerts_end_to_end() {
         "the committed model reads most scans right: {accuracy}"
     );
     assert!(stdout.contains("streaming classification:"), "{stdout}");
+}
+
+#[test]
+fn alerts_refuses_what_it_cannot_measure_before_simulating() {
+    if !runtime_available() {
+        return;
+    }
+    let model = repo_root().join("models/activity.onnx");
+    let cases: &[(&[&str], &str)] = &[
+        (&["--latency-target-s", "NaN"], "--latency-target-s NaN"),
+        (&["--latency-target-s=-1"], "--latency-target-s -1"),
+        (
+            &["--fall-episodes", "0", "--no-fall-hours", "0"],
+            "nothing to measure",
+        ),
+        (
+            &[
+                "--fall-episodes",
+                "1",
+                "--no-fall-hours",
+                "0",
+                "--trace-episode",
+                "3",
+            ],
+            "--trace-episode 3: there are only episodes 0..1",
+        ),
+    ];
+    for (extra, needle) in cases {
+        let mut args = vec!["alerts", "--model", path(&model)];
+        args.extend_from_slice(extra);
+        let out = lidar_har(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{extra:?}");
+        assert!(err.contains(needle), "{extra:?}: {err}");
+    }
 }
 
 #[test]

@@ -191,6 +191,24 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         "--no-fall-hours {}: must be a finite number >= 0",
         args.no_fall_hours
     );
+    anyhow::ensure!(
+        args.latency_target_s.is_finite() && args.latency_target_s > 0.0,
+        "--latency-target-s {}: must be a finite number of seconds > 0",
+        args.latency_target_s
+    );
+    if let Some(out) = &args.out {
+        // Checked now, not after hours of simulation.
+        let folder = out.parent().filter(|p| !p.as_os_str().is_empty());
+        if let Some(folder) = folder {
+            std::fs::create_dir_all(folder)
+                .with_context(|| format!("--out {}: cannot create its folder", out.display()))?;
+        }
+        anyhow::ensure!(
+            !out.is_dir(),
+            "--out {}: is a folder, not a file",
+            out.display()
+        );
+    }
     let config = match &args.classifier_config {
         Some(path) => load_classifier_config(path)?,
         None => ClassifierConfig::default(),
@@ -213,6 +231,13 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     let no_fall_episodes = (args.no_fall_hours * 3600.0 / args.episode_seconds).ceil() as usize;
 
     let total = args.fall_episodes + no_fall_episodes + args.stay_down_episodes;
+    anyhow::ensure!(
+        total > 0,
+        "nothing to measure: --fall-episodes, --no-fall-hours and --stay-down-episodes are all 0"
+    );
+    if let Some(&beyond) = args.trace_episode.iter().find(|&&id| id >= total) {
+        anyhow::bail!("--trace-episode {beyond}: there are only episodes 0..{total}");
+    }
     let progress = ProgressBar::new(total as u64).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed} (eta {eta})")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),

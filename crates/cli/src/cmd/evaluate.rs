@@ -597,7 +597,10 @@ mod tests {
     fn the_median_of_an_even_count_is_between_the_middle_two() {
         assert_eq!(median_of_sorted(&[]), None);
         assert_eq!(median_of_sorted(&[0.5]), Some(0.5));
-        assert_eq!(median_of_sorted(&[0.915, 0.949]), Some((0.915 + 0.949) / 2.0));
+        assert_eq!(
+            median_of_sorted(&[0.915, 0.949]),
+            Some((0.915 + 0.949) / 2.0)
+        );
         assert_eq!(median_of_sorted(&[0.1, 0.2, 0.9]), Some(0.2));
     }
 }
