@@ -102,7 +102,6 @@ impl LocaliserConfig {
             ("range_margin_fraction", self.range_margin_fraction),
             ("near_person_margin_m", self.near_person_margin_m),
             ("piece_clearance_m", self.piece_clearance_m),
-            ("cluster.tolerance_m", self.cluster.tolerance_m),
             ("tracker.gate_growth_mps", self.tracker.gate_growth_mps),
             ("tracker.part_merge_m", self.tracker.part_merge_m),
             ("tracker.midpoint_length_m", self.tracker.midpoint_length_m),
@@ -134,6 +133,8 @@ impl LocaliserConfig {
             ),
         ];
         let positive = [
+            // 0 would split every pair of returns: nobody found, and nothing said.
+            ("cluster.tolerance_m", self.cluster.tolerance_m),
             ("cluster.max_extent_m", self.cluster.max_extent_m),
             ("tracker.gate_m", self.tracker.gate_m),
             ("tracker.max_gate_m", self.tracker.max_gate_m),
@@ -367,13 +368,13 @@ impl OdometryBuffer {
             while self
                 .samples
                 .front()
-                .is_some_and(|&(t, _)| t < stamp_ns - buffer_ns)
+                .is_some_and(|&(t, _)| t < stamp_ns.saturating_sub(buffer_ns))
             {
                 self.samples.pop_front();
             }
             return None;
         }
-        if stamp_ns < latest_ns - buffer_ns {
+        if stamp_ns < latest_ns.saturating_sub(buffer_ns) {
             return Some(Warning::OdometryTooOld);
         }
         match self.samples.binary_search_by_key(&stamp_ns, |&(t, _)| t) {
@@ -1310,6 +1311,9 @@ mod tests {
         let mut c = LocaliserConfig::default();
         c.tracker.gate_m = -1.0;
         assert_eq!(c.validate().unwrap_err().key, "tracker.gate_m");
+        let mut c = LocaliserConfig::default();
+        c.cluster.tolerance_m = 0.0;
+        assert_eq!(c.validate().unwrap_err().key, "cluster.tolerance_m");
         let c = LocaliserConfig {
             obstacle_margin_m: f64::NAN,
             ..LocaliserConfig::default()
