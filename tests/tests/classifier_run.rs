@@ -395,6 +395,53 @@ fn alerts_without_a_model_names_it() {
 }
 
 #[test]
+fn evaluate_refuses_a_dataset_without_test_windows_before_writing_anything() {
+    if !runtime_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    lidar_har_ok(&[
+        "dataset",
+        "--scenes",
+        "config/scenes/kitchen.yaml",
+        "--episodes",
+        "1",
+        "--test-fraction",
+        "0",
+        "--episode-seconds",
+        "6",
+        "--size",
+        "32",
+        "--resolution",
+        "0.08",
+        "--framing",
+        "room_fixed",
+        "--out",
+        path(&data),
+    ]);
+    let eval = tmp.path().join("eval");
+    let out = lidar_har(&[
+        "evaluate",
+        "--model",
+        "models/activity.onnx",
+        "--data",
+        path(&data),
+        "--out",
+        path(&eval),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("no test windows"),
+        "{err}"
+    );
+    assert!(
+        !eval.exists(),
+        "a confusion matrix was written before the error"
+    );
+}
+
+#[test]
 fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     if !runtime_available() {
         return;

@@ -231,6 +231,8 @@ fn dataset_rejects_bad_arguments_with_a_clear_error() {
         (&["--size", "18"][..], "multiple of 4"),
         (&["--held-out", "nowhere"][..], "nowhere"),
         (&["--window", "1"][..], "--window"),
+        // 4 episodes x 0.1 rounds to none: an empty test split used to pass silently.
+        (&["--test-fraction", "0.1"][..], "test split would be empty"),
     ] {
         let out = make_dataset(dir.path(), extra);
         let stderr = String::from_utf8_lossy(&out.stderr);

@@ -555,6 +555,14 @@ fn plan_episodes(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(args.seed);
     let test_count = (args.test_fraction * args.episodes as f64).round() as usize;
+    if test_count == 0 && args.test_fraction > 0.0 {
+        bail!(
+            "--test-fraction {} of --episodes {} rounds to no episode: the test split would be \
+             empty (raise --episodes, or give --test-fraction 0 for no test split)",
+            args.test_fraction,
+            args.episodes
+        );
+    }
     let mut order: Vec<usize> = (0..args.episodes).collect();
     for i in (1..order.len()).rev() {
         order.swap(i, rng.random_range(0..=i));

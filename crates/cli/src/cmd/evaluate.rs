@@ -160,6 +160,9 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
     let index = DatasetIndex::load(&args.data)?;
     let mut model = ActivityModel::load(&args.model, args.threads)?;
     check_model_matches(&model, &index, &args.model)?;
+    if !index.windows.iter().any(|w| w.split == "test") {
+        bail!("{}: the dataset has no test windows", args.data.display());
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
 
@@ -176,7 +179,7 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
         splits.insert(split.to_string(), metrics);
     }
     let Some(test) = splits.remove("test") else {
-        bail!("{}: the dataset has no test windows", args.data.display());
+        bail!("{}: the test split has no images", args.data.display());
     };
     step_times.sort_by(f64::total_cmp);
     let mean = step_times.iter().sum::<f64>() / step_times.len().max(1) as f64;
