@@ -447,16 +447,29 @@ impl Scene {
     pub fn parse(text: &str, origin: &str) -> Result<Scene, SceneError> {
         let deserializer = serde_yaml_ng::Deserializer::from_str(text);
         let scene: Scene = serde_path_to_error::deserialize(deserializer).map_err(|err| {
-            let key = err.path().to_string();
-            let key = if key == "." {
-                "(top level)".to_string()
-            } else {
-                key
+            let key = match err.path().to_string() {
+                key if key == "." => "(top level)".to_string(),
+                // Broken YAML: the path is unknown; the message says where (line, column).
+                key if key.contains('?') => "YAML syntax".to_string(),
+                key => key,
+            };
+            let message = err.into_inner().to_string();
+            // serde_yaml_ng puts the key, or the map holding it, in front of some messages:
+            // once is enough.
+            let message = match message.split_once(": ") {
+                Some((head, rest))
+                    if key == head
+                        || key.starts_with(&format!("{head}."))
+                        || key.starts_with(&format!("{head}[")) =>
+                {
+                    rest.to_string()
+                }
+                _ => message,
             };
             SceneError::Invalid {
                 origin: origin.to_string(),
                 key,
-                message: err.into_inner().to_string(),
+                message,
             }
         })?;
         scene

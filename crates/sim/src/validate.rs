@@ -373,6 +373,25 @@ mod tests {
     }
 
     #[test]
+    fn yaml_that_does_not_parse_is_named_once_and_where() {
+        let cases = [
+            ("duration: [1,\n", "bad.yaml: duration: invalid type"),
+            (
+                "room:\n  outline: [[0,0],[4,0]]\n  foo: 1\n",
+                "bad.yaml: room.foo: unknown field `foo`",
+            ),
+            (
+                "room: {outline: [[0,0],[4,0]]\nduration: 3\n",
+                "bad.yaml: YAML syntax: did not find expected ',' or '}' at line 2",
+            ),
+        ];
+        for (text, want) in cases {
+            let got = error(text);
+            assert!(got.starts_with(want), "{text:?}: {got}");
+        }
+    }
+
+    #[test]
     fn each_bad_value_names_its_key() {
         let ok_robot = "{start: {x: 0.5, y: 0.5}}";
         let cases = [

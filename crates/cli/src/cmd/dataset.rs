@@ -51,8 +51,11 @@ pub struct DatasetArgs {
     /// Output directory (created; existing dataset files are replaced).
     #[arg(long)]
     pub out: PathBuf,
+    /// The image made of each scan: boolean_grid, circles or ellipses.
     #[arg(long, default_value = "boolean_grid")]
     pub representation: RepresentationKind,
+    /// Where the image is centred: person_centred, or room_fixed (the paper's; the
+    /// committed model's).
     #[arg(long, default_value = "person_centred")]
     pub framing: Framing,
     /// Image side, pixels (a multiple of 4 for the model's encoder).

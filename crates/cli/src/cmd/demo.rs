@@ -131,7 +131,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
     outln!();
     outln!("simulated bag:  {}", sim_dir.display());
     outln!(
-        "pipeline bag:   {} (summary.json beside it)",
+        "pipeline bag:   {} (summary.json in it)",
         run_dir.display()
     );
     outln!(

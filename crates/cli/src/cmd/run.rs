@@ -14,7 +14,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub bag: PathBuf,
     /// Output directory: a rosbag2 bag of /human/pose, /human/observation, /human/markers,
-    /// /human/activity, /human/fall_alert, plus summary.json. Must not already hold a bag.
+    /// /human/activity, /human/fall_alert and, with a pose head, /human/pelvis, plus
+    /// summary.json. Must not already hold a bag.
     #[arg(long)]
     pub out: PathBuf,
     /// map_server map (YAML naming a PGM/PNG image). Without it: the bag's /map, or else a
