@@ -120,7 +120,8 @@ fn simulate_renders_an_animation_and_refuses_other_formats() {
             .args(["simulate", "--duration", "2", "--out"])
             .arg(tmp.path().join(render.replace('.', "_")))
             .arg("--render")
-            .arg(tmp.path().join(render))
+            // A folder that does not exist yet is made (it failed after the bag was written).
+            .arg(tmp.path().join("pictures").join(render))
             .output()
             .unwrap()
     };
@@ -131,7 +132,7 @@ fn simulate_renders_an_animation_and_refuses_other_formats() {
         String::from_utf8_lossy(&output.stderr)
     );
     assert!(
-        std::fs::read(tmp.path().join("top.gif"))
+        std::fs::read(tmp.path().join("pictures/top.gif"))
             .unwrap()
             .starts_with(b"GIF89a")
     );

@@ -197,17 +197,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         args.latency_target_s
     );
     if let Some(out) = &args.out {
-        // Checked now, not after hours of simulation.
-        let folder = out.parent().filter(|p| !p.as_os_str().is_empty());
-        if let Some(folder) = folder {
-            std::fs::create_dir_all(folder)
-                .with_context(|| format!("--out {}: cannot create its folder", out.display()))?;
-        }
-        anyhow::ensure!(
-            !out.is_dir(),
-            "--out {}: is a folder, not a file",
-            out.display()
-        );
+        super::prepare_output_file(out, "--out")?;
     }
     let config = match &args.classifier_config {
         Some(path) => load_classifier_config(path)?,

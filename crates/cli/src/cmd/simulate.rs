@@ -64,6 +64,9 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
             })
         }
     };
+    if let Some(path) = &args.render {
+        super::prepare_output_file(path, "--render")?;
+    }
     anyhow::ensure!(
         args.map_resolution.is_finite()
             && args.map_resolution >= 0.005
@@ -118,10 +121,11 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         let map = OccupancyMap::from_world(sim.world(), args.map_resolution);
         if render == Some(RenderKind::Animation) {
             let delay_ms = scan_every as f64 * geometry.scan_time * 1000.0 / GIF_SPEED_UP;
-            render_gif(path, &map, trace, delay_ms.round() as u32)?;
+            render_gif(path, &map, trace, delay_ms.round() as u32)
         } else {
-            render_png(path, &map, trace)?;
+            render_png(path, &map, trace)
         }
+        .with_context(|| format!("--render {}", path.display()))?;
         outln!("render: {}", path.display());
     }
     Ok(())
