@@ -53,12 +53,17 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
         config.model.is_file(),
         "no activity model at {}: the demo needs a trained model and does not fake results. \
          Train one (training/, see docs/classifier.md) or pass --model FILE",
-        config.model.display()
+        super::shown_path(&config.model)
     );
     // Load once now, so a broken model or a missing ONNX Runtime stops us before simulating.
     drop(
         ClassifierRun::load(&config)
             .with_context(|| format!("loading {}", config.model.display()))?,
+    );
+    anyhow::ensure!(
+        !args.out.exists() || args.out.is_dir(),
+        "--out {} is a file: give a folder (made if missing)",
+        args.out.display()
     );
     if args.out.exists() {
         let empty = std::fs::read_dir(&args.out)

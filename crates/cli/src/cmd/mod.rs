@@ -25,3 +25,14 @@ pub fn prepare_output_file(path: &std::path::Path, flag: &str) -> anyhow::Result
     );
     Ok(())
 }
+
+/// A path for a message; a relative one says what it is relative to, since configuration
+/// files name models relative to the folder the command runs in, not to themselves.
+pub fn shown_path(path: &std::path::Path) -> String {
+    match std::env::current_dir() {
+        Ok(folder) if path.is_relative() => {
+            format!("{} (relative to {})", path.display(), folder.display())
+        }
+        _ => path.display().to_string(),
+    }
+}

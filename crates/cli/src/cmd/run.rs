@@ -42,10 +42,15 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let _ = env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn"))
         .try_init();
     let config = match &args.config {
-        Some(path) => files::load_config(path)?,
+        Some(path) => files::load_config(path).context("--config")?,
         None => Default::default(),
     };
-    let map = args.map.as_deref().map(files::load_map).transpose()?;
+    let map = args
+        .map
+        .as_deref()
+        .map(files::load_map)
+        .transpose()
+        .context("--map")?;
     let classifier = if args.no_classifier {
         None
     } else {
@@ -65,12 +70,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
                 !explicit,
                 "no activity model at {}: pass an existing --model FILE, train one (training/, see \
                  docs/classifier.md), or run the localiser alone with --no-classifier",
-                classifier.model.display()
+                super::shown_path(&classifier.model)
             );
             eprintln!(
                 "lidar-har: warning: no activity model at {}: running the localiser only (train \
                  one, see docs/classifier.md, or pass --model FILE; --no-classifier silences this)",
-                classifier.model.display()
+                super::shown_path(&classifier.model)
             );
             None
         }
