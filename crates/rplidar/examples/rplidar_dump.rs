@@ -95,9 +95,11 @@ fn main() {
             std::process::exit(2);
         }
     };
+    let mut scans = 0u64;
     while Instant::now() < end {
         match driver.next_event() {
             Event::Scan(scan) => {
+                scans += 1;
                 let valid: Vec<f32> = scan
                     .ranges
                     .iter()
@@ -137,6 +139,14 @@ fn main() {
     drop(fake);
     if let Some(dir) = fake_dir {
         let _ = std::fs::remove_dir(dir);
+    }
+    // The driver retries a missing port or a silent device for ever; this check must fail.
+    if scans == 0 {
+        eprintln!(
+            "no scan in {:.1} s: the diagnostics above say why (port, baud, scan mode)",
+            run.as_secs_f64()
+        );
+        std::process::exit(1);
     }
 }
 
