@@ -143,8 +143,20 @@ struct Row {
     in_sight_far: u64,
 }
 
-fn main() -> Result<(), Box<dyn Error>> {
-    let args = Args::parse();
+fn main() -> std::process::ExitCode {
+    match measure(Args::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("localiser_accuracy: error: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn measure(args: Args) -> Result<(), Box<dyn Error>> {
+    if args.seeds == 0 {
+        return Err("--seeds 0: nothing to measure (give at least 1)".into());
+    }
     let mut config = match &args.config {
         Some(path) => load_config(path)?,
         None => LocaliserConfig::default(),
@@ -172,6 +184,16 @@ fn main() -> Result<(), Box<dyn Error>> {
     if paths.is_empty() {
         return Err(format!("no *.yaml scenes in {}", args.scenes.display()).into());
     }
+    let scenes = paths
+        .iter()
+        .map(|path| Ok((path, Scene::load(path)?)))
+        .collect::<Result<Vec<_>, Box<dyn Error>>>()?;
+    if let Some(name) = &args.trace
+        && !scenes.iter().any(|(_, scene)| &scene.name == name)
+    {
+        let names: Vec<&str> = scenes.iter().map(|(_, s)| s.name.as_str()).collect();
+        return Err(format!("--trace {name}: no such scene (there are {})", names.join(", ")).into());
+    }
 
     let mut dump = match &args.dump_points {
         Some(path) => Some(BufWriter::new(
@@ -185,8 +207,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     let mut by_motion: BTreeMap<&'static str, Group> = BTreeMap::new();
     let mut runs = 0;
     let mut skipped = 0;
-    for path in &paths {
-        let scene = Scene::load(path)?;
+    for (path, scene) in &scenes {
         for (index, (motion_name, motion)) in motions(&scene.robot.motion).into_iter().enumerate() {
             let mut variant = scene.clone();
             variant.robot.motion = motion;
