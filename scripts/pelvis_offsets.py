@@ -18,7 +18,11 @@ import numpy as np
 def main() -> None:
     if len(sys.argv) != 2:
         sys.exit(f"usage: {sys.argv[0]} POINTS.jsonl")
-    rows = [json.loads(line) for line in open(sys.argv[1])]
+    try:
+        with open(sys.argv[1]) as points:
+            rows = [json.loads(line) for line in points]
+    except (OSError, json.JSONDecodeError) as e:
+        sys.exit(f"{sys.argv[1]}: {e}")
     activity = np.array([r["activity"] for r in rows])
     pelvis = np.array([r["pelvis"] for r in rows])  # x, y, heading
     reported = np.array([r["reported"] for r in rows])
