@@ -56,8 +56,9 @@ pub struct BagInfo {
 }
 
 impl BagInfo {
+    /// Saturates: the stamps of a damaged bag may span more than an `i64`.
     pub fn duration_ns(&self) -> i64 {
-        self.end_ns - self.start_ns
+        self.end_ns.saturating_sub(self.start_ns)
     }
 }
 

@@ -493,3 +493,32 @@ fn finish_after_a_failed_finish_is_an_error() {
     assert!(writer.write_message(topic, 2, &scan(1)).is_err());
     assert!(writer.flush().is_err());
 }
+
+/// A sqlite3 row stamped near the start of time (a damaged bag) beside normal ones: the time
+/// span saturates instead of overflowing, and every message is still read.
+#[test]
+fn a_stamp_at_the_edge_of_time_does_not_overflow_the_time_span() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("b");
+    write_bag(&dir, StorageId::Sqlite3, Compression::None, 3);
+    let db = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|x| x == "db3"))
+        .unwrap();
+    let connection = rusqlite::Connection::open(&db).unwrap();
+    let changed = connection
+        .execute(
+            "UPDATE messages SET timestamp = ?1 WHERE id = (SELECT MIN(id) FROM messages)",
+            [i64::MIN],
+        )
+        .unwrap();
+    assert_eq!(changed, 1);
+    drop(connection);
+    let reader = BagReader::open(&dir).unwrap();
+    let info = reader.metadata();
+    assert_eq!(info.start_ns, i64::MIN);
+    assert_eq!(info.duration_ns(), i64::MAX);
+    let read = reader.messages().unwrap().filter(|m| m.is_ok()).count() as u64;
+    assert_eq!(read, info.message_count);
+}

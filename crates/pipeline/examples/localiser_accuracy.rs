@@ -192,7 +192,11 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
         && !scenes.iter().any(|(_, scene)| &scene.name == name)
     {
         let names: Vec<&str> = scenes.iter().map(|(_, s)| s.name.as_str()).collect();
-        return Err(format!("--trace {name}: no such scene (there are {})", names.join(", ")).into());
+        return Err(format!(
+            "--trace {name}: no such scene (there are {})",
+            names.join(", ")
+        )
+        .into());
     }
 
     let mut dump = match &args.dump_points {

@@ -230,8 +230,8 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     let bag_start = reader.metadata().start_ns;
     let mut played = 0u64;
     loop {
-        let begin = bag_start + settings.start_offset_ns;
-        let wall_start = Instant::now();
+        let begin = bag_start.saturating_add(settings.start_offset_ns);
+        let mut pacing = Pacing::new(begin, Instant::now(), settings.rate);
         for message in reader.messages()? {
             let message = message.context("reading the bag")?;
             if message.log_time_ns < begin {
@@ -241,10 +241,8 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
                 continue;
             };
             if settings.rate > 0.0 {
-                let due = Duration::from_secs_f64(
-                    (message.log_time_ns - begin) as f64 / 1e9 / settings.rate,
-                );
-                if !shutdown.sleep_until(wall_start + due) {
+                let due = pacing.due(message.log_time_ns, Instant::now(), &message.topic);
+                if !shutdown.sleep_until(due) {
                     log::info!("replay: stopped by signal after {played} messages");
                     return Ok(());
                 }
@@ -268,6 +266,54 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
         wait_for_all_acked(publishers.values(), settings.acked_timeout);
     }
     Ok(())
+}
+
+/// Bag time between two messages beyond which the replay plays on at once instead of
+/// waiting: a damaged stamp (a sqlite3 row at -9e18 ns) or a recorder paused for hours.
+const MAX_WAITED_GAP_NS: i64 = 3_600_000_000_000;
+
+/// When each message is due on the wall clock: its bag time since an anchor, scaled by the
+/// rate. The anchor moves to a message that comes more than [`MAX_WAITED_GAP_NS`] after the
+/// one before it, so that nothing waits for ever and no arithmetic overflows.
+struct Pacing {
+    rate: f64,
+    anchor_ns: i64,
+    anchor_at: Instant,
+    previous_ns: i64,
+}
+
+impl Pacing {
+    /// Bag time `begin_ns` is due at `start`.
+    fn new(begin_ns: i64, start: Instant, rate: f64) -> Self {
+        Self {
+            rate,
+            anchor_ns: begin_ns,
+            anchor_at: start,
+            previous_ns: begin_ns,
+        }
+    }
+
+    fn due(&mut self, log_time_ns: i64, now: Instant, topic: &str) -> Instant {
+        let gap_ns = log_time_ns.saturating_sub(self.previous_ns);
+        self.previous_ns = log_time_ns;
+        let since_anchor_s = log_time_ns.saturating_sub(self.anchor_ns) as f64 / 1e9;
+        let due = Duration::try_from_secs_f64(since_anchor_s / self.rate)
+            .ok()
+            .and_then(|after| self.anchor_at.checked_add(after));
+        match due {
+            Some(due) if gap_ns <= MAX_WAITED_GAP_NS => due,
+            _ => {
+                log::warn!(
+                    "replay: {topic} at {log_time_ns} ns comes {:.3e} s of bag time after the \
+                     message before it: playing on at once",
+                    gap_ns as f64 / 1e9
+                );
+                self.anchor_ns = log_time_ns;
+                self.anchor_at = now;
+                now
+            }
+        }
+    }
 }
 
 /// Waits, up to `timeout` in all, until the reliable subscribers acknowledged everything.
@@ -295,6 +341,30 @@ mod tests {
 
     fn names(list: &[&str]) -> Vec<String> {
         list.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn messages_are_due_at_their_bag_time_over_the_rate() {
+        let start = Instant::now();
+        let mut pacing = Pacing::new(1_000_000_000, start, 2.0);
+        let due = pacing.due(1_000_000_000, start, "/scan");
+        assert_eq!(due, start);
+        let due = pacing.due(3_000_000_000, start, "/scan");
+        assert_eq!(due, start + Duration::from_secs(1));
+    }
+
+    #[test]
+    fn a_damaged_stamp_is_played_at_once_and_the_next_ones_keep_their_pace() {
+        let start = Instant::now();
+        // The bag's start is the damaged row at the start of time.
+        let mut pacing = Pacing::new(i64::MIN, start, 1.0);
+        assert_eq!(pacing.due(i64::MIN, start, "/scan"), start);
+        let later = start + Duration::from_millis(5);
+        assert_eq!(pacing.due(100_000_000_000, later, "/scan"), later);
+        let due = pacing.due(100_050_000_000, later, "/scan");
+        assert_eq!(due, later + Duration::from_millis(50));
+        // A stamp at the end of time neither waits nor overflows.
+        assert_eq!(pacing.due(i64::MAX, later, "/scan"), later);
     }
 
     #[test]

@@ -135,10 +135,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
         .with_context(|| format!("drawing {}", timeline_png.display()))?;
     outln!();
     outln!("simulated bag:  {}", sim_dir.display());
-    outln!(
-        "pipeline bag:   {} (summary.json in it)",
-        run_dir.display()
-    );
+    outln!("pipeline bag:   {} (summary.json in it)", run_dir.display());
     outln!(
         "pictures:       {} (top view, alerts ringed in red), {}",
         scene_png.display(),
