@@ -83,6 +83,9 @@ impl StreamSpec {
     pub const KEY_SIZE: &'static str = "lidar_har.size";
     pub const KEY_RESOLUTION: &'static str = "lidar_har.resolution_m";
     pub const KEY_WINDOW: &'static str = "lidar_har.window";
+    /// The longest window a model may declare: minutes of scans at any Lidar's rate. A larger
+    /// one is a broken file, and the lane schedule's arithmetic would overflow.
+    pub const MAX_WINDOW: usize = 10_000;
     pub const KEY_SCAN_RATE: &'static str = "lidar_har.scan_rate_hz";
     /// Optional: the circle radius, metres (default [`RepresentationSpec::DEFAULT_MARK_RADIUS_M`]).
     pub const KEY_MARK_RADIUS: &'static str = "lidar_har.mark_radius_m";
@@ -125,11 +128,11 @@ impl StreamSpec {
 
     pub fn validate(&self) -> Result<(), StreamSpecError> {
         self.representation.validate()?;
-        if self.window < 2 {
+        if !(2..=Self::MAX_WINDOW).contains(&self.window) {
             return Err(StreamSpecError::Invalid {
                 key: Self::KEY_WINDOW,
                 value: self.window.to_string(),
-                reason: "the window must be at least 2 scans".into(),
+                reason: format!("the window must be 2..={} scans", Self::MAX_WINDOW),
             });
         }
         if !(self.scan_rate_hz.is_finite() && self.scan_rate_hz > 0.0) {
@@ -823,6 +826,10 @@ mod tests {
             .to_string();
         assert!(e.contains("sideways") && e.contains("room_fixed"), "{e}");
         assert!(StreamSpec::from_metadata(meta(&[("lidar_har.window", "1")])).is_err());
+        let e = StreamSpec::from_metadata(meta(&[("lidar_har.window", "100000000000000000")]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("2..=10000"), "{e}");
         assert!(StreamSpec::from_metadata(meta(&[("lidar_har.scan_rate_hz", "NaN")])).is_err());
     }
 }

@@ -358,6 +358,35 @@ fn shape_matches(shape: &[i64], expected: &[usize]) -> bool {
             .all(|(i, (&got, &want))| got == want as i64 || (i == 0 && got == -1))
 }
 
+/// The largest recurrent state accepted (values of 'h'): 64 MB of floats, a thousand times
+/// the committed model's.
+const MAX_STATE_VALUES: usize = 1 << 24;
+
+/// The recurrent state's (hidden, side) from the declared shape of 'h', `[1, hidden, side,
+/// side]` with fixed sizes.
+fn state_dims(h: &[i64]) -> Result<(usize, usize), String> {
+    let (hidden, side) = match h {
+        [_, hidden, side, side2] if *hidden > 0 && side == side2 && *side > 0 => {
+            (*hidden as usize, *side as usize)
+        }
+        _ => {
+            return Err(format!(
+                "input 'h' has shape {h:?}, expected [1, hidden, side, side] with fixed sizes"
+            ));
+        }
+    };
+    // A broken file may declare any size: refuse one that could not be allocated twice per
+    // lane rather than abort on it.
+    let values = hidden.checked_mul(side).and_then(|n| n.checked_mul(side));
+    if values.is_none_or(|n| n > MAX_STATE_VALUES) {
+        return Err(format!(
+            "input 'h' has shape {h:?}: a state of more than {MAX_STATE_VALUES} values is not \
+             a lidar_har model"
+        ));
+    }
+    Ok((hidden, side))
+}
+
 /// Checks names, element types and shapes against the contract; returns (hidden, state side).
 fn check_signature(
     inputs: &[Outlet],
@@ -373,16 +402,7 @@ fn check_signature(
         ));
     }
     let h = float_outlet_shape(inputs, "input", "h")?;
-    let (hidden, side) = match h.as_slice() {
-        [_, hidden, side, side2] if *hidden > 0 && side == side2 && *side > 0 => {
-            (*hidden as usize, *side as usize)
-        }
-        _ => {
-            return Err(format!(
-                "input 'h' has shape {h:?}, expected [1, hidden, side, side] with fixed sizes"
-            ));
-        }
-    };
+    let (hidden, side) = state_dims(&h)?;
     let state_shape = [1, hidden, side, side];
     for (name, kind, outlets) in [
         ("h", "input", inputs),
@@ -405,4 +425,30 @@ fn check_signature(
         ));
     }
     Ok((hidden, side))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_state_shape_must_be_square_fixed_and_of_a_size_that_can_be_held() {
+        assert_eq!(state_dims(&[1, 32, 8, 8]), Ok((32, 8)));
+        assert_eq!(state_dims(&[-1, 32, 8, 8]), Ok((32, 8)));
+        for bad in [&[1, 32, 8, 4][..], &[1, -1, 8, 8], &[1, 32, 8]] {
+            let e = state_dims(bad).unwrap_err();
+            assert!(
+                e.contains("expected [1, hidden, side, side]"),
+                "{bad:?}: {e}"
+            );
+        }
+        // Used to allocate (or overflow to) whatever the file declared.
+        for huge in [
+            &[1, 1 << 20, 1 << 20, 1 << 20][..],
+            &[1, i64::MAX, i64::MAX, i64::MAX],
+        ] {
+            let e = state_dims(huge).unwrap_err();
+            assert!(e.contains("not a lidar_har model"), "{huge:?}: {e}");
+        }
+    }
 }
