@@ -480,3 +480,45 @@ fn a_bag_cut_short_keeps_the_outputs_and_summary_of_what_was_read() {
         .count() as u64;
     assert!(observations + 10 >= scans, "{observations} of {scans}");
 }
+
+/// A sqlite3 bag may hold a negative log time, which an output bag cannot: that message is
+/// skipped and counted, and the run goes on (an output written at that time ended the run,
+/// without a summary).
+#[test]
+fn a_negative_log_time_in_the_input_skips_that_message_only() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mcap = tmp.path().join("mcap");
+    write_bag(&mcap);
+    let input = tmp.path().join("in");
+    let converted = Command::new(workspace_bin("lidar-har"))
+        .args([
+            "bag".as_ref(),
+            "convert".as_ref(),
+            mcap.as_os_str(),
+            input.as_os_str(),
+        ])
+        .args(["--storage", "sqlite3"])
+        .output()
+        .unwrap();
+    assert!(converted.status.success(), "{converted:?}");
+    let db = std::fs::read_dir(&input)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|x| x == "db3"))
+        .expect("a sqlite3 file");
+    let changed = rusqlite::Connection::open(&db)
+        .unwrap()
+        .execute(
+            "UPDATE messages SET timestamp = -5 WHERE id = (SELECT m.id FROM messages m \
+             JOIN topics t ON m.topic_id = t.id WHERE t.name = '/scan' ORDER BY m.id \
+             LIMIT 1 OFFSET 50)",
+            [],
+        )
+        .unwrap();
+    assert_eq!(changed, 1);
+    let whole = run_localiser(&mcap, &tmp.path().join("whole"), None);
+    let summary = run_localiser(&input, &tmp.path().join("out"), None);
+    assert_eq!(summary.decode_errors, whole.decode_errors + 1);
+    assert_eq!(summary.scans + 1, whole.scans);
+    assert!(tmp.path().join("out/summary.json").is_file());
+}

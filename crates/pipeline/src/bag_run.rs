@@ -116,7 +116,8 @@ pub struct RunSummary {
     pub pipeline_time_us: Option<Spread>,
     /// Input problems by kind (the log shows them rate-limited).
     pub warnings: std::collections::BTreeMap<&'static str, u64>,
-    /// Messages that could not be decoded and were skipped.
+    /// Messages that could not be decoded, or that carry a negative log time (sqlite3 bags can
+    /// hold one; a rosbag2 output cannot), and were skipped.
     pub decode_errors: u64,
     /// Why reading the input stopped before its end (a file cut short, corrupt data); the
     /// outputs cover the messages read before it. `None` when the whole bag was read.
@@ -236,6 +237,15 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
             }
         };
         let topic = &*message.topic;
+        if message.log_time_ns < 0 {
+            // Its outputs could not be written: skipped, rather than ending the whole run.
+            decode_errors += 1;
+            log::warn!(
+                "{topic} skipped: negative log time {} ns",
+                message.log_time_ns
+            );
+            continue;
+        }
         if classifier
             .as_mut()
             .is_some_and(|c| c.on_input(topic, &message.data))
