@@ -640,7 +640,7 @@ fn ros_replay_localiser_classifier_processes_equal_the_embedded_run() {
     }
     let script = format!(
         r#"
-"$LOC" &
+"$LOC" 2> "$OUT/localiser.err" &
 L=$!
 {classifier}
 "$LH" topic echo /human/pose --count {np} --timeout 40 > "$OUT/pose.jsonl" &
@@ -651,10 +651,11 @@ sleep 1.5
 wait $P; echo "pose_echo=$?"
 {wait_activity}
 kill -TERM $L {kill_classifier}; wait $L; echo "localiser=$?"
+{wait_classifier}
 "#,
         np = want_poses.len(),
         classifier = if with_classifier {
-            r#""$CLS" --ros-args -p model:="$MODEL" & C=$!"#
+            r#""$CLS" --ros-args -p model:="$MODEL" 2> "$OUT/classifier.err" & C=$!"#
         } else {
             ""
         },
@@ -672,6 +673,11 @@ kill -TERM $L {kill_classifier}; wait $L; echo "localiser=$?"
             ""
         },
         kill_classifier = if with_classifier { "$C" } else { "" },
+        wait_classifier = if with_classifier {
+            r#"wait $C; echo "classifier=$?""#
+        } else {
+            ""
+        },
     );
     let out = in_netns(
         &script,
@@ -690,6 +696,14 @@ kill -TERM $L {kill_classifier}; wait $L; echo "localiser=$?"
     for want in ["replay=0", "pose_echo=0", "localiser=0"] {
         assert!(stdout.contains(want), "expected {want}");
     }
+    // A clean stop logs no ERROR (the DDS stack once logged one per reader and writer the
+    // node's spinner dropped after the participant had stopped).
+    for node in ["localiser", "classifier"] {
+        let log = dir.path().join(format!("{node}.err"));
+        if let Ok(text) = std::fs::read_to_string(&log) {
+            assert!(!text.contains("ERROR"), "{node} logged errors:\n{text}");
+        }
+    }
     let got_poses: Vec<_> = json_lines(&dir.path().join("pose.jsonl"))
         .into_iter()
         .map(|l| l["msg"].clone())
@@ -702,7 +716,7 @@ kill -TERM $L {kill_classifier}; wait $L; echo "localiser=$?"
         );
     }
     if with_classifier {
-        assert!(stdout.contains("activity_echo=0"));
+        assert!(stdout.contains("activity_echo=0") && stdout.contains("classifier=0"));
         let got: Vec<_> = json_lines(&dir.path().join("activity.jsonl"))
             .into_iter()
             .map(|l| l["msg"].clone())

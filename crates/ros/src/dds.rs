@@ -8,7 +8,7 @@
 use std::collections::HashMap;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use lidar_har_msgs::qos::{Durability, History, QosProfile, Reliability};
 use lidar_har_msgs::rosgraph_msgs::Clock;
@@ -155,19 +155,43 @@ fn dds_err(e: impl std::fmt::Display) -> RosError {
     RosError::Dds(e.to_string())
 }
 
+/// Fields drop in this order: every reader and writer (ours, then the node's parameter
+/// services, which the spinner thread drops once the node is gone) before the participant,
+/// whose event loop must still run to remove them.
 pub(crate) struct DdsNode {
-    context: ros2_client::Context,
-    node: ros2_client::Node,
-    publisher: rustdds::Publisher,
-    subscriber: rustdds::Subscriber,
-    topics: Mutex<HashMap<String, Topic>>,
-    poll: Mutex<(mio1::Poll, mio1::Events)>,
-    registry: mio1::Registry,
-    next_token: Mutex<usize>,
     /// /clock when `use_sim_time` is true. Our own reader, because ros2-client 0.12's
     /// spinner subscribes /clock as `builtin_interfaces/msg/Time`, a type name that ROS 2's
     /// `rosgraph_msgs/msg/Clock` publishers (e.g. Cyclone DDS, Fast DDS) do not match.
     sim_clock: Option<SimClock>,
+    node: ros2_client::Node,
+    _spinner: SpinnerThread,
+    topics: Mutex<HashMap<String, Topic>>,
+    publisher: rustdds::Publisher,
+    subscriber: rustdds::Subscriber,
+    poll: Mutex<(mio1::Poll, mio1::Events)>,
+    registry: mio1::Registry,
+    next_token: Mutex<usize>,
+    context: ros2_client::Context,
+}
+
+/// The thread running the node's spinner (parameter services, graph). Dropped after the node,
+/// it waits a moment for the spinner to end: left running, the spinner dropped its readers
+/// and writers after the participant had stopped, each an ERROR line at shutdown.
+struct SpinnerThread(Option<std::thread::JoinHandle<()>>);
+
+impl Drop for SpinnerThread {
+    fn drop(&mut self) {
+        let Some(thread) = self.0.take() else {
+            return;
+        };
+        let deadline = Instant::now() + Duration::from_secs(1);
+        while !thread.is_finished() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        if thread.is_finished() {
+            let _ = thread.join();
+        }
+    }
 }
 
 /// The newest time received on /clock.
@@ -251,7 +275,7 @@ impl DdsNode {
         // The spinner serves parameter services (and the graph); it ends when the node is
         // dropped.
         let spinner = node.spinner().map_err(dds_err)?;
-        std::thread::Builder::new()
+        let spinner = std::thread::Builder::new()
             .name("ros2-spinner".into())
             .spawn(move || {
                 if let Err(e) = futures::executor::block_on(spinner.spin()) {
@@ -269,15 +293,16 @@ impl DdsNode {
         let poll = mio1::Poll::new().map_err(dds_err)?;
         let registry = poll.registry().try_clone().map_err(dds_err)?;
         let mut this = Self {
-            context,
+            sim_clock: None,
             node,
+            _spinner: SpinnerThread(Some(spinner)),
+            topics: Mutex::new(HashMap::new()),
             publisher,
             subscriber,
-            topics: Mutex::new(HashMap::new()),
             poll: Mutex::new((poll, mio1::Events::with_capacity(64))),
             registry,
             next_token: Mutex::new(0),
-            sim_clock: None,
+            context,
         };
         if params.bool("use_sim_time")? {
             let clock = &topics::CLOCK;
