@@ -229,6 +229,7 @@ impl DdsNode {
         namespace: &str,
         decls: &[ParamDecl],
         params: &Parameters,
+        parameter_services: bool,
     ) -> Result<Self, RosError> {
         let domain = crate::args::domain_id_from_env()?;
         let context = ros2_client::Context::with_options(
@@ -274,15 +275,20 @@ impl DdsNode {
         let mut node = context.new_node(node_name, options).map_err(dds_err)?;
         // The spinner serves parameter services (and the graph); it ends when the node is
         // dropped.
-        let spinner = node.spinner().map_err(dds_err)?;
-        let spinner = std::thread::Builder::new()
-            .name("ros2-spinner".into())
-            .spawn(move || {
-                if let Err(e) = futures::executor::block_on(spinner.spin()) {
-                    log::warn!("ros2-client spinner stopped: {e:?}");
-                }
-            })
-            .map_err(dds_err)?;
+        let spinner = if parameter_services {
+            let spinner = node.spinner().map_err(dds_err)?;
+            let thread = std::thread::Builder::new()
+                .name("ros2-spinner".into())
+                .spawn(move || {
+                    if let Err(e) = futures::executor::block_on(spinner.spin()) {
+                        log::warn!("ros2-client spinner stopped: {e:?}");
+                    }
+                })
+                .map_err(dds_err)?;
+            Some(thread)
+        } else {
+            None
+        };
         let participant = context.domain_participant();
         let publisher = participant
             .create_publisher(&QosPolicies::qos_none())
@@ -295,7 +301,7 @@ impl DdsNode {
         let mut this = Self {
             sim_clock: None,
             node,
-            _spinner: SpinnerThread(Some(spinner)),
+            _spinner: SpinnerThread(spinner),
             topics: Mutex::new(HashMap::new()),
             publisher,
             subscriber,

@@ -78,6 +78,10 @@ pub struct NodeSetup {
     pub parameters: Vec<ParamDecl>,
     pub args: Vec<String>,
     pub backend: Backend,
+    /// Serve `ros2 param` (default). The DDS backend's server also subscribes /clock with
+    /// ros2-client's own type, `builtin_interfaces/msg/Time`: a node that publishes /clock
+    /// (replay) or lists the graph (`lidar-har topic`) does without it.
+    pub parameter_services: bool,
 }
 
 impl NodeSetup {
@@ -89,7 +93,14 @@ impl NodeSetup {
             parameters: Vec::new(),
             args: std::env::args().skip(1).collect(),
             backend: Backend::default(),
+            parameter_services: true,
         }
+    }
+
+    /// No `ros2 param` services (see [`NodeSetup::parameter_services`]).
+    pub fn without_parameter_services(mut self) -> Self {
+        self.parameter_services = false;
+        self
     }
 
     pub fn parameters(mut self, decls: Vec<ParamDecl>) -> Self {
@@ -187,7 +198,13 @@ impl Node {
         }
         let params = Parameters::resolve(&decls, &fqn, &ros_args.params_files, &ros_args.params)?;
         let backend: Box<dyn NodeBackend> = match setup.backend {
-            Backend::Dds => Box::new(dds::DdsNode::new(&name, &namespace, &decls, &params)?),
+            Backend::Dds => Box::new(dds::DdsNode::new(
+                &name,
+                &namespace,
+                &decls,
+                &params,
+                setup.parameter_services,
+            )?),
             #[cfg(feature = "r2r")]
             Backend::Rcl => Box::new(rcl::RclNode::new(&name, &namespace, &setup.args)?),
         };

@@ -179,7 +179,13 @@ fn qos_for(topic: &lidar_har_bag::TopicInfo) -> QosProfile {
 }
 
 fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
-    let node = Node::new(NodeSetup::new("replay").parameters(decls()))?;
+    // No `ros2 param` services: ros2-client's server subscribes /clock as
+    // builtin_interfaces/msg/Time, which clashes with the /clock the replay publishes.
+    let node = Node::new(
+        NodeSetup::new("replay")
+            .parameters(decls())
+            .without_parameter_services(),
+    )?;
     let settings = Settings::from(&node)?;
     // A bag that cannot be opened is a bad parameter (exit status 2), like any other.
     let reader = BagReader::open(&settings.bag)

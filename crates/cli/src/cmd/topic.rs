@@ -64,8 +64,13 @@ fn seconds(value: f64, flag: &str) -> anyhow::Result<Duration> {
 fn cli_node() -> anyhow::Result<Node> {
     // A unique name per process: several `topic echo` may run at once.
     let name = format!("lidar_har_cli_{}", std::process::id());
-    Node::new(NodeSetup::new(&name).args(Vec::<String>::new()))
-        .context("cannot join the ROS 2 graph")
+    // Without parameter services: their /clock reader would be listed as a topic.
+    Node::new(
+        NodeSetup::new(&name)
+            .args(Vec::<String>::new())
+            .without_parameter_services(),
+    )
+    .context("cannot join the ROS 2 graph")
 }
 
 fn list(wait: Duration, show_types: bool) -> anyhow::Result<()> {
