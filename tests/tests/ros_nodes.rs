@@ -327,6 +327,41 @@ fn ros_nodes_print_help_and_refuse_stray_arguments() {
     }
 }
 
+/// On simulated time a node reads /clock as rosgraph_msgs/msg/Clock; ros2-client's spinner
+/// reading it as another type in the same participant made the DDS stack log an ERROR.
+#[test]
+fn ros_nodes_on_simulated_time_start_and_stop_without_errors() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let script = r#"
+"$LOC" --ros-args -p use_sim_time:=true 2> "$OUT/localiser.err" & L=$!
+"$CLS" --ros-args -p use_sim_time:=true -p model:="$MODEL" 2> "$OUT/classifier.err" & C=$!
+sleep 2
+kill -TERM $L $C; wait $L; echo "localiser=$?"; wait $C; echo "classifier=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("LOC", &workspace_bin("localiser")),
+            ("CLS", &workspace_bin("classifier")),
+            ("MODEL", &repo_root().join("models/activity.onnx")),
+            ("OUT", dir.path()),
+        ],
+        Duration::from_secs(30),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for node in ["localiser", "classifier"] {
+        let log = std::fs::read_to_string(dir.path().join(format!("{node}.err"))).unwrap();
+        assert!(
+            stdout.contains(&format!("{node}=0")),
+            "{node}: {stdout}\n{log}"
+        );
+        assert!(!log.contains("ERROR"), "{node} logged errors:\n{log}");
+    }
+}
+
 #[test]
 fn ros_sigterm_during_replay_stops_cleanly_without_zombies_or_partial_lines() {
     if !netns_available() {

@@ -12,8 +12,12 @@ pub fn write(args: std::fmt::Arguments) {
     if READER_GONE.load(Ordering::Relaxed) {
         return;
     }
-    if std::io::stdout().lock().write_fmt(args).is_err() {
+    if let Err(e) = std::io::stdout().lock().write_fmt(args) {
         READER_GONE.store(true, Ordering::Relaxed);
+        // A reader leaving is normal; a full disk or a broken device is worth a word.
+        if e.kind() != std::io::ErrorKind::BrokenPipe {
+            eprintln!("lidar-har: warning: the report on stdout stops here: {e}");
+        }
     }
 }
 

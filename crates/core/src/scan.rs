@@ -26,7 +26,7 @@ pub enum ScanError {
     AngleMin(f32),
     #[error(
         "scan angle_increment {0} is not a finite angle of at least {MIN_ANGLE_INCREMENT} rad \
-         (finer than MAX_BEAMS beams a turn)"
+         (a full turn of at most {MAX_BEAMS} beams)"
     )]
     AngleIncrement(f32),
     #[error(

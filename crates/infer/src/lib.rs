@@ -358,7 +358,7 @@ fn shape_matches(shape: &[i64], expected: &[usize]) -> bool {
             .all(|(i, (&got, &want))| got == want as i64 || (i == 0 && got == -1))
 }
 
-/// The largest recurrent state accepted (values of 'h'): 64 MB of floats, a thousand times
+/// The largest recurrent state accepted (values of 'h'): 64 MB of floats, thousands of times
 /// the committed model's.
 const MAX_STATE_VALUES: usize = 1 << 24;
 

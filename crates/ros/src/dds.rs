@@ -275,7 +275,11 @@ impl DdsNode {
         let mut node = context.new_node(node_name, options).map_err(dds_err)?;
         // The spinner serves parameter services (and the graph); it ends when the node is
         // dropped.
-        let spinner = if parameter_services {
+        // The spinner also reads /clock, as builtin_interfaces/msg/Time: beside our own
+        // rosgraph_msgs/msg/Clock reader (use_sim_time) the two types on one topic are an
+        // ERROR of the DDS stack, so a node on simulated time does without it.
+        let use_sim_time = params.bool("use_sim_time")?;
+        let spinner = if parameter_services && !use_sim_time {
             let spinner = node.spinner().map_err(dds_err)?;
             let thread = std::thread::Builder::new()
                 .name("ros2-spinner".into())
@@ -310,7 +314,7 @@ impl DdsNode {
             next_token: Mutex::new(0),
             context,
         };
-        if params.bool("use_sim_time")? {
+        if use_sim_time {
             let clock = &topics::CLOCK;
             this.sim_clock = Some(SimClock {
                 // Not registered with the node's poll: /clock alone need not wake `wait`.

@@ -78,9 +78,11 @@ pub struct NodeSetup {
     pub parameters: Vec<ParamDecl>,
     pub args: Vec<String>,
     pub backend: Backend,
-    /// Serve `ros2 param` (default). The DDS backend's server also subscribes /clock with
-    /// ros2-client's own type, `builtin_interfaces/msg/Time`: a node that publishes /clock
-    /// (replay) or lists the graph (`lidar-har topic`) does without it.
+    /// Serve `ros2 param` (default). With the DDS backend, ros2-client's spinner, which
+    /// serves them, also subscribes /clock with its own type, `builtin_interfaces/msg/Time`:
+    /// a node that publishes /clock (replay), reads it as `rosgraph_msgs/msg/Clock`
+    /// (`use_sim_time`, which then turns this off) or lists the graph (`lidar-har topic`)
+    /// does without it.
     pub parameter_services: bool,
 }
 

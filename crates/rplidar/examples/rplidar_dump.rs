@@ -28,6 +28,12 @@ fn parse_seconds(text: &str) -> Result<Duration, String> {
     }
 }
 
+/// One line on stdout; false when it cannot be written (the reader of `| head` has gone).
+fn print(line: std::fmt::Arguments) -> bool {
+    use std::io::Write;
+    writeln!(std::io::stdout().lock(), "{line}").is_ok()
+}
+
 fn main() {
     env_logger::init();
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -96,7 +102,8 @@ fn main() {
         }
     };
     let mut scans = 0u64;
-    while Instant::now() < end {
+    let mut reader_gone = false;
+    while Instant::now() < end && !reader_gone {
         match driver.next_event() {
             Event::Scan(scan) => {
                 scans += 1;
@@ -107,7 +114,7 @@ fn main() {
                     .filter(|r| r.is_finite())
                     .collect();
                 let nearest = valid.iter().copied().fold(f32::INFINITY, f32::min);
-                println!(
+                reader_gone |= !print(format_args!(
                     "scan {}.{:09}: {} beams, {} valid, nearest {:.3} m, scan_time {:.1} ms",
                     scan.header.stamp.sec,
                     scan.header.stamp.nanosec,
@@ -115,7 +122,7 @@ fn main() {
                     valid.len(),
                     nearest,
                     scan.scan_time * 1e3
-                );
+                ));
             }
             Event::Diagnostics(array) => {
                 for s in array.status {
@@ -124,13 +131,13 @@ fn main() {
                         .iter()
                         .map(|kv| format!("{}={}", kv.key, kv.value))
                         .collect();
-                    println!(
+                    reader_gone |= !print(format_args!(
                         "diag level {} {}: {} [{}]",
                         s.level,
                         s.name,
                         s.message,
                         values.join(", ")
-                    );
+                    ));
                 }
             }
         }

@@ -192,8 +192,8 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         args.no_fall_hours
     );
     anyhow::ensure!(
-        args.latency_target_s.is_finite() && args.latency_target_s > 0.0,
-        "--latency-target-s {}: must be a finite number of seconds > 0",
+        args.latency_target_s.is_finite() && args.latency_target_s >= 0.0,
+        "--latency-target-s {}: must be a finite number of seconds >= 0",
         args.latency_target_s
     );
     if let Some(out) = &args.out {

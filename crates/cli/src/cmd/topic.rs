@@ -76,12 +76,11 @@ fn cli_node() -> anyhow::Result<Node> {
 fn list(wait: Duration, show_types: bool) -> anyhow::Result<()> {
     let node = cli_node()?;
     std::thread::sleep(wait);
-    let mut out = std::io::stdout().lock();
     for t in node.topics() {
         if show_types {
-            writeln!(out, "{} [{}]", t.name, t.type_name)?;
+            outln!("{} [{}]", t.name, t.type_name);
         } else {
-            writeln!(out, "{}", t.name)?;
+            outln!("{}", t.name);
         }
     }
     Ok(())
