@@ -45,6 +45,26 @@ fn path(p: &Path) -> &str {
     p.to_str().expect("temporary paths are UTF-8")
 }
 
+/// `lidar-har dataset` into `out` with the committed model's image settings (its metadata
+/// must match the dataset's) and `args`.
+fn dataset_for_the_committed_model(out: &Path, args: &[&str]) {
+    let mut all = vec!["dataset"];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&[
+        "--window",
+        "20",
+        "--size",
+        "32",
+        "--resolution",
+        "0.08",
+        "--framing",
+        "room_fixed",
+        "--out",
+        path(out),
+    ]);
+    lidar_har_ok(&all);
+}
+
 /// The small real step model the infer crate is tested with (untrained: checks plumbing).
 fn test_model() -> PathBuf {
     repo_root().join("crates/infer/tests/fixtures/step_model.onnx")
@@ -401,25 +421,19 @@ fn evaluate_refuses_a_dataset_without_test_windows_before_writing_anything() {
     }
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data");
-    lidar_har_ok(&[
-        "dataset",
-        "--scenes",
-        "config/scenes/kitchen.yaml",
-        "--episodes",
-        "1",
-        "--test-fraction",
-        "0",
-        "--episode-seconds",
-        "6",
-        "--size",
-        "32",
-        "--resolution",
-        "0.08",
-        "--framing",
-        "room_fixed",
-        "--out",
-        path(&data),
-    ]);
+    dataset_for_the_committed_model(
+        &data,
+        &[
+            "--scenes",
+            "config/scenes/kitchen.yaml",
+            "--episodes",
+            "1",
+            "--test-fraction",
+            "0",
+            "--episode-seconds",
+            "6",
+        ],
+    );
     let eval = tmp.path().join("eval");
     let out = lidar_har(&[
         "evaluate",
@@ -448,33 +462,24 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     }
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data");
-    // The committed model's image settings (its metadata must match the dataset's).
-    lidar_har_ok(&[
-        "dataset",
-        "--scenes",
-        "config/scenes/[kl]*.yaml",
-        "--episodes",
-        "3",
-        "--test-fraction",
-        "0.67",
-        "--episode-seconds",
-        "8",
-        "--window",
-        "20",
-        "--stride",
-        "5",
-        "--size",
-        "32",
-        "--resolution",
-        "0.08",
-        "--framing",
-        "room_fixed",
-        "--seed",
-        "5",
-        "--fixed-lidar",
-        "--out",
-        path(&data),
-    ]);
+    dataset_for_the_committed_model(
+        &data,
+        &[
+            "--scenes",
+            "config/scenes/[kl]*.yaml",
+            "--episodes",
+            "3",
+            "--test-fraction",
+            "0.67",
+            "--episode-seconds",
+            "8",
+            "--stride",
+            "5",
+            "--seed",
+            "5",
+            "--fixed-lidar",
+        ],
+    );
     let index: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(data.join("index.json")).unwrap()).unwrap();
     for e in index["episodes"].as_array().unwrap() {
