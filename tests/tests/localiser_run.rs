@@ -393,6 +393,15 @@ fn bad_inputs_give_clear_errors() {
 }
 
 /// The bag's summary after `run_bag` with the defaults (localiser only) and `map`.
+/// The bag's storage file with extension `ext` (`mcap`, `db3`).
+fn storage_file(bag: &Path, ext: &str) -> std::path::PathBuf {
+    std::fs::read_dir(bag)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|x| x == ext))
+        .unwrap_or_else(|| panic!("no .{ext} file in {}", bag.display()))
+}
+
 fn run_localiser(input: &Path, out: &Path, map: Option<&Path>) -> RunSummary {
     let options = RunOptions {
         map: map.map(|m| files::load_map(m).unwrap()),
@@ -450,11 +459,7 @@ fn a_bag_cut_short_keeps_the_outputs_and_summary_of_what_was_read() {
     let tmp = tempfile::tempdir().unwrap();
     let input = tmp.path().join("in");
     write_bag(&input);
-    let file = std::fs::read_dir(&input)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .find(|p| p.extension().is_some_and(|e| e == "mcap"))
-        .expect("an MCAP file");
+    let file = storage_file(&input, "mcap");
     let bytes = std::fs::read(&file).unwrap();
     std::fs::write(&file, &bytes[..bytes.len() * 3 / 5]).unwrap();
     let out = tmp.path().join("out");
@@ -501,11 +506,7 @@ fn a_negative_log_time_in_the_input_skips_that_message_only() {
         .output()
         .unwrap();
     assert!(converted.status.success(), "{converted:?}");
-    let db = std::fs::read_dir(&input)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .find(|p| p.extension().is_some_and(|x| x == "db3"))
-        .expect("a sqlite3 file");
+    let db = storage_file(&input, "db3");
     let changed = rusqlite::Connection::open(&db)
         .unwrap()
         .execute(
