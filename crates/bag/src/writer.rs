@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use lidar_har_msgs::RosMessage;
 use lidar_har_msgs::qos::QosProfile;
+use lidar_har_msgs::topics::TopicSpec;
 
 use crate::error::{BagError, Result, io_error};
 use crate::mcap_storage::McapSink;
@@ -244,6 +245,16 @@ impl BagWriter {
         qos: QosProfile,
     ) -> Result<TopicHandle> {
         self.add_topic(name, M::TYPE_NAME, &M::schema_text(), qos)
+    }
+
+    /// Adds a topic of the contract (`lidar_har_msgs::topics`) with its type, schema and QoS.
+    pub fn add_contract_topic(&mut self, topic: &TopicSpec) -> Result<TopicHandle> {
+        self.add_topic(
+            topic.name,
+            topic.type_name,
+            &topic.definition.schema_text(),
+            topic.qos,
+        )
     }
 
     /// Adds a topic copied from another bag (keeps its QoS list and type hash as they were).

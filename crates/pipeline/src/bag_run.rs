@@ -9,18 +9,17 @@ use glam::DVec2;
 use lidar_har_bag::{BagError, BagReader, BagWriter, TopicHandle, WriterOptions};
 use lidar_har_core::localiser::{ConfigError, FrameConfig, LocaliserConfig};
 use lidar_har_core::map::OccupancyMap;
-use lidar_har_msgs::geometry_msgs::{PoseStamped, PoseWithCovarianceStamped};
-use lidar_har_msgs::lidar_har_msgs::HumanObservation;
+use lidar_har_msgs::geometry_msgs::PoseStamped;
 use lidar_har_msgs::tf2_msgs::TFMessage;
 use lidar_har_msgs::topics::{self, TopicSpec};
-use lidar_har_msgs::visualization_msgs::MarkerArray;
 use serde::Serialize;
 
 use crate::classifier::{
     ActivitySummary, ClassifierConfig, ClassifierError, ClassifierRun, ClassifierRunError,
+    ClassifierStage,
 };
 use crate::localiser_stage::carries_odometry;
-use crate::{LocaliserStage, Pipeline, RoomSource};
+use crate::{LocaliserStage, Outgoing, RoomSource};
 
 /// What to run with.
 #[derive(Debug, Clone, Default)]
@@ -126,42 +125,52 @@ pub struct RunSummary {
     pub activity: Option<ActivitySummary>,
 }
 
-/// Handles of the output topics.
-struct Outputs {
+/// The output bag, with a topic for each stage output added to it.
+pub struct OutputBag {
     writer: BagWriter,
-    pose: TopicHandle,
-    observation: TopicHandle,
-    markers: TopicHandle,
+    topics: Vec<(&'static str, TopicHandle)>,
 }
 
-impl Outputs {
+impl OutputBag {
     fn create(dir: &Path) -> Result<Self, BagError> {
-        let mut writer = BagWriter::create(dir, WriterOptions::default())?;
-        let pose = writer.add_topic_for::<PoseWithCovarianceStamped>(
-            topics::HUMAN_POSE.name,
-            topics::HUMAN_POSE.qos,
-        )?;
-        let observation = writer.add_topic_for::<HumanObservation>(
-            topics::HUMAN_OBSERVATION.name,
-            topics::HUMAN_OBSERVATION.qos,
-        )?;
-        let markers = writer
-            .add_topic_for::<MarkerArray>(topics::HUMAN_MARKERS.name, topics::HUMAN_MARKERS.qos)?;
         Ok(Self {
-            writer,
-            pose,
-            observation,
-            markers,
+            writer: BagWriter::create(dir, WriterOptions::default())?,
+            topics: Vec::new(),
         })
     }
 
-    fn handle(&self, topic: &TopicSpec) -> Option<TopicHandle> {
-        match topic.name {
-            n if n == topics::HUMAN_POSE.name => Some(self.pose),
-            n if n == topics::HUMAN_OBSERVATION.name => Some(self.observation),
-            n if n == topics::HUMAN_MARKERS.name => Some(self.markers),
-            _ => None,
+    /// Adds the topics a stage writes; those another stage added already (/human/markers)
+    /// are shared.
+    pub fn add_topics(&mut self, specs: &[TopicSpec]) -> Result<(), BagError> {
+        for spec in specs {
+            if self.topics.iter().all(|(name, _)| *name != spec.name) {
+                let handle = self.writer.add_contract_topic(spec)?;
+                self.topics.push((spec.name, handle));
+            }
         }
+        Ok(())
+    }
+
+    /// Records a stage's message at `log_time_ns`.
+    ///
+    /// # Errors
+    /// A message for a topic that was not added, or a failed write.
+    pub fn write(&mut self, message: &Outgoing, log_time_ns: i64) -> Result<(), BagError> {
+        let Some(&(_, handle)) = self
+            .topics
+            .iter()
+            .find(|(name, _)| *name == message.topic.name)
+        else {
+            return Err(BagError::Write {
+                path: self.writer.dir().to_path_buf(),
+                message: format!("{} is not an output topic of this run", message.topic.name),
+            });
+        };
+        self.writer.write(handle, log_time_ns, &message.cdr)
+    }
+
+    fn finish(mut self) -> Result<(), BagError> {
+        self.writer.finish().map(drop)
     }
 }
 
@@ -204,15 +213,19 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         );
     }
     let moving = has_odometry && !learned;
-    let mut pipeline = Pipeline::new(LocaliserStage::new(options.config, room, moving)?);
+    let mut localiser = LocaliserStage::new(options.config, room, moving)?;
     let mut classifier = options
         .classifier
         .as_ref()
         .map(ClassifierRun::load)
         .transpose()?;
-    let mut outputs = Outputs::create(out_dir).map_err(output_error)?;
-    if let Some(c) = classifier.as_mut() {
-        c.add_topics(&mut outputs.writer, outputs.markers)
+    let mut outputs = OutputBag::create(out_dir).map_err(output_error)?;
+    outputs
+        .add_topics(&LocaliserStage::OUTPUTS)
+        .map_err(output_error)?;
+    if classifier.is_some() {
+        outputs
+            .add_topics(&ClassifierStage::OUTPUTS)
             .map_err(output_error)?;
     }
 
@@ -265,13 +278,13 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
             }
             continue;
         }
-        if !Pipeline::consumes(topic) {
+        if !LocaliserStage::consumes(topic) {
             continue;
         }
         let is_scan = topic == topics::SCAN.name;
         scans += u64::from(is_scan);
         let started = Instant::now();
-        let step = match pipeline.handle(topic, &message.data) {
+        let step = match localiser.handle(topic, &message.data) {
             Ok(step) => step,
             Err(e) => {
                 decode_errors += 1;
@@ -281,7 +294,7 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         };
         if is_scan {
             pipeline_times.push(started.elapsed().as_secs_f64() * 1e6);
-            if let Some(t) = pipeline.localiser.last_scan_time() {
+            if let Some(t) = localiser.last_scan_time() {
                 scan_times.push(t.as_secs_f64() * 1e6);
             }
         }
@@ -295,17 +308,14 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         }
         for out in &step.outgoing {
             if let Some(c) = classifier.as_mut() {
-                c.on_localiser_output(out, message.log_time_ns, &mut outputs.writer)?;
+                c.on_localiser_output(out, message.log_time_ns, &mut outputs)?;
             }
-            if let Some(handle) = outputs.handle(&out.topic) {
-                outputs
-                    .writer
-                    .write(handle, message.log_time_ns, &out.cdr)
-                    .map_err(output_error)?;
-            }
+            outputs
+                .write(out, message.log_time_ns)
+                .map_err(output_error)?;
         }
     }
-    outputs.writer.finish().map_err(output_error)?;
+    outputs.finish().map_err(output_error)?;
 
     let ratio = |n: u64| {
         if scans == 0 {
@@ -320,10 +330,10 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         motion: if moving { "odometry" } else { "stationary" },
         scans,
         scans_localised,
-        scans_learning: pipeline.localiser.scans_learning(),
+        scans_learning: localiser.scans_learning(),
         visible_ratio: ratio(visible),
         tracked_ratio: ratio(tracked),
-        tracks_confirmed: pipeline.localiser.localiser().confirmed_tracks(),
+        tracks_confirmed: localiser.localiser().confirmed_tracks(),
         pelvis_error_m: classifier
             .as_ref()
             .filter(|c| !c.pelvis().is_empty())
@@ -334,7 +344,7 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         position_error_m: Spread::of(position_errors(&estimates, ground_truth)),
         scan_time_us: Spread::of(scan_times),
         pipeline_time_us: Spread::of(pipeline_times),
-        warnings: pipeline.localiser.warning_counts().clone(),
+        warnings: localiser.warning_counts().clone(),
         decode_errors,
         read_error,
         activity: classifier.map(ClassifierRun::finish),

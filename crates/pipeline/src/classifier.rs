@@ -14,7 +14,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::DVec2;
-use lidar_har_bag::{BagError, BagWriter, TopicHandle};
+use lidar_har_bag::BagError;
 use lidar_har_core::activity::Activity;
 use lidar_har_core::classifier::{
     LaneSchedule, PersonScan, Prediction, StepError, StepModel, StreamSpec, StreamSpecError,
@@ -33,10 +33,11 @@ use lidar_har_msgs::geometry_msgs::{
 };
 use lidar_har_msgs::lidar_har_msgs::{self as har, HumanObservation};
 use lidar_har_msgs::std_msgs::{ColorRGBA, Header};
-use lidar_har_msgs::topics;
+use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_msgs::visualization_msgs::{Marker, MarkerArray};
 use serde::{Deserialize, Serialize};
 
+use crate::bag_run::OutputBag;
 use crate::{Outgoing, PipelineError};
 
 /// `config/classifier.yaml`. Every key is optional; unknown keys are errors.
@@ -195,6 +196,9 @@ pub struct ClassifierOutput {
     pub prediction: Prediction,
     /// The pelvis from the pose head, when it placed one.
     pub pelvis: Option<Pelvis>,
+    /// How far the person's points stretch along their main axis, as the fall alerts took
+    /// it; `None` when not visible.
+    pub body_length_m: Option<f64>,
     /// Alerts raised by this observation.
     pub alerts: Vec<FallAlert>,
 }
@@ -258,6 +262,16 @@ pub struct ClassifierStage<M: StepModel = ActivityModel, H = PoseHeadModel> {
 }
 
 impl ClassifierStage<ActivityModel, PoseHeadModel> {
+    /// The topics the stage reads.
+    pub const INPUTS: [TopicSpec; 1] = [topics::HUMAN_OBSERVATION];
+    /// The topics the stage writes.
+    pub const OUTPUTS: [TopicSpec; 4] = [
+        topics::HUMAN_ACTIVITY,
+        topics::HUMAN_PELVIS,
+        topics::FALL_ALERT,
+        topics::HUMAN_MARKERS,
+    ];
+
     /// Loads the model named by `config` (or `model`, when given) and the pose head, if the
     /// configuration names one that fits the model.
     pub fn load(config: &ClassifierConfig, model: Option<&Path>) -> Result<Self, ClassifierError> {
@@ -364,6 +378,18 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
         self.scan_rate.measured_hz
     }
 
+    /// Forgets the stream so far (model state, posture, incidents, track) for one that
+    /// starts afresh, e.g. another recording. Alert ids keep counting.
+    pub fn reset(&mut self) {
+        self.classifier.reset();
+        if let Some(placer) = &mut self.pelvis {
+            placer.reset();
+        }
+        self.fall.reset();
+        self.track_id = None;
+        self.last_alert = None;
+    }
+
     /// Classifies one observation and runs the fall alerts.
     pub fn on_observation(
         &mut self,
@@ -438,11 +464,12 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             }
             None => None,
         };
+        let body_length_m = MainAxisSpan::of(&self.points).map(|span| span.length());
         let alerts = self.fall.update(&FallInput {
             stamp_s,
             position: (obs.visible && prediction.ready).then_some(position),
             probabilities: prediction.probabilities,
-            body_length_m: MainAxisSpan::of(&self.points).map(|span| span.length()),
+            body_length_m,
         });
         self.alerts_raised += alerts.len();
         if let Some(last) = alerts.last() {
@@ -455,6 +482,7 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             position,
             prediction,
             pelvis,
+            body_length_m,
             alerts,
         })
     }
@@ -932,7 +960,6 @@ impl ActivityLog {
 pub struct ClassifierRun {
     stage: ClassifierStage,
     log: ActivityLog,
-    topics: Option<[TopicHandle; 4]>,
     times_us: Vec<f64>,
     /// The pelvis placed by the pose head, by scan stamp.
     pelvis: Vec<(i64, DVec2)>,
@@ -944,30 +971,9 @@ impl ClassifierRun {
         Ok(Self {
             stage: ClassifierStage::load(config, None)?,
             log: ActivityLog::default(),
-            topics: None,
             times_us: Vec::new(),
             pelvis: Vec::new(),
         })
-    }
-
-    /// Declares the output topics; `markers` is the (shared) /human/markers topic.
-    pub fn add_topics(
-        &mut self,
-        writer: &mut BagWriter,
-        markers: TopicHandle,
-    ) -> Result<(), BagError> {
-        let activity = writer.add_topic_for::<har::Activity>(
-            topics::HUMAN_ACTIVITY.name,
-            topics::HUMAN_ACTIVITY.qos,
-        )?;
-        let alert = writer
-            .add_topic_for::<har::FallAlert>(topics::FALL_ALERT.name, topics::FALL_ALERT.qos)?;
-        let pelvis = writer.add_topic_for::<PoseWithCovarianceStamped>(
-            topics::HUMAN_PELVIS.name,
-            topics::HUMAN_PELVIS.qos,
-        )?;
-        self.topics = Some([activity, alert, pelvis, markers]);
-        Ok(())
     }
 
     /// An input message: takes /ground_truth/activity (returns true), ignores the rest.
@@ -987,7 +993,7 @@ impl ClassifierRun {
         &mut self,
         out: &Outgoing,
         log_time_ns: i64,
-        writer: &mut BagWriter,
+        outputs: &mut OutputBag,
     ) -> Result<(), ClassifierRunError> {
         if out.topic.name != topics::HUMAN_OBSERVATION.name {
             return Ok(());
@@ -999,16 +1005,8 @@ impl ClassifierRun {
         if let Some(pelvis) = result.pelvis {
             self.pelvis.push((result.stamp_ns, pelvis.position));
         }
-        if let Some([activity, alert, pelvis, markers]) = self.topics {
-            for message in outgoing {
-                let handle = match message.topic.name {
-                    n if n == topics::HUMAN_ACTIVITY.name => activity,
-                    n if n == topics::FALL_ALERT.name => alert,
-                    n if n == topics::HUMAN_PELVIS.name => pelvis,
-                    _ => markers,
-                };
-                writer.write(handle, log_time_ns, &message.cdr)?;
-            }
+        for message in &outgoing {
+            outputs.write(message, log_time_ns)?;
         }
         Ok(())
     }

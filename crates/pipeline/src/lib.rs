@@ -2,13 +2,13 @@
 //! `lidar-har run` (bags in, bags out) and the ROS nodes (topics in, topics out), so the two
 //! cannot drift apart.
 //!
-//! Messages go in as CDR bytes with their topic ([`Pipeline::handle`]); each stage converts
-//! what it needs, runs the core and returns its outputs both as core values (for the next
-//! stage) and as CDR messages to publish or record ([`Outgoing`]). Stages:
+//! Each stage takes messages as CDR bytes with their topic, converts what it needs, runs the
+//! core and returns its outputs both as core values and as CDR messages to publish or record
+//! ([`Outgoing`]). Each lists the topics it reads and writes (`INPUTS`, `OUTPUTS`):
 //! - [`LocaliserStage`]: /scan, /odom, /map, /tf, /tf_static -> /human/pose,
-//!   /human/observation, /human/markers.
-//!
-//! A further stage (the classifier) plugs in by consuming [`Step::localised`].
+//!   /human/observation, /human/markers;
+//! - [`classifier::ClassifierStage`]: /human/observation -> /human/activity, /human/pelvis,
+//!   /human/fall_alert, /human/markers.
 
 pub mod bag_run;
 pub mod classifier;
@@ -17,7 +17,7 @@ pub mod files;
 pub mod localiser_stage;
 
 use lidar_har_core::localiser::LocaliserOutput;
-use lidar_har_msgs::topics::{self, TopicSpec};
+use lidar_har_msgs::topics::TopicSpec;
 use lidar_har_msgs::{CdrError, RosMessage};
 
 pub use localiser_stage::{LocaliserMessages, LocaliserStage, RoomSource};
@@ -68,86 +68,4 @@ pub struct Step {
     pub localised: Option<LocaliserOutput>,
     /// Messages to publish, in order.
     pub outgoing: Vec<Outgoing>,
-}
-
-/// All stages, fed message by message in arrival (log-time) order.
-#[derive(Debug)]
-pub struct Pipeline {
-    pub localiser: LocaliserStage,
-}
-
-impl Pipeline {
-    pub fn new(localiser: LocaliserStage) -> Self {
-        Self { localiser }
-    }
-
-    /// Whether `topic` is an input of some stage (the others need not be decoded at all).
-    pub fn consumes(topic: &str) -> bool {
-        [
-            topics::SCAN,
-            topics::ODOM,
-            topics::MAP,
-            topics::TF,
-            topics::TF_STATIC,
-        ]
-        .iter()
-        .any(|t| t.name == topic)
-    }
-
-    /// Feeds one message (CDR with its encapsulation header) received on `topic`.
-    pub fn handle(&mut self, topic: &str, cdr: &[u8]) -> Result<Step, PipelineError> {
-        let mut step = Step::default();
-        let decode_error = |source| PipelineError::Decode {
-            topic: topic.to_string(),
-            cause: source,
-        };
-        match topic {
-            t if t == topics::SCAN.name => {
-                let scan = lidar_har_msgs::decode(cdr).map_err(decode_error)?;
-                if let Some(output) = self.localiser.on_scan(&scan) {
-                    self.localiser_outgoing(&output, &mut step.outgoing)?;
-                    step.localised = Some(output);
-                }
-            }
-            t if t == topics::ODOM.name => self
-                .localiser
-                .on_odom(&lidar_har_msgs::decode(cdr).map_err(decode_error)?),
-            t if t == topics::MAP.name => self
-                .localiser
-                .on_map(&lidar_har_msgs::decode(cdr).map_err(decode_error)?),
-            t if t == topics::TF.name => self
-                .localiser
-                .on_tf(&lidar_har_msgs::decode(cdr).map_err(decode_error)?),
-            t if t == topics::TF_STATIC.name => self
-                .localiser
-                .on_tf_static(&lidar_har_msgs::decode(cdr).map_err(decode_error)?),
-            _ => {}
-        }
-        Ok(step)
-    }
-
-    fn localiser_outgoing(
-        &self,
-        output: &LocaliserOutput,
-        out: &mut Vec<Outgoing>,
-    ) -> Result<(), PipelineError> {
-        let stamp = output.stamp_ns;
-        let messages = self.localiser.messages(output);
-        if let Some(pose) = &messages.pose {
-            out.push(Outgoing::encode(topics::HUMAN_POSE, stamp, pose)?);
-        }
-        if let Some(observation) = &messages.observation {
-            out.push(Outgoing::encode(
-                topics::HUMAN_OBSERVATION,
-                stamp,
-                observation,
-            )?);
-        }
-        out.push(Outgoing::encode(
-            topics::HUMAN_MARKERS,
-            stamp,
-            &messages.markers,
-        )?);
-        Ok(())
-    }
 }

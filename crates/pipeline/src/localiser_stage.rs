@@ -15,9 +15,10 @@ use lidar_har_msgs::lidar_har_msgs::HumanObservation;
 use lidar_har_msgs::nav_msgs::{OccupancyGrid, Odometry};
 use lidar_har_msgs::sensor_msgs::LaserScan;
 use lidar_har_msgs::tf2_msgs::TFMessage;
+use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_msgs::visualization_msgs::MarkerArray;
 
-use crate::convert;
+use crate::{Outgoing, PipelineError, Step, convert};
 
 /// How the room is told apart from the person.
 #[derive(Debug, Clone)]
@@ -171,6 +172,82 @@ impl LocaliserStage {
         if let Some(w) = warning {
             self.warnings.record(&w, self.last_stamp_ns);
         }
+    }
+
+    /// The topics the stage reads.
+    pub const INPUTS: [TopicSpec; 5] = [
+        topics::SCAN,
+        topics::ODOM,
+        topics::MAP,
+        topics::TF,
+        topics::TF_STATIC,
+    ];
+    /// The topics the stage writes.
+    pub const OUTPUTS: [TopicSpec; 3] = [
+        topics::HUMAN_POSE,
+        topics::HUMAN_OBSERVATION,
+        topics::HUMAN_MARKERS,
+    ];
+
+    /// Whether `topic` is one of [`Self::INPUTS`] (the others need not be decoded at all).
+    pub fn consumes(topic: &str) -> bool {
+        Self::INPUTS.iter().any(|t| t.name == topic)
+    }
+
+    /// Feeds one message (CDR with its encapsulation header) received on `topic`; messages
+    /// on other topics than [`Self::INPUTS`] are ignored.
+    pub fn handle(&mut self, topic: &str, cdr: &[u8]) -> Result<Step, PipelineError> {
+        let mut step = Step::default();
+        let decode_error = |source| PipelineError::Decode {
+            topic: topic.to_string(),
+            cause: source,
+        };
+        match topic {
+            t if t == topics::SCAN.name => {
+                let scan = lidar_har_msgs::decode(cdr).map_err(decode_error)?;
+                if let Some(output) = self.on_scan(&scan) {
+                    step.outgoing = self.outgoing(&output)?;
+                    step.localised = Some(output);
+                }
+            }
+            t if t == topics::ODOM.name => {
+                self.on_odom(&lidar_har_msgs::decode(cdr).map_err(decode_error)?)
+            }
+            t if t == topics::MAP.name => {
+                self.on_map(&lidar_har_msgs::decode(cdr).map_err(decode_error)?)
+            }
+            t if t == topics::TF.name => {
+                self.on_tf(&lidar_har_msgs::decode(cdr).map_err(decode_error)?)
+            }
+            t if t == topics::TF_STATIC.name => {
+                self.on_tf_static(&lidar_har_msgs::decode(cdr).map_err(decode_error)?)
+            }
+            _ => {}
+        }
+        Ok(step)
+    }
+
+    /// One output's messages, encoded for their topics.
+    fn outgoing(&self, output: &LocaliserOutput) -> Result<Vec<Outgoing>, PipelineError> {
+        let stamp = output.stamp_ns;
+        let messages = self.messages(output);
+        let mut out = Vec::with_capacity(Self::OUTPUTS.len());
+        if let Some(pose) = &messages.pose {
+            out.push(Outgoing::encode(topics::HUMAN_POSE, stamp, pose)?);
+        }
+        if let Some(observation) = &messages.observation {
+            out.push(Outgoing::encode(
+                topics::HUMAN_OBSERVATION,
+                stamp,
+                observation,
+            )?);
+        }
+        out.push(Outgoing::encode(
+            topics::HUMAN_MARKERS,
+            stamp,
+            &messages.markers,
+        )?);
+        Ok(out)
     }
 
     /// Localises the person in one scan; `None` when the scan was skipped or learned from.

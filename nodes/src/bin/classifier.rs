@@ -10,7 +10,6 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use lidar_har::{NodeInfo, Outputs, Shutdown, bad_parameter, optional_path};
-use lidar_har_msgs::topics;
 use lidar_har_pipeline::classifier::{ClassifierStage, load_classifier_config};
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue};
 
@@ -51,16 +50,9 @@ fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
     let model = optional_path(p, "model")?;
     let mut stage =
         ClassifierStage::load(&config, model.as_deref()).map_err(|e| bad_parameter("model", e))?;
-    let input = node.subscriber_for(&topics::HUMAN_OBSERVATION)?;
-    let outputs = Outputs::new(
-        &node,
-        &[
-            topics::HUMAN_ACTIVITY,
-            topics::FALL_ALERT,
-            topics::HUMAN_PELVIS,
-            topics::HUMAN_MARKERS,
-        ],
-    )?;
+    let [input] = ClassifierStage::INPUTS;
+    let input = node.subscriber_for(&input)?;
+    let outputs = Outputs::new(&node, &ClassifierStage::OUTPUTS)?;
     let mut errors = 0u64;
     while !shutdown.requested() {
         let Some(sample) = input.take_timeout(&node, Duration::from_millis(100))? else {

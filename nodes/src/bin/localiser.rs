@@ -12,7 +12,7 @@ use std::time::Duration;
 use lidar_har::{NodeInfo, Outputs, Shutdown, bad_parameter, optional_path};
 use lidar_har_msgs::qos::{QosProfile, Reliability};
 use lidar_har_msgs::topics::{self, TopicSpec};
-use lidar_har_pipeline::{LocaliserStage, Pipeline, RoomSource, files};
+use lidar_har_pipeline::{LocaliserStage, RoomSource, files};
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, RosError};
 
 fn main() -> ExitCode {
@@ -93,28 +93,15 @@ fn subscription_qos(spec: &TopicSpec) -> QosProfile {
 
 fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = Node::new(NodeSetup::new("localiser").parameters(decls()))?;
-    let mut pipeline = Pipeline::new(stage(&node)?);
-    let inputs = [
-        topics::SCAN,
-        topics::ODOM,
-        topics::MAP,
-        topics::TF,
-        topics::TF_STATIC,
-    ]
-    .into_iter()
-    .map(|spec| {
-        let sub = node.subscriber(spec.name, spec.type_name, subscription_qos(&spec))?;
-        Ok((spec.name, sub))
-    })
-    .collect::<Result<Vec<_>, RosError>>()?;
-    let outputs = Outputs::new(
-        &node,
-        &[
-            topics::HUMAN_POSE,
-            topics::HUMAN_OBSERVATION,
-            topics::HUMAN_MARKERS,
-        ],
-    )?;
+    let mut stage = stage(&node)?;
+    let inputs = LocaliserStage::INPUTS
+        .into_iter()
+        .map(|spec| {
+            let sub = node.subscriber(spec.name, spec.type_name, subscription_qos(&spec))?;
+            Ok((spec.name, sub))
+        })
+        .collect::<Result<Vec<_>, RosError>>()?;
+    let outputs = Outputs::new(&node, &LocaliserStage::OUTPUTS)?;
     let mut decode_errors = 0u64;
     let mut batch = Vec::new();
     while !shutdown.requested() {
@@ -137,7 +124,7 @@ fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
             )
         });
         for (topic, sample) in batch.drain(..) {
-            match pipeline.handle(topic, &sample.bytes) {
+            match stage.handle(topic, &sample.bytes) {
                 Ok(step) => outputs.publish(&step.outgoing)?,
                 Err(e) => {
                     decode_errors += 1;

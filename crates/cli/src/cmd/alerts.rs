@@ -14,13 +14,15 @@ use std::path::PathBuf;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lidar_har_core::activity::Activity;
-use lidar_har_core::classifier::{PersonScan, StreamingClassifier};
-use lidar_har_core::fall::{AlertKind, FallAlert, FallDetector, FallInput};
-use lidar_har_core::geometry::MainAxisSpan;
+use lidar_har_core::fall::{AlertKind, FallAlert};
 use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
+use lidar_har_core::pose_head::NoPoseHead;
 use lidar_har_infer::ActivityModel;
 use lidar_har_pipeline::bag_run::Spread;
-use lidar_har_pipeline::classifier::{ClassifierConfig, load_classifier_config};
+use lidar_har_pipeline::classifier::{
+    ClassifierConfig, ClassifierOutput, ClassifierStage, load_classifier_config,
+};
+use lidar_har_pipeline::convert::observation_msg;
 use serde::Serialize;
 
 use super::dataset::{
@@ -206,8 +208,9 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     let model = ActivityModel::load(&args.model, 1)
         .with_context(|| format!("--model {}", args.model.display()))?;
     let stream = model.info().stream;
+    // The pose head is left out: it reads the model's state but changes no activity or alert.
     let schedule = config.lane_schedule(stream.window, false);
-    let mut classifier = StreamingClassifier::with_schedule(model, stream, schedule)
+    let mut classifier = ClassifierStage::with_schedule(model, stream, schedule, config.fall_alert)
         .with_context(|| format!("--model {}", args.model.display()))?;
     let scenes = load_scenes(&args.scenes)?;
     let scene_hz = scenes[0].1.lidar.rate_hz;
@@ -258,7 +261,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         scene.duration = args.episode_seconds;
         let seed = episode_seed(args.seed, id, EpisodeStream::Alerts);
         let trace = args.trace_episode.contains(&id);
-        let episode = match run_episode(&scene, seed, kind, &config, &mut classifier, trace) {
+        let episode = match run_episode(&scene, seed, kind, &mut classifier, trace) {
             Ok(episode) => episode,
             Err(e) => {
                 progress.suspend(|| eprintln!("alerts: skipping episode {id}: {e:#}"));
@@ -403,19 +406,20 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Simulates one episode and runs localiser, classifier and fall alerts over it.
+/// Simulates one episode and runs the localiser over it, then the classifier stage the
+/// classifier node runs (the model and the fall alerts) on the observations the localiser
+/// node would publish: nothing while no person is tracked, an empty view while one is
+/// predicted out of sight.
 fn run_episode(
     scene: &lidar_har_sim::Scene,
     seed: u64,
     kind: ScriptKind,
-    config: &ClassifierConfig,
-    classifier: &mut StreamingClassifier<ActivityModel>,
+    stage: &mut ClassifierStage<ActivityModel, NoPoseHead>,
     trace: bool,
 ) -> anyhow::Result<Episode> {
     let mut sim = episode_simulator(scene, seed, false, kind)?;
     let mut localiser = episode_localiser(&sim, false)?;
-    let mut detector = FallDetector::new(config.fall_alert).context("fall_alert parameters")?;
-    classifier.reset();
+    stage.reset();
     let geometry = sim.scan_geometry();
     let start_s = sim.start_ns() as f64 * 1e-9;
     let mut truth: Vec<(f64, Activity)> = Vec::new();
@@ -426,56 +430,35 @@ fn run_episode(
         let stamp_ns = frame.stamp_ns as i64;
         let stamp_s = frame.stamp_ns as f64 * 1e-9 - start_s;
         localiser.add_odometry(stamp_ns, frame.robot);
-        let sensor = frame.laser.position();
         let result = localiser.process_scan(&core_scan(&geometry, stamp_ns, frame.ranges));
-        let person = result.output.as_ref().and_then(|o| o.person.as_ref());
-        let visible = person.filter(|p| p.visible);
+        let tracked = result
+            .output
+            .as_ref()
+            .and_then(|o| o.person.as_ref().map(|p| (o, p)));
         if let Some(p) = &frame.person {
             truth.push((stamp_s, p.activity));
-            seen.push(visible.is_some());
+            seen.push(tracked.is_some_and(|(_, person)| person.visible));
         }
-        let scan = PersonScan {
-            stamp_s,
-            points: visible.map_or(&[][..], |p| &p.points),
-            position: visible.map(|p| p.position),
-            sensor,
+        let Some((output, person)) = tracked else {
+            if trace {
+                trace_scan(stamp_s, frame.person.map(|p| p.activity), None);
+            }
+            continue;
         };
-        let prediction = classifier.classify(&scan)?;
-        let published = visible.is_some() && prediction.ready;
-        if let Some(person) = frame.person.as_ref().filter(|_| published) {
-            scans.add(person.activity, prediction.activity);
+        let out = stage.on_observation(&observation_msg(output, person, "map"))?;
+        if let Some(truth) = frame.person.filter(|_| out.publishable()) {
+            scans.add(truth.activity, out.prediction.activity);
         }
-        let body_length_m = visible
-            .and_then(|p| MainAxisSpan::of(&p.points))
-            .map(|span| span.length());
-        let raised = detector.update(&FallInput {
-            stamp_s,
-            position: visible.filter(|_| prediction.ready).map(|p| p.position),
-            probabilities: prediction.probabilities,
-            body_length_m,
-        });
         if trace {
-            eprintln!(
-                "trace t={stamp_s:.2} truth={} model={} p={:.2} p_fall={:.2} seen={} length={} \
-                 at={} alerts=[{}]",
-                frame.person.map_or("-", |p| p.activity.label()),
-                prediction.activity.label(),
-                prediction.confidence,
-                prediction.probabilities[Activity::FallingDown.index()],
-                visible.is_some(),
-                body_length_m.map_or("-".into(), |l| format!("{l:.2}")),
-                visible.map_or("-".into(), |p| format!(
-                    "{:.2},{:.2}",
-                    p.position.x, p.position.y
-                )),
-                raised
-                    .iter()
-                    .map(|a| a.kind.name())
-                    .collect::<Vec<_>>()
-                    .join(" "),
-            );
+            trace_scan(stamp_s, frame.person.map(|p| p.activity), Some(&out));
         }
-        alerts.extend(raised);
+        // Alert times in episode time, as the ground truth is.
+        alerts.extend(out.alerts.iter().map(|alert| FallAlert {
+            event_time_s: alert.event_time_s - start_s,
+            raised_at_s: alert.raised_at_s - start_s,
+            down_since_s: alert.down_since_s - start_s,
+            ..*alert
+        }));
     }
     Ok(Episode {
         falls: fall_intervals(&truth),
@@ -484,6 +467,36 @@ fn run_episode(
         seen,
         scans,
     })
+}
+
+/// One scan of a traced episode on stderr (`out`: the classifier stage's, `None` when no
+/// person was tracked).
+fn trace_scan(stamp_s: f64, truth: Option<Activity>, out: Option<&ClassifierOutput>) {
+    let truth = truth.map_or("-", Activity::label);
+    let Some(out) = out else {
+        eprintln!("trace t={stamp_s:.2} truth={truth} tracked=false");
+        return;
+    };
+    let prediction = &out.prediction;
+    eprintln!(
+        "trace t={stamp_s:.2} truth={truth} model={} p={:.2} p_fall={:.2} seen={} length={} \
+         at={} alerts=[{}]",
+        prediction.activity.label(),
+        prediction.confidence,
+        prediction.probabilities[Activity::FallingDown.index()],
+        out.visible,
+        out.body_length_m.map_or("-".into(), |l| format!("{l:.2}")),
+        if out.visible {
+            format!("{:.2},{:.2}", out.position.x, out.position.y)
+        } else {
+            "-".into()
+        },
+        out.alerts
+            .iter()
+            .map(|a| a.kind.name())
+            .collect::<Vec<_>>()
+            .join(" "),
+    );
 }
 
 /// Share of the scans in `[start, end)` where the person was seen (1 when there are none).
