@@ -52,7 +52,8 @@ pub type Clock = Box<dyn Fn() -> i64 + Send>;
 const POLL: Duration = Duration::from_millis(50);
 /// Pause after `STOP` (the device needs at least 1 ms to stop sending).
 const AFTER_STOP: Duration = Duration::from_millis(20);
-/// Scan-mode queries on old firmware get no answer: do not wait long for them.
+/// Requests that older firmware ignores (scan modes, accessory board, sample rate) get no
+/// answer there: do not wait long for them (Slamtec's SDK 2 waits 250 ms for the mode count).
 const CONF_PROBE_TIMEOUT: Duration = Duration::from_millis(300);
 /// Motor duty cycle Slamtec's SDK starts an accessory-board motor with (`DEFAULT_MOTOR_PWM`).
 pub const DEFAULT_MOTOR_PWM: u16 = 660;
@@ -248,6 +249,32 @@ struct ScanPlan {
     mode_name: String,
     /// Samples per second the device announces for this mode.
     nominal_rate_hz: Option<f32>,
+}
+
+impl ScanPlan {
+    /// `SCAN`: every model and firmware.
+    fn standard() -> Self {
+        Self {
+            request: Request::Scan,
+            format: ScanFormat::Standard,
+            mode_name: "Standard".into(),
+            nominal_rate_hz: None,
+        }
+    }
+
+    /// `EXPRESS_SCAN` working mode 0: express capsules on firmware without scan modes.
+    fn legacy_express() -> Self {
+        Self {
+            request: Request::ExpressScan {
+                working_mode: 0,
+                working_flags: 0,
+                param: 0,
+            },
+            format: ScanFormat::Express,
+            mode_name: "Express".into(),
+            nominal_rate_hz: None,
+        }
+    }
 }
 
 /// A device that is scanning.
@@ -529,7 +556,7 @@ impl Driver {
         if !(2..6).contains(&info.major_model()) {
             return false;
         }
-        let probe = self.config.request_timeout.min(CONF_PROBE_TIMEOUT);
+        let probe = self.probe_timeout();
         match link.request(
             &Request::GetAccBoardFlag,
             answer::ACC_BOARD_FLAG,
@@ -559,7 +586,7 @@ impl Driver {
     /// `GET_SAMPLERATE` (firmware 1.17 and later): samples per second of the standard or
     /// express scan; `None` when the device does not answer.
     fn legacy_sample_rate(&self, link: &mut Link, format: ScanFormat) -> Option<f32> {
-        let probe = self.config.request_timeout.min(CONF_PROBE_TIMEOUT);
+        let probe = self.probe_timeout();
         match link.request(
             &Request::GetSampleRate,
             answer::SAMPLE_RATE,
@@ -583,6 +610,11 @@ impl Driver {
         }
     }
 
+    /// Wait for answers that firmware without the request never sends.
+    fn probe_timeout(&self) -> Duration {
+        self.config.request_timeout.min(CONF_PROBE_TIMEOUT)
+    }
+
     fn get_health(&self, link: &mut Link) -> Result<DeviceHealth> {
         let timeout = self.config.request_timeout;
         DeviceHealth::parse(&link.request(
@@ -602,12 +634,15 @@ impl Driver {
         Ok(())
     }
 
-    /// The scan modes the device describes, or `None` when its firmware has none.
+    /// The scan modes the device lists, or `None` when it does not answer the count (or
+    /// answers it malformed) within the probe timeout, as firmware without them does.
     fn scan_modes(&self, link: &mut Link) -> Result<Option<Vec<ScanModeInfo>>> {
-        let probe = self.config.request_timeout.min(CONF_PROBE_TIMEOUT);
-        let count = match conf_request(link, conf::SCAN_MODE_COUNT, None, probe) {
-            Ok(v) => conf_u32(&v, 2, "scan mode count")? as u16,
-            Err(Error::Timeout { .. }) => {
+        let count = match conf_request(link, conf::SCAN_MODE_COUNT, None, self.probe_timeout())
+            .and_then(|v| conf_u32(&v, 2, "scan mode count"))
+        {
+            Ok(count) => count as u16,
+            Err(e @ (Error::Timeout { .. } | Error::Protocol(_))) => {
+                debug!("{}: no scan-mode list: {e}", self.config.port);
                 link.clear_input();
                 return Ok(None);
             }
@@ -648,54 +683,72 @@ impl Driver {
         Ok(Some(modes))
     }
 
+    /// Chooses the scan. Like Slamtec's SDK 2, the device is asked for its scan modes rather
+    /// than its firmware number trusted (S-series numbering restarts: an S3 reports 1.02);
+    /// only A-series firmware old enough to prove there are none is not asked. Without a
+    /// list, the legacy choice by firmware number.
     fn plan_scan(&mut self, link: &mut Link, info: &DeviceInfo) -> Result<ScanPlan> {
-        let standard = || ScanPlan {
-            request: Request::Scan,
-            format: ScanFormat::Standard,
-            mode_name: "Standard".into(),
-            nominal_rate_hz: None,
-        };
-        let legacy_express = || ScanPlan {
-            request: Request::ExpressScan {
-                working_mode: 0,
-                working_flags: 0,
-                param: 0,
-            },
-            format: ScanFormat::Express,
-            mode_name: "Express".into(),
-            nominal_rate_hz: None,
-        };
         let choice = self.config.scan_mode.clone();
         if choice == ScanModeChoice::Standard {
-            return Ok(standard());
+            return Ok(ScanPlan::standard());
         }
-        if !info.supports_express() {
-            if let ScanModeChoice::Named(name) = &choice {
+        let modes = if info.lacks_scan_modes() {
+            None
+        } else {
+            self.scan_modes(link)?
+        };
+        match modes {
+            Some(modes) => self.plan_from_modes(link, &choice, &modes),
+            None => self.legacy_plan(&choice, info),
+        }
+    }
+
+    /// The scan of a device without a scan-mode list: legacy express from firmware 1.17 on,
+    /// standard before.
+    fn legacy_plan(&mut self, choice: &ScanModeChoice, info: &DeviceInfo) -> Result<ScanPlan> {
+        if let ScanModeChoice::Named(name) = choice {
+            if info.lacks_scan_modes() {
                 return Err(Error::Unsupported(format!(
-                    "scan mode {name}: firmware {} has no scan modes; use standard",
+                    "scan mode `{name}`: firmware {} has no scan modes (they came with 1.24); \
+                     use auto, standard or express",
                     info.firmware()
                 )));
             }
-            if choice == ScanModeChoice::Express {
-                let message = format!(
-                    "firmware {} has no express scan: using standard",
-                    info.firmware()
-                );
-                self.report(DiagnosticStatus::WARN, message);
-            }
-            return Ok(standard());
+            // No answer proves nothing on this device (a glitch, a slow start): try again.
+            return Err(Error::Timeout {
+                what: format!("the device's list of scan modes (scan mode `{name}` needs it)"),
+                waited_ms: self.probe_timeout().as_millis() as u64,
+            });
         }
-        let modes = self.scan_modes(link)?;
-        let Some(modes) = modes else {
-            return match choice {
-                ScanModeChoice::Named(name) => Err(Error::Unsupported(format!(
-                    "scan mode {name}: firmware {} does not list scan modes; use standard or express",
-                    info.firmware()
-                ))),
-                _ => Ok(legacy_express()),
-            };
+        if info.supports_express() {
+            return Ok(ScanPlan::legacy_express());
+        }
+        if *choice == ScanModeChoice::Express {
+            let message = format!(
+                "firmware {} has no express scan: using standard",
+                info.firmware()
+            );
+            self.report(DiagnosticStatus::WARN, message);
+        }
+        Ok(ScanPlan::standard())
+    }
+
+    /// The scan of the mode `choice` names among those the device lists.
+    fn plan_from_modes(
+        &mut self,
+        link: &mut Link,
+        choice: &ScanModeChoice,
+        modes: &[ScanModeInfo],
+    ) -> Result<ScanPlan> {
+        let offered = || {
+            modes
+                .iter()
+                .map(|m| format!("{} (id {})", m.name, m.id))
+                .collect::<Vec<_>>()
+                .join(", ")
         };
-        let chosen = match &choice {
+        let mode = match choice {
+            ScanModeChoice::Standard => return Ok(ScanPlan::standard()),
             ScanModeChoice::Express => modes
                 .iter()
                 .find(|m| {
@@ -706,7 +759,14 @@ impl Driver {
                     modes
                         .iter()
                         .find(|m| m.answer_type == answer::MEASUREMENT_CAPSULED)
-                }),
+                })
+                .ok_or_else(|| {
+                    Error::Unsupported(format!(
+                        "scan mode express: the device has no express-capsule mode; it offers: \
+                         {}; use auto or one of these names",
+                        offered()
+                    ))
+                })?,
             ScanModeChoice::Auto => {
                 let v = conf_request(
                     link,
@@ -715,31 +775,28 @@ impl Driver {
                     self.config.request_timeout,
                 )?;
                 let typical = conf_u32(&v, 2, "typical scan mode")? as u16;
-                modes.iter().find(|m| m.id == typical)
+                modes.iter().find(|m| m.id == typical).ok_or_else(|| {
+                    Error::Protocol(format!(
+                        "typical scan mode id {typical} is not among the listed modes: {}",
+                        offered()
+                    ))
+                })?
             }
             ScanModeChoice::Named(name) => modes
                 .iter()
-                .find(|m| m.name.eq_ignore_ascii_case(name.trim())),
-            ScanModeChoice::Standard => None,
-        };
-        let Some(mode) = chosen else {
-            let offered: Vec<String> = modes
-                .iter()
-                .map(|m| format!("{} (id {})", m.name, m.id))
-                .collect();
-            if choice == ScanModeChoice::Express {
-                return Ok(legacy_express());
-            }
-            return Err(Error::Unsupported(format!(
-                "scan mode {choice:?} not offered; the device offers: {}",
-                offered.join(", ")
-            )));
+                .find(|m| m.name.eq_ignore_ascii_case(name.trim()))
+                .ok_or_else(|| {
+                    Error::Unsupported(format!(
+                        "scan mode `{name}` is not offered; the device offers: {}",
+                        offered()
+                    ))
+                })?,
         };
         if mode.answer_type == answer::MEASUREMENT {
             return Ok(ScanPlan {
                 mode_name: mode.name.clone(),
                 nominal_rate_hz: Some(mode.sample_rate_hz()),
-                ..standard()
+                ..ScanPlan::standard()
             });
         }
         let format = ScanFormat::from_answer_type(mode.answer_type).ok_or_else(|| {

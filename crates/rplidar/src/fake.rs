@@ -128,15 +128,46 @@ pub enum FakeMode {
     Dense,
 }
 
+impl FakeMode {
+    /// The format of a scan mode's answer type; `None` for those the fake cannot stream.
+    fn of_answer_type(answer_type: u8) -> Option<Self> {
+        match answer_type {
+            answer::MEASUREMENT => Some(Self::Standard),
+            answer::MEASUREMENT_CAPSULED => Some(Self::Express),
+            answer::MEASUREMENT_DENSE_CAPSULED => Some(Self::Dense),
+            _ => None,
+        }
+    }
+}
+
+/// A scan mode the fake lists (its id is its index in [`FakeConfig::scan_modes`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FakeScanMode {
+    pub name: String,
+    /// Answer type of its stream: 0x81, 0x82 and 0x85 are streamed; any other is only listed
+    /// (a mode the driver must refuse, such as ultra-dense 0x86).
+    pub answer_type: u8,
+}
+
+impl FakeScanMode {
+    pub fn new(name: &str, answer_type: u8) -> Self {
+        Self {
+            name: name.into(),
+            answer_type,
+        }
+    }
+}
+
 /// What the fake device is.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FakeConfig {
     pub info: DeviceInfo,
     pub samples_per_rotation: usize,
     pub rotation_hz: f32,
-    /// Answer `GET_LIDAR_CONF` with three scan modes: 0 Standard, 1 Express, 2 DenseBoost.
-    /// Without, scan-mode requests get no answer (firmware before 1.24).
-    pub scan_modes: bool,
+    /// The modes `GET_LIDAR_CONF` lists; empty: scan-mode requests get no answer (A-series
+    /// firmware before 1.24) and `EXPRESS_SCAN` streams legacy express capsules.
+    pub scan_modes: Vec<FakeScanMode>,
+    /// Id of the mode the device calls typical.
     pub typical_mode: u16,
     /// How far capsule start angles run ahead of their samples (the angle compensation the
     /// driver must subtract), degrees in 0.5..7.5.
@@ -160,11 +191,39 @@ impl Default for FakeConfig {
             },
             samples_per_rotation: 720,
             rotation_hz: 20.0,
-            scan_modes: true,
+            scan_modes: vec![
+                FakeScanMode::new("Standard", answer::MEASUREMENT),
+                FakeScanMode::new("Express", answer::MEASUREMENT_CAPSULED),
+                FakeScanMode::new("DenseBoost", answer::MEASUREMENT_DENSE_CAPSULED),
+            ],
             typical_mode: 1,
             express_lead_deg: 2.0,
             boot_banner: true,
             accessory_board_motor: false,
+        }
+    }
+}
+
+impl FakeConfig {
+    /// An RPLIDAR S3 as it reports itself (model 0x81, firmware 1.02: S-series numbering
+    /// restarts, so the number says nothing about scan modes), listing Standard and
+    /// DenseBoost (typical), turning at 10 Hz.
+    pub fn s_series() -> Self {
+        Self {
+            info: DeviceInfo {
+                model: 0x81,
+                firmware_major: 1,
+                firmware_minor: 2,
+                hardware: 18,
+                serial: *b"FAKE-RPLIDAR-S03",
+            },
+            rotation_hz: 10.0,
+            scan_modes: vec![
+                FakeScanMode::new("Standard", answer::MEASUREMENT),
+                FakeScanMode::new("DenseBoost", answer::MEASUREMENT_DENSE_CAPSULED),
+            ],
+            typical_mode: 1,
+            ..Self::default()
         }
     }
 }
@@ -498,11 +557,19 @@ impl Device {
             }
             command::SCAN | command::FORCE_SCAN => self.start_stream(FakeMode::Standard),
             command::EXPRESS_SCAN => {
-                let mode = match payload.first() {
-                    Some(2) if self.config.scan_modes => FakeMode::Dense,
-                    _ => FakeMode::Express,
+                let id = usize::from(payload.first().copied().unwrap_or(0));
+                let mode = if self.config.scan_modes.is_empty() {
+                    Some(FakeMode::Express)
+                } else {
+                    self.config
+                        .scan_modes
+                        .get(id)
+                        .and_then(|m| FakeMode::of_answer_type(m.answer_type))
                 };
-                self.start_stream(mode);
+                // A mode it cannot stream (or does not have) starts nothing.
+                if let Some(mode) = mode {
+                    self.start_stream(mode);
+                }
             }
             command::GET_INFO => {
                 let info = self.config.info.encode();
@@ -518,7 +585,9 @@ impl Device {
                 p.extend_from_slice(&us.to_le_bytes());
                 self.answer(answer::SAMPLE_RATE, &p);
             }
-            command::GET_LIDAR_CONF if self.config.scan_modes => self.answer_conf(payload),
+            command::GET_LIDAR_CONF if !self.config.scan_modes.is_empty() => {
+                self.answer_conf(payload)
+            }
             command::SET_MOTOR_PWM if payload.len() >= 2 => {
                 lock(&self.shared.log).motor_pwm =
                     Some(u16::from_le_bytes([payload[0], payload[1]]));
@@ -545,22 +614,18 @@ impl Device {
         }
         let entry = u32::from_le_bytes([payload[0], payload[1], payload[2], payload[3]]);
         let mode = payload.get(4..6).map(|m| u16::from_le_bytes([m[0], m[1]]));
-        const MODES: [(&str, u8); 3] = [
-            ("Standard", answer::MEASUREMENT),
-            ("Express", answer::MEASUREMENT_CAPSULED),
-            ("DenseBoost", answer::MEASUREMENT_DENSE_CAPSULED),
-        ];
-        let selected = mode.and_then(|m| MODES.get(usize::from(m)));
+        let modes = &self.config.scan_modes;
+        let selected = mode.and_then(|m| modes.get(usize::from(m)));
         let value: Vec<u8> = match (entry, selected) {
-            (conf::SCAN_MODE_COUNT, _) => (MODES.len() as u16).to_le_bytes().to_vec(),
+            (conf::SCAN_MODE_COUNT, _) => (modes.len() as u16).to_le_bytes().to_vec(),
             (conf::SCAN_MODE_TYPICAL, _) => self.config.typical_mode.to_le_bytes().to_vec(),
             (conf::SCAN_MODE_US_PER_SAMPLE, Some(_)) => ((self.us_per_sample() * 256.0) as u32)
                 .to_le_bytes()
                 .to_vec(),
             (conf::SCAN_MODE_MAX_DISTANCE, Some(_)) => (12u32 * 256).to_le_bytes().to_vec(),
-            (conf::SCAN_MODE_ANS_TYPE, Some((_, ans))) => vec![*ans],
-            (conf::SCAN_MODE_NAME, Some((name, _))) => {
-                let mut v = name.as_bytes().to_vec();
+            (conf::SCAN_MODE_ANS_TYPE, Some(m)) => vec![m.answer_type],
+            (conf::SCAN_MODE_NAME, Some(m)) => {
+                let mut v = m.name.as_bytes().to_vec();
                 v.push(0);
                 v
             }

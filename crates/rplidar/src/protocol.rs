@@ -300,9 +300,19 @@ impl DeviceInfo {
         self.major_model() >= 6
     }
 
-    /// Whether the firmware knows `EXPRESS_SCAN` (1.17 and later).
+    /// Whether the firmware knows the legacy `EXPRESS_SCAN` (A-series 1.17 and later). Only
+    /// for devices that do not list scan modes: S-series numbering restarts (an S3 reports
+    /// 1.02), so the number says nothing there.
     pub fn supports_express(&self) -> bool {
         (self.firmware_major, self.firmware_minor) >= (1, 17)
+    }
+
+    /// Whether the firmware number proves that the device cannot list scan modes
+    /// (`GET_LIDAR_CONF`): A1/A2/A3 firmware before 1.24, the threshold of Slamtec's SDK 1.
+    /// Other models are asked, as SDK 2 asks every device.
+    pub fn lacks_scan_modes(&self) -> bool {
+        (1..=3).contains(&self.major_model())
+            && (self.firmware_major, self.firmware_minor) < (1, 24)
     }
 
     /// Serial number as the 32 hexadecimal digits Slamtec prints.
@@ -557,6 +567,7 @@ mod tests {
         assert_eq!(parsed.family(), "A1");
         assert_eq!(parsed.firmware(), "1.29");
         assert!(parsed.supports_express());
+        assert!(!parsed.lacks_scan_modes());
         assert!(DeviceInfo::parse(&[1, 2, 3]).is_err());
         let health = DeviceHealth::parse(&[2, 0x34, 0x12]).unwrap();
         assert_eq!(
@@ -567,6 +578,25 @@ mod tests {
             }
         );
         assert!(DeviceHealth::parse(&[0]).is_err());
+    }
+
+    #[test]
+    fn only_old_a_series_firmware_proves_there_are_no_scan_modes() {
+        let info = |model, major, minor| DeviceInfo {
+            model,
+            firmware_major: major,
+            firmware_minor: minor,
+            hardware: 0,
+            serial: [0; 16],
+        };
+        assert!(info(0x18, 1, 15).lacks_scan_modes());
+        assert!(info(0x28, 1, 23).lacks_scan_modes());
+        assert!(!info(0x28, 1, 24).lacks_scan_modes());
+        // An S3 reports firmware 1.02 and does list its modes.
+        let s3 = info(0x81, 1, 2);
+        assert!(!s3.lacks_scan_modes());
+        assert!(!s3.supports_express());
+        assert!(s3.is_time_of_flight());
     }
 
     #[test]

@@ -223,7 +223,7 @@ fn auto_uses_the_typical_mode_or_legacy_express() {
     let fake = spawn(
         dir.path(),
         FakeConfig {
-            scan_modes: false,
+            scan_modes: Vec::new(),
             ..FakeConfig::default()
         },
     );
@@ -232,6 +232,93 @@ fn auto_uses_the_typical_mode_or_legacy_express() {
     run_until(&mut driver, Duration::from_secs(10), scans(1));
     assert_eq!(driver.status().format, Some(ScanFormat::Express));
     assert!(started.elapsed() < Duration::from_secs(3));
+}
+
+#[test]
+fn s_series_firmware_1_02_lists_its_modes_and_auto_picks_the_typical_one() {
+    // An S3 reports firmware 1.02: the driver must ask for its modes, not trust the number.
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::s_series());
+    let cfg = config(fake.path(), ScanModeChoice::Auto);
+    let expected = expected_ranges(&cfg.geometry);
+    let mut driver = Driver::new(cfg).unwrap();
+    let (scans, diags) = run_until(&mut driver, Duration::from_secs(10), scans(3));
+    let status = driver.status();
+    assert_eq!(status.scan_mode.as_deref(), Some("DenseBoost"));
+    assert_eq!(status.format, Some(ScanFormat::Dense));
+    for scan in &scans {
+        assert_eq!(
+            mismatches(scan, &expected, 0.0006),
+            0,
+            "dense scan of the S3"
+        );
+    }
+    let connected = diags
+        .iter()
+        .find(|d| d.message.starts_with("scanning:"))
+        .expect("a connect report");
+    assert!(
+        connected.message.contains("S-series") && connected.message.contains("1.02"),
+        "{}",
+        connected.message
+    );
+    let log = fake.log();
+    assert!(log.commands.contains(&0x84), "scan modes asked");
+    assert!(
+        !log.commands.contains(&0x20),
+        "no standard scan: {:?}",
+        log.commands
+    );
+}
+
+#[test]
+fn s_series_named_and_standard_modes_work() {
+    for (mode, format) in [
+        (
+            ScanModeChoice::Named("DenseBoost".into()),
+            ScanFormat::Dense,
+        ),
+        (ScanModeChoice::Standard, ScanFormat::Standard),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let fake = spawn(dir.path(), FakeConfig::s_series());
+        let mut driver = Driver::new(config(fake.path(), mode.clone())).unwrap();
+        run_until(&mut driver, Duration::from_secs(10), scans(1));
+        assert_eq!(driver.status().format, Some(format), "{mode:?}");
+    }
+}
+
+#[test]
+fn old_a1_firmware_without_scan_modes_uses_standard_scans_as_before() {
+    // A1 firmware 1.15: before express scans (1.17) and scan modes (1.24). Its number proves
+    // it lists no modes, so it is not asked.
+    let dir = tempfile::tempdir().unwrap();
+    let mut info = FakeConfig::default().info;
+    info.firmware_minor = 15;
+    let fake = spawn(
+        dir.path(),
+        FakeConfig {
+            info,
+            scan_modes: Vec::new(),
+            ..FakeConfig::default()
+        },
+    );
+    for mode in [ScanModeChoice::Auto, ScanModeChoice::Express] {
+        let mut driver = Driver::new(config(fake.path(), mode.clone())).unwrap();
+        let (_, diags) = run_until(&mut driver, Duration::from_secs(10), scans(2));
+        assert_eq!(
+            driver.status().format,
+            Some(ScanFormat::Standard),
+            "{mode:?}"
+        );
+        let warned = diags
+            .iter()
+            .any(|d| d.message.contains("has no express scan"));
+        assert_eq!(warned, mode == ScanModeChoice::Express, "{mode:?}");
+    }
+    let log = fake.log();
+    assert!(!log.commands.contains(&0x84), "{:?}", log.commands);
+    assert!(!log.commands.contains(&0x82), "{:?}", log.commands);
 }
 
 #[test]
