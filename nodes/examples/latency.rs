@@ -23,6 +23,7 @@ use std::process::{Child, Command, ExitCode};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
+use lidar_har_core::stats::nearest_rank;
 use lidar_har_msgs::lidar_har_msgs::Activity;
 use lidar_har_msgs::sensor_msgs::LaserScan;
 use lidar_har_msgs::topics;
@@ -162,13 +163,6 @@ fn peak_rss_kb(pid: u32) -> Option<u64> {
         .and_then(|v| v.split_whitespace().next()?.parse().ok())
 }
 
-fn quantile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len()) - 1]
-}
-
 fn wall_clock_ns() -> i64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -241,8 +235,14 @@ fn measure(bins: &Path, args: &Args, rate: f64) -> anyhow::Result<()> {
                 label.clone(),
                 run.scans.to_string(),
                 format!("{} ({:.1} s)", run.activities, run.window_s),
-                format!("{:.2} ms", quantile(&latencies_ms, 0.5)),
-                format!("{:.2} ms", quantile(&latencies_ms, 0.99)),
+                format!(
+                    "{:.2} ms",
+                    nearest_rank(&latencies_ms, 0.5).unwrap_or(f64::NAN)
+                ),
+                format!(
+                    "{:.2} ms",
+                    nearest_rank(&latencies_ms, 0.99).unwrap_or(f64::NAN)
+                ),
             )
         } else {
             Default::default()

@@ -78,6 +78,18 @@ impl Activity {
                 | Activity::WalkingUnsteadily
         )
     }
+
+    /// The class with the highest score (probability or logit) and that score; the first
+    /// one in class order on ties.
+    pub fn most_likely(scores: &[f32; Activity::COUNT]) -> (Activity, f32) {
+        let mut best = 0;
+        for (i, &p) in scores.iter().enumerate() {
+            if p > scores[best] {
+                best = i;
+            }
+        }
+        (Activity::ALL[best], scores[best])
+    }
 }
 
 impl std::fmt::Display for Activity {
@@ -89,6 +101,16 @@ impl std::fmt::Display for Activity {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_most_likely_class_is_the_first_on_ties() {
+        let mut scores = [0.0; Activity::COUNT];
+        scores[Activity::Walking.index()] = 0.9;
+        assert_eq!(Activity::most_likely(&scores), (Activity::Walking, 0.9));
+        scores[Activity::FallingDown.index()] = 0.9;
+        assert_eq!(Activity::most_likely(&scores).0, Activity::FallingDown);
+        assert_eq!(Activity::most_likely(&[-3.0; 9]).0, Activity::ALL[0]);
+    }
 
     #[test]
     fn index_and_label_round_trip() {

@@ -465,7 +465,7 @@ impl<M: StepModel> StreamingClassifier<M> {
             }
         }
         let probabilities = softmax(&chosen_logits);
-        let (activity, confidence) = crate::fall::argmax(&probabilities);
+        let (activity, confidence) = Activity::most_likely(&probabilities);
         let history = self.lanes[chosen].history;
         Ok(Prediction {
             stamp_s: scan.stamp_s,

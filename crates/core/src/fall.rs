@@ -50,6 +50,7 @@ use glam::DVec2;
 use serde::{Deserialize, Serialize};
 
 use crate::activity::Activity;
+use crate::stats::upper_median;
 
 /// Thresholds of the fall alerts (`config/classifier.yaml`, section `fall_alert`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -466,7 +467,7 @@ impl FallDetector {
         body_length_m: Option<f64>,
         alerts: &mut Vec<FallAlert>,
     ) {
-        let (best, best_p) = argmax(probabilities);
+        let (best, best_p) = Activity::most_likely(probabilities);
         let on_floor_p: f32 = Activity::ALL
             .into_iter()
             .filter(|a| a.is_on_floor())
@@ -828,13 +829,13 @@ impl DownSpell {
 /// Whether the median p(lying_down) of scans read as lying reaches `min_p` (always when
 /// `min_p` is 0, never without such scans otherwise).
 fn surely_lying(lying_probabilities: &mut [f64], min_p: f64) -> bool {
-    min_p <= 0.0 || median(lying_probabilities).is_some_and(|p| p >= min_p)
+    min_p <= 0.0 || upper_median(lying_probabilities).is_some_and(|p| p >= min_p)
 }
 
 /// Whether the median of the known body lengths reaches `min_m` (always when `min_m` is 0 or
 /// no length is known).
 fn stretches_at_least(lengths_m: &mut [f64], min_m: f64) -> bool {
-    min_m <= 0.0 || median(lengths_m).is_none_or(|l| l >= min_m)
+    min_m <= 0.0 || upper_median(lengths_m).is_none_or(|l| l >= min_m)
 }
 
 /// Appends `value`, keeping the last `keep` values: the sliding windows over runs of scans.
@@ -852,27 +853,6 @@ struct LyingScan {
     /// p(lying_down).
     probability: f64,
     body_length_m: Option<f64>,
-}
-
-/// The median of `values` (reordered), `None` when empty.
-fn median(values: &mut [f64]) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    let middle = values.len() / 2;
-    let (_, m, _) = values.select_nth_unstable_by(middle, f64::total_cmp);
-    Some(*m)
-}
-
-/// The most likely class; the first one on ties.
-pub fn argmax(probabilities: &[f32; Activity::COUNT]) -> (Activity, f32) {
-    let mut best = 0;
-    for (i, &p) in probabilities.iter().enumerate() {
-        if p > probabilities[best] {
-            best = i;
-        }
-    }
-    (Activity::ALL[best], probabilities[best])
 }
 
 #[cfg(test)]
@@ -1975,14 +1955,5 @@ mod tests {
             ..Default::default()
         };
         assert!(FallDetector::new(config).is_err());
-    }
-
-    #[test]
-    fn argmax_prefers_the_first_on_ties() {
-        assert_eq!(
-            argmax(&[0.5, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]).0,
-            Crawling
-        );
-        assert_eq!(argmax(&one_hot(Walking, 0.9)).0, Walking);
     }
 }

@@ -15,5 +15,6 @@ pub mod metrics;
 pub mod pose_head;
 pub mod representation;
 pub mod scan;
+pub mod stats;
 pub mod tracker;
 pub mod visibility;

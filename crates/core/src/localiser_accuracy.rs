@@ -26,6 +26,8 @@
 use glam::DVec2;
 use serde::Serialize;
 
+use crate::stats::nearest_rank;
+
 /// Thresholds that turn ground truth into "in sight" and "on the person".
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct AccuracyCriteria {
@@ -142,12 +144,6 @@ impl AccuracyTally {
             reported_ratio: ratio(self.reported, self.scans),
         }
     }
-}
-
-/// Nearest-rank quantile `q` of ascending `sorted` values; `None` when empty.
-fn nearest_rank(sorted: &[f64], q: f64) -> Option<f64> {
-    let n = sorted.len();
-    (n > 0).then(|| sorted[((q * n as f64).ceil() as usize).clamp(1, n) - 1])
 }
 
 /// The figures of a tally; ratios and quantiles are `None` when nothing was counted.

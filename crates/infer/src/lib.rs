@@ -66,6 +66,14 @@ pub enum InferError {
     Run(String),
 }
 
+impl InferError {
+    /// Whether ONNX Runtime itself is missing or unusable (the installation), rather than
+    /// the model.
+    pub fn is_runtime(&self) -> bool {
+        matches!(self, Self::RuntimeMissing { .. } | Self::RuntimeLoad { .. })
+    }
+}
+
 /// The library path to load and where that choice came from.
 pub fn runtime_library_path() -> (PathBuf, &'static str) {
     match std::env::var_os("ORT_DYLIB_PATH") {

@@ -33,6 +33,7 @@ use lidar_har_core::localiser_accuracy::{
 };
 use lidar_har_core::map::{MapGeometry, OccupancyMap as CoreMap};
 use lidar_har_core::scan::Scan;
+use lidar_har_core::stats::nearest_rank;
 use lidar_har_pipeline::classifier::{ClassifierConfig, ClassifierStage, load_classifier_config};
 use lidar_har_pipeline::convert::observation_msg;
 use lidar_har_pipeline::files::load_config;
@@ -125,7 +126,7 @@ impl Group {
     fn radial_median(&self) -> Option<f64> {
         let mut v = self.radial_m.clone();
         v.sort_by(f64::total_cmp);
-        (!v.is_empty()).then(|| v[(v.len() - 1) / 2])
+        nearest_rank(&v, 0.5)
     }
 }
 

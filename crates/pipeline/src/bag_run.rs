@@ -9,6 +9,7 @@ use glam::DVec2;
 use lidar_har_bag::{BagError, BagReader, BagWriter, TopicHandle, WriterOptions};
 use lidar_har_core::localiser::{ConfigError, FrameConfig, LocaliserConfig};
 use lidar_har_core::map::OccupancyMap;
+use lidar_har_core::stats::Spread;
 use lidar_har_msgs::geometry_msgs::PoseStamped;
 use lidar_har_msgs::tf2_msgs::TFMessage;
 use lidar_har_msgs::topics::{self, TopicSpec};
@@ -18,7 +19,7 @@ use crate::classifier::{
     ActivitySummary, ClassifierConfig, ClassifierError, ClassifierRun, ClassifierRunError,
     ClassifierStage,
 };
-use crate::localiser_stage::carries_odometry;
+use crate::localiser_stage::{MountSource, carries_odometry};
 use crate::{LocaliserStage, Outgoing, RoomSource};
 
 /// What to run with.
@@ -54,36 +55,6 @@ pub enum RunError {
     },
 }
 
-/// Median and tail of a distribution.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Spread {
-    pub median: f64,
-    pub p95: f64,
-    pub p99: f64,
-    pub max: f64,
-    pub count: usize,
-}
-
-impl Spread {
-    /// Nearest-rank quantiles; `None` for no values.
-    pub fn of(mut values: Vec<f64>) -> Option<Spread> {
-        values.retain(|v| v.is_finite());
-        if values.is_empty() {
-            return None;
-        }
-        values.sort_by(f64::total_cmp);
-        let q =
-            |p: f64| values[((p * values.len() as f64).ceil() as usize).clamp(1, values.len()) - 1];
-        Some(Spread {
-            median: q(0.5),
-            p95: q(0.95),
-            p99: q(0.99),
-            max: q(1.0),
-            count: values.len(),
-        })
-    }
-}
-
 /// `summary.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct RunSummary {
@@ -92,6 +63,8 @@ pub struct RunSummary {
     pub room: &'static str,
     /// `odometry` (a moving robot) or `stationary`.
     pub motion: &'static str,
+    /// Where the Lidar's mount on the base came from at the end of the run.
+    pub mount: MountSource,
     /// Scans in the bag.
     pub scans: u64,
     /// Scans that gave an output (not skipped, not used for learning).
@@ -330,6 +303,7 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         motion: if moving { "odometry" } else { "stationary" },
         scans,
         scans_localised,
+        mount: localiser.mount_source(),
         scans_learning: localiser.scans_learning(),
         visible_ratio: ratio(visible),
         tracked_ratio: ratio(tracked),
@@ -416,16 +390,6 @@ pub fn position_errors(estimates: &[(i64, DVec2)], mut truth: Vec<(i64, DVec2)>)
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn spread_uses_nearest_rank_and_ignores_nan() {
-        let s = Spread::of((1..=100).map(f64::from).chain([f64::NAN]).collect()).unwrap();
-        assert_eq!(
-            (s.median, s.p95, s.p99, s.max, s.count),
-            (50.0, 95.0, 99.0, 100.0, 100)
-        );
-        assert!(Spread::of(vec![]).is_none());
-    }
 
     #[test]
     fn ground_truth_is_interpolated_at_the_estimate_stamp() {

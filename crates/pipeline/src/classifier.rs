@@ -26,6 +26,7 @@ use lidar_har_core::fall::{
 use lidar_har_core::geometry::MainAxisSpan;
 use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
 use lidar_har_core::pose_head::{NoPoseHead, PelvisPlacer, PersonAt, PoseHead};
+use lidar_har_core::stats::{Spread, upper_median};
 use lidar_har_infer::{ActivityModel, InferError, PoseHeadModel};
 use lidar_har_msgs::builtin_interfaces::{Duration, Time};
 use lidar_har_msgs::geometry_msgs::{
@@ -696,8 +697,7 @@ impl ScanRate {
         if self.periods_s.len() < SCAN_RATE_SAMPLES {
             return None;
         }
-        self.periods_s.sort_by(f64::total_cmp);
-        let hz = 1.0 / self.periods_s[SCAN_RATE_SAMPLES / 2];
+        let hz = 1.0 / upper_median(&mut self.periods_s)?;
         self.measured_hz = Some(hz);
         Some(hz)
     }
@@ -819,7 +819,7 @@ pub struct ActivitySummary {
     pub alerts: Vec<AlertRecord>,
     pub segments: Vec<Segment>,
     /// Classifier time per scan (decode, render, two model steps, alerts, encode), microseconds.
-    pub classify_time_us: Option<crate::bag_run::Spread>,
+    pub classify_time_us: Option<Spread>,
     /// The rate the scans came at (after the first 40), and the model's: a log warning
     /// says when they differ by more than 25 %.
     pub scan_rate_hz: Option<f64>,
@@ -1019,7 +1019,7 @@ impl ClassifierRun {
     /// The activity part of `summary.json`, with the classification time per scan.
     pub fn finish(mut self) -> ActivitySummary {
         let mut summary = self.log.summary();
-        summary.classify_time_us = crate::bag_run::Spread::of(std::mem::take(&mut self.times_us));
+        summary.classify_time_us = Spread::of(std::mem::take(&mut self.times_us));
         summary.scan_rate_hz = self.stage.measured_scan_rate_hz();
         summary.model_scan_rate_hz = Some(self.stage.classifier().spec().scan_rate_hz);
         summary.pose_head = self.stage.pose_head().clone();

@@ -132,8 +132,10 @@ pub fn observation_msg(
 const PERSON_HEIGHT_M: f64 = 1.7;
 
 /// `/human/markers`: a cylinder at the person (green when seen, orange when predicted
-/// through an occlusion) and their points; always led by a DELETEALL so a lost person
-/// disappears from rviz2.
+/// through an occlusion) and their points, both in the namespace `person`; always led by a
+/// DELETEALL of that namespace, so a lost person and their old points disappear from rviz2
+/// (rviz2 applies a DELETEALL that names a namespace to that namespace only, and the
+/// classifier's markers on the same topic live in others).
 pub fn markers_msg(output: &LocaliserOutput, frame_id: &str) -> MarkerArray {
     let header = Header::new(Time::from_nanos(output.stamp_ns), frame_id);
     let mut markers = vec![Marker {
@@ -164,7 +166,7 @@ pub fn markers_msg(output: &LocaliserOutput, frame_id: &str) -> MarkerArray {
         if !person.points.is_empty() {
             markers.push(Marker {
                 header,
-                ns: "person_points".into(),
+                ns: "person".into(),
                 id: 1,
                 r#type: Marker::POINTS,
                 action: Marker::ADD,
@@ -233,6 +235,13 @@ mod tests {
         let kinds: Vec<i32> = markers.markers.iter().map(|m| m.r#type).collect();
         assert_eq!(markers.markers[0].action, Marker::DELETEALL);
         assert_eq!(&kinds[1..], &[Marker::CYLINDER, Marker::POINTS]);
+        // The DELETEALL clears only its namespace in rviz2: everything it must clear is in it.
+        assert!(
+            markers
+                .markers
+                .iter()
+                .all(|m| m.ns == markers.markers[0].ns)
+        );
     }
 
     #[test]

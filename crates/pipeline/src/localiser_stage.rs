@@ -17,6 +17,7 @@ use lidar_har_msgs::sensor_msgs::LaserScan;
 use lidar_har_msgs::tf2_msgs::TFMessage;
 use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_msgs::visualization_msgs::MarkerArray;
+use serde::Serialize;
 
 use crate::{Outgoing, PipelineError, Step, convert};
 
@@ -104,7 +105,27 @@ pub struct LocaliserStage {
     /// Time the core took for the latest scan.
     last_scan_time: Option<Duration>,
     scans_learning: u64,
+    mount: MountSource,
+    /// Scans localised with the configured mount while /tf_static had no chain to the scan's
+    /// frame (counted until that is warned about).
+    scans_without_tf_mount: u32,
 }
+
+/// Where the Lidar's mount on the base comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MountSource {
+    /// /tf_static links the scan's frame to the base.
+    TfStatic,
+    /// The localiser configuration's `mount` (no /tf_static chain to the scan's frame yet).
+    Configuration,
+    /// Not used: a learned background works in the Lidar's own frame.
+    None,
+}
+
+/// Scans localised with the configured mount before a missing /tf_static chain is warned
+/// about (2 s at 20 Hz: /tf_static is latched, so it normally comes before the first scans).
+const SCANS_BEFORE_MOUNT_WARNING: u32 = 40;
 
 /// Longest chain of static transforms between the base and the laser.
 const MAX_TF_CHAIN: usize = 16;
@@ -139,6 +160,12 @@ impl LocaliserStage {
             last_stamp_ns: 0,
             last_scan_time: None,
             scans_learning: 0,
+            mount: if learned_background {
+                MountSource::None
+            } else {
+                MountSource::Configuration
+            },
+            scans_without_tf_mount: 0,
         })
     }
 
@@ -149,6 +176,11 @@ impl LocaliserStage {
     /// How long the core took for the latest scan (conversion and logging excluded).
     pub fn last_scan_time(&self) -> Option<Duration> {
         self.last_scan_time
+    }
+
+    /// Where the Lidar's mount comes from.
+    pub fn mount_source(&self) -> MountSource {
+        self.mount
     }
 
     /// Scans used to learn the background so far.
@@ -263,6 +295,17 @@ impl LocaliserStage {
         let result = self.localiser.process_scan(&scan);
         self.last_scan_time = Some(started.elapsed());
         self.scans_learning += u64::from(result.learning);
+        if self.mount == MountSource::Configuration && result.output.is_some() {
+            self.scans_without_tf_mount += 1;
+            if self.scans_without_tf_mount == SCANS_BEFORE_MOUNT_WARNING {
+                log::warn!(
+                    "no /tf_static chain from the scan's frame `{frame}` to `{}`: the Lidar \
+                     mount of the localiser configuration is used (publish the transform, or \
+                     set the scan's frame_id to the one your robot description uses)",
+                    self.frames.base
+                );
+            }
+        }
         for w in &result.warnings {
             self.warnings.record(w, scan.stamp_ns);
         }
@@ -345,6 +388,7 @@ impl LocaliserStage {
             if frame == self.frames.base {
                 let w = self.localiser.set_mount(mount);
                 self.warn(w);
+                self.mount = MountSource::TfStatic;
                 return;
             }
             let Some((parent, pose)) = self.static_tf.get(frame) else {
@@ -419,19 +463,25 @@ mod tests {
         }
     }
 
+    fn empty_room() -> OccupancyMap {
+        let geometry = lidar_har_core::map::MapGeometry {
+            resolution: 0.1,
+            origin: Pose2::new(-5.0, -5.0, 0.0),
+            width: 100,
+            height: 100,
+        };
+        OccupancyMap::new(geometry, vec![false; 10_000]).unwrap()
+    }
+
     #[test]
     fn mount_is_resolved_through_a_static_chain_and_map_to_odom_applied() {
-        let map = {
-            let geometry = lidar_har_core::map::MapGeometry {
-                resolution: 0.1,
-                origin: Pose2::new(-5.0, -5.0, 0.0),
-                width: 100,
-                height: 100,
-            };
-            OccupancyMap::new(geometry, vec![false; 10_000]).unwrap()
-        };
-        let mut stage =
-            LocaliserStage::new(LocaliserConfig::default(), RoomSource::Map(map), true).unwrap();
+        let mut stage = LocaliserStage::new(
+            LocaliserConfig::default(),
+            RoomSource::Map(empty_room()),
+            true,
+        )
+        .unwrap();
+        assert_eq!(stage.mount_source(), MountSource::Configuration);
         stage.on_tf_static(&TFMessage {
             transforms: vec![
                 tf("base_link", "laser_mount", 0.2, 0.0),
@@ -453,6 +503,26 @@ mod tests {
         assert!((out.laser_pose.y - 2.0).abs() < 1e-12);
         assert!((out.laser_pose.theta - 0.5).abs() < 1e-12);
         assert_eq!(stage.output_frame(), "map");
+        assert_eq!(stage.mount_source(), MountSource::TfStatic);
+    }
+
+    #[test]
+    fn a_scan_frame_without_a_static_chain_keeps_the_configured_mount() {
+        let mount = Pose2::new(0.15, 0.0, 0.0);
+        let config = LocaliserConfig {
+            mount,
+            ..LocaliserConfig::default()
+        };
+        let mut stage = LocaliserStage::new(config, RoomSource::Map(empty_room()), false).unwrap();
+        // The robot description calls the Lidar `rplidar_link`; the driver says `laser`.
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![tf("base_link", "rplidar_link", 0.2, 0.0)],
+        });
+        for k in 0..=SCANS_BEFORE_MOUNT_WARNING {
+            let out = stage.on_scan(&scan(i64::from(k))).expect("localised");
+            assert_eq!(out.laser_pose, mount);
+        }
+        assert_eq!(stage.mount_source(), MountSource::Configuration);
     }
 
     #[test]

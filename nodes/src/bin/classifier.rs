@@ -4,13 +4,16 @@
 //! code `lidar-har run` runs over a bag.
 //!
 //! Parameters: `config` (a `config/classifier.yaml`-format file; empty = defaults), `model`
-//! (the ONNX model; empty = the one the configuration names).
+//! and `pose_head` (ONNX files; empty = those the configuration names, which are relative
+//! to the working directory, so launch files pass the installed ones).
 
 use std::process::ExitCode;
 use std::time::Duration;
 
 use lidar_har::{NodeInfo, Outputs, Shutdown, bad_parameter, optional_path};
-use lidar_har_pipeline::classifier::{ClassifierStage, load_classifier_config};
+use lidar_har_pipeline::classifier::{
+    ClassifierConfig, ClassifierError, ClassifierStage, load_classifier_config,
+};
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue};
 
 fn main() -> ExitCode {
@@ -37,19 +40,30 @@ fn decls() -> Vec<ParamDecl> {
             V::String(String::new()),
             "ONNX step model; empty = the configuration's",
         ),
+        ParamDecl::new(
+            "pose_head",
+            V::String(String::new()),
+            "ONNX pose head for /human/pelvis; empty = the configuration's",
+        ),
     ]
 }
 
 fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = Node::new(NodeSetup::new("classifier").parameters(decls()))?;
     let p = node.params();
-    let config = match optional_path(p, "config")? {
+    let mut config = match optional_path(p, "config")? {
         Some(path) => load_classifier_config(&path).map_err(|e| bad_parameter("config", e))?,
-        None => Default::default(),
+        None => ClassifierConfig::default(),
     };
+    if let Some(head) = optional_path(p, "pose_head")? {
+        config.pose_head = Some(head);
+    }
     let model = optional_path(p, "model")?;
-    let mut stage =
-        ClassifierStage::load(&config, model.as_deref()).map_err(|e| bad_parameter("model", e))?;
+    let mut stage = ClassifierStage::load(&config, model.as_deref()).map_err(|e| match e {
+        // The installation, not a parameter, is at fault: status 1, the message says the fix.
+        ClassifierError::Model(e) if e.is_runtime() => anyhow::Error::new(e),
+        e => bad_parameter("model", e).into(),
+    })?;
     let [input] = ClassifierStage::INPUTS;
     let input = node.subscriber_for(&input)?;
     let outputs = Outputs::new(&node, &ClassifierStage::OUTPUTS)?;

@@ -17,8 +17,8 @@ use lidar_har_core::activity::Activity;
 use lidar_har_core::fall::{AlertKind, FallAlert};
 use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
 use lidar_har_core::pose_head::NoPoseHead;
+use lidar_har_core::stats::Spread;
 use lidar_har_infer::ActivityModel;
-use lidar_har_pipeline::bag_run::Spread;
 use lidar_har_pipeline::classifier::{
     ClassifierConfig, ClassifierOutput, ClassifierStage, load_classifier_config,
 };
@@ -182,6 +182,9 @@ struct Episode {
     scans: ConfusionMatrix,
 }
 
+/// The longest run without falls, hours: about 5 hours of computing on one core.
+const MAX_NO_FALL_HOURS: f64 = 1000.0;
+
 pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     anyhow::ensure!(
         args.episode_seconds.is_finite() && args.episode_seconds >= 5.0,
@@ -189,8 +192,8 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         args.episode_seconds
     );
     anyhow::ensure!(
-        args.no_fall_hours.is_finite() && args.no_fall_hours >= 0.0,
-        "--no-fall-hours {}: must be a finite number >= 0",
+        (0.0..=MAX_NO_FALL_HOURS).contains(&args.no_fall_hours),
+        "--no-fall-hours {}: must be a number of hours from 0 to {MAX_NO_FALL_HOURS}",
         args.no_fall_hours
     );
     anyhow::ensure!(

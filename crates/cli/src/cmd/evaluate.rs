@@ -13,6 +13,7 @@ use anyhow::{Context, bail};
 use lidar_har_core::activity::Activity;
 use lidar_har_core::classifier::StepModel;
 use lidar_har_core::metrics::ConfusionMatrix;
+use lidar_har_core::stats::{median, nearest_rank};
 use lidar_har_infer::ActivityModel;
 use ndarray::{Array2, s};
 use plotters::prelude::*;
@@ -183,10 +184,7 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
     };
     step_times.sort_by(f64::total_cmp);
     let mean = step_times.iter().sum::<f64>() / step_times.len().max(1) as f64;
-    let p99 = step_times
-        .get(step_times.len() * 99 / 100)
-        .copied()
-        .unwrap_or(0.0);
+    let p99 = nearest_rank(&step_times, 0.99).unwrap_or(0.0);
     let metrics = Metrics {
         model: args.model.display().to_string(),
         data: args.data.display().to_string(),
@@ -290,7 +288,7 @@ fn evaluate_split(
             let started = Instant::now();
             let logits = model.step(frame.view(), &mut state)?;
             step_times.push(started.elapsed().as_secs_f64() * 1e3);
-            let predicted = argmax(&logits);
+            let (predicted, _) = Activity::most_likely(&logits);
             let truth = Activity::from_index(labels[[w, k]] as usize).unwrap_or(Activity::Standing);
             if k == half && predicted == truth {
                 half_right += 1;
@@ -360,32 +358,13 @@ fn episode_spread(index: &DatasetIndex, split: &str, correct: &[bool]) -> Option
     scored.sort_by(|a, b| a.accuracy.total_cmp(&b.accuracy));
     let worst = scored.first()?.clone();
     let best = scored.last()?.clone();
-    let accuracies: Vec<f64> = scored.iter().map(|e| e.accuracy).collect();
+    let mut accuracies: Vec<f64> = scored.iter().map(|e| e.accuracy).collect();
     Some(EpisodeSpread {
         episodes: scored.len(),
-        median: median_of_sorted(&accuracies)?,
+        median: median(&mut accuracies)?,
         best,
         worst,
     })
-}
-
-/// The median of ascending `sorted`: the mean of the middle two for an even count (the upper
-/// one alone made the median of two episodes their best).
-fn median_of_sorted(sorted: &[f64]) -> Option<f64> {
-    let middle = sorted.len() / 2;
-    match sorted.len() {
-        0 => None,
-        n if n % 2 == 0 => Some((sorted[middle - 1] + sorted[middle]) / 2.0),
-        _ => Some(sorted[middle]),
-    }
-}
-
-fn argmax(logits: &[f32; Activity::COUNT]) -> Activity {
-    let best = logits
-        .iter()
-        .enumerate()
-        .fold(0, |best, (i, &v)| if v > logits[best] { i } else { best });
-    Activity::from_index(best).unwrap_or(Activity::Standing)
 }
 
 /// Picks one subset's scores out of a split's metrics (for the report's rows).
@@ -590,20 +569,4 @@ fn draw_confusion(confusion: &ConfusionMatrix, path: &Path) -> anyhow::Result<()
     }
     root.present().map_err(|e| draw(&e))?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_median_of_an_even_count_is_between_the_middle_two() {
-        assert_eq!(median_of_sorted(&[]), None);
-        assert_eq!(median_of_sorted(&[0.5]), Some(0.5));
-        assert_eq!(
-            median_of_sorted(&[0.915, 0.949]),
-            Some((0.915 + 0.949) / 2.0)
-        );
-        assert_eq!(median_of_sorted(&[0.1, 0.2, 0.9]), Some(0.2));
-    }
 }

@@ -54,9 +54,12 @@ pub fn run(command: TopicCommand) -> anyhow::Result<()> {
     }
 }
 
+/// The longest `--wait` or `--timeout`, seconds (a day).
+const MAX_SECONDS: f64 = 86_400.0;
+
 fn seconds(value: f64, flag: &str) -> anyhow::Result<Duration> {
-    if !(value.is_finite() && value >= 0.0) {
-        bail!("{flag} {value}: must be a finite number of seconds >= 0");
+    if !(0.0..=MAX_SECONDS).contains(&value) {
+        bail!("{flag} {value}: must be a number of seconds from 0 to {MAX_SECONDS} (a day)");
     }
     Ok(Duration::from_secs_f64(value))
 }
@@ -182,6 +185,21 @@ fn to_json(type_name: &str, bytes: &[u8]) -> serde_json::Value {
         None => {
             let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
             serde_json::json!({ "cdr_hex": hex })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn waits_are_refused_outside_zero_to_a_day_naming_the_flag() {
+        assert_eq!(seconds(1.5, "--wait").unwrap(), Duration::from_millis(1500));
+        assert_eq!(seconds(MAX_SECONDS, "--wait").unwrap().as_secs(), 86_400);
+        for bad in [-1.0, f64::NAN, f64::INFINITY, 1e20, MAX_SECONDS + 1.0] {
+            let e = seconds(bad, "--timeout").unwrap_err().to_string();
+            assert!(e.starts_with("--timeout "), "{e}");
         }
     }
 }

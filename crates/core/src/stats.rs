@@ -1,0 +1,115 @@
+//! Medians and quantiles: one rule each for every figure the project prints and every
+//! decision that takes a median.
+
+use serde::Serialize;
+
+/// Nearest-rank quantile `q` (0..=1) of ascending `sorted` values: the smallest value with
+/// at least a fraction `q` of them at or below it, so always a value that occurred. `None`
+/// when empty.
+pub fn nearest_rank(sorted: &[f64], q: f64) -> Option<f64> {
+    let n = sorted.len();
+    (n > 0).then(|| sorted[((q * n as f64).ceil() as usize).clamp(1, n) - 1])
+}
+
+/// The median of `values` (reordered): the middle value, or the mean of the middle two for
+/// an even count; `None` when empty.
+pub fn median(values: &mut [f64]) -> Option<f64> {
+    let n = values.len();
+    if n == 0 {
+        return None;
+    }
+    let (_, &mut upper, _) = values.select_nth_unstable_by(n / 2, f64::total_cmp);
+    if n % 2 == 1 {
+        return Some(upper);
+    }
+    // The lower middle is the largest of the values the selection put before the upper one.
+    let lower = values[..n / 2]
+        .iter()
+        .copied()
+        .max_by(f64::total_cmp)
+        .unwrap_or(upper);
+    Some((lower + upper) / 2.0)
+}
+
+/// The upper of the middle two of `values` (reordered) for an even count, else the middle
+/// one; `None` when empty. A value that occurred: the rule of the thresholds decided on the
+/// median of a few scans (the fall alerts), where a mean of two would be a reading no scan gave.
+pub fn upper_median(values: &mut [f64]) -> Option<f64> {
+    let n = values.len();
+    if n == 0 {
+        return None;
+    }
+    let (_, &mut upper, _) = values.select_nth_unstable_by(n / 2, f64::total_cmp);
+    Some(upper)
+}
+
+/// Median and tail of a distribution (nearest-rank quantiles).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Spread {
+    pub median: f64,
+    pub p95: f64,
+    pub p99: f64,
+    pub max: f64,
+    pub count: usize,
+}
+
+impl Spread {
+    /// The spread of the finite `values`; `None` when there are none.
+    pub fn of(mut values: Vec<f64>) -> Option<Spread> {
+        values.retain(|v| v.is_finite());
+        values.sort_by(f64::total_cmp);
+        let q = |p: f64| nearest_rank(&values, p);
+        Some(Spread {
+            median: q(0.5)?,
+            p95: q(0.95)?,
+            p99: q(0.99)?,
+            max: q(1.0)?,
+            count: values.len(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_rank_picks_a_value_that_occurred() {
+        let sorted: Vec<f64> = (1..=20).map(f64::from).collect();
+        assert_eq!(nearest_rank(&sorted, 0.5), Some(10.0));
+        assert_eq!(nearest_rank(&sorted, 0.95), Some(19.0));
+        assert_eq!(nearest_rank(&sorted, 0.951), Some(20.0));
+        assert_eq!(nearest_rank(&sorted, 0.0), Some(1.0));
+        assert_eq!(nearest_rank(&sorted, 1.0), Some(20.0));
+        assert_eq!(nearest_rank(&[], 0.5), None);
+    }
+
+    #[test]
+    fn the_median_of_an_even_count_is_the_mean_of_the_middle_two() {
+        assert_eq!(median(&mut []), None);
+        assert_eq!(median(&mut [0.5]), Some(0.5));
+        assert_eq!(median(&mut [0.9, 0.1, 0.2]), Some(0.2));
+        assert_eq!(median(&mut [0.949, 0.915]), Some((0.915 + 0.949) / 2.0));
+        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0, 8.0, 0.0]), Some(2.5));
+        assert_eq!(upper_median(&mut [4.0, 1.0, 3.0, 2.0, 8.0, 0.0]), Some(3.0));
+        assert_eq!(upper_median(&mut [0.9, 0.1, 0.2]), Some(0.2));
+        assert_eq!(upper_median(&mut []), None);
+    }
+
+    #[test]
+    fn a_spread_takes_nearest_ranks() {
+        let s = Spread::of((1..=100).map(f64::from).collect()).unwrap();
+        assert_eq!(
+            (s.median, s.p95, s.p99, s.max, s.count),
+            (50.0, 95.0, 99.0, 100.0, 100)
+        );
+    }
+
+    #[test]
+    fn a_spread_ignores_values_that_are_not_finite() {
+        let spread = Spread::of(vec![3.0, f64::NAN, 1.0, 2.0, f64::INFINITY]).unwrap();
+        assert_eq!((spread.median, spread.max, spread.count), (2.0, 3.0, 3));
+        assert_eq!(Spread::of(vec![f64::NAN]), None);
+        assert_eq!(Spread::of(Vec::new()), None);
+    }
+}
