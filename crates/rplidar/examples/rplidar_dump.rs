@@ -103,8 +103,16 @@ fn main() {
     };
     let mut scans = 0u64;
     let mut reader_gone = false;
+    let mut failure = None;
     while Instant::now() < end && !reader_gone {
-        match driver.next_event() {
+        let event = match driver.next_event() {
+            Ok(event) => event,
+            Err(e) => {
+                failure = Some(e);
+                break;
+            }
+        };
+        match event {
             Event::Scan(scan) => {
                 scans += 1;
                 let valid: Vec<f32> = scan
@@ -146,6 +154,11 @@ fn main() {
     drop(fake);
     if let Some(dir) = fake_dir {
         let _ = std::fs::remove_dir(dir);
+    }
+    // The device lacks what the arguments ask for (a scan mode): a usage error.
+    if let Some(e) = failure {
+        eprintln!("{e}");
+        std::process::exit(2);
     }
     // The driver retries a missing port or a silent device for ever; this check must fail.
     if scans == 0 {

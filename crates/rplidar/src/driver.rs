@@ -1,12 +1,14 @@
 //! The driver: owns the serial port and runs the device through its states, turning every
-//! fault into a diagnostic and a recovery instead of an error.
+//! fault into a diagnostic and a recovery instead of an error; only a configuration the
+//! device cannot satisfy (a scan mode it lacks) stops it, since retrying cannot help.
 //!
 //! ```text
 //! Disconnected --open, stop, info, health, start scan--> Scanning
-//!      ^   (failure: wait, doubling up to reconnect_max)      |
-//!      |                                                        | no valid data for data_timeout:
-//!      +------------- read/write error (unplugged) -------------+   RESET, then start again
-//!                                                                     health error at start: RESET
+//!   |  ^   (failure: wait, doubling up to reconnect_max)      |
+//!   |  |                                                        | no valid data for data_timeout:
+//!   |  +------------- read/write error (unplugged) -------------+   RESET, then start again
+//!   |                                                                 health error at start: RESET
+//!   +--scan mode the device lacks--> Failed (next_event returns the error)
 //! ```
 //!
 //! A host (the ROS node) only loops over [`Driver::next_event`] and publishes what it gets.
@@ -297,8 +299,15 @@ struct Session {
 }
 
 enum State {
-    Disconnected { next_attempt: Instant },
+    Disconnected {
+        next_attempt: Instant,
+    },
     Scanning(Box<Session>),
+    /// Stopped for good: the configuration asks for what the device does not have.
+    Failed {
+        parameter: &'static str,
+        reason: String,
+    },
 }
 
 /// The RPLIDAR driver (see the module documentation).
@@ -355,11 +364,19 @@ impl Driver {
         s
     }
 
-    /// Blocks until the next scan or diagnostics report.
-    pub fn next_event(&mut self) -> Event {
+    /// Blocks until the next scan or diagnostics report. Faults are reported and recovered
+    /// from; only a permanent one ([`Error::Unsupported`], naming the parameter to change)
+    /// is returned, after its diagnostics report, and from then on at every call.
+    pub fn next_event(&mut self) -> Result<Event> {
         loop {
             if let Some(event) = self.pending.pop_front() {
-                return event;
+                return Ok(event);
+            }
+            if let State::Failed { parameter, reason } = &self.state {
+                return Err(Error::Unsupported {
+                    parameter,
+                    reason: reason.clone(),
+                });
             }
             self.step();
         }
@@ -381,6 +398,7 @@ impl Driver {
                 }
             }
             State::Scanning(_) => self.poll_scan(),
+            State::Failed { .. } => {}
         }
     }
 
@@ -407,6 +425,15 @@ impl Driver {
     }
 
     fn fail_connect(&mut self, e: Error) {
+        if let Error::Unsupported { parameter, reason } = e {
+            let message = format!("{parameter}: {reason}; not retrying: change {parameter}");
+            error!("{}: {message}", self.config.port);
+            self.status.last_error = Some(message.clone());
+            self.leave_scanning();
+            self.state = State::Failed { parameter, reason };
+            self.report(DiagnosticStatus::ERROR, message);
+            return;
+        }
         let wait = self.backoff;
         self.backoff = (self.backoff * 2).min(self.config.reconnect_max);
         let hint = match &e {
@@ -454,7 +481,7 @@ impl Driver {
     fn decode_totals(&self) -> DecodeStats {
         match &self.state {
             State::Scanning(s) => add_stats(self.decode_before, s.decoder.stats()),
-            State::Disconnected { .. } => self.decode_before,
+            State::Disconnected { .. } | State::Failed { .. } => self.decode_before,
         }
     }
 
@@ -497,6 +524,17 @@ impl Driver {
             warn!("{}: {message}", self.config.port);
             self.report(DiagnosticStatus::WARN, message);
         }
+        // Chosen before the motor is started, so that a mode the device lacks (permanent)
+        // leaves the motor off.
+        let mut plan = match self.plan_scan(&mut link, &info) {
+            Ok(plan) => plan,
+            Err(e) => {
+                if matches!(e, Error::Unsupported { .. }) {
+                    link.set_motor_dtr(false);
+                }
+                return Err(e);
+            }
+        };
         let mut motor_pwm = None;
         if info.is_time_of_flight() {
             if let Some(rpm) = self.config.motor_rpm {
@@ -512,7 +550,6 @@ impl Driver {
                 link.send(&Request::SetMotorPwm(pwm))?;
             }
         }
-        let mut plan = self.plan_scan(&mut link, &info)?;
         if plan.nominal_rate_hz.is_none() && info.supports_express() {
             plan.nominal_rate_hz = self.legacy_sample_rate(&mut link, plan.format);
         }
@@ -708,9 +745,9 @@ impl Driver {
     fn legacy_plan(&mut self, choice: &ScanModeChoice, info: &DeviceInfo) -> Result<ScanPlan> {
         if let ScanModeChoice::Named(name) = choice {
             if info.lacks_scan_modes() {
-                return Err(Error::Unsupported(format!(
-                    "scan mode `{name}`: firmware {} has no scan modes (they came with 1.24); \
-                     use auto, standard or express",
+                return Err(scan_mode_unsupported(format!(
+                    "`{name}`: firmware {} has no scan modes (they came with 1.24); use auto, \
+                     standard or express",
                     info.firmware()
                 )));
             }
@@ -761,9 +798,9 @@ impl Driver {
                         .find(|m| m.answer_type == answer::MEASUREMENT_CAPSULED)
                 })
                 .ok_or_else(|| {
-                    Error::Unsupported(format!(
-                        "scan mode express: the device has no express-capsule mode; it offers: \
-                         {}; use auto or one of these names",
+                    scan_mode_unsupported(format!(
+                        "express: the device has no express-capsule mode; it offers: {}; use \
+                         auto or one of these names",
                         offered()
                     ))
                 })?,
@@ -786,8 +823,8 @@ impl Driver {
                 .iter()
                 .find(|m| m.name.eq_ignore_ascii_case(name.trim()))
                 .ok_or_else(|| {
-                    Error::Unsupported(format!(
-                        "scan mode `{name}` is not offered; the device offers: {}",
+                    scan_mode_unsupported(format!(
+                        "`{name}` is not offered; the device offers: {}",
                         offered()
                     ))
                 })?,
@@ -800,9 +837,20 @@ impl Driver {
             });
         }
         let format = ScanFormat::from_answer_type(mode.answer_type).ok_or_else(|| {
-            Error::Unsupported(format!(
-                "scan mode {} streams answer type 0x{:02X}, which this driver does not decode",
-                mode.name, mode.answer_type
+            let decoded: Vec<&str> = modes
+                .iter()
+                .filter(|m| {
+                    m.answer_type == answer::MEASUREMENT
+                        || ScanFormat::from_answer_type(m.answer_type).is_some()
+                })
+                .map(|m| m.name.as_str())
+                .collect();
+            scan_mode_unsupported(format!(
+                "mode `{}` streams answer type 0x{:02X}, which this driver does not decode; \
+                 set a mode it decodes: {}",
+                mode.name,
+                mode.answer_type,
+                decoded.join(", ")
             ))
         })?;
         let working_mode = u8::try_from(mode.id).map_err(|_| {
@@ -1078,6 +1126,14 @@ fn conf_request(
         &what,
     )?;
     Ok(parse_conf_answer(&payload, entry)?.to_vec())
+}
+
+/// The device lacks what `scan_mode` asks for: a permanent error.
+fn scan_mode_unsupported(reason: String) -> Error {
+    Error::Unsupported {
+        parameter: "scan_mode",
+        reason,
+    }
 }
 
 fn instant_to_clock_ns(clock: &Clock, t: Instant) -> i64 {

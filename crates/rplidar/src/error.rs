@@ -1,7 +1,7 @@
 //! Errors of the driver.
 
-/// Everything that can go wrong talking to a device. None of them is fatal to the
-/// [`crate::Driver`], which reports them as diagnostics and recovers.
+/// Everything that can go wrong talking to a device. The [`crate::Driver`] reports them as
+/// diagnostics and recovers, except from [`Error::Unsupported`]: retrying cannot help there.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// The serial port could not be opened or configured.
@@ -19,9 +19,14 @@ pub enum Error {
     /// The device answered something the protocol does not allow here.
     #[error("protocol error: {0}")]
     Protocol(String),
-    /// The device does not support what was asked.
-    #[error("unsupported: {0}")]
-    Unsupported(String),
+    /// The device does not have what the configuration parameter `parameter` asks for (a
+    /// scan mode it does not list, one whose format is not decoded). Permanent: the driver
+    /// stops and [`crate::Driver::next_event`] returns it.
+    #[error("{parameter}: {reason}")]
+    Unsupported {
+        parameter: &'static str,
+        reason: String,
+    },
     /// A configuration value is invalid.
     #[error("invalid configuration: {0}")]
     Config(String),

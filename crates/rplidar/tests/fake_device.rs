@@ -6,10 +6,10 @@ use std::time::{Duration, Instant};
 
 use lidar_har_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
 use lidar_har_msgs::sensor_msgs::LaserScan;
-use lidar_har_rplidar::fake::{FakeConfig, FakeLidar, SyntheticRoom};
+use lidar_har_rplidar::fake::{FakeConfig, FakeLidar, FakeScanMode, SyntheticRoom};
 use lidar_har_rplidar::protocol::HealthStatus;
 use lidar_har_rplidar::{
-    Config, DEFAULT_MOTOR_PWM, Driver, Event, ScanFormat, ScanGeometry, ScanModeChoice,
+    Config, DEFAULT_MOTOR_PWM, Driver, Error, Event, ScanFormat, ScanGeometry, ScanModeChoice,
 };
 
 const SAMPLES: usize = 720;
@@ -88,11 +88,34 @@ fn run_until(
                 .collect::<Vec<_>>()
         );
         match driver.next_event() {
-            Event::Scan(scan) => scans.push(scan),
-            Event::Diagnostics(DiagnosticArray { status, .. }) => diags.extend(status),
+            Ok(Event::Scan(scan)) => scans.push(scan),
+            Ok(Event::Diagnostics(DiagnosticArray { status, .. })) => diags.extend(status),
+            Err(e) => panic!("the driver stopped: {e}"),
         }
     }
     (scans, diags)
+}
+
+/// Runs the driver until it stops with a permanent error, returning the error and the
+/// diagnostics before it.
+fn run_until_stopped(driver: &mut Driver, limit: Duration) -> (Error, Vec<DiagnosticStatus>) {
+    let deadline = Instant::now() + limit;
+    let mut diags = Vec::new();
+    loop {
+        assert!(
+            Instant::now() < deadline,
+            "still running after {limit:?}: {:#?}",
+            diags
+                .iter()
+                .map(|d: &DiagnosticStatus| (d.level, d.message.clone()))
+                .collect::<Vec<_>>()
+        );
+        match driver.next_event() {
+            Ok(Event::Scan(_)) => panic!("a scan from a driver that should stop"),
+            Ok(Event::Diagnostics(DiagnosticArray { status, .. })) => diags.extend(status),
+            Err(e) => return (e, diags),
+        }
+    }
 }
 
 fn scans(n: usize) -> impl FnMut(&[LaserScan], &[DiagnosticStatus]) -> bool {
@@ -321,30 +344,113 @@ fn old_a1_firmware_without_scan_modes_uses_standard_scans_as_before() {
     assert!(!log.commands.contains(&0x82), "{:?}", log.commands);
 }
 
-#[test]
-fn unknown_named_mode_is_reported_and_retried_never_fatal() {
+/// Checks a permanent scan-mode error: returned (naming `scan_mode`) after an ERROR report,
+/// again at the next call, with no scan started and the motor not started.
+fn check_stops_on(fake: FakeConfig, mode: ScanModeChoice, reason: &str) {
     let dir = tempfile::tempdir().unwrap();
-    let fake = spawn(dir.path(), FakeConfig::default());
+    let fake = spawn(dir.path(), fake);
+    let mut driver = Driver::new(config(fake.path(), mode.clone())).unwrap();
+    let (error, diags) = run_until_stopped(&mut driver, Duration::from_secs(10));
+    let text = error.to_string();
+    assert!(
+        matches!(
+            error,
+            Error::Unsupported {
+                parameter: "scan_mode",
+                ..
+            }
+        ),
+        "{mode:?}: {text}"
+    );
+    assert!(text.contains(reason), "{mode:?}: {text}");
+    let report = diags.last().expect("the error is reported first");
+    assert_eq!(report.level, DiagnosticStatus::ERROR);
+    assert!(
+        report.message.contains("not retrying"),
+        "{}",
+        report.message
+    );
+    assert!(!driver.status().scanning);
+    let started = Instant::now();
+    assert!(driver.next_event().is_err(), "{mode:?}: stays stopped");
+    assert!(
+        started.elapsed() < Duration::from_secs(1),
+        "without retrying"
+    );
+    let log = fake.log();
+    assert!(
+        log.scans_started.is_empty(),
+        "{mode:?}: {:?}",
+        log.scans_started
+    );
+    assert_eq!(log.motor_pwm, None);
+}
+
+#[test]
+fn a_scan_mode_the_device_lacks_stops_the_driver_naming_scan_mode() {
+    check_stops_on(
+        FakeConfig::default(),
+        ScanModeChoice::Named("Boost".into()),
+        "Standard (id 0), Express (id 1), DenseBoost (id 2)",
+    );
+    // An S3 has no express capsules.
+    check_stops_on(
+        FakeConfig::s_series(),
+        ScanModeChoice::Express,
+        "no express-capsule mode",
+    );
+    // Old A1 firmware has no scan modes at all.
+    let mut info = FakeConfig::default().info;
+    info.firmware_minor = 15;
+    check_stops_on(
+        FakeConfig {
+            info,
+            scan_modes: Vec::new(),
+            ..FakeConfig::default()
+        },
+        ScanModeChoice::Named("Boost".into()),
+        "has no scan modes",
+    );
+    // A typical mode in a format the driver does not decode (ultra dense).
+    let mut s3 = FakeConfig::s_series();
+    s3.scan_modes.push(FakeScanMode::new("DenseUltra", 0x86));
+    s3.typical_mode = 2;
+    check_stops_on(
+        s3,
+        ScanModeChoice::Auto,
+        "does not decode; set a mode it decodes: Standard, DenseBoost",
+    );
+}
+
+#[test]
+fn a_named_mode_without_an_answer_to_the_mode_list_is_retried() {
+    // Firmware 1.29 should list modes: no answer may be a glitch, so it is not permanent.
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(
+        dir.path(),
+        FakeConfig {
+            scan_modes: Vec::new(),
+            ..FakeConfig::default()
+        },
+    );
     let mut driver =
         Driver::new(config(fake.path(), ScanModeChoice::Named("Boost".into()))).unwrap();
-    let (_, diags) = run_until(&mut driver, Duration::from_secs(5), |_, d| {
+    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |_, d| {
         d.iter()
-            .filter(|s| s.message.contains("cannot start"))
+            .filter(|s| s.message.starts_with("cannot start"))
             .count()
             >= 2
     });
-    let error = diags
+    let retry = diags
         .iter()
-        .find(|d| d.message.contains("cannot start"))
+        .find(|d| d.message.starts_with("cannot start"))
         .unwrap();
-    assert_eq!(error.level, DiagnosticStatus::ERROR);
     assert!(
-        error
-            .message
-            .contains("Standard (id 0), Express (id 1), DenseBoost (id 2)"),
+        retry.message.contains("list of scan modes"),
         "{}",
-        error.message
+        retry.message
     );
+    assert!(retry.message.contains("retrying in"), "{}", retry.message);
 }
 
 fn garbage_resync(mode: ScanModeChoice) {

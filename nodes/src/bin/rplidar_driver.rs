@@ -1,6 +1,8 @@
 //! `rplidar_driver`: reads an RPLIDAR on a serial port and publishes /scan (fixed-size
 //! LaserScans stamped at the first sample of each rotation) and /diagnostics (device state,
-//! rates, faults). The driver library reconnects and resets on faults instead of exiting.
+//! rates, faults). The driver library reconnects and resets on faults instead of exiting;
+//! only a scan mode the device does not have ends the node, with status 2 naming
+//! `scan_mode`, like any other bad parameter.
 //!
 //! Parameters: `port`, `baud`, `frame_id`, `beams`, `range_min`, `range_max`, `scan_mode`
 //! (auto, standard, express or a device mode name), `motor_pwm` (-1 = 660 where the A2/A3
@@ -12,7 +14,7 @@ use std::process::ExitCode;
 use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
 use lidar_har_msgs::topics;
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, Parameters, RosError};
-use lidar_har_rplidar::{Config, Driver, Event, ScanModeChoice};
+use lidar_har_rplidar::{Config, Driver, Error, Event, ScanModeChoice};
 
 /// Allowed `diagnostics_period`: the node sees a shutdown signal only between events, which
 /// come at least once a period, and `ros2 launch` escalates SIGINT to SIGTERM after 5 s.
@@ -133,7 +135,7 @@ fn drive(shutdown: &Shutdown) -> anyhow::Result<()> {
     let diagnostics = node.publisher_for(&topics::DIAGNOSTICS)?;
     // next_event returns at least once per diagnostics period, so a signal is seen promptly.
     while !shutdown.requested() {
-        match driver.next_event() {
+        match driver.next_event().map_err(driver_error)? {
             Event::Scan(scan) => scans.publish_msg(&scan)?,
             Event::Diagnostics(report) => diagnostics.publish_msg(&report)?,
         }
@@ -143,6 +145,14 @@ fn drive(shutdown: &Shutdown) -> anyhow::Result<()> {
         driver.status().scans
     );
     Ok(())
+}
+
+/// The driver's permanent errors are bad parameters (exit status 2), named as it names them.
+fn driver_error(e: Error) -> anyhow::Error {
+    match e {
+        Error::Unsupported { parameter, reason } => bad_parameter(parameter, reason).into(),
+        other => other.into(),
+    }
 }
 
 #[cfg(test)]
@@ -160,6 +170,25 @@ mod tests {
     #[test]
     fn defaults_make_a_valid_config() {
         config(&params(&[])).unwrap();
+    }
+
+    #[test]
+    fn a_scan_mode_the_device_lacks_is_a_bad_parameter() {
+        let err = driver_error(Error::Unsupported {
+            parameter: "scan_mode",
+            reason: "`Boost` is not offered".into(),
+        });
+        assert!(
+            matches!(
+                err.downcast_ref::<RosError>(),
+                Some(RosError::Parameter { name, .. }) if name == "scan_mode"
+            ),
+            "{err:#}"
+        );
+        assert!(
+            format!("{err:#}").contains("`Boost` is not offered"),
+            "{err:#}"
+        );
     }
 
     #[test]
