@@ -59,6 +59,9 @@ pub struct OccupancyMap {
     distance_m: Vec<f32>,
 }
 
+/// map_server's default threshold for an occupied cell (its `occupied_thresh`).
+pub const MAP_SERVER_OCCUPIED_THRESH: f64 = 0.65;
+
 impl OccupancyMap {
     /// Builds the map from one flag per cell (row-major, row 0 at the origin side).
     pub fn new(geometry: MapGeometry, occupied: Vec<bool>) -> Result<Self, MapError> {
@@ -128,8 +131,8 @@ impl OccupancyMap {
 
     /// Builds the map from `nav_msgs/OccupancyGrid` values: 0..=100 is the occupancy
     /// probability in percent, -1 (or anything outside 0..=100) unknown. A cell is an obstacle
-    /// when its probability exceeds `occupied_thresh` (map_server's meaning; 0.65 there); -1 is
-    /// unknown.
+    /// when its probability exceeds `occupied_thresh` (map_server's meaning;
+    /// [`MAP_SERVER_OCCUPIED_THRESH`] there); -1 is unknown.
     pub fn from_grid_values(
         geometry: MapGeometry,
         values: &[i8],

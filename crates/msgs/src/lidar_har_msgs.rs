@@ -58,14 +58,6 @@ impl Activity {
     pub fn label_of(activity: u8) -> Option<&'static str> {
         Self::LABELS.get(usize::from(activity)).copied()
     }
-
-    /// The class index of a label, or `None` if it names no class.
-    pub fn index_of(label: &str) -> Option<u8> {
-        Self::LABELS
-            .iter()
-            .position(|l| *l == label)
-            .and_then(|i| u8::try_from(i).ok())
-    }
 }
 
 /// `lidar_har_msgs/msg/FallAlert`: the person fell or is down on the floor.

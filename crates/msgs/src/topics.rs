@@ -49,6 +49,11 @@ topics! {
     GROUND_TRUTH_ACTIVITY = "/ground_truth/activity", lidar_har_msgs::Activity, QosProfile::reliable(10);
 }
 
+/// The topic of the contract with this name, if any.
+pub fn find(name: &str) -> Option<&'static TopicSpec> {
+    ALL.iter().find(|spec| spec.name == name)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -86,6 +91,8 @@ mod tests {
                 "{}",
                 topic.name
             );
+            assert_eq!(find(topic.name).map(|t| t.type_name), Some(topic.type_name));
         }
+        assert!(find("/chatter").is_none());
     }
 }

@@ -31,12 +31,11 @@ use lidar_har_core::localiser::{Localiser, LocaliserConfig, Motion, Reference};
 use lidar_har_core::localiser_accuracy::{
     AccuracyCriteria, AccuracyReport, AccuracyTally, PointOwners, ReportedPerson, ScanOutcome,
 };
-use lidar_har_core::map::{MapGeometry, OccupancyMap as CoreMap};
 use lidar_har_core::scan::Scan;
 use lidar_har_core::stats::nearest_rank;
 use lidar_har_pipeline::classifier::{ClassifierConfig, ClassifierStage, load_classifier_config};
 use lidar_har_pipeline::convert::observation_msg;
-use lidar_har_pipeline::files::load_config;
+use lidar_har_pipeline::files::load_localiser_config;
 use lidar_har_sim::body::Capsule;
 use lidar_har_sim::map::{DEFAULT_RESOLUTION, OccupancyMap as SimMap};
 use lidar_har_sim::scene::Motion as RobotMotion;
@@ -159,7 +158,7 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
         return Err("--seeds 0: nothing to measure (give at least 1)".into());
     }
     let mut config = match &args.config {
-        Some(path) => load_config(path)?,
+        Some(path) => load_localiser_config(path)?,
         None => LocaliserConfig::default(),
     };
     if let Some(offset) = args.centroid_offset {
@@ -376,7 +375,7 @@ fn run_scene(
     mut dump: Option<&mut BufWriter<File>>,
     by_activity: &mut BTreeMap<usize, Group>,
 ) -> Result<(), Box<dyn Error>> {
-    let map = core_map(&SimMap::from_world(sim.world(), DEFAULT_RESOLUTION))?;
+    let map = SimMap::from_world(sim.world(), DEFAULT_RESOLUTION).to_localiser_map()?;
     let config = LocaliserConfig {
         mount: sim.lidar_mount(),
         ..config.clone()
@@ -561,18 +560,6 @@ fn point_owners(scan: &Scan, labels: &[BeamLabel], laser: Pose2, taken: &[DVec2]
         from_person,
         total: taken.len(),
     }
-}
-
-/// The simulator's grid as the localiser's map (map_server's default threshold, as /map is
-/// read by the pipeline).
-fn core_map(sim_map: &SimMap) -> Result<CoreMap, Box<dyn Error>> {
-    let geometry = MapGeometry {
-        resolution: sim_map.resolution,
-        origin: Pose2::new(sim_map.origin.x, sim_map.origin.y, 0.0),
-        width: sim_map.width as usize,
-        height: sim_map.height as usize,
-    };
-    Ok(CoreMap::from_grid_values(geometry, &sim_map.data, 0.65)?)
 }
 
 /// Centre of the body's cut by the plane `z = height`: capsule axes sampled every ~2 cm,

@@ -714,8 +714,6 @@ pub fn activity_msg(header: Header, prediction: &Prediction) -> har::Activity {
     }
 }
 
-/// The /human/fall_alert message of an alert raised on the scan of `header` (its stamp
-/// exact: seconds since the epoch as f64 lose the nanoseconds).
 /// `/human/pelvis`: heading unknown (identity orientation, rotations of unknown variance).
 pub fn pelvis_msg(header: Header, pelvis: &Pelvis) -> PoseWithCovarianceStamped {
     PoseWithCovarianceStamped {
@@ -730,6 +728,8 @@ pub fn pelvis_msg(header: Header, pelvis: &Pelvis) -> PoseWithCovarianceStamped 
     }
 }
 
+/// The /human/fall_alert message of an alert raised on the scan of `header` (its stamp
+/// exact: seconds since the epoch as f64 lose the nanoseconds).
 pub fn alert_msg(header: Header, alert: &FallAlert) -> har::FallAlert {
     let secs_to_time = |s: f64| Time::from_nanos((s * 1e9).round() as i64);
     let (kind, event_time_s, description) = match alert.kind {
@@ -1488,6 +1488,29 @@ mod tests {
         };
         assert_eq!(c.lane_schedule(20, false), schedule(0));
         assert_eq!(c.lane_schedule(20, true), schedule(1));
+    }
+
+    #[test]
+    fn the_message_classes_are_the_cores_in_the_same_order() {
+        assert_eq!(usize::from(har::Activity::NUM_CLASSES), Activity::COUNT);
+        for activity in Activity::ALL {
+            let msg = activity_msg(
+                Header::default(),
+                &Prediction {
+                    stamp_s: 0.0,
+                    activity,
+                    confidence: 1.0,
+                    probabilities: [0.0; Activity::COUNT],
+                    history: 20,
+                    ready: true,
+                },
+            );
+            assert_eq!(
+                har::Activity::label_of(msg.activity),
+                Some(activity.label())
+            );
+            assert_eq!(activity_of(&msg), Some(activity));
+        }
     }
 
     #[test]

@@ -50,9 +50,6 @@ pub fn map_from_grid(grid: &OccupancyGrid, occupied_thresh: f64) -> Result<Occup
     OccupancyMap::from_grid_values(geometry, &grid.data, occupied_thresh)
 }
 
-/// map_server's threshold for an occupied cell.
-pub const OCCUPIED_THRESH: f64 = 0.65;
-
 /// Variance reported for what the localiser does not estimate (height, tilt, heading):
 /// large, so consumers treat it as unknown (REP-145 style).
 const UNKNOWN_VARIANCE: f64 = 1e6;
@@ -184,6 +181,7 @@ pub fn markers_msg(output: &LocaliserOutput, frame_id: &str) -> MarkerArray {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lidar_har_core::map::MAP_SERVER_OCCUPIED_THRESH;
     use lidar_har_msgs::nav_msgs::MapMetaData;
 
     fn output(visible: bool) -> LocaliserOutput {
@@ -274,13 +272,13 @@ mod tests {
             data: vec![0, 100, -1],
             ..OccupancyGrid::default()
         };
-        let map = map_from_grid(&grid, OCCUPIED_THRESH).unwrap();
+        let map = map_from_grid(&grid, MAP_SERVER_OCCUPIED_THRESH).unwrap();
         assert_eq!(map.distance_to_obstacle(DVec2::new(1.75, 0.25)), Some(0.0));
         assert_eq!(map.distance_to_obstacle(DVec2::new(1.25, 0.25)), Some(0.5));
         let mut short = grid.clone();
         short.data.pop();
         assert!(matches!(
-            map_from_grid(&short, OCCUPIED_THRESH),
+            map_from_grid(&short, MAP_SERVER_OCCUPIED_THRESH),
             Err(MapError::CellCount { .. })
         ));
     }

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use lidar_har_core::geometry::Pose2;
 use lidar_har_core::localiser::{ConfigError, LocaliserConfig};
-use lidar_har_core::map::{MapError, MapGeometry, OccupancyMap};
+use lidar_har_core::map::{MAP_SERVER_OCCUPIED_THRESH, MapError, MapGeometry, OccupancyMap};
 use serde::Deserialize;
 
 /// Why a configuration or map file cannot be used.
@@ -37,12 +37,12 @@ pub enum FileError {
 
 /// Loads a localiser configuration (`config/localiser.yaml`); unknown keys are errors, and
 /// keys left out take the paper's defaults.
-pub fn load_config(path: &Path) -> Result<LocaliserConfig, FileError> {
+pub fn load_localiser_config(path: &Path) -> Result<LocaliserConfig, FileError> {
     let text = std::fs::read_to_string(path).map_err(|source| FileError::Read {
         path: path.into(),
         cause: source,
     })?;
-    parse_config(&text).map_err(|e| match e {
+    parse_localiser_config(&text).map_err(|e| match e {
         ParseConfigError::Yaml(source) => FileError::Yaml {
             path: path.into(),
             what: "localiser configuration",
@@ -65,7 +65,7 @@ pub enum ParseConfigError {
 }
 
 /// Parses and validates configuration text (also used for ROS parameter values).
-pub fn parse_config(text: &str) -> Result<LocaliserConfig, ParseConfigError> {
+pub fn parse_localiser_config(text: &str) -> Result<LocaliserConfig, ParseConfigError> {
     let config: LocaliserConfig = serde_yaml_ng::from_str(text)?;
     config.validate()?;
     Ok(config)
@@ -89,7 +89,7 @@ struct MapSpec {
 }
 
 fn default_occupied_thresh() -> f64 {
-    0.65
+    MAP_SERVER_OCCUPIED_THRESH
 }
 
 fn default_free_thresh() -> f64 {
@@ -321,19 +321,22 @@ mod tests {
     #[test]
     fn the_shipped_config_is_the_paper_defaults() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/localiser.yaml");
-        assert_eq!(load_config(&path).unwrap(), LocaliserConfig::default());
+        assert_eq!(
+            load_localiser_config(&path).unwrap(),
+            LocaliserConfig::default()
+        );
     }
 
     #[test]
     fn config_errors_name_the_problem() {
-        let err = parse_config("obstacle_margin: 0.2\n").unwrap_err();
+        let err = parse_localiser_config("obstacle_margin: 0.2\n").unwrap_err();
         assert!(
             err.to_string().contains("unknown field `obstacle_margin`"),
             "{err}"
         );
-        let err = parse_config("tracker:\n  gate_m: -0.8\n").unwrap_err();
+        let err = parse_localiser_config("tracker:\n  gate_m: -0.8\n").unwrap_err();
         assert!(err.to_string().contains("tracker.gate_m"), "{err}");
-        let partial = parse_config("tracker:\n  gate_m: 1.0\n").unwrap();
+        let partial = parse_localiser_config("tracker:\n  gate_m: 1.0\n").unwrap();
         assert_eq!(partial.tracker.gate_m, 1.0);
         assert_eq!(partial.obstacle_margin_m, 0.2);
     }

@@ -9,7 +9,7 @@ use lidar_har_core::localiser::{
     ConfigError, FrameConfig, Localiser, LocaliserConfig, LocaliserOutput, Motion, Reference,
     Warning,
 };
-use lidar_har_core::map::OccupancyMap;
+use lidar_har_core::map::{MAP_SERVER_OCCUPIED_THRESH, OccupancyMap};
 use lidar_har_msgs::geometry_msgs::PoseWithCovarianceStamped;
 use lidar_har_msgs::lidar_har_msgs::HumanObservation;
 use lidar_har_msgs::nav_msgs::{OccupancyGrid, Odometry};
@@ -156,7 +156,7 @@ impl LocaliserStage {
             laser_frame: None,
             static_tf: HashMap::new(),
             warnings: WarningLog::default(),
-            occupied_thresh: convert::OCCUPIED_THRESH,
+            occupied_thresh: MAP_SERVER_OCCUPIED_THRESH,
             last_stamp_ns: 0,
             last_scan_time: None,
             scans_learning: 0,

@@ -5,6 +5,8 @@ use std::io::Write;
 use std::path::Path;
 
 use glam::DVec2;
+use lidar_har_core::geometry::Pose2;
+use lidar_har_core::map::{MAP_SERVER_OCCUPIED_THRESH, MapError, MapGeometry};
 
 use crate::shapes::{point_in_polygon, point_segment_dist};
 use crate::world::World;
@@ -31,6 +33,21 @@ pub struct OccupancyMap {
 }
 
 impl OccupancyMap {
+    /// The grid as the localiser's map, read as /map is (map_server's default threshold).
+    pub fn to_localiser_map(&self) -> Result<lidar_har_core::map::OccupancyMap, MapError> {
+        let geometry = MapGeometry {
+            resolution: self.resolution,
+            origin: Pose2::new(self.origin.x, self.origin.y, 0.0),
+            width: self.width as usize,
+            height: self.height as usize,
+        };
+        lidar_har_core::map::OccupancyMap::from_grid_values(
+            geometry,
+            &self.data,
+            MAP_SERVER_OCCUPIED_THRESH,
+        )
+    }
+
     /// Rasterises what the Lidar plane cuts: a cell is occupied when a wall or furniture
     /// edge passes within half a cell of its centre or its centre lies inside furniture.
     pub fn from_world(world: &World, resolution: f64) -> Self {

@@ -55,7 +55,9 @@ fn decls() -> Vec<ParamDecl> {
 fn stage(node: &Node) -> Result<LocaliserStage, RosError> {
     let p = node.params();
     let config = match optional_path(p, "config")? {
-        Some(path) => files::load_config(&path).map_err(|e| bad_parameter("config", e))?,
+        Some(path) => {
+            files::load_localiser_config(&path).map_err(|e| bad_parameter("config", e))?
+        }
         None => Default::default(),
     };
     let learned = p.bool("learned_background")?;

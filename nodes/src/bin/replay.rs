@@ -170,9 +170,7 @@ fn select_topics(
 
 /// The contract's QoS for a known topic, else what the bag says was offered, else reliable.
 fn qos_for(topic: &lidar_har_bag::TopicInfo) -> QosProfile {
-    topics::ALL
-        .iter()
-        .find(|spec| spec.name == topic.name)
+    topics::find(&topic.name)
         .map(|spec| spec.qos)
         .or_else(|| topic.offered_qos.first().and_then(|q| q.to_profile()))
         .unwrap_or(QosProfile::reliable(10))

@@ -14,9 +14,7 @@ use anyhow::{Context, bail};
 use glam::DVec2;
 use indicatif::{ProgressBar, ProgressStyle};
 use lidar_har_core::activity::Activity;
-use lidar_har_core::geometry::Pose2;
 use lidar_har_core::localiser::{Localiser, LocaliserConfig, Motion, Reference};
-use lidar_har_core::map::{MapGeometry, OccupancyMap as CoreMap};
 use lidar_har_core::representation::{Framing, Renderer, RepresentationKind, RepresentationSpec};
 use lidar_har_core::scan::Scan;
 use lidar_har_sim::lidar::ScanGeometry;
@@ -802,7 +800,9 @@ pub(crate) fn episode_simulator(
 /// The real localiser for a simulated episode: the simulator's map, its Lidar mount, and
 /// odometry (or a static pose for a fixed Lidar).
 pub(crate) fn episode_localiser(sim: &Simulator, fixed_lidar: bool) -> anyhow::Result<Localiser> {
-    let map = core_map(&SimMap::from_world(sim.world(), DEFAULT_RESOLUTION))?;
+    let map = SimMap::from_world(sim.world(), DEFAULT_RESOLUTION)
+        .to_localiser_map()
+        .context("simulated map")?;
     let config = LocaliserConfig {
         mount: sim.lidar_mount(),
         ..LocaliserConfig::default()
@@ -825,17 +825,6 @@ pub(crate) fn core_scan(geometry: &ScanGeometry, stamp_ns: i64, ranges: Vec<f32>
         range_max: geometry.range_max as f32,
         ranges,
     }
-}
-
-/// The simulator's grid as the localiser's map (map_server's default threshold).
-fn core_map(sim_map: &SimMap) -> anyhow::Result<CoreMap> {
-    let geometry = MapGeometry {
-        resolution: sim_map.resolution,
-        origin: Pose2::new(sim_map.origin.x, sim_map.origin.y, 0.0),
-        width: sim_map.width as usize,
-        height: sim_map.height as usize,
-    };
-    CoreMap::from_grid_values(geometry, &sim_map.data, 0.65).context("simulated map")
 }
 
 /// A random point in the room at least `clearance` from walls and furniture.

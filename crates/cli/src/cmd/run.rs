@@ -42,7 +42,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let _ = env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn"))
         .try_init();
     let config = match &args.config {
-        Some(path) => files::load_config(path).context("--config")?,
+        Some(path) => files::load_localiser_config(path).context("--config")?,
         None => Default::default(),
     };
     let map = args

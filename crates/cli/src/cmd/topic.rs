@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use lidar_har_msgs::qos::QosProfile;
+use lidar_har_msgs::topics;
 use lidar_har_ros::{Node, NodeSetup};
 
 #[derive(clap::Subcommand)]
@@ -91,9 +92,7 @@ fn list(wait: Duration, show_types: bool) -> anyhow::Result<()> {
 
 /// The contract's QoS for a known topic; best effort (which matches every writer) otherwise.
 fn qos_for(topic: &str) -> QosProfile {
-    lidar_har_msgs::topics::ALL
-        .iter()
-        .find(|spec| spec.name == topic)
+    topics::find(topic)
         .map(|spec| spec.qos)
         .unwrap_or(QosProfile::sensor_data())
 }
@@ -110,7 +109,7 @@ fn echo(
     let node = cli_node()?;
     let type_name = match type_name {
         Some(t) => t,
-        None => match lidar_har_msgs::topics::ALL.iter().find(|s| s.name == topic) {
+        None => match topics::find(topic) {
             Some(spec) => spec.type_name.to_string(),
             None => discover_type(&node, topic, deadline)?,
         },
