@@ -6,6 +6,8 @@
 //!   per-beam hit labels) in memory, deterministically from a seed.
 //! - [`map`]: the room as an occupancy grid and map_server files.
 //! - [`generate`]: random furnished rooms, for training on more rooms than were drawn.
+//! - [`scripts`]: the random activity scripts episodes are drawn from (everyday, with falls,
+//!   fall and stay down) and the simulator for one episode.
 //!
 //! See docs/simulator.md for the schema, the body model and the noise model.
 
@@ -18,6 +20,7 @@ pub mod record;
 pub mod render;
 pub mod robot;
 pub mod scene;
+pub mod scripts;
 pub mod shapes;
 pub mod simulator;
 mod validate;

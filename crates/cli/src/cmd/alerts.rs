@@ -23,12 +23,10 @@ use lidar_har_pipeline::classifier::{
     ClassifierConfig, ClassifierOutput, ClassifierStage, load_classifier_config,
 };
 use lidar_har_pipeline::convert::observation_msg;
+use lidar_har_sim::scripts::{self, ScriptKind};
 use serde::Serialize;
 
-use super::dataset::{
-    EpisodeStream, ScriptKind, core_scan, episode_localiser, episode_seed, episode_simulator,
-    load_scenes,
-};
+use super::dataset::{EpisodeStream, core_scan, episode_localiser, episode_seed, load_scenes};
 
 #[derive(clap::Args)]
 pub struct AlertsArgs {
@@ -420,7 +418,7 @@ fn run_episode(
     stage: &mut ClassifierStage<ActivityModel, NoPoseHead>,
     trace: bool,
 ) -> anyhow::Result<Episode> {
-    let mut sim = episode_simulator(scene, seed, false, kind)?;
+    let mut sim = scripts::episode(scene, seed, false, kind)?;
     let mut localiser = episode_localiser(&sim, false)?;
     stage.reset();
     let geometry = sim.scan_geometry();
