@@ -373,32 +373,6 @@ impl<M: StepModel> StreamingClassifier<M> {
             })
     }
 
-    /// Steps the lanes through the scans the model's rate puts between the last one
-    /// classified and `stamp_s` (exclusive) as empty frames, and returns how many. For scans
-    /// that brought nothing to classify (nobody tracked, so no observation): in training
-    /// they were empty frames, so the model's frames keep time. Nothing when the gap will
-    /// restart the lanes anyway (over `T` periods, or time going backwards).
-    pub fn step_unobserved(&mut self, stamp_s: f64, sensor: DVec2) -> Result<usize, StepError> {
-        let Some(last) = self.last_stamp_s else {
-            return Ok(0);
-        };
-        let period_s = 1.0 / self.spec.scan_rate_hz;
-        let gap = stamp_s - last;
-        if !(0.0..=self.spec.window as f64 * period_s).contains(&gap) {
-            return Ok(0);
-        }
-        let missing = ((gap / period_s).round() as usize).saturating_sub(1);
-        for k in 1..=missing {
-            self.classify(&PersonScan {
-                stamp_s: last + k as f64 * period_s,
-                points: &[],
-                position: None,
-                sensor,
-            })?;
-        }
-        Ok(missing)
-    }
-
     /// Restarts every lane from zero state.
     pub fn reset(&mut self) {
         self.scans = 0;
@@ -743,28 +717,6 @@ mod tests {
         // A short gap does not.
         let p = c.classify(&scan(0.5, None, &[])).unwrap();
         assert_eq!(p.history, 2);
-    }
-
-    #[test]
-    fn scans_without_an_observation_are_stepped_as_empty_frames() {
-        let mut c =
-            StreamingClassifier::new(CountingModel::default(), spec(Framing::PersonCentred, 8))
-                .unwrap();
-        let points = [DVec2::new(1.0, 1.0)];
-        let seen = |t: f64| scan(t, Some(DVec2::new(1.0, 1.0)), &points);
-        c.classify(&seen(0.0)).unwrap();
-        // The next observation 0.2 s later at 20 Hz: three scans brought none.
-        assert_eq!(c.step_unobserved(0.2, DVec2::ZERO).unwrap(), 3);
-        let p = c.classify(&seen(0.2)).unwrap();
-        assert_eq!(p.history, 5, "one seen, three empty, one seen");
-        // Each scan steps both lanes on the same image.
-        let lit: Vec<f32> = c.model().images.chunks(2).map(|s| s[0].sum()).collect();
-        assert!(lit[0] > 0.0 && lit[1..4].iter().all(|&l| l == 0.0) && lit[4] > 0.0);
-        // A scan period of jitter is not a missing scan.
-        assert_eq!(c.step_unobserved(0.27, DVec2::ZERO).unwrap(), 0);
-        // A gap that restarts the lanes, or time going back, steps nothing.
-        assert_eq!(c.step_unobserved(0.2 + 0.45, DVec2::ZERO).unwrap(), 0);
-        assert_eq!(c.step_unobserved(0.1, DVec2::ZERO).unwrap(), 0);
     }
 
     #[test]

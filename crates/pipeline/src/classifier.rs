@@ -409,16 +409,6 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             );
         }
         let position = DVec2::new(obs.position.x, obs.position.y);
-        let sensor = DVec2::new(obs.sensor_position.x, obs.sensor_position.y);
-        // Scans with nobody tracked bring no observation; counted by the model's scan period,
-        // so only when the Lidar is measured to run at the model's rate.
-        if self
-            .scan_rate
-            .measured_hz
-            .is_some_and(|hz| (hz / model_hz - 1.0).abs() <= SCAN_RATE_TOLERANCE)
-        {
-            self.classifier.step_unobserved(stamp_s, sensor)?;
-        }
         // A new track may be another person, or the same one found far away: start afresh.
         if obs.visible && self.track_id.is_some_and(|id| id != obs.track_id) {
             self.classifier.reset();
@@ -441,7 +431,7 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             stamp_s,
             points: &self.points,
             position: obs.visible.then_some(position),
-            sensor,
+            sensor: DVec2::new(obs.sensor_position.x, obs.sensor_position.y),
         };
         let prediction = self.classifier.classify(&scan)?;
         let pelvis = match &mut self.pelvis {
@@ -1279,49 +1269,6 @@ mod tests {
         };
         assert!((rate_of(50_000_000) - 20.0).abs() < 1e-9);
         assert!((rate_of(100_000_000) - 10.0).abs() < 1e-9);
-    }
-
-    /// Counts the model's steps (over all lanes).
-    struct StepCounter(std::rc::Rc<std::cell::Cell<usize>>);
-
-    impl StepModel for StepCounter {
-        type State = ();
-        type Error = std::io::Error;
-        fn initial_state(&self) {}
-        fn reset_state(&self, _: &mut ()) {}
-        fn step(&mut self, _: ArrayView2<'_, f32>, _: &mut ()) -> Result<[f32; 9], std::io::Error> {
-            self.0.set(self.0.get() + 1);
-            Ok([0.0; 9])
-        }
-    }
-
-    #[test]
-    fn scans_without_an_observation_are_stepped_when_the_lidar_runs_at_the_models_rate() {
-        // Steps taken by the observation at `k_last` periods, after 60 at `period_ns`.
-        let steps_for_last = |period_ns: i64, k_last: i64| {
-            let steps = std::rc::Rc::new(std::cell::Cell::new(0));
-            let model = StepCounter(steps.clone());
-            let mut stage =
-                ClassifierStage::new(model, stream(), FallAlertConfig::default()).unwrap();
-            let mut obs = observation(0.0, true);
-            for k in (0..60).chain([k_last]) {
-                let before = steps.get();
-                obs.header.stamp = Time::from_nanos(k * period_ns);
-                stage.on_observation(&obs).unwrap();
-                if k == k_last {
-                    return (steps.get() - before) / 2; // two lanes
-                }
-            }
-            unreachable!()
-        };
-        assert_eq!(steps_for_last(50_000_000, 60), 1, "the next scan");
-        assert_eq!(
-            steps_for_last(50_000_000, 63),
-            4,
-            "three scans with nobody tracked, then this one"
-        );
-        // At 10 Hz the model's period counts nothing: every observation is one step.
-        assert_eq!(steps_for_last(100_000_000, 60), 1);
     }
 
     #[test]
