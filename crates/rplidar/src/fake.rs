@@ -309,6 +309,7 @@ impl FakeLidar {
             link: link.clone(),
             pty: Some(pty),
             rx: Vec::new(),
+            tx: Vec::new(),
             stream: None,
         };
         let thread = std::thread::Builder::new()
@@ -326,12 +327,14 @@ impl FakeLidar {
         &self.link
     }
 
-    /// Inserts these bytes into the measurement stream (in the middle of a packet).
+    /// Inserts these bytes into the measurement stream, three bytes into the packet holding
+    /// the next rotation's first sample: always the same place, however busy the machine.
     pub fn inject_garbage(&self, bytes: &[u8]) {
         lock(&self.shared.control).garbage.extend_from_slice(bytes);
     }
 
-    /// Drops the next `n` bytes of the measurement stream.
+    /// Drops `n` bytes of the measurement stream, from the start of the packet holding the
+    /// next rotation's first sample.
     pub fn drop_bytes(&self, n: usize) {
         lock(&self.shared.control).drop_bytes += n;
     }
@@ -427,8 +430,14 @@ struct Device {
     link: PathBuf,
     pty: Option<Pty>,
     rx: Vec<u8>,
+    /// Bytes the driver has not taken yet (the pty buffer was full).
+    tx: Vec<u8>,
     stream: Option<Stream>,
 }
+
+/// Most bytes kept for a driver that does not read (seconds of any stream): a driver slowed
+/// by a busy machine loses nothing, one that never reads does not make the fake grow.
+const TX_BACKLOG_MAX: usize = 1 << 20;
 
 const BOOT_BANNER: &[u8] =
     b"RP LIDAR System.\r\nFirmware Ver 1.29 - rtm, HW Ver 7\r\nModel: 24\r\n";
@@ -448,6 +457,7 @@ impl Device {
                 if self.pty.take().is_some() {
                     self.stream = None;
                     self.rx.clear();
+                    self.tx.clear();
                     let _ = std::fs::remove_file(&self.link);
                 }
                 std::thread::sleep(Duration::from_millis(5));
@@ -478,19 +488,34 @@ impl Device {
                 self.handle(cmd, &payload);
             }
             self.stream_out();
+            self.flush();
         }
     }
 
+    /// Queues bytes for the driver; beyond the backlog limit they are lost, as on a wire.
     fn write(&mut self, bytes: &[u8]) {
+        let room = TX_BACKLOG_MAX.saturating_sub(self.tx.len());
+        self.tx.extend_from_slice(&bytes[..bytes.len().min(room)]);
+        self.flush();
+    }
+
+    /// Writes what the pty takes now, keeping the rest for later. The master is blocking and
+    /// a write waits until all of it fits, which would hang the device (and its `STOP`) when
+    /// nobody reads; but once poll says writable a pty has room for 256 bytes (its buffer
+    /// grows in 256-byte steps), so writes of at most that never wait.
+    fn flush(&mut self) {
+        const CHUNK: usize = 256;
         let Some(pty) = self.pty.as_mut() else { return };
-        let _ = pty.master.set_timeout(Duration::from_millis(20));
-        let mut rest = bytes;
-        while !rest.is_empty() {
-            match pty.master.write(rest) {
-                Ok(0) | Err(_) => return, // nobody reads: the bytes are lost, as on a wire
-                Ok(n) => rest = &rest[n..],
+        let _ = pty.master.set_timeout(Duration::from_millis(1));
+        let mut written = 0;
+        while written < self.tx.len() {
+            let end = self.tx.len().min(written + CHUNK);
+            match pty.master.write(&self.tx[written..end]) {
+                Ok(0) | Err(_) => break, // full (or gone): try again next round
+                Ok(n) => written += n,
             }
         }
+        self.tx.drain(..written);
     }
 
     fn answer(&mut self, answer_type: u8, payload: &[u8]) {
@@ -536,9 +561,14 @@ impl Device {
             return;
         }
         match cmd {
-            command::STOP => self.stream = None,
+            // A stopped device sends nothing more: what the pty did not take is never sent.
+            command::STOP => {
+                self.stream = None;
+                self.tx.clear();
+            }
             command::RESET => {
                 self.stream = None;
+                self.tx.clear();
                 {
                     let mut c = lock(&self.shared.control);
                     c.hung = false;
@@ -666,6 +696,9 @@ impl Device {
             }
         };
         let mut out = Vec::new();
+        // Where the packet holding a rotation's first sample starts in `out`: faults go there,
+        // a place that does not depend on when the fake runs.
+        let mut rotation_start = None;
         let mut served = 0;
         while stream.next_sample < due {
             let j = stream.next_sample;
@@ -688,6 +721,9 @@ impl Device {
             match stream.mode {
                 FakeMode::Standard => {
                     let quality = if dist_mm > 0.0 { 47 << 2 } else { 0 };
+                    if j % n as u64 == 0 {
+                        rotation_start.get_or_insert(out.len());
+                    }
                     out.extend_from_slice(&encode::standard_node(
                         angle(j),
                         dist_mm,
@@ -720,6 +756,10 @@ impl Device {
                                 .collect();
                             encode::dense_capsule(first, &d, stream.first_capsule)
                         };
+                        // Samples j + 1 - size ..= j hold a multiple of n.
+                        if j % (n as u64) < size as u64 {
+                            rotation_start.get_or_insert(out.len());
+                        }
                         out.extend_from_slice(&capsule);
                         stream.first_capsule = false;
                         stream.group.clear();
@@ -734,13 +774,13 @@ impl Device {
         if out.is_empty() {
             return;
         }
-        {
+        if let Some(at) = rotation_start {
             let mut c = lock(&self.shared.control);
-            let dropped = c.drop_bytes.min(out.len());
+            let dropped = c.drop_bytes.min(out.len() - at);
             c.drop_bytes -= dropped;
-            out.drain(..dropped);
+            out.drain(at..at + dropped);
             if !c.garbage.is_empty() {
-                let at = out.len().min(3);
+                let at = out.len().min(at + 3);
                 let garbage = std::mem::take(&mut c.garbage);
                 out.splice(at..at, garbage);
             }

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use lidar_har_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
 use lidar_har_msgs::sensor_msgs::LaserScan;
-use lidar_har_rplidar::fake::{FakeConfig, FakeLidar, FakeScanMode, SyntheticRoom};
+use lidar_har_rplidar::fake::{FakeConfig, FakeLidar, FakeLog, FakeScanMode, SyntheticRoom};
 use lidar_har_rplidar::protocol::HealthStatus;
 use lidar_har_rplidar::{
     Config, DEFAULT_MOTOR_PWM, Driver, Error, Event, ScanFormat, ScanGeometry, ScanModeChoice,
@@ -14,11 +14,14 @@ use lidar_har_rplidar::{
 
 const SAMPLES: usize = 720;
 
+/// Timings for a loaded 2-core CI machine: request and data timeouts far longer than any
+/// stall a busy scheduler causes, so that no answer is missed and reset counts are exact;
+/// tests of hangs and silence shorten them.
 fn config(path: &Path, mode: ScanModeChoice) -> Config {
     Config {
         scan_mode: mode,
-        request_timeout: Duration::from_millis(300),
-        data_timeout: Duration::from_millis(300),
+        request_timeout: LONG_REQUEST_TIMEOUT,
+        data_timeout: Duration::from_secs(10),
         reset_wait: Duration::from_millis(30),
         reconnect_min: Duration::from_millis(20),
         reconnect_max: Duration::from_millis(160),
@@ -62,6 +65,18 @@ fn mismatches(scan: &LaserScan, expected: &[f32], tolerance_m: f32) -> usize {
         })
         .count()
 }
+
+/// The data timeout of tests about hangs: short enough to keep them quick, still twenty times
+/// the tolerated stall and far above the delays of a busy scheduler.
+const HANG_DATA_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// A request timeout no start may come near, even on a machine that stalls a thread for
+/// seconds: a start that waited for one full timeout takes longer than [`QUICK_START`].
+const LONG_REQUEST_TIMEOUT: Duration = Duration::from_secs(20);
+const QUICK_START: Duration = Duration::from_secs(15);
+
+/// How long a test waits for what it expects before failing: only a broken driver takes it.
+const LIMIT: Duration = Duration::from_secs(30);
 
 fn spawn(dir: &Path, fake: FakeConfig) -> FakeLidar {
     FakeLidar::spawn(dir.join("rplidar"), fake, SyntheticRoom::default())
@@ -118,6 +133,19 @@ fn run_until_stopped(driver: &mut Driver, limit: Duration) -> (Error, Vec<Diagno
     }
 }
 
+/// The fake's log once `done` holds, polled until `limit` passes (then the last one seen, so
+/// that the caller's asserts show what did arrive): no fixed sleep guesses the delay.
+fn log_when(fake: &FakeLidar, limit: Duration, done: impl Fn(&FakeLog) -> bool) -> FakeLog {
+    let deadline = Instant::now() + limit;
+    loop {
+        let log = fake.log();
+        if done(&log) || Instant::now() >= deadline {
+            return log;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
 fn scans(n: usize) -> impl FnMut(&[LaserScan], &[DiagnosticStatus]) -> bool {
     move |s, _| s.len() >= n
 }
@@ -137,14 +165,15 @@ fn check_exact(mode: ScanModeChoice, format: ScanFormat, tolerance_m: f32) {
     let expected = expected_ranges(&cfg.geometry);
     let mut driver = Driver::new(cfg.clone()).unwrap();
     let started = Instant::now();
-    let (first, diags) = run_until(&mut driver, Duration::from_secs(10), |_, d| !d.is_empty());
+    let (first, diags) = run_until(&mut driver, LIMIT, |_, d| !d.is_empty());
     // Requests return as soon as their answer is complete: no full timeout is waited.
     assert!(
-        started.elapsed() < Duration::from_secs(2),
+        started.elapsed() < QUICK_START,
         "start took {:?}",
         started.elapsed()
     );
-    let (more, _) = run_until(&mut driver, Duration::from_secs(10), scans(4));
+    // Three seconds of rotations: the mean period below is then immune to a busy scheduler.
+    let (more, _) = run_until(&mut driver, LIMIT, scans(60));
     let scans: Vec<LaserScan> = first.into_iter().chain(more).collect();
     let status = driver.status();
     assert_eq!(status.format, Some(format));
@@ -152,24 +181,30 @@ fn check_exact(mode: ScanModeChoice, format: ScanFormat, tolerance_m: f32) {
         assert_eq!(
             mismatches(scan, &expected, tolerance_m),
             0,
-            "{format:?} scan differs from the served ranges"
+            "{format:?} scan differs from the served ranges; decoder {:?}",
+            status.decode
         );
         assert_eq!(scan.header.frame_id, "laser");
-        assert!(scan.time_increment < 0.0);
+        // A single period may be near 0 when a busy machine reads two rotations at once, or
+        // long when it did not read for a while: the mean below checks the rate.
         assert!(
-            (0.005..0.5).contains(&scan.scan_time),
+            scan.scan_time >= 0.0 && scan.scan_time.is_finite(),
             "scan_time {}",
             scan.scan_time
         );
+        assert!(scan.time_increment <= 0.0);
         assert!((scan.time_increment * 720.0 + scan.scan_time).abs() < 1e-6);
     }
-    // 20 Hz served: consecutive measured periods add up to the real time, so their mean is
-    // near 50 ms even when the machine is busy and single periods jitter.
+    // 20 Hz served: consecutive measured periods add up to the real time, so over 60 of them
+    // the mean is near 50 ms even when the reads of the first and last are 1.2 s late; a
+    // period measured wrong by half or double still fails.
     let mean = scans.iter().map(|s| s.scan_time).sum::<f32>() / scans.len() as f32;
-    assert!((0.04..0.06).contains(&mean), "mean scan_time {mean}");
+    assert!((0.03..0.07).contains(&mean), "mean scan_time {mean}");
+    // Rotations read at once share their arrival time, and each stamp reads the clock anew:
+    // equal stamps may then differ by the clock's jitter, never by a rotation.
     let stamps: Vec<i64> = scans.iter().map(|s| s.header.stamp.to_nanos()).collect();
     assert!(
-        stamps.windows(2).all(|w| w[1] > w[0]),
+        stamps.windows(2).all(|w| w[1] > w[0] - 1_000_000) && stamps[stamps.len() - 1] > stamps[0],
         "stamps increase: {stamps:?}"
     );
     let window = scans[1].ranges.iter().filter(|r| r.is_infinite()).count();
@@ -235,7 +270,7 @@ fn auto_uses_the_typical_mode_or_legacy_express() {
         },
     );
     let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Auto)).unwrap();
-    run_until(&mut driver, Duration::from_secs(10), scans(1));
+    run_until(&mut driver, LIMIT, scans(1));
     assert_eq!(driver.status().scan_mode.as_deref(), Some("DenseBoost"));
     drop(driver);
     drop(fake);
@@ -252,9 +287,13 @@ fn auto_uses_the_typical_mode_or_legacy_express() {
     );
     let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Auto)).unwrap();
     let started = Instant::now();
-    run_until(&mut driver, Duration::from_secs(10), scans(1));
+    run_until(&mut driver, LIMIT, scans(1));
     assert_eq!(driver.status().format, Some(ScanFormat::Express));
-    assert!(started.elapsed() < Duration::from_secs(3));
+    assert!(
+        started.elapsed() < QUICK_START,
+        "the probe waited {:?}, as long as a request",
+        started.elapsed()
+    );
 }
 
 #[test]
@@ -265,7 +304,7 @@ fn s_series_firmware_1_02_lists_its_modes_and_auto_picks_the_typical_one() {
     let cfg = config(fake.path(), ScanModeChoice::Auto);
     let expected = expected_ranges(&cfg.geometry);
     let mut driver = Driver::new(cfg).unwrap();
-    let (scans, diags) = run_until(&mut driver, Duration::from_secs(10), scans(3));
+    let (scans, diags) = run_until(&mut driver, LIMIT, scans(3));
     let status = driver.status();
     assert_eq!(status.scan_mode.as_deref(), Some("DenseBoost"));
     assert_eq!(status.format, Some(ScanFormat::Dense));
@@ -306,7 +345,7 @@ fn s_series_named_and_standard_modes_work() {
         let dir = tempfile::tempdir().unwrap();
         let fake = spawn(dir.path(), FakeConfig::s_series());
         let mut driver = Driver::new(config(fake.path(), mode.clone())).unwrap();
-        run_until(&mut driver, Duration::from_secs(10), scans(1));
+        run_until(&mut driver, LIMIT, scans(1));
         assert_eq!(driver.status().format, Some(format), "{mode:?}");
     }
 }
@@ -328,7 +367,7 @@ fn old_a1_firmware_without_scan_modes_uses_standard_scans_as_before() {
     );
     for mode in [ScanModeChoice::Auto, ScanModeChoice::Express] {
         let mut driver = Driver::new(config(fake.path(), mode.clone())).unwrap();
-        let (_, diags) = run_until(&mut driver, Duration::from_secs(10), scans(2));
+        let (_, diags) = run_until(&mut driver, LIMIT, scans(2));
         assert_eq!(
             driver.status().format,
             Some(ScanFormat::Standard),
@@ -350,7 +389,7 @@ fn check_stops_on(fake: FakeConfig, mode: ScanModeChoice, reason: &str) {
     let dir = tempfile::tempdir().unwrap();
     let fake = spawn(dir.path(), fake);
     let mut driver = Driver::new(config(fake.path(), mode.clone())).unwrap();
-    let (error, diags) = run_until_stopped(&mut driver, Duration::from_secs(10));
+    let (error, diags) = run_until_stopped(&mut driver, LIMIT);
     let text = error.to_string();
     assert!(
         matches!(
@@ -374,7 +413,7 @@ fn check_stops_on(fake: FakeConfig, mode: ScanModeChoice, reason: &str) {
     let started = Instant::now();
     assert!(driver.next_event().is_err(), "{mode:?}: stays stopped");
     assert!(
-        started.elapsed() < Duration::from_secs(1),
+        started.elapsed() < Duration::from_secs(10),
         "without retrying"
     );
     let log = fake.log();
@@ -435,7 +474,7 @@ fn a_named_mode_without_an_answer_to_the_mode_list_is_retried() {
     );
     let mut driver =
         Driver::new(config(fake.path(), ScanModeChoice::Named("Boost".into()))).unwrap();
-    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |_, d| {
+    let (_, diags) = run_until(&mut driver, LIMIT, |_, d| {
         d.iter()
             .filter(|s| s.message.starts_with("cannot start"))
             .count()
@@ -459,34 +498,51 @@ fn garbage_resync(mode: ScanModeChoice) {
     let cfg = config(fake.path(), mode);
     let expected = expected_ranges(&cfg.geometry);
     let mut driver = Driver::new(cfg).unwrap();
-    run_until(&mut driver, Duration::from_secs(10), scans(2));
+    run_until(&mut driver, LIMIT, scans(2));
     // Faults while scanning: garbage that looks like sync bytes, odd lengths, dropped bytes.
-    let mut faulty = Vec::new();
+    // A busy machine may leave many rotations in the pty between the fake and the driver, so
+    // each round lasts until the decoder has met its fault, plus the two scans it can touch.
+    let disturbances = |d: &Driver| {
+        let s = d.status().decode;
+        s.skipped_bytes + s.rejected_packets + s.gaps
+    };
+    let mut lost = Vec::new();
     for round in 0..4 {
+        let before = disturbances(&driver);
         match round {
             0 => fake.inject_garbage(&[0xA5, 0x5A, 0x13, 0x37, 0xFF]),
             1 => fake.drop_bytes(7),
             2 => fake.inject_garbage(&[0x00; 1]),
             _ => fake.inject_garbage(&(0..=255).collect::<Vec<u8>>()),
         }
-        let (s, _) = run_until(&mut driver, Duration::from_secs(10), scans(2));
+        let mut faulty = Vec::new();
+        let deadline = Instant::now() + LIMIT;
+        while disturbances(&driver) == before {
+            assert!(
+                Instant::now() < deadline,
+                "fault {round} never reached the decoder"
+            );
+            let (s, _) = run_until(&mut driver, LIMIT, scans(1));
+            faulty.extend(s);
+        }
+        let (s, _) = run_until(&mut driver, LIMIT, scans(2));
         faulty.extend(s);
+        lost.push(
+            faulty
+                .iter()
+                .map(|s| mismatches(s, &expected, 0.0006))
+                .sum::<usize>(),
+        );
     }
-    let (clean, _) = run_until(&mut driver, Duration::from_secs(10), scans(2));
-    let lost: usize = faulty
-        .iter()
-        .map(|s| mismatches(s, &expected, 0.0006))
-        .sum();
-    eprintln!(
-        "{lost} beams wrong over {} scans after 4 faults",
-        faulty.len()
-    );
-    // Each fault costs at most the packet it hit: one capsule (32 samples) or a few nodes.
+    eprintln!("beams wrong after each of 4 faults: {lost:?}");
+    // A fault costs at most the packet it hit and, when the corrupted packet still passes its
+    // check (a shifted capsule whose XOR is unchanged), the next one: two capsules of at most
+    // 40 samples.
     assert!(
-        lost <= 4 * 40,
-        "{lost} beams wrong over {} scans after 4 faults",
-        faulty.len()
+        lost.iter().all(|&l| l <= 2 * 40),
+        "beams wrong after each of 4 faults: {lost:?}"
     );
+    let (clean, _) = run_until(&mut driver, LIMIT, scans(2));
     for scan in &clean {
         assert_eq!(
             mismatches(scan, &expected, 0.0006),
@@ -515,9 +571,9 @@ fn unplug_and_replug_reconnects_with_backoff() {
     let dir = tempfile::tempdir().unwrap();
     let fake = spawn(dir.path(), FakeConfig::default());
     let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Express)).unwrap();
-    run_until(&mut driver, Duration::from_secs(10), scans(2));
+    run_until(&mut driver, LIMIT, scans(2));
     fake.unplug();
-    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |_, d| {
+    let (_, diags) = run_until(&mut driver, LIMIT, |_, d| {
         d.iter()
             .filter(|s| s.message.starts_with("cannot start"))
             .count()
@@ -535,7 +591,7 @@ fn unplug_and_replug_reconnects_with_backoff() {
     assert!(retry.message.contains("retrying in"), "{}", retry.message);
     assert!(!driver.status().scanning);
     fake.replug();
-    let (scans_after, diags) = run_until(&mut driver, Duration::from_secs(10), scans(3));
+    let (scans_after, diags) = run_until(&mut driver, LIMIT, scans(3));
     assert!(
         diags
             .iter()
@@ -551,14 +607,16 @@ fn unplug_and_replug_reconnects_with_backoff() {
 fn hung_device_is_reset_and_scans_again() {
     let dir = tempfile::tempdir().unwrap();
     let fake = spawn(dir.path(), FakeConfig::default());
-    let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Standard)).unwrap();
-    run_until(&mut driver, Duration::from_secs(10), scans(2));
-    // A short stall (below the data timeout) is tolerated without a reset.
+    let mut cfg = config(fake.path(), ScanModeChoice::Standard);
+    cfg.data_timeout = HANG_DATA_TIMEOUT;
+    let mut driver = Driver::new(cfg).unwrap();
+    run_until(&mut driver, LIMIT, scans(2));
+    // A short stall (a tenth of the data timeout) is tolerated without a reset.
     fake.stall(Duration::from_millis(100));
-    run_until(&mut driver, Duration::from_secs(10), scans(3));
+    run_until(&mut driver, LIMIT, scans(3));
     assert_eq!(driver.status().resets, 0);
     fake.hang();
-    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |s, d| {
+    let (_, diags) = run_until(&mut driver, LIMIT, |s, d| {
         d.iter().any(|x| x.message.starts_with("scanning again")) && !s.is_empty()
     });
     let warn = diags
@@ -577,7 +635,7 @@ fn health_error_at_start_is_reset() {
     let fake = spawn(dir.path(), FakeConfig::default());
     fake.set_health(HealthStatus::Error, 0x8001, true);
     let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Express)).unwrap();
-    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), scans(2));
+    let (_, diags) = run_until(&mut driver, LIMIT, scans(2));
     let error = diags
         .iter()
         .find(|d| d.message.contains("health error"))
@@ -593,7 +651,7 @@ fn persistent_health_error_keeps_retrying_until_it_clears() {
     let fake = spawn(dir.path(), FakeConfig::default());
     fake.set_health(HealthStatus::Error, 0x0042, false);
     let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Standard)).unwrap();
-    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |_, d| {
+    let (_, diags) = run_until(&mut driver, LIMIT, |_, d| {
         d.iter()
             .filter(|s| s.message.contains("persists after a reset"))
             .count()
@@ -605,7 +663,7 @@ fn persistent_health_error_keeps_retrying_until_it_clears() {
             .all(|d| d.level != DiagnosticStatus::OK || !d.message.starts_with("scanning:"))
     );
     fake.set_health(HealthStatus::Warning, 0x0007, false);
-    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), scans(2));
+    let (_, diags) = run_until(&mut driver, LIMIT, scans(2));
     let warn = diags
         .iter()
         .find(|d| d.message.contains("Warning"))
@@ -618,7 +676,7 @@ fn missing_port_is_reported_not_fatal() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("no-such-device");
     let mut driver = Driver::new(config(&path, ScanModeChoice::Auto)).unwrap();
-    let (_, diags) = run_until(&mut driver, Duration::from_secs(5), |_, d| d.len() >= 3);
+    let (_, diags) = run_until(&mut driver, LIMIT, |_, d| d.len() >= 3);
     assert!(diags.iter().all(|d| d.level == DiagnosticStatus::ERROR));
     assert!(
         diags[0].message.contains("no-such-device"),
@@ -637,11 +695,15 @@ fn a_port_that_never_answers_times_out_quickly_with_a_hint() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("silent");
     std::os::unix::fs::symlink(&path, &link).unwrap();
-    let mut driver = Driver::new(config(&link, ScanModeChoice::Auto)).unwrap();
+    let mut cfg = config(&link, ScanModeChoice::Auto);
+    let timeout = Duration::from_secs(1);
+    cfg.request_timeout = timeout;
+    let mut driver = Driver::new(cfg).unwrap();
     let started = Instant::now();
-    let (_, diags) = run_until(&mut driver, Duration::from_secs(5), |_, d| !d.is_empty());
+    let (_, diags) = run_until(&mut driver, LIMIT, |_, d| !d.is_empty());
+    // One request timeout, not a wait per request or per retry.
     let elapsed = started.elapsed();
-    assert!(elapsed < Duration::from_secs(2), "{elapsed:?}");
+    assert!(elapsed < 4 * timeout, "{elapsed:?}");
     assert!(
         diags[0].message.contains("device info"),
         "{}",
@@ -658,10 +720,12 @@ fn a_port_that_never_answers_times_out_quickly_with_a_hint() {
 fn stopped_motor_is_reset_and_scans_again() {
     let dir = tempfile::tempdir().unwrap();
     let fake = spawn(dir.path(), FakeConfig::default());
-    let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Express)).unwrap();
-    run_until(&mut driver, Duration::from_secs(10), scans(2));
+    let mut cfg = config(fake.path(), ScanModeChoice::Express);
+    cfg.data_timeout = HANG_DATA_TIMEOUT;
+    let mut driver = Driver::new(cfg).unwrap();
+    run_until(&mut driver, LIMIT, scans(2));
     fake.stop_motor();
-    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |s, d| {
+    let (_, diags) = run_until(&mut driver, LIMIT, |s, d| {
         d.iter().any(|x| x.message.starts_with("scanning again")) && !s.is_empty()
     });
     let warn = diags
@@ -687,7 +751,7 @@ fn stamps_follow_the_callers_clock_and_drop_stops_the_device() {
     let clock = Box::new(move || EPOCH_NS + t0.elapsed().as_nanos() as i64);
     let mut driver =
         Driver::with_clock(config(fake.path(), ScanModeChoice::Standard), clock).unwrap();
-    let (scans, _) = run_until(&mut driver, Duration::from_secs(10), scans(4));
+    let (scans, _) = run_until(&mut driver, LIMIT, scans(4));
     let elapsed_ns = t0.elapsed().as_nanos() as i64;
     for pair in scans.windows(2) {
         let (a, b) = (
@@ -695,17 +759,21 @@ fn stamps_follow_the_callers_clock_and_drop_stops_the_device() {
             pair[1].header.stamp.to_nanos(),
         );
         assert!(a > EPOCH_NS && b <= EPOCH_NS + elapsed_ns, "{a} {b}");
-        // Consecutive stamps are one rotation apart.
+        // A stamp is its rotation's start plus (beams - 1)/beams of its period, and a
+        // rotation starts where the one before ends: consecutive stamps are that far apart
+        // however much the periods jitter.
+        let beams = pair[1].ranges.len() as f32;
+        let (t0, t1) = (pair[0].scan_time, pair[1].scan_time);
         let gap = (b - a) as f32 * 1e-9;
+        let expected = t1 * (beams - 1.0) / beams + t0 / beams;
         assert!(
-            (gap - pair[1].scan_time).abs() < 0.02,
-            "gap {gap} vs scan_time {}",
-            pair[1].scan_time
+            (gap - expected).abs() < 0.02,
+            "gap {gap} vs {expected} from scan_time {t0} and {t1}"
         );
     }
     drop(driver);
-    std::thread::sleep(Duration::from_millis(50));
-    assert_eq!(fake.log().commands.last(), Some(&0x25), "STOP sent on drop");
+    let log = log_when(&fake, LIMIT, |l| l.commands.last() == Some(&0x25));
+    assert_eq!(log.commands.last(), Some(&0x25), "STOP sent on drop");
 }
 
 #[test]
@@ -722,9 +790,7 @@ fn accessory_board_motor_gets_the_default_pwm_and_pwm_0_on_drop() {
         },
     );
     let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Express)).unwrap();
-    let (_, diags) = run_until(&mut driver, Duration::from_secs(10), |s, d| {
-        s.len() >= 2 && !d.is_empty()
-    });
+    let (_, diags) = run_until(&mut driver, LIMIT, |s, d| s.len() >= 2 && !d.is_empty());
     // No motor_pwm configured: the SDK's default duty cycle starts the motor.
     assert_eq!(fake.log().motor_pwm, Some(DEFAULT_MOTOR_PWM));
     assert_eq!(driver.status().motor_pwm, Some(DEFAULT_MOTOR_PWM));
@@ -734,8 +800,7 @@ fn accessory_board_motor_gets_the_default_pwm_and_pwm_0_on_drop() {
         .expect("a connect report");
     assert_eq!(value(connected, "motor_pwm"), Some("660"));
     drop(driver);
-    std::thread::sleep(Duration::from_millis(100));
-    let log = fake.log();
+    let log = log_when(&fake, LIMIT, |l| l.motor_pwm == Some(0));
     assert_eq!(log.motor_pwm, Some(0), "the motor is switched off on drop");
     assert_eq!(
         log.commands[log.commands.len() - 2..],
@@ -759,11 +824,11 @@ fn motor_without_accessory_board_control_gets_no_pwm() {
             },
         );
         let mut driver = Driver::new(config(fake.path(), ScanModeChoice::Express)).unwrap();
-        run_until(&mut driver, Duration::from_secs(10), scans(1));
+        run_until(&mut driver, LIMIT, scans(1));
         assert_eq!(driver.status().motor_pwm, None, "model 0x{model:02X}");
         drop(driver);
-        std::thread::sleep(Duration::from_millis(50));
-        let log = fake.log();
+        // A PWM command would come after the STOP.
+        let log = log_when(&fake, LIMIT, |l| l.commands.last() == Some(&0x25));
         assert_eq!(log.motor_pwm, None, "model 0x{model:02X}");
         assert_eq!(
             log.commands.contains(&0xFF),
