@@ -1,7 +1,11 @@
 """Robot bring-up: RPLIDAR driver, localiser and classifier (and optionally rviz2).
 
     ros2 launch lidar_har robot.launch.py serial_port:=/dev/ttyUSB0
+    ros2 launch lidar_har robot.launch.py serial_port:=/dev/rplidar baud:=1000000   # S2/S3
+    ros2 launch lidar_har robot.launch.py scan_mode:=Sensitivity frame_id:=base_laser
     ros2 launch lidar_har robot.launch.py use_classifier:=false   # tracking only
+
+baud by model: 115200 for A1 and A2M8, 256000 for A2M12, A3 and S1, 1000000 for S2 and S3.
 """
 
 import os
@@ -12,6 +16,7 @@ from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
 
 
 def generate_launch_description():
@@ -23,18 +28,33 @@ def generate_launch_description():
         DeclareLaunchArgument("use_localiser", default_value="true", description="start the localiser"),
         DeclareLaunchArgument("use_classifier", default_value="true", description="start the classifier"),
         DeclareLaunchArgument("use_rviz", default_value="false", description="start rviz2 with config/lidar_har.rviz"),
-        DeclareLaunchArgument("serial_port", default_value="/dev/ttyUSB0", description="RPLIDAR serial device"),
+        DeclareLaunchArgument("serial_port", default_value="/dev/ttyUSB0",
+                              description="RPLIDAR serial device (driver parameter port)"),
+        DeclareLaunchArgument("baud", default_value="115200",
+                              description="RPLIDAR baud rate: 115200 A1, A2M8; 256000 A2M12, A3, S1; "
+                                          "1000000 S2, S3"),
+        DeclareLaunchArgument("scan_mode", default_value="auto",
+                              description="auto (the device's typical mode), standard, express or a mode "
+                                          "name the device lists (Sensitivity, Boost, DenseBoost, ...)"),
+        DeclareLaunchArgument("frame_id", default_value="laser", description="frame of the published scans"),
         DeclareLaunchArgument("params_file", default_value=os.path.join(config, "robot.yaml"),
                               description="parameters of all nodes (ROS 2 params-file layout)"),
         Node(package="lidar_har", executable="rplidar_driver", name="rplidar_driver", output="screen",
-             parameters=[arg("params_file"), {"port": arg("serial_port")}],
+             parameters=[arg("params_file"), {
+                 "port": arg("serial_port"),
+                 "baud": ParameterValue(arg("baud"), value_type=int),
+                 # Strings as given: a mode or frame name must not be read as YAML (on, 1, ...).
+                 "scan_mode": ParameterValue(arg("scan_mode"), value_type=str),
+                 "frame_id": ParameterValue(arg("frame_id"), value_type=str),
+             }],
              condition=IfCondition(arg("use_driver"))),
         Node(package="lidar_har", executable="localiser", name="localiser", output="screen",
              parameters=[arg("params_file"), {"config": os.path.join(config, "localiser.yaml")}],
              condition=IfCondition(arg("use_localiser"))),
         Node(package="lidar_har", executable="classifier", name="classifier", output="screen",
              parameters=[arg("params_file"), {"config": os.path.join(config, "classifier.yaml"),
-                                              "model": os.path.join(share, "models", "activity.onnx")}],
+                                              "model": os.path.join(share, "models", "activity.onnx"),
+                                              "pose_head": os.path.join(share, "models", "pose_head.onnx")}],
              condition=IfCondition(arg("use_classifier"))),
         Node(package="rviz2", executable="rviz2", name="rviz2", output="screen",
              arguments=["-d", os.path.join(config, "lidar_har.rviz")],

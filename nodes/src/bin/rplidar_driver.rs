@@ -173,6 +173,13 @@ mod tests {
     }
 
     #[test]
+    fn the_robot_params_file_gives_the_defaults() {
+        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/robot.yaml");
+        let p = Parameters::resolve(&decls(), "/rplidar_driver", &[file], &[]).unwrap();
+        assert_eq!(config(&p).unwrap(), config(&params(&[])).unwrap());
+    }
+
+    #[test]
     fn a_scan_mode_the_device_lacks_is_a_bad_parameter() {
         let err = driver_error(Error::Unsupported {
             parameter: "scan_mode",
