@@ -1,5 +1,5 @@
 //! `rplidar_driver`: reads an RPLIDAR on a serial port and publishes /scan (fixed-size
-//! LaserScans stamped at the first sample of each rotation) and /diagnostics (device state,
+//! LaserScans stamped at their first ray, beam 0) and /diagnostics (device state,
 //! rates, faults). The driver library reconnects and resets on faults instead of exiting;
 //! only a scan mode the device does not have ends the node, with status 2 naming
 //! `scan_mode`, like any other bad parameter.
@@ -7,7 +7,8 @@
 //! Parameters: `port`, `baud`, `frame_id`, `beams`, `range_min`, `range_max`, `scan_mode`
 //! (auto, standard, express or a device mode name), `motor_pwm` (-1 = 660 where the A2/A3
 //! accessory board drives the motor, else none sent), `motor_rpm` (-1 = device default),
-//! `diagnostics_period` (s, 0.01..=5).
+//! `diagnostics_period` (s, 0.01..=5). Scans are stamped by the wall clock, also with
+//! `use_sim_time` (warned about): a live device's time is the wall clock.
 
 use std::process::ExitCode;
 
@@ -85,6 +86,12 @@ fn decls() -> Vec<ParamDecl> {
             V::Double(d.diagnostics_period.as_secs_f64()),
             "s between reports, 0.01..=5",
         ),
+        // Declared here for its description: a live device knows no simulation time.
+        ParamDecl::new(
+            "use_sim_time",
+            V::Bool(false),
+            "read /clock; scans are stamped by the wall clock all the same (a live device)",
+        ),
     ]
 }
 
@@ -131,6 +138,12 @@ fn config(p: &Parameters) -> Result<Config, RosError> {
 fn drive(shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = Node::new(NodeSetup::new("rplidar_driver").parameters(decls()))?;
     let mut driver = Driver::new(config(node.params())?).map_err(|e| bad_parameter("port", e))?;
+    if node.params().bool("use_sim_time")? {
+        log::warn!(
+            "rplidar_driver: use_sim_time is true, but the scans of a live device are stamped by \
+             the wall clock"
+        );
+    }
     let scans = node.publisher_for(&topics::SCAN)?;
     let diagnostics = node.publisher_for(&topics::DIAGNOSTICS)?;
     // next_event returns at least once per diagnostics period, so a signal is seen promptly.
