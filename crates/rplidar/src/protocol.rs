@@ -153,14 +153,6 @@ impl Request {
         out.push(xor(&out));
         out
     }
-
-    /// Whether the device answers this request with a descriptor.
-    pub fn expects_answer(&self) -> bool {
-        !matches!(
-            self,
-            Request::Stop | Request::Reset | Request::SetMotorPwm(_) | Request::SetMotorRpm(_)
-        )
-    }
 }
 
 /// XOR of all bytes: the checksum of requests and capsules.
