@@ -58,7 +58,7 @@ if ! command -v unshare >/dev/null || ! command -v ip >/dev/null; then
         apt-get update -qq && apt-get install -y -qq util-linux iproute2 >/dev/null \
             || fail "apt-get could not install util-linux/iproute2" "run 'apt-get install util-linux iproute2' as root"
     else
-        say "warning: 'unshare' or 'ip' missing; DDS tests will skip (sudo apt-get install util-linux iproute2)"
+        say "warning: 'unshare' or 'ip' missing; DDS tests will skip, and fail under scripts/test.sh and CI (LIDAR_HAR_REQUIRE_CHECKERS=1): sudo apt-get install util-linux iproute2"
     fi
 fi
 

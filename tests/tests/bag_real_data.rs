@@ -3,7 +3,7 @@
 //! `lidar-har bag info` reports it right. Skips with a message when ../shared is absent.
 
 use lidar_har_bag::BagReader;
-use lidar_har_e2e::{shared_real_data, workspace_bin};
+use lidar_har_e2e::{lidar_har, shared_real_data};
 use lidar_har_msgs::sensor_msgs::LaserScan;
 
 fn scans(dir: &std::path::Path) -> Vec<(i64, LaserScan, Vec<u8>)> {
@@ -64,7 +64,7 @@ fn bag_info_prints_the_counts() {
     };
     for storage in ["mcap", "sqlite3"] {
         let dir = real.join("leg_tracker_demo_stationary").join(storage);
-        let out = std::process::Command::new(workspace_bin("lidar-har"))
+        let out = lidar_har()
             .args(["bag", "info"])
             .arg(&dir)
             .output()
@@ -98,7 +98,7 @@ fn bag_info_rejects_what_is_not_a_bag() {
         not_bag,
         tmp.path().join("missing"),
     ] {
-        let out = std::process::Command::new(workspace_bin("lidar-har"))
+        let out = lidar_har()
             .args(["bag", "info"])
             .arg(&path)
             .output()

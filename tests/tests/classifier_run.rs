@@ -2,15 +2,15 @@
 //! simulate, localise, classify on real ONNX Runtime, record, summarise.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use lidar_har_bag::BagReader;
-use lidar_har_e2e::{repo_root, workspace_bin};
+use lidar_har_e2e::{lidar_har as lidar_har_command, repo_root, runtime_available};
 use lidar_har_msgs::geometry_msgs::PoseWithCovarianceStamped;
 use lidar_har_msgs::lidar_har_msgs::Activity;
 
 fn lidar_har(args: &[&str]) -> Output {
-    Command::new(workspace_bin("lidar-har"))
+    lidar_har_command()
         .args(args)
         .current_dir(repo_root())
         .output()
@@ -68,18 +68,6 @@ fn dataset_for_the_committed_model(out: &Path, args: &[&str]) {
 /// The small real step model the infer crate is tested with (untrained: checks plumbing).
 fn test_model() -> PathBuf {
     repo_root().join("crates/infer/tests/fixtures/step_model.onnx")
-}
-
-fn runtime_available() -> bool {
-    let lib = repo_root().join(".deps/onnxruntime/libonnxruntime.so");
-    if lib.is_file() || std::env::var_os("ORT_DYLIB_PATH").is_some() {
-        return true;
-    }
-    if std::env::var_os("LIDAR_HAR_REQUIRE_CHECKERS").is_some() {
-        panic!("{} missing: run scripts/setup.sh", lib.display());
-    }
-    eprintln!("SKIP: {} missing (run scripts/setup.sh)", lib.display());
-    false
 }
 
 #[test]
@@ -341,7 +329,11 @@ fn alerts_measures_latency_and_false_alerts_end_to_end() {
     let falls = r["falls"].as_u64().unwrap();
     assert!(falls >= 1, "a fall episode's script has a fall: {r}");
     assert_eq!(r["outcomes"].as_array().unwrap().len() as u64, falls);
-    assert!(r["falls_alerted_within_target"].as_u64() <= r["falls_alerted"].as_u64());
+    let alerted = r["falls_alerted"].as_u64().expect("falls_alerted");
+    let within_target = r["falls_alerted_within_target"]
+        .as_u64()
+        .expect("falls_alerted_within_target");
+    assert!(within_target <= alerted && alerted <= falls, "{r}");
     assert!((r["no_fall_hours"].as_f64().unwrap() - 20.0 * 2.0 / 3600.0).abs() < 1e-9);
     let false_alerts = r["false_alerts"].as_u64().unwrap();
     assert_eq!(
@@ -559,8 +551,12 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     assert_eq!(confusion_total(both), both_windows);
     let spread = &metrics["per_episode"];
     let (best, worst) = (&spread["best"], &spread["worst"]);
+    let (best_accuracy, worst_accuracy) = (
+        best["accuracy"].as_f64().expect("best accuracy"),
+        worst["accuracy"].as_f64().expect("worst accuracy"),
+    );
     assert!(
-        best["accuracy"].as_f64() >= worst["accuracy"].as_f64(),
+        (0.0..=1.0).contains(&worst_accuracy) && best_accuracy >= worst_accuracy,
         "{spread}"
     );
     assert!(best["fixed_lidar_at"].is_array(), "{spread}");

@@ -5,11 +5,10 @@
 //! given only on /tf, a map file against the bag's /map, and a bag cut short.
 
 use std::path::Path;
-use std::process::Command;
 
 use glam::DVec2;
 use lidar_har_bag::{BagReader, BagWriter, WriterOptions};
-use lidar_har_e2e::workspace_bin;
+use lidar_har_e2e::lidar_har as lidar_har_command;
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::geometry_msgs::{
     Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3,
@@ -225,7 +224,7 @@ fn write_map_file(
 }
 
 fn lidar_har(args: &[&std::ffi::OsStr]) -> std::process::Output {
-    Command::new(workspace_bin("lidar-har"))
+    lidar_har_command()
         .arg("run")
         .args(args)
         .output()
@@ -495,7 +494,7 @@ fn a_negative_log_time_in_the_input_skips_that_message_only() {
     let mcap = tmp.path().join("mcap");
     write_bag(&mcap);
     let input = tmp.path().join("in");
-    let converted = Command::new(workspace_bin("lidar-har"))
+    let converted = lidar_har_command()
         .args([
             "bag".as_ref(),
             "convert".as_ref(),

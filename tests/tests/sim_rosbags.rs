@@ -2,9 +2,7 @@
 //! message, with its types registered from the bag's own schemas) and `mcap` +
 //! `mcap-ros2-support`. Also checks the map_server files and the render.
 
-use std::process::Command;
-
-use lidar_har_e2e::{checker_python, repo_root, workspace_bin};
+use lidar_har_e2e::{checker_python, lidar_har, repo_root};
 
 const CHECK: &str = r#"
 import sys, math, collections
@@ -46,7 +44,7 @@ fn simulated_bag_reads_in_rosbags_and_mcap() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("living");
     let png = tmp.path().join("living.png");
-    let status = Command::new(workspace_bin("lidar-har"))
+    let status = lidar_har()
         .current_dir(repo_root())
         .args([
             "simulate",
@@ -96,7 +94,7 @@ fn simulate_rejects_a_bad_scene_naming_the_key() {
         "duration: 5\nroom: {outline: [[0,0],[4,0],[4,4],[0,4]]}\nfurniture: [{kind: box, center: [2,2], size: [-1, 1], height: 1}]\nrobot: {start: {x: 0.5, y: 0.5}}\n",
     )
     .unwrap();
-    let output = Command::new(workspace_bin("lidar-har"))
+    let output = lidar_har()
         .args(["simulate", "--scene"])
         .arg(&scene)
         .arg("--out")
@@ -115,7 +113,7 @@ fn simulate_rejects_a_bad_scene_naming_the_key() {
 fn simulate_renders_an_animation_and_refuses_other_formats() {
     let tmp = tempfile::tempdir().unwrap();
     let simulate = |render: &str| {
-        Command::new(workspace_bin("lidar-har"))
+        lidar_har()
             .current_dir(repo_root())
             .args(["simulate", "--duration", "2", "--out"])
             .arg(tmp.path().join(render.replace('.', "_")))
@@ -152,7 +150,7 @@ fn commands_finish_their_work_when_the_reader_of_stdout_has_gone() {
     let tmp = tempfile::tempdir().unwrap();
     let bag = tmp.path().join("bag");
     let with_stdout_closed = |args: &[&std::ffi::OsStr]| {
-        let mut child = Command::new(workspace_bin("lidar-har"))
+        let mut child = lidar_har()
             .current_dir(repo_root())
             .args(args)
             .stdout(std::process::Stdio::piped())
