@@ -5,7 +5,8 @@ namespace by tests/tests/ros_nodes.rs).
                                    (SIGTERM: stop waiting, succeed if MIN came)
     ros_cyclone_interop.py receive-topics TIMEOUT TOPIC=COUNT...
                                    every reader made first; {"topic", "msg"} JSON lines
-    ros_cyclone_interop.py publish-scan COUNT RATE_HZ    LaserScans with ranges [i, i, ...]
+    ros_cyclone_interop.py publish-scan COUNT RATE_HZ    LaserScans with ranges [i, i, ...],
+                                   once a reader has matched
 
 Topics use ROS 2 naming (`rt/` prefix) and the QoS of DESIGN.md's contract.
 """
@@ -65,6 +66,10 @@ def receive(participant, topic_name, count, timeout, minimum):
             print(json.dumps(asdict(sample)), flush=True)
             got += 1
         time.sleep(0.005)
+    # Done: a SIGTERM from now on (the test stopping a receiver that has just finished) must
+    # not kill the process on its way out (Python restores the default action at exit, but
+    # leaves an ignored signal ignored).
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     return 0 if got >= minimum else 1
 
 
@@ -94,11 +99,27 @@ def receive_topics(participant, timeout, wanted):
     return 0 if ok else 1
 
 
+def wait_for_reader(writer, timeout):
+    """Waits until `writer` has matched a reader; False after `timeout` seconds."""
+    end = time.monotonic() + timeout
+    while not writer.get_matched_subscriptions():
+        if time.monotonic() >= end:
+            return False
+        time.sleep(0.01)
+    return True
+
+
 def publish_scans(participant, count, rate_hz):
+    """Publishes once the subscriber's reader has matched (the subscriber must be started
+    first); fails if none matches within 15 s."""
     cls, qos = TYPES["/scan"]
     writer = DataWriter(participant, Topic(participant, "rt/scan", cls), qos=qos)
-    # Give discovery time to match the node's reader before the first scan.
-    time.sleep(1.0)
+    if not wait_for_reader(writer, 15.0):
+        print("publish-scan: no reader of /scan matched within 15 s", file=sys.stderr)
+        return 1
+    # The reader's side matches our writer on its own discovery, about as soon: a little
+    # time for it (the test accepts a few lost first scans should it come later still).
+    time.sleep(0.3)
     for i in range(count):
         ns = 1_700_000_000_000_000_000 + i * 50_000_000
         writer.write(LaserScan(
