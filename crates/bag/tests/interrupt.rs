@@ -7,6 +7,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
 use lidar_har_bag::{BagError, BagReader, BagWriter, Compression, WriterOptions};
@@ -77,29 +78,89 @@ fn child_writer() {
     println!("finished {}", summary.metadata.message_count);
 }
 
-fn spawn_child(dir: &Path) -> Child {
-    Command::new(std::env::current_exe().unwrap())
-        .args(["--exact", "child_writer", "--nocapture", "--test-threads=1"])
-        .env(CHILD_DIR, dir)
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap()
+/// How long the child may take to print its next awaited line.
+const CHILD_DEADLINE: Duration = Duration::from_secs(60);
+
+/// The child writer and its stdout lines, read on a thread so that waiting for a line can
+/// time out; the child is killed when this is dropped (a failing test included), so a hung
+/// child neither blocks the test nor outlives it.
+struct ChildWriter {
+    child: Child,
+    lines: Receiver<String>,
 }
 
-/// Reads the child's `flushed N` lines until N reaches `at_least`; returns the last N seen.
-fn wait_for_flushes(lines: &mut impl Iterator<Item = String>, at_least: u32) -> u32 {
-    let deadline = Instant::now() + Duration::from_secs(60);
-    for line in lines {
-        if let Some(n) = line
-            .strip_prefix("flushed ")
-            .and_then(|n| n.trim().parse::<u32>().ok())
-            && n >= at_least
-        {
-            return n;
-        }
-        assert!(Instant::now() < deadline, "child too slow");
+impl ChildWriter {
+    fn spawn(dir: &Path) -> Self {
+        let mut child = Command::new(std::env::current_exe().unwrap())
+            .args(["--exact", "child_writer", "--nocapture", "--test-threads=1"])
+            .env(CHILD_DIR, dir)
+            .stdout(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let stdout = child.stdout.take().unwrap();
+        let (tx, lines) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        Self { child, lines }
     }
-    panic!("child ended before flushing {at_least} messages");
+
+    /// The first line for which `parse` gives a value, within [`CHILD_DEADLINE`]; panics
+    /// (the child is then killed) if it does not come in time or the child ends first.
+    fn find_line<T>(&self, what: &str, mut parse: impl FnMut(&str) -> Option<T>) -> T {
+        let deadline = Instant::now() + CHILD_DEADLINE;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.lines.recv_timeout(left) {
+                Ok(line) => {
+                    if let Some(value) = parse(&line) {
+                        return value;
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    panic!("child too slow: no {what} within {CHILD_DEADLINE:?}")
+                }
+                Err(RecvTimeoutError::Disconnected) => panic!("child ended before {what}"),
+            }
+        }
+    }
+
+    /// Reads the child's `flushed N` lines until N reaches `at_least`; returns that N.
+    fn wait_for_flushes(&self, at_least: u32) -> u32 {
+        self.find_line(&format!("`flushed N` with N >= {at_least}"), |line| {
+            line.strip_prefix("flushed ")
+                .and_then(|n| n.trim().parse::<u32>().ok())
+                .filter(|n| *n >= at_least)
+        })
+    }
+
+    /// Waits for the child to exit, killing it if it has not within [`CHILD_DEADLINE`].
+    fn wait(&mut self) -> std::process::ExitStatus {
+        let deadline = Instant::now() + CHILD_DEADLINE;
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "child did not exit within {CHILD_DEADLINE:?}"
+            );
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+}
+
+impl Drop for ChildWriter {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
 }
 
 fn read_back(dir: &Path) -> (Vec<LaserScan>, Option<BagError>) {
@@ -119,13 +180,10 @@ fn read_back(dir: &Path) -> (Vec<LaserScan>, Option<BagError>) {
 fn sigkill_loses_nothing_flushed() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("killed");
-    let mut child = spawn_child(&dir);
-    let mut lines = BufReader::new(child.stdout.take().unwrap())
-        .lines()
-        .map_while(Result::ok);
-    let flushed = wait_for_flushes(&mut lines, 300);
-    child.kill().unwrap(); // SIGKILL: no handler runs
-    child.wait().unwrap();
+    let mut child = ChildWriter::spawn(&dir);
+    let flushed = child.wait_for_flushes(300);
+    child.child.kill().unwrap(); // SIGKILL: no handler runs
+    child.wait();
 
     let (scans, error) = read_back(&dir);
     assert!(
@@ -162,23 +220,18 @@ fn sigkill_loses_nothing_flushed() {
 fn sigterm_finishes_the_bag() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("terminated");
-    let mut child = spawn_child(&dir);
-    let mut lines = BufReader::new(child.stdout.take().unwrap())
-        .lines()
-        .map_while(Result::ok);
-    wait_for_flushes(&mut lines, 100);
+    let mut child = ChildWriter::spawn(&dir);
+    child.wait_for_flushes(100);
     nix::sys::signal::kill(
-        nix::unistd::Pid::from_raw(child.id() as i32),
+        nix::unistd::Pid::from_raw(child.child.id() as i32),
         nix::sys::signal::Signal::SIGTERM,
     )
     .unwrap();
-    let finished: u64 = lines
-        .find_map(|l| {
-            l.strip_prefix("finished ")
-                .and_then(|n| n.trim().parse().ok())
-        })
-        .expect("child prints `finished N` after SIGTERM");
-    assert!(child.wait().unwrap().success());
+    let finished: u64 = child.find_line("`finished N` after SIGTERM", |l| {
+        l.strip_prefix("finished ")
+            .and_then(|n| n.trim().parse().ok())
+    });
+    assert!(child.wait().success());
 
     let (scans, error) = read_back(&dir);
     assert!(error.is_none(), "{error:?}");
