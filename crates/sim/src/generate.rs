@@ -514,8 +514,11 @@ mod tests {
 
     #[test]
     fn random_rooms_are_valid_furnished_and_open() {
+        // 12 seeds: a room takes up to seconds to generate in a debug build, and 40 seeds
+        // (which all passed alike) took most of this crate's test time.
+        const SEEDS: u64 = 12;
         let mut furnished = 0;
-        for seed in 0..40 {
+        for seed in 0..SEEDS {
             let scene = random_scene(seed).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
             // What it writes reads back as a scene file, and simulates.
             let text = serde_yaml_ng::to_string(&scene).unwrap();
@@ -528,8 +531,8 @@ mod tests {
             assert!(world.robot_clearance(DVec2::new(start.x, start.y)).0 >= 0.35);
         }
         assert!(
-            furnished >= 35,
-            "{furnished} of 40 rooms have two pieces or more"
+            furnished >= 10,
+            "{furnished} of {SEEDS} rooms have two pieces or more"
         );
     }
 

@@ -105,12 +105,14 @@ proptest! {
         let g = sim.scan_geometry();
         let n = sim.scene().lidar.noise;
         let hgt = sim.world().lidar_height;
+        let mut person_beams = 0usize;
         for f in &frames {
             let person = f.person.as_ref().expect("scene has a person");
             for (i, (r, l)) in f.ranges.iter().zip(&f.labels).enumerate() {
                 if *l != BeamLabel::Person {
                     continue;
                 }
+                person_beams += 1;
                 let r = *r as f64;
                 let p = f.laser.transform_point(DVec2::from_angle(g.angle_min + g.angle_increment * i as f64) * r);
                 // Six sigma of the range error plus the arc of four sigma of angle error.
@@ -122,6 +124,9 @@ proptest! {
                 prop_assert!(gap <= tol, "person point {:?} is {} m off the body (tolerance {})", p, gap, tol);
             }
         }
+        // The person stands in the open middle of the room: some beams must hit them, or the
+        // checks above checked nothing.
+        prop_assert!(person_beams > 0, "no beam of {} frames hit the person", frames.len());
     }
 
     #[test]
