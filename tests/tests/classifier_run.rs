@@ -374,6 +374,7 @@ fn alerts_refuses_what_it_cannot_measure_before_simulating() {
             &["--fall-episodes", "0", "--no-fall-hours", "0"],
             "nothing to measure",
         ),
+        (&["--no-fall-hours", "1e9"], "--no-fall-hours 1000000000"),
         (
             &[
                 "--fall-episodes",

@@ -255,6 +255,7 @@ fn run_tracks_the_person_in_a_robot_bag_and_writes_outputs_and_summary() {
     assert_eq!(summary["scans"], 199);
     assert_eq!(summary["room"], "map");
     assert_eq!(summary["motion"], "odometry");
+    assert_eq!(summary["mount"], "tf_static");
     assert!(summary["visible_ratio"].as_f64().unwrap() > 0.95);
     // The Lidar sees the near half of a 0.2 m cylinder: its centroid is ~0.16 m from the centre.
     let median = summary["position_error_m"]["median"].as_f64().unwrap();

@@ -12,7 +12,8 @@ use std::time::Duration;
 
 use lidar_har_bag::{BagWriter, WriterOptions};
 use lidar_har_e2e::{
-    checker_python, lidar_har, output_within, repo_root, skip_or_fail, workspace_bin,
+    checker_python, lidar_har, output_within, repo_root, runtime_available, skip_or_fail,
+    workspace_bin,
 };
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::geometry_msgs::Point;
@@ -347,6 +348,51 @@ fn ros_nodes_reject_bad_parameters_naming_them() {
             !stderr.contains("panicked"),
             "{command}: panicked: {stderr}"
         );
+    }
+}
+
+#[test]
+fn the_classifier_tells_a_missing_runtime_from_a_bad_model() {
+    if !netns_available() || !runtime_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    // (command, exit status, what stderr must name): the installation is at fault (1), or a
+    // parameter (2).
+    let cases: &[(&str, &str, &[&str])] = &[
+        (
+            r#"ORT_DYLIB_PATH=/nonexistent/libonnxruntime.so "$CLASSIFIER""#,
+            "exit=1",
+            &["/nonexistent/libonnxruntime.so", "scripts/setup.sh"],
+        ),
+        (
+            r#""$CLASSIFIER" --ros-args -p model:=/nonexistent/model.onnx"#,
+            "exit=2",
+            &["`model`", "/nonexistent/model.onnx"],
+        ),
+    ];
+    for (command, status, needles) in cases {
+        let script = format!("{command} 2> \"$OUT/err.txt\"; echo \"exit=$?\"");
+        let out = in_netns(
+            &script,
+            &[
+                ("CLASSIFIER", &workspace_bin("classifier")),
+                ("OUT", dir.path()),
+            ],
+            Duration::from_secs(20),
+        );
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let stderr = std::fs::read_to_string(dir.path().join("err.txt")).unwrap();
+        assert!(
+            stdout.contains(status),
+            "{command}: want {status}: {stdout}"
+        );
+        for needle in *needles {
+            assert!(
+                stderr.contains(needle),
+                "{command}: stderr must name {needle}: {stderr}"
+            );
+        }
     }
 }
 
