@@ -64,7 +64,7 @@ pub struct AlertsArgs {
     /// Print every scan of this episode (by number, as in the report) to stderr: the true
     /// activity, the model's top class and its probability, p(falling_down), whether the
     /// person was seen, the length of their points, where they were (map frame), and the
-    /// alerts raised. Repeatable.
+    /// alerts raised (`tracked=false` where nobody was tracked). Repeatable.
     #[arg(long, value_name = "EPISODE")]
     pub trace_episode: Vec<usize>,
 }
