@@ -1,5 +1,6 @@
-//! Medians and quantiles: one rule each for every figure the project prints and every
-//! decision that takes a median.
+//! Medians and quantiles, each rule named once: nearest rank (the figures of `summary.json`
+//! and the reports), the median as the mean of the middle two (per-episode accuracy), and
+//! the upper median (thresholds over a few scans).
 
 use serde::Serialize;
 
@@ -43,7 +44,8 @@ pub fn upper_median(values: &mut [f64]) -> Option<f64> {
     Some(upper)
 }
 
-/// Median and tail of a distribution (nearest-rank quantiles).
+/// Median and tail of a distribution, all nearest-rank quantiles (so the median of an even
+/// count is the lower of the middle two: a value that occurred).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Spread {
     pub median: f64,

@@ -99,7 +99,7 @@ pub struct RunSummary {
 }
 
 /// The output bag, with a topic for each stage output added to it.
-pub struct OutputBag {
+pub(crate) struct OutputBag {
     writer: BagWriter,
     topics: Vec<(&'static str, TopicHandle)>,
 }
@@ -114,7 +114,7 @@ impl OutputBag {
 
     /// Adds the topics a stage writes; those another stage added already (/human/markers)
     /// are shared.
-    pub fn add_topics(&mut self, specs: &[TopicSpec]) -> Result<(), BagError> {
+    pub(crate) fn add_topics(&mut self, specs: &[TopicSpec]) -> Result<(), BagError> {
         for spec in specs {
             if self.topics.iter().all(|(name, _)| *name != spec.name) {
                 let handle = self.writer.add_contract_topic(spec)?;
@@ -128,7 +128,7 @@ impl OutputBag {
     ///
     /// # Errors
     /// A message for a topic that was not added, or a failed write.
-    pub fn write(&mut self, message: &Outgoing, log_time_ns: i64) -> Result<(), BagError> {
+    pub(crate) fn write(&mut self, message: &Outgoing, log_time_ns: i64) -> Result<(), BagError> {
         let Some(&(_, handle)) = self
             .topics
             .iter()

@@ -977,7 +977,7 @@ impl ClassifierRun {
     }
 
     /// An input message: takes /ground_truth/activity (returns true), ignores the rest.
-    pub fn on_input(&mut self, topic: &str, cdr: &[u8]) -> bool {
+    pub(crate) fn on_input(&mut self, topic: &str, cdr: &[u8]) -> bool {
         if topic != topics::GROUND_TRUTH_ACTIVITY.name {
             return false;
         }
@@ -989,7 +989,7 @@ impl ClassifierRun {
     }
 
     /// A message the localiser produced: classifies /human/observation and records the results.
-    pub fn on_localiser_output(
+    pub(crate) fn on_localiser_output(
         &mut self,
         out: &Outgoing,
         log_time_ns: i64,

@@ -106,8 +106,8 @@ pub struct LocaliserStage {
     last_scan_time: Option<Duration>,
     scans_learning: u64,
     mount: MountSource,
-    /// Scans localised with the configured mount while /tf_static had no chain to the scan's
-    /// frame (counted until that is warned about).
+    /// Scans localised with the configured mount while /tf_static had transforms but no
+    /// chain to the scan's frame (counted until that is warned about).
     scans_without_tf_mount: u32,
 }
 
@@ -295,7 +295,11 @@ impl LocaliserStage {
         let result = self.localiser.process_scan(&scan);
         self.last_scan_time = Some(started.elapsed());
         self.scans_learning += u64::from(result.learning);
-        if self.mount == MountSource::Configuration && result.output.is_some() {
+        // A configured mount is a choice unless /tf_static speaks, but of other frames.
+        if self.mount == MountSource::Configuration
+            && !self.static_tf.is_empty()
+            && result.output.is_some()
+        {
             self.scans_without_tf_mount += 1;
             if self.scans_without_tf_mount == SCANS_BEFORE_MOUNT_WARNING {
                 log::warn!(

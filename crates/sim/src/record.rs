@@ -119,24 +119,17 @@ pub fn record(
         ..WriterOptions::default()
     };
     let mut bag = BagWriter::create(out, options)?;
-    let scan_t = bag.add_topic_for::<LaserScan>(topics::SCAN.name, topics::SCAN.qos)?;
-    let odom_t = bag.add_topic_for::<Odometry>(topics::ODOM.name, topics::ODOM.qos)?;
-    let tf_t = bag.add_topic_for::<TFMessage>(topics::TF.name, topics::TF.qos)?;
-    let tf_static_t =
-        bag.add_topic_for::<TFMessage>(topics::TF_STATIC.name, topics::TF_STATIC.qos)?;
-    let map_t = bag.add_topic_for::<OccupancyGrid>(topics::MAP.name, topics::MAP.qos)?;
-    let clock_t = bag.add_topic_for::<Clock>(topics::CLOCK.name, topics::CLOCK.qos)?;
+    let scan_t = bag.add_contract_topic(&topics::SCAN)?;
+    let odom_t = bag.add_contract_topic(&topics::ODOM)?;
+    let tf_t = bag.add_contract_topic(&topics::TF)?;
+    let tf_static_t = bag.add_contract_topic(&topics::TF_STATIC)?;
+    let map_t = bag.add_contract_topic(&topics::MAP)?;
+    let clock_t = bag.add_contract_topic(&topics::CLOCK)?;
     let has_person = sim.scene().person.is_some();
     let truth_t = if has_person {
         Some((
-            bag.add_topic_for::<PoseStamped>(
-                topics::GROUND_TRUTH_POSE.name,
-                topics::GROUND_TRUTH_POSE.qos,
-            )?,
-            bag.add_topic_for::<ActivityMsg>(
-                topics::GROUND_TRUTH_ACTIVITY.name,
-                topics::GROUND_TRUTH_ACTIVITY.qos,
-            )?,
+            bag.add_contract_topic(&topics::GROUND_TRUTH_POSE)?,
+            bag.add_contract_topic(&topics::GROUND_TRUTH_ACTIVITY)?,
         ))
     } else {
         None

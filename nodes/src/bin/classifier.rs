@@ -5,7 +5,8 @@
 //!
 //! Parameters: `config` (a `config/classifier.yaml`-format file; empty = defaults), `model`
 //! and `pose_head` (ONNX files; empty = those the configuration names, which are relative
-//! to the working directory, so launch files pass the installed ones).
+//! to the working directory, so launch files pass the installed ones; `pose_head:=none`
+//! turns the head off).
 
 use std::process::ExitCode;
 use std::time::Duration;
@@ -43,7 +44,7 @@ fn decls() -> Vec<ParamDecl> {
         ParamDecl::new(
             "pose_head",
             V::String(String::new()),
-            "ONNX pose head for /human/pelvis; empty = the configuration's",
+            "ONNX pose head for /human/pelvis; empty = the configuration's, none = no head",
         ),
     ]
 }
@@ -55,8 +56,10 @@ fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
         Some(path) => load_classifier_config(&path).map_err(|e| bad_parameter("config", e))?,
         None => ClassifierConfig::default(),
     };
-    if let Some(head) = optional_path(p, "pose_head")? {
-        config.pose_head = Some(head);
+    match optional_path(p, "pose_head")? {
+        Some(head) if head.as_os_str() == "none" => config.pose_head = None,
+        Some(head) => config.pose_head = Some(head),
+        None => {}
     }
     let model = optional_path(p, "model")?;
     let mut stage = ClassifierStage::load(&config, model.as_deref()).map_err(|e| match e {

@@ -42,7 +42,7 @@ pub struct AlertsArgs {
     /// Episodes whose scripts contain falls.
     #[arg(long, default_value_t = 40)]
     pub fall_episodes: usize,
-    /// Simulated hours of activity without any fall.
+    /// Simulated hours of activity without any fall (at most 1000).
     #[arg(long, default_value_t = 1.0)]
     pub no_fall_hours: f64,
     /// Episodes that end with a fall after which the person stays on the floor, so that

@@ -13,7 +13,7 @@ use lidar_har_ros::{Node, NodeSetup};
 pub enum TopicCommand {
     /// List the topics discovered on the network (ROS_DOMAIN_ID applies), one per line.
     List {
-        /// How long to listen for discovery, in seconds.
+        /// How long to listen for discovery, in seconds (at most a day).
         #[arg(long, default_value_t = 2.0)]
         wait: f64,
         /// Also print each topic's type.
@@ -30,7 +30,7 @@ pub enum TopicCommand {
         /// Stop after this many messages.
         #[arg(long)]
         count: Option<u64>,
-        /// Stop after this many seconds (also bounds the wait for discovery).
+        /// Stop after this many seconds, at most a day (also bounds the wait for discovery).
         #[arg(long)]
         timeout: Option<f64>,
         /// Exit non-zero when fewer than --count messages arrived before --timeout.
