@@ -741,6 +741,22 @@ fn json_close(a: &serde_json::Value, b: &serde_json::Value) -> bool {
     }
 }
 
+/// Fails unless the messages `topic echo` wrote to `echoed` are those of `want` (from
+/// `lidar-har run`): the same stamps, then each message equal to within float noise.
+fn assert_echo_equals_run(topic: &str, echoed: &Path, want: &[serde_json::Value]) {
+    let got: Vec<_> = json_lines(echoed)
+        .into_iter()
+        .map(|l| l["msg"].clone())
+        .collect();
+    assert_same_stamps(topic, &got, want);
+    for (i, (got, want)) in got.iter().zip(want).enumerate() {
+        assert!(
+            json_close(got, want),
+            "{topic} {i} differs between the nodes and `lidar-har run`:\n{got}\n{want}"
+        );
+    }
+}
+
 /// Fails unless `got` has the messages of `want`, by header stamp: a failure names the
 /// stamps missing and those extra.
 fn assert_same_stamps(topic: &str, got: &[serde_json::Value], want: &[serde_json::Value]) {
@@ -872,26 +888,10 @@ wait $C; echo "classifier=$?"
         let text = std::fs::read_to_string(dir.path().join(format!("{node}.err"))).unwrap();
         assert!(!text.contains("ERROR"), "{node} logged errors:\n{text}");
     }
-    let got_poses: Vec<_> = json_lines(&dir.path().join("pose.jsonl"))
-        .into_iter()
-        .map(|l| l["msg"].clone())
-        .collect();
-    assert_same_stamps("/human/pose", &got_poses, &want_poses);
-    for (i, (got, want)) in got_poses.iter().zip(&want_poses).enumerate() {
-        assert!(
-            json_close(got, want),
-            "/human/pose {i} differs between the nodes and `lidar-har run`:\n{got}\n{want}"
-        );
-    }
-    let got: Vec<_> = json_lines(&dir.path().join("activity.jsonl"))
-        .into_iter()
-        .map(|l| l["msg"].clone())
-        .collect();
-    assert_same_stamps("/human/activity", &got, &want_activities);
-    for (i, (got, want)) in got.iter().zip(&want_activities).enumerate() {
-        assert!(
-            json_close(got, want),
-            "/human/activity {i} differs between the nodes and `lidar-har run`:\n{got}\n{want}"
-        );
-    }
+    assert_echo_equals_run("/human/pose", &dir.path().join("pose.jsonl"), &want_poses);
+    assert_echo_equals_run(
+        "/human/activity",
+        &dir.path().join("activity.jsonl"),
+        &want_activities,
+    );
 }
