@@ -2,7 +2,12 @@
 
 use glam::DVec2;
 
-use crate::scene::{Furniture, MAX_ROBOT_SPEED, Motion, Scene, is_locomotion};
+use lidar_har_core::activity::Activity;
+
+use crate::scene::{
+    BodySpec, Furniture, Legged, LidarSpec, MAX_ROBOT_SPEED, Motion, NoiseSpec, PersonSpec,
+    RobotSpec, Room, Scene, ScriptStep, is_locomotion,
+};
 use crate::shapes::{polygon_area2, polygon_self_intersection};
 use crate::world::World;
 
@@ -87,7 +92,26 @@ pub const MAX_ROOM_SIDE_M: f64 = 200.0;
 /// The last second a ROS stamp holds (`builtin_interfaces/Time.sec` is a signed 32-bit int).
 const LAST_ROS_SECOND: u64 = i32::MAX as u64;
 
+/// Checks run in this order; the first failure is reported. Placement comes last because it
+/// needs the room built from the values checked before it.
 pub fn validate(scene: &Scene) -> Check {
+    check_times(scene)?;
+    check_room(&scene.room)?;
+    for (i, f) in scene.furniture.iter().enumerate() {
+        check_furniture(&format!("furniture[{i}]"), f)?;
+    }
+    check_robot(&scene.robot)?;
+    check_lidar(&scene.lidar)?;
+    let world = World::new(scene);
+    check_robot_start(&world, &scene.robot)?;
+    check_robot_motion(&world, &scene.robot)?;
+    if let Some(p) = &scene.person {
+        check_person(&world, p)?;
+    }
+    Ok(())
+}
+
+fn check_times(scene: &Scene) -> Check {
     in_range("duration", scene.duration, 1e-3, 1e7)?;
     if scene.start_time as f64 + scene.duration > LAST_ROS_SECOND as f64 {
         return fail(
@@ -99,9 +123,12 @@ pub fn validate(scene: &Scene) -> Check {
             ),
         );
     }
-    polygon("room.outline", &scene.room.outline)?;
-    let (lo, hi) = scene
-        .room
+    Ok(())
+}
+
+fn check_room(room: &Room) -> Check {
+    polygon("room.outline", &room.outline)?;
+    let (lo, hi) = room
         .outline
         .iter()
         .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(lo, hi), p| {
@@ -118,64 +145,71 @@ pub fn validate(scene: &Scene) -> Check {
             ),
         );
     }
-    for (i, f) in scene.furniture.iter().enumerate() {
-        let k = format!("furniture[{i}]");
-        match f {
-            Furniture::Box {
-                center,
-                size,
-                yaw_deg,
-                height,
-                ..
-            } => {
-                points(&format!("{k}.center"), &[*center])?;
-                positive(&format!("{k}.size[0]"), size[0])?;
-                positive(&format!("{k}.size[1]"), size[1])?;
-                finite(&format!("{k}.yaw_deg"), *yaw_deg)?;
-                positive(&format!("{k}.height"), *height)?;
-            }
-            Furniture::Cylinder {
-                center,
-                radius,
-                height,
-                ..
-            } => {
-                points(&format!("{k}.center"), &[*center])?;
-                positive(&format!("{k}.radius"), *radius)?;
-                positive(&format!("{k}.height"), *height)?;
-            }
-            Furniture::Polygon {
-                points: pts,
-                height,
-                ..
-            } => {
-                polygon(&format!("{k}.points"), pts)?;
-                positive(&format!("{k}.height"), *height)?;
-            }
-            Furniture::Table(l) | Furniture::Chair(l) => {
-                points(&format!("{k}.center"), &[l.center])?;
-                positive(&format!("{k}.size[0]"), l.size[0])?;
-                positive(&format!("{k}.size[1]"), l.size[1])?;
-                finite(&format!("{k}.yaw_deg"), l.yaw_deg)?;
-                positive(&format!("{k}.height"), l.height)?;
-                positive(&format!("{k}.leg_radius"), l.leg_radius)?;
-                in_range(&format!("{k}.leg_inset"), l.leg_inset, 0.0, f64::MAX)?;
-                for (axis, s) in l.size.iter().enumerate() {
-                    if 2.0 * (l.leg_inset + l.leg_radius) > *s {
-                        return fail(
-                            format!("{k}.size[{axis}]"),
-                            format!(
-                                "{s} m is too small for legs of radius {} set in by {} m",
-                                l.leg_radius, l.leg_inset
-                            ),
-                        );
-                    }
-                }
-            }
+    Ok(())
+}
+
+/// `k` is the piece's key path, `furniture[i]`.
+fn check_furniture(k: &str, f: &Furniture) -> Check {
+    match f {
+        Furniture::Box {
+            center,
+            size,
+            yaw_deg,
+            height,
+            ..
+        } => {
+            points(&format!("{k}.center"), &[*center])?;
+            positive(&format!("{k}.size[0]"), size[0])?;
+            positive(&format!("{k}.size[1]"), size[1])?;
+            finite(&format!("{k}.yaw_deg"), *yaw_deg)?;
+            positive(&format!("{k}.height"), *height)
+        }
+        Furniture::Cylinder {
+            center,
+            radius,
+            height,
+            ..
+        } => {
+            points(&format!("{k}.center"), &[*center])?;
+            positive(&format!("{k}.radius"), *radius)?;
+            positive(&format!("{k}.height"), *height)
+        }
+        Furniture::Polygon {
+            points: pts,
+            height,
+            ..
+        } => {
+            polygon(&format!("{k}.points"), pts)?;
+            positive(&format!("{k}.height"), *height)
+        }
+        Furniture::Table(l) | Furniture::Chair(l) => check_legged(k, l),
+    }
+}
+
+fn check_legged(k: &str, l: &Legged) -> Check {
+    points(&format!("{k}.center"), &[l.center])?;
+    positive(&format!("{k}.size[0]"), l.size[0])?;
+    positive(&format!("{k}.size[1]"), l.size[1])?;
+    finite(&format!("{k}.yaw_deg"), l.yaw_deg)?;
+    positive(&format!("{k}.height"), l.height)?;
+    positive(&format!("{k}.leg_radius"), l.leg_radius)?;
+    in_range(&format!("{k}.leg_inset"), l.leg_inset, 0.0, f64::MAX)?;
+    for (axis, s) in l.size.iter().enumerate() {
+        if 2.0 * (l.leg_inset + l.leg_radius) > *s {
+            return fail(
+                format!("{k}.size[{axis}]"),
+                format!(
+                    "{s} m is too small for legs of radius {} set in by {} m",
+                    l.leg_radius, l.leg_inset
+                ),
+            );
         }
     }
+    Ok(())
+}
 
-    let r = &scene.robot;
+/// The robot's own values; where it starts and drives needs the room ([`check_robot_start`]).
+fn check_robot(r: &RobotSpec) -> Check {
     positive("robot.radius", r.radius)?;
     in_range("robot.lidar_height", r.lidar_height, 0.01, 3.0)?;
     finite("robot.lidar_mount.x", r.lidar_mount.x)?;
@@ -194,9 +228,10 @@ pub fn validate(scene: &Scene) -> Check {
             ),
         );
     }
-    positive("robot.turn_rate_deg", r.turn_rate_deg)?;
+    positive("robot.turn_rate_deg", r.turn_rate_deg)
+}
 
-    let l = &scene.lidar;
+fn check_lidar(l: &LidarSpec) -> Check {
     positive("lidar.rate_hz", l.rate_hz)?;
     if l.rate_hz > 1000.0 {
         return fail(
@@ -221,7 +256,10 @@ pub fn validate(scene: &Scene) -> Check {
             ),
         );
     }
-    let n = &l.noise;
+    check_noise(&l.noise)
+}
+
+fn check_noise(n: &NoiseSpec) -> Check {
     in_range("lidar.noise.distance_pct", n.distance_pct, 0.0, 100.0)?;
     in_range("lidar.noise.missing_pct", n.missing_pct, 0.0, 100.0)?;
     in_range("lidar.noise.wrong_pct", n.wrong_pct, 0.0, 100.0)?;
@@ -240,22 +278,28 @@ pub fn validate(scene: &Scene) -> Check {
         n.wrong_spread_deg,
         0.0,
         180.0,
-    )?;
+    )
+}
 
-    // Placement: needs the room's geometry.
-    let world = World::new(scene);
+/// Where the robot starts, against the room and furniture.
+fn check_robot_start(world: &World, r: &RobotSpec) -> Check {
     let (clear, what) = world.robot_clearance(r.start.to_pose().position());
     if clear < r.radius {
         let place = match (clear < 0.0, what) {
             (true, None) => "outside the room".to_string(),
-            (true, Some(_)) => format!("inside {}", describe(&world, what)),
-            (false, _) => format!("overlapping {}", describe(&world, what)),
+            (true, Some(_)) => format!("inside {}", describe(world, what)),
+            (false, _) => format!("overlapping {}", describe(world, what)),
         };
         return fail(
             "robot.start",
             format!("the robot (radius {} m) starts {place}", r.radius),
         );
     }
+    Ok(())
+}
+
+/// The motion's values; waypoints must leave the robot room to stand.
+fn check_robot_motion(world: &World, r: &RobotSpec) -> Check {
     match &r.motion {
         Motion::Static => {}
         Motion::Waypoints { points: pts, .. } => {
@@ -271,7 +315,7 @@ pub fn validate(scene: &Scene) -> Check {
                         format!(
                             "the robot (radius {} m) cannot stand here: it would touch {}",
                             r.radius,
-                            describe(&world, what)
+                            describe(world, what)
                         ),
                     );
                 }
@@ -286,71 +330,79 @@ pub fn validate(scene: &Scene) -> Check {
             }
         }
     }
+    Ok(())
+}
 
-    if let Some(p) = &scene.person {
-        let b = &p.body;
-        in_range("person.body.height", b.height, 0.5, 2.5)?;
-        in_range("person.body.girth", b.girth, 0.3, 3.0)?;
-        in_range("person.body.pace", b.pace, 0.3, 3.0)?;
-        in_range("person.body.stride", b.stride, 0.3, 3.0)?;
-        in_range("person.body.sway", b.sway, 0.0, 5.0)?;
-        in_range("person.body.variation", b.variation, 0.0, 0.3)?;
-        finite("person.start.x", p.start.x)?;
-        finite("person.start.y", p.start.y)?;
-        finite("person.start.yaw_deg", p.start.yaw_deg)?;
-        let (clear, what) = world.person_clearance(p.start.to_pose().position());
+fn check_person(world: &World, p: &PersonSpec) -> Check {
+    check_body(&p.body)?;
+    finite("person.start.x", p.start.x)?;
+    finite("person.start.y", p.start.y)?;
+    finite("person.start.yaw_deg", p.start.yaw_deg)?;
+    let (clear, what) = world.person_clearance(p.start.to_pose().position());
+    if clear < PERSON_START_CLEARANCE {
+        let place = match (clear < 0.0, what) {
+            (true, None) => "outside the room".to_string(),
+            (true, Some(_)) => format!("inside {}", describe(world, what)),
+            (false, _) => format!("too close to {}", describe(world, what)),
+        };
+        return fail("person.start", format!("the person starts {place}"));
+    }
+    if p.script.is_empty() {
+        return fail("person.script", "needs at least one step");
+    }
+    for (i, s) in p.script.iter().enumerate() {
+        check_script_step(world, &format!("person.script[{i}]"), s)?;
+    }
+    Ok(())
+}
+
+fn check_body(b: &BodySpec) -> Check {
+    in_range("person.body.height", b.height, 0.5, 2.5)?;
+    in_range("person.body.girth", b.girth, 0.3, 3.0)?;
+    in_range("person.body.pace", b.pace, 0.3, 3.0)?;
+    in_range("person.body.stride", b.stride, 0.3, 3.0)?;
+    in_range("person.body.sway", b.sway, 0.0, 5.0)?;
+    in_range("person.body.variation", b.variation, 0.0, 0.3)
+}
+
+/// `k` is the step's key path, `person.script[i]`.
+fn check_script_step(world: &World, k: &str, s: &ScriptStep) -> Check {
+    in_range(&format!("{k}.duration"), s.duration, 1e-3, 1e7)?;
+    match s.activity {
+        Activity::FallingDown => in_range(&format!("{k}.duration"), s.duration, 0.4, 5.0)?,
+        Activity::GettingUp => in_range(&format!("{k}.duration"), s.duration, 0.8, 15.0)?,
+        _ => {}
+    }
+    if let Some(v) = s.speed {
+        in_range(&format!("{k}.speed"), v, 0.01, 8.0)?;
+    }
+    if is_locomotion(s.activity) {
+        if s.path.is_empty() {
+            return fail(
+                format!("{k}.path"),
+                format!("{} needs a path of at least one point", s.activity),
+            );
+        }
+    } else if !s.path.is_empty() {
+        return fail(
+            format!("{k}.path"),
+            format!("{} does not move along a path", s.activity),
+        );
+    }
+    if s.fall.is_some() && s.activity != Activity::FallingDown {
+        return fail(
+            format!("{k}.fall"),
+            "only a falling_down step has a fall direction",
+        );
+    }
+    points(&format!("{k}.path"), &s.path)?;
+    for (j, q) in s.path.iter().enumerate() {
+        let (clear, what) = world.person_clearance(DVec2::new(q[0], q[1]));
         if clear < PERSON_START_CLEARANCE {
-            let place = match (clear < 0.0, what) {
-                (true, None) => "outside the room".to_string(),
-                (true, Some(_)) => format!("inside {}", describe(&world, what)),
-                (false, _) => format!("too close to {}", describe(&world, what)),
-            };
-            return fail("person.start", format!("the person starts {place}"));
-        }
-        if p.script.is_empty() {
-            return fail("person.script", "needs at least one step");
-        }
-        for (i, s) in p.script.iter().enumerate() {
-            let k = format!("person.script[{i}]");
-            in_range(&format!("{k}.duration"), s.duration, 1e-3, 1e7)?;
-            use lidar_har_core::activity::Activity as A;
-            match s.activity {
-                A::FallingDown => in_range(&format!("{k}.duration"), s.duration, 0.4, 5.0)?,
-                A::GettingUp => in_range(&format!("{k}.duration"), s.duration, 0.8, 15.0)?,
-                _ => {}
-            }
-            if let Some(v) = s.speed {
-                in_range(&format!("{k}.speed"), v, 0.01, 8.0)?;
-            }
-            if is_locomotion(s.activity) {
-                if s.path.is_empty() {
-                    return fail(
-                        format!("{k}.path"),
-                        format!("{} needs a path of at least one point", s.activity),
-                    );
-                }
-            } else if !s.path.is_empty() {
-                return fail(
-                    format!("{k}.path"),
-                    format!("{} does not move along a path", s.activity),
-                );
-            }
-            if s.fall.is_some() && s.activity != A::FallingDown {
-                return fail(
-                    format!("{k}.fall"),
-                    "only a falling_down step has a fall direction",
-                );
-            }
-            points(&format!("{k}.path"), &s.path)?;
-            for (j, q) in s.path.iter().enumerate() {
-                let (clear, what) = world.person_clearance(DVec2::new(q[0], q[1]));
-                if clear < PERSON_START_CLEARANCE {
-                    return fail(
-                        format!("{k}.path[{j}]"),
-                        format!("too close to {}", describe(&world, what)),
-                    );
-                }
-            }
+            return fail(
+                format!("{k}.path[{j}]"),
+                format!("too close to {}", describe(world, what)),
+            );
         }
     }
     Ok(())
