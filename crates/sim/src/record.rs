@@ -23,9 +23,15 @@ use lidar_har_msgs::topics;
 use crate::map::OccupancyMap;
 use crate::simulator::{Frame, Simulator};
 
+// The bag's frame names, following REP 105 (`map` -> `odom` -> `base_link` -> `laser`), so
+// that the nodes' default `FrameConfig` reads the bag unconfigured.
+/// The fixed world frame: the map and the ground truth.
 pub const MAP_FRAME: &str = "map";
+/// Odometry's frame; the simulated odometry has no drift, so `map` -> `odom` is identity.
 pub const ODOM_FRAME: &str = "odom";
+/// The robot's body.
 pub const BASE_FRAME: &str = "base_link";
+/// The Lidar's own frame, mounted on `base_link` by `/tf_static`.
 pub const LASER_FRAME: &str = "laser";
 
 /// Why a recording failed.
