@@ -221,6 +221,32 @@ impl Track {
     }
 }
 
+/// A track's measurement in one scan: its points, and the centroids of their clusters
+/// weighted by their points, which keep the localiser's centroid offset (the points
+/// themselves are where the Lidar saw them).
+struct Measurement {
+    points: Vec<DVec2>,
+    weighted: DVec2,
+}
+
+impl Measurement {
+    fn of(cluster: &Cluster) -> Self {
+        Self {
+            points: cluster.points.clone(),
+            weighted: cluster.centroid * cluster.points.len() as f64,
+        }
+    }
+
+    fn add(&mut self, cluster: &Cluster) {
+        self.points.extend_from_slice(&cluster.points);
+        self.weighted += cluster.centroid * cluster.points.len() as f64;
+    }
+
+    fn centroid(&self) -> DVec2 {
+        self.weighted / self.points.len().max(1) as f64
+    }
+}
+
 /// The person as the tracker sees them at one scan.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PersonEstimate {
@@ -303,6 +329,20 @@ impl Tracker {
         clusters: &[Cluster],
         fragments: &[Cluster],
     ) -> Option<PersonEstimate> {
+        self.predict(stamp_ns);
+        let measured = self.assign(stamp_ns, clusters, fragments);
+        self.correct(stamp_ns, &measured);
+        self.drop_lost(stamp_ns);
+        self.start_tracks(stamp_ns, clusters);
+        if self.person_track().is_none() {
+            self.choose_person(stamp_ns);
+        }
+        self.drop_tracks_on_person();
+        self.person_estimate(stamp_ns)
+    }
+
+    /// Moves every track on to `stamp_ns`, with no points yet in this scan.
+    fn predict(&mut self, stamp_ns: i64) {
         let accel_var = self.config.accel_std_mps2.powi(2);
         for track in &mut self.tracks {
             let dt = (stamp_ns - track.stamp_ns) as f64 * 1e-9;
@@ -314,10 +354,19 @@ impl Tracker {
             }
             track.points.clear();
         }
+    }
+
+    /// Each track's measured position in this scan (`None`: missed), the tracks taking their
+    /// clusters in turn: the person first, then confirmed tracks by seniority, then tentative
+    /// ones.
+    fn assign(
+        &mut self,
+        stamp_ns: i64,
+        clusters: &[Cluster],
+        fragments: &[Cluster],
+    ) -> Vec<Option<DVec2>> {
         self.taken.clear();
         self.taken.resize(clusters.len(), false);
-
-        // The person first, then confirmed tracks by seniority, then tentative ones.
         let mut order: Vec<usize> = (0..self.tracks.len()).collect();
         let person = self.person;
         order.sort_by_key(|&i| {
@@ -330,92 +379,128 @@ impl Tracker {
             )
         });
         let mut assigned: Vec<Option<DVec2>> = vec![None; self.tracks.len()];
-        for &i in &order {
-            let track = &self.tracks[i];
-            let predicted = track.position();
-            let gate = track.gate(stamp_ns, &self.config);
-            let nearest = clusters
-                .iter()
-                .enumerate()
-                .filter(|(c, _)| !self.taken[*c])
-                .map(|(c, cl)| (c, track.distance(cl.centroid)))
-                .filter(|&(_, d)| d <= gate)
-                .min_by(|a, b| a.1.total_cmp(&b.1));
-            let is_person = Some(track.id) == person;
-            let still = track.is_still(&self.config);
-            let (mut points, mut weighted, anchor) = match nearest {
-                Some((c, _)) => {
-                    self.taken[c] = true;
-                    // Cluster centroids, weighted by their points, keep the localiser's
-                    // centroid offset (the points themselves are where the Lidar saw them).
-                    (
-                        clusters[c].points.clone(),
-                        clusters[c].centroid * clusters[c].points.len() as f64,
-                        clusters[c].centroid,
-                    )
-                }
-                // Nothing in the gate: a still person at range may be in pieces, each too
-                // small to be a cluster (sitting: hands, feet, knees a beam or two each).
-                None if is_person && still && self.config.still_pieces_min_points > 0 => {
-                    (Vec::new(), DVec2::ZERO, predicted)
-                }
-                None => continue,
-            };
-            if is_person {
-                let merge = if still {
-                    self.config.part_merge_still_m.max(self.config.part_merge_m)
-                } else {
-                    self.config.part_merge_m
-                };
-                // Beyond part_merge_m, a cluster that another moving confirmed track follows
-                // more closely (someone walking up to a person on the floor) stays theirs.
-                let tracks = &self.tracks;
-                let followed_by_another = |p: DVec2| {
-                    tracks.iter().any(|t| {
-                        t.confirmed
-                            && Some(t.id) != person
-                            && !t.is_still(&self.config)
-                            && t.position().distance(p)
-                                <= self.config.gate_m.min(p.distance(predicted))
-                    })
-                };
-                let joins = |cl: &Cluster| {
-                    let near = cl
-                        .centroid
-                        .distance(anchor)
-                        .min(cl.centroid.distance(predicted));
-                    near <= self.config.part_merge_m
-                        || (near <= merge && !followed_by_another(cl.centroid))
-                };
-                for (other, cl) in clusters.iter().enumerate() {
-                    if !self.taken[other] && joins(cl) {
-                        self.taken[other] = true;
-                        points.extend_from_slice(&cl.points);
-                        weighted += cl.centroid * cl.points.len() as f64;
-                    }
-                }
-                if points.is_empty() {
-                    for piece in fragments.iter().filter(|f| joins(f)) {
-                        points.extend_from_slice(&piece.points);
-                        weighted += piece.centroid * piece.points.len() as f64;
-                    }
-                    if points.len() < self.config.still_pieces_min_points {
-                        continue;
-                    }
-                }
+        for i in order {
+            if let Some((z, points)) = self.measure(i, stamp_ns, clusters, fragments) {
+                assigned[i] = Some(z);
+                self.tracks[i].points = points;
             }
-            let mut z = weighted / points.len().max(1) as f64;
-            if is_person {
-                z = body_position(&points, z, &self.config);
-            }
-            assigned[i] = Some(z);
-            self.tracks[i].points = points;
         }
+        assigned
+    }
 
+    /// Where track `i` is seen in this scan, and the points that place it: the nearest free
+    /// cluster in its gate and, for the person, their parts around it; `None` when missed.
+    fn measure(
+        &mut self,
+        i: usize,
+        stamp_ns: i64,
+        clusters: &[Cluster],
+        fragments: &[Cluster],
+    ) -> Option<(DVec2, Vec<DVec2>)> {
+        let track = &self.tracks[i];
+        let predicted = track.position();
+        let is_person = Some(track.id) == self.person;
+        let still = track.is_still(&self.config);
+        let (mut seen, anchor) = match self.nearest_in_gate(track, stamp_ns, clusters) {
+            Some(c) => {
+                self.taken[c] = true;
+                (Measurement::of(&clusters[c]), clusters[c].centroid)
+            }
+            // Nothing in the gate: a still person at range may be in pieces, each too
+            // small to be a cluster (sitting: hands, feet, knees a beam or two each).
+            None if is_person && still && self.config.still_pieces_min_points > 0 => {
+                let nothing = Measurement {
+                    points: Vec::new(),
+                    weighted: DVec2::ZERO,
+                };
+                (nothing, predicted)
+            }
+            None => return None,
+        };
+        if is_person
+            && !self.join_person_parts(&mut seen, anchor, predicted, still, clusters, fragments)
+        {
+            return None;
+        }
+        let mut z = seen.centroid();
+        if is_person {
+            z = body_position(&seen.points, z, &self.config);
+        }
+        Some((z, seen.points))
+    }
+
+    /// The nearest cluster not yet taken within `track`'s gate.
+    fn nearest_in_gate(&self, track: &Track, stamp_ns: i64, clusters: &[Cluster]) -> Option<usize> {
+        let gate = track.gate(stamp_ns, &self.config);
+        clusters
+            .iter()
+            .enumerate()
+            .filter(|(c, _)| !self.taken[*c])
+            .map(|(c, cl)| (c, track.distance(cl.centroid)))
+            .filter(|&(_, d)| d <= gate)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(c, _)| c)
+    }
+
+    /// Joins to the person's measurement the free clusters that are parts of them around
+    /// `anchor` (their cluster) or `predicted`, or, when it has no points, the fragments that
+    /// are; false when those pieces hold too few points to be the person.
+    fn join_person_parts(
+        &mut self,
+        seen: &mut Measurement,
+        anchor: DVec2,
+        predicted: DVec2,
+        still: bool,
+        clusters: &[Cluster],
+        fragments: &[Cluster],
+    ) -> bool {
+        let merge = if still {
+            self.config.part_merge_still_m.max(self.config.part_merge_m)
+        } else {
+            self.config.part_merge_m
+        };
+        for (other, cl) in clusters.iter().enumerate() {
+            if !self.taken[other] && self.is_person_part(cl.centroid, anchor, predicted, merge) {
+                self.taken[other] = true;
+                seen.add(cl);
+            }
+        }
+        if seen.points.is_empty() {
+            for piece in fragments
+                .iter()
+                .filter(|f| self.is_person_part(f.centroid, anchor, predicted, merge))
+            {
+                seen.add(piece);
+            }
+            return seen.points.len() >= self.config.still_pieces_min_points;
+        }
+        true
+    }
+
+    /// Whether a cluster centred at `p` is a part of the person, whose cluster is at `anchor`
+    /// and who was predicted at `predicted`: within `part_merge_m` of either, or within `merge`
+    /// unless another moving confirmed track follows it more closely (someone walking up to a
+    /// person on the floor).
+    fn is_person_part(&self, p: DVec2, anchor: DVec2, predicted: DVec2, merge: f64) -> bool {
+        let near = p.distance(anchor).min(p.distance(predicted));
+        let followed_by_another = || {
+            self.tracks.iter().any(|t| {
+                t.confirmed
+                    && Some(t.id) != self.person
+                    && !t.is_still(&self.config)
+                    && t.position().distance(p) <= self.config.gate_m.min(p.distance(predicted))
+            })
+        };
+        near <= self.config.part_merge_m || (near <= merge && !followed_by_another())
+    }
+
+    /// Updates each track's filter with its measured position (`None`: missed) and confirms
+    /// the tracks seen often enough.
+    fn correct(&mut self, stamp_ns: i64, measured: &[Option<DVec2>]) {
         let meas_var = self.config.measurement_std_m.powi(2);
         let max_speed = self.config.max_speed_mps;
         let full_view = f64::from(self.config.full_view_points);
-        for (track, z) in self.tracks.iter_mut().zip(&assigned) {
+        for (track, z) in self.tracks.iter_mut().zip(measured) {
             match z {
                 Some(z) => {
                     // A partial view (one leg, a few beams at range) places the person less
@@ -445,6 +530,10 @@ impl Tracker {
                 None => track.misses_in_a_row += 1,
             }
         }
+    }
+
+    /// Drops the confirmed tracks unseen for too long and the tentative ones missed too often.
+    fn drop_lost(&mut self, stamp_ns: i64) {
         let config = &self.config;
         self.tracks.retain(|t| {
             if t.confirmed {
@@ -453,10 +542,12 @@ impl Tracker {
                 t.misses_in_a_row <= config.tentative_max_misses
             }
         });
+    }
 
-        // Unassigned clusters start tentative tracks, except pieces near the person.
+    /// Starts tentative tracks on the clusters no track took, except pieces near the person.
+    fn start_tracks(&mut self, stamp_ns: i64, clusters: &[Cluster]) {
         let person_pos = self.person_track().map(|t| t.position());
-        let pos_var = meas_var;
+        let pos_var = self.config.measurement_std_m.powi(2);
         let vel_var = self.config.initial_velocity_std_mps.powi(2);
         for (c, cl) in clusters.iter().enumerate() {
             if self.taken[c]
@@ -484,21 +575,28 @@ impl Tracker {
                 self.confirmed_total += 1;
             }
         }
+    }
 
-        if self.person_track().is_none() {
-            self.person = self
-                .tracks
-                .iter()
-                .filter(|t| t.confirmed && t.last_seen_ns == stamp_ns)
-                .max_by_key(|t| (t.hits, std::cmp::Reverse(t.id)))
-                .map(|t| t.id);
-        }
-        // Tracks that sit on the person are pieces of them, not someone else.
+    /// Makes the most established confirmed track seen in this scan the person, if any.
+    fn choose_person(&mut self, stamp_ns: i64) {
+        self.person = self
+            .tracks
+            .iter()
+            .filter(|t| t.confirmed && t.last_seen_ns == stamp_ns)
+            .max_by_key(|t| (t.hits, std::cmp::Reverse(t.id)))
+            .map(|t| t.id);
+    }
+
+    /// Drops the tracks that sit on the person: they are pieces of them, not someone else.
+    fn drop_tracks_on_person(&mut self) {
         if let Some(p) = self.person_track().map(|t| t.position()) {
             let (person, merge) = (self.person, self.config.part_merge_m);
             self.tracks
                 .retain(|t| Some(t.id) == person || t.position().distance(p) > merge);
         }
+    }
+
+    fn person_estimate(&self, stamp_ns: i64) -> Option<PersonEstimate> {
         self.person_track().map(|t| PersonEstimate {
             track_id: t.id,
             position: t.position(),
