@@ -801,6 +801,9 @@ fn bag_topic_json(bag: &Path, topic: &str) -> Vec<serde_json::Value> {
         .collect()
 }
 
+/// The nodes over DDS publish what `lidar-har run` writes for the same bag. In the same run a
+/// second classifier with `pose_head:=none` (its outputs remapped under /no_head) classifies
+/// the same observations: it must publish the activity and no pelvis.
 #[test]
 fn ros_replay_localiser_classifier_processes_equal_the_embedded_run() {
     if !netns_available() {
@@ -829,6 +832,7 @@ fn ros_replay_localiser_classifier_processes_equal_the_embedded_run() {
     assert!(status.success(), "lidar-har run failed");
     let want_poses = bag_topic_json(&run_out, topics::HUMAN_POSE.name);
     let want_activities = bag_topic_json(&run_out, topics::HUMAN_ACTIVITY.name);
+    let want_pelvis = bag_topic_json(&run_out, topics::HUMAN_PELVIS.name);
     assert!(
         want_poses.len() > 20,
         "the simulated person should be tracked: {} poses",
@@ -839,25 +843,52 @@ fn ros_replay_localiser_classifier_processes_equal_the_embedded_run() {
         "`lidar-har run` wrote no /human/activity: the classifier did not run \
          (models/activity.onnx missing? it is committed)"
     );
+    // Else the absence of /human/pelvis with `pose_head:=none` below would prove nothing.
+    assert!(
+        !want_pelvis.is_empty(),
+        "`lidar-har run` wrote no /human/pelvis: the pose head did not run \
+         (models/pose_head.onnx missing? it is committed)"
+    );
     let script = format!(
         r#"
+# From the repository root: the configuration's pose head (models/pose_head.onnx) is relative
+# to the working directory (launch files pass the installed one), and without it the
+# classifier runs headless, which would leave nothing for `pose_head:=none` to turn off.
+cd "$ROOT"
 "$LOC" 2> "$OUT/localiser.err" &
 L=$!
 "$CLS" --ros-args -p model:="$MODEL" 2> "$OUT/classifier.err" & C=$!
+"$CLS" --ros-args -p model:="$MODEL" -p pose_head:=none -r __node:=classifier_no_head \
+  -r /human/activity:=/no_head/activity -r /human/pelvis:=/no_head/pelvis \
+  -r /human/fall_alert:=/no_head/fall_alert -r /human/markers:=/no_head/markers \
+  2> "$OUT/classifier_no_head.err" & N=$!
 "$LH" topic echo /human/pose --count {np} --timeout 40 > "$OUT/pose.jsonl" &
 P=$!
 "$LH" topic echo /human/activity --count {na} --timeout 40 > "$OUT/activity.jsonl" & A=$!
-# Both nodes up before the first scan: the localiser subscribes /tf (only it does), the
-# classifier advertises /human/pelvis once its model is loaded.
-wait_until 30 topics_listed /tf /human/pelvis
+"$LH" topic echo /human/pelvis --count {nv} --timeout 40 > "$OUT/pelvis.jsonl" & V=$!
+# Remapped names have no QoS the echo knows: best effort, so a message may be lost.
+"$LH" topic echo /no_head/activity --type lidar_har_msgs/msg/Activity --timeout 60 \
+  > "$OUT/no_head_activity.jsonl" & NA=$!
+"$LH" topic echo /no_head/pelvis --type geometry_msgs/msg/PoseWithCovarianceStamped \
+  --timeout 60 > "$OUT/no_head_pelvis.jsonl" & NV=$!
+# All nodes up before the first scan: the localiser subscribes /tf (only it does), the
+# classifiers advertise their pelvis topics once their models are loaded.
+wait_until 30 topics_listed /tf /human/pelvis /no_head/pelvis
 "$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan -p topics:="[/scan, /odom, /map, /tf, /tf_static]"; echo "replay=$?"
 wait $P; echo "pose_echo=$?"
 wait $A; echo "activity_echo=$?"
-kill -TERM $L $C; wait $L; echo "localiser=$?"
+wait $V; echo "pelvis_echo=$?"
+# The classifier without a head has had the same observations: let it finish them.
+poll 5 has_lines "$OUT/no_head_activity.jsonl" {na}
+kill -TERM $NA $NV; wait $NA; echo "no_head_activity_echo=$?"
+wait $NV; echo "no_head_pelvis_echo=$?"
+kill -TERM $L $C $N; wait $L; echo "localiser=$?"
 wait $C; echo "classifier=$?"
+wait $N; echo "classifier_no_head=$?"
 "#,
         np = want_poses.len(),
         na = want_activities.len(),
+        nv = want_pelvis.len(),
     );
     let out = in_netns(
         &script,
@@ -867,6 +898,7 @@ wait $C; echo "classifier=$?"
             ("LOC", &workspace_bin("localiser")),
             ("CLS", &workspace_bin("classifier")),
             ("MODEL", &repo_root().join("models/activity.onnx")),
+            ("ROOT", &repo_root()),
             ("BAG", &bag),
             ("OUT", dir.path()),
         ],
@@ -877,21 +909,93 @@ wait $C; echo "classifier=$?"
         "replay=0",
         "pose_echo=0",
         "activity_echo=0",
+        "pelvis_echo=0",
+        "no_head_activity_echo=0",
+        "no_head_pelvis_echo=0",
         "localiser=0",
         "classifier=0",
+        "classifier_no_head=0",
     ] {
         assert!(stdout.contains(want), "expected {want}");
     }
     // A clean stop logs no ERROR (the DDS stack once logged one per reader and writer the
     // node's spinner dropped after the participant had stopped).
-    for node in ["localiser", "classifier"] {
-        let text = std::fs::read_to_string(dir.path().join(format!("{node}.err"))).unwrap();
+    let log = |node: &str| std::fs::read_to_string(dir.path().join(format!("{node}.err"))).unwrap();
+    for node in ["localiser", "classifier", "classifier_no_head"] {
+        let text = log(node);
         assert!(!text.contains("ERROR"), "{node} logged errors:\n{text}");
     }
+    assert!(
+        !log("classifier").contains(POSE_HEAD_NOT_USED),
+        "the classifier must use the configuration's pose head:\n{}",
+        log("classifier")
+    );
     assert_echo_equals_run("/human/pose", &dir.path().join("pose.jsonl"), &want_poses);
     assert_echo_equals_run(
         "/human/activity",
         &dir.path().join("activity.jsonl"),
         &want_activities,
+    );
+    assert_echo_equals_run(
+        "/human/pelvis",
+        &dir.path().join("pelvis.jsonl"),
+        &want_pelvis,
+    );
+    assert_pose_head_none_publishes_the_activity_and_no_pelvis(
+        &dir.path().join("no_head_activity.jsonl"),
+        &dir.path().join("no_head_pelvis.jsonl"),
+        &log("classifier_no_head"),
+        &want_activities,
+    );
+}
+
+/// What the classifier logs when the pose head it was given cannot be used.
+const POSE_HEAD_NOT_USED: &str = "no /human/pelvis";
+
+/// Fails unless the classifier node run with `pose_head:=none` (its /human/activity and
+/// /human/pelvis echoed from `activity` and `pelvis`, best effort, and its stderr `log`) turned
+/// the head off: no pelvis at all, and no attempt to load a head (`none` is no file name);
+/// while its activities are those of `lidar-har run` (`want_activities`, with a head: the head
+/// does not change the activity), by stamp, most of them received.
+fn assert_pose_head_none_publishes_the_activity_and_no_pelvis(
+    activity: &Path,
+    pelvis: &Path,
+    log: &str,
+    want_activities: &[serde_json::Value],
+) {
+    let pelvis = json_lines(pelvis);
+    assert!(
+        pelvis.is_empty(),
+        "pose_head:=none: the classifier published {} /human/pelvis messages (first stamped {})",
+        pelvis.len(),
+        pelvis[0]["msg"]["header"]["stamp"]
+    );
+    assert!(
+        !log.contains(POSE_HEAD_NOT_USED),
+        "pose_head:=none: the classifier tried to load a pose head instead of turning it off:\n{log}"
+    );
+    let stamp = |m: &serde_json::Value| m["header"]["stamp"].clone();
+    let got: Vec<_> = json_lines(activity)
+        .into_iter()
+        .map(|l| l["msg"].clone())
+        .collect();
+    for msg in &got {
+        let want = want_activities.iter().find(|w| stamp(w) == stamp(msg));
+        assert!(
+            want.is_some_and(|w| json_close(msg, w)),
+            "pose_head:=none: /human/activity {msg} is not the embedded run's {want:?}"
+        );
+    }
+    assert!(
+        got.len() * 2 >= want_activities.len(),
+        "pose_head:=none: the classifier published only {} of {} /human/activity messages \
+         (best effort: a few may be lost)",
+        got.len(),
+        want_activities.len()
+    );
+    eprintln!(
+        "pose_head:=none: {} of {} activities received, no pelvis",
+        got.len(),
+        want_activities.len()
     );
 }
