@@ -228,6 +228,18 @@ pub enum PoseHeadStatus {
     },
 }
 
+impl std::fmt::Display for PoseHeadStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            PoseHeadStatus::Off => f.write_str("off"),
+            PoseHeadStatus::Used { path } => write!(f, "{}", path.display()),
+            PoseHeadStatus::NotUsed { path, reason } => {
+                write!(f, "{} not used: {reason}", path.display())
+            }
+        }
+    }
+}
+
 impl ClassifierOutput {
     /// Whether this scan's activity is worth publishing: the model has its minimum history
     /// and the person is visible.

@@ -1,7 +1,8 @@
 //! `classifier`: recognises the person's activity and raises fall alerts. Subscribes
 //! /human/observation; publishes /human/activity, /human/fall_alert, a text marker on
-//! /human/markers and, with a pose head in the configuration, /human/pelvis. The work is the pipeline's classifier stage (ONNX step model), the same
-//! code `lidar-har run` runs over a bag.
+//! /human/markers and, with a pose head in the configuration, /human/pelvis. The work is the
+//! pipeline's classifier stage (ONNX step model), the same code `lidar-har run` runs over a
+//! bag. At start it logs the model and the pose head it runs on.
 //!
 //! Parameters: `config` (a `config/classifier.yaml`-format file; empty = defaults), `model`
 //! and `pose_head` (ONNX files; empty = those the configuration names, which are relative
@@ -62,11 +63,18 @@ fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
         None => {}
     }
     let model = optional_path(p, "model")?;
-    let mut stage = ClassifierStage::load(&config, model.as_deref()).map_err(|e| match e {
+    let model_path = model.as_deref().unwrap_or(&config.model);
+    let mut stage = ClassifierStage::load(&config, Some(model_path)).map_err(|e| match e {
         // The installation, not a parameter, is at fault: status 1, the message says the fix.
         ClassifierError::Model(e) if e.is_runtime() => anyhow::Error::new(e),
         e => bad_parameter("model", e).into(),
     })?;
+    // Which files the node runs on: a launch file or a working directory can change them.
+    log::info!(
+        "classifier: model {}; pose head {}",
+        model_path.display(),
+        stage.pose_head()
+    );
     let [input] = ClassifierStage::INPUTS;
     let input = node.subscriber_for(&input)?;
     let outputs = Outputs::new(&node, &ClassifierStage::OUTPUTS)?;
