@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::DVec2;
-use lidar_har_bag::{BagError, BagReader, BagWriter, TopicHandle, WriterOptions};
+use lidar_har_bag::{BagError, BagMessage, BagReader, BagWriter, TopicHandle, WriterOptions};
 use lidar_har_core::localiser::{ConfigError, FrameConfig, LocaliserConfig};
 use lidar_har_core::map::OccupancyMap;
 use lidar_har_core::stats::Spread;
@@ -150,15 +150,45 @@ impl OutputBag {
 /// Runs the localiser over the bag at `input`, writing the outputs as a rosbag2 directory
 /// `out_dir` (created; it must not hold a bag) and `out_dir/summary.json`.
 pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunSummary, RunError> {
-    let input_error = |source| RunError::Input {
+    let reader = open_input(input)?;
+    let (room, moving) = choose_room(&reader, input, options.map, &options.config.frames);
+    let learned = matches!(room, RoomSource::LearnedBackground);
+    let mut stages = Stages::start(
+        out_dir,
+        options.config,
+        room,
+        moving,
+        options.classifier.as_ref(),
+    )?;
+    let tally = replay(&reader, input, out_dir, &mut stages)?;
+    let Stages {
+        localiser,
+        classifier,
+        outputs,
+    } = stages;
+    outputs.finish().map_err(output_error(out_dir))?;
+    let summary = summarise(input, learned, moving, tally, &localiser, classifier);
+    write_summary(out_dir, &summary)?;
+    Ok(summary)
+}
+
+fn input_error(input: &Path) -> impl FnOnce(BagError) -> RunError + '_ {
+    move |cause| RunError::Input {
         path: input.to_path_buf(),
-        cause: source,
-    };
-    let output_error = |source| RunError::Output {
+        cause,
+    }
+}
+
+fn output_error(out_dir: &Path) -> impl FnOnce(BagError) -> RunError + '_ {
+    move |cause| RunError::Output {
         path: out_dir.to_path_buf(),
-        cause: source,
-    };
-    let reader = BagReader::open(input).map_err(input_error)?;
+        cause,
+    }
+}
+
+/// Opens the input bag; one without scans is refused before any output is made.
+fn open_input(input: &Path) -> Result<BagReader, RunError> {
+    let reader = BagReader::open(input).map_err(input_error(input))?;
     // A file cut short may not list its topics; reading it says what is wrong instead.
     if reader.topic(topics::SCAN.name).is_none() && !reader.metadata().truncated {
         let names: Vec<&str> = reader.topics().iter().map(|t| t.name.as_str()).collect();
@@ -171,9 +201,20 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
             },
         });
     }
-    let has_odometry = reader.topic(topics::ODOM.name).is_some()
-        || tf_carries_odometry(&reader, &options.config.frames);
-    let room = match options.map {
+    Ok(reader)
+}
+
+/// Where the room comes from, and whether the Lidar moves in it: only with odometry and a
+/// map, since a learned background is in the Lidar's own frame.
+fn choose_room(
+    reader: &BagReader,
+    input: &Path,
+    map: Option<OccupancyMap>,
+    frames: &FrameConfig,
+) -> (RoomSource, bool) {
+    let has_odometry =
+        reader.topic(topics::ODOM.name).is_some() || tf_carries_odometry(reader, frames);
+    let room = match map {
         Some(map) => RoomSource::Map(map),
         None if reader.topic(topics::MAP.name).is_some() => RoomSource::MapTopic,
         None => RoomSource::LearnedBackground,
@@ -185,148 +226,232 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
             input.display()
         );
     }
-    let moving = has_odometry && !learned;
-    let mut localiser = LocaliserStage::new(options.config, room, moving)?;
-    let mut classifier = options
-        .classifier
-        .as_ref()
-        .map(ClassifierRun::load)
-        .transpose()?;
-    let mut outputs = OutputBag::create(out_dir).map_err(output_error)?;
-    outputs
-        .add_topics(&LocaliserStage::OUTPUTS)
-        .map_err(output_error)?;
-    if classifier.is_some() {
+    (room, has_odometry && !learned)
+}
+
+/// The stages a run feeds, and the bag their outputs go into.
+struct Stages {
+    localiser: LocaliserStage,
+    classifier: Option<ClassifierRun>,
+    outputs: OutputBag,
+}
+
+impl Stages {
+    /// Loads the stages before creating the output bag, so that a bad configuration or
+    /// model leaves no output behind.
+    fn start(
+        out_dir: &Path,
+        config: LocaliserConfig,
+        room: RoomSource,
+        moving: bool,
+        classifier: Option<&ClassifierConfig>,
+    ) -> Result<Self, RunError> {
+        let localiser = LocaliserStage::new(config, room, moving)?;
+        let classifier = classifier.map(ClassifierRun::load).transpose()?;
+        let mut outputs = OutputBag::create(out_dir).map_err(output_error(out_dir))?;
         outputs
-            .add_topics(&ClassifierStage::OUTPUTS)
-            .map_err(output_error)?;
+            .add_topics(&LocaliserStage::OUTPUTS)
+            .map_err(output_error(out_dir))?;
+        if classifier.is_some() {
+            outputs
+                .add_topics(&ClassifierStage::OUTPUTS)
+                .map_err(output_error(out_dir))?;
+        }
+        Ok(Self {
+            localiser,
+            classifier,
+            outputs,
+        })
     }
 
-    let mut scans = 0u64;
-    let mut scans_localised = 0u64;
-    let mut visible = 0u64;
-    let mut tracked = 0u64;
-    let mut decode_errors = 0u64;
-    let mut scan_times = Vec::new();
-    let mut pipeline_times = Vec::new();
-    let mut estimates: Vec<(i64, DVec2)> = Vec::new();
-    let mut ground_truth: Vec<(i64, DVec2)> = Vec::new();
-
-    let mut read_error = None;
-    for message in reader.messages().map_err(input_error)? {
-        let message = match message {
-            Ok(message) => message,
-            Err(e) => {
-                // Keep what was read: finish the outputs and the summary, then report it.
-                read_error = Some(e.to_string());
-                break;
-            }
-        };
+    /// Hands one message to whatever takes it (classifier, ground truth, localiser); other
+    /// topics are ignored.
+    fn feed(
+        &mut self,
+        message: &BagMessage,
+        out_dir: &Path,
+        tally: &mut Tally,
+    ) -> Result<(), RunError> {
         let topic = &*message.topic;
         if message.log_time_ns < 0 {
             // Its outputs could not be written: skipped, rather than ending the whole run.
-            decode_errors += 1;
+            tally.decode_errors += 1;
             log::warn!(
                 "{topic} skipped: negative log time {} ns",
                 message.log_time_ns
             );
-            continue;
+            return Ok(());
         }
-        if classifier
+        if self
+            .classifier
             .as_mut()
             .is_some_and(|c| c.on_input(topic, &message.data))
         {
-            continue;
+            return Ok(());
         }
         if topic == topics::GROUND_TRUTH_POSE.name {
-            match lidar_har_msgs::decode::<PoseStamped>(&message.data) {
-                Ok(gt) => ground_truth.push((
-                    gt.header.stamp.to_nanos(),
-                    DVec2::new(gt.pose.position.x, gt.pose.position.y),
-                )),
-                Err(e) => {
-                    decode_errors += 1;
-                    log::warn!("{topic} at {} ns skipped: {e}", message.log_time_ns);
-                }
-            }
-            continue;
+            tally.add_ground_truth(message);
+            return Ok(());
         }
         if !LocaliserStage::consumes(topic) {
-            continue;
+            return Ok(());
         }
+        self.localise(message, out_dir, tally)
+    }
+
+    /// Feeds one of the localiser's inputs to it and writes what it publishes, each message
+    /// after the classifier has seen it (its own outputs go first).
+    fn localise(
+        &mut self,
+        message: &BagMessage,
+        out_dir: &Path,
+        tally: &mut Tally,
+    ) -> Result<(), RunError> {
+        let topic = &*message.topic;
         let is_scan = topic == topics::SCAN.name;
-        scans += u64::from(is_scan);
+        tally.scans += u64::from(is_scan);
         let started = Instant::now();
-        let step = match localiser.handle(topic, &message.data) {
+        let step = match self.localiser.handle(topic, &message.data) {
             Ok(step) => step,
             Err(e) => {
-                decode_errors += 1;
+                tally.decode_errors += 1;
                 log::warn!("skipped at {} ns: {e}", message.log_time_ns);
-                continue;
+                return Ok(());
             }
         };
         if is_scan {
-            pipeline_times.push(started.elapsed().as_secs_f64() * 1e6);
-            if let Some(t) = localiser.last_scan_time() {
-                scan_times.push(t.as_secs_f64() * 1e6);
+            tally
+                .pipeline_times
+                .push(started.elapsed().as_secs_f64() * 1e6);
+            if let Some(t) = self.localiser.last_scan_time() {
+                tally.scan_times.push(t.as_secs_f64() * 1e6);
             }
         }
         if let Some(output) = &step.localised {
-            scans_localised += 1;
+            tally.scans_localised += 1;
             if let Some(person) = &output.person {
-                tracked += 1;
-                visible += u64::from(person.visible);
-                estimates.push((output.stamp_ns, person.position));
+                tally.tracked += 1;
+                tally.visible += u64::from(person.visible);
+                tally.estimates.push((output.stamp_ns, person.position));
             }
         }
         for out in &step.outgoing {
-            if let Some(c) = classifier.as_mut() {
-                c.on_localiser_output(out, message.log_time_ns, &mut outputs)?;
+            if let Some(c) = self.classifier.as_mut() {
+                c.on_localiser_output(out, message.log_time_ns, &mut self.outputs)?;
             }
-            outputs
+            self.outputs
                 .write(out, message.log_time_ns)
-                .map_err(output_error)?;
+                .map_err(output_error(out_dir))?;
+        }
+        Ok(())
+    }
+}
+
+/// Feeds the bag's messages to the stages in log-time order, up to its end or the first
+/// message that cannot be read.
+fn replay(
+    reader: &BagReader,
+    input: &Path,
+    out_dir: &Path,
+    stages: &mut Stages,
+) -> Result<Tally, RunError> {
+    let mut tally = Tally::default();
+    for message in reader.messages().map_err(input_error(input))? {
+        match message {
+            Ok(message) => stages.feed(&message, out_dir, &mut tally)?,
+            Err(e) => {
+                // Keep what was read: finish the outputs and the summary, then report it.
+                tally.read_error = Some(e.to_string());
+                break;
+            }
         }
     }
-    outputs.finish().map_err(output_error)?;
+    Ok(tally)
+}
 
+/// What a run counts and collects over the messages for its summary.
+#[derive(Default)]
+struct Tally {
+    scans: u64,
+    scans_localised: u64,
+    visible: u64,
+    tracked: u64,
+    decode_errors: u64,
+    scan_times: Vec<f64>,
+    pipeline_times: Vec<f64>,
+    estimates: Vec<(i64, DVec2)>,
+    ground_truth: Vec<(i64, DVec2)>,
+    read_error: Option<String>,
+}
+
+impl Tally {
+    /// Keeps a /ground_truth/human_pose sample for the position error.
+    fn add_ground_truth(&mut self, message: &BagMessage) {
+        match lidar_har_msgs::decode::<PoseStamped>(&message.data) {
+            Ok(gt) => self.ground_truth.push((
+                gt.header.stamp.to_nanos(),
+                DVec2::new(gt.pose.position.x, gt.pose.position.y),
+            )),
+            Err(e) => {
+                self.decode_errors += 1;
+                log::warn!(
+                    "{} at {} ns skipped: {e}",
+                    message.topic,
+                    message.log_time_ns
+                );
+            }
+        }
+    }
+}
+
+/// `summary.json`: what the run tallied, and what the stages counted themselves.
+fn summarise(
+    input: &Path,
+    learned: bool,
+    moving: bool,
+    tally: Tally,
+    localiser: &LocaliserStage,
+    classifier: Option<ClassifierRun>,
+) -> RunSummary {
     let ratio = |n: u64| {
-        if scans == 0 {
+        if tally.scans == 0 {
             0.0
         } else {
-            n as f64 / scans as f64
+            n as f64 / tally.scans as f64
         }
     };
-    let summary = RunSummary {
+    RunSummary {
         input: input.to_path_buf(),
         room: if learned { "learned_background" } else { "map" },
         motion: if moving { "odometry" } else { "stationary" },
-        scans,
-        scans_localised,
+        scans: tally.scans,
+        scans_localised: tally.scans_localised,
         mount: localiser.mount_source(),
         scans_learning: localiser.scans_learning(),
-        visible_ratio: ratio(visible),
-        tracked_ratio: ratio(tracked),
+        visible_ratio: ratio(tally.visible),
+        tracked_ratio: ratio(tally.tracked),
         tracks_confirmed: localiser.localiser().confirmed_tracks(),
         pelvis_error_m: classifier
             .as_ref()
             .filter(|c| !c.pelvis().is_empty())
             .and_then(|c| {
-                let placed = with_pelvis(&estimates, c.pelvis());
-                Spread::of(position_errors(&placed, ground_truth.clone()))
+                let placed = with_pelvis(&tally.estimates, c.pelvis());
+                Spread::of(position_errors(&placed, tally.ground_truth.clone()))
             }),
-        position_error_m: Spread::of(position_errors(&estimates, ground_truth)),
-        scan_time_us: Spread::of(scan_times),
-        pipeline_time_us: Spread::of(pipeline_times),
+        position_error_m: Spread::of(position_errors(&tally.estimates, tally.ground_truth)),
+        scan_time_us: Spread::of(tally.scan_times),
+        pipeline_time_us: Spread::of(tally.pipeline_times),
         warnings: localiser.warning_counts().clone(),
-        decode_errors,
-        read_error,
+        decode_errors: tally.decode_errors,
+        read_error: tally.read_error,
         activity: classifier.map(ClassifierRun::finish),
-    };
+    }
+}
+
+fn write_summary(out_dir: &Path, summary: &RunSummary) -> Result<(), RunError> {
     let path = out_dir.join("summary.json");
-    let json = serde_json::to_string_pretty(&summary).expect("the summary is plain data");
-    std::fs::write(&path, json + "\n").map_err(|cause| RunError::Summary { path, cause })?;
-    Ok(summary)
+    let json = serde_json::to_string_pretty(summary).expect("the summary is plain data");
+    std::fs::write(&path, json + "\n").map_err(|cause| RunError::Summary { path, cause })
 }
 
 /// /tf messages looked at for `odom -> base_link` before deciding the bag has no odometry.
