@@ -142,6 +142,17 @@ pub struct FallAlertConfig {
     /// or sitting; the false alerts left after session 14 were people found crawling after
     /// getting up out of sight (docs/classifier.md, session 15).
     pub crawling_shows_down: bool,
+    /// Evidence with scans read as lying counts only when the person's points stretch at
+    /// least this far (metres) on the scans read as lying: their median over the last
+    /// `down_lying_length_scans` such scans since the person was last up (scans of unknown
+    /// length left out). A person standing still whom the model reads as lying is one or two
+    /// legs, 0.31 m on most scans and 0.6-0.8 m on a few (seed 4 episode 609 of `lidar-har
+    /// alerts`); a body on the floor seen in part stretches 0.45-0.9 m scan by scan (seed 3
+    /// episode 625). 0 turns the check off.
+    pub down_lying_min_length_m: f64,
+    /// How many of the latest scans read as lying that median is over: a few legs' scans
+    /// stretch as far as a body's, so a run of `confirm_scans` alone is not enough.
+    pub down_lying_length_scans: u32,
     /// Each stretch in which the person is out of sight counts towards `down_after_s` for at
     /// most this long: the robot cannot vouch for a person it does not see staying down, and
     /// the false `PersonDown` were people who got up out of sight and sat down again.
@@ -181,6 +192,8 @@ impl Default for FallAlertConfig {
             down_waits_on_upright_glimpse: true,
             down_seen_within_s: 5.0,
             crawling_shows_down: false,
+            down_lying_min_length_m: 0.5,
+            down_lying_length_scans: 20,
             down_unseen_counts_s: 1.0,
             down_travel_m: 2.0,
             down_travel_within_s: 2.0,
@@ -236,6 +249,14 @@ impl FallAlertConfig {
         at_least_zero("descent_min_length_m", self.descent_min_length_m)?;
         at_least_zero("landing_min_length_m", self.landing_min_length_m)?;
         at_least_zero("down_seen_within_s", self.down_seen_within_s)?;
+        at_least_zero("down_lying_min_length_m", self.down_lying_min_length_m)?;
+        let n = self.down_lying_length_scans as f64;
+        check(
+            "down_lying_length_scans",
+            n,
+            self.down_lying_length_scans >= 1,
+            ">= 1",
+        )?;
         at_least_zero("down_unseen_counts_s", self.down_unseen_counts_s)?;
         at_least_zero("down_travel_m", self.down_travel_m)?;
         at_least_zero("down_travel_within_s", self.down_travel_within_s)?;
@@ -346,6 +367,11 @@ pub struct FallDetector {
     last_off_floor_s: Option<f64>,
     /// Consecutive visible scans read on the floor (crawling only with `crawling_shows_down`).
     down_evidence_scans: u32,
+    /// Whether that run has a scan read as lying.
+    down_evidence_lying: bool,
+    /// The body lengths on the last `down_lying_length_scans` scans read as lying since the
+    /// person was last up again.
+    lying_lengths: VecDeque<f64>,
     /// The last visible scan in a run of at least `confirm_scans` such readings.
     last_on_floor_s: Option<f64>,
     /// Whether a scan since then read the person upright or getting up.
@@ -387,6 +413,8 @@ impl FallDetector {
             last_upright_s: None,
             last_off_floor_s: None,
             down_evidence_scans: 0,
+            down_evidence_lying: false,
+            lying_lengths: VecDeque::new(),
             last_on_floor_s: None,
             off_floor_since_on_floor: false,
             down: None,
@@ -434,7 +462,8 @@ impl FallDetector {
                 down.uncounted_s += unseen_s;
             }
             self.last_seen_s = Some(t);
-            self.observe(t, &input.probabilities, input.body_length_m, &mut alerts);
+            let body_length_m = input.body_length_m.filter(|l| l.is_finite());
+            self.observe(t, &input.probabilities, body_length_m, &mut alerts);
             self.restart_down_on_travel(t, position);
         }
 
@@ -460,6 +489,7 @@ impl FallDetector {
         alerts
     }
 
+    /// `body_length_m` is finite where known.
     fn observe(
         &mut self,
         t: f64,
@@ -517,7 +547,7 @@ impl FallDetector {
         };
         self.candidate = Some((posture, since, n));
         if n <= self.config.confirm_scans {
-            if let Some(length) = body_length_m.filter(|l| l.is_finite()) {
+            if let Some(length) = body_length_m {
                 self.candidate_lengths.push(length);
             }
             if best == Activity::LyingDown {
@@ -562,18 +592,29 @@ impl FallDetector {
                 || (posture == Posture::Upright && t - since >= self.config.down_ends_upright_s))
         {
             self.down = None;
+            self.lying_lengths.clear();
         }
         if seen.is_off_floor() && confirmed.is_some_and(Posture::is_off_floor) {
             self.last_off_floor_s = Some(t);
         }
         let shows_down =
             best.is_on_floor() && (self.config.crawling_shows_down || best != Activity::Crawling);
-        self.down_evidence_scans = if shows_down {
-            self.down_evidence_scans + 1
+        if best == Activity::LyingDown
+            && let Some(length) = body_length_m
+        {
+            let keep = self.config.down_lying_length_scans as usize;
+            push_keeping_last(&mut self.lying_lengths, keep, length);
+        }
+        if shows_down {
+            self.down_evidence_scans += 1;
+            self.down_evidence_lying |= best == Activity::LyingDown;
         } else {
-            0
-        };
-        if self.down_evidence_scans >= self.config.confirm_scans {
+            self.down_evidence_scans = 0;
+            self.down_evidence_lying = false;
+        }
+        if self.down_evidence_scans >= self.config.confirm_scans
+            && (!self.down_evidence_lying || self.lying_stretches_as_a_body())
+        {
             self.last_on_floor_s = Some(t);
             self.off_floor_since_on_floor = false;
         }
@@ -598,6 +639,13 @@ impl FallDetector {
                 self.pending_fall = None;
             }
         }
+    }
+
+    /// Whether the latest scans read as lying stretch `down_lying_min_length_m` (their median;
+    /// true when none has a length): a standing person read as lying is one or two legs.
+    fn lying_stretches_as_a_body(&self) -> bool {
+        let mut lengths: Vec<f64> = self.lying_lengths.iter().copied().collect();
+        stretches_at_least(&mut lengths, self.config.down_lying_min_length_m)
     }
 
     /// Whether the scans that confirmed the floor posture show a body stretched on the floor
@@ -630,7 +678,7 @@ impl FallDetector {
             let scan = LyingScan {
                 stamp_s: t,
                 probability: f64::from(best_p),
-                body_length_m: body_length_m.filter(|l| l.is_finite()),
+                body_length_m,
             };
             push_keeping_last(&mut self.lying_run, confirm, scan);
             if self.lying_run.len() == confirm && self.config.fall_lands_lying {
@@ -1754,6 +1802,51 @@ mod tests {
         let alerts = run(&mut d, &script);
         assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
         assert!(alerts[0].raised_at_s < 18.1, "{:?}", alerts[0]);
+    }
+
+    #[test]
+    fn a_standing_person_read_as_lying_is_not_alerted_as_down() {
+        // Two legs (0.3 m) read as lying for 20 s: never found on the floor.
+        let legs = [(Standing, 3.0, 0.3), (LyingDown, 20.0, 0.3)];
+        let alerts = run_with_lengths(&mut without_descent(), &legs);
+        assert!(alerts.is_empty(), "{alerts:?}");
+        let mut unchecked = detector_with(|c| {
+            c.descent_max_s = 0.0;
+            c.down_lying_min_length_m = 0.0;
+        });
+        assert_eq!(
+            kinds(&run_with_lengths(&mut unchecked, &legs)),
+            [AlertKind::PersonDown]
+        );
+        // Nor when a few scans in a row stretch as far as a body (the median is over 20).
+        let now_and_then_long: Vec<_> = std::iter::once((Standing, 3.0, 0.3))
+            .chain((0..400).map(|i| (LyingDown, DT, if i % 20 < 4 { 0.7 } else { 0.3 })))
+            .collect();
+        let alerts = run_with_lengths(&mut without_descent(), &now_and_then_long);
+        assert!(alerts.is_empty(), "{alerts:?}");
+        let mut over_the_run = detector_with(|c| {
+            c.descent_max_s = 0.0;
+            c.down_lying_length_scans = c.confirm_scans;
+        });
+        let alerts = run_with_lengths(&mut over_the_run, &now_and_then_long);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+
+        // A body stretched on the floor is: due at 18 s.
+        let body = [(Standing, 3.0, 0.3), (LyingDown, 20.0, 1.2)];
+        let alerts = run_with_lengths(&mut without_descent(), &body);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!(
+            (alerts[0].event_time_s - 18.0).abs() < 1e-9,
+            "{:?}",
+            alerts[0]
+        );
+
+        // So is one seen in part, its points 0.3 to 0.9 m scan by scan: the median decides.
+        let in_part: Vec<_> = std::iter::once((Standing, 3.0, 0.3))
+            .chain((0..400).map(|i| (LyingDown, DT, [0.3, 0.6, 0.9, 0.45][i % 4])))
+            .collect();
+        let alerts = run_with_lengths(&mut without_descent(), &in_part);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
     }
 
     #[test]
