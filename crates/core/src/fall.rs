@@ -148,7 +148,9 @@ pub struct FallAlertConfig {
     /// length left out). A person standing still whom the model reads as lying is one or two
     /// legs, 0.31 m on most scans and 0.6-0.8 m on a few (seed 4 episode 609 of `lidar-har
     /// alerts`); a body on the floor seen in part stretches 0.45-0.9 m scan by scan (seed 3
-    /// episode 625). 0 turns the check off.
+    /// episode 625). A fall alerted in the incident vouches for the floor on its own: a
+    /// person sitting on the floor read as lying is as short as a standing one (0.23 m; seed 1
+    /// episode 651, alerted as fallen and then down for 40 s). 0 turns the check off.
     pub down_lying_min_length_m: f64,
     /// How many of the latest scans read as lying that median is over: a few legs' scans
     /// stretch as far as a body's, so a run of `confirm_scans` alone is not enough.
@@ -613,7 +615,9 @@ impl FallDetector {
             self.down_evidence_lying = false;
         }
         if self.down_evidence_scans >= self.config.confirm_scans
-            && (!self.down_evidence_lying || self.lying_stretches_as_a_body())
+            && (!self.down_evidence_lying
+                || self.fall_disarmed_at.is_some()
+                || self.lying_stretches_as_a_body())
         {
             self.last_on_floor_s = Some(t);
             self.off_floor_since_on_floor = false;
@@ -1830,6 +1834,18 @@ mod tests {
         });
         let alerts = run_with_lengths(&mut over_the_run, &now_and_then_long);
         assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        // A fall alerted first vouches for the floor: short as a standing person (sitting),
+        // still down.
+        let fell = [
+            (Standing, 3.0, 0.3),
+            (LyingDown, 1.0, 1.2),
+            (LyingDown, 19.0, 0.25),
+        ];
+        let alerts = run_with_lengths(&mut detector(), &fell);
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::PersonDown]
+        );
 
         // A body stretched on the floor is: due at 18 s.
         let body = [(Standing, 3.0, 0.3), (LyingDown, 20.0, 1.2)];
