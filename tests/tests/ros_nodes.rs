@@ -925,11 +925,11 @@ wait $N; echo "classifier_no_head=$?"
         let text = log(node);
         assert!(!text.contains("ERROR"), "{node} logged errors:\n{text}");
     }
+    let classifier_log = log("classifier");
     assert!(
-        !log("classifier").contains(POSE_HEAD_NOT_USED)
-            && log("classifier").contains("pose head models/pose_head.onnx"),
-        "the classifier must use the configuration's pose head:\n{}",
-        log("classifier")
+        !classifier_log.contains(POSE_HEAD_NOT_USED)
+            && classifier_log.contains("pose head models/pose_head.onnx"),
+        "the classifier must use the configuration's pose head:\n{classifier_log}"
     );
     assert_echo_equals_run("/human/pose", &dir.path().join("pose.jsonl"), &want_poses);
     assert_echo_equals_run(

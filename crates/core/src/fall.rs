@@ -142,10 +142,10 @@ pub struct FallAlertConfig {
     /// or sitting; the false alerts left after session 14 were people found crawling after
     /// getting up out of sight (docs/classifier.md, session 15).
     pub crawling_shows_down: bool,
-    /// Evidence with scans read as lying counts only when the person's points stretch at
-    /// least this far (metres) on the scans read as lying: their median over the last
-    /// `down_lying_length_scans` such scans since the person was last up (scans of unknown
-    /// length left out). A person standing still whom the model reads as lying is one or two
+    /// Evidence that includes scans read as lying counts only when the person's points
+    /// stretch at least this far (metres) on those scans: the median over the last
+    /// `down_lying_length_scans` scans read as lying since the person was last up (scans of
+    /// unknown length left out). A person standing still whom the model reads as lying is one or two
     /// legs, 0.31 m on most scans and 0.6-0.8 m on a few (seed 4 episode 609 of `lidar-har
     /// alerts`); a body on the floor seen in part stretches 0.45-0.9 m scan by scan (seed 3
     /// episode 625). A fall alerted in the incident vouches for the floor on its own: a
