@@ -1,6 +1,6 @@
 //! Time per scan of the localiser (map mode, moving robot with odometry), and how it grows
 //! with the number of beams and the size of the map; plus the one-off distance-field time at
-//! map load. Prints a table; run with `cargo bench -p lidar-har-core --bench localiser`.
+//! map load; the same with each beam placed from its own pose (de-skew). Prints a table; run with `cargo bench -p lidar-har-core --bench localiser`.
 //!
 //! Scans are ray-cast in a square room with walls, four furniture blocks and a walking
 //! person (a 0.2 m cylinder), seen from a robot driving at 0.2 m/s; with 2 % of the beams
@@ -121,6 +121,7 @@ fn cast(
         stamp_ns,
         angle_min: -std::f32::consts::PI,
         angle_increment: inc as f32,
+        time_increment: 0.0,
         range_min: 0.05,
         range_max: 25.0,
         ranges,
@@ -134,9 +135,12 @@ struct Row {
     median_us: f64,
     p99_us: f64,
     tracked: usize,
+    deskewed: bool,
 }
 
-fn measure(beams: usize, side_m: f64) -> Row {
+/// `deskewed`: the scans state their beams' times (a 20 Hz rotation), so each beam is placed
+/// from its own pose.
+fn measure(beams: usize, side_m: f64, deskewed: bool) -> Row {
     let started = Instant::now();
     let map = room_map(side_m);
     let map_load = started.elapsed();
@@ -168,6 +172,10 @@ fn measure(beams: usize, side_m: f64) -> Row {
                 &mut rng,
             )
         })
+        .map(|scan| Scan {
+            time_increment: if deskewed { 0.05 / beams as f32 } else { 0.0 },
+            ..scan
+        })
         .collect();
     let mut odometry_k = 0i64;
     let mut times = Vec::with_capacity(SCANS);
@@ -196,6 +204,7 @@ fn measure(beams: usize, side_m: f64) -> Row {
         median_us: times[times.len() / 2],
         p99_us: times[times.len() * 99 / 100],
         tracked,
+        deskewed,
     }
 }
 
@@ -204,21 +213,25 @@ fn main() {
         "localiser time per scan ({SCANS} scans each, map at {RESOLUTION} m/cell, one thread)"
     );
     println!(
-        "{:>6} {:>9} {:>12} {:>12} {:>10} {:>10}",
-        "beams", "map (m)", "map load ms", "median us", "p99 us", "seen"
+        "{:>6} {:>9} {:>8} {:>12} {:>12} {:>10} {:>10}",
+        "beams", "map (m)", "de-skew", "map load ms", "median us", "p99 us", "seen"
     );
     let mut rows = Vec::new();
     for beams in [360, 720, 1440, 2880] {
-        rows.push(measure(beams, 10.0));
+        rows.push(measure(beams, 10.0, false));
     }
     for side in [20.0, 40.0] {
-        rows.push(measure(720, side));
+        rows.push(measure(720, side, false));
+    }
+    for beams in [720, 2880] {
+        rows.push(measure(beams, 10.0, true));
     }
     for r in rows {
         println!(
-            "{:>6} {:>9} {:>12.2} {:>12.1} {:>10.1} {:>9.0}%",
+            "{:>6} {:>9} {:>8} {:>12.2} {:>12.1} {:>10.1} {:>9.0}%",
             r.beams,
             format!("{0}x{0}", r.side_m),
+            if r.deskewed { "yes" } else { "no" },
             r.map_load.as_secs_f64() * 1e3,
             r.median_us,
             r.p99_us,

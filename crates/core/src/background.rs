@@ -168,6 +168,7 @@ mod tests {
             stamp_ns: (stamp_s * 1e9) as i64,
             angle_min: 0.0,
             angle_increment: 0.01,
+            time_increment: 0.0,
             range_min: 0.05,
             range_max: 5.0,
             ranges,

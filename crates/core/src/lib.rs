@@ -16,5 +16,6 @@ pub mod pose_head;
 pub mod representation;
 pub mod scan;
 pub mod stats;
+pub mod sweep;
 pub mod tracker;
 pub mod visibility;

@@ -10,10 +10,14 @@ use glam::DVec2;
 /// from the Lidar's +x axis) and measured `ranges[i]` metres.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Scan {
-    /// Acquisition time of the first beam, nanoseconds (any epoch, monotonic per source).
+    /// Acquisition time of beam 0, nanoseconds (any epoch, monotonic per source).
     pub stamp_ns: i64,
     pub angle_min: f32,
     pub angle_increment: f32,
+    /// Seconds from one beam's measurement to the next's: beam `i` was measured at
+    /// `stamp + i * time_increment`. Negative when beam 0 is measured last (the RPLIDAR
+    /// driver); 0 for a scan taken at one instant.
+    pub time_increment: f32,
     pub range_min: f32,
     pub range_max: f32,
     pub ranges: Vec<f32>,
@@ -44,6 +48,10 @@ pub const MAX_BEAMS: usize = 100_000;
 /// is garbage too, and walking the beams across an angle (the shadow search) would take
 /// billions of steps.
 pub const MIN_ANGLE_INCREMENT: f32 = std::f32::consts::TAU / MAX_BEAMS as f32;
+
+/// The longest rotation a 2D Lidar takes (the slowest spin at 1 Hz): a scan whose beams
+/// are spread over more time has a garbled `time_increment`.
+pub const MAX_SWEEP_S: f64 = 1.0;
 
 /// A usable beam: its index in `ranges`, its range and its point in the Lidar frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -81,6 +89,15 @@ impl Scan {
     /// Whether `range` is a return: finite and inside `[range_min, range_max]`.
     pub fn is_return(&self, range: f32) -> bool {
         range.is_finite() && range >= self.range_min && range <= self.range_max
+    }
+
+    /// Nanoseconds from beam 0's measurement to the last beam's (negative when beam 0 is
+    /// measured last), or `None` when `time_increment` is not finite or spreads the beams
+    /// over more than [`MAX_SWEEP_S`].
+    pub fn sweep_ns(&self) -> Option<i64> {
+        let sweep_s = f64::from(self.time_increment) * self.ranges.len().saturating_sub(1) as f64;
+        (sweep_s.is_finite() && sweep_s.abs() <= MAX_SWEEP_S)
+            .then(|| (sweep_s * 1e9).round() as i64)
     }
 
     /// Number of ranges that are `NaN` or infinite (no return, or a sensor fault).
@@ -144,6 +161,7 @@ mod tests {
             stamp_ns: 0,
             angle_min: -FRAC_PI_2,
             angle_increment: FRAC_PI_2,
+            time_increment: 0.0,
             range_min: 0.1,
             range_max: 10.0,
             ranges,
@@ -174,6 +192,25 @@ mod tests {
         assert_eq!(pts.len(), 1);
         assert_eq!(pts[0].beam, 5);
         assert_eq!(s.non_finite_count(), 3);
+    }
+
+    #[test]
+    fn the_sweep_spans_from_beam_zero_to_the_last_beam() {
+        let mut s = scan(vec![1.0; 721]);
+        assert_eq!(s.sweep_ns(), Some(0));
+        // time_increment is an f32: exact to a few nanoseconds.
+        let near =
+            |got: Option<i64>, expected: i64| got.is_some_and(|ns| (ns - expected).abs() < 10);
+        s.time_increment = 0.1 / 720.0;
+        assert!(near(s.sweep_ns(), 100_000_000), "{:?}", s.sweep_ns());
+        // The RPLIDAR's beam 0 ends the rotation.
+        s.time_increment = -0.1 / 720.0;
+        assert!(near(s.sweep_ns(), -100_000_000), "{:?}", s.sweep_ns());
+        for garbled in [f32::NAN, f32::INFINITY, 0.01] {
+            s.time_increment = garbled;
+            assert_eq!(s.sweep_ns(), None, "{garbled}");
+        }
+        assert_eq!(scan(vec![]).sweep_ns(), Some(0));
     }
 
     #[test]

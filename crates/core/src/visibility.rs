@@ -224,6 +224,7 @@ pub(crate) mod tests {
             stamp_ns: 0,
             angle_min,
             angle_increment: increment as f32,
+            time_increment: 0.0,
             range_min: 0.05,
             range_max: 12.0,
             ranges,

@@ -26,13 +26,13 @@ use std::time::Instant;
 use clap::Parser;
 use glam::{DAffine2, DVec2};
 use lidar_har_core::activity::Activity;
-use lidar_har_core::geometry::Pose2;
-use lidar_har_core::localiser::{Localiser, LocaliserConfig, Motion, Reference};
+use lidar_har_core::localiser::{Localiser, LocaliserConfig, LocaliserOutput, Motion, Reference};
 use lidar_har_core::localiser_accuracy::{
     AccuracyCriteria, AccuracyReport, AccuracyTally, PointOwners, ReportedPerson, ScanOutcome,
 };
 use lidar_har_core::scan::Scan;
 use lidar_har_core::stats::nearest_rank;
+use lidar_har_core::sweep::BeamPoses;
 use lidar_har_pipeline::classifier::{ClassifierConfig, ClassifierStage, load_classifier_config};
 use lidar_har_pipeline::convert::observation_msg;
 use lidar_har_pipeline::files::load_localiser_config;
@@ -62,6 +62,14 @@ struct Args {
     /// Largest distance from the truth at which the track is "on the person" (m).
     #[arg(long, default_value_t = AccuracyCriteria::default().on_person_m)]
     on_person_m: f64,
+    /// Simulate Lidars that sweep (`lidar.sweep` in every scene): each beam measured from
+    /// where the robot is at its own time, so that `odometry.deskew` (in `--config`) counts.
+    #[arg(long)]
+    sweep: bool,
+    /// Overrides every scene's `lidar.rate_hz` (the RPLIDAR A1 spins at 5-10 Hz, the
+    /// scenes' Lidar at 20 Hz: a slower rotation is smeared more by the robot's turns).
+    #[arg(long)]
+    rate_hz: Option<f64>,
     /// Also print one line per run (scene, motion, seed).
     #[arg(long)]
     per_run: bool,
@@ -215,6 +223,8 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
         for (index, (motion_name, motion)) in motions(&scene.robot.motion).into_iter().enumerate() {
             let mut variant = scene.clone();
             variant.robot.motion = motion;
+            variant.lidar.sweep |= args.sweep;
+            variant.lidar.rate_hz = args.rate_hz.unwrap_or(variant.lidar.rate_hz);
             for seed in 0..args.seeds {
                 let sim = match Simulator::new(variant.clone(), seed) {
                     Ok(sim) => sim,
@@ -398,6 +408,7 @@ fn run_scene(
             stamp_ns: stamp,
             angle_min: geometry.angle_min as f32,
             angle_increment: geometry.angle_increment as f32,
+            time_increment: geometry.time_increment as f32,
             range_min: geometry.range_min as f32,
             range_max: geometry.range_max as f32,
             ranges: frame.ranges,
@@ -475,7 +486,7 @@ fn run_scene(
             points: result
                 .output
                 .as_ref()
-                .map(|o| point_owners(&scan, &frame.labels, o.laser_pose, &e.points)),
+                .map(|o| point_owners(&scan, &frame.labels, o, &e.points)),
         });
         group.tally.add(
             &ScanOutcome {
@@ -538,14 +549,23 @@ fn mahalanobis_squared(e: DVec2, c: [[f64; 2]; 2]) -> f64 {
 }
 
 /// How many of `taken` (map-frame points the localiser took for the person) are returns the
-/// simulator labelled as the person's: the same beams moved by the same pose give the same
+/// simulator labelled as the person's: the same beams moved by the same poses give the same
 /// points, to rounding.
-fn point_owners(scan: &Scan, labels: &[BeamLabel], laser: Pose2, taken: &[DVec2]) -> PointOwners {
-    let to_map = DAffine2::from_angle_translation(laser.theta, laser.position());
+fn point_owners(
+    scan: &Scan,
+    labels: &[BeamLabel],
+    output: &LocaliserOutput,
+    taken: &[DVec2],
+) -> PointOwners {
+    let beams = scan.ranges.len();
+    let beam_poses: Vec<DAffine2> =
+        BeamPoses::sweep(output.laser_pose, output.last_beam_pose, beams)
+            .take(beams)
+            .collect();
     let person: Vec<DVec2> = scan
         .points()
         .filter(|p| labels.get(p.beam) == Some(&BeamLabel::Person))
-        .map(|p| to_map.transform_point2(p.point))
+        .map(|p| beam_poses[p.beam].transform_point2(p.point))
         .collect();
     const SAME_POINT_M2: f64 = 1e-6;
     let from_person = taken

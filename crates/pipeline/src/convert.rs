@@ -23,6 +23,7 @@ pub fn scan_from_msg(msg: &LaserScan) -> Scan {
         stamp_ns: msg.header.stamp.to_nanos(),
         angle_min: msg.angle_min,
         angle_increment: msg.angle_increment,
+        time_increment: msg.time_increment,
         range_min: msg.range_min,
         range_max: msg.range_max,
         ranges: msg.ranges.clone(),
@@ -188,6 +189,7 @@ mod tests {
         LocaliserOutput {
             stamp_ns: 1_500_000_000,
             laser_pose: Pose2::new(1.0, 2.0, 0.0),
+            last_beam_pose: Pose2::new(1.0, 2.0, 0.0),
             foreground_points: 3,
             clusters: 1,
             person: Some(PersonEstimate {

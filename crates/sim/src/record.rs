@@ -102,8 +102,9 @@ pub fn laser_scan_msg(sim: &Simulator, frame: &Frame) -> LaserScan {
         angle_min: g.angle_min as f32,
         angle_max: g.angle_max() as f32,
         angle_increment: g.angle_increment as f32,
-        // All beams of a rotation are taken at the same instant (see docs/simulator.md).
-        time_increment: 0.0,
+        // 0 unless the scene's Lidar sweeps: then beam i is measured i * time_increment after
+        // the stamp, which is negative (see docs/simulator.md).
+        time_increment: g.time_increment as f32,
         scan_time: g.scan_time as f32,
         range_min: g.range_min as f32,
         range_max: g.range_max as f32,

@@ -230,6 +230,12 @@ pub struct LidarSpec {
     pub range_min: f64,
     #[serde(default = "default_range_max")]
     pub range_max: f64,
+    /// Each beam measured at its own time over the rotation, from where the robot then is,
+    /// as a spinning Lidar does: the rotation ends at the stamp with beam 0, as the RPLIDAR
+    /// driver stamps it (LaserScan's `time_increment` is `-1 / (rate_hz * beams)`);
+    /// false: every beam at the scan's stamp (the paper's data and every committed figure).
+    #[serde(default)]
+    pub sweep: bool,
     /// Measurement errors; absent means the paper's values.
     #[serde(default)]
     pub noise: NoiseSpec,
@@ -242,6 +248,7 @@ impl Default for LidarSpec {
             beams: default_beams(),
             range_min: default_range_min(),
             range_max: default_range_max(),
+            sweep: false,
             noise: NoiseSpec::default(),
         }
     }

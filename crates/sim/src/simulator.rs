@@ -192,9 +192,11 @@ impl Simulator {
                 parts: s.parts,
             }
         });
-        self.lidar.scan(
+        let (robot_motion, mount) = (&self.robot, self.mount);
+        self.lidar.scan_moving(
             &self.world,
-            laser,
+            // Before the start the robot stands where it starts.
+            |s| robot_motion.at((t + s).max(0.0)).0.compose(&mount),
             person.as_ref().map(|p| &p.parts[..]),
             self.noise_rng.as_mut(),
             &mut frame.ranges,

@@ -762,6 +762,7 @@ pub(crate) fn core_scan(geometry: &ScanGeometry, stamp_ns: i64, ranges: Vec<f32>
         stamp_ns,
         angle_min: geometry.angle_min as f32,
         angle_increment: geometry.angle_increment as f32,
+        time_increment: geometry.time_increment as f32,
         range_min: geometry.range_min as f32,
         range_max: geometry.range_max as f32,
         ranges,
