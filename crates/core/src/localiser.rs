@@ -689,7 +689,9 @@ impl Localiser {
             .update(scan.stamp_ns, &self.clusters, &self.fragments);
         if let Some(person) = person.as_mut().filter(|p| !p.visible) {
             let shadow = &self.config.shadow;
-            let view = shadow.enabled.then(|| ScanView::new(scan, laser_pose));
+            let view = shadow
+                .enabled
+                .then(|| ScanView::sweeping(scan, laser_pose, last_beam_pose));
             if let (Reference::Map(map), Some(view)) = (&self.reference, &view) {
                 let room_for_a_body = |p: DVec2| {
                     map.free_clearance(p)

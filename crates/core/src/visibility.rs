@@ -47,12 +47,39 @@ impl Default for ShadowConfig {
 /// The beams of one scan, placed in the map frame, asked whether a body could hide somewhere.
 pub struct ScanView<'a> {
     scan: &'a Scan,
+    /// The Lidar's pose at beam 0.
     laser: Pose2,
+    /// How far the Lidar turns and moves from one beam to the next (a de-skewed scan).
+    turn_per_beam: f64,
+    step_per_beam: DVec2,
 }
 
 impl<'a> ScanView<'a> {
+    /// Every beam measured from `laser`.
     pub fn new(scan: &'a Scan, laser: Pose2) -> Self {
-        Self { scan, laser }
+        Self::sweeping(scan, laser, laser)
+    }
+
+    /// Beam 0 measured from `first`, the last beam from `last`, those between from poses in
+    /// between, as the localiser placed them ([`crate::sweep::BeamPoses`]).
+    pub fn sweeping(scan: &'a Scan, first: Pose2, last: Pose2) -> Self {
+        let steps = scan.ranges.len().saturating_sub(1).max(1) as f64;
+        Self {
+            scan,
+            laser: first,
+            turn_per_beam: normalize_angle(last.theta - first.theta) / steps,
+            step_per_beam: (last.position() - first.position()) / steps,
+        }
+    }
+
+    /// The Lidar's heading when it measured `beam`.
+    fn heading_at(&self, beam: f64) -> f64 {
+        self.laser.theta + self.turn_per_beam * beam
+    }
+
+    /// The Lidar's position when it measured `beam`.
+    fn sensor_at(&self, beam: f64) -> DVec2 {
+        self.laser.position() + self.step_per_beam * beam
     }
 
     /// Whether every beam across a body centred at `p` (map frame) returned well beyond it:
@@ -89,7 +116,6 @@ impl<'a> ScanView<'a> {
         if !self.sees_through_at(distance, bearing, config) {
             return None;
         }
-        let sensor = self.laser.position();
         let half_width = (config.search_m / distance).min(1.0).asin();
         let mut best: Option<(f64, DVec2)> = None;
         for beam in self.beams_between(bearing - half_width, bearing + half_width) {
@@ -97,7 +123,9 @@ impl<'a> ScanView<'a> {
             if !self.scan.is_return(range) {
                 continue;
             }
-            let direction = DVec2::from_angle(self.scan.beam_angle(beam) + self.laser.theta);
+            let sensor = self.sensor_at(beam as f64);
+            let direction =
+                DVec2::from_angle(self.scan.beam_angle(beam) + self.heading_at(beam as f64));
             // Along this beam, the point nearest `p` with a body behind the return ...
             let along = (p - sensor).dot(direction);
             let mut reach = along.max(f64::from(range) + config.body_radius_m);
@@ -126,10 +154,12 @@ impl<'a> ScanView<'a> {
         best.map(|(_, q)| q)
     }
 
-    /// Distance and bearing (map frame) of `p` from the Lidar; `None` within `min_distance`
-    /// of it (or for a non-finite `p`), where a bearing means little.
+    /// Distance and bearing (map frame) of `p` from the Lidar (where it was halfway through
+    /// the scan); `None` within `min_distance` of it (or for a non-finite `p`), where a
+    /// bearing means little.
     fn polar(&self, p: DVec2, min_distance: f64) -> Option<(f64, f64)> {
-        let offset = p - self.laser.position();
+        let middle = self.scan.ranges.len().saturating_sub(1) as f64 / 2.0;
+        let offset = p - self.sensor_at(middle);
         let distance = offset.length();
         (distance > min_distance).then(|| (distance, offset.y.atan2(offset.x)))
     }
@@ -145,13 +175,25 @@ impl<'a> ScanView<'a> {
         } else {
             1
         };
-        // Beam `k` points at angle_min + k * increment: walk from whichever end of the
-        // interval the beams' order starts at.
+        // Beam `k` points at angle_min + k * increment from the Lidar's heading then: walk
+        // from whichever end of the interval the beams' order starts at. The beam there is
+        // found from the heading at beam 0, then from the heading at the beam found: the
+        // Lidar turns by a few hundredths of a beam per beam, so twice is exact.
         let start = if increment > 0.0 { from } else { to };
-        let relative = normalize_angle(start - self.laser.theta - self.scan.beam_angle(0));
-        let first = (relative / increment).round() as i64;
+        let beam_towards = |heading: f64| {
+            let relative = normalize_angle(start - heading - self.scan.beam_angle(0));
+            ((relative / increment).round() as i64).rem_euclid(per_turn)
+        };
+        let mut first = beam_towards(self.laser.theta);
+        for _ in 0..2 {
+            first = beam_towards(self.heading_at(first as f64));
+        }
+        // Over the interval the heading turns too, which spreads the beams wider or closer.
+        let spacing = (increment + self.turn_per_beam).abs();
         let count = if usable {
-            (((to - from) / increment.abs()).round() as i64 + 1).min(per_turn)
+            (((to - from) / spacing).round() as i64)
+                .saturating_add(1)
+                .min(per_turn)
         } else {
             0
         };
@@ -197,10 +239,22 @@ pub(crate) mod tests {
         angle_min: f32,
         person: Option<(DVec2, f64)>,
     ) -> Scan {
+        cast_sweeping(map, laser, laser, angle_min, person)
+    }
+
+    /// [`cast`] from a Lidar that moves from `first` at beam 0 to `last` at the last beam.
+    fn cast_sweeping(
+        map: &OccupancyMap,
+        first: Pose2,
+        last: Pose2,
+        angle_min: f32,
+        person: Option<(DVec2, f64)>,
+    ) -> Scan {
         let n = 720;
         let increment = std::f64::consts::TAU / n as f64;
         let ranges = (0..n)
             .map(|i| {
+                let laser = first.lerp(&last, i as f64 / (n - 1) as f64);
                 let angle = laser.theta + f64::from(angle_min) + i as f64 * increment;
                 let direction = DVec2::from_angle(angle);
                 let mut range = 0.0;
@@ -274,6 +328,37 @@ pub(crate) mod tests {
             view.nearest_hidden(DVec2::new(5.0, 1.5), &map, &config),
             None
         );
+    }
+
+    #[test]
+    fn a_sweeping_scan_is_read_from_where_each_beam_was_measured() {
+        let map = room_with_sofa();
+        let config = ShadowConfig::default();
+        // A 5 Hz rotation while turning on the spot at 90 degrees per second.
+        let last = Pose2::new(LASER.x, LASER.y, LASER.theta + 0.31);
+        let places: Vec<DVec2> = (1..40)
+            .flat_map(|i| (1..40).map(move |j| DVec2::new(i as f64, j as f64) * 0.25))
+            .collect();
+        for angle_min in [-std::f32::consts::PI, 0.0] {
+            let still = cast(&map, LASER, angle_min, None);
+            let truth = ScanView::new(&still, LASER);
+            let swept = cast_sweeping(&map, LASER, last, angle_min, None);
+            let differ = |view: &ScanView| {
+                places
+                    .iter()
+                    .filter(|&&p| view.sees_through(p, &config) != truth.sees_through(p, &config))
+                    .count()
+            };
+            // Only places at the edges of the shadows differ: the turn spreads the beams apart.
+            let read_as_swept = differ(&ScanView::sweeping(&swept, LASER, last));
+            assert!(read_as_swept <= 30, "{read_as_swept} of {}", places.len());
+            let read_from_beam_zero = differ(&ScanView::new(&swept, LASER));
+            assert!(read_from_beam_zero > 150, "{read_from_beam_zero}");
+            let hidden = ScanView::sweeping(&swept, LASER, last)
+                .nearest_hidden(DVec2::new(5.0, 7.3), &map, &config)
+                .unwrap();
+            assert!(!truth.sees_through(hidden, &config), "{hidden}");
+        }
     }
 
     #[test]
