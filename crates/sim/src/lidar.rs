@@ -203,18 +203,17 @@ impl Lidar {
         ranges: &mut Vec<f32>,
         labels: &mut Vec<BeamLabel>,
     ) {
-        self.scan_moving(world, |_| laser, parts, rng, ranges, labels);
+        self.scan_moving(world, |_| (laser, parts), rng, ranges, labels);
     }
 
-    /// Like [`Lidar::scan`] from a Lidar that moves: `laser_at(s)` is its pose `s` seconds
-    /// after beam 0 was measured. A Lidar that sweeps (`time_increment` != 0) casts each of
-    /// [`SWEEP_SECTORS`] sectors from its own pose; otherwise every beam is cast from
-    /// `laser_at(0)`. The body stays where it was at beam 0.
-    pub fn scan_moving(
+    /// Like [`Lidar::scan`] with the Lidar and the body moving: `at(s)` gives the Lidar's
+    /// pose and the body's parts `s` seconds after beam 0 was measured. A Lidar that sweeps
+    /// (`time_increment` != 0) casts each of [`SWEEP_SECTORS`] sectors as they are at its
+    /// middle beam's time; otherwise every beam is cast as they are at 0.
+    pub fn scan_moving<B: AsRef<[Capsule]>>(
         &mut self,
         world: &World,
-        laser_at: impl Fn(f64) -> Pose2,
-        parts: Option<&[Capsule]>,
+        mut at: impl FnMut(f64) -> (Pose2, Option<B>),
         rng: Option<&mut ChaCha8Rng>,
         ranges: &mut Vec<f32>,
         labels: &mut Vec<BeamLabel>,
@@ -238,7 +237,8 @@ impl Lidar {
         for sector in 0..sectors {
             let beams = sector * n / sectors..(sector + 1) * n / sectors;
             let middle = (beams.start + beams.end - 1) as f64 / 2.0;
-            self.cast(world, laser_at(middle * dt), parts, beams);
+            let (laser, parts) = at(middle * dt);
+            self.cast(world, laser, parts.as_ref().map(AsRef::as_ref), beams);
         }
         self.window = 0..n;
         self.add_noise(rng, ranges, labels);
@@ -499,13 +499,23 @@ mod tests {
         }];
         // Driving and turning at 90 degrees per second; beam 0 is measured last.
         let laser_at = |s: f64| Pose2::new(0.1 + 0.3 * s, -0.2, 0.3 + FRAC_PI_2 * s);
+        // The body walks at 1 m/s along +y.
+        let body_at = |s: f64| {
+            parts.map(|c| Capsule {
+                a: c.a + DVec3::Y * s,
+                b: c.b + DVec3::Y * s,
+                ..c
+            })
+        };
         let (mut r, mut l) = (Vec::new(), Vec::new());
-        lidar.scan_moving(&w, laser_at, Some(&parts), None, &mut r, &mut l);
+        let at = |s: f64| (laser_at(s), Some(body_at(s)));
+        lidar.scan_moving(&w, at, None, &mut r, &mut l);
         let n = g.beams;
         for sector in 0..SWEEP_SECTORS {
             let beams = sector * n / SWEEP_SECTORS..(sector + 1) * n / SWEEP_SECTORS;
             let middle = (beams.start + beams.end - 1) as f64 / 2.0;
-            let expect = brute(&w, laser_at(middle * g.time_increment), &g, &parts);
+            let s = middle * g.time_increment;
+            let expect = brute(&w, laser_at(s), &g, &body_at(s));
             for i in beams {
                 assert_eq!(lidar.exact_ranges()[i], expect[i], "beam {i}");
             }

@@ -193,11 +193,22 @@ impl Simulator {
             }
         });
         let (robot_motion, mount) = (&self.robot, self.mount);
+        let (person_model, frame_parts) = (&mut self.person, person.as_ref().map(|p| p.parts));
+        // A Lidar that sweeps measured its earlier beams from where the robot was then, of the
+        // body as it was then; before the start, both stand where they start.
+        let at = |s: f64| {
+            let then = (t + s).max(0.0);
+            let laser = robot_motion.at(then).0.compose(&mount);
+            let parts = if s == 0.0 {
+                frame_parts
+            } else {
+                person_model.as_mut().map(|p| p.state_at(then).parts)
+            };
+            (laser, parts)
+        };
         self.lidar.scan_moving(
             &self.world,
-            // Before the start the robot stands where it starts.
-            |s| robot_motion.at((t + s).max(0.0)).0.compose(&mount),
-            person.as_ref().map(|p| &p.parts[..]),
+            at,
             self.noise_rng.as_mut(),
             &mut frame.ranges,
             &mut frame.labels,
