@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::background::{BackgroundConfig, BackgroundStatus, LearnedBackground};
 use crate::cluster::{Cluster, ClusterConfig, Clusterer};
-use crate::geometry::Pose2;
+use crate::geometry::{Pose2, normalize_angle};
 use crate::map::OccupancyMap;
 use crate::scan::{BeamDirections, MAX_SWEEP_S, Scan, ScanError};
 use crate::sweep::BeamPoses;
@@ -299,7 +299,17 @@ pub enum DeskewProblem {
     TimeIncrement(f32),
     #[error("no usable odometry at its last beam, {offset_s:.3} s from its stamp")]
     NoOdometryAtLastBeam { offset_s: f64 },
+    #[error(
+        "the Lidar turned {turn_rad:.2} rad over it, more than {MAX_SWEEP_TURN_RAD:.2}: \
+         which way round is not certain"
+    )]
+    TurnedTooFar { turn_rad: f64 },
 }
+
+/// The most a Lidar may turn over one scan for the turn to be interpolated: odometry at
+/// the first and the last beam does not say which way round a larger turn went (a robot
+/// turning at 3 rad/s turns 0.6 rad over the 0.2 s of a 5 Hz rotation).
+pub const MAX_SWEEP_TURN_RAD: f64 = std::f64::consts::FRAC_PI_2;
 
 impl Warning {
     /// A short stable name per kind, for counters and rate limiting.
@@ -745,13 +755,20 @@ impl Localiser {
             )));
             return laser_pose;
         };
-        self.laser_pose_at(scan.stamp_ns.saturating_add(sweep_ns))
-            .unwrap_or_else(|_| {
-                warnings.push(Warning::NotDeskewed(DeskewProblem::NoOdometryAtLastBeam {
-                    offset_s: sweep_ns as f64 * 1e-9,
-                }));
-                laser_pose
-            })
+        let problem = match self.laser_pose_at(scan.stamp_ns.saturating_add(sweep_ns)) {
+            Err(_) => DeskewProblem::NoOdometryAtLastBeam {
+                offset_s: sweep_ns as f64 * 1e-9,
+            },
+            Ok(last) => {
+                let turn_rad = normalize_angle(last.theta - laser_pose.theta);
+                if turn_rad.abs() <= MAX_SWEEP_TURN_RAD {
+                    return last;
+                }
+                DeskewProblem::TurnedTooFar { turn_rad }
+            }
+        };
+        warnings.push(Warning::NotDeskewed(problem));
+        laser_pose
     }
 }
 
@@ -1361,6 +1378,23 @@ mod tests {
             );
             assert_eq!(result.warnings[0].kind(), "not_deskewed");
         }
+        // Turning at 5.5 rad/s through a 0.3 s rotation: 1.65 rad, too far to tell which way.
+        let mut loc = map_localiser(Motion::Odometry);
+        for k in 0..=50 {
+            loc.add_odometry(k * 10_000_000, Pose2::new(0.0, 0.0, 0.055 * k as f64));
+        }
+        let scan = cast_sweeping(100_000_000, |_| Pose2::IDENTITY, 0.3 / 720.0, person, 0.2);
+        let result = loc.process_scan(&scan);
+        assert!(result.output.is_some());
+        assert!(
+            matches!(
+                result.warnings[..],
+                [Warning::NotDeskewed(DeskewProblem::TurnedTooFar { turn_rad })]
+                    if (turn_rad - 1.65).abs() < 0.01
+            ),
+            "{:?}",
+            result.warnings
+        );
     }
 
     #[test]

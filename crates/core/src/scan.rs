@@ -95,7 +95,10 @@ impl Scan {
     /// measured last), or `None` when `time_increment` is not finite or spreads the beams
     /// over more than [`MAX_SWEEP_S`].
     pub fn sweep_ns(&self) -> Option<i64> {
-        let sweep_s = f64::from(self.time_increment) * self.ranges.len().saturating_sub(1) as f64;
+        if self.ranges.len() < 2 {
+            return Some(0);
+        }
+        let sweep_s = f64::from(self.time_increment) * (self.ranges.len() - 1) as f64;
         (sweep_s.is_finite() && sweep_s.abs() <= MAX_SWEEP_S)
             .then(|| (sweep_s * 1e9).round() as i64)
     }
@@ -211,6 +214,10 @@ mod tests {
             assert_eq!(s.sweep_ns(), None, "{garbled}");
         }
         assert_eq!(scan(vec![]).sweep_ns(), Some(0));
+        // One beam sweeps nothing, whatever its increment says.
+        let mut one = scan(vec![1.0]);
+        one.time_increment = f32::NAN;
+        assert_eq!(one.sweep_ns(), Some(0));
     }
 
     #[test]

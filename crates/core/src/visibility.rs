@@ -3,6 +3,8 @@
 //! seen. A hidden person is somewhere the beams do not reach: behind an obstacle, in its
 //! shadow ("negative information" in tracking).
 
+use std::f64::consts::TAU;
+
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
 
@@ -167,39 +169,41 @@ impl<'a> ScanView<'a> {
     /// The beams pointing between `from` and `to` (radians, map frame, `from <= to`) that
     /// the scan has, across its seam where it wraps around; empty when none.
     fn beams_between(&self, from: f64, to: f64) -> impl Iterator<Item = usize> {
+        // Beam `k` points at `first_direction + k * spacing` in the map: the beam spacing plus
+        // the Lidar's own turn from one beam to the next.
         let increment = f64::from(self.scan.angle_increment);
+        let spacing = increment + self.turn_per_beam;
+        let first_direction = self.laser.theta + self.scan.beam_angle(0);
         let beams = self.scan.ranges.len() as i64;
-        let usable = increment.is_finite() && increment != 0.0 && beams > 0 && from <= to;
+        let usable = spacing.is_finite() && spacing != 0.0 && beams > 0 && from <= to;
+        // Beam indices per turn of the map. A scan taken while turning does not close on
+        // itself: past its last beam its seam leaves a gap (indices with no beam) or
+        // overlaps its first beams.
         let per_turn = if usable {
-            (std::f64::consts::TAU / increment.abs()).round().max(1.0) as i64
+            (TAU / spacing.abs()).round().max(1.0) as i64
         } else {
             1
         };
-        // Beam `k` points at angle_min + k * increment from the Lidar's heading then: walk
-        // from whichever end of the interval the beams' order starts at. The beam there is
-        // found from the heading at beam 0, then from the heading at the beam found: the
-        // Lidar turns by a few hundredths of a beam per beam, so twice is exact.
-        let start = if increment > 0.0 { from } else { to };
-        let beam_towards = |heading: f64| {
-            let relative = normalize_angle(start - heading - self.scan.beam_angle(0));
-            ((relative / increment).round() as i64).rem_euclid(per_turn)
-        };
-        let mut first = beam_towards(self.laser.theta);
-        for _ in 0..2 {
-            first = beam_towards(self.heading_at(first as f64));
-        }
-        // Over the interval the heading turns too, which spreads the beams wider or closer.
-        let spacing = (increment + self.turn_per_beam).abs();
+        // Walk from whichever end of the interval the beams' order starts at.
+        let start = if spacing > 0.0 { from } else { to };
+        let relative = normalize_angle(start - self.laser.theta - self.scan.beam_angle(0));
+        let first = (relative / spacing).round() as i64;
         let count = if usable {
-            (((to - from) / spacing).round() as i64)
+            (((to - from) / spacing.abs()).round() as i64)
                 .saturating_add(1)
                 .min(per_turn)
         } else {
             0
         };
+        // A beam across the seam of a turning scan may point elsewhere: keep those that
+        // point into the interval (widened by a beam).
+        let (middle, reach) = ((from + to) / 2.0, (to - from) / 2.0 + spacing.abs());
+        let points_into = move |b: i64| {
+            normalize_angle(first_direction + b as f64 * spacing - middle).abs() <= reach
+        };
         (0..count)
-            .map(move |k| (first + k).rem_euclid(per_turn))
-            .filter(move |&b| b < beams)
+            .map(move |k| first.saturating_add(k).rem_euclid(per_turn))
+            .filter(move |&b| b < beams && points_into(b))
             .map(|b| b as usize)
     }
 }
@@ -359,6 +363,28 @@ pub(crate) mod tests {
                 .unwrap();
             assert!(!truth.sees_through(hidden, &config), "{hidden}");
         }
+    }
+
+    #[test]
+    fn the_gap_a_turn_leaves_at_the_seam_says_nothing() {
+        let map = room_with_sofa();
+        let config = ShadowConfig::default();
+        // Turning clockwise at 3 rad/s through a 5 Hz rotation while the beams go
+        // anticlockwise: the last beam (2.93 rad) stops 0.6 rad short of the first, which
+        // points at 0.4 - pi (-2.74 rad).
+        let last = Pose2::new(LASER.x, LASER.y, LASER.theta - 0.6);
+        let swept = cast_sweeping(&map, LASER, last, -std::f32::consts::PI, None);
+        let view = ScanView::sweeping(&swept, LASER, last);
+        let still = cast(&map, LASER, -std::f32::consts::PI, None);
+        let truth = ScanView::new(&still, LASER);
+        let at = |bearing: f64| LASER.position() + DVec2::from_angle(bearing) * 0.6;
+        for bearing in [-3.04, -2.6, 2.7] {
+            assert!(truth.sees_through(at(bearing), &config), "{bearing}");
+        }
+        // Open floor in the gap: nobody looked there. Either side of it, the beams did.
+        assert!(!view.sees_through(at(-3.04), &config));
+        assert!(view.sees_through(at(-2.6), &config));
+        assert!(view.sees_through(at(2.7), &config));
     }
 
     #[test]

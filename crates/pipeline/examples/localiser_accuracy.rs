@@ -559,9 +559,7 @@ fn point_owners(
 ) -> PointOwners {
     let beams = scan.ranges.len();
     let beam_poses: Vec<DAffine2> =
-        BeamPoses::sweep(output.laser_pose, output.last_beam_pose, beams)
-            .take(beams)
-            .collect();
+        BeamPoses::sweep(output.laser_pose, output.last_beam_pose, beams).collect();
     let person: Vec<DVec2> = scan
         .points()
         .filter(|p| labels.get(p.beam) == Some(&BeamLabel::Person))
