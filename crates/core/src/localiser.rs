@@ -1,13 +1,14 @@
 //! Finds and tracks the person in each scan (the paper's localisation step, made robust).
 //!
 //! Per scan: the Lidar's pose in the map at the scan's stamp (`map -> odom` correction, the
-//! odometry interpolated at the stamp, the `base_link -> laser` mount); each return moved
-//! into the map frame; returns within `obstacle_margin_m` of a mapped obstacle (or, without a
-//! map, not in front of the learned background) dropped as room; the rest clustered; the
-//! clusters (and, with a map, the groups too small to be clusters but clear of the room)
-//! handed to the tracker, which picks the person; a hidden person's prediction kept out of
-//! what the scan sees through ([`crate::visibility`]) and out of mapped obstacles, and
-//! reported as slowing down ([`PersonEstimate::slowed`]).
+//! odometry interpolated at the stamp, the `base_link -> laser` mount) and, for a Lidar
+//! that sweeps, at its last beam; each return moved into the map frame from the pose at its
+//! own time ([`crate::sweep`]); returns within `obstacle_margin_m` of a mapped obstacle
+//! (or, without a map, not in front of the learned background) dropped as room; the rest
+//! clustered; the clusters (and, with a map, the groups too small to be clusters but clear
+//! of the room) handed to the tracker, which picks the person; a hidden person's prediction
+//! kept out of what the scan sees through ([`crate::visibility`]) and out of mapped
+//! obstacles, and reported as slowing down ([`PersonEstimate::slowed`]).
 //!
 //! Nothing here logs: every problem with the input comes back as a [`Warning`] for the host
 //! to count and report (rate-limited), and what cannot be used is skipped. No `NaN` from the
