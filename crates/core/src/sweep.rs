@@ -11,31 +11,68 @@ use glam::{DAffine2, DMat2, DVec2};
 
 use crate::geometry::{Pose2, normalize_angle};
 
+/// How the Lidar moved over a scan: beam 0 measured from `first`, the last beam from where
+/// it had turned and moved to, the beams between from poses in between (shortest turn).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sweep {
+    first: Pose2,
+    turn_per_beam: f64,
+    step_per_beam: DVec2,
+}
+
+impl Sweep {
+    /// From `first` at beam 0 to `last` at beam `beams - 1`. `first == last`: every beam
+    /// from one pose (a scan taken at one instant, or a Lidar that does not move).
+    pub fn new(first: Pose2, last: Pose2, beams: usize) -> Self {
+        let steps = beams.saturating_sub(1).max(1) as f64;
+        Self {
+            first,
+            turn_per_beam: normalize_angle(last.theta - first.theta) / steps,
+            step_per_beam: (last.position() - first.position()) / steps,
+        }
+    }
+
+    /// The Lidar's pose at beam 0.
+    pub fn first(&self) -> Pose2 {
+        self.first
+    }
+
+    /// How far the Lidar turns from one beam to the next (radians).
+    pub fn turn_per_beam(&self) -> f64 {
+        self.turn_per_beam
+    }
+
+    /// The Lidar's heading when it measured `beam` (fractional beams between).
+    pub fn heading_at(&self, beam: f64) -> f64 {
+        self.first.theta + self.turn_per_beam * beam
+    }
+
+    /// The Lidar's position when it measured `beam`.
+    pub fn position_at(&self, beam: f64) -> DVec2 {
+        self.first.position() + self.step_per_beam * beam
+    }
+}
+
 /// The Lidar's pose in the map for each beam of a scan, in beam order.
 #[derive(Debug, Clone)]
 pub struct BeamPoses {
+    sweep: Sweep,
     /// Heading of the next beam as a unit complex number (cos, sin).
     heading: DVec2,
     /// Turn from one beam to the next, as a unit complex number.
     turn: DVec2,
-    first_position: DVec2,
-    step: DVec2,
     beam: usize,
     beams: usize,
 }
 
 impl BeamPoses {
-    /// Beam 0 measured from `first`, beam `beams - 1` from `last`, the others in between
-    /// (shortest turn). `first == last`: every beam from one pose (a scan taken at one
-    /// instant, or a Lidar that does not move).
+    /// The poses of `beams` beams swept from `first` to `last` ([`Sweep::new`]).
     pub fn sweep(first: Pose2, last: Pose2, beams: usize) -> Self {
-        let steps = beams.saturating_sub(1).max(1) as f64;
-        let turn = normalize_angle(last.theta - first.theta) / steps;
+        let sweep = Sweep::new(first, last, beams);
         Self {
+            sweep,
             heading: DVec2::from_angle(first.theta),
-            turn: DVec2::from_angle(turn),
-            first_position: first.position(),
-            step: (last.position() - first.position()) / steps,
+            turn: DVec2::from_angle(sweep.turn_per_beam),
             beam: 0,
             beams,
         }
@@ -53,7 +90,7 @@ impl Iterator for BeamPoses {
         let (c, s) = (self.heading.x, self.heading.y);
         let pose = DAffine2 {
             matrix2: DMat2::from_cols(DVec2::new(c, s), DVec2::new(-s, c)),
-            translation: self.first_position + self.step * self.beam as f64,
+            translation: self.sweep.position_at(self.beam as f64),
         };
         // Composing unit complex numbers keeps the heading within 1e-10 rad over 100,000
         // beams, without a sine per beam.

@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use crate::geometry::{Pose2, normalize_angle};
 use crate::map::OccupancyMap;
 use crate::scan::Scan;
+use crate::sweep::Sweep;
 
 /// How a hidden person is kept out of the space the scan saw through.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -49,11 +50,8 @@ impl Default for ShadowConfig {
 /// The beams of one scan, placed in the map frame, asked whether a body could hide somewhere.
 pub struct ScanView<'a> {
     scan: &'a Scan,
-    /// The Lidar's pose at beam 0.
-    laser: Pose2,
-    /// How far the Lidar turns and moves from one beam to the next (a de-skewed scan).
-    turn_per_beam: f64,
-    step_per_beam: DVec2,
+    /// Where the Lidar was at each beam.
+    sweep: Sweep,
 }
 
 impl<'a> ScanView<'a> {
@@ -65,23 +63,8 @@ impl<'a> ScanView<'a> {
     /// Beam 0 measured from `first`, the last beam from `last`, those between from poses in
     /// between, as the localiser placed them ([`crate::sweep::BeamPoses`]).
     pub fn sweeping(scan: &'a Scan, first: Pose2, last: Pose2) -> Self {
-        let steps = scan.ranges.len().saturating_sub(1).max(1) as f64;
-        Self {
-            scan,
-            laser: first,
-            turn_per_beam: normalize_angle(last.theta - first.theta) / steps,
-            step_per_beam: (last.position() - first.position()) / steps,
-        }
-    }
-
-    /// The Lidar's heading when it measured `beam`.
-    fn heading_at(&self, beam: f64) -> f64 {
-        self.laser.theta + self.turn_per_beam * beam
-    }
-
-    /// The Lidar's position when it measured `beam`.
-    fn sensor_at(&self, beam: f64) -> DVec2 {
-        self.laser.position() + self.step_per_beam * beam
+        let sweep = Sweep::new(first, last, scan.ranges.len());
+        Self { scan, sweep }
     }
 
     /// Whether every beam across a body centred at `p` (map frame) returned well beyond it:
@@ -125,9 +108,9 @@ impl<'a> ScanView<'a> {
             if !self.scan.is_return(range) {
                 continue;
             }
-            let sensor = self.sensor_at(beam as f64);
+            let sensor = self.sweep.position_at(beam as f64);
             let direction =
-                DVec2::from_angle(self.scan.beam_angle(beam) + self.heading_at(beam as f64));
+                DVec2::from_angle(self.scan.beam_angle(beam) + self.sweep.heading_at(beam as f64));
             // Along this beam, the point nearest `p` with a body behind the return ...
             let along = (p - sensor).dot(direction);
             let mut reach = along.max(f64::from(range) + config.body_radius_m);
@@ -161,7 +144,7 @@ impl<'a> ScanView<'a> {
     /// bearing means little.
     fn polar(&self, p: DVec2, min_distance: f64) -> Option<(f64, f64)> {
         let middle = self.scan.ranges.len().saturating_sub(1) as f64 / 2.0;
-        let offset = p - self.sensor_at(middle);
+        let offset = p - self.sweep.position_at(middle);
         let distance = offset.length();
         (distance > min_distance).then(|| (distance, offset.y.atan2(offset.x)))
     }
@@ -172,8 +155,9 @@ impl<'a> ScanView<'a> {
         // Beam `k` points at `first_direction + k * spacing` in the map: the beam spacing plus
         // the Lidar's own turn from one beam to the next.
         let increment = f64::from(self.scan.angle_increment);
-        let spacing = increment + self.turn_per_beam;
-        let first_direction = self.laser.theta + self.scan.beam_angle(0);
+        let spacing = increment + self.sweep.turn_per_beam();
+        let heading = self.sweep.first().theta;
+        let first_direction = heading + self.scan.beam_angle(0);
         let beams = self.scan.ranges.len() as i64;
         let usable = spacing.is_finite() && spacing != 0.0 && beams > 0 && from <= to;
         // Beam indices per turn of the map. A scan taken while turning does not close on
@@ -186,7 +170,7 @@ impl<'a> ScanView<'a> {
         };
         // Walk from whichever end of the interval the beams' order starts at.
         let start = if spacing > 0.0 { from } else { to };
-        let relative = normalize_angle(start - self.laser.theta - self.scan.beam_angle(0));
+        let relative = normalize_angle(start - heading - self.scan.beam_angle(0));
         let first = (relative / spacing).round() as i64;
         let count = if usable {
             (((to - from) / spacing.abs()).round() as i64)
