@@ -42,7 +42,9 @@
 //! flickering scan changes nothing), and after an alert its kind is re-armed only once the
 //! person has been seen upright (standing, walking, running, walking unsteadily) for
 //! `rearm_upright_s` (a moment read as falling does not restart that clock: a standing person
-//! is often misread so). Time going backwards (a replay restarting) clears everything.
+//! is often misread so). `FallDetected` is also re-armed by `rearm_getting_up_s` of getting
+//! up: one fall, one alert, but a person who falls back while struggling up has fallen
+//! twice. Time going backwards (a replay restarting) clears everything.
 
 use std::collections::VecDeque;
 
@@ -93,6 +95,11 @@ pub struct FallAlertConfig {
     pub confirm_scans: u32,
     /// Time the person must be seen upright before a new incident can raise alerts, seconds.
     pub rearm_upright_s: f64,
+    /// After `FallDetected`, being read as getting up on every scan seen for this long (and
+    /// at least `confirm_scans`) re-arms it, not `PersonDown`: a person who struggles up
+    /// from a fall and falls back has fallen again, and is often never upright in between.
+    /// Seconds; 0 turns this off (only `rearm_upright_s` re-arms).
+    pub rearm_getting_up_s: f64,
     /// A person down is up again once confirmed getting up, or confirmed upright for this
     /// long: a fallen person sitting on the floor is misread as walking unsteadily or
     /// standing for a few tenths of a second every few seconds, and each such moment
@@ -185,6 +192,7 @@ impl Default for FallAlertConfig {
             down_after_s: 15.0,
             confirm_scans: 5,
             rearm_upright_s: 1.5,
+            rearm_getting_up_s: 1.0,
             down_ends_upright_s: 1.0,
             descent_max_s: 3.0,
             fall_from_upright_s: 3.0,
@@ -245,6 +253,7 @@ impl FallAlertConfig {
         check("confirm_scans", n, self.confirm_scans >= 1, ">= 1")?;
         at_least_zero("down_after_s", self.down_after_s)?;
         at_least_zero("rearm_upright_s", self.rearm_upright_s)?;
+        at_least_zero("rearm_getting_up_s", self.rearm_getting_up_s)?;
         at_least_zero("down_ends_upright_s", self.down_ends_upright_s)?;
         at_least_zero("descent_max_s", self.descent_max_s)?;
         at_least_zero("fall_from_upright_s", self.fall_from_upright_s)?;
@@ -624,6 +633,17 @@ impl FallDetector {
         }
         if seen.is_off_floor() {
             self.off_floor_since_on_floor = true;
+        }
+        // A fall alerted, then a real attempt to get up, read so on every scan seen for
+        // `rearm_getting_up_s`: a fall from there is a new one.
+        if posture == Posture::GettingUp
+            && n >= self.config.confirm_scans
+            && self.config.rearm_getting_up_s > 0.0
+            && self
+                .fall_disarmed_at
+                .is_some_and(|at| t - since.max(at) >= self.config.rearm_getting_up_s)
+        {
+            self.fall_disarmed_at = None;
         }
         // Re-arm once upright long enough, counting only uprightness after the alert (an
         // alert raised while the person was still confirmed upright counts from the alert).
@@ -1602,6 +1622,56 @@ mod tests {
             (LyingDown, 3.0, true),
         ]);
         assert_eq!(kinds, [AlertKind::FallDetected, AlertKind::FallDetected]);
+    }
+
+    #[test]
+    fn falling_back_after_struggling_up_for_a_while_is_a_new_fall() {
+        // Never upright between the two falls: up for 2 s, then down again.
+        let fall_back = [(FallingDown, 1.0, true), (LyingDown, 3.0, true)];
+        assert_eq!(
+            kinds_after_a_fall_and_getting_up(&fall_back),
+            [AlertKind::FallDetected, AlertKind::FallDetected]
+        );
+        let mut without = detector_with(|c| c.rearm_getting_up_s = 0.0);
+        let script = [
+            (Walking, 3.0, true),
+            (FallingDown, 1.0, true),
+            (LyingDown, 3.0, true),
+            (GettingUp, 2.0, true),
+            (FallingDown, 1.0, true),
+            (LyingDown, 3.0, true),
+        ];
+        assert_eq!(
+            kinds(&run(&mut without, &script)),
+            [AlertKind::FallDetected]
+        );
+        // A moment read as getting up while lying re-arms nothing.
+        let brief = [
+            (Walking, 3.0, true),
+            (FallingDown, 1.0, true),
+            (LyingDown, 3.0, true),
+            (GettingUp, 0.5, true),
+            (LyingDown, 3.0, true),
+        ];
+        assert_eq!(
+            kinds(&run(&mut detector(), &brief)),
+            [AlertKind::FallDetected]
+        );
+        // Nor do two stretches of it broken by another reading (a person lying seen in
+        // glimpses is read so now and then): the second fall's descent stays silent.
+        let broken = [
+            (Walking, 3.0, true),
+            (FallingDown, 1.0, true),
+            (LyingDown, 3.0, true),
+            (GettingUp, 0.7, true),
+            (SittingOnFloor, 0.05, true),
+            (GettingUp, 0.7, true),
+            (LyingDown, 3.0, true),
+        ];
+        assert_eq!(
+            kinds(&run(&mut detector(), &broken)),
+            [AlertKind::FallDetected]
+        );
     }
 
     #[test]

@@ -14,7 +14,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lidar_har_core::activity::Activity;
-use lidar_har_core::fall::{AlertKind, FallAlert};
+use lidar_har_core::fall::{AlertKind, FallAlert, FallAlertConfig};
 use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
 use lidar_har_core::pose_head::NoPoseHead;
 use lidar_har_core::stats::Spread;
@@ -84,8 +84,9 @@ pub struct FallOutcome {
     pub seen_share: f64,
     /// Why a fall without its own alert may have none by design: it began at the episode's
     /// first scan (nobody was seen upright before it), or inside an incident already alerted
-    /// (since an earlier fall's alert the person was never upright for `rearm_upright_s`, so
-    /// the hysteresis keeps one incident to one alert), or it ended less than the latency
+    /// (since an earlier fall's alert the person was never upright for `rearm_upright_s` nor
+    /// getting up for `rearm_getting_up_s`, so the hysteresis keeps one incident to one
+    /// alert), or it ended less than the latency
     /// target before the episode did (an alert in time may have come after the end).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unalerted_because: Option<&'static str>,
@@ -289,7 +290,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
                 explain_unalerted(
                     &mut matched,
                     &episode.truth,
-                    config.fall_alert.rearm_upright_s,
+                    &config.fall_alert,
                     args.latency_target_s,
                 );
                 outcomes.extend(matched);
@@ -631,7 +632,7 @@ fn repeated_fall_alerts(falls: &[(f64, f64)], alerts: &[FallAlert]) -> usize {
 fn explain_unalerted(
     outcomes: &mut [FallOutcome],
     truth: &[(f64, Activity)],
-    rearm_s: f64,
+    fall_alert: &FallAlertConfig,
     latency_target_s: f64,
 ) {
     let first_scan = truth.first().map(|&(t, _)| t);
@@ -645,7 +646,7 @@ fn explain_unalerted(
         if first_scan == Some(outcome.start_s) {
             outcome.unalerted_because = Some("at the episode's start");
         } else if let Some(at) = alerted_at
-            && !upright_for(truth, at, outcome.start_s, rearm_s)
+            && !rearmed_between(truth, at, outcome.start_s, fall_alert)
         {
             outcome.unalerted_because = Some("inside an alerted incident");
         } else if last_scan - outcome.end_s < latency_target_s {
@@ -654,12 +655,36 @@ fn explain_unalerted(
     }
 }
 
-/// Whether the truth shows the person upright for `span_s` without a break between `from`
-/// and `to`.
-fn upright_for(truth: &[(f64, Activity)], from: f64, to: f64, span_s: f64) -> bool {
+/// Whether the truth between `from` and `to` re-arms `FALL_DETECTED`: the person upright
+/// for `rearm_upright_s` without a break, or getting up for `rearm_getting_up_s` (when on).
+fn rearmed_between(
+    truth: &[(f64, Activity)],
+    from: f64,
+    to: f64,
+    fall_alert: &FallAlertConfig,
+) -> bool {
+    let getting_up_s = fall_alert.rearm_getting_up_s;
+    held_for(
+        truth,
+        from,
+        to,
+        fall_alert.rearm_upright_s,
+        Activity::is_upright,
+    ) || (getting_up_s > 0.0
+        && held_for(truth, from, to, getting_up_s, |a| a == Activity::GettingUp))
+}
+
+/// Whether the truth shows `holds` true for `span_s` without a break between `from` and `to`.
+fn held_for(
+    truth: &[(f64, Activity)],
+    from: f64,
+    to: f64,
+    span_s: f64,
+    holds: impl Fn(Activity) -> bool,
+) -> bool {
     let mut since = None;
     for &(t, a) in truth.iter().filter(|&&(t, _)| t >= from && t < to) {
-        match (a.is_upright(), since) {
+        match (holds(a), since) {
             (true, None) => since = Some(t),
             (true, Some(s)) if t - s >= span_s => return true,
             (false, _) => since = None,
@@ -901,8 +926,9 @@ mod tests {
     #[test]
     fn unalerted_falls_are_explained_only_when_the_logic_meant_no_alert() {
         use Activity::*;
-        // 0-1 s fall (at the start), lying, 4-5 s fall (alerted at 5.2), lying, getting up,
-        // 9-10 s fall with no upright between (same incident), then 3.5 s standing, 14-15 s
+        // 0-1 s fall (at the start), lying, 4-5 s fall (alerted at 5.2), lying, 2 s getting
+        // up, 9-10 s fall with no upright between (same incident, unless getting up re-arms
+        // the alert), then 3.5 s standing, 14-15 s
         // fall (a new incident, missed), standing, 19.5-20 s fall 0.5 s before the end.
         let mut truth = Vec::new();
         let mut push = |from: f64, to: f64, a: Activity| {
@@ -928,21 +954,43 @@ mod tests {
         let falls = fall_intervals(&truth);
         assert_eq!(falls.len(), 5);
         let seen = vec![true; truth.len()];
-        let (mut outcomes, _) = match_alerts(
+        let (outcomes, _) = match_alerts(
             0,
             &falls,
             &[alert(AlertKind::FallDetected, 5.2)],
             &truth,
             &seen,
         );
-        explain_unalerted(&mut outcomes, &truth, 3.0, 1.0);
-        let reasons: Vec<_> = outcomes.iter().map(|o| o.unalerted_because).collect();
+        let reasons = |rearm_getting_up_s| {
+            let config = FallAlertConfig {
+                rearm_upright_s: 3.0,
+                rearm_getting_up_s,
+                ..FallAlertConfig::default()
+            };
+            let mut outcomes = outcomes.clone();
+            explain_unalerted(&mut outcomes, &truth, &config, 1.0);
+            outcomes
+                .iter()
+                .map(|o| o.unalerted_because)
+                .collect::<Vec<_>>()
+        };
         assert_eq!(
-            reasons,
+            reasons(0.0),
             [
                 Some("at the episode's start"),
                 None,
                 Some("inside an alerted incident"),
+                None,
+                Some("at the episode's end"),
+            ]
+        );
+        // Getting up for 2 s before the 9 s fall re-arms the alert: that fall needed one.
+        assert_eq!(
+            reasons(1.5),
+            [
+                Some("at the episode's start"),
+                None,
+                None,
                 None,
                 Some("at the episode's end"),
             ]
