@@ -1632,46 +1632,32 @@ mod tests {
             kinds_after_a_fall_and_getting_up(&fall_back),
             [AlertKind::FallDetected, AlertKind::FallDetected]
         );
-        let mut without = detector_with(|c| c.rearm_getting_up_s = 0.0);
-        let script = [
+        let fell = [
             (Walking, 3.0, true),
             (FallingDown, 1.0, true),
             (LyingDown, 3.0, true),
-            (GettingUp, 2.0, true),
-            (FallingDown, 1.0, true),
-            (LyingDown, 3.0, true),
         ];
+        let after_a_fall = |mut detector: FallDetector, then: &[(Activity, f64, bool)]| {
+            kinds(&run(&mut detector, &[&fell[..], then].concat()))
+        };
+        let without = detector_with(|c| c.rearm_getting_up_s = 0.0);
+        let up_and_back = [(GettingUp, 2.0, true), fall_back[0], fall_back[1]];
         assert_eq!(
-            kinds(&run(&mut without, &script)),
+            after_a_fall(without, &up_and_back),
             [AlertKind::FallDetected]
         );
-        // A moment read as getting up while lying re-arms nothing.
-        let brief = [
-            (Walking, 3.0, true),
-            (FallingDown, 1.0, true),
-            (LyingDown, 3.0, true),
-            (GettingUp, 0.5, true),
-            (LyingDown, 3.0, true),
-        ];
-        assert_eq!(
-            kinds(&run(&mut detector(), &brief)),
-            [AlertKind::FallDetected]
-        );
-        // Nor do two stretches of it broken by another reading (a person lying seen in
-        // glimpses is read so now and then): the second fall's descent stays silent.
+        // A moment read as getting up while lying re-arms nothing; nor do two stretches of
+        // it broken by another reading (a person lying seen in glimpses is read so now and
+        // then): the descent into lying again stays silent.
+        let brief = [(GettingUp, 0.5, true), (LyingDown, 3.0, true)];
+        assert_eq!(after_a_fall(detector(), &brief), [AlertKind::FallDetected]);
         let broken = [
-            (Walking, 3.0, true),
-            (FallingDown, 1.0, true),
-            (LyingDown, 3.0, true),
             (GettingUp, 0.7, true),
             (SittingOnFloor, 0.05, true),
             (GettingUp, 0.7, true),
             (LyingDown, 3.0, true),
         ];
-        assert_eq!(
-            kinds(&run(&mut detector(), &broken)),
-            [AlertKind::FallDetected]
-        );
+        assert_eq!(after_a_fall(detector(), &broken), [AlertKind::FallDetected]);
     }
 
     #[test]
