@@ -42,9 +42,9 @@
 //! flickering scan changes nothing), and after an alert its kind is re-armed only once the
 //! person has been seen upright (standing, walking, running, walking unsteadily) for
 //! `rearm_upright_s` (a moment read as falling does not restart that clock: a standing person
-//! is often misread so). `FallDetected` is also re-armed by `rearm_getting_up_s` of getting
-//! up: one fall, one alert, but a person who falls back while struggling up has fallen
-//! twice. Time going backwards (a replay restarting) clears everything.
+//! is often misread so). `FallDetected` is also re-armed by being read as getting up on every
+//! scan seen for `rearm_getting_up_s`: one fall, one alert, but a person who falls back while
+//! struggling up has fallen twice. Time going backwards (a replay restarting) clears everything.
 
 use std::collections::VecDeque;
 
@@ -635,7 +635,7 @@ impl FallDetector {
             self.off_floor_since_on_floor = true;
         }
         // A fall alerted, then a real attempt to get up, read so on every scan seen for
-        // `rearm_getting_up_s`: a fall from there is a new one.
+        // `rearm_getting_up_s` (the candidate's unbroken run): a fall from there is a new one.
         if posture == Posture::GettingUp
             && n >= self.config.confirm_scans
             && self.config.rearm_getting_up_s > 0.0

@@ -86,8 +86,8 @@ pub struct FallOutcome {
     /// first scan (nobody was seen upright before it), or inside an incident already alerted
     /// (since an earlier fall's alert the person was never upright for `rearm_upright_s` nor
     /// getting up for `rearm_getting_up_s`, so the hysteresis keeps one incident to one
-    /// alert), or it ended less than the latency
-    /// target before the episode did (an alert in time may have come after the end).
+    /// alert), or it ended less than the latency target before the episode did (an alert in
+    /// time may have come after the end).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unalerted_because: Option<&'static str>,
 }
@@ -928,8 +928,8 @@ mod tests {
         use Activity::*;
         // 0-1 s fall (at the start), lying, 4-5 s fall (alerted at 5.2), lying, 2 s getting
         // up, 9-10 s fall with no upright between (same incident, unless getting up re-arms
-        // the alert), then 3.5 s standing, 14-15 s
-        // fall (a new incident, missed), standing, 19.5-20 s fall 0.5 s before the end.
+        // the alert), then 3.5 s standing, 14-15 s fall (a new incident, missed), standing,
+        // 19.5-20 s fall 0.5 s before the end.
         let mut truth = Vec::new();
         let mut push = |from: f64, to: f64, a: Activity| {
             let mut t = from;
