@@ -70,8 +70,15 @@ pub struct FallAlertConfig {
     /// model reads as falling, after which the person stays upright, raises none. Being read
     /// upright for a moment in between does not cancel it: the model misreads a fallen person
     /// as standing for a moment (seed 2 of `lidar-har alerts`, docs/classifier.md); being
-    /// upright for `rearm_upright_s` does. Seconds; 0 raises it at the run itself.
+    /// upright for `fall_cancel_upright_s` does. Seconds; 0 raises it at the run itself.
     pub fall_then_floor_s: f64,
+    /// A `falling_down` run waiting for its landing is dropped when the person is confirmed
+    /// upright this long after it counted, not on the floor or getting up in between: they
+    /// staggered and walked on. A fallen person
+    /// misread as standing is so for a few tenths of a second; an unsteady walker whose
+    /// stagger was read as falling walked on for 0.95 s before being misread as lying
+    /// (seed 1 episode 179 of `lidar-har alerts`, docs/classifier.md, session 35). Seconds.
+    pub fall_cancel_upright_s: f64,
     /// The landing that confirms a `falling_down` run must be read as lying without doubt
     /// (`landing_min_probability`): a person who stops short, read as falling for a moment,
     /// and then sits down, or who sits down fast, lands sitting (seed 3 of `lidar-har
@@ -109,6 +116,12 @@ pub struct FallAlertConfig {
     /// `FallDetected` even when no scan looked like `falling_down` (a fall is short; lying is
     /// not). Seconds; 0 turns this off.
     pub descent_max_s: f64,
+    /// Getting up starts a descent only once read so on every scan for this long (upright:
+    /// once confirmed): a person struggling up and falling back is read getting up for a
+    /// second or more, a crawler the model takes for getting up for a moment and then for
+    /// lying fell nowhere (seed 1 episode 379 of `lidar-har alerts`, docs/classifier.md,
+    /// session 35). Seconds; 0: once confirmed.
+    pub descent_getting_up_s: f64,
     /// A run of `falling_down` scans counts only when it starts at most this long after the
     /// person was last confirmed upright: a fall starts from standing or walking, and getting
     /// up or crawling misread as falling does not. Seconds; 0 drops the requirement.
@@ -186,6 +199,7 @@ impl Default for FallAlertConfig {
             fall_probability: 0.7,
             fall_min_scans: 8,
             fall_then_floor_s: 3.0,
+            fall_cancel_upright_s: 0.75,
             fall_lands_lying: true,
             landing_min_probability: 0.8,
             landing_min_length_m: 0.6,
@@ -195,6 +209,7 @@ impl Default for FallAlertConfig {
             rearm_getting_up_s: 1.0,
             down_ends_upright_s: 1.0,
             descent_max_s: 3.0,
+            descent_getting_up_s: 0.5,
             fall_from_upright_s: 3.0,
             fall_on_first_sight: true,
             descent_min_length_m: 0.8,
@@ -249,6 +264,7 @@ impl FallAlertConfig {
         let n = self.fall_min_scans as f64;
         check("fall_min_scans", n, self.fall_min_scans >= 1, ">= 1")?;
         at_least_zero("fall_then_floor_s", self.fall_then_floor_s)?;
+        at_least_zero("fall_cancel_upright_s", self.fall_cancel_upright_s)?;
         let n = self.confirm_scans as f64;
         check("confirm_scans", n, self.confirm_scans >= 1, ">= 1")?;
         at_least_zero("down_after_s", self.down_after_s)?;
@@ -256,6 +272,7 @@ impl FallAlertConfig {
         at_least_zero("rearm_getting_up_s", self.rearm_getting_up_s)?;
         at_least_zero("down_ends_upright_s", self.down_ends_upright_s)?;
         at_least_zero("descent_max_s", self.descent_max_s)?;
+        at_least_zero("descent_getting_up_s", self.descent_getting_up_s)?;
         at_least_zero("fall_from_upright_s", self.fall_from_upright_s)?;
         at_least_zero("descent_min_length_m", self.descent_min_length_m)?;
         at_least_zero("landing_min_length_m", self.landing_min_length_m)?;
@@ -374,7 +391,8 @@ pub struct FallDetector {
     posture: Option<(Posture, f64)>,
     /// The last visible scan classified upright while the confirmed posture was upright.
     last_upright_s: Option<f64>,
-    /// The same for upright or getting up.
+    /// The same for upright or getting up (`descent_getting_up_s` into it): what a descent
+    /// starts from.
     last_off_floor_s: Option<f64>,
     /// Consecutive visible scans read on the floor (crawling only with `crawling_shows_down`).
     down_evidence_scans: u32,
@@ -605,7 +623,12 @@ impl FallDetector {
             self.down = None;
             self.lying_lengths.clear();
         }
-        if seen.is_off_floor() && confirmed.is_some_and(Posture::is_off_floor) {
+        // Off the floor for a descent: upright once confirmed, getting up only after an
+        // unbroken run of `descent_getting_up_s` (the candidate's).
+        if seen.is_off_floor()
+            && confirmed.is_some_and(Posture::is_off_floor)
+            && (seen == Posture::Upright || t - since >= self.config.descent_getting_up_s)
+        {
             self.last_off_floor_s = Some(t);
         }
         let shows_down =
@@ -655,11 +678,10 @@ impl FallDetector {
                     *disarmed_at = None;
                 }
             }
-            // Upright as long after a fall run: it was a stagger, or the fall is over.
-            if self
-                .pending_fall
-                .is_some_and(|(_, run_at, _)| t - since.max(run_at) >= self.config.rearm_upright_s)
-            {
+            // Upright a while after a fall run: it was a stagger, or the fall is over.
+            if self.pending_fall.is_some_and(|(_, run_at, _)| {
+                t - since.max(run_at) >= self.config.fall_cancel_upright_s
+            }) {
                 self.pending_fall = None;
             }
         }
@@ -1218,8 +1240,17 @@ mod tests {
         ];
         let sat = run(&mut detector(), &script);
         assert!(sat.is_empty(), "{sat:?}");
-        let mut d = detector_with(|c| c.fall_lands_lying = false);
-        assert_eq!(kinds(&run(&mut d, &script)), [AlertKind::FallDetected]);
+        // With the run kept through the second upright, only landing lying counts.
+        let keeping_the_run = |lands_lying| {
+            detector_with(|c| {
+                c.fall_lands_lying = lands_lying;
+                c.fall_cancel_upright_s = 1.5;
+            })
+        };
+        let sat = run(&mut keeping_the_run(true), &script);
+        assert!(sat.is_empty(), "{sat:?}");
+        let sat = run(&mut keeping_the_run(false), &script);
+        assert_eq!(kinds(&sat), [AlertKind::FallDetected]);
         // Landing lying, but with doubt (p 0.6, a fallen body is read at 0.94-1.00): no fall.
         let unsure = [
             (Walking, 5.0, true, None, SURE),
@@ -1377,14 +1408,23 @@ mod tests {
     #[test]
     fn upright_for_a_while_after_a_fall_run_drops_it() {
         // Read as falling, then standing, then lying within `fall_then_floor_s` of the run: a
-        // moment standing is the model's misreading of a fallen person; 1.5 s
-        // (`rearm_upright_s`) is a person who staggered and stood, then lay down or was
-        // misread as lying.
+        // moment standing is the model's misreading of a fallen person; a second
+        // (`fall_cancel_upright_s` 0.75 s) is a person who staggered and walked on, then lay
+        // down or was misread as lying.
         let alerts = alerts_after_a_fall_run(&[(Standing, 0.3, true), (LyingDown, 3.0, true)]);
         assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
         assert!((alerts[0].event_time_s - 5.0).abs() < 1e-6, "{alerts:?}");
-        let alerts = alerts_after_a_fall_run(&[(Standing, 2.0, true), (LyingDown, 3.0, true)]);
+        let walked_on = [(WalkingUnsteadily, 1.0, true), (LyingDown, 3.0, true)];
+        let alerts = alerts_after_a_fall_run(&walked_on);
         assert!(alerts.is_empty(), "{alerts:?}");
+        // Waiting as long as the re-arm (1.5 s, before session 35), the run lands.
+        let mut patient = detector_with(|c| {
+            c.descent_max_s = 0.0;
+            c.fall_cancel_upright_s = 1.5;
+        });
+        let walk_and_run = [(Walking, 5.0, true), (FallingDown, 0.6, true)];
+        let alerts = run(&mut patient, &[&walk_and_run[..], &walked_on].concat());
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
     }
 
     #[test]
@@ -1414,6 +1454,32 @@ mod tests {
             ],
         );
         assert!(alerts.is_empty(), "{alerts:?}");
+    }
+
+    #[test]
+    fn a_moment_read_as_getting_up_starts_no_descent() {
+        // Crawling, read as getting up for `getting_up_s` (confirmed after 0.25 s), then as
+        // lying: a crawler misread for a moment is no fall; a person who struggled up for a
+        // while and dropped back is.
+        let alerts_after_getting_up = |detector: &mut FallDetector, getting_up_s| {
+            run(
+                detector,
+                &[
+                    (Walking, 5.0, true),
+                    (Crawling, 5.0, true),
+                    (GettingUp, getting_up_s, true),
+                    (LyingDown, 5.0, true),
+                ],
+            )
+        };
+        let alerts = alerts_after_getting_up(&mut detector(), 0.45);
+        assert!(alerts.is_empty(), "{alerts:?}");
+        let alerts = alerts_after_getting_up(&mut detector(), 0.6);
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+        // With the requirement off, the moment starts a descent too.
+        let mut unchecked = detector_with(|c| c.descent_getting_up_s = 0.0);
+        let alerts = alerts_after_getting_up(&mut unchecked, 0.45);
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
     }
 
     #[test]
@@ -1462,12 +1528,13 @@ mod tests {
     fn one_long_view_does_not_make_a_crawler_a_fallen_body() {
         // The length rule alone: the classifier's doubt about lying is not checked here.
         let detector = || detector_with(|c| c.descent_min_probability = 0.0);
-        // A crawler seen end-on, read as getting up for half a second, then lying on the
-        // scan that confirms the floor again: that one scan's points happen to stretch 0.95 m.
+        // A crawler seen end-on, read as getting up for 0.6 s (long enough to start a
+        // descent), then lying on the scan that confirms the floor again: that one scan's
+        // points happen to stretch 0.95 m.
         let script = |spike: f64| {
             [
                 (Crawling, 3.0, 0.5),
-                (GettingUp, 0.5, 0.45),
+                (GettingUp, 0.6, 0.45),
                 (Crawling, 0.2, 0.5),
                 (LyingDown, DT, spike),
                 (Crawling, 2.0, 0.5),
@@ -1480,7 +1547,7 @@ mod tests {
             &mut detector(),
             &[
                 (Crawling, 3.0, 1.2),
-                (GettingUp, 0.5, 0.45),
+                (GettingUp, 0.6, 0.45),
                 (Crawling, 0.2, 1.2),
                 (LyingDown, DT, 1.2),
                 (Crawling, 2.0, 1.2),
