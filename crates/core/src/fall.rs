@@ -74,10 +74,10 @@ pub struct FallAlertConfig {
     pub fall_then_floor_s: f64,
     /// A `falling_down` run waiting for its landing is dropped when the person is confirmed
     /// upright this long after it counted, not on the floor or getting up in between: they
-    /// staggered and walked on. A fallen person
-    /// misread as standing is so for a few tenths of a second; an unsteady walker whose
-    /// stagger was read as falling walked on for 0.95 s before being misread as lying
-    /// (seed 1 episode 179 of `lidar-har alerts`, docs/classifier.md, session 35). Seconds.
+    /// staggered and walked on. A fallen person misread as standing is so for a few tenths
+    /// of a second; an unsteady walker whose stagger was read as falling walked on for 0.95 s
+    /// before being misread as lying (seed 1 episode 179 of `lidar-har alerts`,
+    /// docs/classifier.md, session 35). Seconds.
     pub fall_cancel_upright_s: f64,
     /// The landing that confirms a `falling_down` run must be read as lying without doubt
     /// (`landing_min_probability`): a person who stops short, read as falling for a moment,
@@ -1419,8 +1419,8 @@ mod tests {
     #[test]
     fn upright_for_a_while_after_a_fall_run_drops_it() {
         // Read as falling, then standing, then lying within `fall_then_floor_s` of the run: a
-        // moment standing is the model's misreading of a fallen person; a second
-        // (`fall_cancel_upright_s` 0.75 s) is a person who staggered and walked on, then lay
+        // moment standing is the model's misreading of a fallen person; walking on for a
+        // second (past `fall_cancel_upright_s`, 0.75 s) is a person who staggered, then lay
         // down or was misread as lying.
         let alerts = alerts_after_a_fall_run(&[(Standing, 0.3, true), (LyingDown, 3.0, true)]);
         assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
