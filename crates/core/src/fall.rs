@@ -1335,8 +1335,16 @@ mod tests {
     /// Walking, then a confident `falling_down` run (from 5.0 s), then `after`; descents off,
     /// so only the run can make the fall alert.
     fn alerts_after_a_fall_run(after: &[(Activity, f64, bool)]) -> Vec<FallAlert> {
+        run_after_a_fall_run(&mut without_descent(), after)
+    }
+
+    /// [`alerts_after_a_fall_run`] on `detector`.
+    fn run_after_a_fall_run(
+        detector: &mut FallDetector,
+        after: &[(Activity, f64, bool)],
+    ) -> Vec<FallAlert> {
         let walk_and_run = [(Walking, 5.0, true), (FallingDown, 0.6, true)];
-        run(&mut without_descent(), &[&walk_and_run, after].concat())
+        run(detector, &[&walk_and_run, after].concat())
     }
 
     #[test]
@@ -1433,8 +1441,7 @@ mod tests {
             c.descent_max_s = 0.0;
             c.fall_cancel_upright_s = 1.5;
         });
-        let walk_and_run = [(Walking, 5.0, true), (FallingDown, 0.6, true)];
-        let alerts = run(&mut patient, &[&walk_and_run[..], &walked_on].concat());
+        let alerts = run_after_a_fall_run(&mut patient, &walked_on);
         assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
     }
 
