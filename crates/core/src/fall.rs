@@ -197,6 +197,12 @@ pub struct FallAlertConfig {
     pub down_travel_m: f64,
     /// The time within which `down_travel_m` must be covered, seconds; 0 turns it off too.
     pub down_travel_within_s: f64,
+    /// A person down read as falling, in a run that counts but not as a fall (not upright
+    /// just before, `fall_from_upright_s`), has been up: nobody falls from the floor. Their
+    /// `down_after_s` clock starts again at the run's start. A person who got up unseen as
+    /// such and sat straight down again was read getting up for 4 scans, then falling for
+    /// 1.2 s (seed 4 episode 327 of `lidar-har alerts`, docs/classifier.md, session 36).
+    pub down_restarts_on_fall_run: bool,
 }
 
 impl Default for FallAlertConfig {
@@ -229,6 +235,7 @@ impl Default for FallAlertConfig {
             down_unseen_counts_s: 1.0,
             down_travel_m: 2.0,
             down_travel_within_s: 2.0,
+            down_restarts_on_fall_run: true,
         }
     }
 }
@@ -566,6 +573,10 @@ impl FallDetector {
                     } else {
                         self.raise_fall(t, start, mean, alerts);
                     }
+                } else if self.config.down_restarts_on_fall_run
+                    && let Some(down) = self.down.as_mut()
+                {
+                    *down = DownSpell::starting(start);
                 }
             }
         } else {
@@ -2086,6 +2097,31 @@ mod tests {
             ],
         );
         assert!(alerts.is_empty(), "{alerts:?}");
+    }
+
+    /// Seed 4 episode 327 of `lidar-har alerts`: up for a moment too short to confirm, then
+    /// read as falling on the way back down to sitting.
+    #[test]
+    fn read_as_falling_while_down_restarts_the_clock() {
+        let script = [
+            (Walking, 3.0, true),
+            (SittingOnFloor, 10.0, true),
+            (GettingUp, 0.2, true),
+            (FallingDown, 1.2, true), // not from upright: no fall, but they were up
+            (SittingOnFloor, 8.0, true),
+        ];
+        let alerts = run(&mut detector(), &script);
+        assert!(alerts.is_empty(), "{alerts:?}");
+        let mut off = detector_with(|c| c.down_restarts_on_fall_run = false);
+        let alerts = run(&mut off, &script);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown], "{alerts:?}");
+        // Counted from the first sitting, not from the fall run.
+        assert!((alerts[0].raised_at_s - 18.0).abs() < 0.3, "{alerts:?}");
+        // A run too short to count restarts nothing.
+        let mut short = script;
+        short[3].1 = 0.3;
+        let alerts = run(&mut detector(), &short);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown], "{alerts:?}");
     }
 
     #[test]
