@@ -319,6 +319,10 @@ fn ros_nodes_reject_bad_parameters_naming_them() {
             r#"ROS_DOMAIN_ID=999 "$REPLAY" --ros-args -p bag:="$BAG""#,
             &["ROS_DOMAIN_ID"],
         ),
+        (
+            r#"ROS_AUTOMATIC_DISCOVERY_RANGE=nearby "$REPLAY" --ros-args -p bag:="$BAG""#,
+            &["ROS_AUTOMATIC_DISCOVERY_RANGE `nearby`", "LOCALHOST"],
+        ),
     ];
     for (command, needles) in cases {
         let script = format!("{command} 2> \"$OUT/err.txt\"; echo \"exit=$?\"");
@@ -427,6 +431,89 @@ fn ros_nodes_print_help_and_refuse_stray_arguments() {
             "{node}: {err}"
         );
     }
+}
+
+/// `ROS_AUTOMATIC_DISCOVERY_RANGE` and `ROS_LOCALHOST_ONLY`, against a second host: a network
+/// namespace of its own, joined to the test's by a virtual Ethernet link. A node on the subnet
+/// range is seen there; one on the local range is not, yet talks to nodes on its own host;
+/// `ROS_LOCALHOST_ONLY=1` wins over the range, as in rcl; a node with discovery off is not
+/// seen even on its own host. Each replay waits for a /scan subscriber, so it stays on the
+/// graph while the others look for it.
+#[test]
+fn ros_discovery_range_keeps_a_node_to_its_host() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 20);
+    let script = r#"
+unshare -n sleep 120 & PEER=$!
+apart() { [ "$(readlink /proc/$PEER/ns/net)" != "$(readlink /proc/$$/ns/net)" ]; }
+wait_until 5 apart
+ip link add va type veth peer name vb && ip link set vb netns $PEER || exit 91
+ip addr add 10.77.0.1/24 dev va && ip link set va up || exit 91
+nsenter -t $PEER -n sh -c 'ip link set lo up && ip addr add 10.77.0.2/24 dev vb &&
+  ip link set vb up && ip route add 224.0.0.0/4 dev vb' || exit 91
+seen_from_peer() { nsenter -t $PEER -n "$LH" topic list --wait 2 | grep -qx /scan; }
+seen_here() { "$LH" topic list --wait 2 | grep -qx /scan; }
+# `replay VAR=value... &`: a function does not pass on variables set in front of its call;
+# `exec` makes $! the node's own PID.
+replay() { exec env "$@" "$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan \
+  2>> "$OUT/replay.err"; }
+stop() { kill -TERM $1; wait $1; }
+
+replay & R=$!
+poll 15 seen_from_peer && echo "subnet: peer sees it"
+stop $R
+
+replay ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST & R=$!
+poll 6 seen_from_peer && echo "localhost: peer sees it"
+ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST "$LH" topic echo /scan --count 5 --timeout 15 \
+  --require-count > "$OUT/scan.jsonl"; echo "localhost: echo on the host=$?"
+wait $R; echo "localhost: replay=$?"
+
+replay ROS_LOCALHOST_ONLY=1 ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET & R=$!
+poll 6 seen_from_peer && echo "localhost only: peer sees it"
+stop $R
+
+replay ROS_AUTOMATIC_DISCOVERY_RANGE=OFF & R=$!
+poll 6 seen_here && echo "off: host sees it"
+kill -0 $R && echo "off: replay waiting"
+stop $R
+kill $PEER
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("LH", &workspace_bin("lidar-har")),
+            ("REPLAY", &workspace_bin("replay")),
+            ("BAG", &bag),
+            ("OUT", dir.path()),
+        ],
+        Duration::from_secs(90),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_ne!(
+        out.status.code(),
+        Some(91),
+        "the veth link could not be set up"
+    );
+    for want in [
+        "subnet: peer sees it",
+        "localhost: echo on the host=0",
+        "localhost: replay=0",
+        "off: replay waiting",
+    ] {
+        assert!(stdout.contains(want), "expected `{want}`");
+    }
+    for unwanted in [
+        "localhost: peer sees it",
+        "localhost only: peer sees it",
+        "off: host sees it",
+    ] {
+        assert!(!stdout.contains(unwanted), "`{unwanted}`");
+    }
+    assert_eq!(json_lines(&dir.path().join("scan.jsonl")).len(), 5);
 }
 
 /// On simulated time a node reads /clock as rosgraph_msgs/msg/Clock; ros2-client's spinner

@@ -167,6 +167,46 @@ fn parse_domain_id(value: Option<&str>) -> Result<u16, RosError> {
     }
 }
 
+/// How far a node looks for others, as rcl reads it from the environment (Jazzy).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DiscoveryRange {
+    /// No discovery at all, not even on this machine.
+    Off,
+    /// Only nodes on this machine: DDS traffic through the loopback interface alone.
+    Localhost,
+    /// Whatever multicast reaches (the default, and `SYSTEM_DEFAULT`): every interface.
+    Subnet,
+}
+
+/// The discovery range from `ROS_LOCALHOST_ONLY` and `ROS_AUTOMATIC_DISCOVERY_RANGE`.
+pub fn discovery_range_from_env() -> Result<DiscoveryRange, RosError> {
+    let var = |name| std::env::var(name).ok();
+    parse_discovery_range(
+        var("ROS_LOCALHOST_ONLY").as_deref(),
+        var("ROS_AUTOMATIC_DISCOVERY_RANGE").as_deref(),
+    )
+}
+
+/// As rcl does: `ROS_LOCALHOST_ONLY=1` (Humble's switch, deprecated since Jazzy) wins over the
+/// range, and any other value of it leaves the range to decide; an unknown range is an error.
+fn parse_discovery_range(
+    localhost_only: Option<&str>,
+    range: Option<&str>,
+) -> Result<DiscoveryRange, RosError> {
+    if localhost_only == Some("1") {
+        return Ok(DiscoveryRange::Localhost);
+    }
+    match range.unwrap_or("") {
+        "" | "SUBNET" | "SYSTEM_DEFAULT" => Ok(DiscoveryRange::Subnet),
+        "LOCALHOST" => Ok(DiscoveryRange::Localhost),
+        "OFF" => Ok(DiscoveryRange::Off),
+        other => Err(RosError::Args(format!(
+            "ROS_AUTOMATIC_DISCOVERY_RANGE `{other}` is not a discovery range \
+             (OFF, LOCALHOST, SUBNET or SYSTEM_DEFAULT)"
+        ))),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -249,6 +289,27 @@ mod tests {
         assert_eq!(resolve_topic("/odom", &remaps, "/", "loc"), "/odom");
         assert_eq!(resolve_topic("/odom", &remaps, "/", "other"), "/x");
         assert_eq!(resolve_topic("~/debug", &[], "/r1", "loc"), "/r1/loc/debug");
+    }
+
+    #[test]
+    fn discovery_ranges_as_rcl_reads_them() {
+        use DiscoveryRange::*;
+        let range = |only, range| parse_discovery_range(only, range).unwrap();
+        assert_eq!(range(None, None), Subnet);
+        assert_eq!(range(Some("0"), Some("")), Subnet);
+        assert_eq!(range(None, Some("SYSTEM_DEFAULT")), Subnet);
+        assert_eq!(range(None, Some("LOCALHOST")), Localhost);
+        assert_eq!(range(None, Some("OFF")), Off);
+        assert_eq!(range(Some("1"), None), Localhost);
+        assert_eq!(range(Some("1"), Some("OFF")), Localhost);
+        assert_eq!(range(Some("0"), Some("LOCALHOST")), Localhost);
+        let e = parse_discovery_range(None, Some("localhost"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("ROS_AUTOMATIC_DISCOVERY_RANGE `localhost`") && e.contains("LOCALHOST"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -6,6 +6,7 @@
 //! ones on its participant, with a serializer adapter that passes bytes through unchanged.
 
 use std::collections::HashMap;
+use std::net::Ipv4Addr;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
@@ -23,6 +24,7 @@ use rustdds::{
     DataWriterStatus, QosPolicies, RepresentationIdentifier, StatusEvented, Timestamp, Topic,
 };
 
+use crate::args::DiscoveryRange;
 use crate::params::{ParamDecl, ParamValue, Parameters};
 use crate::{
     NodeBackend, PublisherBackend, RosError, Sample, SubscriberBackend, TopicInfo, split_type_name,
@@ -151,6 +153,25 @@ fn qos_policies(qos: &QosProfile) -> QosPolicies {
     QosPolicies::from(&profile)
 }
 
+/// A participant on `ROS_DOMAIN_ID`, announcing itself and listening for multicast only on
+/// the interfaces the discovery range allows. RustDDS filters what it announces and where it
+/// sends multicast, not what its unicast sockets accept: a peer elsewhere that learns our
+/// addresses some other way can still reach them (docs/ros.md).
+fn participant_from_env() -> Result<rustdds::DomainParticipant, RosError> {
+    let builder = rustdds::DomainParticipantBuilder::new(crate::args::domain_id_from_env()?);
+    let builder = match crate::args::discovery_range_from_env()? {
+        DiscoveryRange::Subnet => builder,
+        DiscoveryRange::Localhost => builder.with_only_networks([Ipv4Addr::LOCALHOST]),
+        DiscoveryRange::Off => builder
+            .with_only_networks(std::iter::empty::<Ipv4Addr>())
+            .same_host_loopback(false),
+    };
+    if std::env::var("ROS_STATIC_PEERS").is_ok_and(|peers| !peers.trim().is_empty()) {
+        log::warn!("ROS_STATIC_PEERS is not supported by the pure-Rust transport: ignored");
+    }
+    builder.build().map_err(dds_err)
+}
+
 fn dds_err(e: impl std::fmt::Display) -> RosError {
     RosError::Dds(e.to_string())
 }
@@ -231,11 +252,8 @@ impl DdsNode {
         params: &Parameters,
         parameter_services: bool,
     ) -> Result<Self, RosError> {
-        let domain = crate::args::domain_id_from_env()?;
-        let context = ros2_client::Context::with_options(
-            ros2_client::ContextOptions::new().domain_id(domain),
-        )
-        .map_err(dds_err)?;
+        let context = ros2_client::Context::from_domain_participant(participant_from_env()?)
+            .map_err(dds_err)?;
         let node_name = NodeName::new(namespace, name).map_err(|e| RosError::Name {
             name: format!("{namespace}/{name}"),
             reason: format!("{e:?}"),
