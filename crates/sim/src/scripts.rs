@@ -185,6 +185,9 @@ fn still_step(activity: Activity, duration: f64) -> ScriptStep {
     }
 }
 
+/// How long a scripted fall lasts, seconds.
+pub const FALL_SECONDS: std::ops::Range<f64> = 0.7..1.4;
+
 const FALL_DIRECTIONS: [FallDirection; 4] = [
     FallDirection::Forward,
     FallDirection::Backward,
@@ -255,7 +258,7 @@ fn random_person(
                 end_here = Some(p);
             }
             5..=7 => {
-                let mut fall = still_step(Activity::FallingDown, rng.random_range(0.7..1.4));
+                let mut fall = still_step(Activity::FallingDown, rng.random_range(FALL_SECONDS));
                 fall.fall = FALL_DIRECTIONS.choose(rng).copied();
                 block.push(fall);
                 block.push(still_step(Activity::LyingDown, rng.random_range(2.0..6.0)));
@@ -329,7 +332,7 @@ fn fall_and_stay_down(
 ) -> Option<Vec<ScriptStep>> {
     let mut directions = FALL_DIRECTIONS;
     directions.shuffle(rng);
-    let mut fall = still_step(Activity::FallingDown, rng.random_range(0.7..1.4));
+    let mut fall = still_step(Activity::FallingDown, rng.random_range(FALL_SECONDS));
     let lying = rng.random_range(3.0..8.0);
     let rest = remaining_s - fall.duration - lying;
     let last = if rng.random_bool(0.5) {

@@ -141,6 +141,12 @@ impl Simulator {
         self.frames
     }
 
+    /// Runs on for `seconds` past the scene's duration, the frames before unchanged: the
+    /// script's last activity goes on after its end, and the robot keeps moving.
+    pub fn run_on(&mut self, seconds: f64) {
+        self.frames += (seconds.max(0.0) * self.scene.lidar.rate_hz).ceil() as u64;
+    }
+
     /// Makes `index` the next frame (clamped to the end). Skipping ahead costs no scans;
     /// the person's script is planned up to that time on the next step.
     pub fn seek(&mut self, index: u64) {
@@ -241,6 +247,30 @@ mod tests {
         let mut s = Scene::load(&path).unwrap();
         s.duration = hours * 3600.0;
         s
+    }
+
+    #[test]
+    fn running_on_adds_frames_after_the_same_ones() {
+        let scene = hall(3.0 / 3600.0);
+        let frames = |run_on_s: f64| {
+            let mut sim = Simulator::new(scene.clone(), 5).unwrap();
+            sim.run_on(run_on_s);
+            let count = sim.frame_count();
+            let frames: Vec<Frame> = sim.collect();
+            assert_eq!(frames.len() as u64, count);
+            frames
+        };
+        let (short, long) = (frames(0.0), frames(1.5));
+        assert_eq!((short.len(), long.len()), (60, 90));
+        for (a, b) in long.iter().zip(&short) {
+            assert_eq!(
+                (a.stamp_ns, &a.ranges, a.robot),
+                (b.stamp_ns, &b.ranges, b.robot)
+            );
+        }
+        let last = &long[89];
+        assert_eq!(last.stamp_ns, 1_700_000_000_000_000_000 + 89 * 50_000_000);
+        assert!(last.person.is_some_and(|p| p.pose.is_finite()));
     }
 
     #[test]

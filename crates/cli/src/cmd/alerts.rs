@@ -5,6 +5,8 @@
 //! Episodes use the dataset's random activity scripts: with falls (a fall, lying 2-6 s,
 //! sometimes sitting, getting up) for the latency, without them for the false alerts, and
 //! ending with a fall after which the person stays down for PERSON_DOWN where it is due.
+//! Episodes with falls run on past their end until a fall that began on their last scan has
+//! ended and its alert has fallen due; falls that begin in that time are not counted.
 //! The report also scores the streaming classification itself, scan by scan over every
 //! episode: unlike `lidar-har evaluate`'s windows from a zero state, this is what the robot
 //! publishes, so models trained on different window lengths compare on equal terms.
@@ -50,7 +52,9 @@ pub struct AlertsArgs {
     /// others' seeds do not move.
     #[arg(long, default_value_t = 0)]
     pub stay_down_episodes: usize,
-    /// Length of one episode, seconds.
+    /// Length of one episode, seconds. Episodes with falls run on for the longest fall and
+    /// `--latency-target-s` more, so that a fall near the end can be answered in time; falls
+    /// that begin then are not counted.
     #[arg(long, default_value_t = 60.0)]
     pub episode_seconds: f64,
     #[arg(long, default_value_t = 1)]
@@ -86,8 +90,8 @@ pub struct FallOutcome {
     /// first scan (nobody was seen upright before it), or inside an incident already alerted
     /// (since an earlier fall's alert the person was never upright for `rearm_upright_s` nor
     /// getting up for `rearm_getting_up_s`, so the hysteresis keeps one incident to one
-    /// alert), or it ended less than the latency target before the episode did (an alert in
-    /// time may have come after the end).
+    /// alert), or it ended less than the latency target before the last scan (an alert in
+    /// time may have come after it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unalerted_because: Option<&'static str>,
 }
@@ -169,14 +173,19 @@ pub struct DownSpell {
     pub seen_share: f64,
 }
 
-/// What one episode gave: the truth's falls (start, end), the alerts raised, the true
-/// activity at every scan and whether the localiser saw the person there.
+/// What one episode gave: the truth's falls (start, end) that began before its end, the
+/// alerts raised, the true activity at every scan and whether the localiser saw the person
+/// there. An episode that runs on past its end (see [`fall_run_on_s`]) keeps the scans of
+/// that time in `truth` and `seen`, for a fall's end and the alerts that answer it, but not
+/// in `scans`.
 struct Episode {
     falls: Vec<(f64, f64)>,
     alerts: Vec<FallAlert>,
     truth: Vec<(f64, Activity)>,
     /// Aligned with `truth`.
     seen: Vec<bool>,
+    /// How many of `truth`'s scans came before the episode's end.
+    scans_in_episode: usize,
     /// (truth, prediction) at each scan the classifier published.
     scans: ConfusionMatrix,
 }
@@ -263,7 +272,11 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         scene.duration = args.episode_seconds;
         let seed = episode_seed(args.seed, id, EpisodeStream::Alerts);
         let trace = args.trace_episode.contains(&id);
-        let episode = match run_episode(&scene, seed, kind, &mut classifier, trace) {
+        let run_on_s = match kind {
+            ScriptKind::WithFalls => fall_run_on_s(args.latency_target_s),
+            _ => 0.0,
+        };
+        let episode = match run_episode(&scene, seed, kind, run_on_s, &mut classifier, trace) {
             Ok(episode) => episode,
             Err(e) => {
                 progress.suspend(|| eprintln!("alerts: skipping episode {id}: {e:#}"));
@@ -272,7 +285,8 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
             }
         };
         scans.merge(&episode.scans);
-        let spells = down_spells(&episode.truth, config.fall_alert.down_after_s);
+        let in_episode = &episode.truth[..episode.scans_in_episode];
+        let spells = down_spells(in_episode, config.fall_alert.down_after_s);
         let answers: Vec<Option<&FallAlert>> = spells
             .iter()
             .map(|&spell| person_down_answering(&episode.alerts, spell))
@@ -408,18 +422,28 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Simulates one episode and runs the localiser over it, then the classifier stage the
-/// classifier node runs (the model and the fall alerts) on the observations the localiser
-/// node would publish: nothing while no person is tracked, an empty view while one is
-/// predicted out of sight.
+/// How long an episode with falls runs on past its end: a fall that begins on its last scan
+/// may end `FALL_SECONDS` later, and its alert is due within the latency target after that.
+/// Falls that begin in that time are not counted.
+fn fall_run_on_s(latency_target_s: f64) -> f64 {
+    scripts::FALL_SECONDS.end + latency_target_s
+}
+
+/// Simulates one episode (and `run_on_s` past its end) and runs the localiser over it, then
+/// the classifier stage the classifier node runs (the model and the fall alerts) on the
+/// observations the localiser node would publish: nothing while no person is tracked, an
+/// empty view while one is predicted out of sight.
 fn run_episode(
     scene: &lidar_har_sim::Scene,
     seed: u64,
     kind: ScriptKind,
+    run_on_s: f64,
     stage: &mut ClassifierStage<ActivityModel, NoPoseHead>,
     trace: bool,
 ) -> anyhow::Result<Episode> {
     let mut sim = scripts::episode(scene, seed, false, kind)?;
+    let episode_frames = sim.frame_count();
+    sim.run_on(run_on_s);
     let mut localiser = episode_localiser(&sim, false)?;
     stage.reset();
     let geometry = sim.scan_geometry();
@@ -428,7 +452,9 @@ fn run_episode(
     let mut seen = Vec::new();
     let mut alerts = Vec::new();
     let mut scans = ConfusionMatrix::new();
+    let mut scans_in_episode = 0;
     while let Some(frame) = sim.step() {
+        let in_episode = frame.index < episode_frames;
         let stamp_ns = frame.stamp_ns as i64;
         let stamp_s = frame.stamp_ns as f64 * 1e-9 - start_s;
         localiser.add_odometry(stamp_ns, frame.robot);
@@ -440,6 +466,7 @@ fn run_episode(
         if let Some(p) = &frame.person {
             truth.push((stamp_s, p.activity));
             seen.push(tracked.is_some_and(|(_, person)| person.visible));
+            scans_in_episode += usize::from(in_episode);
         }
         let Some((output, person)) = tracked else {
             if trace {
@@ -448,7 +475,7 @@ fn run_episode(
             continue;
         };
         let out = stage.on_observation(&observation_msg(output, person, "map"))?;
-        if let Some(truth) = frame.person.filter(|_| out.publishable()) {
+        if let Some(truth) = frame.person.filter(|_| in_episode && out.publishable()) {
             scans.add(truth.activity, out.prediction.activity);
         }
         if trace {
@@ -462,11 +489,19 @@ fn run_episode(
             ..*alert
         }));
     }
+    // Falls that begin after the end are not counted, nor are the alerts from their start on.
+    let end_s = (episode_frames as f64 / scene.lidar.rate_hz) - 1e-9;
+    let mut falls = fall_intervals(&truth);
+    if let Some(&(after_end, _)) = falls.iter().find(|&&(start, _)| start >= end_s) {
+        falls.retain(|&(start, _)| start < after_end);
+        alerts.retain(|a| a.raised_at_s < after_end);
+    }
     Ok(Episode {
-        falls: fall_intervals(&truth),
+        falls,
         alerts,
         truth,
         seen,
+        scans_in_episode,
         scans,
     })
 }
