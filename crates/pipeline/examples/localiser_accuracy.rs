@@ -100,6 +100,10 @@ struct Group {
     centre_tally: AccuracyTally,
     /// The published pelvis (with `--classifier-config`) against the pelvis.
     published_tally: AccuracyTally,
+    /// The same split by whether the localiser saw the person or predicted them through an
+    /// occlusion: the two call for different fixes (the pose head, the tracker).
+    published_seen_tally: AccuracyTally,
+    published_predicted_tally: AccuracyTally,
     radial_m: Vec<f64>,
     /// In-sight scans with no person reported.
     missed: u64,
@@ -118,6 +122,9 @@ impl Group {
         self.tally.merge(&other.tally);
         self.centre_tally.merge(&other.centre_tally);
         self.published_tally.merge(&other.published_tally);
+        self.published_seen_tally.merge(&other.published_seen_tally);
+        self.published_predicted_tally
+            .merge(&other.published_predicted_tally);
         self.radial_m.extend_from_slice(&other.radial_m);
         self.missed += other.missed;
         self.far += other.far;
@@ -316,6 +323,23 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
             share(within_2)
         );
     }
+    if classifier.is_some() {
+        let part = |tally: &AccuracyTally| {
+            let r = tally.report();
+            let m = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.3}"));
+            format!(
+                "median {} m, p95 {} m over {} scans",
+                m(r.error_median_m),
+                m(r.error_p95_m),
+                r.scans
+            )
+        };
+        println!(
+            "published pelvis where the person was seen: {}; predicted through an occlusion: {}",
+            part(&overall.published_seen_tally),
+            part(&overall.published_predicted_tally)
+        );
+    }
 
     if let Some(path) = &args.json {
         let rows = |groups: Vec<(String, &Group)>| -> Vec<Row> {
@@ -509,14 +533,17 @@ fn run_scene(
                 position: pelvis.unwrap_or(r.position),
                 ..r
             });
-            group.published_tally.add(
-                &ScanOutcome {
-                    truth,
-                    person_beams,
-                    reported: published,
-                },
-                criteria,
-            );
+            let outcome = ScanOutcome {
+                truth,
+                person_beams,
+                reported: published,
+            };
+            group.published_tally.add(&outcome, criteria);
+            match published {
+                Some(p) if p.visible => group.published_seen_tally.add(&outcome, criteria),
+                Some(_) => group.published_predicted_tally.add(&outcome, criteria),
+                None => {}
+            }
         }
         if let Some(centre) = centre
             && person_beams >= criteria.min_person_beams
