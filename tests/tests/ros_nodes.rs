@@ -113,6 +113,18 @@ fn in_netns(script: &str, vars: &[(&str, &Path)], limit: Duration) -> Output {
     out
 }
 
+/// [`in_netns`] with `$LH` (the `lidar-har` tool), `$REPLAY` (the node), `$BAG` and `$OUT`.
+fn replay_in_netns(script: &str, bag: &Path, out: &Path, limit: Duration) -> Output {
+    let (lh, replay) = (workspace_bin("lidar-har"), workspace_bin("replay"));
+    let vars = [
+        ("LH", &*lh),
+        ("REPLAY", &*replay),
+        ("BAG", bag),
+        ("OUT", out),
+    ];
+    in_netns(script, &vars, limit)
+}
+
 /// The scripts' waits can fail a test: a condition that never comes is reported, not passed by.
 #[test]
 fn in_netns_fails_when_a_wait_times_out() {
@@ -223,16 +235,7 @@ wait_until 20 has_lines "$OUT/scan.jsonl" 1
 wait $R; echo "replay=$?"
 wait $E; echo "scan_echo=$?"
 "#;
-    let out = in_netns(
-        script,
-        &[
-            ("LH", &workspace_bin("lidar-har")),
-            ("REPLAY", &workspace_bin("replay")),
-            ("BAG", &bag),
-            ("OUT", dir.path()),
-        ],
-        Duration::from_secs(40),
-    );
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(40));
     let stdout = String::from_utf8_lossy(&out.stdout);
     for want in ["map_echo=0", "replay=0", "scan_echo=0"] {
         assert!(stdout.contains(want), "expected {want}");
@@ -482,16 +485,7 @@ kill -0 $R && echo "off: replay waiting"
 stop $R
 kill $PEER
 "#;
-    let out = in_netns(
-        script,
-        &[
-            ("LH", &workspace_bin("lidar-har")),
-            ("REPLAY", &workspace_bin("replay")),
-            ("BAG", &bag),
-            ("OUT", dir.path()),
-        ],
-        Duration::from_secs(90),
-    );
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(90));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert_ne!(
         out.status.code(),
@@ -578,16 +572,7 @@ wait $E; echo "echo=$?"
 sleep 0.2
 echo "zombies=$(ps -o stat= --ppid $$ | grep -c Z)"
 "#;
-    let out = in_netns(
-        script,
-        &[
-            ("LH", &workspace_bin("lidar-har")),
-            ("REPLAY", &workspace_bin("replay")),
-            ("BAG", &bag),
-            ("OUT", dir.path()),
-        ],
-        Duration::from_secs(40),
-    );
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(40));
     let stdout = String::from_utf8_lossy(&out.stdout);
     for want in ["replay=0", "echo=0", "zombies=0"] {
         assert!(stdout.contains(want), "expected {want}");
