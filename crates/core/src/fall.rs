@@ -574,7 +574,7 @@ impl FallDetector {
                         self.raise_fall(t, start, mean, alerts);
                     }
                 } else if self.config.down_restarts_on_fall_run
-                    && let Some(down) = self.down.as_mut()
+                    && let Some(down) = self.down.as_mut().filter(|d| d.since_s < start)
                 {
                     *down = DownSpell::starting(start);
                 }
