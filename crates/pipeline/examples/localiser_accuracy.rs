@@ -31,7 +31,7 @@ use lidar_har_core::localiser_accuracy::{
     AccuracyCriteria, AccuracyReport, AccuracyTally, PointOwners, ReportedPerson, ScanOutcome,
 };
 use lidar_har_core::scan::Scan;
-use lidar_har_core::stats::nearest_rank;
+use lidar_har_core::stats::{Spread, nearest_rank};
 use lidar_har_core::sweep::BeamPoses;
 use lidar_har_pipeline::classifier::{ClassifierConfig, ClassifierStage, load_classifier_config};
 use lidar_har_pipeline::convert::observation_msg;
@@ -104,6 +104,10 @@ struct Group {
     /// occlusion: the two call for different fixes (the pose head, the tracker).
     published_seen_tally: AccuracyTally,
     published_predicted_tally: AccuracyTally,
+    /// Each predicted scan with a published pelvis: how long the person had been hidden, its
+    /// error, the error on the last scan they were seen (where the prediction starts), and
+    /// how far they had truly moved since.
+    predicted: Vec<PredictedScan>,
     radial_m: Vec<f64>,
     /// In-sight scans with no person reported.
     missed: u64,
@@ -112,6 +116,14 @@ struct Group {
     /// Scans with a pelvis placed, and of them those whose error lies within the 1- and
     /// 2-sigma ellipses of its published covariance.
     pelvis_calibration: [u64; 3],
+}
+
+#[derive(Clone, Copy)]
+struct PredictedScan {
+    unseen_s: f64,
+    error_m: f64,
+    last_seen_error_m: f64,
+    moved_m: f64,
 }
 
 /// A reported person this far from the body centre is on something else.
@@ -125,6 +137,7 @@ impl Group {
         self.published_seen_tally.merge(&other.published_seen_tally);
         self.published_predicted_tally
             .merge(&other.published_predicted_tally);
+        self.predicted.extend_from_slice(&other.predicted);
         self.radial_m.extend_from_slice(&other.radial_m);
         self.missed += other.missed;
         self.far += other.far;
@@ -339,6 +352,7 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
             part(&overall.published_seen_tally),
             part(&overall.published_predicted_tally)
         );
+        print_predicted(&overall.predicted);
     }
 
     if let Some(path) = &args.json {
@@ -373,6 +387,29 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
             .map_err(|e| format!("{}: {e}", path.display()))?;
     }
     Ok(())
+}
+
+/// The predicted scans by how long the person had been hidden: the error then, on the last
+/// scan they were seen, and how far they had truly moved (median / p95, m).
+fn print_predicted(scans: &[PredictedScan]) {
+    println!("predicted scans by time hidden: error | error when last seen | truly moved since");
+    for (from, to) in [(0.0, 0.25), (0.25, 0.5), (0.5, 1.0), (1.0, f64::INFINITY)] {
+        let bin: Vec<&PredictedScan> = scans
+            .iter()
+            .filter(|p| (from..to).contains(&p.unseen_s))
+            .collect();
+        let spread = |value: fn(&PredictedScan) -> f64| {
+            Spread::of(bin.iter().map(|&p| value(p)).collect())
+                .map_or("-".into(), |s| format!("{:.2} / {:.2}", s.median, s.p95))
+        };
+        println!(
+            "  {from:.2}-{to:.2} s, {:5} scans: {} | {} | {}",
+            bin.len(),
+            spread(|p| p.error_m),
+            spread(|p| p.last_seen_error_m),
+            spread(|p| p.moved_m)
+        );
+    }
 }
 
 /// The scene's own robot motion, then parked, bounce and coverage where they differ from it.
@@ -420,6 +457,8 @@ fn run_scene(
         .transpose()?;
     let geometry = sim.scan_geometry();
     let plane_height = sim.scene().robot.lidar_height;
+    // The truth and the published error on the last scan the person was seen.
+    let mut last_seen: Option<(DVec2, f64)> = None;
     while let Some(frame) = sim.step() {
         let stamp = frame.stamp_ns as i64;
         localiser.add_odometry(stamp, frame.robot);
@@ -543,6 +582,19 @@ fn run_scene(
                 Some(p) if p.visible => group.published_seen_tally.add(&outcome, criteria),
                 Some(_) => group.published_predicted_tally.add(&outcome, criteria),
                 None => {}
+            }
+            if let (Some(p), Some(truth), Some(e)) = (published, truth, estimate) {
+                let error_m = p.position.distance(truth);
+                if p.visible {
+                    last_seen = Some((truth, error_m));
+                } else if let Some((seen_at, last_seen_error_m)) = last_seen {
+                    group.predicted.push(PredictedScan {
+                        unseen_s: e.unseen_s,
+                        error_m,
+                        last_seen_error_m,
+                        moved_m: seen_at.distance(truth),
+                    });
+                }
             }
         }
         if let Some(centre) = centre
