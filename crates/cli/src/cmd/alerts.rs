@@ -184,8 +184,8 @@ struct Episode {
     truth: Vec<(f64, Activity)>,
     /// Aligned with `truth`.
     seen: Vec<bool>,
-    /// How many of `truth`'s scans came before the episode's end.
-    scans_in_episode: usize,
+    /// The episode's end in episode time: half a scan after its last scan.
+    end_s: f64,
     /// (truth, prediction) at each scan the classifier published.
     scans: ConfusionMatrix,
 }
@@ -285,7 +285,8 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
             }
         };
         scans.merge(&episode.scans);
-        let in_episode = &episode.truth[..episode.scans_in_episode];
+        let in_episode =
+            &episode.truth[..episode.truth.partition_point(|&(t, _)| t < episode.end_s)];
         let spells = down_spells(in_episode, config.fall_alert.down_after_s);
         let answers: Vec<Option<&FallAlert>> = spells
             .iter()
@@ -442,7 +443,7 @@ fn run_episode(
     trace: bool,
 ) -> anyhow::Result<Episode> {
     let mut sim = scripts::episode(scene, seed, false, kind)?;
-    let episode_frames = sim.frame_count();
+    let end_s = (sim.frame_count() as f64 - 0.5) / scene.lidar.rate_hz;
     sim.run_on(run_on_s);
     let mut localiser = episode_localiser(&sim, false)?;
     stage.reset();
@@ -452,11 +453,10 @@ fn run_episode(
     let mut seen = Vec::new();
     let mut alerts = Vec::new();
     let mut scans = ConfusionMatrix::new();
-    let mut scans_in_episode = 0;
     while let Some(frame) = sim.step() {
-        let in_episode = frame.index < episode_frames;
         let stamp_ns = frame.stamp_ns as i64;
         let stamp_s = frame.stamp_ns as f64 * 1e-9 - start_s;
+        let in_episode = stamp_s < end_s;
         localiser.add_odometry(stamp_ns, frame.robot);
         let result = localiser.process_scan(&core_scan(&geometry, stamp_ns, frame.ranges));
         let tracked = result
@@ -466,7 +466,6 @@ fn run_episode(
         if let Some(p) = &frame.person {
             truth.push((stamp_s, p.activity));
             seen.push(tracked.is_some_and(|(_, person)| person.visible));
-            scans_in_episode += usize::from(in_episode);
         }
         let Some((output, person)) = tracked else {
             if trace {
@@ -490,7 +489,6 @@ fn run_episode(
         }));
     }
     // Falls that begin after the end are not counted, nor are the alerts from their start on.
-    let end_s = (episode_frames as f64 / scene.lidar.rate_hz) - 1e-9;
     let mut falls = fall_intervals(&truth);
     if let Some(&(after_end, _)) = falls.iter().find(|&&(start, _)| start >= end_s) {
         falls.retain(|&(start, _)| start < after_end);
@@ -501,7 +499,7 @@ fn run_episode(
         alerts,
         truth,
         seen,
-        scans_in_episode,
+        end_s,
         scans,
     })
 }
