@@ -118,11 +118,13 @@ def mean_error(head, data, rows, device: torch.device) -> float:
 
 
 def fit(head, data, minutes: float, seed: int, batch: int, lr: float, validation_fraction: float,
-        device: torch.device):
+        beta: float, device: torch.device):
     """Adam for `minutes`, the rate decaying along a cosine to 1 % of `lr`. Keeps the weights
     of the epoch with the lowest mean error on `validation_fraction` of the scans (drawn
     from the training windows, at random: the scans of one window are correlated, so the
-    figure watches for the fit running away rather than measuring the head)."""
+    figure watches for the fit running away rather than measuring the head). The offset's loss
+    is smooth L1 with `beta`: small, it fits the median of an ambiguous pelvis (a body on
+    the floor seen in part); large, the mean, which trades some median for a shorter tail."""
     rng = np.random.default_rng(seed)
     order = rng.permutation(len(data["offsets"]))
     held = int(round(validation_fraction * len(order)))
@@ -138,7 +140,7 @@ def fit(head, data, minutes: float, seed: int, batch: int, lr: float, validation
                 group["lr"] = lr * (0.01 + 0.99 * 0.5 * (1 + np.cos(np.pi * progress)))
             states, located, target = tensors(data, train[b : b + batch], device)
             pred, sigma = head(states, located)
-            loss = nn.functional.smooth_l1_loss(pred, target, beta=0.05) + sigma_loss(sigma, pred - target)
+            loss = nn.functional.smooth_l1_loss(pred, target, beta=beta) + sigma_loss(sigma, pred - target)
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
@@ -281,6 +283,8 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=25.0)
     parser.add_argument("--batch", type=int, default=256)
     parser.add_argument("--lr", type=float, default=1e-3, help="Adam's first rate; decays to 1 %% of it along a cosine")
+    parser.add_argument("--beta", type=float, default=0.05,
+                        help="smooth L1's beta (m) for the offset: quadratic below it, linear above")
     parser.add_argument("--validation-fraction", type=float, default=0.02,
                         help="training scans held out to keep the best epoch's weights (0: keep the last)")
     parser.add_argument("--channels", type=int, default=32, help="the head's convolution channels")
@@ -316,7 +320,7 @@ def main() -> None:
         head = (load_head(args.init_from, model.hidden, model.state_size) if args.init_from
                 else PoseHead(model.hidden, model.state_size, args.channels, args.units)).to(device)
         print(f"fitting on {device}: {sum(p.numel() for p in head.parameters())} parameters", flush=True)
-        fit(head, data["train"], args.minutes, args.seed, args.batch, args.lr, args.validation_fraction, device)
+        fit(head, data["train"], args.minutes, args.seed, args.batch, args.lr, args.validation_fraction, args.beta, device)
     errors = {}
     for name in splits:
         offsets, sigma = predict(head, data[name], device)
@@ -336,7 +340,7 @@ def main() -> None:
               "train_windows": 0 if args.head else args.train_windows,
               "fit": None if args.head else {
                   "device": str(device), "minutes": args.minutes, "batch": args.batch, "lr": args.lr,
-                  "validation_fraction": args.validation_fraction, "seed": args.seed,
+                  "validation_fraction": args.validation_fraction, "beta": args.beta, "seed": args.seed,
                   "init_from": str(args.init_from) if args.init_from else None}}
     for name, (before, after, sigma) in errors.items():
         report[name] = scores(before, after, sigma, data[name], used, max_sigma)
