@@ -199,7 +199,8 @@ pub struct FallAlertConfig {
     pub down_travel_within_s: f64,
     /// A person down read as falling, in a run that counts but not as a fall (not upright
     /// just before, `fall_from_upright_s`), has been up: nobody falls from the floor. Their
-    /// `down_after_s` clock starts again at the run's start. A person who got up unseen as
+    /// `down_after_s` clock starts again at the run's start, and `down_travel_m` counts
+    /// ground from there, as for any new spell. A person who got up unseen as
     /// such and sat straight down again was read getting up for 4 scans, then falling for
     /// 1.2 s (seed 4 episode 327 of `lidar-har alerts`, docs/classifier.md, session 36).
     pub down_restarts_on_fall_run: bool,
@@ -422,7 +423,7 @@ pub struct FallDetector {
     off_floor_since_on_floor: bool,
     down: Option<DownSpell>,
     /// Where the person was seen over the last `down_travel_within_s` while down, since the
-    /// spell began or last restarted on `down_travel_m`, oldest first.
+    /// spell began or last restarted, oldest first.
     down_positions: VecDeque<(f64, DVec2)>,
     /// The last scan with the person seen (and classified).
     last_seen_s: Option<f64>,
@@ -577,6 +578,7 @@ impl FallDetector {
                     && let Some(down) = self.down.as_mut().filter(|d| d.since_s < start)
                 {
                     *down = DownSpell::starting(start);
+                    self.down_positions.retain(|&(at, _)| at >= start);
                 }
             }
         } else {
@@ -2122,6 +2124,26 @@ mod tests {
         short[3].1 = 0.3;
         let alerts = run(&mut detector(), &short);
         assert_eq!(kinds(&alerts), [AlertKind::PersonDown], "{alerts:?}");
+    }
+
+    /// The clock restarted by a falling run starts a new spell, and the travel rule then
+    /// counts only ground covered since: where the person sat before the run is not
+    /// measured against where the run carried them.
+    #[test]
+    fn a_falling_run_while_down_forgets_where_the_person_was_before_it() {
+        let mover = DVec2::new(1.5, 0.0);
+        let alerts = run_moving(
+            &mut detector(),
+            &[
+                (SittingOnFloor, 10.0, DVec2::ZERO),
+                (GettingUp, 0.2, mover),
+                (FallingDown, 1.2, mover), // 2.1 m from the seat by its end, 1.3 s after
+                (SittingOnFloor, 20.0, DVec2::ZERO),
+            ],
+        );
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown], "{alerts:?}");
+        // From the run's start, not from where 2 m from the seat was reached (11.33 s).
+        assert!((alerts[0].down_since_s - 10.2).abs() < 0.06, "{alerts:?}");
     }
 
     #[test]
