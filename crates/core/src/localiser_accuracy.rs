@@ -127,6 +127,17 @@ impl AccuracyTally {
         self.errors_m.extend_from_slice(&other.errors_m);
     }
 
+    /// How many scored scans were more than `limit_m` off: a p95 target of `limit_m` allows
+    /// a twentieth of all scans, and this says which scans spend that allowance.
+    pub fn errors_above(&self, limit_m: f64) -> usize {
+        self.errors_m.iter().filter(|&&e| e > limit_m).count()
+    }
+
+    /// Scans with a reported position and a truth to score it against.
+    pub fn scored(&self) -> usize {
+        self.errors_m.len()
+    }
+
     pub fn report(&self) -> AccuracyReport {
         let ratio = |n: u64, d: u64| (d > 0).then(|| n as f64 / d as f64);
         let mut errors = self.errors_m.clone();

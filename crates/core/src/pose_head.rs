@@ -11,7 +11,8 @@
 //! only where it was fitted and found to help: the person seen, an activity in `activities`,
 //! the head expecting an error of at most `max_sigma_m` (a state it doubts beyond that counts
 //! for nothing); and, for a short hold, at the last seen offset from the track while the
-//! person is hidden.
+//! person is hidden. A person on the floor stays put while the robot moves round them, so
+//! their pelvis is fused over the scans that read them there (docs/localiser.md, session 37).
 //! The head's expected error is published with the pelvis, so a consumer can weigh it.
 
 use glam::DVec2;
@@ -127,6 +128,9 @@ pub struct PelvisPlacer<H> {
     hold_s: f64,
     /// The last seen scan's estimate, when the pelvis was placed on it: (stamp, estimate).
     last_placed: Option<(f64, HeadEstimate)>,
+    floor_fusion_m: f64,
+    /// The pelvises placed since the person was last read on the floor afresh.
+    on_floor: Option<Combination>,
 }
 
 impl<H> PelvisPlacer<H> {
@@ -136,6 +140,8 @@ impl<H> PelvisPlacer<H> {
             spec,
             hold_s: 0.0,
             last_placed: None,
+            floor_fusion_m: 0.0,
+            on_floor: None,
         }
     }
 
@@ -148,9 +154,21 @@ impl<H> PelvisPlacer<H> {
         self
     }
 
+    /// Publishes, for a person read lying or sitting on the floor, the pelvis combined over
+    /// every scan since they were read there, for as long as each scan's own pelvis lies
+    /// within `radius_m` of that combination (0: off). Such a person stays put while the
+    /// robot moves round them, and the views differ: end-on or in part, a single scan's
+    /// pelvis can be most of a metre off, where the combination of the views is not. Someone
+    /// who gets up, crawls off or is read as anything else starts a new combination.
+    pub fn fusing_on_floor_within(mut self, radius_m: f64) -> Self {
+        self.floor_fusion_m = radius_m;
+        self
+    }
+
     /// Forgets the last placement: the track is another person's.
     pub fn reset(&mut self) {
         self.last_placed = None;
+        self.on_floor = None;
     }
 
     pub fn spec(&self) -> &PoseHeadSpec {
@@ -207,48 +225,68 @@ impl<H> PelvisPlacer<H> {
                 .map_err(|e| StepError(Box::new(e)))?;
             let HeadEstimate { offset, sigma_m } = estimate;
             if offset.is_finite() && sigma_m >= 0.0 && sigma_m <= self.spec.max_sigma_m {
-                combined.add(estimate);
+                combined.add(offset, sigma_m);
             }
         }
-        let Some(estimate) = combined.estimate() else {
+        let Some((offset, sigma_m)) = combined.mean() else {
             return Ok(None);
         };
-        let HeadEstimate { offset, sigma_m } = estimate;
-        self.last_placed = Some((prediction.stamp_s, estimate));
-        Ok(Some(PlacedPelvis {
-            position: position + offset,
+        self.last_placed = Some((prediction.stamp_s, HeadEstimate { offset, sigma_m }));
+        Ok(Some(self.fuse_on_floor(
+            prediction.activity,
+            position + offset,
             sigma_m,
-        }))
+        )))
+    }
+
+    fn fuse_on_floor(&mut self, activity: Activity, pelvis: DVec2, sigma_m: f64) -> PlacedPelvis {
+        let on_floor = matches!(activity, Activity::LyingDown | Activity::SittingOnFloor);
+        if !on_floor || self.floor_fusion_m <= 0.0 {
+            self.on_floor = None;
+            return PlacedPelvis {
+                position: pelvis,
+                sigma_m,
+            };
+        }
+        let radius = self.floor_fusion_m;
+        let spell = self.on_floor.get_or_insert_default();
+        if spell
+            .mean()
+            .is_some_and(|(mean, _)| mean.distance(pelvis) > radius)
+        {
+            *spell = Combination::default();
+        }
+        spell.add(pelvis, sigma_m);
+        let (position, sigma_m) = spell.mean().unwrap_or((pelvis, sigma_m));
+        PlacedPelvis { position, sigma_m }
     }
 }
 
-/// The head's estimates from several states of the same scans, each weighed by the inverse
-/// of its expected variance. They are far from independent (one head, one person), so the
-/// expected error is their weighted mean rather than the smaller one independent estimates
-/// would give.
-#[derive(Default)]
+/// Estimates of one place by the head (from several states of the same scans, or over the
+/// scans of a person on the floor), each weighed by the inverse of its expected variance.
+/// They are far from independent (one head, one person), so the expected error is their
+/// weighted mean rather than the smaller one independent estimates would give.
+#[derive(Debug, Default)]
 struct Combination {
     weights: f64,
-    offset: DVec2,
-    sigma_m: f64,
+    sum: DVec2,
+    sigma_sum: f64,
 }
 
 impl Combination {
     /// Below this the weight stops growing: a head sure to the millimetre is no surer.
     const SIGMA_FLOOR_M: f64 = 1e-3;
 
-    fn add(&mut self, estimate: HeadEstimate) {
-        let weight = estimate.sigma_m.max(Self::SIGMA_FLOOR_M).powi(-2);
+    fn add(&mut self, estimate: DVec2, sigma_m: f64) {
+        let weight = sigma_m.max(Self::SIGMA_FLOOR_M).powi(-2);
         self.weights += weight;
-        self.offset += weight * estimate.offset;
-        self.sigma_m += weight * estimate.sigma_m;
+        self.sum += weight * estimate;
+        self.sigma_sum += weight * sigma_m;
     }
 
-    fn estimate(&self) -> Option<HeadEstimate> {
-        (self.weights > 0.0).then(|| HeadEstimate {
-            offset: self.offset / self.weights,
-            sigma_m: self.sigma_m / self.weights,
-        })
+    /// The weighted mean and its expected error.
+    fn mean(&self) -> Option<(DVec2, f64)> {
+        (self.weights > 0.0).then(|| (self.sum / self.weights, self.sigma_sum / self.weights))
     }
 }
 
@@ -467,6 +505,37 @@ mod tests {
         let weights = [6.0_f64, 4.0].map(|f| (f / 100.0).powi(-2));
         let offset = (weights[0] * 0.6 + weights[1] * 0.4) / (weights[0] + weights[1]);
         assert!((placed[23].unwrap().position.x - (3.0 + offset)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_person_on_the_floor_gets_the_pelvis_combined_over_their_scans() {
+        use Activity::{Crawling, LyingDown, SittingOnFloor};
+        let mut p = placer(false).fusing_on_floor_within(1.0);
+        let at = |p: &mut PelvisPlacer<LinearHead>, activity, x: f64, sigma_m| {
+            p.fuse_on_floor(activity, DVec2::new(x, 2.0), sigma_m)
+        };
+        assert_eq!(
+            at(&mut p, LyingDown, 1.0, 0.1).position,
+            DVec2::new(1.0, 2.0)
+        );
+        // Seen end-on, 0.6 m off and doubted twice as much: a fifth of the weight.
+        let fused = at(&mut p, LyingDown, 1.6, 0.2);
+        assert!((fused.position.x - 1.12).abs() < 1e-12, "{fused:?}");
+        assert!((fused.sigma_m - 0.12).abs() < 1e-12, "{fused:?}");
+        // Sitting up is the same spell on the floor.
+        assert!((at(&mut p, SittingOnFloor, 1.12, 0.1).position.x - 1.12).abs() < 1e-12);
+        // Beyond the radius from the combination: elsewhere, a new spell.
+        assert_eq!(at(&mut p, LyingDown, 2.5, 0.1).position.x, 2.5);
+        // Read as anything but on the floor: each scan's own, and a new spell after.
+        assert_eq!(at(&mut p, Crawling, 2.9, 0.3).position.x, 2.9);
+        assert_eq!(at(&mut p, LyingDown, 2.2, 0.3).position.x, 2.2);
+        // Another person's track forgets the spell.
+        p.reset();
+        assert_eq!(at(&mut p, LyingDown, 2.6, 0.3).position.x, 2.6);
+        // Off: each scan's own.
+        let mut off = placer(false);
+        assert_eq!(at(&mut off, LyingDown, 1.0, 0.1).position.x, 1.0);
+        assert_eq!(at(&mut off, LyingDown, 1.6, 0.2).position.x, 1.6);
     }
 
     #[test]

@@ -41,6 +41,9 @@ use lidar_har_sim::map::{DEFAULT_RESOLUTION, OccupancyMap as SimMap};
 use lidar_har_sim::scene::Motion as RobotMotion;
 use lidar_har_sim::{BeamLabel, Scene, Simulator};
 
+/// Issue 4's p95 target for the position error, metres.
+const P95_TARGET_M: f64 = 0.30;
+
 #[derive(Parser, Debug)]
 #[command(about = "Localiser accuracy over the simulator's scenes")]
 struct Args {
@@ -352,6 +355,27 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
             part(&overall.published_seen_tally),
             part(&overall.published_predicted_tally)
         );
+        let scored = overall.published_tally.scored();
+        if scored > 0 {
+            let share = |tally: &AccuracyTally| {
+                100.0 * tally.errors_above(P95_TARGET_M) as f64 / scored as f64
+            };
+            println!(
+                "published pelvis more than {P95_TARGET_M} m off (the p95 target allows 5 % of \
+                 scans): {:.1} % of all scans where seen, {:.1} % where predicted; by activity \
+                 (seen + predicted):",
+                share(&overall.published_seen_tally),
+                share(&overall.published_predicted_tally)
+            );
+            for (index, group) in &by_activity {
+                println!(
+                    "  {:20} {:4.1} + {:4.1} %",
+                    activity_name(*index),
+                    share(&group.published_seen_tally),
+                    share(&group.published_predicted_tally)
+                );
+            }
+        }
         print_predicted(&overall.predicted);
     }
 

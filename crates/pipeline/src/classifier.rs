@@ -62,6 +62,9 @@ pub struct ClassifierConfig {
     /// While the person is hidden, /human/pelvis stays at the last seen offset from the
     /// track's prediction for this long, s (0: only on seen scans).
     pub pelvis_hold_s: f64,
+    /// A person read lying or sitting on the floor gets the pelvis combined over the scans
+    /// since, while each scan's own lies within this of it, m (0: every scan's own).
+    pub pelvis_floor_fusion_m: f64,
     /// With a pose head, this many more states restart between each two lanes: more views of
     /// the same scans for the head to combine. A model step each; the activity and the
     /// alerts stay as the lanes alone give them.
@@ -78,6 +81,7 @@ impl Default for ClassifierConfig {
             lanes: 2,
             pose_head: Some(PathBuf::from("models/pose_head.onnx")),
             pelvis_hold_s: 1.0,
+            pelvis_floor_fusion_m: 1.0,
             pose_head_lanes_between: 1,
             fall_alert: FallAlertConfig::default(),
         }
@@ -163,6 +167,13 @@ pub fn parse_classifier_config(text: &str) -> Result<ClassifierConfig, Classifie
         return Err(ClassifierError::Config {
             path: None,
             message: format!("pelvis_hold_s = {hold} must be finite and not negative"),
+        });
+    }
+    let fusion = config.pelvis_floor_fusion_m;
+    if !(fusion.is_finite() && fusion >= 0.0) {
+        return Err(ClassifierError::Config {
+            path: None,
+            message: format!("pelvis_floor_fusion_m = {fusion} must be finite and not negative"),
         });
     }
     Ok(config)
@@ -296,7 +307,8 @@ impl ClassifierStage<ActivityModel, PoseHeadModel> {
                 Ok(head) => (
                     Some(
                         PelvisPlacer::new(head.spec().clone(), head)
-                            .holding_for(config.pelvis_hold_s),
+                            .holding_for(config.pelvis_hold_s)
+                            .fusing_on_floor_within(config.pelvis_floor_fusion_m),
                     ),
                     PoseHeadStatus::Used {
                         path: head_path.clone(),
@@ -1485,6 +1497,10 @@ mod tests {
                 .unwrap_err()
                 .to_string();
             assert!(e.contains("pelvis_hold_s"), "{e}");
+            let e = parse_classifier_config(&format!("pelvis_floor_fusion_m: {bad}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("pelvis_floor_fusion_m"), "{e}");
         }
         for bad in ["-1", "4", "0.5"] {
             let e = parse_classifier_config(&format!("pose_head_lanes_between: {bad}\n"))
