@@ -129,8 +129,11 @@ pub struct PelvisPlacer<H> {
     /// The last seen scan's estimate, when the pelvis was placed on it: (stamp, estimate).
     last_placed: Option<(f64, HeadEstimate)>,
     floor_fusion_m: f64,
+    floor_gap_s: f64,
     /// The pelvises placed since the person was last read on the floor afresh.
     on_floor: Option<Combination>,
+    /// Since when the person, in a spell on the floor, has been read as something else.
+    off_floor_since_s: Option<f64>,
 }
 
 impl<H> PelvisPlacer<H> {
@@ -141,7 +144,9 @@ impl<H> PelvisPlacer<H> {
             hold_s: 0.0,
             last_placed: None,
             floor_fusion_m: 0.0,
+            floor_gap_s: 0.0,
             on_floor: None,
+            off_floor_since_s: None,
         }
     }
 
@@ -159,9 +164,12 @@ impl<H> PelvisPlacer<H> {
     /// within `radius_m` of that combination (0: off). Such a person stays put while the
     /// robot moves round them, and the views differ: end-on or in part, a single scan's
     /// pelvis can be most of a metre off, where the combination of the views is not. Someone
-    /// who gets up, crawls off or is read as anything else starts a new combination.
-    pub fn fusing_on_floor_within(mut self, radius_m: f64) -> Self {
+    /// read as anything else (getting up, crawling off) for `gap_s` or more starts a new
+    /// combination; shorter readings (the model's reading of a body on the floor flickers)
+    /// get their own pelvis and leave the combination as it was.
+    pub fn fusing_on_floor_within(mut self, radius_m: f64, gap_s: f64) -> Self {
         self.floor_fusion_m = radius_m;
+        self.floor_gap_s = gap_s;
         self
     }
 
@@ -169,6 +177,7 @@ impl<H> PelvisPlacer<H> {
     pub fn reset(&mut self) {
         self.last_placed = None;
         self.on_floor = None;
+        self.off_floor_since_s = None;
     }
 
     pub fn spec(&self) -> &PoseHeadSpec {
@@ -233,21 +242,35 @@ impl<H> PelvisPlacer<H> {
         };
         self.last_placed = Some((prediction.stamp_s, HeadEstimate { offset, sigma_m }));
         Ok(Some(self.fuse_on_floor(
+            prediction.stamp_s,
             prediction.activity,
             position + offset,
             sigma_m,
         )))
     }
 
-    fn fuse_on_floor(&mut self, activity: Activity, pelvis: DVec2, sigma_m: f64) -> PlacedPelvis {
-        let on_floor = matches!(activity, Activity::LyingDown | Activity::SittingOnFloor);
-        if !on_floor || self.floor_fusion_m <= 0.0 {
-            self.on_floor = None;
-            return PlacedPelvis {
-                position: pelvis,
-                sigma_m,
-            };
+    fn fuse_on_floor(
+        &mut self,
+        stamp_s: f64,
+        activity: Activity,
+        pelvis: DVec2,
+        sigma_m: f64,
+    ) -> PlacedPelvis {
+        let own = PlacedPelvis {
+            position: pelvis,
+            sigma_m,
+        };
+        if self.floor_fusion_m <= 0.0 {
+            return own;
         }
+        if !matches!(activity, Activity::LyingDown | Activity::SittingOnFloor) {
+            let since = *self.off_floor_since_s.get_or_insert(stamp_s);
+            if stamp_s - since >= self.floor_gap_s {
+                self.on_floor = None;
+            }
+            return own;
+        }
+        self.off_floor_since_s = None;
         let radius = self.floor_fusion_m;
         let spell = self.on_floor.get_or_insert_default();
         if spell
@@ -510,10 +533,13 @@ mod tests {
     #[test]
     fn a_person_on_the_floor_gets_the_pelvis_combined_over_their_scans() {
         use Activity::{Crawling, LyingDown, SittingOnFloor};
-        let mut p = placer(false).fusing_on_floor_within(1.0);
-        let at = |p: &mut PelvisPlacer<LinearHead>, activity, x: f64, sigma_m| {
-            p.fuse_on_floor(activity, DVec2::new(x, 2.0), sigma_m)
+        let mut p = placer(false).fusing_on_floor_within(1.0, 0.5);
+        let mut stamp_s = 0.0;
+        let mut at = |p: &mut PelvisPlacer<LinearHead>, activity, x: f64, sigma_m| {
+            stamp_s += 0.05;
+            p.fuse_on_floor(stamp_s, activity, DVec2::new(x, 2.0), sigma_m)
         };
+        let x = |placed: PlacedPelvis| placed.position.x;
         assert_eq!(
             at(&mut p, LyingDown, 1.0, 0.1).position,
             DVec2::new(1.0, 2.0)
@@ -523,19 +549,25 @@ mod tests {
         assert!((fused.position.x - 1.12).abs() < 1e-12, "{fused:?}");
         assert!((fused.sigma_m - 0.12).abs() < 1e-12, "{fused:?}");
         // Sitting up is the same spell on the floor.
-        assert!((at(&mut p, SittingOnFloor, 1.12, 0.1).position.x - 1.12).abs() < 1e-12);
+        assert!((x(at(&mut p, SittingOnFloor, 1.12, 0.1)) - 1.12).abs() < 1e-12);
         // Beyond the radius from the combination: elsewhere, a new spell.
-        assert_eq!(at(&mut p, LyingDown, 2.5, 0.1).position.x, 2.5);
-        // Read as anything but on the floor: each scan's own, and a new spell after.
-        assert_eq!(at(&mut p, Crawling, 2.9, 0.3).position.x, 2.9);
-        assert_eq!(at(&mut p, LyingDown, 2.2, 0.3).position.x, 2.2);
+        assert_eq!(x(at(&mut p, LyingDown, 2.5, 0.1)), 2.5);
+        // Read as anything but on the floor for a moment: that scan's own, the spell kept.
+        assert_eq!(x(at(&mut p, Crawling, 2.9, 0.3)), 2.9);
+        assert!((x(at(&mut p, LyingDown, 2.5, 0.1)) - 2.5).abs() < 1e-12);
+        assert!((x(at(&mut p, LyingDown, 2.2, 0.1)) - 2.4).abs() < 1e-12);
+        // For the gap or longer (0.5 s): a new spell after.
+        for _ in 0..12 {
+            assert_eq!(x(at(&mut p, Crawling, 2.9, 0.3)), 2.9);
+        }
+        assert_eq!(x(at(&mut p, LyingDown, 2.2, 0.3)), 2.2);
         // Another person's track forgets the spell.
         p.reset();
-        assert_eq!(at(&mut p, LyingDown, 2.6, 0.3).position.x, 2.6);
+        assert_eq!(x(at(&mut p, LyingDown, 2.6, 0.3)), 2.6);
         // Off: each scan's own.
         let mut off = placer(false);
-        assert_eq!(at(&mut off, LyingDown, 1.0, 0.1).position.x, 1.0);
-        assert_eq!(at(&mut off, LyingDown, 1.6, 0.2).position.x, 1.6);
+        assert_eq!(x(at(&mut off, LyingDown, 1.0, 0.1)), 1.0);
+        assert_eq!(x(at(&mut off, LyingDown, 1.6, 0.2)), 1.6);
     }
 
     #[test]

@@ -65,6 +65,9 @@ pub struct ClassifierConfig {
     /// A person read lying or sitting on the floor gets the pelvis combined over the scans
     /// since, while each scan's own lies within this of it, m (0: every scan's own).
     pub pelvis_floor_fusion_m: f64,
+    /// ... until they are read as anything else for this long, s (shorter readings get
+    /// their own pelvis and leave the combination as it was).
+    pub pelvis_floor_fusion_gap_s: f64,
     /// With a pose head, this many more states restart between each two lanes: more views of
     /// the same scans for the head to combine. A model step each; the activity and the
     /// alerts stay as the lanes alone give them.
@@ -82,6 +85,7 @@ impl Default for ClassifierConfig {
             pose_head: Some(PathBuf::from("models/pose_head.onnx")),
             pelvis_hold_s: 1.0,
             pelvis_floor_fusion_m: 1.0,
+            pelvis_floor_fusion_gap_s: 0.25,
             pose_head_lanes_between: 1,
             fall_alert: FallAlertConfig::default(),
         }
@@ -169,12 +173,19 @@ pub fn parse_classifier_config(text: &str) -> Result<ClassifierConfig, Classifie
             message: format!("pelvis_hold_s = {hold} must be finite and not negative"),
         });
     }
-    let fusion = config.pelvis_floor_fusion_m;
-    if !(fusion.is_finite() && fusion >= 0.0) {
-        return Err(ClassifierError::Config {
-            path: None,
-            message: format!("pelvis_floor_fusion_m = {fusion} must be finite and not negative"),
-        });
+    for (key, value) in [
+        ("pelvis_floor_fusion_m", config.pelvis_floor_fusion_m),
+        (
+            "pelvis_floor_fusion_gap_s",
+            config.pelvis_floor_fusion_gap_s,
+        ),
+    ] {
+        if !(value.is_finite() && value >= 0.0) {
+            return Err(ClassifierError::Config {
+                path: None,
+                message: format!("{key} = {value} must be finite and not negative"),
+            });
+        }
     }
     Ok(config)
 }
@@ -308,7 +319,10 @@ impl ClassifierStage<ActivityModel, PoseHeadModel> {
                     Some(
                         PelvisPlacer::new(head.spec().clone(), head)
                             .holding_for(config.pelvis_hold_s)
-                            .fusing_on_floor_within(config.pelvis_floor_fusion_m),
+                            .fusing_on_floor_within(
+                                config.pelvis_floor_fusion_m,
+                                config.pelvis_floor_fusion_gap_s,
+                            ),
                     ),
                     PoseHeadStatus::Used {
                         path: head_path.clone(),
@@ -1501,6 +1515,10 @@ mod tests {
                 .unwrap_err()
                 .to_string();
             assert!(e.contains("pelvis_floor_fusion_m"), "{e}");
+            let e = parse_classifier_config(&format!("pelvis_floor_fusion_gap_s: {bad}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("pelvis_floor_fusion_gap_s"), "{e}");
         }
         for bad in ["-1", "4", "0.5"] {
             let e = parse_classifier_config(&format!("pose_head_lanes_between: {bad}\n"))
