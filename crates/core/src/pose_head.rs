@@ -128,12 +128,7 @@ pub struct PelvisPlacer<H> {
     hold_s: f64,
     /// The last seen scan's estimate, when the pelvis was placed on it: (stamp, estimate).
     last_placed: Option<(f64, HeadEstimate)>,
-    floor_fusion_m: f64,
-    floor_gap_s: f64,
-    /// The pelvises placed since the person was last read on the floor afresh.
-    on_floor: Option<Combination>,
-    /// Since when the person, in a spell on the floor, has been read as something else.
-    off_floor_since_s: Option<f64>,
+    floor: FloorFusion,
 }
 
 impl<H> PelvisPlacer<H> {
@@ -143,10 +138,7 @@ impl<H> PelvisPlacer<H> {
             spec,
             hold_s: 0.0,
             last_placed: None,
-            floor_fusion_m: 0.0,
-            floor_gap_s: 0.0,
-            on_floor: None,
-            off_floor_since_s: None,
+            floor: FloorFusion::default(),
         }
     }
 
@@ -168,16 +160,18 @@ impl<H> PelvisPlacer<H> {
     /// combination; shorter readings (the model's reading of a body on the floor flickers)
     /// get their own pelvis and leave the combination as it was.
     pub fn fusing_on_floor_within(mut self, radius_m: f64, gap_s: f64) -> Self {
-        self.floor_fusion_m = radius_m;
-        self.floor_gap_s = gap_s;
+        self.floor = FloorFusion {
+            radius_m,
+            gap_s,
+            ..FloorFusion::default()
+        };
         self
     }
 
     /// Forgets the last placement: the track is another person's.
     pub fn reset(&mut self) {
         self.last_placed = None;
-        self.on_floor = None;
-        self.off_floor_since_s = None;
+        self.floor.forget();
     }
 
     pub fn spec(&self) -> &PoseHeadSpec {
@@ -241,15 +235,31 @@ impl<H> PelvisPlacer<H> {
             return Ok(None);
         };
         self.last_placed = Some((prediction.stamp_s, HeadEstimate { offset, sigma_m }));
-        Ok(Some(self.fuse_on_floor(
+        Ok(Some(self.floor.place(
             prediction.stamp_s,
             prediction.activity,
             position + offset,
             sigma_m,
         )))
     }
+}
 
-    fn fuse_on_floor(
+/// The pelvis of a person on the floor, combined over the scans that read them there
+/// ([`PelvisPlacer::fusing_on_floor_within`]).
+#[derive(Debug, Default)]
+struct FloorFusion {
+    /// 0: off.
+    radius_m: f64,
+    gap_s: f64,
+    /// The pelvises placed since the person was last read on the floor afresh.
+    spell: Option<Combination>,
+    /// Since when the person, in a spell on the floor, has been read as something else.
+    off_floor_since_s: Option<f64>,
+}
+
+impl FloorFusion {
+    /// The pelvis to publish for a scan read as `activity` whose own is `pelvis`.
+    fn place(
         &mut self,
         stamp_s: f64,
         activity: Activity,
@@ -260,19 +270,19 @@ impl<H> PelvisPlacer<H> {
             position: pelvis,
             sigma_m,
         };
-        if self.floor_fusion_m <= 0.0 {
+        if self.radius_m <= 0.0 {
             return own;
         }
         if !matches!(activity, Activity::LyingDown | Activity::SittingOnFloor) {
             let since = *self.off_floor_since_s.get_or_insert(stamp_s);
-            if stamp_s - since >= self.floor_gap_s {
-                self.on_floor = None;
+            if stamp_s - since >= self.gap_s {
+                self.spell = None;
             }
             return own;
         }
         self.off_floor_since_s = None;
-        let radius = self.floor_fusion_m;
-        let spell = self.on_floor.get_or_insert_default();
+        let radius = self.radius_m;
+        let spell = self.spell.get_or_insert_default();
         if spell
             .mean()
             .is_some_and(|(mean, _)| mean.distance(pelvis) > radius)
@@ -282,6 +292,11 @@ impl<H> PelvisPlacer<H> {
         spell.add(pelvis, sigma_m);
         let (position, sigma_m) = spell.mean().unwrap_or((pelvis, sigma_m));
         PlacedPelvis { position, sigma_m }
+    }
+
+    fn forget(&mut self) {
+        self.spell = None;
+        self.off_floor_since_s = None;
     }
 }
 
@@ -537,7 +552,8 @@ mod tests {
         let mut stamp_s = 0.0;
         let mut at = |p: &mut PelvisPlacer<LinearHead>, activity, x: f64, sigma_m| {
             stamp_s += 0.05;
-            p.fuse_on_floor(stamp_s, activity, DVec2::new(x, 2.0), sigma_m)
+            p.floor
+                .place(stamp_s, activity, DVec2::new(x, 2.0), sigma_m)
         };
         let x = |placed: PlacedPelvis| placed.position.x;
         assert_eq!(

@@ -166,14 +166,8 @@ pub fn parse_classifier_config(text: &str) -> Result<ClassifierConfig, Classifie
             ),
         });
     }
-    let hold = config.pelvis_hold_s;
-    if !(hold.is_finite() && hold >= 0.0) {
-        return Err(ClassifierError::Config {
-            path: None,
-            message: format!("pelvis_hold_s = {hold} must be finite and not negative"),
-        });
-    }
     for (key, value) in [
+        ("pelvis_hold_s", config.pelvis_hold_s),
         ("pelvis_floor_fusion_m", config.pelvis_floor_fusion_m),
         (
             "pelvis_floor_fusion_gap_s",
