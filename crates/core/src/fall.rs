@@ -11,7 +11,9 @@
 //!   confirmed at most `descent_max_s` after the person was last upright or getting up (a
 //!   fall is short and easily missed, the lying that follows is not; a failed attempt to
 //!   stand ends lying too, while getting up misread as falling is the model's commonest
-//!   false fall, so it does not start a `falling_down` run). Both are confirmed postures,
+//!   false fall, so getting up starts a `falling_down` run only once read so for
+//!   `descent_getting_up_s`, with `fall_from_getting_up`, and such a run must land on lying as
+//!   sure as a descent's). Both are confirmed postures,
 //!   not one scan: a person crawling whom the classifier takes for walking for a scan or two
 //!   has not left the floor, and cannot fall from there. The lying that makes a descent must
 //!   also look like a body on the floor: its points stretch at least `descent_min_length_m`
@@ -44,7 +46,10 @@
 //! `rearm_upright_s` (a moment read as falling does not restart that clock: a standing person
 //! is often misread so). `FallDetected` is also re-armed by being read as getting up on every
 //! scan seen for `rearm_getting_up_s`: one fall, one alert, but a person who falls back while
-//! struggling up has fallen twice. Time going backwards (a replay restarting) clears everything.
+//! struggling up has fallen twice; with `fall_from_getting_up`, so is a `falling_down` run
+//! that begins after the person was read as getting up for `descent_getting_up_s` since the
+//! alert, and lands: the model reads a person rising as falling now and then, which breaks
+//! the unbroken second. Time going backwards (a replay restarting) clears everything.
 
 use std::collections::VecDeque;
 
@@ -131,6 +136,18 @@ pub struct FallAlertConfig {
     /// the robot may come upon someone as they fall. `fall_from_upright_s` cannot rule such a
     /// run out, having nothing to go by.
     pub fall_on_first_sight: bool,
+    /// A run of `falling_down` scans also counts when it starts at most `fall_from_upright_s`
+    /// after the person was read as getting up on every scan for `descent_getting_up_s` (as
+    /// a descent may start from there), landing only on lying as sure as a descent's
+    /// (`descent_min_probability`: a crawler read as getting up, then as falling, landed on
+    /// lying read at 0.79-0.88, seed 6 episode 139). After a `FallDetected`, such a run
+    /// that began after getting up again and lands is a new fall without waiting for
+    /// `rearm_getting_up_s`. A person who struggles up and falls back is read as getting up
+    /// for half a second, then as falling on 10-27 scans and as lying: the model's reading
+    /// of a rising person as falling now and then broke the unbroken second that re-arms, and
+    /// the run did not start from upright (15 of the 80 falls missed on seeds 1-5 of
+    /// `lidar-har alerts`, docs/classifier.md, session 38). False: from upright only.
+    pub fall_from_getting_up: bool,
     /// A descent counts only when, over the scans that confirm lying, the person's points
     /// stretch at least this far along their main axis (the median of those scans): a body on
     /// the floor is over a metre long at ankle height, while a standing person the classifier
@@ -225,6 +242,7 @@ impl Default for FallAlertConfig {
             descent_getting_up_s: 0.5,
             fall_from_upright_s: 3.0,
             fall_on_first_sight: true,
+            fall_from_getting_up: true,
             descent_min_length_m: 0.8,
             descent_min_probability: 0.9,
             down_waits_on_upright_glimpse: true,
@@ -390,9 +408,8 @@ pub struct FallDetector {
     first_seen_s: Option<f64>,
     /// Current run of scans read as falling_down.
     fall_run: Option<FallRun>,
-    /// A fall run waiting for the person to be confirmed on the floor: its start, when it
-    /// reached `fall_min_scans`, its mean probability.
-    pending_fall: Option<(f64, f64, f64)>,
+    /// A fall run waiting for the person to be confirmed on the floor.
+    pending_fall: Option<PendingFall>,
     /// Candidate posture, since when, how many consecutive scans.
     candidate: Option<(Posture, f64, u32)>,
     /// The body lengths known on the candidate's scans.
@@ -409,6 +426,9 @@ pub struct FallDetector {
     /// The same for upright or getting up (`descent_getting_up_s` into it): what a descent
     /// starts from.
     last_off_floor_s: Option<f64>,
+    /// The last of those scans read as getting up: what a fall run may also start from
+    /// (`fall_from_getting_up`).
+    last_getting_up_s: Option<f64>,
     /// Consecutive visible scans read on the floor (crawling only with `crawling_shows_down`;
     /// with `down_found_in_view`, a hidden scan breaks them too).
     down_evidence_scans: u32,
@@ -457,6 +477,7 @@ impl FallDetector {
             posture: None,
             last_upright_s: None,
             last_off_floor_s: None,
+            last_getting_up_s: None,
             down_evidence_scans: 0,
             down_evidence_lying: false,
             lying_lengths: VecDeque::new(),
@@ -568,11 +589,20 @@ impl FallDetector {
             {
                 run.counted = true;
                 let start = run.start_s;
-                if self.fell_from_upright(start) {
+                let from_upright = self.fell_from_upright(start);
+                let from_getting_up = self.fell_from_getting_up(start);
+                if from_upright || from_getting_up {
+                    let fall = PendingFall {
+                        start_s: start,
+                        counted_at_s: t,
+                        confidence: mean,
+                        from_getting_up: !from_upright,
+                        rearms: from_getting_up && self.got_up_since_fall_alert(),
+                    };
                     if self.config.fall_then_floor_s > 0.0 {
-                        self.pending_fall = Some((start, t, mean));
+                        self.pending_fall = Some(fall);
                     } else {
-                        self.raise_fall(t, start, mean, alerts);
+                        self.raise_pending_fall(t, fall, alerts);
                     }
                 } else if self.config.down_restarts_on_fall_run
                     && let Some(down) = self.down.as_mut().filter(|d| d.since_s < start)
@@ -613,10 +643,10 @@ impl FallDetector {
                 Posture::OnFloor => {
                     self.upright_since = None;
                     if !self.config.fall_lands_lying
-                        && let Some((start, run_at, confidence)) = self.pending_fall.take()
-                        && since - run_at <= self.config.fall_then_floor_s
+                        && let Some(fall) = self.pending_fall.take()
+                        && since - fall.counted_at_s <= self.config.fall_then_floor_s
                     {
-                        self.raise_fall(t, start, confidence, alerts);
+                        self.raise_pending_fall(t, fall, alerts);
                     }
                     self.start_down(since);
                     self.check_descent(t, since, best, on_floor_p, alerts);
@@ -654,6 +684,9 @@ impl FallDetector {
             && (seen == Posture::Upright || t - since >= self.config.descent_getting_up_s)
         {
             self.last_off_floor_s = Some(t);
+            if seen == Posture::GettingUp {
+                self.last_getting_up_s = Some(t);
+            }
         }
         let shows_down =
             best.is_on_floor() && (self.config.crawling_shows_down || best != Activity::Crawling);
@@ -703,8 +736,8 @@ impl FallDetector {
                 }
             }
             // Upright a while after a fall run: it was a stagger, or the fall is over.
-            if self.pending_fall.is_some_and(|(_, run_at, _)| {
-                t - since.max(run_at) >= self.config.fall_cancel_upright_s
+            if self.pending_fall.is_some_and(|fall| {
+                t - since.max(fall.counted_at_s) >= self.config.fall_cancel_upright_s
             }) {
                 self.pending_fall = None;
             }
@@ -758,7 +791,7 @@ impl FallDetector {
             self.lying_run.clear();
         }
         let window = self.config.fall_then_floor_s;
-        if let Some((_, run_at, _)) = self.pending_fall
+        if let Some(run_at) = self.pending_fall.map(|fall| fall.counted_at_s)
             && t - run_at > window
             && self
                 .lying_run
@@ -770,7 +803,7 @@ impl FallDetector {
     }
 
     fn land_pending_fall(&mut self, t: f64, alerts: &mut Vec<FallAlert>) {
-        let Some((start, run_at, confidence)) = self.pending_fall else {
+        let Some(fall) = self.pending_fall else {
             return;
         };
         let Some(since) = self.lying_run.front().map(|scan| scan.stamp_s) else {
@@ -782,13 +815,26 @@ impl FallDetector {
             .iter()
             .filter_map(|s| s.body_length_m)
             .collect();
-        if since - run_at <= self.config.fall_then_floor_s
-            && surely_lying(&mut probabilities, self.config.landing_min_probability)
+        // A run from getting up is no surer a fall than a descent from there.
+        let min_probability = if fall.from_getting_up {
+            self.config.descent_min_probability
+        } else {
+            self.config.landing_min_probability
+        };
+        if since - fall.counted_at_s <= self.config.fall_then_floor_s
+            && surely_lying(&mut probabilities, min_probability)
             && stretches_at_least(&mut lengths, self.config.landing_min_length_m)
         {
             self.pending_fall = None;
-            self.raise_fall(t, start, confidence, alerts);
+            self.raise_pending_fall(t, fall, alerts);
         }
+    }
+
+    fn raise_pending_fall(&mut self, t: f64, fall: PendingFall, alerts: &mut Vec<FallAlert>) {
+        if fall.rearms {
+            self.fall_disarmed_at = None;
+        }
+        self.raise_fall(t, fall.start_s, fall.confidence, alerts);
     }
 
     /// `FallDetected` for a `falling_down` run that began at `start` (once per incident); the
@@ -815,6 +861,22 @@ impl FallDetector {
         limit <= 0.0
             || self.last_upright_s.is_some_and(|at| start - at <= limit)
             || (self.config.fall_on_first_sight && self.first_seen_s == Some(start))
+    }
+
+    /// Whether a fall starting at `start` follows getting up as closely as
+    /// `fall_from_upright_s` asks of being upright (`fall_from_getting_up`).
+    fn fell_from_getting_up(&self, start: f64) -> bool {
+        self.config.fall_from_getting_up
+            && self
+                .last_getting_up_s
+                .is_some_and(|at| start - at <= self.config.fall_from_upright_s)
+    }
+
+    /// Whether `FallDetected` was raised and the person read as getting up after it.
+    fn got_up_since_fall_alert(&self) -> bool {
+        self.fall_disarmed_at
+            .zip(self.last_getting_up_s)
+            .is_some_and(|(alerted, getting_up)| getting_up > alerted)
     }
 
     /// Lying confirmed soon after the person was last off the floor, by a body that looks
@@ -962,6 +1024,22 @@ fn push_keeping_last<T>(window: &mut VecDeque<T>, keep: usize, value: T) {
         window.pop_front();
     }
     window.push_back(value);
+}
+
+/// A counted `falling_down` run waiting for its landing.
+#[derive(Debug, Clone, Copy)]
+struct PendingFall {
+    start_s: f64,
+    /// When it reached `fall_min_scans`.
+    counted_at_s: f64,
+    /// Its mean probability.
+    confidence: f64,
+    /// Whether it began after getting up, not after being upright (`fall_from_getting_up`):
+    /// its landing must then be as sure of lying as a descent's.
+    from_getting_up: bool,
+    /// Whether its landing re-arms `FallDetected`: it began after getting up again since the
+    /// alert.
+    rearms: bool,
 }
 
 /// A scan read as lying.
@@ -1738,7 +1816,10 @@ mod tests {
         let after_a_fall = |mut detector: FallDetector, then: &[(Activity, f64, bool)]| {
             kinds(&run(&mut detector, &[&fell[..], then].concat()))
         };
-        let without = detector_with(|c| c.rearm_getting_up_s = 0.0);
+        let without = detector_with(|c| {
+            c.rearm_getting_up_s = 0.0;
+            c.fall_from_getting_up = false;
+        });
         let up_and_back = [(GettingUp, 2.0, true), fall_back[0], fall_back[1]];
         assert_eq!(
             after_a_fall(without, &up_and_back),
@@ -1756,6 +1837,48 @@ mod tests {
             (LyingDown, 3.0, true),
         ];
         assert_eq!(after_a_fall(detector(), &broken), [AlertKind::FallDetected]);
+    }
+
+    #[test]
+    fn falling_back_after_half_a_second_of_getting_up_is_a_new_fall() {
+        // Read as getting up for 0.6 s, as falling for a moment, getting up again, then as
+        // falling and lying: never the unbroken second of getting up that re-arms.
+        let fell = [
+            (Walking, 3.0, true, None, SURE),
+            (FallingDown, 1.0, true, None, SURE),
+            (LyingDown, 3.0, true, None, SURE),
+        ];
+        let struggle = |getting_up_s: f64, lying_p: f32| {
+            [
+                (GettingUp, getting_up_s, true, None, SURE),
+                (FallingDown, 0.1, true, None, SURE),
+                (GettingUp, 0.3, true, None, SURE),
+                (FallingDown, 0.8, true, None, SURE),
+                (LyingDown, 3.0, true, None, lying_p),
+            ]
+        };
+        let alerts = |mut detector: FallDetector,
+                      then: &[(Activity, f64, bool, Option<f64>, f32)]| {
+            kinds(&run_scans(&mut detector, &[&fell[..], then].concat()))
+        };
+        let twice = [AlertKind::FallDetected, AlertKind::FallDetected];
+        assert_eq!(alerts(detector(), &struggle(0.6, SURE)), twice);
+        let without = detector_with(|c| c.fall_from_getting_up = false);
+        assert_eq!(
+            alerts(without, &struggle(0.6, SURE)),
+            [AlertKind::FallDetected]
+        );
+        // Getting up read for less than `descent_getting_up_s` each time: no new fall.
+        assert_eq!(
+            alerts(detector(), &struggle(0.3, SURE)),
+            [AlertKind::FallDetected]
+        );
+        // The landing must be as sure of lying as a descent's (0.9), not a run's from
+        // upright (0.8): a crawler read as getting up and then as falling lands with doubt.
+        assert_eq!(
+            alerts(detector(), &struggle(0.6, 0.85)),
+            [AlertKind::FallDetected]
+        );
     }
 
     #[test]

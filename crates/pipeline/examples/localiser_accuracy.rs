@@ -79,8 +79,9 @@ struct Args {
     /// Print every scan of the runs of this scene (by name) to stderr, for diagnosis.
     #[arg(long)]
     trace: Option<String>,
-    /// Write one JSON line per scan in which the person is seen (truths, Lidar position,
-    /// report, the person's points) here, for offline study of position estimators.
+    /// Write one JSON line per scan in which the person is seen (the run, truths, Lidar
+    /// position, report, the person's points, the published pelvis with
+    /// --classifier-config) here, for offline study of position estimators.
     #[arg(long)]
     dump_points: Option<PathBuf>,
     /// Also run the classifier stage with this configuration (its model and pose head) and
@@ -271,7 +272,8 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
                     classifier.as_ref(),
                     &criteria,
                     trace,
-                    dump.as_mut(),
+                    dump.as_mut()
+                        .map(|out| (out, format!("{} {motion_name} {seed}", scene.name))),
                     &mut run_activity,
                 )?;
                 runs += 1;
@@ -467,7 +469,7 @@ fn run_scene(
     classifier: Option<&ClassifierConfig>,
     criteria: &AccuracyCriteria,
     trace: bool,
-    mut dump: Option<&mut BufWriter<File>>,
+    mut dump: Option<(&mut BufWriter<File>, String)>,
     by_activity: &mut BTreeMap<usize, Group>,
 ) -> Result<(), Box<dyn Error>> {
     let map = SimMap::from_world(sim.world(), DEFAULT_RESOLUTION).to_localiser_map()?;
@@ -537,20 +539,6 @@ fn run_scene(
                 )),
             );
         }
-        if let (Some(out), Some(e), Some(person), Some(c)) =
-            (dump.as_mut(), estimate, frame.person, centre)
-            && e.visible
-        {
-            let points: Vec<[f64; 2]> = e.points.iter().map(|p| [p.x, p.y]).collect();
-            let line = serde_json::json!({
-                "scene": sim.scene().name, "activity": person.activity.to_string(),
-                "pelvis": [person.pose.x, person.pose.y, person.pose.theta],
-                "centre": [c.x, c.y], "laser": [frame.laser.x, frame.laser.y],
-                "reported": [e.position.x, e.position.y], "velocity": [e.velocity.x, e.velocity.y],
-                "person_beams": person_beams, "points": points,
-            });
-            writeln!(out, "{line}")?;
-        }
         let pelvis = match (&mut stage, &result.output, estimate) {
             (Some(stage), Some(output), Some(person)) => {
                 stage
@@ -567,6 +555,22 @@ fn run_scene(
             group.pelvis_calibration[2] += u64::from(d2 <= 4.0);
         }
         let pelvis = pelvis.map(|p| p.position);
+        if let (Some((out, run)), Some(e), Some(person), Some(c)) =
+            (dump.as_mut(), estimate, frame.person, centre)
+            && e.visible
+        {
+            let points: Vec<[f64; 2]> = e.points.iter().map(|p| [p.x, p.y]).collect();
+            let line = serde_json::json!({
+                "run": run, "stamp_ns": stamp,
+                "scene": sim.scene().name, "activity": person.activity.to_string(),
+                "pelvis": [person.pose.x, person.pose.y, person.pose.theta],
+                "centre": [c.x, c.y], "laser": [frame.laser.x, frame.laser.y],
+                "reported": [e.position.x, e.position.y], "velocity": [e.velocity.x, e.velocity.y],
+                "person_beams": person_beams, "points": points,
+                "published": pelvis.map(|p| [p.x, p.y]),
+            });
+            writeln!(out, "{line}")?;
+        }
         let reported = estimate.map(|e| ReportedPerson {
             position: e.position,
             visible: e.visible,
