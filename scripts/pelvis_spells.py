@@ -41,13 +41,18 @@ def main() -> None:
     if not 2 <= len(sys.argv) <= 4:
         sys.exit(f"usage: {sys.argv[0]} POINTS.jsonl [ACTIVITY [THRESHOLD_M]]")
     activity = sys.argv[2] if len(sys.argv) > 2 else "lying_down"
-    threshold = float(sys.argv[3]) if len(sys.argv) > 3 else 0.3
+    try:
+        threshold = float(sys.argv[3]) if len(sys.argv) > 3 else 0.3
+    except ValueError:
+        sys.exit(f"THRESHOLD_M {sys.argv[3]!r}: not a number")
     try:
         with open(sys.argv[1]) as points:
             rows = [json.loads(line) for line in points]
     except (OSError, json.JSONDecodeError) as e:
         sys.exit(f"{sys.argv[1]}: {e}")
-    if rows and "published" not in rows[0]:
+    if rows and not {"run", "stamp_ns"} <= rows[0].keys():
+        sys.exit(f"{sys.argv[1]}: no run or stamp_ns; dump again with this tree's example")
+    if rows and rows[0].get("published", "absent") == "absent":
         sys.exit(f"{sys.argv[1]}: no published pelvis; dump with --classifier-config")
     spells = spells_of(rows, activity)
     if not spells:
