@@ -265,6 +265,7 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
                     }
                 };
                 let mut run_activity: BTreeMap<usize, Group> = BTreeMap::new();
+                let run_name = format!("{} {motion_name} {seed}", scene.name);
                 let trace = args.trace.as_deref() == Some(scene.name.as_str());
                 run_scene(
                     sim,
@@ -272,8 +273,7 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
                     classifier.as_ref(),
                     &criteria,
                     trace,
-                    dump.as_mut()
-                        .map(|out| (out, format!("{} {motion_name} {seed}", scene.name))),
+                    dump.as_mut().map(|out| (out, run_name.clone())),
                     &mut run_activity,
                 )?;
                 runs += 1;
@@ -283,7 +283,7 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
                     by_activity.entry(*activity).or_default().merge(group);
                 }
                 if args.per_run {
-                    print_row(&format!("{} {motion_name} {seed}", scene.name), &run);
+                    print_row(&run_name, &run);
                 }
                 by_scene.entry(scene.name.clone()).or_default().merge(&run);
                 by_motion.entry(motion_name).or_default().merge(&run);
