@@ -22,7 +22,9 @@
 //!   the classifier is sure of it: on those of the scans it reads as lying, `lying_down` has
 //!   at least `descent_min_probability` on most (a fallen body lies still and reads as lying
 //!   at once; a crawler the model takes for lying for a moment keeps moving, and the model
-//!   hesitates).
+//!   hesitates). A descent from upright that the classifier read as falling on a few scans
+//!   in pieces (`broken_fall_run_scans`), never on `fall_min_scans` in a row, is evidence as
+//!   a run is, and lands on lying as a run does (`landing_min_probability`).
 //! - `PersonDown`: the person has been on the floor (lying, sitting on the floor or crawling,
 //!   [`Activity::is_on_floor`]) for `down_after_s` without being seen getting up. The clock
 //!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
@@ -161,6 +163,18 @@ pub struct FallAlertConfig {
     /// left were crawlers read at up to 0.9): `lidar-har alerts`, docs/classifier.md.
     /// 0 drops the check.
     pub descent_min_probability: f64,
+    /// A descent from upright that the classifier read as falling on at least this many
+    /// scans since the person was last read upright, though never on `fall_min_scans` in a
+    /// row, lands as a `falling_down` run does: on the first `confirm_scans` scans read as
+    /// lying, at `landing_min_probability` rather than `descent_min_probability`. A fall seen
+    /// in full view was read as falling on 2 and 3 scans with sitting between, then as lying
+    /// at 0.58-0.94 (seed 1 episode 9 of `lidar-har alerts`, docs/classifier.md, session
+    /// 39). 0 turns this off.
+    pub broken_fall_run_scans: u32,
+    /// ... and only after the person had been upright for this long: a crawler read as
+    /// walking for 0.8-1 s, then as falling on a few scans and as lying, fell nowhere (seeds
+    /// 1, 5 and 6 of `lidar-har alerts`). Seconds.
+    pub broken_fall_run_upright_s: f64,
     /// `PersonDown` waits while any scan since the person was last confirmed on the floor
     /// (`down_seen_within_s`) read them upright or getting up, even unconfirmed: a person
     /// seen on the floor who gets up where the robot sees them only in glimpses is otherwise
@@ -245,6 +259,8 @@ impl Default for FallAlertConfig {
             fall_from_getting_up: true,
             descent_min_length_m: 0.8,
             descent_min_probability: 0.9,
+            broken_fall_run_scans: 3,
+            broken_fall_run_upright_s: 1.5,
             down_waits_on_upright_glimpse: true,
             down_seen_within_s: 5.0,
             crawling_shows_down: false,
@@ -307,6 +323,7 @@ impl FallAlertConfig {
         at_least_zero("descent_max_s", self.descent_max_s)?;
         at_least_zero("descent_getting_up_s", self.descent_getting_up_s)?;
         at_least_zero("fall_from_upright_s", self.fall_from_upright_s)?;
+        at_least_zero("broken_fall_run_upright_s", self.broken_fall_run_upright_s)?;
         at_least_zero("descent_min_length_m", self.descent_min_length_m)?;
         at_least_zero("landing_min_length_m", self.landing_min_length_m)?;
         at_least_zero("down_seen_within_s", self.down_seen_within_s)?;
@@ -423,6 +440,10 @@ pub struct FallDetector {
     posture: Option<(Posture, f64)>,
     /// The last visible scan classified upright while the confirmed posture was upright.
     last_upright_s: Option<f64>,
+    /// How long the person had been upright by then (`upright_since` to `last_upright_s`).
+    last_upright_for_s: f64,
+    /// The scans read as falling since `last_upright_s`: a fall read in pieces.
+    broken_fall_run: Option<BrokenFallRun>,
     /// The same for upright or getting up (`descent_getting_up_s` into it): what a descent
     /// starts from.
     last_off_floor_s: Option<f64>,
@@ -476,6 +497,8 @@ impl FallDetector {
             lying_run: VecDeque::new(),
             posture: None,
             last_upright_s: None,
+            last_upright_for_s: 0.0,
+            broken_fall_run: None,
             last_off_floor_s: None,
             last_getting_up_s: None,
             down_evidence_scans: 0,
@@ -575,6 +598,13 @@ impl FallDetector {
 
         // Fall: consecutive scans read as falling_down, confidently on average.
         if best == Activity::FallingDown {
+            self.broken_fall_run
+                .get_or_insert(BrokenFallRun {
+                    start_s: t,
+                    scans: 0,
+                    probability_sum: 0.0,
+                })
+                .add(best_p);
             let min_scans = self.config.fall_min_scans as usize;
             let run = self.fall_run.get_or_insert_with(|| FallRun {
                 start_s: t,
@@ -667,6 +697,8 @@ impl FallDetector {
         let confirmed = self.posture.map(|(p, _)| p);
         if seen == Posture::Upright && confirmed == Some(Posture::Upright) {
             self.last_upright_s = Some(t);
+            self.last_upright_for_s = self.upright_since.map_or(0.0, |since| t - since);
+            self.broken_fall_run = None;
         }
         // Up again: confirmed getting up, or upright for `down_ends_upright_s`.
         if let Some((posture, since)) = self.posture
@@ -783,9 +815,13 @@ impl FallDetector {
                 probability: f64::from(best_p),
                 body_length_m,
             };
+            let first_landing = self.lying_run.len() + 1 == confirm;
             push_keeping_last(&mut self.lying_run, confirm, scan);
             if self.lying_run.len() == confirm && self.config.fall_lands_lying {
                 self.land_pending_fall(t, alerts);
+                if first_landing {
+                    self.land_broken_fall_run(t, alerts);
+                }
             }
         } else {
             self.lying_run.clear();
@@ -827,6 +863,44 @@ impl FallDetector {
         {
             self.pending_fall = None;
             self.raise_pending_fall(t, fall, alerts);
+        }
+    }
+
+    /// With `broken_fall_run_scans`, raises the fall read in pieces since the person was last
+    /// upright once the first `confirm_scans` scans of a lying run are a landing (as
+    /// [`Self::land_pending_fall`]'s) that began within `descent_max_s` of being upright.
+    /// Only the first: a body on the floor read with doubt for a second or more, and in
+    /// part, lay there all along (seed 7 episode 41: misread standing for 2 s, then falling
+    /// on 4 scans, then lying that stretched 0.8 m only 1.25 s on).
+    fn land_broken_fall_run(&mut self, t: f64, alerts: &mut Vec<FallAlert>) {
+        let min_scans = self.config.broken_fall_run_scans;
+        let (Some(run), Some(upright_at), Some(since)) = (
+            self.broken_fall_run,
+            self.last_upright_s,
+            self.lying_run.front().map(|scan| scan.stamp_s),
+        ) else {
+            return;
+        };
+        if min_scans == 0
+            || run.scans < min_scans
+            || self.pending_fall.is_some()
+            || self.fall_disarmed_at.is_some()
+            || self.last_upright_for_s < self.config.broken_fall_run_upright_s
+            || since - upright_at > self.config.descent_max_s
+        {
+            return;
+        }
+        let mut probabilities: Vec<f64> = self.lying_run.iter().map(|s| s.probability).collect();
+        let mut lengths: Vec<f64> = self
+            .lying_run
+            .iter()
+            .filter_map(|s| s.body_length_m)
+            .collect();
+        if surely_lying(&mut probabilities, self.config.landing_min_probability)
+            && stretches_at_least(&mut lengths, self.config.descent_min_length_m)
+        {
+            self.broken_fall_run = None;
+            self.raise_fall(t, run.start_s, run.mean_probability(), alerts);
         }
     }
 
@@ -974,6 +1048,25 @@ struct FallRun {
     recent: VecDeque<f64>,
     /// Whether it has reached `fall_probability` on average (counted once).
     counted: bool,
+}
+
+/// The scans read as `falling_down` since the person was last read upright, in a row or not.
+#[derive(Debug, Clone, Copy)]
+struct BrokenFallRun {
+    start_s: f64,
+    scans: u32,
+    probability_sum: f64,
+}
+
+impl BrokenFallRun {
+    fn add(&mut self, probability: f32) {
+        self.scans += 1;
+        self.probability_sum += f64::from(probability);
+    }
+
+    fn mean_probability(&self) -> f64 {
+        self.probability_sum / f64::from(self.scans.max(1))
+    }
 }
 
 /// The incident the person is down in.
@@ -1879,6 +1972,51 @@ mod tests {
             alerts(detector(), &struggle(0.6, 0.85)),
             [AlertKind::FallDetected]
         );
+    }
+
+    #[test]
+    fn a_fall_read_as_falling_only_in_pieces_lands_like_a_fall_run() {
+        const BODY: Option<f64> = Some(1.4);
+        // Read as falling on 2 scans, sitting on 4, falling on 3: never fall_min_scans in a
+        // row. Then lying at `lying_p` for `doubt_s`, and surely after.
+        let fall_in_pieces = |lying_p: f32, doubt_s: f64| {
+            [
+                (FallingDown, 0.1, true, BODY, 0.5),
+                (SittingOnFloor, 0.2, true, BODY, 0.5),
+                (FallingDown, 0.15, true, BODY, 0.5),
+                (LyingDown, doubt_s, true, BODY, lying_p),
+                (LyingDown, 3.0, true, BODY, SURE),
+            ]
+        };
+        let alerts = |mut detector: FallDetector,
+                      before: &[(Activity, f64, bool, Option<f64>, f32)],
+                      fall: &[(Activity, f64, bool, Option<f64>, f32)]| {
+            run_scans(&mut detector, &[before, fall].concat())
+        };
+        let walked = [(Walking, 3.0, true, BODY, SURE)];
+        // Lying at 0.85: a landing (0.8), not a descent (0.9). Dated from the first piece.
+        let fell = alerts(detector(), &walked, &fall_in_pieces(0.85, 0.25));
+        assert_eq!(kinds(&fell), [AlertKind::FallDetected]);
+        assert!((fell[0].event_time_s - 3.0).abs() < 1e-9);
+        let off = detector_with(|c| c.broken_fall_run_scans = 0);
+        assert!(alerts(off, &walked, &fall_in_pieces(0.85, 0.25)).is_empty());
+        // Lying at 0.7 at first: no landing, and only the first scans of the lying count,
+        // so none when it is read surely a moment later either.
+        assert!(alerts(detector(), &walked, &fall_in_pieces(0.7, 0.25)).is_empty());
+        // Upright only 1 s after crawling (`broken_fall_run_upright_s`): no fall.
+        let crawled_then_walked = [
+            (Crawling, 3.0, true, BODY, SURE),
+            (Walking, 1.0, true, BODY, SURE),
+        ];
+        let crawler = alerts(
+            detector(),
+            &crawled_then_walked,
+            &fall_in_pieces(0.85, 0.25),
+        );
+        assert!(!kinds(&crawler).contains(&AlertKind::FallDetected));
+        let sooner = detector_with(|c| c.broken_fall_run_upright_s = 0.5);
+        let crawler = alerts(sooner, &crawled_then_walked, &fall_in_pieces(0.85, 0.25));
+        assert!(kinds(&crawler).contains(&AlertKind::FallDetected));
     }
 
     #[test]
