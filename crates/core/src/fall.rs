@@ -845,12 +845,6 @@ impl FallDetector {
         let Some(since) = self.lying_run.front().map(|scan| scan.stamp_s) else {
             return;
         };
-        let mut probabilities: Vec<f64> = self.lying_run.iter().map(|s| s.probability).collect();
-        let mut lengths: Vec<f64> = self
-            .lying_run
-            .iter()
-            .filter_map(|s| s.body_length_m)
-            .collect();
         // A run from getting up is no surer a fall than a descent from there.
         let min_probability = if fall.from_getting_up {
             self.config.descent_min_probability
@@ -858,8 +852,7 @@ impl FallDetector {
             self.config.landing_min_probability
         };
         if since - fall.counted_at_s <= self.config.fall_then_floor_s
-            && surely_lying(&mut probabilities, min_probability)
-            && stretches_at_least(&mut lengths, self.config.landing_min_length_m)
+            && self.lying_run_is_a_landing(min_probability, self.config.landing_min_length_m)
         {
             self.pending_fall = None;
             self.raise_pending_fall(t, fall, alerts);
@@ -890,18 +883,27 @@ impl FallDetector {
         {
             return;
         }
+        if self.lying_run_is_a_landing(
+            self.config.landing_min_probability,
+            self.config.descent_min_length_m,
+        ) {
+            self.broken_fall_run = None;
+            self.raise_fall(t, run.start_s, run.mean_probability(), alerts);
+        }
+    }
+
+    /// Whether the lying run (the last `confirm_scans` scans, all read as lying) is a
+    /// landing: a median p(lying_down) of at least `min_probability`, and the person's
+    /// points stretching a median `min_length_m`.
+    fn lying_run_is_a_landing(&self, min_probability: f64, min_length_m: f64) -> bool {
         let mut probabilities: Vec<f64> = self.lying_run.iter().map(|s| s.probability).collect();
         let mut lengths: Vec<f64> = self
             .lying_run
             .iter()
             .filter_map(|s| s.body_length_m)
             .collect();
-        if surely_lying(&mut probabilities, self.config.landing_min_probability)
-            && stretches_at_least(&mut lengths, self.config.descent_min_length_m)
-        {
-            self.broken_fall_run = None;
-            self.raise_fall(t, run.start_s, run.mean_probability(), alerts);
-        }
+        surely_lying(&mut probabilities, min_probability)
+            && stretches_at_least(&mut lengths, min_length_m)
     }
 
     fn raise_pending_fall(&mut self, t: f64, fall: PendingFall, alerts: &mut Vec<FallAlert>) {
