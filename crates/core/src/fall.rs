@@ -817,8 +817,10 @@ impl FallDetector {
             };
             let first_landing = self.lying_run.len() + 1 == confirm;
             push_keeping_last(&mut self.lying_run, confirm, scan);
-            if self.lying_run.len() == confirm && self.config.fall_lands_lying {
-                self.land_pending_fall(t, alerts);
+            if self.lying_run.len() == confirm {
+                if self.config.fall_lands_lying {
+                    self.land_pending_fall(t, alerts);
+                }
                 if first_landing {
                     self.land_broken_fall_run(t, alerts);
                 }
