@@ -108,6 +108,8 @@ pub struct AlertsReport {
     pub falls_alerted_within_target: usize,
     pub latency_target_s: f64,
     pub latency_s: Option<Spread>,
+    /// The falls not alerted within the latency target, by why not.
+    pub falls_not_in_time: Shortfall,
     /// Alerts in the fall (and stay-down) episodes that answered no fall.
     pub unmatched_alerts_in_fall_episodes: usize,
     /// `FALL_DETECTED` alerts after the first in the same fall's window (until the next fall):
@@ -142,6 +144,44 @@ pub struct AlertsReport {
     /// The streaming classification over every episode, one sample per scan the classifier
     /// publishes (person seen, model history ready), against the true activity at that scan.
     pub scans: MetricsReport,
+}
+
+/// The falls not alerted within the latency target, by why not: where the misses are.
+#[derive(Debug, Clone, Default, Serialize, PartialEq)]
+pub struct Shortfall {
+    /// Alerted, but after the target (a late `FALL_DETECTED`, or only `PERSON_DOWN`).
+    pub late: usize,
+    /// Without an alert of their own by design ([`FallOutcome::unalerted_because`]).
+    pub at_episode_start: usize,
+    pub inside_alerted_incident: usize,
+    pub at_episode_end: usize,
+    /// Without an alert, the person seen in under half of the fall's scans: behind
+    /// furniture, for `PERSON_DOWN` to find.
+    pub hidden: usize,
+    /// Without an alert, in view for at least half of them: misread by the classifier or
+    /// missed by the alert rules.
+    pub in_view: usize,
+}
+
+impl Shortfall {
+    fn of(outcomes: &[FallOutcome], latency_target_s: f64) -> Self {
+        let mut shortfall = Self::default();
+        for outcome in outcomes {
+            let count = match (outcome.latency_s, outcome.unalerted_because) {
+                (Some(latency), _) if latency <= latency_target_s => continue,
+                (Some(_), _) => &mut shortfall.late,
+                (None, Some("at the episode's start")) => &mut shortfall.at_episode_start,
+                (None, Some("inside an alerted incident")) => {
+                    &mut shortfall.inside_alerted_incident
+                }
+                (None, Some(_)) => &mut shortfall.at_episode_end,
+                (None, None) if outcome.seen_share < 0.5 => &mut shortfall.hidden,
+                (None, None) => &mut shortfall.in_view,
+            };
+            *count += 1;
+        }
+        shortfall
+    }
 }
 
 /// An alert in an episode without falls, with the truth around it.
@@ -392,6 +432,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
             .count(),
         latency_target_s: args.latency_target_s,
         latency_s: Spread::of(latencies),
+        falls_not_in_time: Shortfall::of(&outcomes, args.latency_target_s),
         unmatched_alerts_in_fall_episodes: unmatched,
         repeated_fall_alerts: repeated,
         no_fall_hours,
@@ -756,27 +797,18 @@ fn print_report(r: &AlertsReport) {
             l.max
         );
     }
-    for reason in [
-        "at the episode's start",
-        "inside an alerted incident",
-        "at the episode's end",
-    ] {
-        let n = r
-            .outcomes
-            .iter()
-            .filter(|o| o.unalerted_because == Some(reason))
-            .count();
-        outln!("falls without an alert of their own, {reason}: {n}");
-    }
-    let missed: Vec<&FallOutcome> = r
-        .outcomes
-        .iter()
-        .filter(|o| o.alert.is_none() && o.unalerted_because.is_none())
-        .collect();
+    let s = &r.falls_not_in_time;
     outln!(
-        "falls missed outright: {}, of them hidden for most of the fall (seen in under half its scans): {}",
-        missed.len(),
-        missed.iter().filter(|o| o.seen_share < 0.5).count()
+        "falls not alerted within {:.1} s: alerted later {}; without an alert at the episode's \
+         start {}, inside an alerted incident {}, at the episode's end {}, hidden for most of \
+         the fall {}, in view {}",
+        r.latency_target_s,
+        s.late,
+        s.at_episode_start,
+        s.inside_alerted_incident,
+        s.at_episode_end,
+        s.hidden,
+        s.in_view,
     );
     outln!(
         "alerts in fall episodes before any fall: {}; falls alerted twice (FALL_DETECTED): {}",
@@ -940,6 +972,39 @@ mod tests {
         assert_eq!(latencies[2], None);
         assert_eq!(outcomes[1].alert, Some("PERSON_DOWN"));
         assert!(outcomes.iter().all(|o| o.episode == 3));
+    }
+
+    #[test]
+    fn falls_not_alerted_in_time_are_counted_by_why_not() {
+        let outcome = |latency_s, unalerted_because, seen_share| FallOutcome {
+            episode: 0,
+            start_s: 10.0,
+            end_s: 11.0,
+            latency_s,
+            alert: latency_s.map(|_| "FALL_DETECTED"),
+            seen_share,
+            unalerted_because,
+        };
+        let outcomes = [
+            outcome(Some(0.4), None, 1.0),
+            outcome(Some(1.0), None, 1.0),
+            outcome(Some(1.6), None, 1.0),
+            outcome(None, Some("at the episode's start"), 1.0),
+            outcome(None, Some("inside an alerted incident"), 1.0),
+            outcome(None, Some("at the episode's end"), 1.0),
+            outcome(None, None, 0.2),
+            outcome(None, None, 0.5),
+            outcome(None, None, 0.9),
+        ];
+        let expected = Shortfall {
+            late: 1,
+            at_episode_start: 1,
+            inside_alerted_incident: 1,
+            at_episode_end: 1,
+            hidden: 1,
+            in_view: 2,
+        };
+        assert_eq!(Shortfall::of(&outcomes, 1.0), expected);
     }
 
     #[test]
