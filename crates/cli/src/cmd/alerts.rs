@@ -146,6 +146,11 @@ pub struct AlertsReport {
     pub scans: MetricsReport,
 }
 
+/// The reasons of [`FallOutcome::unalerted_because`].
+const AT_EPISODE_START: &str = "at the episode's start";
+const INSIDE_ALERTED_INCIDENT: &str = "inside an alerted incident";
+const AT_EPISODE_END: &str = "at the episode's end";
+
 /// The falls not alerted within the latency target, by why not: where the misses are.
 #[derive(Debug, Clone, Default, Serialize, PartialEq)]
 pub struct Shortfall {
@@ -170,10 +175,8 @@ impl Shortfall {
             let count = match (outcome.latency_s, outcome.unalerted_because) {
                 (Some(latency), _) if latency <= latency_target_s => continue,
                 (Some(_), _) => &mut shortfall.late,
-                (None, Some("at the episode's start")) => &mut shortfall.at_episode_start,
-                (None, Some("inside an alerted incident")) => {
-                    &mut shortfall.inside_alerted_incident
-                }
+                (None, Some(AT_EPISODE_START)) => &mut shortfall.at_episode_start,
+                (None, Some(INSIDE_ALERTED_INCIDENT)) => &mut shortfall.inside_alerted_incident,
                 (None, Some(_)) => &mut shortfall.at_episode_end,
                 (None, None) if outcome.seen_share < 0.5 => &mut shortfall.hidden,
                 (None, None) => &mut shortfall.in_view,
@@ -718,13 +721,13 @@ fn explain_unalerted(
             continue;
         }
         if first_scan == Some(outcome.start_s) {
-            outcome.unalerted_because = Some("at the episode's start");
+            outcome.unalerted_because = Some(AT_EPISODE_START);
         } else if let Some(at) = alerted_at
             && !rearmed_between(truth, at, outcome.start_s, fall_alert)
         {
-            outcome.unalerted_because = Some("inside an alerted incident");
+            outcome.unalerted_because = Some(INSIDE_ALERTED_INCIDENT);
         } else if last_scan - outcome.end_s < latency_target_s {
-            outcome.unalerted_because = Some("at the episode's end");
+            outcome.unalerted_because = Some(AT_EPISODE_END);
         }
     }
 }
