@@ -24,7 +24,9 @@
 //!   at once; a crawler the model takes for lying for a moment keeps moving, and the model
 //!   hesitates). A descent from upright that the classifier read as falling on a few scans
 //!   in pieces (`broken_fall_run_scans`), never on `fall_min_scans` in a row, is evidence as
-//!   a run is, and lands on lying as a run does (`landing_min_probability`).
+//!   a run is, and lands on lying as a run does (`landing_min_probability`); so does a fall
+//!   back down read in pieces after `descent_getting_up_s` of getting up, landing as a run
+//!   from getting up does.
 //! - `PersonDown`: the person has been on the floor (lying, sitting on the floor or crawling,
 //!   [`Activity::is_on_floor`]) for `down_after_s` without being seen getting up. The clock
 //!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
@@ -169,7 +171,10 @@ pub struct FallAlertConfig {
     /// lying, at `landing_min_probability` rather than `descent_min_probability`. A fall seen
     /// in full view was read as falling on 2 and 3 scans with sitting between, then as lying
     /// at 0.58-0.94 (seed 1 episode 9 of `lidar-har alerts`, docs/classifier.md, session
-    /// 39). 0 turns this off.
+    /// 39). With `fall_from_getting_up`, the same holds for a fall back down after the
+    /// person was read as getting up for `descent_getting_up_s`, landing at
+    /// `descent_min_probability` and re-arming the alert as such a run does (session 40).
+    /// 0 turns this off.
     pub broken_fall_run_scans: u32,
     /// ... and only after the person had been upright for this long: a crawler read as
     /// walking for 0.8-1 s, then as falling on a few scans and as lying, fell nowhere (seeds
@@ -444,6 +449,9 @@ pub struct FallDetector {
     last_upright_for_s: f64,
     /// The scans read as falling since `last_upright_s`: a fall read in pieces.
     broken_fall_run: Option<BrokenFallRun>,
+    /// The scans read as falling since the person was last read as getting up for
+    /// `descent_getting_up_s`: a fall back down read in pieces.
+    broken_fall_run_after_getting_up: Option<BrokenFallRun>,
     /// The same for upright or getting up (`descent_getting_up_s` into it): what a descent
     /// starts from.
     last_off_floor_s: Option<f64>,
@@ -499,6 +507,7 @@ impl FallDetector {
             last_upright_s: None,
             last_upright_for_s: 0.0,
             broken_fall_run: None,
+            broken_fall_run_after_getting_up: None,
             last_off_floor_s: None,
             last_getting_up_s: None,
             down_evidence_scans: 0,
@@ -598,13 +607,17 @@ impl FallDetector {
 
         // Fall: consecutive scans read as falling_down, confidently on average.
         if best == Activity::FallingDown {
-            self.broken_fall_run
-                .get_or_insert(BrokenFallRun {
+            for run in [
+                &mut self.broken_fall_run,
+                &mut self.broken_fall_run_after_getting_up,
+            ] {
+                run.get_or_insert(BrokenFallRun {
                     start_s: t,
                     scans: 0,
                     probability_sum: 0.0,
                 })
                 .add(best_p);
+            }
             let min_scans = self.config.fall_min_scans as usize;
             let run = self.fall_run.get_or_insert_with(|| FallRun {
                 start_s: t,
@@ -718,6 +731,7 @@ impl FallDetector {
             self.last_off_floor_s = Some(t);
             if seen == Posture::GettingUp {
                 self.last_getting_up_s = Some(t);
+                self.broken_fall_run_after_getting_up = None;
             }
         }
         let shows_down =
@@ -823,6 +837,7 @@ impl FallDetector {
                 }
                 if first_landing {
                     self.land_broken_fall_run(t, alerts);
+                    self.land_broken_fall_run_after_getting_up(t, alerts);
                 }
             }
         } else {
@@ -868,30 +883,66 @@ impl FallDetector {
     /// part, lay there all along (seed 7 episode 41: misread standing for 2 s, then falling
     /// on 4 scans, then lying that stretched 0.8 m only 1.25 s on).
     fn land_broken_fall_run(&mut self, t: f64, alerts: &mut Vec<FallAlert>) {
-        let min_scans = self.config.broken_fall_run_scans;
-        let (Some(run), Some(upright_at), Some(since)) = (
-            self.broken_fall_run,
-            self.last_upright_s,
-            self.lying_run.front().map(|scan| scan.stamp_s),
-        ) else {
-            return;
-        };
-        if min_scans == 0
-            || run.scans < min_scans
-            || self.pending_fall.is_some()
-            || self.fall_disarmed_at.is_some()
+        if self.fall_disarmed_at.is_some()
             || self.last_upright_for_s < self.config.broken_fall_run_upright_s
-            || since - upright_at > self.config.descent_max_s
         {
             return;
         }
-        if self.lying_run_is_a_landing(
+        if let Some(run) = self.broken_run_landing(
+            self.broken_fall_run,
+            self.last_upright_s,
             self.config.landing_min_probability,
-            self.config.descent_min_length_m,
         ) {
             self.broken_fall_run = None;
             self.raise_fall(t, run.start_s, run.mean_probability(), alerts);
         }
+    }
+
+    /// The same for a fall back down read in pieces since the person was last read as getting
+    /// up (`descent_getting_up_s` into it), landing as surely as a descent's and re-arming the
+    /// alert as a run from getting up does (`fall_from_getting_up`).
+    fn land_broken_fall_run_after_getting_up(&mut self, t: f64, alerts: &mut Vec<FallAlert>) {
+        let rearms = self.got_up_since_fall_alert();
+        let upright_since_getting_up = self
+            .last_upright_s
+            .zip(self.last_getting_up_s)
+            .is_some_and(|(upright, getting_up)| upright > getting_up);
+        if !self.config.fall_from_getting_up
+            || (self.fall_disarmed_at.is_some() && !rearms)
+            || upright_since_getting_up
+        {
+            return;
+        }
+        if let Some(run) = self.broken_run_landing(
+            self.broken_fall_run_after_getting_up,
+            self.last_getting_up_s,
+            self.config.descent_min_probability,
+        ) {
+            self.broken_fall_run_after_getting_up = None;
+            if rearms {
+                self.fall_disarmed_at = None;
+            }
+            self.raise_fall(t, run.start_s, run.mean_probability(), alerts);
+        }
+    }
+
+    /// `run` when it has `broken_fall_run_scans`, no run is pending, and the lying run is a
+    /// landing at `min_probability` that began within `descent_max_s` of `off_floor_at`.
+    fn broken_run_landing(
+        &self,
+        run: Option<BrokenFallRun>,
+        off_floor_at: Option<f64>,
+        min_probability: f64,
+    ) -> Option<BrokenFallRun> {
+        let (run, off_floor_at) = (run?, off_floor_at?);
+        let lying_since = self.lying_run.front()?.stamp_s;
+        let min_scans = self.config.broken_fall_run_scans;
+        (min_scans > 0
+            && run.scans >= min_scans
+            && self.pending_fall.is_none()
+            && lying_since - off_floor_at <= self.config.descent_max_s
+            && self.lying_run_is_a_landing(min_probability, self.config.descent_min_length_m))
+        .then_some(run)
     }
 
     /// Whether the lying run (the last `confirm_scans` scans, all read as lying) is a
@@ -1976,6 +2027,55 @@ mod tests {
             alerts(detector(), &struggle(0.6, 0.85)),
             [AlertKind::FallDetected]
         );
+    }
+
+    #[test]
+    fn a_fall_back_down_read_as_falling_only_in_pieces_is_a_new_fall() {
+        const BODY: Option<f64> = Some(1.4);
+        let fell = [
+            (Walking, 3.0, true, BODY, SURE),
+            (FallingDown, 1.0, true, BODY, SURE),
+            (LyingDown, 3.0, true, BODY, SURE),
+        ];
+        // Read as getting up, then as falling on 2 scans, getting up on 4 and falling on 3:
+        // never `fall_min_scans` in a row, nor the unbroken second that re-arms.
+        let struggle = |getting_up_s: f64, lying_p: f32| {
+            [
+                (GettingUp, getting_up_s, true, BODY, SURE),
+                (FallingDown, 0.1, true, BODY, 0.5),
+                (GettingUp, 0.2, true, BODY, SURE),
+                (FallingDown, 0.15, true, BODY, 0.5),
+                (LyingDown, 3.0, true, BODY, lying_p),
+            ]
+        };
+        let alerts = |mut detector: FallDetector,
+                      then: &[(Activity, f64, bool, Option<f64>, f32)]| {
+            run_scans(&mut detector, &[&fell[..], then].concat())
+        };
+        let again = alerts(detector(), &struggle(0.6, SURE));
+        assert_eq!(
+            kinds(&again),
+            [AlertKind::FallDetected, AlertKind::FallDetected]
+        );
+        // Dated from the first piece: 3 s walking, 1 s falling, 3 s lying, 0.6 s getting up.
+        assert!((again[1].event_time_s - 7.6).abs() < 1e-9);
+        for off in [
+            detector_with(|c| c.broken_fall_run_scans = 0),
+            detector_with(|c| c.fall_from_getting_up = false),
+        ] {
+            assert_eq!(
+                kinds(&alerts(off, &struggle(0.6, SURE))),
+                [AlertKind::FallDetected]
+            );
+        }
+        // Getting up read for less than `descent_getting_up_s`, or a landing read as lying
+        // with doubt (0.85, below a descent's 0.9): no new fall.
+        for (getting_up_s, lying_p) in [(0.3, SURE), (0.6, 0.85)] {
+            assert_eq!(
+                kinds(&alerts(detector(), &struggle(getting_up_s, lying_p))),
+                [AlertKind::FallDetected]
+            );
+        }
     }
 
     #[test]
