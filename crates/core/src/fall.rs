@@ -152,6 +152,12 @@ pub struct FallAlertConfig {
     /// the run did not start from upright (15 of the 80 falls missed on seeds 1-5 of
     /// `lidar-har alerts`, docs/classifier.md, session 38). False: from upright only.
     pub fall_from_getting_up: bool,
+    /// ... but a run from getting up whose mean over `fall_min_scans` scans reaches this at
+    /// any point lands at `landing_min_probability`, as a run from upright does: the crawler
+    /// above was read as falling at a mean of 0.7, while a person who fell back, read as
+    /// falling on 14 scans at a mean of up to 0.81, landed on lying read at 0.73-0.90 and was
+    /// alerted 2 s late (seed 1 episode 5, docs/classifier.md, session 40). 0 turns this off.
+    pub sure_fall_run_probability: f64,
     /// A descent counts only when, over the scans that confirm lying, the person's points
     /// stretch at least this far along their main axis (the median of those scans): a body on
     /// the floor is over a metre long at ankle height, while a standing person the classifier
@@ -262,6 +268,7 @@ impl Default for FallAlertConfig {
             fall_from_upright_s: 3.0,
             fall_on_first_sight: true,
             fall_from_getting_up: true,
+            sure_fall_run_probability: 0.8,
             descent_min_length_m: 0.8,
             descent_min_probability: 0.9,
             broken_fall_run_scans: 3,
@@ -344,6 +351,7 @@ impl FallAlertConfig {
         at_least_zero("down_travel_m", self.down_travel_m)?;
         at_least_zero("down_travel_within_s", self.down_travel_within_s)?;
         probability("landing_min_probability", self.landing_min_probability)?;
+        probability("sure_fall_run_probability", self.sure_fall_run_probability)?;
         probability("descent_min_probability", self.descent_min_probability)
     }
 }
@@ -626,6 +634,13 @@ impl FallDetector {
             });
             push_keeping_last(&mut run.recent, min_scans, f64::from(best_p));
             let mean = run.recent.iter().sum::<f64>() / run.recent.len() as f64;
+            // A pending run read ever more surely falling (`sure_fall_run_probability`).
+            if run.counted
+                && let Some(fall) = self.pending_fall.as_mut()
+                && fall.start_s == run.start_s
+            {
+                fall.peak_confidence = fall.peak_confidence.max(mean);
+            }
             if !run.counted
                 && run.recent.len() == min_scans
                 && mean >= f64::from(self.config.fall_probability)
@@ -639,6 +654,7 @@ impl FallDetector {
                         start_s: start,
                         counted_at_s: t,
                         confidence: mean,
+                        peak_confidence: mean,
                         from_getting_up: !from_upright,
                         rearms: from_getting_up && self.got_up_since_fall_alert(),
                     };
@@ -863,7 +879,9 @@ impl FallDetector {
             return;
         };
         // A run from getting up is no surer a fall than a descent from there.
-        let min_probability = if fall.from_getting_up {
+        let sure = self.config.sure_fall_run_probability;
+        let surely_falling = sure > 0.0 && fall.peak_confidence >= sure;
+        let min_probability = if fall.from_getting_up && !surely_falling {
             self.config.descent_min_probability
         } else {
             self.config.landing_min_probability
@@ -1180,8 +1198,10 @@ struct PendingFall {
     start_s: f64,
     /// When it reached `fall_min_scans`.
     counted_at_s: f64,
-    /// Its mean probability.
+    /// Its mean probability when counted.
     confidence: f64,
+    /// The highest mean over `fall_min_scans` scans it has reached since.
+    peak_confidence: f64,
     /// Whether it began after getting up, not after being upright (`fall_from_getting_up`):
     /// its landing must then be as sure of lying as a descent's.
     from_getting_up: bool,
@@ -1996,15 +2016,16 @@ mod tests {
             (FallingDown, 1.0, true, None, SURE),
             (LyingDown, 3.0, true, None, SURE),
         ];
-        let struggle = |getting_up_s: f64, lying_p: f32| {
+        let struggle_read = |getting_up_s: f64, falling_p: f32, lying_p: f32| {
             [
                 (GettingUp, getting_up_s, true, None, SURE),
                 (FallingDown, 0.1, true, None, SURE),
                 (GettingUp, 0.3, true, None, SURE),
-                (FallingDown, 0.8, true, None, SURE),
+                (FallingDown, 0.8, true, None, falling_p),
                 (LyingDown, 3.0, true, None, lying_p),
             ]
         };
+        let struggle = |getting_up_s: f64, lying_p: f32| struggle_read(getting_up_s, 0.75, lying_p);
         let alerts = |mut detector: FallDetector,
                       then: &[(Activity, f64, bool, Option<f64>, f32)]| {
             kinds(&run_scans(&mut detector, &[&fell[..], then].concat()))
@@ -2025,6 +2046,13 @@ mod tests {
         // upright (0.8): a crawler read as getting up and then as falling lands with doubt.
         assert_eq!(
             alerts(detector(), &struggle(0.6, 0.85)),
+            [AlertKind::FallDetected]
+        );
+        // ... unless the run was read surely falling (`sure_fall_run_probability`).
+        assert_eq!(alerts(detector(), &struggle_read(0.6, SURE, 0.85)), twice);
+        let never_sure = detector_with(|c| c.sure_fall_run_probability = 0.0);
+        assert_eq!(
+            alerts(never_sure, &struggle_read(0.6, SURE, 0.85)),
             [AlertKind::FallDetected]
         );
     }
