@@ -878,7 +878,8 @@ impl FallDetector {
         let Some(since) = self.lying_run.front().map(|scan| scan.stamp_s) else {
             return;
         };
-        // A run from getting up is no surer a fall than a descent from there.
+        // A run from getting up is no surer a fall than a descent from there, unless it was
+        // read surely falling.
         let sure = self.config.sure_fall_run_probability;
         let surely_falling = sure > 0.0 && fall.peak_confidence >= sure;
         let min_probability = if fall.from_getting_up && !surely_falling {
