@@ -121,6 +121,12 @@ pub struct FallAlertConfig {
     /// standing for a few tenths of a second every few seconds, and each such moment
     /// restarted the `down_after_s` clock. Seconds; 0: at the upright posture's confirmation.
     pub down_ends_upright_s: f64,
+    /// ... and only when at least half of the scans read as that posture since it was first
+    /// read had at least this probability: after a fall, a person sitting on the floor is
+    /// misread as standing at 0.5-0.7 for a second or more, or as getting up at 0.4-0.7, and
+    /// each such reading ended the spell; a person really up is read so at 0.9 and more on
+    /// most scans (docs/classifier.md, session 42). 0: every reading.
+    pub down_ends_min_probability: f64,
     /// Seen upright or getting up, then confirmed lying on the floor within this time:
     /// `FallDetected` even when no scan looked like `falling_down` (a fall is short; lying is
     /// not). Seconds; 0 turns this off.
@@ -263,6 +269,7 @@ impl Default for FallAlertConfig {
             rearm_upright_s: 1.5,
             rearm_getting_up_s: 1.0,
             down_ends_upright_s: 1.0,
+            down_ends_min_probability: 0.8,
             descent_max_s: 3.0,
             descent_getting_up_s: 0.5,
             fall_from_upright_s: 3.0,
@@ -352,6 +359,7 @@ impl FallAlertConfig {
         at_least_zero("down_travel_within_s", self.down_travel_within_s)?;
         probability("landing_min_probability", self.landing_min_probability)?;
         probability("sure_fall_run_probability", self.sure_fall_run_probability)?;
+        probability("down_ends_min_probability", self.down_ends_min_probability)?;
         probability("descent_min_probability", self.descent_min_probability)
     }
 }
@@ -446,11 +454,15 @@ pub struct FallDetector {
     candidate_lengths: Vec<f64>,
     /// p(lying_down) on the candidate's scans read as lying.
     candidate_lying: Vec<f64>,
+    /// How surely the candidate's scans read it (`down_ends_min_probability`).
+    candidate_reads: PostureReads,
     /// The last `confirm_scans` scans of the current run read as lying: what lands a fall
     /// run (`fall_lands_lying`).
     lying_run: VecDeque<LyingScan>,
     /// Confirmed posture and since when.
     posture: Option<(Posture, f64)>,
+    /// How surely the scans read as the confirmed posture since it was first read read it.
+    posture_reads: PostureReads,
     /// The last visible scan classified upright while the confirmed posture was upright.
     last_upright_s: Option<f64>,
     /// How long the person had been upright by then (`upright_since` to `last_upright_s`).
@@ -510,8 +522,10 @@ impl FallDetector {
             candidate: None,
             candidate_lengths: Vec::new(),
             candidate_lying: Vec::new(),
+            candidate_reads: PostureReads::default(),
             lying_run: VecDeque::new(),
             posture: None,
+            posture_reads: PostureReads::default(),
             last_upright_s: None,
             last_upright_for_s: 0.0,
             broken_fall_run: None,
@@ -684,10 +698,13 @@ impl FallDetector {
             _ => {
                 self.candidate_lengths.clear();
                 self.candidate_lying.clear();
+                self.candidate_reads = PostureReads::default();
                 (seen, t, 1)
             }
         };
         self.candidate = Some((posture, since, n));
+        let sure = self.config.down_ends_min_probability;
+        self.candidate_reads.add(best_p, sure);
         if n <= self.config.confirm_scans {
             if let Some(length) = body_length_m {
                 self.candidate_lengths.push(length);
@@ -698,6 +715,7 @@ impl FallDetector {
         }
         if n >= self.config.confirm_scans && self.posture.map(|(p, _)| p) != Some(posture) {
             self.posture = Some((posture, since));
+            self.posture_reads = self.candidate_reads;
             match posture {
                 Posture::OnFloor => {
                     self.upright_since = None;
@@ -718,6 +736,8 @@ impl FallDetector {
                 }
                 Posture::Falling => {}
             }
+        } else if self.posture.is_some_and(|(p, _)| p == seen) {
+            self.posture_reads.add(best_p, sure);
         }
         if let Some(down) = self.down.as_mut() {
             down.on_floor_p_sum += on_floor_p as f64;
@@ -729,9 +749,10 @@ impl FallDetector {
             self.last_upright_for_s = self.upright_since.map_or(0.0, |since| t - since);
             self.broken_fall_run = None;
         }
-        // Up again: confirmed getting up, or upright for `down_ends_upright_s`.
+        // Up again: confirmed getting up, or upright for `down_ends_upright_s`, read surely.
         if let Some((posture, since)) = self.posture
             && seen == posture
+            && self.posture_reads.mostly_sure()
             && (posture == Posture::GettingUp
                 || (posture == Posture::Upright && t - since >= self.config.down_ends_upright_s))
         {
@@ -768,6 +789,7 @@ impl FallDetector {
         if self.down_evidence_scans >= self.config.confirm_scans
             && (!self.down_evidence_lying
                 || self.fall_disarmed_at.is_some()
+                || self.down.is_some_and(|down| down.after_fall)
                 || self.lying_stretches_as_a_body())
         {
             self.last_on_floor_s = Some(t);
@@ -788,12 +810,20 @@ impl FallDetector {
             self.fall_disarmed_at = None;
         }
         // Re-arm once upright long enough, counting only uprightness after the alert (an
-        // alert raised while the person was still confirmed upright counts from the alert).
+        // alert raised while the person was still confirmed upright counts from the alert);
+        // `PersonDown` only once the person is up again, not read upright with doubt.
         if let Some(since) = self.upright_since
             && self.posture.is_some_and(|(p, _)| p == Posture::Upright)
         {
-            for disarmed_at in [&mut self.fall_disarmed_at, &mut self.down_disarmed_at] {
-                if disarmed_at.is_some_and(|at| t - since.max(at) >= self.config.rearm_upright_s) {
+            let down_over = self.down.is_none();
+            for (disarmed_at, may_rearm) in [
+                (&mut self.fall_disarmed_at, true),
+                (&mut self.down_disarmed_at, down_over),
+            ] {
+                if may_rearm
+                    && disarmed_at
+                        .is_some_and(|at| t - since.max(at) >= self.config.rearm_upright_s)
+                {
                     *disarmed_at = None;
                 }
             }
@@ -989,6 +1019,9 @@ impl FallDetector {
     /// person is down from then.
     fn raise_fall(&mut self, t: f64, start: f64, confidence: f64, alerts: &mut Vec<FallAlert>) {
         self.start_down(start);
+        if let Some(down) = self.down.as_mut() {
+            down.after_fall = true;
+        }
         if self.fall_disarmed_at.is_none() {
             self.fall_disarmed_at = Some(t);
             alerts.push(FallAlert {
@@ -1143,6 +1176,28 @@ impl BrokenFallRun {
     }
 }
 
+/// How many of the scans read as one posture read it with at least
+/// `down_ends_min_probability`.
+#[derive(Debug, Clone, Copy, Default)]
+struct PostureReads {
+    scans: u32,
+    sure: u32,
+}
+
+impl PostureReads {
+    fn add(&mut self, probability: f32, sure: f64) {
+        self.scans = self.scans.saturating_add(1);
+        self.sure = self
+            .sure
+            .saturating_add(u32::from(f64::from(probability) >= sure));
+    }
+
+    /// At least half of them: their median reaches it.
+    fn mostly_sure(self) -> bool {
+        2 * u64::from(self.sure) >= u64::from(self.scans)
+    }
+}
+
 /// The incident the person is down in.
 #[derive(Debug, Clone, Copy)]
 struct DownSpell {
@@ -1152,6 +1207,8 @@ struct DownSpell {
     scans: u32,
     /// Time out of sight beyond `down_unseen_counts_s` a stretch: not counted as down.
     uncounted_s: f64,
+    /// Whether a fall was recognised in it: the floor needs no other proof then.
+    after_fall: bool,
 }
 
 impl DownSpell {
@@ -1161,6 +1218,7 @@ impl DownSpell {
             on_floor_p_sum: 0.0,
             scans: 0,
             uncounted_s: 0.0,
+            after_fall: false,
         }
     }
 
@@ -1862,6 +1920,79 @@ mod tests {
         // With 0, the 0.4 s already ends the spell.
         let mut at_once = detector_with(|c| c.down_ends_upright_s = 0.0);
         let alerts = run(&mut at_once, &script(0.4));
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+    }
+
+    #[test]
+    fn being_read_up_with_doubt_while_down_does_not_restart_the_clock() {
+        // Fallen, then sitting on the floor, read as `up` for `up_s` at probability `p`
+        // (p_unsure for its first half, p_sure for the rest) in between.
+        let script = |up: Activity, up_s: f64, p_unsure: f32, p_sure: f32| {
+            [
+                (Walking, 5.0, true, None, SURE),
+                (FallingDown, 1.0, true, None, SURE),
+                (LyingDown, 3.0, true, None, SURE),
+                (SittingOnFloor, 3.0, true, None, SURE),
+                (up, up_s / 2.0, true, None, p_unsure),
+                (up, up_s / 2.0, true, None, p_sure),
+                (SittingOnFloor, 12.0 - up_s, true, None, SURE),
+            ]
+        };
+        let still_down = [AlertKind::FallDetected, AlertKind::PersonDown];
+        for up in [Standing, GettingUp] {
+            // Read so at 0.6 for 2 s: still down since the fall, alerted 15 s after it.
+            let alerts = run_scans(&mut detector(), &script(up, 2.0, 0.6, 0.6));
+            assert_eq!(kinds(&alerts), still_down, "{up:?}");
+            assert!((alerts[1].down_since_s - 5.0).abs() < 1e-9, "{alerts:?}");
+            assert!((alerts[1].event_time_s - 20.0).abs() < 1e-9, "{alerts:?}");
+            // Surely on half of those scans, or at 0.6 with the check off: up again.
+            let alerts = run_scans(&mut detector(), &script(up, 2.0, 0.6, SURE));
+            assert_eq!(kinds(&alerts), [AlertKind::FallDetected], "{up:?}");
+            let mut off = detector_with(|c| c.down_ends_min_probability = 0.0);
+            let alerts = run_scans(&mut off, &script(up, 2.0, 0.6, 0.6));
+            assert_eq!(kinds(&alerts), [AlertKind::FallDetected], "{up:?}");
+        }
+    }
+
+    #[test]
+    fn being_read_up_with_doubt_after_person_down_does_not_raise_it_again() {
+        // Alerted as down, then misread as standing at 0.6 for longer than rearm_upright_s,
+        // then read on the floor again: still the same spell.
+        let script = [
+            (Walking, 5.0, true, None, SURE),
+            (FallingDown, 1.0, true, None, SURE),
+            (LyingDown, 16.0, true, None, SURE),
+            (Standing, 2.0, true, None, 0.6),
+            (SittingOnFloor, 20.0, true, None, SURE),
+        ];
+        let alerts = run_scans(&mut detector(), &script);
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::PersonDown]
+        );
+    }
+
+    #[test]
+    fn a_fall_vouches_for_the_floor_while_its_spell_lasts() {
+        // Fallen, then read as getting up with doubt for long enough to re-arm
+        // FALL_DETECTED (not to end the spell), then as lying on points as short as legs.
+        let script = |getting_up_p: f32| {
+            [
+                (Walking, 5.0, true, Some(0.3), SURE),
+                (FallingDown, 1.0, true, Some(0.5), SURE),
+                (LyingDown, 3.0, true, Some(1.2), SURE),
+                (GettingUp, 1.2, true, Some(0.5), getting_up_p),
+                (LyingDown, 20.0, true, Some(0.3), SURE),
+            ]
+        };
+        let alerts = run_scans(&mut detector(), &script(0.6));
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::PersonDown]
+        );
+        assert!((alerts[1].down_since_s - 5.0).abs() < 1e-9, "{alerts:?}");
+        // Surely up in between: a new spell, and short points on the floor prove nothing.
+        let alerts = run_scans(&mut detector(), &script(SURE));
         assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
     }
 

@@ -130,6 +130,9 @@ pub struct AlertsReport {
     pub person_down_due: Vec<DownSpell>,
     /// Of those, the spells with a PERSON_DOWN raised in them (or within a second of their end).
     pub person_down_due_alerted: usize,
+    /// `PERSON_DOWN` alerts after the first in the same spell: one spell alerted twice,
+    /// which the hysteresis should prevent.
+    pub repeated_person_down: usize,
     /// How long after it fell due those came, seconds.
     pub person_down_delay_s: Option<Spread>,
     /// Episodes ending with a fall and the person staying down (`--stay-down-episodes`), and
@@ -297,6 +300,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     let mut unmatched = 0;
     let mut repeated = 0;
     let mut person_down_due = Vec::new();
+    let mut repeated_person_down = 0;
     let mut false_alerts: Vec<FalseAlert> = Vec::new();
     let mut everyday_person_down_due = 0;
     let mut scans = ConfusionMatrix::new();
@@ -392,6 +396,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
                 );
             }
         }
+        repeated_person_down += repeated_person_down_alerts(&spells, &episode.alerts);
         for (&(start, end), alert) in spells.iter().zip(answers) {
             person_down_due.push(DownSpell {
                 episode: id,
@@ -449,6 +454,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
             0.0
         },
         person_down_due_alerted: delays.len(),
+        repeated_person_down,
         person_down_delay_s: Spread::of(delays),
         person_down_due,
         stay_down_episodes: stay_down_episodes_run,
@@ -628,6 +634,21 @@ fn person_down_answering(alerts: &[FallAlert], (start, end): (f64, f64)) -> Opti
     alerts.iter().find(|a| {
         a.kind == AlertKind::PersonDown && a.raised_at_s >= start && a.raised_at_s <= end + 1.0
     })
+}
+
+/// `PersonDown` alerts after the first in each spell (as [`person_down_answering`] bounds it).
+fn repeated_person_down_alerts(spells: &[(f64, f64)], alerts: &[FallAlert]) -> usize {
+    spells
+        .iter()
+        .map(|&(start, end)| {
+            let in_spell = alerts.iter().filter(|a| {
+                a.kind == AlertKind::PersonDown
+                    && a.raised_at_s >= start
+                    && a.raised_at_s <= end + 1.0
+            });
+            in_spell.count().saturating_sub(1)
+        })
+        .sum()
 }
 
 /// The (start, end) of every run of `falling_down` in the truth.
@@ -842,9 +863,10 @@ fn print_report(r: &AlertsReport) {
         r.stay_down_fall_detected
     );
     outln!(
-        "person truly on the floor for down_after_s (all episodes): {} spells, PERSON_DOWN in {}{delay}",
+        "person truly on the floor for down_after_s (all episodes): {} spells, PERSON_DOWN in {}{delay}; spells alerted more than once: {}",
         r.person_down_due.len(),
-        r.person_down_due_alerted
+        r.person_down_due_alerted,
+        r.repeated_person_down
     );
     if !r.false_alerts_by_activity.is_empty() {
         let list: Vec<String> = r
@@ -1022,6 +1044,21 @@ mod tests {
         ];
         assert_eq!(repeated_fall_alerts(&falls, &alerts), 2);
         assert_eq!(repeated_fall_alerts(&[], &alerts), 0);
+    }
+
+    #[test]
+    fn a_second_person_down_in_the_same_spell_is_counted() {
+        let spells = [(10.0, 40.0), (50.0, 80.0)];
+        let alerts = [
+            alert(AlertKind::FallDetected, 11.0),
+            alert(AlertKind::PersonDown, 25.0),
+            alert(AlertKind::PersonDown, 38.0), // the first spell again
+            alert(AlertKind::PersonDown, 41.0), // within a second of its end: again
+            alert(AlertKind::PersonDown, 66.0),
+        ];
+        assert_eq!(repeated_person_down_alerts(&spells, &alerts), 2);
+        assert_eq!(repeated_person_down_alerts(&spells, &alerts[..2]), 0);
+        assert_eq!(repeated_person_down_alerts(&[], &alerts), 0);
     }
 
     #[test]
