@@ -121,12 +121,18 @@ pub struct FallAlertConfig {
     /// standing for a few tenths of a second every few seconds, and each such moment
     /// restarted the `down_after_s` clock. Seconds; 0: at the upright posture's confirmation.
     pub down_ends_upright_s: f64,
-    /// ... and only when at least half of the scans read as that posture since it was first
-    /// read had at least this probability: after a fall, a person sitting on the floor is
-    /// misread as standing at 0.5-0.7 for a second or more, or as getting up at 0.4-0.7, and
-    /// each such reading ended the spell; a person really up is read so at 0.9 and more on
-    /// most scans (docs/classifier.md, session 42). 0: every reading.
+    /// After a fall recognised in the spell, only when at least half of the scans read as
+    /// that posture since it was first read had at least this probability: a fallen person
+    /// sitting on the floor is misread as standing at 0.5-0.7 for a second or more, or as
+    /// getting up at 0.4-0.7, and each such reading ended the spell; a person really up is
+    /// mostly read so at 0.9 or more. Not without a fall: a person standing still is read at
+    /// 0.5-0.9 too, and 0.9 everywhere gave 71 false `PersonDown` in 44 h against 1
+    /// (docs/classifier.md, session 42). 0: every reading.
     pub down_ends_min_probability: f64,
+    /// ... and getting up only once read so for this long (seconds; upright:
+    /// `down_ends_upright_s`): a fallen person sitting up is read as getting up, surely, for
+    /// a few tenths of a second.
+    pub down_ends_getting_up_s: f64,
     /// Seen upright or getting up, then confirmed lying on the floor within this time:
     /// `FallDetected` even when no scan looked like `falling_down` (a fall is short; lying is
     /// not). Seconds; 0 turns this off.
@@ -222,7 +228,7 @@ pub struct FallAlertConfig {
     /// unknown length left out). A person standing still whom the model reads as lying is one or two
     /// legs, 0.31 m on most scans and 0.6-0.8 m on a few (seed 4 episode 609 of `lidar-har
     /// alerts`); a body on the floor seen in part stretches 0.45-0.9 m scan by scan (seed 3
-    /// episode 625). A fall alerted in the incident vouches for the floor on its own: a
+    /// episode 625). A fall recognised in the incident vouches for the floor on its own: a
     /// person sitting on the floor read as lying is as short as a standing one (0.23 m; seed 1
     /// episode 651, alerted as fallen and then down for 40 s). 0 turns the check off.
     pub down_lying_min_length_m: f64,
@@ -269,7 +275,8 @@ impl Default for FallAlertConfig {
             rearm_upright_s: 1.5,
             rearm_getting_up_s: 1.0,
             down_ends_upright_s: 1.0,
-            down_ends_min_probability: 0.8,
+            down_ends_min_probability: 0.9,
+            down_ends_getting_up_s: 0.5,
             descent_max_s: 3.0,
             descent_getting_up_s: 0.5,
             fall_from_upright_s: 3.0,
@@ -339,6 +346,7 @@ impl FallAlertConfig {
         at_least_zero("rearm_upright_s", self.rearm_upright_s)?;
         at_least_zero("rearm_getting_up_s", self.rearm_getting_up_s)?;
         at_least_zero("down_ends_upright_s", self.down_ends_upright_s)?;
+        at_least_zero("down_ends_getting_up_s", self.down_ends_getting_up_s)?;
         at_least_zero("descent_max_s", self.descent_max_s)?;
         at_least_zero("descent_getting_up_s", self.descent_getting_up_s)?;
         at_least_zero("fall_from_upright_s", self.fall_from_upright_s)?;
@@ -749,12 +757,22 @@ impl FallDetector {
             self.last_upright_for_s = self.upright_since.map_or(0.0, |since| t - since);
             self.broken_fall_run = None;
         }
-        // Up again: confirmed getting up, or upright for `down_ends_upright_s`, read surely.
+        // Up again: confirmed getting up, or upright for `down_ends_upright_s`; after a fall,
+        // surely and getting up for `down_ends_getting_up_s`.
+        let after_fall = self.down.is_some_and(|down| down.after_fall);
+        let getting_up_s = if after_fall {
+            self.config.down_ends_getting_up_s
+        } else {
+            0.0
+        };
         if let Some((posture, since)) = self.posture
             && seen == posture
-            && self.posture_reads.mostly_sure()
-            && (posture == Posture::GettingUp
-                || (posture == Posture::Upright && t - since >= self.config.down_ends_upright_s))
+            && (self.posture_reads.mostly_sure() || !after_fall)
+            && match posture {
+                Posture::GettingUp => t - since >= getting_up_s,
+                Posture::Upright => t - since >= self.config.down_ends_upright_s,
+                _ => false,
+            }
         {
             self.down = None;
             self.lying_lengths.clear();
@@ -1019,9 +1037,7 @@ impl FallDetector {
     /// person is down from then.
     fn raise_fall(&mut self, t: f64, start: f64, confidence: f64, alerts: &mut Vec<FallAlert>) {
         self.start_down(start);
-        if let Some(down) = self.down.as_mut() {
-            down.after_fall = true;
-        }
+        self.mark_fall_in_spell();
         if self.fall_disarmed_at.is_none() {
             self.fall_disarmed_at = Some(t);
             alerts.push(FallAlert {
@@ -1081,6 +1097,7 @@ impl FallDetector {
         {
             return;
         }
+        self.mark_fall_in_spell();
         self.fall_disarmed_at = Some(t);
         alerts.push(FallAlert {
             kind: AlertKind::FallDetected,
@@ -1090,6 +1107,14 @@ impl FallDetector {
             position: self.last_position.unwrap_or(DVec2::ZERO),
             confidence: on_floor_p,
         });
+    }
+
+    /// The spell the person is down in follows a recognised fall: proof of the floor, and
+    /// being up again needs surer readings (`down_ends_min_probability`).
+    fn mark_fall_in_spell(&mut self) {
+        if let Some(down) = self.down.as_mut() {
+            down.after_fall = true;
+        }
     }
 
     /// Whether the person was last confirmed on the floor recently enough to be alerted as
@@ -1952,6 +1977,45 @@ mod tests {
             let alerts = run_scans(&mut off, &script(up, 2.0, 0.6, 0.6));
             assert_eq!(kinds(&alerts), [AlertKind::FallDetected], "{up:?}");
         }
+    }
+
+    #[test]
+    fn without_a_fall_being_read_up_with_doubt_still_ends_the_spell() {
+        // Sat down on the floor (no fall), misread as standing at 0.6 for 2 s, sat on.
+        let script = [
+            (Walking, 5.0, true, None, SURE),
+            (SittingOnFloor, 8.0, true, None, SURE),
+            (Standing, 2.0, true, None, 0.6),
+            (SittingOnFloor, 10.0, true, None, SURE),
+        ];
+        let alerts = run_scans(&mut detector(), &script);
+        assert!(alerts.is_empty(), "{alerts:?}");
+    }
+
+    #[test]
+    fn after_a_fall_getting_up_ends_the_spell_only_once_read_so_a_while() {
+        // Fallen, then read surely as getting up for `getting_up_s` (sitting up), then
+        // sitting on the floor.
+        let script = |getting_up_s: f64| {
+            [
+                (Walking, 5.0, true),
+                (FallingDown, 1.0, true),
+                (LyingDown, 3.0, true),
+                (GettingUp, getting_up_s, true),
+                (SittingOnFloor, 12.0, true),
+            ]
+        };
+        let alerts = run(&mut detector(), &script(0.3));
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::PersonDown]
+        );
+        assert!((alerts[1].down_since_s - 5.0).abs() < 1e-9, "{alerts:?}");
+        let alerts = run(&mut detector(), &script(0.8));
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+        let mut at_once = detector_with(|c| c.down_ends_getting_up_s = 0.0);
+        let alerts = run(&mut at_once, &script(0.3));
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
     }
 
     #[test]

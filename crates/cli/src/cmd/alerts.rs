@@ -112,6 +112,9 @@ pub struct AlertsReport {
     pub falls_not_in_time: Shortfall,
     /// Alerts in the fall (and stay-down) episodes that answered no fall.
     pub unmatched_alerts_in_fall_episodes: usize,
+    /// `PERSON_DOWN` alerts in those episodes raised in no spell where it was due: after a
+    /// fall the person got up from (the fall's own alert matched, these are false too).
+    pub person_down_not_due_in_fall_episodes: usize,
     /// `FALL_DETECTED` alerts after the first in the same fall's window (until the next fall):
     /// one fall alerted twice, which the hysteresis should prevent.
     pub repeated_fall_alerts: usize,
@@ -301,6 +304,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     let mut repeated = 0;
     let mut person_down_due = Vec::new();
     let mut repeated_person_down = 0;
+    let mut person_down_not_due_in_fall_episodes = 0;
     let mut false_alerts: Vec<FalseAlert> = Vec::new();
     let mut everyday_person_down_due = 0;
     let mut scans = ConfusionMatrix::new();
@@ -339,6 +343,15 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
             .iter()
             .map(|&spell| person_down_answering(&episode.alerts, spell))
             .collect();
+        let answers_a_spell =
+            |alert: &FallAlert| answers.iter().flatten().any(|a| std::ptr::eq(*a, alert));
+        if kind != ScriptKind::Everyday {
+            person_down_not_due_in_fall_episodes += episode
+                .alerts
+                .iter()
+                .filter(|a| a.kind == AlertKind::PersonDown && !answers_a_spell(a))
+                .count();
+        }
         match kind {
             ScriptKind::WithFalls => {
                 fall_episodes_run += 1;
@@ -362,12 +375,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
             ScriptKind::Everyday => {
                 no_fall_episodes_run += 1;
                 let (due, not_due): (Vec<&FallAlert>, Vec<&FallAlert>) =
-                    episode.alerts.iter().partition(|a| {
-                        answers
-                            .iter()
-                            .flatten()
-                            .any(|answer| std::ptr::eq(*answer, *a))
-                    });
+                    episode.alerts.iter().partition(|a| answers_a_spell(a));
                 everyday_person_down_due += due.len();
                 false_alerts.extend(not_due.into_iter().map(|a| FalseAlert {
                     episode: id,
@@ -442,6 +450,7 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         latency_s: Spread::of(latencies),
         falls_not_in_time: Shortfall::of(&outcomes, args.latency_target_s),
         unmatched_alerts_in_fall_episodes: unmatched,
+        person_down_not_due_in_fall_episodes,
         repeated_fall_alerts: repeated,
         no_fall_hours,
         false_alerts: false_alerts.len(),
@@ -835,8 +844,9 @@ fn print_report(r: &AlertsReport) {
         s.in_view,
     );
     outln!(
-        "alerts in fall episodes before any fall: {}; falls alerted twice (FALL_DETECTED): {}",
+        "alerts in fall episodes before any fall: {}; PERSON_DOWN there in no spell where it was due: {}; falls alerted twice (FALL_DETECTED): {}",
         r.unmatched_alerts_in_fall_episodes,
+        r.person_down_not_due_in_fall_episodes,
         r.repeated_fall_alerts
     );
     outln!(
