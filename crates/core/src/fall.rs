@@ -32,7 +32,8 @@
 //!   starts at a detected fall or at the first confirmed on-floor scan, so a fall the robot did
 //!   not see still gives this alert once the robot finds the person down. Time out of sight
 //!   does not reset the clock (a person lying behind the sofa is still down; only seeing them
-//!   get up, or upright for `down_ends_upright_s`, ends the incident), but each stretch of it
+//!   get up, or upright for `down_ends_upright_s`, ends the incident; after a recognised
+//!   fall, only readings sure of it, `down_ends_min_probability`), but each stretch of it
 //!   counts at most `down_unseen_counts_s`: the robot cannot vouch for a person it does not
 //!   see, and people who got up out of sight and sat down again were alerted as down. A
 //!   person down who is seen to cover ground faster than anyone can on the floor
