@@ -470,7 +470,7 @@ pub struct FallDetector {
     lying_run: VecDeque<LyingScan>,
     /// Confirmed posture and since when.
     posture: Option<(Posture, f64)>,
-    /// How surely the scans read as the confirmed posture since it was first read read it.
+    /// How surely the confirmed posture's scans, since it was first read, read it.
     posture_reads: PostureReads,
     /// The last visible scan classified upright while the confirmed posture was upright.
     last_upright_s: Option<f64>,

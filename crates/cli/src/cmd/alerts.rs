@@ -112,8 +112,9 @@ pub struct AlertsReport {
     pub falls_not_in_time: Shortfall,
     /// Alerts in the fall (and stay-down) episodes that answered no fall.
     pub unmatched_alerts_in_fall_episodes: usize,
-    /// `PERSON_DOWN` alerts in those episodes raised in no spell where it was due: after a
-    /// fall the person got up from (the fall's own alert matched, these are false too).
+    /// `PERSON_DOWN` alerts in those episodes raised in no spell where it was due (the fall's
+    /// own alert answers the fall; these are false, unless the person tried to get up and
+    /// never stood: the ground truth ends a spell at any getting up).
     pub person_down_not_due_in_fall_episodes: usize,
     /// `FALL_DETECTED` alerts after the first in the same fall's window (until the next fall):
     /// one fall alerted twice, which the hysteresis should prevent.
