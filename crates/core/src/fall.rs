@@ -834,17 +834,14 @@ impl FallDetector {
         if let Some(since) = self.upright_since
             && self.posture.is_some_and(|(p, _)| p == Posture::Upright)
         {
-            let down_over = self.down.is_none();
-            for (disarmed_at, may_rearm) in [
-                (&mut self.fall_disarmed_at, true),
-                (&mut self.down_disarmed_at, down_over),
-            ] {
-                if may_rearm
-                    && disarmed_at
-                        .is_some_and(|at| t - since.max(at) >= self.config.rearm_upright_s)
-                {
-                    *disarmed_at = None;
-                }
+            let upright_long_enough = |disarmed_at: Option<f64>| {
+                disarmed_at.is_some_and(|at| t - since.max(at) >= self.config.rearm_upright_s)
+            };
+            if upright_long_enough(self.fall_disarmed_at) {
+                self.fall_disarmed_at = None;
+            }
+            if self.down.is_none() && upright_long_enough(self.down_disarmed_at) {
+                self.down_disarmed_at = None;
             }
             // Upright a while after a fall run: it was a stagger, or the fall is over.
             if self.pending_fall.is_some_and(|fall| {

@@ -638,25 +638,25 @@ fn down_spells(truth: &[(f64, Activity)], min_s: f64) -> Vec<(f64, f64)> {
     spells
 }
 
-/// The first PERSON_DOWN raised in a down spell (or within a second of its end): the alert
-/// that answered it.
-fn person_down_answering(alerts: &[FallAlert], (start, end): (f64, f64)) -> Option<&FallAlert> {
-    alerts.iter().find(|a| {
-        a.kind == AlertKind::PersonDown && a.raised_at_s >= start && a.raised_at_s <= end + 1.0
-    })
+/// Whether `alert` is a PERSON_DOWN raised in a down spell (or within a second of its end).
+fn person_down_in(alert: &FallAlert, (start, end): (f64, f64)) -> bool {
+    alert.kind == AlertKind::PersonDown
+        && alert.raised_at_s >= start
+        && alert.raised_at_s <= end + 1.0
 }
 
-/// `PersonDown` alerts after the first in each spell (as [`person_down_answering`] bounds it).
+/// The first PERSON_DOWN raised in a down spell: the alert that answered it.
+fn person_down_answering(alerts: &[FallAlert], spell: (f64, f64)) -> Option<&FallAlert> {
+    alerts.iter().find(|a| person_down_in(a, spell))
+}
+
+/// `PersonDown` alerts after the first in each spell.
 fn repeated_person_down_alerts(spells: &[(f64, f64)], alerts: &[FallAlert]) -> usize {
     spells
         .iter()
-        .map(|&(start, end)| {
-            let in_spell = alerts.iter().filter(|a| {
-                a.kind == AlertKind::PersonDown
-                    && a.raised_at_s >= start
-                    && a.raised_at_s <= end + 1.0
-            });
-            in_spell.count().saturating_sub(1)
+        .map(|&spell| {
+            let in_spell = alerts.iter().filter(|a| person_down_in(a, spell)).count();
+            in_spell.saturating_sub(1)
         })
         .sum()
 }
