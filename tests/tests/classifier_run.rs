@@ -371,6 +371,110 @@ fn alerts_measures_latency_and_false_alerts_end_to_end() {
 }
 
 #[test]
+fn alerts_replayed_from_saved_readings_match_a_full_run() {
+    if !runtime_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let model = repo_root().join("models/activity.onnx");
+    let committed = std::fs::read_to_string(repo_root().join("config/classifier.yaml")).unwrap();
+    // Other fall_alert settings: PERSON_DOWN a second after going down, falls on shorter runs.
+    let other = tmp.path().join("other.yaml");
+    std::fs::write(
+        &other,
+        committed
+            .replace("down_after_s: 15.0", "down_after_s: 1.0")
+            .replace("fall_min_scans: 8", "fall_min_scans: 3"),
+    )
+    .unwrap();
+    let full_run = |config: &Path, report: &Path, readings: Option<&Path>| {
+        let mut args = vec![
+            "alerts",
+            "--model",
+            path(&model),
+            "--classifier-config",
+            path(config),
+            "--scenes",
+            "config/scenes/kitchen.yaml",
+            "--fall-episodes",
+            "1",
+            "--no-fall-hours",
+            "0",
+            "--stay-down-episodes",
+            "1",
+            "--episode-seconds",
+            "20",
+            "--seed",
+            "4",
+            "--out",
+            path(report),
+        ];
+        if let Some(readings) = readings {
+            args.extend_from_slice(&["--save-readings", path(readings)]);
+        }
+        lidar_har_ok(&args);
+        std::fs::read_to_string(report).unwrap()
+    };
+    let replay = |config: &Path, report: &Path, readings: &Path| {
+        lidar_har_ok(&[
+            "alerts",
+            "--readings",
+            path(readings),
+            "--classifier-config",
+            path(config),
+            "--out",
+            path(report),
+        ]);
+        std::fs::read_to_string(report).unwrap()
+    };
+    let readings = tmp.path().join("readings.zst");
+    let committed_config = repo_root().join("config/classifier.yaml");
+    let recorded = full_run(
+        &committed_config,
+        &tmp.path().join("a.json"),
+        Some(&readings),
+    );
+    let other_run = full_run(&other, &tmp.path().join("b.json"), None);
+    assert_ne!(recorded, other_run, "the settings change the alerts");
+    assert_eq!(
+        replay(&committed_config, &tmp.path().join("c.json"), &readings),
+        recorded
+    );
+    assert_eq!(
+        replay(&other, &tmp.path().join("d.json"), &readings),
+        other_run
+    );
+
+    // What a replay cannot change, and files that are not readings, are refused by name.
+    let lanes = tmp.path().join("lanes.yaml");
+    std::fs::write(&lanes, committed.replace("lanes: 2", "lanes: 3")).unwrap();
+    let not_readings = tmp.path().join("a.json");
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &["--classifier-config", path(&lanes)],
+            "only the fall_alert settings can change on replay",
+        ),
+        (&["--seed", "5"], "cannot be used with"),
+        (&["--save-readings", "x.zst"], "cannot be used with"),
+    ];
+    for (extra, needle) in cases {
+        let mut args = vec!["alerts", "--readings", path(&readings)];
+        args.extend_from_slice(extra);
+        let out = lidar_har(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{extra:?}");
+        assert!(err.contains(needle), "{extra:?}: {err}");
+    }
+    let out = lidar_har(&["alerts", "--readings", path(&not_readings)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains(path(&not_readings)) && err.contains("not a readings file"),
+        "{err}"
+    );
+}
+
+#[test]
 fn alerts_refuses_what_it_cannot_measure_before_simulating() {
     if !runtime_available() {
         return;

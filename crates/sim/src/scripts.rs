@@ -51,7 +51,8 @@ fn refusal(last: &Option<SceneError>) -> String {
 }
 
 /// Which random activity script an episode's person follows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum ScriptKind {
     /// Everyday activities, time on the floor included, and no falls.
     Everyday,

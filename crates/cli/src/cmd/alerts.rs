@@ -16,19 +16,20 @@ use std::path::PathBuf;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lidar_har_core::activity::Activity;
-use lidar_har_core::fall::{AlertKind, FallAlert, FallAlertConfig};
+use lidar_har_core::fall::{AlertKind, FallAlert, FallAlertConfig, FallDetector};
 use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
 use lidar_har_core::pose_head::NoPoseHead;
 use lidar_har_core::stats::Spread;
 use lidar_har_infer::ActivityModel;
-use lidar_har_pipeline::classifier::{
-    ClassifierConfig, ClassifierOutput, ClassifierStage, load_classifier_config,
-};
+use lidar_har_pipeline::classifier::{ClassifierConfig, ClassifierStage, load_classifier_config};
 use lidar_har_pipeline::convert::observation_msg;
 use lidar_har_sim::scripts::{self, ScriptKind};
 use serde::Serialize;
 
 use super::dataset::{EpisodeStream, core_scan, episode_localiser, episode_seed, load_scenes};
+use readings::{EpisodeLog, Frame, Header, Reading, ReadingsReader, ReadingsWriter};
+
+mod readings;
 
 #[derive(clap::Args)]
 pub struct AlertsArgs {
@@ -71,6 +72,20 @@ pub struct AlertsArgs {
     /// alerts raised (`tracked=false` where nobody was tracked). Repeatable.
     #[arg(long, value_name = "EPISODE")]
     pub trace_episode: Vec<usize>,
+    /// Also write what the classifier stage gave the fall alerts on every scan of every
+    /// episode (zstd-compressed JSON lines), to score other `fall_alert` settings on the same
+    /// episodes with `--readings`.
+    #[arg(long, value_name = "FILE")]
+    pub save_readings: Option<PathBuf>,
+    /// Score the alerts over readings saved by `--save-readings` instead of simulating and
+    /// running the model: seconds instead of minutes, and the same report a full run with
+    /// `--classifier-config`'s `fall_alert` settings gives. Episodes, seed, model and lanes
+    /// are the recording's.
+    #[arg(long, value_name = "FILE", conflicts_with_all = [
+        "model", "scenes", "fall_episodes", "no_fall_hours", "stay_down_episodes",
+        "episode_seconds", "seed", "latency_target_s", "save_readings",
+    ])]
+    pub readings: Option<PathBuf>,
 }
 
 /// One fall of the ground truth and the alert that answered it, if any.
@@ -240,6 +255,44 @@ struct Episode {
     scans: ConfusionMatrix,
 }
 
+impl Episode {
+    /// The episode `log` recorded, with `alerts` (in episode time) raised over it.
+    fn of(log: &EpisodeLog, mut alerts: Vec<FallAlert>) -> Self {
+        let start_s = log.start_s();
+        let mut truth = Vec::new();
+        let mut seen = Vec::new();
+        let mut scans = ConfusionMatrix::new();
+        for frame in &log.frames {
+            let Some(activity) = frame.truth else {
+                continue;
+            };
+            let stamp_s = frame.stamp_s(start_s);
+            truth.push((stamp_s, activity));
+            seen.push(frame.seen());
+            if let Some(reading) = frame
+                .reading
+                .filter(|r| stamp_s < log.end_s && r.publishable())
+            {
+                scans.add(activity, Activity::most_likely(&reading.probabilities).0);
+            }
+        }
+        // Falls that begin after the end are not counted, nor are the alerts from their start on.
+        let mut falls = fall_intervals(&truth);
+        if let Some(&(after_end, _)) = falls.iter().find(|&&(start, _)| start >= log.end_s) {
+            falls.retain(|&(start, _)| start < after_end);
+            alerts.retain(|a| a.raised_at_s < after_end);
+        }
+        Self {
+            falls,
+            alerts,
+            truth,
+            seen,
+            end_s: log.end_s,
+            scans,
+        }
+    }
+}
+
 /// The longest run without falls, hours: about 5 hours of computing on one core.
 const MAX_NO_FALL_HOURS: f64 = 1000.0;
 
@@ -262,10 +315,41 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         super::prepare_output_file(out, "--out")?;
     }
+    if let Some(path) = &args.save_readings {
+        super::prepare_output_file(path, "--save-readings")?;
+    }
     let config = match &args.classifier_config {
         Some(path) => load_classifier_config(path)?,
         None => ClassifierConfig::default(),
     };
+    let report = match &args.readings {
+        Some(path) => replay(&args, &config, path)?,
+        None => simulate(&args, &config)?,
+    };
+    print_report(&report);
+    if let Some(path) = &args.out {
+        let text = serde_json::to_string_pretty(&report)?;
+        std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+        outln!("report: {}", path.display());
+    }
+    Ok(())
+}
+
+fn progress_bar(total: usize, tracing: bool) -> ProgressBar {
+    let progress = ProgressBar::new(total as u64).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed} (eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    if tracing {
+        // The trace lines own stderr.
+        progress.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    progress
+}
+
+/// Simulates the episodes, runs the localiser and the classifier stage over them, and scores
+/// the alerts the stage raised.
+fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<AlertsReport> {
     let model = ActivityModel::load(&args.model, 1)
         .with_context(|| format!("--model {}", args.model.display()))?;
     let stream = model.info().stream;
@@ -292,25 +376,24 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     if let Some(&beyond) = args.trace_episode.iter().find(|&&id| id >= total) {
         anyhow::bail!("--trace-episode {beyond}: there are only episodes 0..{total}");
     }
-    let progress = ProgressBar::new(total as u64).with_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed} (eta {eta})")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    if !args.trace_episode.is_empty() {
-        // The trace lines own stderr.
-        progress.set_draw_target(ProgressDrawTarget::hidden());
-    }
-    let mut outcomes = Vec::new();
-    let mut unmatched = 0;
-    let mut repeated = 0;
-    let mut person_down_due = Vec::new();
-    let mut repeated_person_down = 0;
-    let mut person_down_not_due_in_fall_episodes = 0;
-    let mut false_alerts: Vec<FalseAlert> = Vec::new();
-    let mut everyday_person_down_due = 0;
-    let mut scans = ConfusionMatrix::new();
-    let (mut fall_episodes_run, mut no_fall_episodes_run) = (0, 0);
-    let (mut stay_down_episodes_run, mut stay_down_fall_detected) = (0, 0);
+    let scene_names: Vec<String> = scenes.iter().map(|(_, s)| s.name.clone()).collect();
+    let mut readings = match &args.save_readings {
+        Some(path) => Some(ReadingsWriter::create(
+            path,
+            &Header::new(
+                args.model.display().to_string(),
+                scene_names.clone(),
+                args.seed,
+                args.episode_seconds,
+                args.latency_target_s,
+                stream.window,
+                schedule,
+            ),
+        )?),
+        None => None,
+    };
+    let progress = progress_bar(total, !args.trace_episode.is_empty());
+    let mut tally = Tally::new(&config.fall_alert, args.latency_target_s);
     for id in 0..total {
         let kind = if id < args.fall_episodes {
             ScriptKind::WithFalls
@@ -328,34 +411,158 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
             ScriptKind::WithFalls => fall_run_on_s(args.latency_target_s),
             _ => 0.0,
         };
-        let episode = match run_episode(&scene, seed, kind, run_on_s, &mut classifier, trace) {
-            Ok(episode) => episode,
-            Err(e) => {
-                progress.suspend(|| eprintln!("alerts: skipping episode {id}: {e:#}"));
-                progress.inc(1);
-                continue;
+        let (log, alerts) =
+            match run_episode(id, &scene, seed, kind, run_on_s, &mut classifier, trace) {
+                Ok(episode) => episode,
+                Err(e) => {
+                    progress.suspend(|| eprintln!("alerts: skipping episode {id}: {e:#}"));
+                    progress.inc(1);
+                    continue;
+                }
+            };
+        if let Some(readings) = &mut readings {
+            readings.write(&log)?;
+        }
+        tally.add(&log, alerts);
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+    if let Some(readings) = readings {
+        readings.finish()?;
+    }
+    Ok(tally.report(
+        args.model.display().to_string(),
+        scene_names,
+        args.seed,
+        args.episode_seconds,
+    ))
+}
+
+/// Scores the alerts `config`'s `fall_alert` settings raise over saved readings: the fall
+/// alerts fed exactly what the classifier stage fed them when the readings were recorded.
+fn replay(
+    args: &AlertsArgs,
+    config: &ClassifierConfig,
+    path: &std::path::Path,
+) -> anyhow::Result<AlertsReport> {
+    let readings = ReadingsReader::open(path)?;
+    let header = readings.header().clone();
+    let schedule = config.lane_schedule(header.window, false);
+    if (schedule.period, schedule.lanes) != (header.lane_period_scans, header.lanes) {
+        anyhow::bail!(
+            "--readings {}: recorded with {} lanes restarting every {} scans, but the \
+             classifier configuration gives {} every {}: only the fall_alert settings can \
+             change on replay (record again for other lanes)",
+            path.display(),
+            header.lanes,
+            header.lane_period_scans,
+            schedule.lanes,
+            schedule.period
+        );
+    }
+    let mut detector = FallDetector::new(config.fall_alert)
+        .with_context(|| format!("--readings {}: fall_alert", path.display()))?;
+    let progress = progress_bar(0, !args.trace_episode.is_empty());
+    let mut tally = Tally::new(&config.fall_alert, header.latency_target_s);
+    let mut traced = Vec::new();
+    for log in readings {
+        let log = log?;
+        let trace = args.trace_episode.contains(&log.id);
+        if trace {
+            traced.push(log.id);
+        }
+        detector.reset();
+        let start_s = log.start_s();
+        let mut alerts = Vec::new();
+        for frame in &log.frames {
+            let raised = match frame.reading {
+                Some(reading) => detector.update(&reading.fall_input(frame.stamp_ns)),
+                None => Vec::new(),
+            };
+            if trace {
+                trace_scan(frame, start_s, &raised);
             }
-        };
-        scans.merge(&episode.scans);
+            alerts.extend(raised.iter().map(|a| in_episode_time(a, start_s)));
+        }
+        tally.add(&log, alerts);
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+    if let Some(missing) = args.trace_episode.iter().find(|id| !traced.contains(id)) {
+        anyhow::bail!("--trace-episode {missing}: no such episode in the readings");
+    }
+    Ok(tally.report(
+        header.model,
+        header.scenes,
+        header.seed,
+        header.episode_seconds,
+    ))
+}
+
+/// What the episodes scored so far add up to.
+struct Tally<'a> {
+    fall_alert: &'a FallAlertConfig,
+    latency_target_s: f64,
+    outcomes: Vec<FallOutcome>,
+    unmatched: usize,
+    repeated: usize,
+    person_down_due: Vec<DownSpell>,
+    repeated_person_down: usize,
+    person_down_not_due_in_fall_episodes: usize,
+    false_alerts: Vec<FalseAlert>,
+    everyday_person_down_due: usize,
+    scans: ConfusionMatrix,
+    fall_episodes_run: usize,
+    no_fall_episodes_run: usize,
+    stay_down_episodes_run: usize,
+    stay_down_fall_detected: usize,
+}
+
+impl<'a> Tally<'a> {
+    fn new(fall_alert: &'a FallAlertConfig, latency_target_s: f64) -> Self {
+        Self {
+            fall_alert,
+            latency_target_s,
+            outcomes: Vec::new(),
+            unmatched: 0,
+            repeated: 0,
+            person_down_due: Vec::new(),
+            repeated_person_down: 0,
+            person_down_not_due_in_fall_episodes: 0,
+            false_alerts: Vec::new(),
+            everyday_person_down_due: 0,
+            scans: ConfusionMatrix::new(),
+            fall_episodes_run: 0,
+            no_fall_episodes_run: 0,
+            stay_down_episodes_run: 0,
+            stay_down_fall_detected: 0,
+        }
+    }
+
+    /// Scores one episode and the alerts (in episode time) raised over it.
+    fn add(&mut self, log: &EpisodeLog, alerts: Vec<FallAlert>) {
+        let id = log.id;
+        let episode = Episode::of(log, alerts);
+        self.scans.merge(&episode.scans);
         let in_episode =
             &episode.truth[..episode.truth.partition_point(|&(t, _)| t < episode.end_s)];
-        let spells = down_spells(in_episode, config.fall_alert.down_after_s);
+        let spells = down_spells(in_episode, self.fall_alert.down_after_s);
         let answers: Vec<Option<&FallAlert>> = spells
             .iter()
             .map(|&spell| person_down_answering(&episode.alerts, spell))
             .collect();
         let answers_a_spell =
             |alert: &FallAlert| answers.iter().flatten().any(|a| std::ptr::eq(*a, alert));
-        if kind != ScriptKind::Everyday {
-            person_down_not_due_in_fall_episodes += episode
+        if log.kind != ScriptKind::Everyday {
+            self.person_down_not_due_in_fall_episodes += episode
                 .alerts
                 .iter()
                 .filter(|a| a.kind == AlertKind::PersonDown && !answers_a_spell(a))
                 .count();
         }
-        match kind {
+        match log.kind {
             ScriptKind::WithFalls => {
-                fall_episodes_run += 1;
+                self.fall_episodes_run += 1;
                 let (mut matched, rest) = match_alerts(
                     id,
                     &episode.falls,
@@ -366,38 +573,40 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
                 explain_unalerted(
                     &mut matched,
                     &episode.truth,
-                    &config.fall_alert,
-                    args.latency_target_s,
+                    self.fall_alert,
+                    self.latency_target_s,
                 );
-                outcomes.extend(matched);
-                unmatched += rest;
-                repeated += repeated_fall_alerts(&episode.falls, &episode.alerts);
+                self.outcomes.extend(matched);
+                self.unmatched += rest;
+                self.repeated += repeated_fall_alerts(&episode.falls, &episode.alerts);
             }
             ScriptKind::Everyday => {
-                no_fall_episodes_run += 1;
+                self.no_fall_episodes_run += 1;
                 let (due, not_due): (Vec<&FallAlert>, Vec<&FallAlert>) =
                     episode.alerts.iter().partition(|a| answers_a_spell(a));
-                everyday_person_down_due += due.len();
-                false_alerts.extend(not_due.into_iter().map(|a| FalseAlert {
-                    episode: id,
-                    scene: scene.name.clone(),
-                    kind: a.kind,
-                    raised_at_s: a.raised_at_s,
-                    activity: activity_at(&episode.truth, a.raised_at_s).label(),
-                    activity_1s_before: activity_at(&episode.truth, a.raised_at_s - 1.0).label(),
-                    truth_down_s: down_for(&episode.truth, a.raised_at_s),
-                }));
+                self.everyday_person_down_due += due.len();
+                self.false_alerts
+                    .extend(not_due.into_iter().map(|a| FalseAlert {
+                        episode: id,
+                        scene: log.scene.clone(),
+                        kind: a.kind,
+                        raised_at_s: a.raised_at_s,
+                        activity: activity_at(&episode.truth, a.raised_at_s).label(),
+                        activity_1s_before:
+                            activity_at(&episode.truth, a.raised_at_s - 1.0).label(),
+                        truth_down_s: down_for(&episode.truth, a.raised_at_s),
+                    }));
             }
             ScriptKind::FallAndStayDown => {
-                stay_down_episodes_run += 1;
+                self.stay_down_episodes_run += 1;
                 let fall_start = episode.falls.first().map_or(f64::INFINITY, |&(s, _)| s);
-                unmatched += episode
+                self.unmatched += episode
                     .alerts
                     .iter()
                     .filter(|a| a.raised_at_s < fall_start)
                     .count();
-                repeated += repeated_fall_alerts(&episode.falls, &episode.alerts);
-                stay_down_fall_detected += usize::from(
+                self.repeated += repeated_fall_alerts(&episode.falls, &episode.alerts);
+                self.stay_down_fall_detected += usize::from(
                     episode
                         .alerts
                         .iter()
@@ -405,82 +614,86 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
                 );
             }
         }
-        repeated_person_down += repeated_person_down_alerts(&spells, &episode.alerts);
+        self.repeated_person_down += repeated_person_down_alerts(&spells, &episode.alerts);
         for (&(start, end), alert) in spells.iter().zip(answers) {
-            person_down_due.push(DownSpell {
+            self.person_down_due.push(DownSpell {
                 episode: id,
-                scene: scene.name.clone(),
+                scene: log.scene.clone(),
                 start_s: start,
                 end_s: end,
-                delay_s: alert.map(|a| a.raised_at_s - start - config.fall_alert.down_after_s),
+                delay_s: alert.map(|a| a.raised_at_s - start - self.fall_alert.down_after_s),
                 seen_share: seen_share(&episode.truth, &episode.seen, start, end),
             });
         }
-        progress.inc(1);
     }
-    progress.finish_and_clear();
 
-    let latencies: Vec<f64> = outcomes.iter().filter_map(|o| o.latency_s).collect();
-    let count = |kind: AlertKind| false_alerts.iter().filter(|a| a.kind == kind).count();
-    let mut by_activity: Vec<(&'static str, usize)> = Activity::ALL
-        .iter()
-        .map(|a| {
-            let n = false_alerts
-                .iter()
-                .filter(|f| f.activity == a.label())
-                .count();
-            (a.label(), n)
-        })
-        .filter(|&(_, n)| n > 0)
-        .collect();
-    by_activity.sort_by_key(|&(_, n)| std::cmp::Reverse(n));
-    let delays: Vec<f64> = person_down_due.iter().filter_map(|d| d.delay_s).collect();
-    let no_fall_hours = no_fall_episodes_run as f64 * args.episode_seconds / 3600.0;
-    let report = AlertsReport {
-        model: args.model.display().to_string(),
-        scenes: scenes.iter().map(|(_, s)| s.name.clone()).collect(),
-        seed: args.seed,
-        fall_episodes: fall_episodes_run,
-        falls: outcomes.len(),
-        falls_alerted: latencies.len(),
-        falls_alerted_within_target: latencies
+    fn report(
+        self,
+        model: String,
+        scenes: Vec<String>,
+        seed: u64,
+        episode_seconds: f64,
+    ) -> AlertsReport {
+        let latencies: Vec<f64> = self.outcomes.iter().filter_map(|o| o.latency_s).collect();
+        let false_alerts = self.false_alerts;
+        let count = |kind: AlertKind| false_alerts.iter().filter(|a| a.kind == kind).count();
+        let mut by_activity: Vec<(&'static str, usize)> = Activity::ALL
             .iter()
-            .filter(|&&l| l <= args.latency_target_s)
-            .count(),
-        latency_target_s: args.latency_target_s,
-        latency_s: Spread::of(latencies),
-        falls_not_in_time: Shortfall::of(&outcomes, args.latency_target_s),
-        unmatched_alerts_in_fall_episodes: unmatched,
-        person_down_not_due_in_fall_episodes,
-        repeated_fall_alerts: repeated,
-        no_fall_hours,
-        false_alerts: false_alerts.len(),
-        false_fall_detected: count(AlertKind::FallDetected),
-        false_person_down: count(AlertKind::PersonDown),
-        everyday_person_down_due,
-        false_alerts_per_hour: if no_fall_hours > 0.0 {
-            false_alerts.len() as f64 / no_fall_hours
-        } else {
-            0.0
-        },
-        person_down_due_alerted: delays.len(),
-        repeated_person_down,
-        person_down_delay_s: Spread::of(delays),
-        person_down_due,
-        stay_down_episodes: stay_down_episodes_run,
-        stay_down_fall_detected,
-        false_alerts_by_activity: by_activity,
-        outcomes,
-        false_alert_details: false_alerts,
-        scans: scans.report(),
-    };
-    print_report(&report);
-    if let Some(path) = &args.out {
-        let text = serde_json::to_string_pretty(&report)?;
-        std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
-        outln!("report: {}", path.display());
+            .map(|a| {
+                let n = false_alerts
+                    .iter()
+                    .filter(|f| f.activity == a.label())
+                    .count();
+                (a.label(), n)
+            })
+            .filter(|&(_, n)| n > 0)
+            .collect();
+        by_activity.sort_by_key(|&(_, n)| std::cmp::Reverse(n));
+        let delays: Vec<f64> = self
+            .person_down_due
+            .iter()
+            .filter_map(|d| d.delay_s)
+            .collect();
+        let no_fall_hours = self.no_fall_episodes_run as f64 * episode_seconds / 3600.0;
+        AlertsReport {
+            model,
+            scenes,
+            seed,
+            fall_episodes: self.fall_episodes_run,
+            falls: self.outcomes.len(),
+            falls_alerted: latencies.len(),
+            falls_alerted_within_target: latencies
+                .iter()
+                .filter(|&&l| l <= self.latency_target_s)
+                .count(),
+            latency_target_s: self.latency_target_s,
+            latency_s: Spread::of(latencies),
+            falls_not_in_time: Shortfall::of(&self.outcomes, self.latency_target_s),
+            unmatched_alerts_in_fall_episodes: self.unmatched,
+            person_down_not_due_in_fall_episodes: self.person_down_not_due_in_fall_episodes,
+            repeated_fall_alerts: self.repeated,
+            no_fall_hours,
+            false_alerts: false_alerts.len(),
+            false_fall_detected: count(AlertKind::FallDetected),
+            false_person_down: count(AlertKind::PersonDown),
+            everyday_person_down_due: self.everyday_person_down_due,
+            false_alerts_per_hour: if no_fall_hours > 0.0 {
+                false_alerts.len() as f64 / no_fall_hours
+            } else {
+                0.0
+            },
+            person_down_due_alerted: delays.len(),
+            repeated_person_down: self.repeated_person_down,
+            person_down_delay_s: Spread::of(delays),
+            person_down_due: self.person_down_due,
+            stay_down_episodes: self.stay_down_episodes_run,
+            stay_down_fall_detected: self.stay_down_fall_detected,
+            false_alerts_by_activity: by_activity,
+            outcomes: self.outcomes,
+            false_alert_details: false_alerts,
+            scans: self.scans.report(),
+        }
     }
-    Ok(())
 }
 
 /// How long an episode with falls runs on past its end: a fall that begins on its last scan
@@ -490,103 +703,103 @@ fn fall_run_on_s(latency_target_s: f64) -> f64 {
     scripts::FALL_SECONDS.end + latency_target_s
 }
 
+/// An alert's times in episode time (from `start_s` on the stream's clock), as the ground
+/// truth's are.
+fn in_episode_time(alert: &FallAlert, start_s: f64) -> FallAlert {
+    FallAlert {
+        event_time_s: alert.event_time_s - start_s,
+        raised_at_s: alert.raised_at_s - start_s,
+        down_since_s: alert.down_since_s - start_s,
+        ..*alert
+    }
+}
+
 /// Simulates one episode (and `run_on_s` past its end) and runs the localiser over it, then
 /// the classifier stage the classifier node runs (the model and the fall alerts) on the
 /// observations the localiser node would publish: nothing while no person is tracked, an
-/// empty view while one is predicted out of sight.
+/// empty view while one is predicted out of sight. Returns what the stage gave the alerts
+/// on every scan, and the alerts (in episode time).
 fn run_episode(
+    id: usize,
     scene: &lidar_har_sim::Scene,
     seed: u64,
     kind: ScriptKind,
     run_on_s: f64,
     stage: &mut ClassifierStage<ActivityModel, NoPoseHead>,
     trace: bool,
-) -> anyhow::Result<Episode> {
+) -> anyhow::Result<(EpisodeLog, Vec<FallAlert>)> {
     let mut sim = scripts::episode(scene, seed, false, kind)?;
     let end_s = (sim.frame_count() as f64 - 0.5) / scene.lidar.rate_hz;
     sim.run_on(run_on_s);
     let mut localiser = episode_localiser(&sim, false)?;
     stage.reset();
     let geometry = sim.scan_geometry();
-    let start_s = sim.start_ns() as f64 * 1e-9;
-    let mut truth: Vec<(f64, Activity)> = Vec::new();
-    let mut seen = Vec::new();
+    let start_ns = sim.start_ns();
+    let start_s = start_ns as f64 * 1e-9;
+    let mut frames = Vec::new();
     let mut alerts = Vec::new();
-    let mut scans = ConfusionMatrix::new();
     while let Some(frame) = sim.step() {
         let stamp_ns = frame.stamp_ns as i64;
-        let stamp_s = frame.stamp_ns as f64 * 1e-9 - start_s;
-        let in_episode = stamp_s < end_s;
         localiser.add_odometry(stamp_ns, frame.robot);
         let result = localiser.process_scan(&core_scan(&geometry, stamp_ns, frame.ranges));
         let tracked = result
             .output
             .as_ref()
             .and_then(|o| o.person.as_ref().map(|p| (o, p)));
-        if let Some(p) = &frame.person {
-            truth.push((stamp_s, p.activity));
-            seen.push(tracked.is_some_and(|(_, person)| person.visible));
-        }
-        let Some((output, person)) = tracked else {
-            if trace {
-                trace_scan(stamp_s, frame.person.map(|p| p.activity), None);
+        let (reading, raised) = match tracked {
+            Some((output, person)) => {
+                let out = stage.on_observation(&observation_msg(output, person, "map"))?;
+                (Some(Reading::of(&out)), out.alerts)
             }
-            continue;
+            None => (None, Vec::new()),
         };
-        let out = stage.on_observation(&observation_msg(output, person, "map"))?;
-        if let Some(truth) = frame.person.filter(|_| in_episode && out.publishable()) {
-            scans.add(truth.activity, out.prediction.activity);
-        }
+        let logged = Frame {
+            stamp_ns: frame.stamp_ns,
+            truth: frame.person.map(|p| p.activity),
+            reading,
+        };
         if trace {
-            trace_scan(stamp_s, frame.person.map(|p| p.activity), Some(&out));
+            trace_scan(&logged, start_s, &raised);
         }
-        // Alert times in episode time, as the ground truth is.
-        alerts.extend(out.alerts.iter().map(|alert| FallAlert {
-            event_time_s: alert.event_time_s - start_s,
-            raised_at_s: alert.raised_at_s - start_s,
-            down_since_s: alert.down_since_s - start_s,
-            ..*alert
-        }));
+        alerts.extend(raised.iter().map(|a| in_episode_time(a, start_s)));
+        frames.push(logged);
     }
-    // Falls that begin after the end are not counted, nor are the alerts from their start on.
-    let mut falls = fall_intervals(&truth);
-    if let Some(&(after_end, _)) = falls.iter().find(|&&(start, _)| start >= end_s) {
-        falls.retain(|&(start, _)| start < after_end);
-        alerts.retain(|a| a.raised_at_s < after_end);
-    }
-    Ok(Episode {
-        falls,
-        alerts,
-        truth,
-        seen,
+    let log = EpisodeLog {
+        id,
+        kind,
+        scene: scene.name.clone(),
+        start_ns,
         end_s,
-        scans,
-    })
+        frames,
+    };
+    Ok((log, alerts))
 }
 
-/// One scan of a traced episode on stderr (`out`: the classifier stage's, `None` when no
-/// person was tracked).
-fn trace_scan(stamp_s: f64, truth: Option<Activity>, out: Option<&ClassifierOutput>) {
-    let truth = truth.map_or("-", Activity::label);
-    let Some(out) = out else {
+/// One scan of a traced episode on stderr, with the alerts raised at it.
+fn trace_scan(frame: &Frame, start_s: f64, alerts: &[FallAlert]) {
+    let stamp_s = frame.stamp_s(start_s);
+    let truth = frame.truth.map_or("-", Activity::label);
+    let Some(reading) = frame.reading else {
         eprintln!("trace t={stamp_s:.2} truth={truth} tracked=false");
         return;
     };
-    let prediction = &out.prediction;
+    let (activity, confidence) = Activity::most_likely(&reading.probabilities);
     eprintln!(
-        "trace t={stamp_s:.2} truth={truth} model={} p={:.2} p_fall={:.2} seen={} length={} \
-         at={} alerts=[{}]",
-        prediction.activity.label(),
-        prediction.confidence,
-        prediction.probabilities[Activity::FallingDown.index()],
-        out.visible,
-        out.body_length_m.map_or("-".into(), |l| format!("{l:.2}")),
-        if out.visible {
-            format!("{:.2},{:.2}", out.position.x, out.position.y)
+        "trace t={stamp_s:.2} truth={truth} model={} p={confidence:.2} p_fall={:.2} seen={} \
+         length={} at={} alerts=[{}]",
+        activity.label(),
+        reading.probabilities[Activity::FallingDown.index()],
+        reading.visible,
+        reading
+            .body_length_m
+            .map_or("-".into(), |l| format!("{l:.2}")),
+        if reading.visible {
+            let at = reading.position();
+            format!("{:.2},{:.2}", at.x, at.y)
         } else {
             "-".into()
         },
-        out.alerts
+        alerts
             .iter()
             .map(|a| a.kind.name())
             .collect::<Vec<_>>()
