@@ -378,15 +378,19 @@ fn alerts_replayed_from_saved_readings_match_a_full_run() {
     let tmp = tempfile::tempdir().unwrap();
     let model = repo_root().join("models/activity.onnx");
     let committed = std::fs::read_to_string(repo_root().join("config/classifier.yaml")).unwrap();
+    let changed = |text: &str, from: &str, to: &str| {
+        assert_eq!(
+            text.matches(from).count(),
+            1,
+            "{from} in config/classifier.yaml"
+        );
+        text.replace(from, to)
+    };
     // Other fall_alert settings: PERSON_DOWN a second after going down, falls on shorter runs.
     let other = tmp.path().join("other.yaml");
-    std::fs::write(
-        &other,
-        committed
-            .replace("down_after_s: 15.0", "down_after_s: 1.0")
-            .replace("fall_min_scans: 8", "fall_min_scans: 3"),
-    )
-    .unwrap();
+    let other_text = changed(&committed, "down_after_s: 15.0", "down_after_s: 1.0");
+    let other_text = changed(&other_text, "fall_min_scans: 5", "fall_min_scans: 3");
+    std::fs::write(&other, other_text).unwrap();
     let full_run = |config: &Path, report: &Path, readings: Option<&Path>| {
         let mut args = vec![
             "alerts",
@@ -447,7 +451,7 @@ fn alerts_replayed_from_saved_readings_match_a_full_run() {
 
     // What a replay cannot change, and files that are not readings, are refused by name.
     let lanes = tmp.path().join("lanes.yaml");
-    std::fs::write(&lanes, committed.replace("lanes: 2", "lanes: 3")).unwrap();
+    std::fs::write(&lanes, changed(&committed, "\nlanes: 2", "\nlanes: 3")).unwrap();
     let not_readings = tmp.path().join("a.json");
     let cases: &[(&[&str], &str)] = &[
         (

@@ -10,6 +10,7 @@
 //! The report also scores the streaming classification itself, scan by scan over every
 //! episode: unlike `lidar-har evaluate`'s windows from a zero state, this is what the robot
 //! publishes, so models trained on different window lengths compare on equal terms.
+//! The alerts' inputs can be saved and replayed with other alert settings ([`readings`]).
 
 use std::path::PathBuf;
 
@@ -335,18 +336,6 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn progress_bar(total: usize, tracing: bool) -> ProgressBar {
-    let progress = ProgressBar::new(total as u64).with_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed} (eta {eta})")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    if tracing {
-        // The trace lines own stderr.
-        progress.set_draw_target(ProgressDrawTarget::hidden());
-    }
-    progress
-}
-
 /// Simulates the episodes, runs the localiser and the classifier stage over them, and scores
 /// the alerts the stage raised.
 fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<AlertsReport> {
@@ -392,7 +381,14 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
         )?),
         None => None,
     };
-    let progress = progress_bar(total, !args.trace_episode.is_empty());
+    let progress = ProgressBar::new(total as u64).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed} (eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    if !args.trace_episode.is_empty() {
+        // The trace lines own stderr.
+        progress.set_draw_target(ProgressDrawTarget::hidden());
+    }
     let mut tally = Tally::new(&config.fall_alert, args.latency_target_s);
     for id in 0..total {
         let kind = if id < args.fall_episodes {
@@ -462,7 +458,6 @@ fn replay(
     }
     let mut detector = FallDetector::new(config.fall_alert)
         .with_context(|| format!("--readings {}: fall_alert", path.display()))?;
-    let progress = progress_bar(0, !args.trace_episode.is_empty());
     let mut tally = Tally::new(&config.fall_alert, header.latency_target_s);
     let mut traced = Vec::new();
     for log in readings {
@@ -485,9 +480,7 @@ fn replay(
             alerts.extend(raised.iter().map(|a| in_episode_time(a, start_s)));
         }
         tally.add(&log, alerts);
-        progress.inc(1);
     }
-    progress.finish_and_clear();
     if let Some(missing) = args.trace_episode.iter().find(|id| !traced.contains(id)) {
         anyhow::bail!("--trace-episode {missing}: no such episode in the readings");
     }
