@@ -413,10 +413,11 @@ pub struct FallAlert {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FallInput {
     pub stamp_s: f64,
-    /// Where the person is (map frame); `None` when not visible in this scan.
+    /// Where the person is (map frame); `None` when not seen in this scan, or while the
+    /// classifier has too little history to publish an activity.
     pub position: Option<DVec2>,
-    /// Class probabilities (class order) from a classifier with enough history; ignored when
-    /// the person is not visible (the model then only sees an empty image).
+    /// Class probabilities (class order); ignored when `position` is `None` (the model then
+    /// sees an empty image, or has not seen enough).
     pub probabilities: [f32; Activity::COUNT],
     /// How far the person's points stretch along their main axis
     /// ([`MainAxisSpan::length`](crate::geometry::MainAxisSpan::length)); `None` when unknown.

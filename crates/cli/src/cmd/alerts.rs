@@ -389,7 +389,7 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
         // The trace lines own stderr.
         progress.set_draw_target(ProgressDrawTarget::hidden());
     }
-    let mut tally = Tally::new(&config.fall_alert, args.latency_target_s);
+    let mut tally = Tally::new(config.fall_alert, args.latency_target_s);
     for id in 0..total {
         let kind = if id < args.fall_episodes {
             ScriptKind::WithFalls
@@ -458,7 +458,7 @@ fn replay(
     }
     let mut detector = FallDetector::new(config.fall_alert)
         .with_context(|| format!("--readings {}: fall_alert", path.display()))?;
-    let mut tally = Tally::new(&config.fall_alert, header.latency_target_s);
+    let mut tally = Tally::new(config.fall_alert, header.latency_target_s);
     let mut traced = Vec::new();
     for log in readings {
         let log = log?;
@@ -493,8 +493,8 @@ fn replay(
 }
 
 /// What the episodes scored so far add up to.
-struct Tally<'a> {
-    fall_alert: &'a FallAlertConfig,
+struct Tally {
+    fall_alert: FallAlertConfig,
     latency_target_s: f64,
     outcomes: Vec<FallOutcome>,
     unmatched: usize,
@@ -511,8 +511,8 @@ struct Tally<'a> {
     stay_down_fall_detected: usize,
 }
 
-impl<'a> Tally<'a> {
-    fn new(fall_alert: &'a FallAlertConfig, latency_target_s: f64) -> Self {
+impl Tally {
+    fn new(fall_alert: FallAlertConfig, latency_target_s: f64) -> Self {
         Self {
             fall_alert,
             latency_target_s,
@@ -566,7 +566,7 @@ impl<'a> Tally<'a> {
                 explain_unalerted(
                     &mut matched,
                     &episode.truth,
-                    self.fall_alert,
+                    &self.fall_alert,
                     self.latency_target_s,
                 );
                 self.outcomes.extend(matched);
