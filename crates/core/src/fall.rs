@@ -4,7 +4,7 @@
 //! - `FallDetected`: `falling_down` is the most likely class on `fall_min_scans` consecutive
 //!   visible scans with a mean probability of at least `fall_probability`, the run starting at
 //!   most `fall_from_upright_s` after the person was last upright (or, with
-//!   `fall_on_first_sight`, on the first scan the person is seen on), and the person then
+//!   `fall_on_first_sight`, before any posture of the person was confirmed), and the person then
 //!   lands on the floor within `fall_then_floor_s` without being upright for
 //!   `rearm_upright_s` first (a stagger or a sudden stop the model reads as falling ends
 //!   upright; a fall ends on the floor); or a descent: lying down is
@@ -149,10 +149,12 @@ pub struct FallAlertConfig {
     /// person was last confirmed upright: a fall starts from standing or walking, and getting
     /// up or crawling misread as falling does not. Seconds; 0 drops the requirement.
     pub fall_from_upright_s: f64,
-    /// A run of `falling_down` scans that begins on the first scan the detector has of the
-    /// person (at start-up or after a reset) counts although nobody saw them upright before:
-    /// the robot may come upon someone as they fall. `fall_from_upright_s` cannot rule such a
-    /// run out, having nothing to go by.
+    /// A run of `falling_down` scans that begins before any posture of the person was
+    /// confirmed (at start-up or after a reset) counts although nobody saw them upright
+    /// before: the robot may come upon someone as they fall. `fall_from_upright_s` cannot
+    /// rule such a run out, having nothing to go by. Not only the first scan seen: the
+    /// model's first readings of a stream, with half a window behind them, are often some
+    /// other class for a few scans (before session 44, the first scan only).
     pub fall_on_first_sight: bool,
     /// A run of `falling_down` scans also counts when it starts at most `fall_from_upright_s`
     /// after the person was read as getting up on every scan for `descent_getting_up_s` (as
@@ -453,8 +455,6 @@ pub struct FallDetector {
     config: FallAlertConfig,
     last_stamp_s: Option<f64>,
     last_position: Option<DVec2>,
-    /// The first scan with the person seen since the start or the last reset.
-    first_seen_s: Option<f64>,
     /// Current run of scans read as falling_down.
     fall_run: Option<FallRun>,
     /// A fall run waiting for the person to be confirmed on the floor.
@@ -527,7 +527,6 @@ impl FallDetector {
             config,
             last_stamp_s: None,
             last_position: None,
-            first_seen_s: None,
             fall_run: None,
             pending_fall: None,
             candidate: None,
@@ -587,7 +586,6 @@ impl FallDetector {
         let probabilities_ok = input.probabilities.iter().all(|p| p.is_finite());
         if let (Some(position), true) = (visible, probabilities_ok) {
             self.last_position = Some(position);
-            self.first_seen_s.get_or_insert(t);
             let unseen_s = self.unseen_beyond_count(t);
             if let Some(down) = self.down.as_mut() {
                 down.uncounted_s += unseen_s;
@@ -652,8 +650,10 @@ impl FallDetector {
                 .add(best_p);
             }
             let min_scans = self.config.fall_min_scans as usize;
+            let before_any_posture = self.posture.is_none();
             let run = self.fall_run.get_or_insert_with(|| FallRun {
                 start_s: t,
+                before_any_posture,
                 recent: VecDeque::new(),
                 counted: false,
             });
@@ -672,8 +672,8 @@ impl FallDetector {
                 && mean >= f64::from(self.config.fall_probability)
             {
                 run.counted = true;
-                let start = run.start_s;
-                let from_upright = self.fell_from_upright(start);
+                let (start, before_any_posture) = (run.start_s, run.before_any_posture);
+                let from_upright = self.fell_from_upright(start, before_any_posture);
                 let from_getting_up = self.fell_from_getting_up(start);
                 if from_upright || from_getting_up {
                     let fall = PendingFall {
@@ -1054,12 +1054,12 @@ impl FallDetector {
     }
 
     /// Whether a fall starting at `start` follows being upright closely enough, or began
-    /// when the person was first seen (`fall_on_first_sight`).
-    fn fell_from_upright(&self, start: f64) -> bool {
+    /// before any posture was confirmed (`fall_on_first_sight`).
+    fn fell_from_upright(&self, start: f64, before_any_posture: bool) -> bool {
         let limit = self.config.fall_from_upright_s;
         limit <= 0.0
             || self.last_upright_s.is_some_and(|at| start - at <= limit)
-            || (self.config.fall_on_first_sight && self.first_seen_s == Some(start))
+            || (self.config.fall_on_first_sight && before_any_posture)
     }
 
     /// Whether a fall starting at `start` follows getting up as closely as
@@ -1178,6 +1178,8 @@ impl FallDetector {
 #[derive(Debug, Clone)]
 struct FallRun {
     start_s: f64,
+    /// Whether it began before any posture of the person was confirmed (`fall_on_first_sight`).
+    before_any_posture: bool,
     /// p(falling_down) on its last `fall_min_scans` scans.
     recent: VecDeque<f64>,
     /// Whether it has reached `fall_probability` on average (counted once).
@@ -1466,6 +1468,36 @@ mod tests {
             ],
         );
         assert!(later.is_empty(), "{later:?}");
+    }
+
+    #[test]
+    fn a_fall_counts_as_first_sight_until_a_posture_is_confirmed() {
+        // The model's first readings of a stream: getting up on a few scans, too few to
+        // confirm it, then falling and lying.
+        let unconfirmed_first = [
+            (GettingUp, 0.15, true),
+            (FallingDown, 0.6, true),
+            (LyingDown, 3.0, true),
+        ];
+        let on = run(&mut detector(), &unconfirmed_first);
+        assert_eq!(kinds(&on), [AlertKind::FallDetected]);
+        assert!((on[0].event_time_s - 0.15).abs() < 1e-6, "{:?}", on[0]);
+        let off = run(
+            &mut detector_with(|c| c.fall_on_first_sight = false),
+            &unconfirmed_first,
+        );
+        assert!(off.is_empty(), "{off:?}");
+        // Getting up confirmed first: the person's posture is known, and getting up for
+        // less than `descent_getting_up_s` starts no fall.
+        let confirmed_first = run(
+            &mut detector(),
+            &[
+                (GettingUp, 0.3, true),
+                (FallingDown, 0.6, true),
+                (LyingDown, 3.0, true),
+            ],
+        );
+        assert!(confirmed_first.is_empty(), "{confirmed_first:?}");
     }
 
     #[test]
