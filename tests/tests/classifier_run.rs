@@ -448,6 +448,20 @@ fn alerts_replayed_from_saved_readings_match_a_full_run() {
         replay(&other, &tmp.path().join("d.json"), &readings),
         other_run
     );
+    // The same settings changed on the command line instead of in a file.
+    let by_option = tmp.path().join("e.json");
+    lidar_har_ok(&[
+        "alerts",
+        "--readings",
+        path(&readings),
+        "--fall-alert",
+        "down_after_s=1.0",
+        "--fall-alert",
+        "fall_min_scans=3",
+        "--out",
+        path(&by_option),
+    ]);
+    assert_eq!(std::fs::read_to_string(&by_option).unwrap(), other_run);
 
     // What a replay cannot change, and files that are not readings, are refused by name.
     let lanes = tmp.path().join("lanes.yaml");
@@ -459,6 +473,10 @@ fn alerts_replayed_from_saved_readings_match_a_full_run() {
             "only the fall_alert settings can change on replay",
         ),
         (&["--seed", "5"], "cannot be used with"),
+        (
+            &["--fall-alert", "fall_min_scan=3"],
+            "--fall-alert: classifier configuration: fall_alert setting `fall_min_scan=3`: no such setting",
+        ),
         (&["--save-readings", "x.zst"], "cannot be used with"),
     ];
     for (extra, needle) in cases {

@@ -184,6 +184,38 @@ pub fn parse_classifier_config(text: &str) -> Result<ClassifierConfig, Classifie
     Ok(config)
 }
 
+/// `config` with one setting changed, given as `key=value` with the value in YAML: to score a
+/// variant of the alert rules without writing a file for it.
+pub fn with_fall_alert_setting(
+    config: &FallAlertConfig,
+    setting: &str,
+) -> Result<FallAlertConfig, ClassifierError> {
+    let refuse = |why: String| ClassifierError::Config {
+        path: None,
+        message: format!("fall_alert setting `{setting}`: {why}"),
+    };
+    let (key, value) = setting
+        .split_once('=')
+        .ok_or_else(|| refuse("expected KEY=VALUE".into()))?;
+    let value: serde_yaml_ng::Value =
+        serde_yaml_ng::from_str(value).map_err(|e| refuse(e.to_string()))?;
+    let mut settings = serde_yaml_ng::to_value(config).map_err(|e| refuse(e.to_string()))?;
+    let Some(slot) = settings.get_mut(key.trim()) else {
+        let known: Vec<&str> = (settings.as_mapping().into_iter())
+            .flat_map(|m| m.keys().filter_map(|k| k.as_str()))
+            .collect();
+        return Err(refuse(format!(
+            "no such setting; known: {}",
+            known.join(", ")
+        )));
+    };
+    *slot = value;
+    let changed: FallAlertConfig =
+        serde_yaml_ng::from_value(settings).map_err(|e| refuse(e.to_string()))?;
+    changed.validate()?;
+    Ok(changed)
+}
+
 /// Loads `config/classifier.yaml` (or another file of that format).
 pub fn load_classifier_config(path: &Path) -> Result<ClassifierConfig, ClassifierError> {
     let text = std::fs::read_to_string(path).map_err(|source| ClassifierError::ConfigRead {
@@ -1562,6 +1594,40 @@ mod tests {
             ClassifierConfig::default(),
             "config/classifier.yaml should state the defaults"
         );
+    }
+
+    #[test]
+    fn one_fall_alert_setting_changes_by_name_and_bad_ones_are_refused() {
+        let defaults = FallAlertConfig::default();
+        let changed = with_fall_alert_setting(&defaults, "fall_min_scans=7").unwrap();
+        assert_eq!(changed.fall_min_scans, 7);
+        assert_eq!(
+            FallAlertConfig {
+                fall_min_scans: defaults.fall_min_scans,
+                ..changed
+            },
+            defaults,
+            "nothing else changes"
+        );
+        let changed = with_fall_alert_setting(&changed, "fall_on_first_sight = false").unwrap();
+        assert!(!changed.fall_on_first_sight);
+        assert_eq!(changed.fall_min_scans, 7);
+        for (setting, needle) in [
+            ("fall_min_scans", "expected KEY=VALUE"),
+            (
+                "fall_min_scan=7",
+                "no such setting; known: fall_probability",
+            ),
+            ("fall_min_scans=many", "fall_min_scans=many"),
+            ("down_after_s=[1, 2]", "down_after_s"),
+            ("down_after_s=-1", "down_after_s"),
+            ("down_after_s=.nan", "down_after_s"),
+        ] {
+            let err = with_fall_alert_setting(&defaults, setting)
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(needle), "{setting}: {err}");
+        }
     }
 
     #[test]

@@ -22,7 +22,9 @@ use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
 use lidar_har_core::pose_head::NoPoseHead;
 use lidar_har_core::stats::Spread;
 use lidar_har_infer::ActivityModel;
-use lidar_har_pipeline::classifier::{ClassifierConfig, ClassifierStage, load_classifier_config};
+use lidar_har_pipeline::classifier::{
+    ClassifierConfig, ClassifierStage, load_classifier_config, with_fall_alert_setting,
+};
 use lidar_har_pipeline::convert::observation_msg;
 use lidar_har_sim::scripts::{self, ScriptKind};
 use serde::Serialize;
@@ -40,6 +42,11 @@ pub struct AlertsArgs {
     /// Classifier parameters (YAML; the `fall_alert` block is used); defaults when absent.
     #[arg(long)]
     pub classifier_config: Option<PathBuf>,
+    /// One `fall_alert` setting changed from the configuration, e.g. `fall_min_scans=6`
+    /// (the value in YAML): to score variants, with `--readings`, without a file for each.
+    /// Repeatable; applied in order.
+    #[arg(long, value_name = "KEY=VALUE")]
+    pub fall_alert: Vec<String>,
     /// Scene files, as globs or paths; episodes go round-robin over them.
     #[arg(long, num_args = 1.., default_value = "config/scenes/*.yaml")]
     pub scenes: Vec<String>,
@@ -319,10 +326,14 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.save_readings {
         super::prepare_output_file(path, "--save-readings")?;
     }
-    let config = match &args.classifier_config {
+    let mut config = match &args.classifier_config {
         Some(path) => load_classifier_config(path)?,
         None => ClassifierConfig::default(),
     };
+    for setting in &args.fall_alert {
+        config.fall_alert =
+            with_fall_alert_setting(&config.fall_alert, setting).context("--fall-alert")?;
+    }
     let report = match &args.readings {
         Some(path) => replay(&args, &config, path)?,
         None => simulate(&args, &config)?,
