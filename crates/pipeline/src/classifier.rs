@@ -289,10 +289,32 @@ impl std::fmt::Display for PoseHeadStatus {
 }
 
 impl ClassifierOutput {
-    /// Whether this scan's activity is worth publishing: the model has its minimum history
-    /// and the person is visible.
     pub fn publishable(&self) -> bool {
-        self.visible && self.prediction.ready
+        publishable(self.visible, self.prediction.ready)
+    }
+}
+
+/// Whether a scan's activity is worth publishing, and is read by the fall alerts: the person
+/// is visible (a hidden person's activity is unknown) and the model has its minimum history.
+pub fn publishable(visible: bool, ready: bool) -> bool {
+    visible && ready
+}
+
+/// What the fall alerts are fed for one scan: the position only where the activity is
+/// [`publishable`]. `lidar-har alerts --readings` replays the alerts through this too.
+pub fn fall_input(
+    stamp_s: f64,
+    visible: bool,
+    ready: bool,
+    position: DVec2,
+    probabilities: [f32; Activity::COUNT],
+    body_length_m: Option<f64>,
+) -> FallInput {
+    FallInput {
+        stamp_s,
+        position: publishable(visible, ready).then_some(position),
+        probabilities,
+        body_length_m,
     }
 }
 
@@ -530,12 +552,14 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             None => None,
         };
         let body_length_m = MainAxisSpan::of(&self.points).map(|span| span.length());
-        let alerts = self.fall.update(&FallInput {
+        let alerts = self.fall.update(&fall_input(
             stamp_s,
-            position: (obs.visible && prediction.ready).then_some(position),
-            probabilities: prediction.probabilities,
+            obs.visible,
+            prediction.ready,
+            position,
+            prediction.probabilities,
             body_length_m,
-        });
+        ));
         self.alerts_raised += alerts.len();
         if let Some(last) = alerts.last() {
             self.last_alert = Some(*last);

@@ -15,7 +15,7 @@ use glam::DVec2;
 use lidar_har_core::activity::Activity;
 use lidar_har_core::classifier::LaneSchedule;
 use lidar_har_core::fall::FallInput;
-use lidar_har_pipeline::classifier::ClassifierOutput;
+use lidar_har_pipeline::classifier::{self, ClassifierOutput};
 use lidar_har_sim::scripts::ScriptKind;
 use serde::{Deserialize, Serialize};
 
@@ -133,7 +133,7 @@ impl Reading {
     }
 
     pub fn publishable(&self) -> bool {
-        self.visible && self.ready
+        classifier::publishable(self.visible, self.ready)
     }
 
     pub fn position(&self) -> DVec2 {
@@ -142,12 +142,14 @@ impl Reading {
 
     /// What the classifier stage gives the fall alerts for this scan.
     pub fn fall_input(&self, stamp_ns: u64) -> FallInput {
-        FallInput {
-            stamp_s: stamp_ns as f64 * 1e-9,
-            position: self.publishable().then(|| self.position()),
-            probabilities: self.probabilities,
-            body_length_m: self.body_length_m,
-        }
+        classifier::fall_input(
+            stamp_ns as f64 * 1e-9,
+            self.visible,
+            self.ready,
+            self.position(),
+            self.probabilities,
+            self.body_length_m,
+        )
     }
 }
 
