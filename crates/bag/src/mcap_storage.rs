@@ -201,6 +201,8 @@ pub(crate) struct McapFile {
     pub(crate) topics: Vec<TopicInfo>,
     /// (first, last) log time, when there are messages.
     pub(crate) time_bounds: Option<(i64, i64)>,
+    /// The file cannot be read to its end (cut short or damaged): counts and time bounds cover
+    /// the part before, and its message stream ends with the error.
     pub(crate) truncated: bool,
 }
 
@@ -234,7 +236,7 @@ impl McapFile {
 
     fn from_summary(input: McapInput, summary: Summary) -> Result<Self> {
         let path = input.path();
-        let (counts, time_bounds) = match &summary.stats {
+        let (counts, time_bounds, damaged) = match &summary.stats {
             Some(stats) => {
                 let bounds = if stats.message_count > 0 {
                     Some((
@@ -244,7 +246,7 @@ impl McapFile {
                 } else {
                     None
                 };
-                (stats.channel_message_counts.clone(), bounds)
+                (stats.channel_message_counts.clone(), bounds, false)
             }
             None => count_messages(&input, &summary)?,
         };
@@ -274,12 +276,15 @@ impl McapFile {
             summary: Some(summary),
             topics,
             time_bounds,
-            truncated: false,
+            truncated: damaged,
         })
     }
 
     /// Reads a file without a summary from start to end: channels, counts and time bounds.
-    /// A file that ends early is accepted here; its messages report the truncation.
+    /// A file that ends early or is damaged (a chunk whose CRC fails or that does not
+    /// decompress, a malformed record) is accepted here, counted up to that point: its
+    /// message stream stops at the same point and reports the error, so one bad chunk costs
+    /// the rest of its file, not the bag.
     fn from_linear_scan(input: McapInput) -> Result<Self> {
         let mut stream = LinearMessages::new(&input, None)?;
         let mut counts: HashMap<u16, u64> = HashMap::new();
@@ -294,11 +299,10 @@ impl McapFile {
                         Some((lo, hi)) => (lo.min(log_time), hi.max(log_time)),
                     });
                 }
-                Err(BagError::Truncated { .. }) => {
+                Err(_) => {
                     truncated = true;
                     break;
                 }
-                Err(other) => return Err(other),
             }
         }
         let mut topics = std::mem::take(&mut stream.topics);
@@ -318,6 +322,16 @@ impl McapFile {
     /// summary, else in file order. Memory stays bounded by the chunks in flight.
     pub(crate) fn messages(&self, topics: Option<&BTreeSet<String>>) -> Result<McapMessages> {
         match &self.summary {
+            // `mcap`'s indexed reader turns the topics into the channel ids that carry them and
+            // takes an empty set for no filter at all: a file with none of the topics (a split
+            // file written before a topic first appeared) would yield every message.
+            Some(_)
+                if topics.is_some_and(|wanted| {
+                    !self.topics.iter().any(|t| wanted.contains(&t.name))
+                }) =>
+            {
+                Ok(McapMessages::Empty)
+            }
             Some(summary) => Ok(McapMessages::Indexed(IndexedMessages::new(
                 &self.input,
                 summary,
@@ -372,21 +386,28 @@ fn read_summary(
     Ok(summary_reader.finish())
 }
 
-/// Message counts per channel, and the (first, last) log time when there are messages.
-type Counts = (BTreeMap<u16, u64>, Option<(i64, i64)>);
+/// Message counts per channel, the (first, last) log time when there are messages, and
+/// whether reading stopped early at a damaged chunk.
+type Counts = (BTreeMap<u16, u64>, Option<(i64, i64)>, bool);
 
 /// Per-channel counts and time bounds of a file whose summary has no Statistics record (the
 /// record is optional: e.g. Python's `mcap` writer with `use_statistics=False`), by reading
-/// every chunk once. Chunk indexes alone would give the time span but not the counts.
+/// every chunk once. Chunk indexes alone would give the time span but not the counts. A chunk
+/// that cannot be read ends the count there, not the opening: the message stream stops at the
+/// same chunk and reports why.
 fn count_messages(input: &McapInput, summary: &Summary) -> Result<Counts> {
     let path = input.path();
     let mut stream = IndexedMessages::new(input, summary, None)?;
     let mut counts = BTreeMap::new();
     let mut bounds: Option<(u64, u64)> = None;
+    let mut damaged = false;
     while let Some(item) =
         stream.next_with(|_, _, header, _| Ok((header.channel_id, header.log_time)))
     {
-        let (channel_id, log_time) = item?;
+        let Ok((channel_id, log_time)) = item else {
+            damaged = true;
+            break;
+        };
         *counts.entry(channel_id).or_insert(0) += 1;
         bounds = Some(match bounds {
             None => (log_time, log_time),
@@ -397,7 +418,7 @@ fn count_messages(input: &McapInput, summary: &Summary) -> Result<Counts> {
         Some((lo, hi)) => Some((to_i64(&path, "", lo)?, to_i64(&path, "", hi)?)),
         None => None,
     };
-    Ok((counts, bounds))
+    Ok((counts, bounds, damaged))
 }
 
 fn to_i64(path: &Path, topic: &str, log_time: u64) -> Result<i64> {
@@ -448,6 +469,8 @@ fn topic_info(
 pub(crate) enum McapMessages {
     Indexed(IndexedMessages),
     Linear(LinearMessages),
+    /// A complete file without any of the topics asked for.
+    Empty,
 }
 
 impl Iterator for McapMessages {
@@ -456,6 +479,7 @@ impl Iterator for McapMessages {
         match self {
             McapMessages::Indexed(m) => m.next(),
             McapMessages::Linear(m) => m.next(),
+            McapMessages::Empty => None,
         }
     }
 }
@@ -792,5 +816,191 @@ impl Iterator for LinearMessages {
                 data,
             }));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeMap;
+    use std::path::Path;
+
+    use crate::{BagError, BagReader};
+
+    /// An MCAP in rosbag2's profile with `per_topic` messages on each of `topics`, interleaved,
+    /// log times 1000, 1001, ... in file order. Small chunks, so there are several.
+    fn write_mcap(
+        path: &Path,
+        topics: &[&str],
+        per_topic: u64,
+        statistics: bool,
+        compression: Option<mcap::Compression>,
+    ) -> Vec<u8> {
+        let mut out = Vec::new();
+        {
+            let mut writer = mcap::WriteOptions::new()
+                .profile(super::PROFILE)
+                .emit_statistics(statistics)
+                .compression(compression)
+                .chunk_size(Some(256))
+                .create(std::io::Cursor::new(&mut out))
+                .unwrap();
+            let schema = writer
+                .add_schema("std_msgs/msg/String", "ros2msg", b"string data")
+                .unwrap();
+            let channels: Vec<u16> = topics
+                .iter()
+                .map(|t| {
+                    writer
+                        .add_channel(schema, t, "cdr", &BTreeMap::new())
+                        .unwrap()
+                })
+                .collect();
+            let mut log_time = 1000;
+            for i in 0..per_topic {
+                for &channel_id in &channels {
+                    let header = mcap::records::MessageHeader {
+                        channel_id,
+                        sequence: i as u32,
+                        log_time,
+                        publish_time: log_time,
+                    };
+                    writer
+                        .write_to_known_channel(&header, &[0, 1, 0, 0, 2, 0, 0, 0, b'x', 0])
+                        .unwrap();
+                    log_time += 1;
+                }
+            }
+            writer.finish().unwrap();
+        }
+        std::fs::write(path, &out).unwrap();
+        out
+    }
+
+    /// rosbag2 split bags where a topic first appears after the first split: the earlier
+    /// files have no channel for it, and `mcap`'s reader would take the empty channel set
+    /// it makes of the topic filter for no filter at all.
+    #[test]
+    fn a_split_file_without_the_requested_topic_yields_none_of_its_messages() {
+        let tmp = tempfile::tempdir().unwrap();
+        write_mcap(&tmp.path().join("split_0.mcap"), &["/a"], 20, true, None);
+        write_mcap(
+            &tmp.path().join("split_1.mcap"),
+            &["/a", "/b"],
+            10,
+            true,
+            None,
+        );
+        let reader = BagReader::open(tmp.path()).unwrap();
+        let on_b: Vec<_> = reader
+            .messages_on(&["/b"])
+            .unwrap()
+            .collect::<Result<_, _>>()
+            .unwrap();
+        let topics: Vec<&str> = on_b.iter().map(|m| &*m.topic).collect();
+        assert_eq!(topics, vec!["/b"; 10]);
+        let on_a = reader.messages_on(&["/a"]).unwrap().count();
+        assert_eq!(on_a, 30);
+    }
+
+    /// The bytes up to the end of the file's last chunk (a file without its summary, as a
+    /// killed recorder leaves it), with one byte flipped inside that chunk's records; and the
+    /// log time of the chunk's first message.
+    fn damage_last_chunk(bytes: &[u8], cut: bool) -> (Vec<u8>, i64) {
+        let summary = mcap::Summary::read(bytes).unwrap().unwrap();
+        let last = summary
+            .chunk_indexes
+            .iter()
+            .max_by_key(|c| c.chunk_start_offset)
+            .unwrap();
+        let end = (last.chunk_start_offset + last.chunk_length) as usize;
+        let mut damaged = if cut {
+            bytes[..end].to_vec()
+        } else {
+            bytes.to_vec()
+        };
+        damaged[end - 3] ^= 0x40;
+        (damaged, last.message_start_time as i64)
+    }
+
+    /// Reads every item of the bag at `dir`: the messages (log times) and the errors.
+    fn read_all(dir: &Path) -> (Vec<i64>, Vec<BagError>) {
+        let reader = BagReader::open(dir).unwrap_or_else(|e| panic!("open: {e}"));
+        let (mut times, mut errors) = (Vec::new(), Vec::new());
+        for item in reader.messages().unwrap() {
+            match item {
+                Ok(m) => times.push(m.log_time_ns),
+                Err(e) => errors.push(e),
+            }
+        }
+        (times, errors)
+    }
+
+    /// A split bag whose second file was cut after its last chunk (no summary) and has one
+    /// byte wrong in that chunk: the bag opens, every message of the good file and of the good
+    /// chunks comes, then the error naming the file and the failed CRC.
+    #[test]
+    fn a_corrupt_chunk_in_a_file_without_summary_ends_that_file_only() {
+        let tmp = tempfile::tempdir().unwrap();
+        write_mcap(&tmp.path().join("split_0.mcap"), &["/a"], 20, true, None);
+        let second = tmp.path().join("split_1.mcap");
+        let bytes = write_mcap(&second, &["/a", "/b"], 40, true, None);
+        let (damaged, bad_from) = damage_last_chunk(&bytes, true);
+        std::fs::write(&second, damaged).unwrap();
+
+        let reader = BagReader::open(tmp.path()).unwrap_or_else(|e| panic!("open: {e}"));
+        let info = reader.metadata();
+        assert!(info.truncated, "the damage is reported by metadata()");
+        let (times, errors) = read_all(tmp.path());
+        // The first file's 20 messages and the second's before its last chunk, in order.
+        let expected: Vec<i64> = (1000..1020).chain(1000..bad_from).collect();
+        let mut sorted = times.clone();
+        sorted.sort_unstable();
+        let mut expected_sorted = expected.clone();
+        expected_sorted.sort_unstable();
+        assert_eq!(sorted, expected_sorted);
+        assert_eq!(info.message_count, expected.len() as u64);
+        let [error] = &errors[..] else {
+            panic!("one error expected: {errors:?}");
+        };
+        let text = error.to_string();
+        assert!(
+            text.contains("split_1.mcap") && text.contains("CRC"),
+            "{text}"
+        );
+    }
+
+    /// The same damage, in a zstd chunk, of a complete file whose summary has no Statistics
+    /// record (its counts come from reading every chunk when it is opened).
+    #[test]
+    fn a_corrupt_chunk_in_a_file_without_statistics_ends_that_file_only() {
+        let tmp = tempfile::tempdir().unwrap();
+        write_mcap(&tmp.path().join("split_0.mcap"), &["/a"], 20, true, None);
+        let second = tmp.path().join("split_1.mcap");
+        let bytes = write_mcap(
+            &second,
+            &["/a", "/b"],
+            40,
+            false,
+            Some(mcap::Compression::Zstd),
+        );
+        let (damaged, bad_from) = damage_last_chunk(&bytes, false);
+        std::fs::write(&second, damaged).unwrap();
+
+        let reader = BagReader::open(tmp.path()).unwrap_or_else(|e| panic!("open: {e}"));
+        let info = reader.metadata();
+        assert!(info.truncated, "the damage is reported by metadata()");
+        let (times, errors) = read_all(tmp.path());
+        let mut expected: Vec<i64> = (1000..1020).chain(1000..bad_from).collect();
+        expected.sort_unstable();
+        assert_eq!(times, expected, "log-time order");
+        assert_eq!(info.message_count, expected.len() as u64);
+        let [error] = &errors[..] else {
+            panic!("one error expected: {errors:?}");
+        };
+        let text = error.to_string();
+        assert!(
+            text.contains("split_1.mcap") && text.contains("decompression"),
+            "{text}"
+        );
     }
 }

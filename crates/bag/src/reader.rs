@@ -51,7 +51,9 @@ pub struct BagInfo {
     /// `metadata.yaml` version, `None` for a bare `.mcap` file.
     pub metadata_version: Option<u32>,
     pub ros_distro: String,
-    /// True when a storage file ends early (a recorder was killed): counts cover what is readable.
+    /// True when a storage file cannot be read to its end: cut short (a recorder was killed)
+    /// or damaged (an MCAP chunk that fails its CRC or does not decompress, a malformed
+    /// record). Counts cover the part before; reading the messages ends with the error.
     pub truncated: bool,
 }
 

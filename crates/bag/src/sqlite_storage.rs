@@ -6,9 +6,9 @@ use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use rusqlite::{Connection, OpenFlags, OptionalExtension, params};
+use rusqlite::{Connection, OpenFlags, OptionalExtension, ffi, params};
 
-use crate::error::{BagError, Result, sqlite_error};
+use crate::error::{BagError, Result, io_error, sqlite_error};
 use crate::metadata::{BagMetadata, METADATA_VERSION};
 use crate::qos;
 use crate::reader::{BagMessage, TopicInfo};
@@ -29,10 +29,25 @@ CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, timesta
 CREATE INDEX timestamp_idx ON messages (timestamp ASC);
 ";
 
+/// Message bytes an open transaction may hold before it is committed without a flush: it is
+/// held in memory (see [`SqliteSink`]), and a writer whose flushes are far apart must not grow
+/// without bound. Large, because each commit syncs the file: committing every MiB made a bulk
+/// write (`bag convert`) three times slower.
+const TRANSACTION_LIMIT: u64 = 64 << 20;
+
+/// Writes a `.db3` in one open transaction, committed at each flush. The transaction's pages
+/// stay in memory until it commits (cache spill is off): SQLite would otherwise write them
+/// into the file once they outgrow its page cache (2 MB), after making the rollback journal
+/// hot, and a writer killed then leaves a file that a read-only reader cannot open until the
+/// journal is rolled back.
 pub(crate) struct SqliteSink {
     path: PathBuf,
     conn: Option<Connection>,
     defined_types: BTreeSet<String>,
+    /// Message bytes written since the last commit.
+    pending: u64,
+    /// [`TRANSACTION_LIMIT`]; smaller in tests.
+    commit_after: u64,
 }
 
 impl SqliteSink {
@@ -45,6 +60,8 @@ impl SqliteSink {
         }
         let err = sqlite_error(path);
         let conn = Connection::open(path).map_err(sqlite_error(path))?;
+        conn.execute_batch("PRAGMA cache_spill = OFF")
+            .map_err(sqlite_error(path))?;
         conn.execute_batch(CREATE_TABLES)
             .map_err(sqlite_error(path))?;
         conn.execute(
@@ -57,6 +74,8 @@ impl SqliteSink {
             path: path.to_path_buf(),
             conn: Some(conn),
             defined_types: BTreeSet::new(),
+            pending: 0,
+            commit_after: TRANSACTION_LIMIT,
         })
     }
 
@@ -106,6 +125,11 @@ impl StorageSink for SqliteSink {
         insert
             .execute(params![storage_id, log_time_ns, data])
             .map_err(sqlite_error(&path))?;
+        drop(insert);
+        self.pending += data.len() as u64;
+        if self.pending >= self.commit_after {
+            self.flush()?;
+        }
         Ok(())
     }
 
@@ -113,7 +137,9 @@ impl StorageSink for SqliteSink {
         let path = self.path.clone();
         self.conn()?
             .execute_batch("COMMIT; BEGIN")
-            .map_err(sqlite_error(path))
+            .map_err(sqlite_error(path))?;
+        self.pending = 0;
+        Ok(())
     }
 
     fn finish(&mut self, metadata: &BagMetadata) -> Result<()> {
@@ -135,17 +161,104 @@ impl StorageSink for SqliteSink {
 
 /// An opened `.db3` file: its topics, and how to stream its messages.
 pub(crate) struct SqliteFile {
+    /// The bag's file, named in errors.
     path: PathBuf,
+    source: ReadSource,
     pub(crate) topics: Vec<TopicInfo>,
     pub(crate) time_bounds: Option<(i64, i64)>,
 }
 
-fn open_read_only(path: &Path) -> Result<Connection> {
+/// Where the messages of a `.db3` are read from: the file itself, or a private copy on which
+/// a hot rollback journal was rolled back ([`open_for_reading`]).
+#[derive(Clone)]
+struct ReadSource {
+    db: PathBuf,
+    /// The copy's directory, deleted when the file and its last message stream are dropped.
+    _copy: Option<Arc<tempfile::TempDir>>,
+}
+
+fn open_read_only(db: &Path) -> rusqlite::Result<Connection> {
     Connection::open_with_flags(
-        path,
+        db,
         OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
     )
-    .map_err(sqlite_error(path))
+}
+
+/// SQLite's rollback journal of the database at `db`.
+fn journal_of(db: &Path) -> PathBuf {
+    let mut name = db.as_os_str().to_owned();
+    name.push("-journal");
+    PathBuf::from(name)
+}
+
+/// Reads the schema, which is when SQLite takes its lock and looks for a hot journal.
+fn probe(conn: &Connection) -> rusqlite::Result<()> {
+    conn.query_row("SELECT count(*) FROM sqlite_master", [], |_| Ok(()))
+}
+
+/// Opens `path` for reading without changing it. A writer killed in the middle of a commit,
+/// or one that let SQLite spill a transaction larger than its page cache into the file (as
+/// other writers may), leaves a hot rollback journal: the file holds pages of a transaction
+/// that never committed until the journal is rolled back, which a read-only connection cannot
+/// do (`SQLITE_READONLY_ROLLBACK`). Rolling it back in place would change the user's bag,
+/// which rosbag2's read-only reader does not do either; so the file and its journal are copied
+/// to a temporary directory and SQLite rolls the copy back, as it would the file itself on
+/// opening it for writing: every committed message, nothing of the unfinished transaction.
+fn open_for_reading(path: &Path) -> Result<(Connection, ReadSource)> {
+    let conn = open_read_only(path).map_err(sqlite_error(path))?;
+    match probe(&conn) {
+        Ok(()) => {
+            let source = ReadSource {
+                db: path.to_path_buf(),
+                _copy: None,
+            };
+            return Ok((conn, source));
+        }
+        Err(e)
+            if e.sqlite_error()
+                .is_some_and(|e| e.extended_code == ffi::SQLITE_READONLY_ROLLBACK) => {}
+        Err(e) => return Err(sqlite_error(path)(e)),
+    }
+    drop(conn);
+    let source = roll_back_on_copy(path)?;
+    let conn = open_read_only(&source.db).map_err(sqlite_error(path))?;
+    probe(&conn).map_err(sqlite_error(path))?;
+    Ok((conn, source))
+}
+
+/// Copies `path` and its hot journal to a new temporary directory and rolls the copy back.
+fn roll_back_on_copy(path: &Path) -> Result<ReadSource> {
+    const CANNOT_COPY: &str = "has a hot rollback journal beside it (`-journal`, left by a \
+        writer killed in a transaction); copying the two aside to roll it back there failed \
+        (opening the file for writing once, e.g. with the sqlite3 tool, rolls it back in place)";
+    let dir = tempfile::Builder::new()
+        .prefix("lidar-har-bag-")
+        .tempdir()
+        .map_err(io_error(path, CANNOT_COPY))?;
+    let db = dir
+        .path()
+        .join(path.file_name().unwrap_or("bag.db3".as_ref()));
+    for (from, to) in [
+        (path.to_path_buf(), db.clone()),
+        (journal_of(path), journal_of(&db)),
+    ] {
+        // Copied into new files (not `fs::copy`, which keeps a read-only file's mode): the
+        // roll-back writes to them.
+        std::fs::File::open(&from)
+            .and_then(|mut from| std::io::copy(&mut from, &mut std::fs::File::create_new(&to)?))
+            .map_err(io_error(path, CANNOT_COPY))?;
+    }
+    let conn = Connection::open_with_flags(
+        &db,
+        OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+    )
+    .map_err(sqlite_error(path))?;
+    probe(&conn).map_err(sqlite_error(path))?;
+    conn.close().map_err(|(_, e)| sqlite_error(path)(e))?;
+    Ok(ReadSource {
+        db,
+        _copy: Some(Arc::new(dir)),
+    })
 }
 
 fn has_column(conn: &Connection, table: &str, column: &str) -> rusqlite::Result<bool> {
@@ -158,7 +271,7 @@ fn has_column(conn: &Connection, table: &str, column: &str) -> rusqlite::Result<
 
 impl SqliteFile {
     pub(crate) fn open(path: &Path) -> Result<Self> {
-        let conn = open_read_only(path)?;
+        let (conn, source) = open_for_reading(path)?;
         let err = |e| BagError::Sqlite {
             path: path.to_path_buf(),
             cause: e,
@@ -250,6 +363,7 @@ impl SqliteFile {
         };
         Ok(Self {
             path: path.to_path_buf(),
+            source,
             topics,
             time_bounds,
         })
@@ -258,7 +372,7 @@ impl SqliteFile {
     /// Streams messages in timestamp order, a batch of rows at a time (keyset pagination on
     /// the `timestamp_idx` index), so memory stays constant whatever the file's size.
     pub(crate) fn messages(&self, topics: Option<&BTreeSet<String>>) -> Result<SqliteMessages> {
-        let conn = open_read_only(&self.path)?;
+        let conn = open_read_only(&self.source.db).map_err(sqlite_error(&self.path))?;
         let wanted = self
             .topics
             .iter()
@@ -273,6 +387,7 @@ impl SqliteFile {
             after: None,
             batch: std::collections::VecDeque::new(),
             done: false,
+            _source: self.source.clone(),
         })
     }
 }
@@ -286,6 +401,8 @@ pub(crate) struct SqliteMessages {
     after: Option<(i64, i64)>,
     batch: std::collections::VecDeque<(i64, i64, i64, Vec<u8>)>,
     done: bool,
+    /// Keeps a rolled-back copy alive while its messages are read (last: dropped after `conn`).
+    _source: ReadSource,
 }
 
 impl SqliteMessages {
@@ -350,5 +467,122 @@ impl Iterator for SqliteMessages {
                 }));
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use lidar_har_msgs::qos::QosProfile;
+    use rusqlite::{Connection, params};
+
+    use super::{SqliteFile, SqliteSink};
+    use crate::writer::{StorageSink, WriterTopic};
+    use crate::{BagReader, BagWriter, StorageId, WriterOptions};
+
+    /// Message `i`: 6 KB of bytes that differ from message to message.
+    fn payload(i: u32) -> Vec<u8> {
+        (0..6000u32).map(|b| (b ^ i) as u8).collect()
+    }
+
+    /// The open transaction is held in memory until it commits; without a flush it is
+    /// committed once it holds the limit (64 MiB; 64 KiB here) of message bytes.
+    #[test]
+    fn the_open_transaction_is_committed_once_it_holds_the_limit() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("rec_0.db3");
+        let mut sink = SqliteSink::create(&path, "jazzy").unwrap();
+        sink.commit_after = 64 << 10;
+        let topic = WriterTopic {
+            name: "/raw".into(),
+            type_name: "std_msgs/msg/String".into(),
+            serialization_format: "cdr".into(),
+            schema_text: "string data\n".into(),
+            qos: Vec::new(),
+            type_description_hash: String::new(),
+            storage_id: 0,
+            message_count: 0,
+        };
+        let id = sink.add_topic(&topic).unwrap();
+        for i in 0..100 {
+            sink.write(id, 1000 + i64::from(i), &payload(i)).unwrap();
+        }
+        let file = SqliteFile::open(&path).unwrap();
+        let on_disk: Vec<Vec<u8>> = file
+            .messages(None)
+            .unwrap()
+            .map(|m| m.unwrap().data)
+            .collect();
+        let per_commit = (64 << 10) / 6000 + 1;
+        assert!(
+            on_disk.len() >= 100 - per_commit,
+            "{} of 100 committed without a flush",
+            on_disk.len()
+        );
+        assert_eq!(
+            on_disk,
+            (0..on_disk.len() as u32).map(payload).collect::<Vec<_>>()
+        );
+    }
+
+    /// A writer killed in the middle of a commit (or one whose transaction outgrew SQLite's
+    /// page cache) leaves a hot rollback journal, which a read-only connection cannot roll
+    /// back. The reader rolls it back on a private copy: every committed message, none of the
+    /// uncommitted ones, and the bag's files are left as they were.
+    #[test]
+    fn a_hot_journal_is_rolled_back_on_a_copy_and_the_bag_is_not_changed() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("rec");
+        let options = WriterOptions {
+            storage: StorageId::Sqlite3,
+            ..WriterOptions::default()
+        };
+        let mut writer = BagWriter::create(&dir, options).unwrap();
+        let topic = writer
+            .add_topic(
+                "/raw",
+                "std_msgs/msg/String",
+                "string data\n",
+                QosProfile::sensor_data(),
+            )
+            .unwrap();
+        let written: Vec<Vec<u8>> = (0..50).map(payload).collect();
+        for (i, data) in written.iter().enumerate() {
+            writer.write(topic, 1000 + i as i64, data).unwrap();
+        }
+        writer.finish().unwrap();
+
+        // Another writer's transaction, larger than its page cache: its pages spill into the
+        // file and the journal becomes hot. A copy of both now is what a kill would leave.
+        let db = dir.join("rec_0.db3");
+        let conn = Connection::open(&db).unwrap();
+        conn.execute_batch("PRAGMA cache_size = 8; BEGIN").unwrap();
+        for i in 0..200 {
+            conn.execute(
+                "INSERT INTO messages(topic_id, timestamp, data) VALUES (1, ?1, ?2)",
+                params![i, payload(9)],
+            )
+            .unwrap();
+        }
+        let killed = tmp.path().join("killed");
+        std::fs::create_dir(&killed).unwrap();
+        for name in ["metadata.yaml", "rec_0.db3", "rec_0.db3-journal"] {
+            std::fs::copy(dir.join(name), killed.join(name)).unwrap();
+        }
+        conn.execute_batch("ROLLBACK").unwrap();
+        let files = || {
+            ["rec_0.db3", "rec_0.db3-journal"].map(|name| std::fs::read(killed.join(name)).unwrap())
+        };
+        let files_before = files();
+        assert_ne!(files_before[1][0], 0, "the journal is hot");
+
+        let reader = BagReader::open(&killed).unwrap_or_else(|e| panic!("open: {e}"));
+        let read: Vec<Vec<u8>> = reader
+            .messages()
+            .unwrap()
+            .map(|m| m.unwrap_or_else(|e| panic!("read: {e}")).data)
+            .collect();
+        assert_eq!(read, written);
+        drop(reader);
+        assert!(files() == files_before, "the bag's files are unchanged");
     }
 }

@@ -1,6 +1,7 @@
 //! A real child process records a bag and is interrupted: SIGKILL loses nothing flushed and
-//! leaves nothing corrupt; SIGTERM (handled the way the project's binaries do) leaves a
-//! complete bag. The child is this test binary itself, re-run with `BAG_CHILD_DIR` set.
+//! leaves nothing corrupt (MCAP, and sqlite3 with more unflushed than SQLite's page cache);
+//! SIGTERM (handled the way the project's binaries do) leaves a complete bag. The child is
+//! this test binary itself, re-run with `BAG_CHILD_DIR` set.
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -10,7 +11,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
-use lidar_har_bag::{BagError, BagReader, BagWriter, Compression, WriterOptions};
+use lidar_har_bag::{BagError, BagReader, BagWriter, Compression, StorageId, WriterOptions};
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::qos::QosProfile;
 use lidar_har_msgs::sensor_msgs::LaserScan;
@@ -78,6 +79,46 @@ fn child_writer() {
     println!("finished {}", summary.metadata.message_count);
 }
 
+/// The sqlite3 child: flushes `SQLITE_FLUSHED` scans of about 6 KB, then writes 1000 more
+/// without flushing (printing `pending N` every 100) and waits to be killed: 6 MB in the open
+/// transaction, three times SQLite's default page cache of 2 MB, so its pages would be
+/// spilled into the file if the writer let SQLite do so.
+#[test]
+fn child_sqlite_writer() {
+    let Some(dir) = std::env::var_os(CHILD_DIR) else {
+        return;
+    };
+    let options = WriterOptions {
+        storage: StorageId::Sqlite3,
+        flush_interval: Duration::from_secs(3600),
+        ..WriterOptions::default()
+    };
+    let mut writer = BagWriter::create(Path::new(&dir), options).unwrap();
+    let topic = writer
+        .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
+        .unwrap();
+    // Ends the harness's `test child_sqlite_writer ... ` line: the awaited lines start clean.
+    println!();
+    let big_scan = |i: u32| LaserScan {
+        intensities: vec![1.0; 720],
+        ..scan(i)
+    };
+    for i in 0..SQLITE_FLUSHED + 1000 {
+        writer
+            .write_message(topic, 1_000 + i64::from(i) * 50_000_000, &big_scan(i))
+            .unwrap();
+        if i + 1 == SQLITE_FLUSHED {
+            writer.flush().unwrap();
+            println!("flushed {}", i + 1);
+        } else if i >= SQLITE_FLUSHED && (i + 1 - SQLITE_FLUSHED).is_multiple_of(100) {
+            println!("pending {}", i + 1 - SQLITE_FLUSHED);
+        }
+    }
+    std::thread::sleep(CHILD_DEADLINE);
+}
+
+const SQLITE_FLUSHED: u32 = 100;
+
 /// How long the child may take to print its next awaited line.
 const CHILD_DEADLINE: Duration = Duration::from_secs(60);
 
@@ -90,9 +131,10 @@ struct ChildWriter {
 }
 
 impl ChildWriter {
-    fn spawn(dir: &Path) -> Self {
+    /// Runs the test `test` (`child_writer` or `child_sqlite_writer`) as the child.
+    fn spawn(test: &str, dir: &Path) -> Self {
         let mut child = Command::new(std::env::current_exe().unwrap())
-            .args(["--exact", "child_writer", "--nocapture", "--test-threads=1"])
+            .args(["--exact", test, "--nocapture", "--test-threads=1"])
             .env(CHILD_DIR, dir)
             .stdout(Stdio::piped())
             .spawn()
@@ -180,7 +222,7 @@ fn read_back(dir: &Path) -> (Vec<LaserScan>, Option<BagError>) {
 fn sigkill_loses_nothing_flushed() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("killed");
-    let mut child = ChildWriter::spawn(&dir);
+    let mut child = ChildWriter::spawn("child_writer", &dir);
     let flushed = child.wait_for_flushes(300);
     child.child.kill().unwrap(); // SIGKILL: no handler runs
     child.wait();
@@ -216,11 +258,43 @@ fn sigkill_loses_nothing_flushed() {
     );
 }
 
+/// SIGKILL of a sqlite3 recorder whose open transaction is larger than SQLite's page cache:
+/// the bag opens and every flushed message reads back (the uncommitted ones are lost).
+#[test]
+fn sigkill_of_a_sqlite3_writer_loses_nothing_flushed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("killed");
+    let mut child = ChildWriter::spawn("child_sqlite_writer", &dir);
+    let flushed = child.wait_for_flushes(SQLITE_FLUSHED);
+    child.find_line("`pending 1000`", |line| {
+        (line == "pending 1000").then_some(())
+    });
+    child.child.kill().unwrap(); // SIGKILL, mid-transaction
+    child.wait();
+    // Killed with the transaction open, and none of its pages in the file: the journal is
+    // not hot, so any read-only reader (rosbag2's too) opens the file as it is.
+    let journal = std::fs::read(dir.join("killed_0.db3-journal")).unwrap();
+    assert_eq!(journal.first(), Some(&0), "the journal is not hot");
+
+    let (scans, error) = read_back(&dir);
+    assert!(error.is_none(), "{error:?}");
+    assert_eq!(scans.len(), flushed as usize);
+    for (i, got) in scans.iter().enumerate() {
+        assert_eq!(got.header, scan(i as u32).header, "message {i}");
+        assert_eq!(got.intensities.len(), 720, "message {i}");
+    }
+    let reader = BagReader::open(&dir).unwrap();
+    assert_eq!(
+        reader.bag_metadata().unwrap().message_count,
+        u64::from(flushed)
+    );
+}
+
 #[test]
 fn sigterm_finishes_the_bag() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("terminated");
-    let mut child = ChildWriter::spawn(&dir);
+    let mut child = ChildWriter::spawn("child_writer", &dir);
     child.wait_for_flushes(100);
     nix::sys::signal::kill(
         nix::unistd::Pid::from_raw(child.child.id() as i32),

@@ -83,7 +83,7 @@ fn info(path: &Path) -> anyhow::Result<()> {
     outln!("Messages:          {}", info.message_count);
     if info.truncated {
         outln!(
-            "Warning:           a storage file ends early (recorder killed?); counts cover its complete part"
+            "Warning:           a storage file cannot be read to its end (cut short by a killed recorder, or damaged); counts cover the part before"
         );
     }
     let width = reader
