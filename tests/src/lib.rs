@@ -216,6 +216,35 @@ pub fn runtime_available() -> bool {
     false
 }
 
+/// Copies the bag at `src` into a new bag at `dst`, leaving out the topics `dropped` and
+/// passing each message's bytes through `edit(topic, bytes)`: inputs a test breaks on purpose.
+pub fn copy_bag(src: &Path, dst: &Path, dropped: &[&str], edit: impl Fn(&str, Vec<u8>) -> Vec<u8>) {
+    let reader = lidar_har_bag::BagReader::open(src).expect("the bag to copy opens");
+    let mut writer = lidar_har_bag::BagWriter::create(dst, lidar_har_bag::WriterOptions::default())
+        .expect("the copy can be created");
+    let kept: Vec<_> = reader
+        .topics()
+        .iter()
+        .filter(|t| !dropped.contains(&t.name.as_str()))
+        .map(|t| {
+            (
+                t.name.clone(),
+                writer.add_topic_like(t).expect("topic added"),
+            )
+        })
+        .collect();
+    for message in reader.messages().expect("the bag to copy reads") {
+        let message = message.expect("a message of the bag to copy");
+        if let Some((topic, handle)) = kept.iter().find(|(name, _)| *name == *message.topic) {
+            let data = edit(topic, message.data);
+            writer
+                .write(*handle, message.log_time_ns, &data)
+                .expect("message copied");
+        }
+    }
+    writer.finish().expect("the copy is finished");
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 
 use lidar_har_bag::BagReader;
-use lidar_har_e2e::{lidar_har as lidar_har_command, repo_root, runtime_available};
+use lidar_har_e2e::{copy_bag, lidar_har as lidar_har_command, repo_root, runtime_available};
 use lidar_har_msgs::geometry_msgs::PoseWithCovarianceStamped;
 use lidar_har_msgs::lidar_har_msgs::Activity;
 
@@ -181,6 +181,39 @@ fn run_with_a_model_records_activities_and_scores_them() {
         count += 1;
     }
     assert_eq!(count, classified);
+
+    // Ground truth that cannot be read is counted as skipped, and nothing is scored.
+    let garbled = tmp.path().join("garbled");
+    copy_bag(&sim, &garbled, &[], |topic, mut data| {
+        if topic == "/ground_truth/activity" {
+            data.truncate(10);
+        }
+        data
+    });
+    let rerun = tmp.path().join("rerun");
+    lidar_har_ok(&[
+        "run",
+        "--bag",
+        path(&garbled),
+        "--out",
+        path(&rerun),
+        "--model",
+        path(&model),
+    ]);
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(rerun.join("summary.json")).unwrap())
+            .unwrap();
+    let truths = BagReader::open(&sim)
+        .unwrap()
+        .topic("/ground_truth/activity")
+        .unwrap()
+        .message_count;
+    assert_eq!(
+        summary["decode_errors"].as_u64(),
+        Some(truths),
+        "{summary:#}"
+    );
+    assert!(summary["activity"]["accuracy"].is_null(), "{summary:#}");
 }
 
 #[test]

@@ -9,7 +9,7 @@ use std::path::Path;
 
 use glam::DVec2;
 use lidar_har_bag::{BagReader, BagWriter, WriterOptions};
-use lidar_har_e2e::lidar_har as lidar_har_command;
+use lidar_har_e2e::{copy_bag, lidar_har as lidar_har_command};
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::geometry_msgs::{
     Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3,
@@ -569,5 +569,30 @@ fn a_sweeping_lidar_on_a_turning_robot_is_deskewed_through_the_bag() {
     assert!(
         deskewed < 0.5 && skewed > deskewed + 0.15,
         "p95 {deskewed} m de-skewed, {skewed} m not"
+    );
+}
+
+/// Without a map the estimates are in the Lidar's frame, which the map-frame ground truth
+/// cannot be compared to: no position error rather than a wrong one (it was metres).
+#[test]
+fn ground_truth_in_another_frame_than_the_estimates_gives_no_position_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let robot = tmp.path().join("robot");
+    write_bag(&robot);
+    let input = tmp.path().join("in");
+    copy_bag(
+        &robot,
+        &input,
+        &[topics::MAP.name, topics::ODOM.name],
+        |_, data| data,
+    );
+    let summary = run_localiser(&input, &tmp.path().join("out"), None);
+    assert_eq!(summary.room, "learned_background");
+    assert!(summary.scans_localised > 0, "{summary:?}");
+    assert_eq!(summary.position_error_m, None, "{summary:?}");
+    assert_eq!(
+        summary.warnings.get("ground_truth_in_another_frame"),
+        Some(&199),
+        "{summary:?}"
     );
 }

@@ -275,18 +275,23 @@ impl Stages {
         let topic = &*message.topic;
         if message.log_time_ns < 0 {
             // Its outputs could not be written: skipped, rather than ending the whole run.
-            tally.decode_errors += 1;
-            log::warn!(
+            tally.skip(format_args!(
                 "{topic} skipped: negative log time {} ns",
                 message.log_time_ns
-            );
+            ));
             return Ok(());
         }
-        if self
+        if let Some(taken) = self
             .classifier
             .as_mut()
-            .is_some_and(|c| c.on_input(topic, &message.data))
+            .and_then(|c| c.on_input(topic, &message.data))
         {
+            if let Err(e) = taken {
+                tally.skip(format_args!(
+                    "{topic} at {} ns skipped: {e}",
+                    message.log_time_ns
+                ));
+            }
             return Ok(());
         }
         if topic == topics::GROUND_TRUTH_POSE.name {
@@ -314,8 +319,7 @@ impl Stages {
         let step = match self.localiser.handle(topic, &message.data) {
             Ok(step) => step,
             Err(e) => {
-                tally.decode_errors += 1;
-                log::warn!("skipped at {} ns: {e}", message.log_time_ns);
+                tally.skip(format_args!("skipped at {} ns: {e}", message.log_time_ns));
                 return Ok(());
             }
         };
@@ -381,26 +385,67 @@ struct Tally {
     pipeline_times: Vec<f64>,
     estimates: Vec<(i64, DVec2)>,
     ground_truth: Vec<(i64, DVec2)>,
+    /// The frame of the first ground-truth sample; samples in another are skipped.
+    ground_truth_frame: Option<String>,
     read_error: Option<String>,
 }
 
+/// Messages skipped that are logged one by one; the rest are only counted.
+const SKIPS_LOGGED: u64 = 10;
+
 impl Tally {
+    /// Counts a message that could not be used, and logs the first few: a bag broken
+    /// throughout would otherwise bury the log.
+    fn skip(&mut self, why: std::fmt::Arguments) {
+        self.decode_errors += 1;
+        if self.decode_errors <= SKIPS_LOGGED {
+            log::warn!("{why}");
+        }
+        if self.decode_errors == SKIPS_LOGGED {
+            log::warn!(
+                "further messages skipped are not logged; summary.json counts them (decode_errors)"
+            );
+        }
+    }
+
     /// Keeps a /ground_truth/human_pose sample for the position error.
     fn add_ground_truth(&mut self, message: &BagMessage) {
-        match lidar_har_msgs::decode::<PoseStamped>(&message.data) {
-            Ok(gt) => self.ground_truth.push((
-                gt.header.stamp.to_nanos(),
-                DVec2::new(gt.pose.position.x, gt.pose.position.y),
-            )),
+        let gt = match lidar_har_msgs::decode::<PoseStamped>(&message.data) {
+            Ok(gt) => gt,
             Err(e) => {
-                self.decode_errors += 1;
-                log::warn!(
-                    "{} at {} ns skipped: {e}",
-                    message.topic,
-                    message.log_time_ns
-                );
+                let at = message.log_time_ns;
+                return self.skip(format_args!("{} at {at} ns skipped: {e}", message.topic));
             }
+        };
+        let frame = gt.header.frame_id.trim_start_matches('/');
+        let first = self
+            .ground_truth_frame
+            .get_or_insert_with(|| frame.to_string());
+        if first != frame {
+            let first = first.clone();
+            return self.skip(format_args!(
+                "{} at {} ns skipped: in frame `{frame}`, the earlier samples in `{first}`",
+                message.topic, message.log_time_ns
+            ));
         }
+        self.ground_truth.push((
+            gt.header.stamp.to_nanos(),
+            DVec2::new(gt.pose.position.x, gt.pose.position.y),
+        ));
+    }
+
+    /// The ground truth, when it is in the frame of the estimates (`frame`); a learned
+    /// background puts them in the Lidar's frame, which a map-frame truth cannot be compared to.
+    fn ground_truth_in(&self, frame: &str) -> Option<&[(i64, DVec2)]> {
+        let truth_frame = self.ground_truth_frame.as_deref()?;
+        if truth_frame == frame {
+            return Some(&self.ground_truth);
+        }
+        log::warn!(
+            "position error not computed: /ground_truth/human_pose is in frame `{truth_frame}`, \
+             the estimates in `{frame}`"
+        );
+        None
     }
 }
 
@@ -413,6 +458,17 @@ fn summarise(
     localiser: &LocaliserStage,
     classifier: Option<ClassifierRun>,
 ) -> RunSummary {
+    let truth = tally.ground_truth_in(localiser.output_frame());
+    let errors_against_truth = |estimates: &[(i64, DVec2)]| {
+        truth.and_then(|t| Spread::of(position_errors(estimates, t.to_vec())))
+    };
+    let mut warnings = localiser.warning_counts().clone();
+    if truth.is_none() && !tally.ground_truth.is_empty() {
+        warnings.insert(
+            "ground_truth_in_another_frame",
+            tally.ground_truth.len() as u64,
+        );
+    }
     let ratio = |n: u64| {
         if tally.scans == 0 {
             0.0
@@ -434,14 +490,11 @@ fn summarise(
         pelvis_error_m: classifier
             .as_ref()
             .filter(|c| !c.pelvis().is_empty())
-            .and_then(|c| {
-                let placed = with_pelvis(&tally.estimates, c.pelvis());
-                Spread::of(position_errors(&placed, tally.ground_truth.clone()))
-            }),
-        position_error_m: Spread::of(position_errors(&tally.estimates, tally.ground_truth)),
+            .and_then(|c| errors_against_truth(&with_pelvis(&tally.estimates, c.pelvis()))),
+        position_error_m: errors_against_truth(&tally.estimates),
         scan_time_us: Spread::of(tally.scan_times),
         pipeline_time_us: Spread::of(tally.pipeline_times),
-        warnings: localiser.warning_counts().clone(),
+        warnings,
         decode_errors: tally.decode_errors,
         read_error: tally.read_error,
         activity: classifier.map(ClassifierRun::finish),

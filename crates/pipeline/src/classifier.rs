@@ -28,6 +28,7 @@ use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
 use lidar_har_core::pose_head::{NoPoseHead, PelvisPlacer, PersonAt, PoseHead};
 use lidar_har_core::stats::{Spread, upper_median};
 use lidar_har_infer::{ActivityModel, InferError, PoseHeadModel};
+use lidar_har_msgs::CdrError;
 use lidar_har_msgs::builtin_interfaces::{Duration, Time};
 use lidar_har_msgs::geometry_msgs::{
     Point, Pose, PoseWithCovariance, PoseWithCovarianceStamped, Quaternion, Vector3,
@@ -335,6 +336,9 @@ pub struct ClassifierStage<M: StepModel = ActivityModel, H = PoseHeadModel> {
     pose_head: PoseHeadStatus,
     /// Scans on which the pose head failed (logged at powers of two).
     pose_head_errors: u64,
+    /// Observations marked visible with a position that is not finite (logged at powers of
+    /// two).
+    non_finite_positions: u64,
     scan_rate: ScanRate,
     fall: FallDetector,
     points: Vec<DVec2>,
@@ -421,6 +425,7 @@ impl<M: StepModel> ClassifierStage<M, NoPoseHead> {
             pelvis: None,
             pose_head: PoseHeadStatus::Off,
             pose_head_errors: 0,
+            non_finite_positions: 0,
             scan_rate: ScanRate::default(),
             fall: FallDetector::new(fall_alert)?,
             points: Vec::new(),
@@ -441,6 +446,7 @@ impl<M: StepModel> ClassifierStage<M, NoPoseHead> {
             pelvis,
             pose_head: status,
             pose_head_errors: 0,
+            non_finite_positions: 0,
             scan_rate: self.scan_rate,
             fall: self.fall,
             points: self.points,
@@ -495,18 +501,32 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             );
         }
         let position = DVec2::new(obs.position.x, obs.position.y);
+        // Another publisher's observation may be broken; seen nowhere is not seen.
+        let visible = obs.visible && position.is_finite();
+        if obs.visible && !visible {
+            self.non_finite_positions += 1;
+            if self.non_finite_positions.is_power_of_two() {
+                log::warn!(
+                    "classifier: /human/observation at {stamp_ns} ns is marked visible at a \
+                     position that is not finite ({}, {}); taken as hidden ({} such so far)",
+                    obs.position.x,
+                    obs.position.y,
+                    self.non_finite_positions
+                );
+            }
+        }
         // A new track may be another person, or the same one found far away: start afresh.
-        if obs.visible && self.track_id.is_some_and(|id| id != obs.track_id) {
+        if visible && self.track_id.is_some_and(|id| id != obs.track_id) {
             self.classifier.reset();
             if let Some(placer) = &mut self.pelvis {
                 placer.reset();
             }
         }
-        if obs.visible {
+        if visible {
             self.track_id = Some(obs.track_id);
         }
         self.points.clear();
-        if obs.visible {
+        if visible {
             self.points.extend(
                 obs.points
                     .iter()
@@ -516,15 +536,15 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
         let scan = PersonScan {
             stamp_s,
             points: &self.points,
-            position: obs.visible.then_some(position),
+            position: visible.then_some(position),
             sensor: DVec2::new(obs.sensor_position.x, obs.sensor_position.y),
         };
         let prediction = self.classifier.classify(&scan)?;
         let pelvis = match &mut self.pelvis {
-            Some(placer) => {
+            Some(placer) if position.is_finite() => {
                 let c = obs.covariance;
                 // A failing head costs this scan's pelvis, never its activity or alerts.
-                let person = if obs.visible {
+                let person = if visible {
                     PersonAt::Seen(position)
                 } else {
                     PersonAt::Predicted(position)
@@ -549,12 +569,12 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
                     }
                 }
             }
-            None => None,
+            _ => None,
         };
         let body_length_m = MainAxisSpan::of(&self.points).map(|span| span.length());
         let alerts = self.fall.update(&fall_input(
             stamp_s,
-            obs.visible,
+            visible,
             prediction.ready,
             position,
             prediction.probabilities,
@@ -567,7 +587,7 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
         Ok(ClassifierOutput {
             stamp_ns,
             frame_id: obs.header.frame_id.clone(),
-            visible: obs.visible,
+            visible,
             position,
             prediction,
             pelvis,
@@ -1064,16 +1084,16 @@ impl ClassifierRun {
         })
     }
 
-    /// An input message: takes /ground_truth/activity (returns true), ignores the rest.
-    pub(crate) fn on_input(&mut self, topic: &str, cdr: &[u8]) -> bool {
+    /// An input message: takes /ground_truth/activity (`Some`: whether it could be read),
+    /// ignores the rest (`None`).
+    pub(crate) fn on_input(&mut self, topic: &str, cdr: &[u8]) -> Option<Result<(), CdrError>> {
         if topic != topics::GROUND_TRUTH_ACTIVITY.name {
-            return false;
+            return None;
         }
-        match lidar_har_msgs::decode::<har::Activity>(cdr) {
-            Ok(msg) => self.log.add_truth(msg.header.stamp.to_nanos(), &msg),
-            Err(e) => log::warn!("{topic} skipped: {e}"),
-        }
-        true
+        Some(
+            lidar_har_msgs::decode::<har::Activity>(cdr)
+                .map(|msg| self.log.add_truth(msg.header.stamp.to_nanos(), &msg)),
+        )
     }
 
     /// A message the localiser produced: classifies /human/observation and records the results.
@@ -1375,6 +1395,38 @@ mod tests {
             assert_eq!(msgs.activity.is_some(), (3..10).contains(&k), "scan {k}");
             assert_eq!(msgs.markers.markers.len(), 1);
         }
+    }
+
+    #[test]
+    fn a_visible_person_at_a_non_finite_position_is_taken_as_hidden() {
+        let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
+        let model = TimelineModel {
+            timeline: vec![(0.0, Activity::Walking)],
+            now,
+        };
+        let spec = PoseHeadSpec {
+            min_history: 1,
+            activities: Activity::ALL.to_vec(),
+            max_sigma_m: f64::INFINITY,
+        };
+        let status = PoseHeadStatus::Used {
+            path: "head.onnx".into(),
+        };
+        let mut stage = ClassifierStage::new(model, stream(), FallAlertConfig::default())
+            .unwrap()
+            .with_pose_head(Some(PelvisPlacer::new(spec, ShiftHead)), status);
+        for k in 0..20 {
+            let mut obs = observation(k as f64 * 0.05, true);
+            if k >= 10 {
+                obs.position.x = [f64::NAN, f64::INFINITY][k % 2];
+            }
+            let out = stage.on_observation(&obs).unwrap();
+            let msgs = stage.messages(&out);
+            assert_eq!(out.visible, k < 10, "scan {k}");
+            assert_eq!(msgs.activity.is_some(), (3..10).contains(&k), "scan {k}");
+            assert_eq!(msgs.pelvis.is_some(), k < 10, "scan {k}");
+        }
+        assert_eq!(stage.non_finite_positions, 10);
     }
 
     /// A pose head that puts the pelvis 0.3 m along x from the localiser's position and

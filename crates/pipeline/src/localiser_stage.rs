@@ -106,6 +106,8 @@ pub struct LocaliserStage {
     last_scan_time: Option<Duration>,
     scans_learning: u64,
     mount: MountSource,
+    /// The localiser configuration's mount, for a scan frame /tf_static does not reach.
+    configured_mount: Pose2,
     /// Scans localised with the configured mount while /tf_static had transforms but no
     /// chain to the scan's frame (counted until that is warned about).
     scans_without_tf_mount: u32,
@@ -139,6 +141,7 @@ impl LocaliserStage {
         moving: bool,
     ) -> Result<Self, ConfigError> {
         let frames = config.frames.clone();
+        let configured_mount = config.mount;
         let learned_background = matches!(room, RoomSource::LearnedBackground);
         let map_given = matches!(room, RoomSource::Map(_));
         let localiser = match room {
@@ -165,6 +168,7 @@ impl LocaliserStage {
             } else {
                 MountSource::Configuration
             },
+            configured_mount,
             scans_without_tf_mount: 0,
         })
     }
@@ -396,6 +400,17 @@ impl LocaliserStage {
                 return;
             }
             let Some((parent, pose)) = self.static_tf.get(frame) else {
+                if self.mount == MountSource::TfStatic {
+                    // The scans now come from another frame: the old chain's mount is not theirs.
+                    log::warn!(
+                        "localiser: the scans' frame is now `{laser}`, which /tf_static does not \
+                         connect to `{}`: the mount of the localiser configuration is used",
+                        self.frames.base
+                    );
+                    let w = self.localiser.set_mount(self.configured_mount);
+                    self.warn(w);
+                    self.mount = MountSource::Configuration;
+                }
                 return;
             };
             mount = pose.compose(&mount);
@@ -527,6 +542,38 @@ mod tests {
             assert_eq!(out.laser_pose, mount);
         }
         assert_eq!(stage.mount_source(), MountSource::Configuration);
+    }
+
+    #[test]
+    fn scans_from_a_frame_the_static_chain_does_not_reach_get_the_configured_mount_again() {
+        let mount = Pose2::new(0.15, 0.0, 0.0);
+        let config = LocaliserConfig {
+            mount,
+            ..LocaliserConfig::default()
+        };
+        let mut stage = LocaliserStage::new(config, RoomSource::Map(empty_room()), false).unwrap();
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![tf("base_link", "laser", 0.2, 0.0)],
+        });
+        let out = stage.on_scan(&scan(0)).expect("localised");
+        assert!(
+            (out.laser_pose.x - 0.2).abs() < 1e-12,
+            "{:?}",
+            out.laser_pose
+        );
+        assert_eq!(stage.mount_source(), MountSource::TfStatic);
+        let mut other = scan(1);
+        other.header.frame_id = "other_laser".into();
+        let out = stage.on_scan(&other).expect("localised");
+        assert_eq!(out.laser_pose, mount);
+        assert_eq!(stage.mount_source(), MountSource::Configuration);
+        let out = stage.on_scan(&scan(2)).expect("localised");
+        assert!(
+            (out.laser_pose.x - 0.2).abs() < 1e-12,
+            "{:?}",
+            out.laser_pose
+        );
+        assert_eq!(stage.mount_source(), MountSource::TfStatic);
     }
 
     #[test]
