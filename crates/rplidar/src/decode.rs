@@ -25,7 +25,9 @@ pub struct Sample {
     /// Signal quality on a 0..=255 scale (capsule formats carry none: a valid sample gets a
     /// fixed mid value, a missing one 0).
     pub quality: u8,
-    /// This sample starts a new rotation (device's S flag, or the capsule angle wrapping).
+    /// The device's start flag: the first sample of a turn (standard and HQ nodes).
+    /// Capsules carry none: their nominal start angles wrap up to 8° before the compensated
+    /// sample angles do, and a rotation must start where the sample angles wrap.
     pub start_of_rotation: bool,
 }
 
@@ -123,8 +125,6 @@ pub struct StreamDecoder {
     buf: Vec<u8>,
     /// The last valid capsule, waiting for the next start angle.
     prev_capsule: Option<Vec<u8>>,
-    /// Nominal (uncompensated) angle of the last capsule sample, to detect the wrap.
-    last_nominal_deg: Option<f32>,
     /// Usual angle between consecutive capsule starts, to detect lost capsules.
     typical_step_deg: Option<f32>,
     /// The last step taken for a gap and how many gaps in a row agreed with it.
@@ -152,7 +152,6 @@ impl StreamDecoder {
             format,
             buf: Vec::with_capacity(4096),
             prev_capsule: None,
-            last_nominal_deg: None,
             typical_step_deg: None,
             gap_run: None,
             stats: DecodeStats::default(),
@@ -171,7 +170,6 @@ impl StreamDecoder {
     pub fn reset(&mut self) {
         self.buf.clear();
         self.prev_capsule = None;
-        self.last_nominal_deg = None;
         self.typical_step_deg = None;
         self.gap_run = None;
     }
@@ -221,7 +219,6 @@ impl StreamDecoder {
                 None => self.stats.gaps += 1,
             }
         }
-        self.last_nominal_deg = None;
     }
 
     /// Checks the packet `p`; `following` are the bytes after it (the standard format looks
@@ -287,7 +284,6 @@ impl StreamDecoder {
                 if new_scan {
                     // The first capsule of a scan: what came before belongs to no rotation.
                     self.prev_capsule = None;
-                    self.last_nominal_deg = None;
                 }
                 if let Some(prev) = self.prev_capsule.take() {
                     self.decode_capsule_pair(&prev, p, out);
@@ -313,12 +309,10 @@ impl StreamDecoder {
                 _ => 1,
             };
             if run < RESEED_AFTER_GAPS {
-                // Capsules were lost in between: use the usual step, and the rotation's
-                // continuity is broken.
+                // Capsules were lost in between: use the usual step.
                 self.gap_run = Some((step_total, run));
                 self.stats.gaps += 1;
                 self.decode_capsule(prev, typical, None, out);
-                self.last_nominal_deg = None;
                 return;
             }
             // The same "gap" every capsule: it is the real step, the usual one was wrong.
@@ -336,7 +330,7 @@ impl StreamDecoder {
     /// Samples of capsule `prev` spread over `step_total` degrees from its start angle.
     /// `next_first_cabin` is the first ultra cabin of the next capsule, when known.
     fn decode_capsule(
-        &mut self,
+        &self,
         prev: &[u8],
         step_total: f32,
         next_first_cabin: Option<u32>,
@@ -345,25 +339,18 @@ impl StreamDecoder {
         let start = f32::from(u16::from_le_bytes([prev[2], prev[3]]) & 0x7FFF) / 64.0;
         let n = self.format.samples_per_packet();
         let step = step_total / n as f32;
-        let mut emit =
-            |k: usize, distance_mm: f32, compensation_deg: f32, out: &mut Vec<Sample>| {
-                let mut nominal = start + step * k as f32;
-                if nominal >= 360.0 {
-                    nominal -= 360.0;
-                }
-                let start_of_rotation = self.last_nominal_deg.is_some_and(|last| nominal < last);
-                self.last_nominal_deg = Some(nominal);
-                out.push(Sample {
-                    angle_deg: wrap_degrees(nominal - compensation_deg),
-                    distance_mm,
-                    quality: if distance_mm > 0.0 {
-                        CAPSULE_QUALITY
-                    } else {
-                        0
-                    },
-                    start_of_rotation,
-                });
-            };
+        let emit = |k: usize, distance_mm: f32, compensation_deg: f32, out: &mut Vec<Sample>| {
+            out.push(Sample {
+                angle_deg: wrap_degrees(start + step * k as f32 - compensation_deg),
+                distance_mm,
+                quality: if distance_mm > 0.0 {
+                    CAPSULE_QUALITY
+                } else {
+                    0
+                },
+                start_of_rotation: false,
+            });
+        };
         match self.format {
             ScanFormat::Express => {
                 for (i, cabin) in prev[4..84].chunks_exact(5).enumerate() {
@@ -603,7 +590,6 @@ mod tests {
         assert_eq!(stats.rejected_packets, 0);
         // The last capsule waits for a successor that never comes.
         assert_eq!(out.len(), truth.len() - 32);
-        let mut starts = 0;
         for (s, (a, d)) in out.iter().zip(&truth) {
             let err = (s.angle_deg - a + 540.0).rem_euclid(360.0) - 180.0;
             assert!(err.abs() <= 0.07, "angle {} vs {a}", s.angle_deg);
@@ -612,9 +598,29 @@ mod tests {
                 "dist {} vs {d}",
                 s.distance_mm
             );
-            starts += usize::from(s.start_of_rotation);
+            assert!(!s.start_of_rotation, "capsules carry no start flag");
         }
-        assert_eq!(starts, 2, "one start per wrap of the nominal angle");
+    }
+
+    #[test]
+    fn express_rotations_start_where_the_compensated_angle_wraps() {
+        // Start angles 5° ahead of their samples: the nominal angle wraps when the samples
+        // are at 355°. Those samples end the turn (beams measured last), not start the next.
+        let (bytes, _) = express_stream(720, 4, 5.0);
+        let (samples, _) = decode_all(ScanFormat::Express, &bytes, 84);
+        let mut assembler = crate::rotation::RotationAssembler::new();
+        let mut rotations = Vec::new();
+        assembler.push(&samples, std::time::Instant::now(), &mut rotations);
+        assert_eq!(rotations.len(), 2);
+        for r in &rotations {
+            assert_eq!(r.samples.len(), 720);
+            let angles: Vec<f32> = r.samples.iter().map(|s| s.angle_deg).collect();
+            assert!(
+                angles.windows(2).all(|w| w[0] < w[1]),
+                "one turn from 0° to 359.5°: {:?}",
+                &angles[..12]
+            );
+        }
     }
 
     #[test]
@@ -687,11 +693,6 @@ mod tests {
             assert!(err.abs() <= 0.07, "angle {} vs {a}", s.angle_deg);
             assert!((s.distance_mm - d).abs() < 1.0, "{} vs {d}", s.distance_mm);
         }
-        assert_eq!(
-            good.iter().filter(|s| s.start_of_rotation).count(),
-            1,
-            "the wrap of the second rotation"
-        );
     }
 
     #[test]

@@ -288,6 +288,8 @@ struct Session {
     nominal_rate_hz: Option<f32>,
     decoder: StreamDecoder,
     assembler: RotationAssembler,
+    /// Time between two samples of the device (see [`sample_interval`]).
+    sample_interval: Duration,
     samples: Vec<Sample>,
     rotations: Vec<Rotation>,
     last_data: Instant,
@@ -565,19 +567,18 @@ impl Driver {
                 plan.format.packet_len()
             );
         }
-        let mut decoder = StreamDecoder::new(plan.format);
-        let mut samples = Vec::with_capacity(4096);
-        let leftover = std::mem::take(&mut link.rx);
-        decoder.push(&leftover, &mut samples);
+        // Measurements that came with the descriptor stay in `link.rx` for the first poll.
+        let interval = sample_interval(plan.nominal_rate_hz, plan.format, self.config.baud);
         Ok(Session {
             link,
             info,
             health,
             mode_name: plan.mode_name,
             nominal_rate_hz: plan.nominal_rate_hz,
-            decoder,
-            assembler: RotationAssembler::new(),
-            samples,
+            decoder: StreamDecoder::new(plan.format),
+            assembler: RotationAssembler::with_sample_interval(interval),
+            sample_interval: interval,
+            samples: Vec::with_capacity(4096),
             rotations: Vec::new(),
             last_data: Instant::now(),
             last_rotation: Instant::now(),
@@ -886,46 +887,49 @@ impl Driver {
             .min(POLL);
         let read = session.link.read_some(wait);
         let arrival = Instant::now();
-        match read {
-            Err(e) => {
-                self.lose_device(e);
-                return;
+        if let Err(e) = read {
+            self.lose_device(e);
+            return;
+        }
+        if !session.link.rx.is_empty() {
+            session.samples.clear();
+            let rx = std::mem::take(&mut session.link.rx);
+            session.decoder.push(&rx, &mut session.samples);
+            session.link.rx = rx;
+            session.link.rx.clear();
+            if !session.samples.is_empty() {
+                session.last_data = arrival;
             }
-            Ok(0) => {}
-            Ok(_) => {
-                session.samples.clear();
-                let rx = std::mem::take(&mut session.link.rx);
-                session.decoder.push(&rx, &mut session.samples);
-                session.link.rx = rx;
-                session.link.rx.clear();
-                if !session.samples.is_empty() {
-                    session.last_data = arrival;
-                }
-                session
-                    .assembler
-                    .push(&session.samples, arrival, &mut session.rotations);
-            }
+            session
+                .assembler
+                .push(&session.samples, arrival, &mut session.rotations);
         }
         let silent_for = arrival.saturating_duration_since(session.last_data);
         if !session.rotations.is_empty() {
             session.last_rotation = arrival;
         }
         let turnless_for = arrival.saturating_duration_since(session.last_rotation);
+        let interval = session.sample_interval.as_secs_f64();
         let rotations = std::mem::take(&mut session.rotations);
+        // One reading of both clocks for all rotations of this read: reading them anew for
+        // each would add the time between the readings to the spacing of the stamps.
+        let (now, clock_now) = (Instant::now(), (self.clock)());
         for rotation in &rotations {
-            let start_ns = instant_to_clock_ns(&self.clock, rotation.started);
+            let start_ns = clock_now
+                .saturating_sub(now.saturating_duration_since(rotation.started).as_nanos() as i64);
             let frame = ScanFrame::from_rotation(rotation, start_ns, &self.config.geometry);
             self.status.scans += 1;
-            let hz = if frame.scan_time > 0.0 {
-                1.0 / f64::from(frame.scan_time)
-            } else {
-                0.0
-            };
-            self.status.rotation_hz = Some(match self.status.rotation_hz {
-                Some(old) if hz > 0.0 => 0.8 * old + 0.2 * hz,
-                Some(old) => old,
-                None => hz,
-            });
+            // A rotation shorter than half the time the device takes for its samples is part
+            // of a backlog handed over in several reads (crowded, see `rotation`), not a
+            // faster motor: it does not move the measured rate.
+            if f64::from(frame.scan_time) >= 0.5 * interval * rotation.samples.len() as f64 {
+                let hz = 1.0 / f64::from(frame.scan_time);
+                self.status.rotation_hz = Some(
+                    self.status
+                        .rotation_hz
+                        .map_or(hz, |old| 0.8 * old + 0.2 * hz),
+                );
+            }
             self.status.samples_per_rotation = Some(frame.samples_in_rotation);
             self.pending
                 .push_back(Event::Scan(frame.to_laser_scan(&self.config.frame_id)));
@@ -1136,10 +1140,18 @@ fn scan_mode_unsupported(reason: String) -> Error {
     }
 }
 
-fn instant_to_clock_ns(clock: &Clock, t: Instant) -> i64 {
-    let now = Instant::now();
-    let clock_now = clock();
-    clock_now.saturating_sub(now.saturating_duration_since(t).as_nanos() as i64)
+/// Time between two samples of the device: the interval it announces for the mode, else
+/// the wire time of one sample at `baud` (10 bits a byte), which a device on a real serial
+/// link cannot beat. Used to date back the samples of one read (see `rotation`).
+fn sample_interval(announced_hz: Option<f32>, format: ScanFormat, baud: u32) -> Duration {
+    announced_hz
+        .and_then(|hz| Duration::try_from_secs_f64(1.0 / f64::from(hz)).ok())
+        .filter(|d| !d.is_zero())
+        .unwrap_or_else(|| {
+            let bit_ns = 1_000_000_000 / u64::from(baud.max(1));
+            let bytes = format.packet_len() as u64;
+            Duration::from_nanos(10 * bit_ns * bytes / format.samples_per_packet() as u64)
+        })
 }
 
 fn add_stats(a: DecodeStats, b: DecodeStats) -> DecodeStats {
@@ -1149,5 +1161,204 @@ fn add_stats(a: DecodeStats, b: DecodeStats) -> DecodeStats {
         skipped_bytes: a.skipped_bytes + b.skipped_bytes,
         rejected_packets: a.rejected_packets + b.rejected_packets,
         gaps: a.gaps + b.gaps,
+    }
+}
+
+#[cfg(all(test, unix))]
+mod tests {
+    use super::*;
+    use crate::encode;
+    use crate::protocol::{REQUEST_SYNC, SendMode, command};
+    use serialport::TTYPort;
+    use std::sync::atomic::{AtomicI64, Ordering};
+    use std::thread::JoinHandle;
+
+    /// Samples per turn of the scripted device and its sample interval (1 kHz: 10 Hz).
+    const TURN: usize = 100;
+    const SAMPLE_US: u16 = 1000;
+
+    /// Standard nodes `range` of an endless stream of 100-sample turns.
+    fn nodes(range: std::ops::Range<usize>) -> Vec<u8> {
+        range
+            .flat_map(|j| {
+                let k = j % TURN;
+                encode::standard_node(k as f32 * 360.0 / TURN as f32, 1000.0, 188, k == 0)
+            })
+            .collect()
+    }
+
+    /// A descriptor and payload; a stream's descriptor gives its packet length (5 bytes).
+    fn answer(answer_type: u8, mode: SendMode, payload: &[u8]) -> Vec<u8> {
+        let len = payload.len() as u32;
+        let mut out = Descriptor {
+            len: if mode == SendMode::Multiple { 5 } else { len },
+            mode,
+            answer_type,
+        }
+        .encode()
+        .to_vec();
+        out.extend_from_slice(payload);
+        out
+    }
+
+    /// An A1 with firmware 1.29 on a pseudo-terminal, answering until it has answered `SCAN`
+    /// with the scan descriptor followed by `first_data` in the same write; it then hands
+    /// over its end of the line. A write of this size reaches the reader in one piece.
+    fn scripted_device(mut master: TTYPort, first_data: Vec<u8>) -> JoinHandle<TTYPort> {
+        std::thread::spawn(move || {
+            let info = DeviceInfo {
+                model: 0x18,
+                firmware_major: 1,
+                firmware_minor: 29,
+                hardware: 7,
+                serial: *b"SCRIPTED-LIDAR-1",
+            };
+            let mut rate = SAMPLE_US.to_le_bytes().to_vec();
+            rate.extend_from_slice(&SAMPLE_US.to_le_bytes());
+            master.set_timeout(Duration::from_millis(20)).unwrap();
+            let deadline = Instant::now() + Duration::from_secs(20);
+            let mut rx = Vec::new();
+            let mut buf = [0u8; 256];
+            while Instant::now() < deadline {
+                if let Ok(n) = master.read(&mut buf) {
+                    rx.extend_from_slice(&buf[..n]);
+                }
+                while let Some(i) = rx.iter().position(|b| *b == REQUEST_SYNC) {
+                    let Some(&cmd) = rx.get(i + 1) else { break };
+                    rx.drain(..i + 2);
+                    let single = SendMode::Single;
+                    let out = match cmd {
+                        command::GET_INFO => answer(answer::DEVICE_INFO, single, &info.encode()),
+                        command::GET_HEALTH => answer(answer::DEVICE_HEALTH, single, &[0, 0, 0]),
+                        command::GET_SAMPLERATE => answer(answer::SAMPLE_RATE, single, &rate),
+                        command::SCAN => {
+                            let multiple = SendMode::Multiple;
+                            master
+                                .write_all(&answer(answer::MEASUREMENT, multiple, &first_data))
+                                .unwrap();
+                            return master;
+                        }
+                        _ => continue,
+                    };
+                    master.write_all(&out).unwrap();
+                }
+            }
+            panic!("the driver never asked for a scan");
+        })
+    }
+
+    /// A driver scanning the scripted device, the device's end of the line (to send more
+    /// measurements) and the slave end, kept open.
+    fn scanning(first_data: Vec<u8>) -> (Driver, TTYPort, TTYPort) {
+        let (master, slave) = TTYPort::pair().unwrap();
+        let path = slave.name().unwrap();
+        let device = scripted_device(master, first_data);
+        // Every reading of the clock jumps by a second: stamps of rotations converted with
+        // separate readings would be a second apart.
+        let readings = AtomicI64::new(0);
+        let t0 = Instant::now();
+        let clock = Box::new(move || {
+            let n = readings.fetch_add(1, Ordering::SeqCst);
+            t0.elapsed().as_nanos() as i64 + n * 1_000_000_000
+        });
+        let mut config = Config::new(&path);
+        config.scan_mode = ScanModeChoice::Standard;
+        let mut driver = Driver::with_clock(config, clock).unwrap();
+        driver.connect();
+        let master = device.join().unwrap();
+        assert!(driver.status().scanning, "{:?}", driver.status().last_error);
+        assert_eq!(driver.status().nominal_sample_rate_hz, Some(1000.0));
+        (driver, master, slave)
+    }
+
+    fn scans(driver: &mut Driver) -> Vec<LaserScan> {
+        driver
+            .pending
+            .drain(..)
+            .filter_map(|e| match e {
+                Event::Scan(scan) => Some(scan),
+                Event::Diagnostics(_) => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_sample_interval_is_the_announced_one_else_the_wire_time_of_a_sample() {
+        let express = ScanFormat::Express;
+        assert_eq!(
+            sample_interval(Some(4000.0), express, 115_200),
+            Duration::from_micros(250)
+        );
+        // 5 bytes of 10 bits at 115200 baud; 84 bytes for 32 samples at 1 Mbaud.
+        let standard_wire = Duration::from_nanos(50 * 8680);
+        assert_eq!(
+            sample_interval(None, ScanFormat::Standard, 115_200),
+            standard_wire
+        );
+        assert_eq!(
+            sample_interval(None, express, 1_000_000),
+            Duration::from_nanos(26_250)
+        );
+        for nonsense in [0.0, -5.0, f32::NAN, f32::INFINITY] {
+            assert_eq!(
+                sample_interval(Some(nonsense), ScanFormat::Standard, 115_200),
+                standard_wire,
+                "{nonsense}"
+            );
+        }
+    }
+
+    #[test]
+    fn measurements_that_come_with_the_scan_descriptor_are_kept() {
+        // A full turn, the next turn's start and one node of look-ahead, all in the read
+        // that brings the descriptor; the device then stays silent.
+        let (mut driver, _master, _slave) = scanning(nodes(0..TURN + 2));
+        driver.poll_scan();
+        assert_eq!(scans(&mut driver).len(), 1);
+        assert_eq!(driver.status().samples_per_rotation, Some(TURN));
+    }
+
+    #[test]
+    fn rotations_read_at_once_keep_their_periods_and_stamps() {
+        let (mut driver, mut master, _slave) = scanning(Vec::new());
+        // Three turns after a stall of the host, read at once (0.3 s of samples, 1510 bytes).
+        master.write_all(&nodes(0..3 * TURN + 2)).unwrap();
+        driver.poll_scan();
+        let first = scans(&mut driver);
+        assert_eq!(first.len(), 3);
+        let stamps: Vec<i64> = first.iter().map(|s| s.header.stamp.to_nanos()).collect();
+        for (k, scan) in first.iter().enumerate() {
+            assert!(
+                (scan.scan_time - 0.1).abs() < 1e-6,
+                "scan {k}: {}",
+                scan.scan_time
+            );
+            assert!((scan.time_increment + 0.1 / 720.0).abs() < 1e-9);
+        }
+        for pair in stamps.windows(2) {
+            assert!(
+                (pair[1] - pair[0] - 100_000_000).abs() < 1_000,
+                "{stamps:?}"
+            );
+        }
+        let hz = driver.status().rotation_hz.unwrap();
+        assert!((hz - 10.0).abs() < 1e-3, "{hz}");
+
+        // The next 0.3 s of the backlog in a second read: these rotations cannot be dated
+        // and crowd together, but keep their order, last a positive time, and leave the
+        // measured rate alone.
+        master
+            .write_all(&nodes(3 * TURN + 2..6 * TURN + 2))
+            .unwrap();
+        driver.poll_scan();
+        let second = scans(&mut driver);
+        assert_eq!(second.len(), 3);
+        let mut last = stamps[2];
+        for scan in &second {
+            assert!(scan.scan_time > 0.0 && scan.header.stamp.to_nanos() > last);
+            last = scan.header.stamp.to_nanos();
+        }
+        let hz = driver.status().rotation_hz.unwrap();
+        assert!((8.0..12.5).contains(&hz), "{hz}");
     }
 }

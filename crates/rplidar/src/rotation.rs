@@ -1,12 +1,23 @@
 //! Assembly of decoded samples into full rotations, stamped with the host's arrival times.
 //!
-//! A rotation starts at a sample with the start flag, or where the angle jumps back by
-//! more than half a turn (a start flag lost to corruption). A start that comes less than
-//! half a turn after the previous one is ignored, so a flag and a wrap a few samples apart
-//! do not make a one-sample rotation. Samples before the first start are dropped: a scan
-//! starts mid-rotation.
+//! A rotation starts where the angle wraps (jumps back by more than half a turn), or at a
+//! sample with the device's start flag near the zero mark (the flag marks the first sample
+//! of a turn; one elsewhere is corruption and is ignored). A start that comes less than half
+//! a turn after the previous one is ignored, so a flag and a wrap a few samples apart do not
+//! make a one-sample rotation. The angle swept counts forward jumps over lost samples, so a
+//! gap does not hide the next wrap. Samples before the first start are dropped: a scan starts
+//! mid-rotation.
+//!
+//! Arrival times: one read from the port can hold many samples (after a stall of the host,
+//! several turns), all arriving at once, yet the device measured them one sample interval
+//! apart. Each sample is therefore dated back from the read's arrival by the samples after
+//! it times the device's sample interval, and never before the sample preceding it, so that
+//! rotations read together keep their own periods and every rotation lasts a positive time.
+//! Dating back from the read is exact when one read takes the whole backlog; a backlog the
+//! port hands over in several reads (the kernel passes at most 4 KiB at a time) cannot be
+//! told from fresh data, and its later rotations crowd together in time.
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use crate::decode::Sample;
 
@@ -22,10 +33,11 @@ pub struct RotationSample {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Rotation {
     pub samples: Vec<RotationSample>,
-    /// Arrival of the bytes holding this rotation's first sample.
+    /// Arrival of this rotation's first sample (dated back within its read, see the module
+    /// documentation).
     pub started: Instant,
-    /// Arrival of the bytes holding the next rotation's first sample: `ended - started` is
-    /// the measured rotation period.
+    /// Arrival of the next rotation's first sample: `ended - started` is the measured
+    /// rotation period, always positive.
     pub ended: Instant,
 }
 
@@ -45,12 +57,22 @@ pub struct RotationAssembler {
     started: Option<Instant>,
     last_angle: Option<f32>,
     swept_deg: f32,
+    /// Arrival given to the last sample pushed.
+    last_time: Option<Instant>,
+    sample_interval: Duration,
     max_samples: usize,
     discarded: u64,
 }
 
 /// Far more samples than any device delivers per turn (S3 at its slowest: ~32 kHz / 5 Hz).
 const DEFAULT_MAX_SAMPLES: usize = 20_000;
+
+/// Largest step back of the angle between neighbouring samples that is jitter, not a jump
+/// forward over lost samples: capsule samples carry compensations that differ by up to 8°.
+const MAX_STEP_BACK_DEG: f32 = 10.0;
+
+/// How far from the zero mark a start flag may lie (the first sample of a turn).
+const START_FLAG_WINDOW_DEG: f32 = 10.0;
 
 impl Default for RotationAssembler {
     fn default() -> Self {
@@ -59,12 +81,22 @@ impl Default for RotationAssembler {
 }
 
 impl RotationAssembler {
+    /// An assembler that gives every sample of a read the read's arrival time (kept in
+    /// order); see [`RotationAssembler::with_sample_interval`].
     pub fn new() -> Self {
+        Self::with_sample_interval(Duration::ZERO)
+    }
+
+    /// An assembler that dates samples back from their read's arrival at `interval`, the
+    /// time between two samples of the device.
+    pub fn with_sample_interval(interval: Duration) -> Self {
         Self {
             current: Vec::with_capacity(2048),
             started: None,
             last_angle: None,
             swept_deg: 0.0,
+            last_time: None,
+            sample_interval: interval,
             max_samples: DEFAULT_MAX_SAMPLES,
             discarded: 0,
         }
@@ -85,21 +117,32 @@ impl RotationAssembler {
         self.swept_deg = 0.0;
     }
 
-    /// Adds samples that arrived at `arrival`; completed rotations are appended to `out`.
+    /// Adds the samples of one read that arrived at `arrival`; completed rotations are
+    /// appended to `out`.
     pub fn push(&mut self, samples: &[Sample], arrival: Instant, out: &mut Vec<Rotation>) {
-        for s in samples {
-            let wrapped = self
-                .last_angle
-                .is_some_and(|last| last - s.angle_deg > 180.0);
-            if let Some(last) = self.last_angle {
-                let delta = (s.angle_deg - last).rem_euclid(360.0);
-                if delta < 180.0 {
-                    self.swept_deg += delta;
+        for (i, s) in samples.iter().enumerate() {
+            let time = self.date(arrival, samples.len() - 1 - i);
+            let (progress, wrapped) = match self.last_angle {
+                None => (0.0, false),
+                Some(last) => {
+                    let step = s.angle_deg - last;
+                    if step < -180.0 {
+                        (step + 360.0, true)
+                    } else if (0.0..=360.0 - MAX_STEP_BACK_DEG).contains(&step) {
+                        // The motor only turns forward: a jump is samples lost in between.
+                        (step, false)
+                    } else {
+                        // A step back, across the zero mark or not: jitter or corruption.
+                        (0.0, false)
+                    }
                 }
-            }
+            };
+            self.swept_deg += progress;
             self.last_angle = Some(s.angle_deg);
-            let trigger = s.start_of_rotation || wrapped;
-            if trigger && (self.started.is_none() || self.swept_deg >= 180.0) {
+            let flagged = s.start_of_rotation
+                && (s.angle_deg <= START_FLAG_WINDOW_DEG
+                    || s.angle_deg >= 360.0 - START_FLAG_WINDOW_DEG);
+            if (flagged || wrapped) && (self.started.is_none() || self.swept_deg >= 180.0) {
                 if let Some(started) = self.started {
                     let capacity = self.current.capacity();
                     let samples =
@@ -107,10 +150,10 @@ impl RotationAssembler {
                     out.push(Rotation {
                         samples,
                         started,
-                        ended: arrival,
+                        ended: time,
                     });
                 }
-                self.started = Some(arrival);
+                self.started = Some(time);
                 self.swept_deg = 0.0;
             }
             if self.started.is_none() {
@@ -128,6 +171,22 @@ impl RotationAssembler {
                 quality: s.quality,
             });
         }
+    }
+
+    /// Arrival of a sample with `after` more samples behind it in a read that arrived at
+    /// `arrival`: dated back at the sample interval, and after the sample before it.
+    fn date(&mut self, arrival: Instant, after: usize) -> Instant {
+        let back = u32::try_from(after)
+            .ok()
+            .and_then(|after| self.sample_interval.checked_mul(after))
+            .and_then(|d| arrival.checked_sub(d))
+            .unwrap_or(arrival);
+        let time = match self.last_time {
+            Some(last) => back.max(last.checked_add(Duration::from_nanos(1)).unwrap_or(last)),
+            None => back,
+        };
+        self.last_time = Some(time);
+        time
     }
 }
 
@@ -202,6 +261,102 @@ mod tests {
         }
         assert_eq!(out.len(), 2);
         assert!(out.iter().all(|r| r.samples.len() == 720));
+    }
+
+    /// Rotation sizes of a stream of samples read in one go.
+    fn sizes(samples: &[Sample]) -> Vec<usize> {
+        let mut a = RotationAssembler::new();
+        let mut out = Vec::new();
+        a.push(samples, Instant::now(), &mut out);
+        out.iter().map(|r| r.samples.len()).collect()
+    }
+
+    fn degrees(range: std::ops::Range<u32>) -> impl Iterator<Item = Sample> {
+        range.map(|k| sample(k as f32, k == 0))
+    }
+
+    #[test]
+    fn a_backlog_read_at_once_keeps_every_rotation_s_period() {
+        // 360 samples per 0.1 s turn, each read one interval after its last sample was
+        // measured. The first turn comes in 10 reads 10 ms apart; then the host stalls and
+        // three turns and the next start arrive in one read at 400 ms.
+        let interval = Duration::from_nanos(277_778);
+        let arrival_after = |t0: Instant, samples: u32| t0 + interval * samples;
+        let mut a = RotationAssembler::with_sample_interval(interval);
+        let t0 = Instant::now();
+        let mut out = Vec::new();
+        let stream: Vec<Sample> = (0..4)
+            .flat_map(|_| turn(360, true))
+            .chain([sample(0.0, true)])
+            .collect();
+        for k in 0..10 {
+            let read = &stream[36 * k..36 * (k + 1)];
+            a.push(read, arrival_after(t0, 36 * (k as u32 + 1)), &mut out);
+        }
+        a.push(&stream[360..], arrival_after(t0, 1441), &mut out);
+        assert_eq!(out.len(), 4);
+        for (k, r) in out.iter().enumerate() {
+            // Every rotation starts when its first sample was measured, one interval late.
+            assert_eq!(
+                r.started,
+                arrival_after(t0, 360 * k as u32 + 1),
+                "rotation {k}"
+            );
+            assert!(
+                (r.period_s() - 0.1).abs() < 1e-6,
+                "rotation {k}: {}",
+                r.period_s()
+            );
+        }
+    }
+
+    #[test]
+    fn rotations_read_together_without_an_interval_still_last_a_positive_time() {
+        let mut a = RotationAssembler::new();
+        let mut out = Vec::new();
+        let mut stream: Vec<Sample> = (0..4).flat_map(|_| turn(100, true)).collect();
+        stream.push(sample(0.0, true));
+        a.push(&stream, Instant::now(), &mut out);
+        assert_eq!(out.len(), 4);
+        for pair in out.windows(2) {
+            assert!(pair[0].started < pair[0].ended && pair[0].ended == pair[1].started);
+        }
+        assert!(out[3].period_s() > 0.0);
+    }
+
+    #[test]
+    fn a_gap_of_half_a_turn_or_more_does_not_merge_two_rotations() {
+        // Turn, then 0..99, samples 100..299 lost, 300..359, then two full turns.
+        let stream: Vec<Sample> = degrees(0..360)
+            .chain(degrees(0..100))
+            .chain(degrees(300..360))
+            .chain(degrees(0..360))
+            .chain(degrees(0..360))
+            .chain(degrees(0..1))
+            .collect();
+        assert_eq!(sizes(&stream), [360, 160, 360, 360]);
+    }
+
+    #[test]
+    fn a_start_flag_away_from_the_zero_mark_is_ignored() {
+        let mut stream: Vec<Sample> = degrees(0..360).chain(degrees(0..360)).collect();
+        stream[360 + 200].start_of_rotation = true;
+        stream.extend(degrees(0..360).chain(degrees(0..1)));
+        assert_eq!(sizes(&stream), [360, 360, 360]);
+    }
+
+    #[test]
+    fn jitter_back_across_the_zero_mark_is_no_jump_forward() {
+        // Compensated capsule angles can step back a little, also across the zero mark.
+        let mut stream = Vec::new();
+        for _ in 0..3 {
+            stream.extend((0..360).map(|k| sample(k as f32, false)));
+            stream.extend([0.1, 359.9, 0.4, 359.95].map(|a| sample(a, false)));
+        }
+        stream.push(sample(0.5, false));
+        let sizes = sizes(&stream);
+        assert_eq!(sizes.len(), 2, "{sizes:?}");
+        assert!(sizes.iter().all(|n| (360..=364).contains(n)), "{sizes:?}");
     }
 
     #[test]
