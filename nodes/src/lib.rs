@@ -249,6 +249,23 @@ mod tests {
     }
 
     #[test]
+    fn bad_node_names_and_namespaces_are_bad_arguments() {
+        // Refused here, before DDS starts, with status 2 (used to be 1, from the DDS stack).
+        for rule in [
+            "__node:=bad-name",
+            "__ns:=/robot-1",
+            "__ns:=/robot1/",
+            "__ns:=/1robot",
+        ] {
+            let err = program_args(&args(&["--ros-args", "-r", rule])).unwrap_err();
+            assert!(
+                matches!(err, RosError::Args(_)) && err.to_string().contains(rule),
+                "{rule}: {err}"
+            );
+        }
+    }
+
+    #[test]
     fn usage_lists_every_parameter_with_type_and_default() {
         let info = NodeInfo {
             name: "demo_node",
@@ -286,6 +303,25 @@ mod tests {
                 err.contains("`period`") && err.contains("0..=5"),
                 "{bad}: {err}"
             );
+        }
+    }
+
+    /// The launch files give each node its params file: a node with no section there would
+    /// run on its defaults, with a warning at every launch.
+    #[test]
+    fn the_launch_params_files_have_a_section_for_every_node_they_start() {
+        let config = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
+        for (file, nodes) in [
+            (
+                "robot.yaml",
+                ["/rplidar_driver", "/localiser", "/classifier"],
+            ),
+            ("replay.yaml", ["/replay", "/localiser", "/classifier"]),
+        ] {
+            let params = lidar_har_ros::params::ParamsFile::read(&config.join(file)).unwrap();
+            for node in nodes {
+                assert!(!params.sections_for(node).is_empty(), "{file}: {node}");
+            }
         }
     }
 }

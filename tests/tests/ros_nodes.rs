@@ -433,6 +433,14 @@ fn ros_nodes_print_help_and_refuse_stray_arguments() {
             err.contains("`rate:=2.0`") && err.contains("--ros-args"),
             "{node}: {err}"
         );
+        // A namespace rmw refuses used to fail late, with status 1, once DDS had started.
+        let bad_ns = output_within(
+            Command::new(workspace_bin(node)).args(["--ros-args", "-r", "__ns:=/robot-1"]),
+            limit,
+        );
+        let err = String::from_utf8_lossy(&bad_ns.stderr);
+        assert_eq!(bad_ns.status.code(), Some(2), "{node}: {err}");
+        assert!(err.contains("`/robot-1`"), "{node}: {err}");
     }
 }
 

@@ -4,19 +4,19 @@
 use std::path::PathBuf;
 
 use crate::RosError;
-use crate::params::ParamValue;
+use crate::params::{ParamValue, section_applies};
 
 /// What `--ros-args` sections of a command line say.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RosArgs {
     /// `-r [node:]from:=to` topic remappings, in order (first match wins, as in rcl).
     pub remaps: Vec<Remap>,
-    /// `-r __node:=name` (or `__name:=`).
-    pub node_name: Option<String>,
-    /// `-r __ns:=/namespace`.
-    pub namespace: Option<String>,
-    /// `-p name:=value`, in order (later ones win).
-    pub params: Vec<(String, ParamValue)>,
+    /// `-r [node:]__node:=name` (or `__name:=`), in order; see [`RosArgs::node_name`].
+    pub node_names: Vec<NodeRule>,
+    /// `-r [node:]__ns:=/namespace`, in order; see [`RosArgs::namespace`].
+    pub namespaces: Vec<NodeRule>,
+    /// `-p [node:]name:=value`, in order (later ones win); see [`RosArgs::params_for`].
+    pub params: Vec<ParamOverride>,
     /// `--params-file FILE`, in order.
     pub params_files: Vec<PathBuf>,
     /// Arguments outside `--ros-args` sections (the program's own).
@@ -30,6 +30,23 @@ pub struct Remap {
     pub node: Option<String>,
     pub from: String,
     pub to: String,
+}
+
+/// A `-r __node:=` or `-r __ns:=` rule: the node's new name or namespace.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NodeRule {
+    /// Applies only to the node of this name (`node:__node:=...`), or to every node.
+    pub node: Option<String>,
+    pub to: String,
+}
+
+/// One `-p` parameter override.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamOverride {
+    /// Applies only to the node of this name (`node:name:=value`), or to every node.
+    pub node: Option<String>,
+    pub name: String,
+    pub value: ParamValue,
 }
 
 impl RosArgs {
@@ -61,20 +78,7 @@ impl RosArgs {
                     }
                     "-p" | "--param" => {
                         let rule = value("`name:=value`")?;
-                        let (name, text) = rule
-                            .split_once(":=")
-                            .ok_or_else(|| bad(&rule, "a parameter must be `name:=value`"))?;
-                        if name.is_empty() {
-                            return Err(bad(&rule, "empty parameter name"));
-                        }
-                        // `node:name:=value` applies to one node only; we keep the last part.
-                        let name = name.rsplit(':').next().unwrap_or(name);
-                        let parsed =
-                            ParamValue::parse_cli(text).map_err(|e| RosError::Parameter {
-                                name: name.to_string(),
-                                reason: e,
-                            })?;
-                        out.params.push((name.to_string(), parsed));
+                        out.params.push(parse_param(&rule)?);
                     }
                     "--params-file" => out.params_files.push(PathBuf::from(value("a file")?)),
                     // Accepted and ignored: logging and security settings of rcl.
@@ -99,30 +103,165 @@ impl RosArgs {
         let (lhs, to) = rule
             .split_once(":=")
             .ok_or_else(|| bad("must be `from:=to`"))?;
-        // `node:from` restricts the rule to one node; `from` may itself not contain ':'.
-        let (node, from) = match lhs.split_once(':') {
-            Some((node, from)) => (Some(node.to_string()), from),
-            None => (None, lhs),
-        };
+        let (node, from) = split_node_prefix(lhs).map_err(|e| bad(&e))?;
         if from.is_empty() || to.is_empty() {
             return Err(bad("both sides must be non-empty"));
         }
+        let node = node.map(String::from);
+        let to = to.to_string();
         match from {
-            "__node" | "__name" => self.node_name = Some(to.to_string()),
+            "__node" | "__name" => {
+                validate_node_name(&to).map_err(|e| bad(&e))?;
+                self.node_names.push(NodeRule { node, to });
+            }
             "__ns" => {
-                if !to.starts_with('/') {
-                    return Err(bad("a namespace must be absolute (start with '/')"));
-                }
-                self.namespace = Some(to.to_string());
+                validate_namespace(&to).map_err(|e| bad(&e))?;
+                self.namespaces.push(NodeRule { node, to });
             }
             _ => self.remaps.push(Remap {
                 node,
                 from: from.to_string(),
-                to: to.to_string(),
+                to,
             }),
         }
         Ok(())
     }
+
+    /// The name of the node whose code names it `name`: the first `__node` rule for it, else
+    /// `name`. As in rcl, a rule's `node:` prefix is compared with the name in the code.
+    pub fn node_name<'a>(&'a self, name: &'a str) -> &'a str {
+        first_rule_for(&self.node_names, name).unwrap_or(name)
+    }
+
+    /// The namespace of the node named `name` (its name after [`RosArgs::node_name`]): the
+    /// first `__ns` rule for it, else `default`. rcl compares a `__ns` rule's `node:` prefix
+    /// with the name after the `__node` rules (`rcl_node_init`), so does this.
+    pub fn namespace<'a>(&'a self, name: &str, default: &'a str) -> &'a str {
+        first_rule_for(&self.namespaces, name).unwrap_or(default)
+    }
+
+    /// The `-p` overrides for the node `node_fqn` (`/ns/name`), in order: those without a
+    /// node prefix, and those whose prefix names it. rcl keeps `node:name:=value` as a
+    /// parameter of the node `node`, which rclcpp matches with the fully qualified name like
+    /// a parameter file's section: `localiser:` is `/localiser`, not `/robot1/localiser`.
+    pub fn params_for(&self, node_fqn: &str) -> Vec<(String, ParamValue)> {
+        self.params
+            .iter()
+            .filter(|p| {
+                p.node
+                    .as_deref()
+                    .is_none_or(|node| section_applies(node, node_fqn))
+            })
+            .map(|p| (p.name.clone(), p.value.clone()))
+            .collect()
+    }
+}
+
+fn first_rule_for<'a>(rules: &'a [NodeRule], node_name: &str) -> Option<&'a str> {
+    rules
+        .iter()
+        .find(|r| r.node.as_deref().is_none_or(|n| n == node_name))
+        .map(|r| r.to.as_str())
+}
+
+/// `[node:]name:=value` of `-p`, the value typed as rcl types it.
+fn parse_param(rule: &str) -> Result<ParamOverride, RosError> {
+    let bad = |reason: &str| RosError::Args(format!("`{rule}`: {reason}"));
+    let (lhs, text) = rule
+        .split_once(":=")
+        .ok_or_else(|| bad("a parameter must be `name:=value`"))?;
+    let (node, name) = split_node_prefix(lhs).map_err(|e| bad(&e))?;
+    if name.is_empty() {
+        return Err(bad("empty parameter name"));
+    }
+    if name.contains(':') {
+        return Err(bad(
+            "a parameter name cannot contain ':' (one `node:` prefix at most)",
+        ));
+    }
+    let value = ParamValue::parse_cli(text).map_err(|reason| RosError::Parameter {
+        name: name.to_string(),
+        reason,
+    })?;
+    Ok(ParamOverride {
+        node: node.map(String::from),
+        name: name.to_string(),
+        value,
+    })
+}
+
+/// Splits the `node:` prefix off the left side of a `-r` or `-p` rule. rcl takes one name
+/// token before the first ':' as the node the rule is for; one that is no valid node name
+/// could never match, so it is refused here.
+fn split_node_prefix(lhs: &str) -> Result<(Option<&str>, &str), String> {
+    match lhs.split_once(':') {
+        Some((node, rest)) => {
+            validate_node_name(node).map_err(|e| format!("node prefix: {e}"))?;
+            Ok((Some(node), rest))
+        }
+        None => Ok((None, lhs)),
+    }
+}
+
+/// rmw's longest node name (`RMW_NODE_NAME_MAX_NAME_LENGTH`).
+const NODE_NAME_MAX_LEN: usize = 255;
+
+/// Checks a node name by rmw's rules (`rmw_validate_node_name`): letters, digits and '_',
+/// not starting with a digit, at most 255 characters. The middleware refuses any other name
+/// only once the node is being created; checking it with the arguments refuses it as a bad
+/// argument, before any DDS traffic.
+pub fn validate_node_name(name: &str) -> Result<(), String> {
+    if name.is_empty() {
+        return Err("a node name must not be empty".into());
+    }
+    validate_token(name).map_err(|e| format!("node name `{name}` {e}"))?;
+    if name.len() > NODE_NAME_MAX_LEN {
+        return Err(format!(
+            "node name `{name}` is longer than {NODE_NAME_MAX_LEN} characters"
+        ));
+    }
+    Ok(())
+}
+
+/// Checks a namespace by rmw's rules (`rmw_validate_namespace`): absolute, tokens as node
+/// names (letters, digits and '_', not starting with a digit) between single '/', and no
+/// trailing '/' except for the root namespace `/`.
+pub fn validate_namespace(namespace: &str) -> Result<(), String> {
+    let bad = |e: &str| Err(format!("namespace `{namespace}` {e}"));
+    let Some(tokens) = namespace.strip_prefix('/') else {
+        return bad("must be absolute (start with '/')");
+    };
+    if tokens.is_empty() {
+        return Ok(());
+    }
+    if tokens.ends_with('/') {
+        return bad("must not end with '/' (only the root namespace `/` does)");
+    }
+    for token in tokens.split('/') {
+        if token.is_empty() {
+            return bad("must not contain `//` (an empty token)");
+        }
+        if let Err(e) = validate_token(token) {
+            return bad(&format!("has a token `{token}` that {e}"));
+        }
+    }
+    Ok(())
+}
+
+/// A name token of rmw: only letters, digits and '_', not starting with a digit.
+fn validate_token(token: &str) -> Result<(), String> {
+    if let Some(c) = token
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || *c == '_'))
+    {
+        return Err(format!(
+            "contains {c:?}: only letters, digits and '_' are allowed"
+        ));
+    }
+    if token.starts_with(|c: char| c.is_ascii_digit()) {
+        return Err("starts with a digit".into());
+    }
+    Ok(())
 }
 
 /// Expands a topic name to a fully qualified one: relative names go into `namespace`, `~` is
@@ -242,13 +381,82 @@ mod tests {
                 to: "/robot/scan".into()
             }]
         );
-        assert_eq!(a.node_name.as_deref(), Some("loc2"));
-        assert_eq!(a.namespace.as_deref(), Some("/r1"));
+        assert_eq!(a.node_name("replay"), "loc2");
+        assert_eq!(a.namespace("loc2", "/"), "/r1");
         assert_eq!(
-            a.params,
+            a.params_for("/r1/loc2"),
             vec![("rate".to_string(), ParamValue::Double(2.5))]
         );
         assert_eq!(a.params_files, vec![PathBuf::from("p.yaml")]);
+    }
+
+    #[test]
+    fn node_prefixed_rules_apply_to_their_node_only() {
+        let a = RosArgs::parse([
+            "--ros-args",
+            "-p",
+            "localiser:moving:=false",
+            "-p",
+            "rate:=2",
+            "-p",
+            "replay:rate:=3",
+            "-r",
+            "localiser:__node:=loc2",
+            "-r",
+            "__node:=first",
+            "-r",
+            "__node:=second",
+            "-r",
+            "localiser:__ns:=/not_after_rename",
+            "-r",
+            "loc2:__ns:=/r1",
+            "-r",
+            "classifier:__ns:=/c",
+        ])
+        .unwrap();
+        // `__node`: the first rule for the name in the code; `__ns`: the first for the name
+        // after `__node` (rcl_node_init).
+        assert_eq!(a.node_name("localiser"), "loc2");
+        assert_eq!(a.node_name("classifier"), "first");
+        assert_eq!(a.namespace("loc2", "/"), "/r1");
+        assert_eq!(a.namespace("first", "/"), "/");
+        assert_eq!(a.namespace("classifier", "/x"), "/c");
+        let rate = |v| ("rate".to_string(), ParamValue::Integer(v));
+        let moving = ("moving".to_string(), ParamValue::Bool(false));
+        assert_eq!(a.params_for("/localiser"), vec![moving, rate(2)]);
+        // A `node:` prefix is matched with the whole name, as a parameter file's section.
+        assert_eq!(a.params_for("/r1/localiser"), vec![rate(2)]);
+        assert_eq!(a.params_for("/replay"), vec![rate(2), rate(3)]);
+    }
+
+    #[test]
+    fn bad_node_names_and_namespaces_are_argument_errors() {
+        let long = format!("__node:={}", "n".repeat(256));
+        for (rule, needle) in [
+            ("__node:=bad-name", "'-'"),
+            ("__node:=1node", "digit"),
+            (long.as_str(), "255"),
+            ("__ns:=/robot-1", "'-'"),
+            ("__ns:=/robot1/", "end with '/'"),
+            ("__ns:=/1robot", "digit"),
+            ("__ns:=/a//b", "//"),
+            ("bad-node:scan:=x", "node prefix"),
+        ] {
+            let err = RosArgs::parse(["--ros-args", "-r", rule]).unwrap_err();
+            let text = err.to_string();
+            assert!(
+                matches!(err, RosError::Args(_)) && text.contains(rule) && text.contains(needle),
+                "{rule}: {text}"
+            );
+        }
+        for rule in ["bad-node:rate:=1", "a:b:rate:=1"] {
+            let err = RosArgs::parse(["--ros-args", "-p", rule]).unwrap_err();
+            assert!(matches!(err, RosError::Args(_)), "{rule}: {err}");
+            assert!(err.to_string().contains(rule), "{rule}: {err}");
+        }
+        for good in ["__ns:=/", "__ns:=/a/b_2", "__node:=_x9", "n1:__node:=n2"] {
+            RosArgs::parse(["--ros-args", "-r", good]).unwrap();
+        }
     }
 
     #[test]

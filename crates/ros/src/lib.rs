@@ -17,6 +17,7 @@ pub mod json;
 pub mod params;
 #[cfg(feature = "r2r")]
 mod rcl;
+mod yaml;
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -184,12 +185,16 @@ impl Node {
     /// `-p`) and joins the ROS graph. Bad arguments or parameters are errors naming them.
     pub fn new(setup: NodeSetup) -> Result<Self, RosError> {
         let ros_args = RosArgs::parse(setup.args.clone())?;
-        let name = ros_args.node_name.clone().unwrap_or(setup.name.clone());
-        let namespace = ros_args
-            .namespace
-            .clone()
-            .unwrap_or(setup.namespace.clone());
+        let name = ros_args.node_name(&setup.name).to_string();
+        let namespace = ros_args.namespace(&name, &setup.namespace).to_string();
         let fqn = args::expand_name(&name, &namespace, &name);
+        // The arguments' names are checked as they are parsed; these catch the program's own.
+        let bad_name = |reason| RosError::Name {
+            name: fqn.clone(),
+            reason,
+        };
+        args::validate_node_name(&name).map_err(bad_name)?;
+        args::validate_namespace(&namespace).map_err(bad_name)?;
         let mut decls = setup.parameters.clone();
         if !decls.iter().any(|d| d.name == "use_sim_time") {
             decls.push(ParamDecl::new(
@@ -198,7 +203,12 @@ impl Node {
                 "stamp with /clock instead of the system clock",
             ));
         }
-        let params = Parameters::resolve(&decls, &fqn, &ros_args.params_files, &ros_args.params)?;
+        let params = Parameters::resolve(
+            &decls,
+            &fqn,
+            &ros_args.params_files,
+            &ros_args.params_for(&fqn),
+        )?;
         let backend: Box<dyn NodeBackend> = match setup.backend {
             Backend::Dds => Box::new(dds::DdsNode::new(
                 &name,
@@ -455,5 +465,24 @@ mod tests {
             Some("/human/activity")
         );
         assert_eq!(ros_topic_from_dds("rq/node/get_parametersRequest"), None);
+    }
+
+    /// A name from the program itself breaking rmw's rules is refused before DDS starts
+    /// (ros2-client alone accepts the namespace `/1robot`, then panics creating the node).
+    #[test]
+    fn a_bad_name_in_the_code_is_refused_before_dds() {
+        for (name, namespace, bad) in [
+            ("1node", "/", "`1node`"),
+            ("node", "/1robot", "`/1robot`"),
+            ("node", "/a/", "`/a/`"),
+        ] {
+            let mut setup = NodeSetup::new(name).args(Vec::<String>::new());
+            setup.namespace = namespace.into();
+            match Node::new(setup) {
+                Err(e @ RosError::Name { .. }) => assert!(e.to_string().contains(bad), "{e}"),
+                Err(other) => panic!("{namespace} {name}: {other}"),
+                Ok(_) => panic!("{namespace} {name}: accepted"),
+            }
+        }
     }
 }

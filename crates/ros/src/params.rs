@@ -1,17 +1,16 @@
 //! Node parameters: declarations with typed defaults, values from `--params-file` YAML files
 //! and `-p name:=value` overrides, checked against the declared type.
 //!
-//! Values are typed the way ROS 2 types them: the YAML scalar decides (`3` is an integer,
-//! `3.0` a double, `true` a bool, anything else a string); an integer is accepted where a
-//! double is declared.
+//! Values are typed the way rcl types them: the YAML scalar decides (`3` is an integer,
+//! `3.0` a double, `true` or unquoted `yes`/`off` a bool, anything else a string, see
+//! [`crate::yaml`]); an integer is accepted where a double is declared.
 
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::Path;
 
-use serde_yaml_ng::Value;
-
 use crate::RosError;
+use crate::yaml::{self, Yaml};
 
 /// A parameter value, as `rcl_interfaces/msg/ParameterValue` types it.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,39 +42,28 @@ impl ParamValue {
 
     /// Parses the right-hand side of `-p name:=value` as a YAML scalar or flow sequence.
     pub fn parse_cli(text: &str) -> Result<Self, String> {
-        let value: Value = serde_yaml_ng::from_str(text)
-            .map_err(|e| format!("`{text}` is not a YAML value: {e}"))?;
+        let value = yaml::parse(text).map_err(|e| format!("`{text}` is not a YAML value: {e}"))?;
         match value {
             // `-p name:=` (empty) and `~` are strings in rcl, not null.
-            Value::Null => Ok(Self::String(text.to_string())),
+            Yaml::Null => Ok(Self::String(text.to_string())),
             other => Self::from_yaml(&other),
         }
     }
 
     /// Converts a YAML value of a parameter file or command line.
-    pub fn from_yaml(value: &Value) -> Result<Self, String> {
+    fn from_yaml(value: &Yaml) -> Result<Self, String> {
         match value {
-            Value::Bool(b) => Ok(Self::Bool(*b)),
-            Value::Number(n) => {
-                if let Some(i) = n.as_i64() {
-                    Ok(Self::Integer(i))
-                } else if let Some(f) = n.as_f64() {
-                    Ok(Self::Double(f))
-                } else {
-                    Err(format!(
-                        "number {n} does not fit a 64-bit integer or double"
-                    ))
-                }
-            }
-            Value::String(s) => Ok(Self::String(s.clone())),
-            Value::Sequence(items) => Self::from_sequence(items),
-            Value::Null => Err("empty value (null) is not a parameter value".into()),
-            Value::Mapping(_) => Err("a mapping is not a parameter value".into()),
-            Value::Tagged(t) => Self::from_yaml(&t.value),
+            Yaml::Bool(b) => Ok(Self::Bool(*b)),
+            Yaml::Int(i) => Ok(Self::Integer(*i)),
+            Yaml::Float(f) => Ok(Self::Double(*f)),
+            Yaml::Str(s) => Ok(Self::String(s.to_string())),
+            Yaml::Seq(items) => Self::from_sequence(items),
+            Yaml::Null => Err("empty value (null) is not a parameter value".into()),
+            Yaml::Map(_) => Err("a mapping is not a parameter value".into()),
         }
     }
 
-    fn from_sequence(items: &[Value]) -> Result<Self, String> {
+    fn from_sequence(items: &[Yaml]) -> Result<Self, String> {
         let scalars = items
             .iter()
             .map(Self::from_yaml)
@@ -238,10 +226,23 @@ impl Parameters {
                 values.insert(name.to_string(), coerced);
                 Ok(())
             };
-        for file in files {
-            for entry in read_params_file(file, node_fqn)? {
-                let source = format!("parameter file {}", file.display());
-                set(&entry.name, entry.value, &source, !entry.wildcard)?;
+        for path in files {
+            let file = ParamsFile::read(path)?;
+            let source = format!("parameter file {}", path.display());
+            let sections = file.sections_for(node_fqn);
+            if sections.is_empty() {
+                // rclcpp ignores such a file without a word: a classic trap (a section named
+                // `localiser` is for /localiser, not /robot1/localiser).
+                log::warn!(
+                    "{source} has no section for the node {node_fqn}, so none of its values \
+                     apply; its sections: {}",
+                    file.section_names()
+                );
+            }
+            for section in sections {
+                for (name, value) in &section.params {
+                    set(name, value.clone(), &source, !section.is_wildcard())?;
+                }
             }
         }
         for (name, value) in overrides {
@@ -323,87 +324,167 @@ fn decl_names(decls: &[ParamDecl]) -> String {
         .join(", ")
 }
 
-/// One value of a parameter file that applies to a node.
+/// A parameter file (`node_name: ros__parameters: {...}`), parsed whole as rcl parses it.
 #[derive(Debug, Clone, PartialEq)]
-pub struct FileParam {
+pub struct ParamsFile {
+    /// In file order.
+    pub sections: Vec<Section>,
+}
+
+/// The parameters a file gives to the nodes its name matches.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Section {
+    /// A node name or pattern (see [`section_applies`]): rcl joins the mapping keys above
+    /// `ros__parameters` with '/', so `robot1: {localiser: {ros__parameters: ...}}` is the
+    /// section `robot1/localiser`.
     pub name: String,
-    pub value: ParamValue,
-    /// From a `/**` section shared by all nodes: names the node does not declare are ignored.
-    pub wildcard: bool,
+    /// In file order; nested mappings become dotted names, as in rcl.
+    pub params: Vec<(String, ParamValue)>,
 }
 
-/// Reads a ROS 2 parameter file (`node_name: ros__parameters: {...}`) and returns the values
-/// that apply to the node `node_fqn` (`/ns/name`): sections `/**`, `/**/name`, `name`,
-/// `/ns/name` or `ns/name`, in file order. Nested mappings become dotted names, as in rcl.
-pub fn read_params_file(path: &Path, node_fqn: &str) -> Result<Vec<FileParam>, RosError> {
-    let err = |reason: String| RosError::ParamsFile {
-        path: path.to_path_buf(),
-        reason,
-    };
-    let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
-    parse_params_yaml(&text, node_fqn).map_err(err)
+impl Section {
+    /// A section for several nodes (its name has a `*`), such as `/**`: names a node does not
+    /// declare are left to the other nodes instead of being errors.
+    pub fn is_wildcard(&self) -> bool {
+        self.name.contains('*')
+    }
 }
 
-/// [`read_params_file`] on text.
-pub fn parse_params_yaml(text: &str, node_fqn: &str) -> Result<Vec<FileParam>, String> {
-    let root: Value = serde_yaml_ng::from_str(text).map_err(|e| format!("not YAML: {e}"))?;
-    let Value::Mapping(sections) = root else {
-        return Err("expected a mapping of node names at the top level".into());
-    };
-    let base = node_fqn.rsplit('/').next().unwrap_or(node_fqn);
-    let mut out = Vec::new();
-    for (key, section) in &sections {
-        let Some(key) = key.as_str() else {
-            return Err(format!("top-level key {key:?} is not a node name"));
+/// The key under a node's name that holds its parameters.
+const PARAMS_KEY: &str = "ros__parameters";
+
+impl ParamsFile {
+    /// Reads and parses the file at `path`; errors name it.
+    pub fn read(path: &Path) -> Result<Self, RosError> {
+        let err = |reason: String| RosError::ParamsFile {
+            path: path.to_path_buf(),
+            reason,
         };
-        let wildcard = key == "/**";
-        let applies = wildcard
-            || key == base
-            || key == node_fqn
-            || format!("/{key}") == node_fqn
-            || key.strip_prefix("/**/").is_some_and(|k| k == base);
-        if !applies {
+        let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
+        Self::parse(&text).map_err(err)
+    }
+
+    /// [`ParamsFile::read`] on text.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let root = yaml::parse(text).map_err(|e| format!("not YAML: {e}"))?;
+        let Yaml::Map(entries) = root else {
+            return Err("expected a mapping of node names at the top level".into());
+        };
+        let mut sections = Vec::new();
+        collect_sections("", &entries, &mut sections)?;
+        Ok(Self { sections })
+    }
+
+    /// The sections that apply to the node `node_fqn` (`/ns/name`), in file order.
+    pub fn sections_for(&self, node_fqn: &str) -> Vec<&Section> {
+        self.sections
+            .iter()
+            .filter(|s| section_applies(&s.name, node_fqn))
+            .collect()
+    }
+
+    /// The names of all sections, for messages.
+    pub fn section_names(&self) -> String {
+        if self.sections.is_empty() {
+            return "none".into();
+        }
+        self.sections
+            .iter()
+            .map(|s| format!("`{}`", s.name))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// Whether the parameter file section `name` (or a `-p` rule's node prefix) applies to the
+/// node `node_fqn` (`/ns/name`), as rclcpp decides (`parameter_map_from`): a leading '/' is
+/// added when missing, then the name must match the whole fully qualified name, where a
+/// token `*` stands for any one name token and `**` for any number of them, none included.
+/// So `localiser` is `/localiser` only; `/*/localiser`, `/robot1/*` and `/**/localiser` are
+/// patterns.
+pub fn section_applies(name: &str, node_fqn: &str) -> bool {
+    fn tokens(name: &str) -> Vec<&str> {
+        name.strip_prefix('/').unwrap_or(name).split('/').collect()
+    }
+    tokens_match(&tokens(name), &tokens(node_fqn))
+}
+
+fn tokens_match(pattern: &[&str], tokens: &[&str]) -> bool {
+    match pattern.split_first() {
+        None => tokens.is_empty(),
+        Some((&"**", rest)) => (0..=tokens.len()).any(|skip| tokens_match(rest, &tokens[skip..])),
+        Some((&first, rest)) => tokens.split_first().is_some_and(|(&token, tokens)| {
+            (first == "*" || first == token) && tokens_match(rest, tokens)
+        }),
+    }
+}
+
+/// The sections under the node name `prefix` (empty at the top level).
+fn collect_sections(
+    prefix: &str,
+    entries: &[(Yaml, Yaml)],
+    out: &mut Vec<Section>,
+) -> Result<(), String> {
+    for (key, value) in entries {
+        let key = key_text(key)?;
+        if key == PARAMS_KEY {
+            if prefix.is_empty() {
+                return Err(format!("`{PARAMS_KEY}` must be under a node name"));
+            }
+            let mut params = Vec::new();
+            flatten(value, "", &mut params).map_err(|e| format!("section `{prefix}`: {e}"))?;
+            out.push(Section {
+                name: prefix.to_string(),
+                params,
+            });
             continue;
         }
-        let params = section
-            .as_mapping()
-            .and_then(|m| m.get("ros__parameters"))
-            .ok_or_else(|| format!("section `{key}` has no `ros__parameters` mapping"))?;
-        flatten(params, "", wildcard, &mut out).map_err(|e| format!("section `{key}`: {e}"))?;
+        let Yaml::Map(children) = value else {
+            return Err(if prefix.is_empty() {
+                format!("section `{key}` must be a mapping holding `{PARAMS_KEY}`")
+            } else {
+                format!(
+                    "section `{prefix}`: `{key}` is neither `{PARAMS_KEY}` nor a node name \
+                     (a node's parameters go under `{PARAMS_KEY}:`)"
+                )
+            });
+        };
+        let name = if prefix.is_empty() {
+            key
+        } else {
+            format!("{prefix}/{key}")
+        };
+        collect_sections(&name, children, out)?;
     }
-    Ok(out)
+    Ok(())
 }
 
-fn flatten(
-    value: &Value,
-    prefix: &str,
-    wildcard: bool,
-    out: &mut Vec<FileParam>,
-) -> Result<(), String> {
-    let Value::Mapping(map) = value else {
-        return Err(format!(
-            "`{}` must be a mapping of parameter names",
-            prefix.trim_end_matches('.')
-        ));
-    };
-    for (k, v) in map {
-        let key = match k {
-            Value::String(s) => s.clone(),
-            other => serde_yaml_ng::to_string(other)
-                .map_err(|e| e.to_string())?
-                .trim()
-                .to_string(),
+fn key_text(key: &Yaml) -> Result<String, String> {
+    match key {
+        Yaml::Str(s) => Ok(s.to_string()),
+        Yaml::Int(i) => Ok(i.to_string()),
+        Yaml::Float(f) => Ok(f.to_string()),
+        Yaml::Bool(b) => Ok(b.to_string()),
+        Yaml::Null | Yaml::Seq(_) | Yaml::Map(_) => Err(format!("key {key:?} is not a name")),
+    }
+}
+
+fn flatten(value: &Yaml, prefix: &str, out: &mut Vec<(String, ParamValue)>) -> Result<(), String> {
+    let Yaml::Map(entries) = value else {
+        let what = match prefix.strip_suffix('.') {
+            Some(name) => name,
+            None => PARAMS_KEY,
         };
-        let name = format!("{prefix}{key}");
-        if v.is_mapping() {
-            flatten(v, &format!("{name}."), wildcard, out)?;
+        return Err(format!("`{what}` must be a mapping of parameter names"));
+    };
+    for (key, value) in entries {
+        let name = format!("{prefix}{}", key_text(key)?);
+        if let Yaml::Map(_) = value {
+            flatten(value, &format!("{name}."), out)?;
         } else {
-            let value = ParamValue::from_yaml(v).map_err(|e| format!("parameter `{name}`: {e}"))?;
-            out.push(FileParam {
-                name,
-                value,
-                wildcard,
-            });
+            let value =
+                ParamValue::from_yaml(value).map_err(|e| format!("parameter `{name}`: {e}"))?;
+            out.push((name, value));
         }
     }
     Ok(())
@@ -454,6 +535,61 @@ mod tests {
     }
 
     #[test]
+    fn cli_values_take_rcl_booleans_unquoted_only() {
+        for (text, want) in [("off", false), ("yes", true), ("On", true), ("N", false)] {
+            assert_eq!(ParamValue::parse_cli(text).unwrap(), ParamValue::Bool(want));
+        }
+        assert_eq!(
+            ParamValue::parse_cli("'off'").unwrap(),
+            ParamValue::String("off".into())
+        );
+        assert_eq!(
+            ParamValue::parse_cli("[yes, no]").unwrap(),
+            ParamValue::BoolArray(vec![true, false])
+        );
+        assert!(ParamValue::parse_cli("[on, 'off']").is_err());
+    }
+
+    /// (section, node, applies), as rclcpp's `parameter_map_from` decides.
+    const SECTION_CASES: &[(&str, &str, bool)] = &[
+        ("replay", "/replay", true),
+        ("/replay", "/replay", true),
+        ("replay", "/other_ns/replay", false),
+        ("localiser", "/robot1/localiser", false),
+        ("robot1/localiser", "/robot1/localiser", true),
+        ("/robot1/localiser", "/robot1/localiser", true),
+        ("/robot1/localiser", "/robot2/localiser", false),
+        ("robot1/localiser", "/localiser", false),
+        ("/**", "/replay", true),
+        ("/**", "/a/b/replay", true),
+        ("/**/localiser", "/localiser", true),
+        ("/**/localiser", "/a/b/localiser", true),
+        ("/**/localiser", "/a/classifier", false),
+        ("/*/localiser", "/robot1/localiser", true),
+        ("/*/localiser", "/localiser", false),
+        ("/*/localiser", "/a/b/localiser", false),
+        ("/robot1/*", "/robot1/localiser", true),
+        ("/robot1/*", "/robot2/localiser", false),
+        ("/robot1/*", "/robot1/sub/localiser", false),
+        ("/robot1/**", "/robot1/sub/localiser", true),
+        ("/a/**/b", "/a/b", true),
+        ("/a/**/b", "/a/x/y/b", true),
+        ("/a/**/b", "/a/x/c", false),
+        ("localiser/", "/localiser", false),
+    ];
+
+    #[test]
+    fn sections_apply_to_the_whole_fully_qualified_name() {
+        for &(section, node, applies) in SECTION_CASES {
+            assert_eq!(
+                section_applies(section, node),
+                applies,
+                "section `{section}` for node {node}"
+            );
+        }
+    }
+
+    #[test]
     fn params_file_sections_wildcards_and_nesting() {
         let yaml = r#"
 /**:
@@ -467,47 +603,133 @@ replay:
 /other_ns/replay:
   ros__parameters:
     loop: false
-other:
+robot1:
   ros__parameters:
-    rate: 9.0
+    rate: 3.0
+  localiser:
+    ros__parameters:
+      moving: off
+      frame: 'off'
+/robot2:
+  localiser:
+    ros__parameters:
+      moving: on
 "#;
-        let got = parse_params_yaml(yaml, "/replay").unwrap();
-        let names: Vec<_> = got.iter().map(|p| (p.name.as_str(), p.wildcard)).collect();
+        let file = ParamsFile::parse(yaml).unwrap();
+        let applied = |node: &str| -> Vec<(String, bool, Vec<String>)> {
+            file.sections_for(node)
+                .into_iter()
+                .map(|s| {
+                    let names = s.params.iter().map(|(n, _)| n.clone()).collect();
+                    (s.name.clone(), s.is_wildcard(), names)
+                })
+                .collect()
+        };
+        let strings = |names: &[&str]| names.iter().map(|n| n.to_string()).collect::<Vec<_>>();
         assert_eq!(
-            names,
+            applied("/replay"),
             vec![
-                ("use_sim_time", true),
-                ("rate", true),
-                ("loop", false),
-                ("nested.a", false)
+                ("/**".into(), true, strings(&["use_sim_time", "rate"])),
+                ("replay".into(), false, strings(&["loop", "nested.a"])),
             ]
         );
-        let in_ns = parse_params_yaml(yaml, "/other_ns/replay").unwrap();
-        assert!(
-            in_ns
-                .iter()
-                .any(|p| p.name == "loop" && p.value == ParamValue::Bool(false))
+        // `replay` is /replay only: a node in a namespace gets its own section alone.
+        assert_eq!(
+            applied("/other_ns/replay"),
+            vec![
+                ("/**".into(), true, strings(&["use_sim_time", "rate"])),
+                ("/other_ns/replay".into(), false, strings(&["loop"])),
+            ]
         );
+        // Nested keys are joined into the node's name; each robot gets its own section.
+        let robot1 = file.sections_for("/robot1/localiser");
+        assert_eq!(robot1.len(), 2);
+        assert_eq!(robot1[1].name, "robot1/localiser");
+        assert_eq!(
+            robot1[1].params,
+            vec![
+                ("moving".to_string(), ParamValue::Bool(false)),
+                ("frame".to_string(), ParamValue::String("off".into())),
+            ]
+        );
+        let robot2 = file.sections_for("/robot2/localiser");
+        assert_eq!(robot2.len(), 2);
+        assert_eq!(
+            robot2[1].params,
+            vec![("moving".to_string(), ParamValue::Bool(true))]
+        );
+        assert_eq!(file.sections_for("/robot1")[1].name, "robot1");
+        assert_eq!(file.sections_for("/localiser").len(), 1);
     }
 
     #[test]
     fn params_file_errors_name_the_problem() {
+        for (yaml, needle) in [
+            ("replay: {rate: 1}", "ros__parameters"),
+            ("replay: 1", "ros__parameters"),
+            ("ros__parameters: {rate: 1}", "under a node name"),
+            ("- a", "top level"),
+            (
+                "replay: {ros__parameters: 3}",
+                "`ros__parameters` must be a mapping",
+            ),
+            ("replay: {ros__parameters: {x: null}}", "`x`"),
+            // Every section is checked, as rcl parses the whole file.
+            ("other: {ros__parameters: {y: [1, a]}}", "`y`"),
+        ] {
+            let err = ParamsFile::parse(yaml).unwrap_err();
+            assert!(err.contains(needle), "{yaml}: {err}");
+        }
+        assert!(ParamsFile::parse(":\n  - [").is_err());
+    }
+
+    /// Keeps the warnings logged while the tests run (the crate's only logger in tests).
+    struct Warnings(std::sync::Mutex<Vec<String>>);
+
+    impl log::Log for Warnings {
+        fn enabled(&self, metadata: &log::Metadata) -> bool {
+            metadata.level() <= log::Level::Warn
+        }
+
+        fn log(&self, record: &log::Record) {
+            if self.enabled(record.metadata())
+                && let Ok(mut warnings) = self.0.lock()
+            {
+                warnings.push(record.args().to_string());
+            }
+        }
+
+        fn flush(&self) {}
+    }
+
+    static WARNINGS: Warnings = Warnings(std::sync::Mutex::new(Vec::new()));
+
+    #[test]
+    fn a_params_file_with_no_section_for_the_node_is_warned_about() {
+        let _ = log::set_logger(&WARNINGS);
+        log::set_max_level(log::LevelFilter::Warn);
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("robots.yaml");
+        std::fs::write(
+            &file,
+            "localiser:\n  ros__parameters:\n    rate: 2.0\n\
+             robot2:\n  replay:\n    ros__parameters:\n      rate: 3.0\n",
+        )
+        .unwrap();
+        let warned = |node: &str| {
+            Parameters::resolve(&decls(), node, std::slice::from_ref(&file), &[]).unwrap();
+            let warnings = WARNINGS.0.lock().unwrap();
+            warnings
+                .iter()
+                .find(|w| w.contains(&file.display().to_string()) && w.contains(node))
+                .cloned()
+        };
+        let warning = warned("/robot1/replay").expect("no warning for /robot1/replay");
         assert!(
-            parse_params_yaml("replay: {rate: 1}", "/replay")
-                .unwrap_err()
-                .contains("ros__parameters")
+            warning.contains("`localiser`, `robot2/replay`"),
+            "{warning}"
         );
-        assert!(
-            parse_params_yaml("- a", "/replay")
-                .unwrap_err()
-                .contains("top level")
-        );
-        assert!(
-            parse_params_yaml("replay: {ros__parameters: {x: null}}", "/replay")
-                .unwrap_err()
-                .contains("`x`")
-        );
-        assert!(parse_params_yaml(":\n  - [", "/replay").is_err());
+        assert_eq!(warned("/robot2/replay"), None);
     }
 
     #[test]
