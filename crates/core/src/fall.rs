@@ -1101,6 +1101,11 @@ impl FallDetector {
         }
         self.mark_fall_in_spell();
         self.fall_disarmed_at = Some(t);
+        // A run waiting for a landing waits for this one: when it lands it still dates the
+        // incident, but this alert is its alert, not a re-armed one a scan later.
+        if let Some(fall) = self.pending_fall.as_mut() {
+            fall.rearms = false;
+        }
         alerts.push(FallAlert {
             kind: AlertKind::FallDetected,
             event_time_s: off_floor_at,
@@ -2241,6 +2246,31 @@ mod tests {
             (LyingDown, 3.0, true),
         ];
         assert_eq!(after_a_fall(detector(), &broken), [AlertKind::FallDetected]);
+    }
+
+    #[test]
+    fn a_landing_alerted_as_a_descent_is_not_alerted_again_by_a_run_waiting_for_it() {
+        // A fall; then a struggle: read as falling on a few scans (a run from getting up,
+        // counted while the alert is disarmed, waiting for its landing), up again long enough
+        // to re-arm, and down for good. The descent alerts that landing; the run that waited
+        // for it is the same incident, not a fall of its own a scan later.
+        let body = Some(1.2);
+        let script = [
+            (Standing, 3.0, true, body, SURE),
+            (FallingDown, 0.5, true, body, 0.9),
+            (LyingDown, 3.0, true, body, SURE),
+            (GettingUp, 0.8, true, body, SURE),
+            (FallingDown, 0.25, true, body, 0.9),
+            (GettingUp, 1.15, true, body, SURE),
+            (SittingOnFloor, 0.1, true, body, SURE),
+            (LyingDown, 3.0, true, body, SURE),
+        ];
+        let alerts = run_scans(&mut detector(), &script);
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::FallDetected],
+            "{alerts:?}"
+        );
     }
 
     #[test]
