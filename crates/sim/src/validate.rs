@@ -5,8 +5,8 @@ use glam::DVec2;
 use lidar_har_core::activity::Activity;
 
 use crate::scene::{
-    BodySpec, Furniture, Legged, LidarSpec, MAX_ROBOT_SPEED, Motion, NoiseSpec, PersonSpec,
-    RobotSpec, Room, Scene, ScriptStep, is_locomotion,
+    BodySpec, Furniture, Legged, LidarSpec, MAX_BOUNCE_RUNS, MAX_ROBOT_SPEED, Motion, NoiseSpec,
+    PersonSpec, RobotSpec, Room, Scene, ScriptStep, is_locomotion,
 };
 use crate::shapes::{polygon_area2, polygon_self_intersection};
 use crate::world::World;
@@ -103,6 +103,7 @@ pub fn validate(scene: &Scene) -> Check {
     check_robot(&scene.robot)?;
     check_lidar(&scene.lidar)?;
     let world = World::new(scene);
+    check_furniture_in_room(&world)?;
     check_robot_start(&world, &scene.robot)?;
     check_robot_motion(&world, &scene.robot)?;
     if let Some(p) = &scene.person {
@@ -208,6 +209,29 @@ fn check_legged(k: &str, l: &Legged) -> Check {
     Ok(())
 }
 
+/// A piece that does not even touch the floor is a typing error (a sign or a decimal point
+/// off): it would be planned around and drawn on the map while nothing in the room can meet
+/// it. A piece that only touches a wall from outside is left alone: that needs no tolerance,
+/// so no piece reaching into the room by a rounding error is ever refused.
+fn check_furniture_in_room(world: &World) -> Check {
+    for (i, f) in world.furniture.iter().enumerate() {
+        if !f.person_blocks.iter().any(|s| world.meets_floor(s)) {
+            return fail(
+                format!("furniture[{i}]"),
+                format!(
+                    "{} lies wholly outside the room",
+                    if f.name.is_empty() {
+                        "the piece".to_string()
+                    } else {
+                        format!("'{}'", f.name)
+                    }
+                ),
+            );
+        }
+    }
+    Ok(())
+}
+
 /// The robot's own values; where it starts and drives needs the room ([`check_robot_start`]).
 fn check_robot(r: &RobotSpec) -> Check {
     positive("robot.radius", r.radius)?;
@@ -215,6 +239,21 @@ fn check_robot(r: &RobotSpec) -> Check {
     finite("robot.lidar_mount.x", r.lidar_mount.x)?;
     finite("robot.lidar_mount.y", r.lidar_mount.y)?;
     finite("robot.lidar_mount.yaw_deg", r.lidar_mount.yaw_deg)?;
+    // The Lidar sits on the robot, inside its footprint. The start check and the planner keep
+    // that disc clear of walls and furniture, so the scans are then always cast from the
+    // floor of the room; a Lidar mounted further out could scan from inside a cupboard or
+    // from beyond a wall.
+    let offset = r.lidar_mount.x.hypot(r.lidar_mount.y);
+    if offset > r.radius {
+        return fail(
+            "robot.lidar_mount",
+            format!(
+                "({}, {}) is {offset:.3} m from the robot's centre; the Lidar must sit on the \
+                 robot, within its radius ({} m)",
+                r.lidar_mount.x, r.lidar_mount.y, r.radius
+            ),
+        );
+    }
     finite("robot.start.x", r.start.x)?;
     finite("robot.start.y", r.start.y)?;
     finite("robot.start.yaw_deg", r.start.yaw_deg)?;
@@ -246,6 +285,15 @@ fn check_lidar(l: &LidarSpec) -> Check {
         );
     }
     in_range("lidar.range_min", l.range_min, 0.0, 1e4)?;
+    // A Lidar inside furniture or the person measures 0 on every beam; range_min is what
+    // turns that into no return, so 0 would record scans of zeros.
+    if l.range_min == 0.0 {
+        return fail(
+            "lidar.range_min",
+            "must be positive: a Lidar inside furniture or the person measures 0, which \
+             must read as no return",
+        );
+    }
     in_range("lidar.range_max", l.range_max, 0.0, 1e6)?;
     if l.range_max <= l.range_min {
         return fail(
@@ -325,8 +373,14 @@ fn check_robot_motion(world: &World, r: &RobotSpec) -> Check {
             in_range("robot.motion.spacing", *spacing, 0.05, 100.0)?
         }
         Motion::Bounce { runs } => {
-            if *runs == 0 {
-                return fail("robot.motion.runs", "must be at least 1");
+            if *runs == 0 || *runs > MAX_BOUNCE_RUNS {
+                return fail(
+                    "robot.motion.runs",
+                    format!(
+                        "must be within [1, {MAX_BOUNCE_RUNS}] (every run is planned when the \
+                         simulation starts), got {runs}"
+                    ),
+                );
             }
         }
     }
@@ -387,6 +441,15 @@ fn check_script_step(world: &World, k: &str, s: &ScriptStep) -> Check {
         return fail(
             format!("{k}.path"),
             format!("{} does not move along a path", s.activity),
+        );
+    }
+    if s.speed.is_some() && !is_locomotion(s.activity) {
+        return fail(
+            format!("{k}.speed"),
+            format!(
+                "{} does not move along a path, so it has no speed",
+                s.activity
+            ),
         );
     }
     if s.fall.is_some() && s.activity != Activity::FallingDown {
@@ -535,6 +598,139 @@ mod tests {
             let e = error(&text);
             assert!(e.contains(expect), "expected `{expect}` in `{e}`");
         }
+    }
+
+    fn accepted(text: &str) {
+        if let Err(e) = Scene::parse(text, "good.yaml") {
+            panic!("must be accepted: {e}\n{text}");
+        }
+    }
+
+    #[test]
+    fn bounce_runs_are_capped() {
+        let robot = |runs: &str| {
+            with(
+                &format!("{{start: {{x: 0.5, y: 0.5}}, motion: {{kind: bounce, runs: {runs}}}}}"),
+                "",
+            )
+        };
+        let e = error(&robot("4000000000"));
+        assert!(
+            e.starts_with("bad.yaml: robot.motion.runs: must be within [1, 100000]")
+                && e.ends_with("got 4000000000"),
+            "{e}"
+        );
+        assert!(error(&robot("0")).contains("robot.motion.runs"));
+        accepted(&robot("100000"));
+    }
+
+    #[test]
+    fn the_lidar_must_sit_on_the_robot() {
+        let e = error(&with(
+            "{start: {x: 1, y: 1}, lidar_mount: {x: 10, y: 0}}",
+            "",
+        ));
+        assert!(
+            e.starts_with("bad.yaml: robot.lidar_mount: (10, 0) is 10.000 m from the robot's")
+                && e.contains("within its radius (0.17 m)"),
+            "{e}"
+        );
+        let e = error(&with(
+            "{start: {x: 1, y: 1}, radius: 0.1, lidar_mount: {x: 0.08, y: -0.08}}",
+            "",
+        ));
+        assert!(
+            e.contains("robot.lidar_mount: (0.08, -0.08) is 0.113 m"),
+            "{e}"
+        );
+        accepted(&with(
+            "{start: {x: 1, y: 1}, lidar_mount: {x: 0.1, y: 0, yaw_deg: 90}}",
+            "",
+        ));
+        accepted(&with(
+            "{start: {x: 1, y: 1}, lidar_mount: {x: 0, y: -0.17}}",
+            "",
+        ));
+    }
+
+    #[test]
+    fn furniture_wholly_outside_the_room_is_refused() {
+        let room = |piece: &str| {
+            format!(
+                "duration: 5\nroom: {{outline: [[0,0],[5,0],[5,4],[0,4]]}}\nfurniture:\n  - \
+                 {{kind: box, center: [4, 3], size: [1, 1], height: 1}}\n  - {piece}\nrobot: \
+                 {{start: {{x: 1, y: 1}}}}\n"
+            )
+        };
+        let cases = [
+            (
+                "{kind: box, name: sofa, center: [12, 2], size: [2, 1], height: 0.8}",
+                "bad.yaml: furniture[1]: 'sofa' lies wholly outside the room",
+            ),
+            (
+                "{kind: cylinder, center: [-3, -3], radius: 0.3, height: 1}",
+                "bad.yaml: furniture[1]: the piece lies wholly outside the room",
+            ),
+            (
+                "{kind: polygon, points: [[6, 0], [7, 0], [6, 1]], height: 1}",
+                "bad.yaml: furniture[1]: the piece lies wholly outside",
+            ),
+            (
+                "{kind: table, center: [2.5, -1], size: [1, 1.9], height: 0.7}",
+                "bad.yaml: furniture[1]: the piece lies wholly outside",
+            ),
+        ];
+        for (piece, want) in cases {
+            let e = error(&room(piece));
+            assert!(e.starts_with(want), "{piece}: {e}");
+        }
+        for piece in [
+            // Partly outside, across a wall, along the walls, touching one from outside.
+            "{kind: box, center: [5, 2], size: [1, 1], height: 1}",
+            "{kind: box, center: [2.5, 2], size: [0.3, 9], height: 1}",
+            "{kind: box, center: [2.5, 3.7], size: [5, 0.6], height: 1}",
+            "{kind: cylinder, center: [2.5, -0.3], radius: 0.3, height: 1}",
+            "{kind: chair, center: [-0.25, 2], size: [0.5, 0.5], height: 0.45}",
+        ] {
+            accepted(&room(piece));
+        }
+    }
+
+    #[test]
+    fn range_min_must_be_positive() {
+        let e = error(&with("{start: {x: 1, y: 1}}", "lidar: {range_min: 0}"));
+        assert!(
+            e.starts_with("bad.yaml: lidar.range_min: must be positive: a Lidar inside"),
+            "{e}"
+        );
+        accepted(&with("{start: {x: 1, y: 1}}", "lidar: {range_min: 0.01}"));
+    }
+
+    #[test]
+    fn only_steps_that_move_have_a_speed() {
+        let step = |s: &str| {
+            with(
+                "{start: {x: 0.5, y: 0.5}}",
+                &format!("person: {{start: {{x: 4, y: 1}}, script: [{s}]}}"),
+            )
+        };
+        for (s, want) in [
+            (
+                "{activity: standing, duration: 1, speed: 2}",
+                "bad.yaml: person.script[0].speed: standing does not move along a path, so it \
+                 has no speed",
+            ),
+            (
+                "{activity: falling_down, duration: 1, speed: 1}",
+                "bad.yaml: person.script[0].speed: falling_down does not move",
+            ),
+        ] {
+            let e = error(&step(s));
+            assert!(e.starts_with(want), "{s}: {e}");
+        }
+        accepted(&step(
+            "{activity: walking, duration: 2, path: [[4, 3]], speed: 2}",
+        ));
     }
 
     #[test]

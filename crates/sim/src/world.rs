@@ -4,7 +4,7 @@
 use glam::DVec2;
 
 use crate::scene::{Furniture, Legged, Scene};
-use crate::shapes::Shape;
+use crate::shapes::{Shape, point_in_polygon, segments_cross_outline};
 
 /// What a beam hit, or why it returned nothing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -214,6 +214,26 @@ impl World {
     /// Distance from `p` to the nearest wall, negative outside the room.
     pub fn wall_clearance(&self, p: DVec2) -> f64 {
         -Shape::Polygon(self.outline.clone()).signed_distance(p)
+    }
+
+    /// Does the footprint share a point with the floor (the room's outline and inside)?
+    pub fn meets_floor(&self, shape: &Shape) -> bool {
+        match shape {
+            Shape::Circle { center, radius } => self.wall_clearance(*center) >= -radius,
+            Shape::Polygon(poly) => {
+                let n = poly.len();
+                // Edges that touch the walls share a point with them. Otherwise the two
+                // outlines are apart: the piece lies inside the room, holds it, or is outside.
+                (0..n).any(|i| segments_cross_outline(poly[i], poly[(i + 1) % n], &self.outline))
+                    || poly
+                        .first()
+                        .is_some_and(|p| point_in_polygon(*p, &self.outline))
+                    || self
+                        .outline
+                        .first()
+                        .is_some_and(|p| point_in_polygon(*p, poly))
+            }
+        }
     }
 
     /// Clearance for the robot at `p`: distance to the nearest wall or robot obstacle
