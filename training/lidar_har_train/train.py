@@ -59,8 +59,8 @@ def parse_args(argv):
                    help="bfloat16 autocast for the forward pass (GPUs, and CPUs with AVX-512 BF16 or AMX): 1.25x "
                         "the steps per second on the development machine; weights, loss and export stay float32")
     p.add_argument("--mask-hidden-steps", action="store_true",
-                   help="leave out of the loss, and of the validation score, the steps whose scan shows nothing "
-                        "of the person: the robot publishes no activity for them")
+                   help="leave out of the loss, and of the validation score, the steps whose image shows nothing "
+                        "of the person (hidden, or seen outside the room-fixed image, whom the robot does publish)")
     p.add_argument("--init-from", type=Path, metavar="MODEL.onnx",
                    help="start from an exported model's weights instead of random ones (fine-tuning, or going on "
                         "where a time budget stopped); its image must be the dataset's, and its hidden and encoder "
