@@ -2,8 +2,9 @@
 //! driving with /odom and a Lidar mounted off-centre (/tf_static), a person walking round,
 //! ground truth on /ground_truth/human_pose. Checks the output bag and summary.json, the
 //! errors for a missing map, a garbled map, a missing bag and a bag without scans, odometry
-//! given only on /tf, a map file against the bag's /map, a bag cut short, and a sweeping
-//! Lidar on a turning robot (de-skew).
+//! given only on /tf, a map file against the bag's /map, a bag cut short, a sweeping
+//! Lidar on a turning robot (de-skew), an hour without scans, and one odometry stamp an hour
+//! ahead.
 
 use std::path::Path;
 
@@ -594,5 +595,137 @@ fn ground_truth_in_another_frame_than_the_estimates_gives_no_position_error() {
         summary.warnings.get("ground_truth_in_another_frame"),
         Some(&199),
         "{summary:?}"
+    );
+}
+
+/// A message of the robot bag on `topic` (/scan, /odom, /ground_truth/human_pose) with its
+/// stamp moved to `restamp(stamp_ns)`; any other message as it was.
+fn restamped(topic: &str, data: Vec<u8>, restamp: impl Fn(i64) -> i64) -> Vec<u8> {
+    fn moved<M: lidar_har_msgs::RosMessage>(
+        data: &[u8],
+        header: impl Fn(&mut M) -> &mut Header,
+        restamp: impl Fn(i64) -> i64,
+    ) -> Vec<u8> {
+        let mut msg: M = lidar_har_msgs::decode(data).unwrap();
+        let stamp = &mut header(&mut msg).stamp;
+        *stamp = Time::from_nanos(restamp(stamp.to_nanos()));
+        lidar_har_msgs::encode(&msg).unwrap()
+    }
+    match topic {
+        t if t == topics::SCAN.name => moved(&data, |m: &mut LaserScan| &mut m.header, restamp),
+        t if t == topics::ODOM.name => moved(&data, |m: &mut Odometry| &mut m.header, restamp),
+        t if t == topics::GROUND_TRUTH_POSE.name => {
+            moved(&data, |m: &mut PoseStamped| &mut m.header, restamp)
+        }
+        _ => data,
+    }
+}
+
+const HOUR_NS: i64 = 3_600_000_000_000;
+
+/// `lidar-har run --no-classifier` on `input` into `out`: its summary.json and the track ids
+/// and velocities of its /human/observation messages, in order.
+fn run_observed(input: &Path, out: &Path) -> (serde_json::Value, Vec<(u32, DVec2)>) {
+    let output = lidar_har(&[
+        "--bag".as_ref(),
+        input.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--no-classifier".as_ref(),
+    ]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let summary =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let reader = BagReader::open(out).unwrap();
+    let observations = reader
+        .messages_on(&[topics::HUMAN_OBSERVATION.name])
+        .unwrap()
+        .map(|m| {
+            let o: HumanObservation = reader.decode(&m.unwrap()).unwrap();
+            (o.track_id, DVec2::new(o.velocity.x, o.velocity.y))
+        })
+        .collect();
+    (summary, observations)
+}
+
+/// The Lidar and the base stop for an hour after 5 s (docked) and go on where they were:
+/// the person, unseen for longer than `max_coast_s`, is lost and found again as a new track,
+/// from rest. (The old track was re-acquired within its gate, never lost, its velocity
+/// reversed: the hour's prediction pulled back by the first scan.)
+#[test]
+fn a_person_unseen_for_an_hour_without_scans_is_found_as_a_new_track() {
+    let tmp = tempfile::tempdir().unwrap();
+    let robot = tmp.path().join("robot");
+    write_bag(&robot);
+    let input = tmp.path().join("in");
+    copy_bag(&robot, &input, &[], |topic, data| {
+        restamped(topic, data, |ns| {
+            if ns >= 5_000_000_000 {
+                ns + HOUR_NS
+            } else {
+                ns
+            }
+        })
+    });
+    let (summary, observations) = run_observed(&input, &tmp.path().join("out"));
+    assert_eq!(summary["tracks_confirmed"], 2, "{summary:#}");
+    let (first, _) = observations[0];
+    let last_before = observations
+        .iter()
+        .rposition(|&(id, _)| id == first)
+        .unwrap();
+    let (_, before) = observations[last_before];
+    let after = &observations[last_before + 1..];
+    assert!(
+        after.len() > 90,
+        "{} observations after the hour",
+        after.len()
+    );
+    assert!(after.iter().all(|&(id, _)| id != first));
+    // The person walks a circle at 0.4 rad/s: over the first scans after the hour, their
+    // direction has hardly turned.
+    for &(_, velocity) in &after[..5] {
+        assert!(
+            velocity.dot(before) > -0.1,
+            "{velocity} after the hour, {before} before"
+        );
+    }
+}
+
+/// One /odom message stamped an hour ahead: it is dropped as a stray, with a warning, and
+/// every scan is placed as without it. (It had emptied the odometry buffer; every correct
+/// sample after it was refused as too old, and no scan was placed again.)
+#[test]
+fn one_odometry_stamp_an_hour_ahead_does_not_stop_localisation() {
+    let tmp = tempfile::tempdir().unwrap();
+    let robot = tmp.path().join("robot");
+    write_bag(&robot);
+    let input = tmp.path().join("in");
+    copy_bag(&robot, &input, &[], |topic, data| {
+        if topic != topics::ODOM.name {
+            return data;
+        }
+        restamped(topic, data, |ns| {
+            if ns == 3_000_000_000 {
+                ns + HOUR_NS
+            } else {
+                ns
+            }
+        })
+    });
+    let (whole, _) = run_observed(&robot, &tmp.path().join("whole"));
+    let (summary, _) = run_observed(&input, &tmp.path().join("out"));
+    assert_eq!(
+        summary["scans_localised"], whole["scans_localised"],
+        "{summary:#}"
+    );
+    assert_eq!(summary["warnings"]["odometry_ahead"], 1, "{summary:#}");
+    assert_eq!(
+        summary["warnings"]["odometry_too_old"],
+        serde_json::Value::Null
     );
 }

@@ -285,6 +285,12 @@ pub enum Warning {
     OdometryOutOfOrder { stamp_ns: i64, latest_ns: i64 },
     #[error("odometry sample ignored: it is older than the buffer")]
     OdometryTooOld,
+    #[error(
+        "odometry sample ignored: stamped {ahead_s:.3} s ahead of the odometry before and after it"
+    )]
+    OdometryAhead { ahead_s: f64 },
+    #[error("odometry went back {back_s:.3} s and stayed there: its samples before were dropped")]
+    OdometryRestarted { back_s: f64 },
     #[error("ignored a non-finite {what}")]
     NonFinite { what: &'static str },
     #[error("scan not de-skewed (every beam placed from the pose at its stamp): {0}")]
@@ -327,6 +333,8 @@ impl Warning {
             Warning::OdometryJump { .. } => "odometry_jump",
             Warning::OdometryOutOfOrder { .. } => "odometry_out_of_order",
             Warning::OdometryTooOld => "odometry_too_old",
+            Warning::OdometryAhead { .. } => "odometry_ahead",
+            Warning::OdometryRestarted { .. } => "odometry_restarted",
             Warning::NonFinite { .. } => "non_finite",
             Warning::NotDeskewed(_) => "not_deskewed",
         }
@@ -380,9 +388,17 @@ pub struct ScanResult {
 }
 
 /// Time-stamped odometry poses (`odom -> base_link`) for interpolation at scan stamps.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 struct OdometryBuffer {
     samples: VecDeque<(i64, Pose2)>,
+    /// A sample stamped more than `buffer_s` from the newest, either way, held out of the
+    /// buffer until the next sample tells what it was. Taken at its word, one stray stamp
+    /// (an hour ahead) would have forgotten the whole buffer and had every correct sample
+    /// after it refused as too old, so that no scan was placed again; one far behind, as
+    /// the first sample, the same. The next sample near it (or a scan near it, far from the
+    /// buffer) says the odometry's time really moved there (a restart, a pause longer than
+    /// the buffer); a sample that fits the buffer says it was a stray, and it is dropped.
+    held: Option<(i64, Pose2)>,
 }
 
 impl OdometryBuffer {
@@ -397,6 +413,80 @@ impl OdometryBuffer {
             return None;
         };
         let buffer_ns = (config.buffer_s * 1e9) as i64;
+        if stamp_ns.abs_diff(latest_ns) > buffer_ns.unsigned_abs() {
+            return self.hold(stamp_ns, pose, latest_ns, buffer_ns);
+        }
+        // This one fits: the one held was a stray. (Should this one also be out of order, the
+        // stray is what is said.)
+        let stray = self
+            .held
+            .take()
+            .map(|(held_ns, _)| stray(held_ns, latest_ns));
+        stray.or(self.add(stamp_ns, pose, buffer_ns))
+    }
+
+    /// Holds a sample more than `buffer_ns` from the newest, `latest_ns`, unless the one
+    /// held before is near it: then the odometry's time has moved there, and both go in.
+    fn hold(
+        &mut self,
+        stamp_ns: i64,
+        pose: Pose2,
+        latest_ns: i64,
+        buffer_ns: i64,
+    ) -> Option<Warning> {
+        match self.held {
+            Some((held_ns, _)) if held_ns.abs_diff(stamp_ns) <= buffer_ns.unsigned_abs() => {
+                let restarted = self.take_held(buffer_ns);
+                restarted.or(self.add(stamp_ns, pose, buffer_ns))
+            }
+            earlier => {
+                self.held = Some((stamp_ns, pose));
+                // Two strays that do not agree: the earlier one is dropped.
+                earlier.map(|(held_ns, _)| stray(held_ns, latest_ns))
+            }
+        }
+    }
+
+    /// A scan stamped `stamp_ns`, more than `buffer_s` from the newest sample and near the
+    /// held one, says as a second sample would that the odometry's time has moved there: the
+    /// held sample is taken, and the first scan after a pause longer than the buffer is
+    /// placed from it rather than skipped while the next sample is awaited.
+    fn meet_scan(&mut self, stamp_ns: i64, config: &OdometryConfig) -> Option<Warning> {
+        let (held_ns, _) = self.held?;
+        let &(latest_ns, _) = self.samples.back()?;
+        let buffer_ns = (config.buffer_s * 1e9) as i64;
+        let near = |a: i64, b: i64| a.abs_diff(b) <= buffer_ns.unsigned_abs();
+        if near(stamp_ns, latest_ns) || !near(stamp_ns, held_ns) {
+            return None;
+        }
+        self.take_held(buffer_ns)
+    }
+
+    /// Puts the held sample in: ahead of the newest, the samples before are forgotten as it
+    /// goes in (a pause longer than the buffer, as always); behind, they are dropped first.
+    fn take_held(&mut self, buffer_ns: i64) -> Option<Warning> {
+        let (held_ns, held_pose) = self.held.take()?;
+        let restarted = self
+            .samples
+            .back()
+            .filter(|&&(latest_ns, _)| held_ns < latest_ns)
+            .map(|&(latest_ns, _)| Warning::OdometryRestarted {
+                back_s: (latest_ns - held_ns) as f64 * 1e-9,
+            });
+        if restarted.is_some() {
+            self.samples.clear();
+        }
+        self.add(held_ns, held_pose, buffer_ns);
+        restarted
+    }
+
+    /// Puts a sample no more than `buffer_ns` behind the newest in order, forgetting those
+    /// more than `buffer_ns` behind it.
+    fn add(&mut self, stamp_ns: i64, pose: Pose2, buffer_ns: i64) -> Option<Warning> {
+        let Some(&(latest_ns, _)) = self.samples.back() else {
+            self.samples.push_back((stamp_ns, pose));
+            return None;
+        };
         if stamp_ns > latest_ns {
             self.samples.push_back((stamp_ns, pose));
             while self
@@ -407,9 +497,6 @@ impl OdometryBuffer {
                 self.samples.pop_front();
             }
             return None;
-        }
-        if stamp_ns < latest_ns.saturating_sub(buffer_ns) {
-            return Some(Warning::OdometryTooOld);
         }
         match self.samples.binary_search_by_key(&stamp_ns, |&(t, _)| t) {
             Ok(i) => self.samples[i].1 = pose,
@@ -465,6 +552,18 @@ impl OdometryBuffer {
     }
 }
 
+/// What is said of a sample at `stray_ns` dropped as a stray stamp, `latest_ns` being the
+/// newest sample kept.
+fn stray(stray_ns: i64, latest_ns: i64) -> Warning {
+    if stray_ns > latest_ns {
+        Warning::OdometryAhead {
+            ahead_s: (stray_ns - latest_ns) as f64 * 1e-9,
+        }
+    } else {
+        Warning::OdometryTooOld
+    }
+}
+
 /// Time going back by more than this is a restart (a replayed bag looping, a simulator
 /// reset), not jitter: the tracks and odometry are reset instead of skipping every scan.
 const TIME_RESET_S: f64 = 1.0;
@@ -497,9 +596,7 @@ impl Localiser {
         Ok(Self {
             reference,
             motion,
-            odometry: OdometryBuffer {
-                samples: VecDeque::new(),
-            },
+            odometry: OdometryBuffer::default(),
             map_to_odom: Pose2::IDENTITY,
             mount: config.mount,
             tracker: Tracker::new(config.tracker.clone()),
@@ -594,7 +691,7 @@ impl Localiser {
             }
             result.warnings.push(Warning::TimeReset { back_s });
             self.tracker.reset();
-            self.odometry.samples.clear();
+            self.odometry = OdometryBuffer::default();
             // The new timeline starts here even when this scan cannot be localised (its
             // odometry has not arrived yet): the next scan is not another restart.
             self.last_scan_ns = Some(scan.stamp_ns);
@@ -604,6 +701,13 @@ impl Localiser {
             result.warnings.push(Warning::NanRanges { count: nan });
         }
 
+        if self.motion == Motion::Odometry
+            && let Some(w) = self
+                .odometry
+                .meet_scan(scan.stamp_ns, &self.config.odometry)
+        {
+            result.warnings.push(w);
+        }
         let laser_pose = match self.laser_pose_at(scan.stamp_ns) {
             Ok(pose) => pose,
             Err(w) => {
@@ -1432,8 +1536,11 @@ mod tests {
             loc.add_odometry(1_030_000_000, Pose2::new(3.0, 0.0, 0.0)),
             Some(Warning::OdometryOutOfOrder { .. })
         ));
+        // A sample older than the buffer is said to be too old once the next one shows it a
+        // stray (it might have been the first of a restarted odometry).
+        assert_eq!(loc.add_odometry(-10_000_000_000, Pose2::IDENTITY), None);
         assert_eq!(
-            loc.add_odometry(-10_000_000_000, Pose2::IDENTITY),
+            loc.add_odometry(1_050_000_000, Pose2::new(3.0, 0.0, 0.0)),
             Some(Warning::OdometryTooOld)
         );
         assert!(matches!(
@@ -1446,11 +1553,72 @@ mod tests {
         ));
     }
 
+    /// A robot standing still with odometry at 50 Hz and a scan every 50 ms, sample `k` and
+    /// the scan after it at `clock(k)`; `odometry(k, stamp)` gives the stamp sample `k`
+    /// carries and the warning it must bring. Returns how many of the 40 scans were placed.
+    fn localised_with_odometry(
+        clock: impl Fn(i64) -> i64,
+        odometry: impl Fn(i64, i64) -> (i64, Option<Warning>),
+    ) -> usize {
+        let mut loc = map_localiser(Motion::Odometry);
+        let mut localised = 0;
+        for k in 0..200 {
+            let (stamp_ns, expected) = odometry(k, clock(k));
+            let warning = loc.add_odometry(stamp_ns, Pose2::IDENTITY);
+            assert_eq!(warning, expected, "sample {k} at {stamp_ns} ns");
+            if k % 5 == 2 {
+                let result = loc.process_scan(&cast(clock(k), Pose2::IDENTITY, None));
+                localised += usize::from(result.output.is_some());
+            }
+        }
+        localised
+    }
+
+    #[test]
+    fn one_odometry_stamp_far_ahead_does_not_stop_localisation() {
+        const HOUR_NS: i64 = 3_600_000_000_000;
+        let clock = |k: i64| k * 20_000_000;
+        // Sample 50 (1 s) stamped an hour ahead: said to be a stray when the next one comes,
+        // and every scan is placed (it had emptied the buffer, and every correct sample
+        // after it was refused as too old: 10 scans placed).
+        let localised = localised_with_odometry(clock, |k, t| match k {
+            50 => (HOUR_NS, None),
+            51 => (
+                t,
+                Some(Warning::OdometryAhead {
+                    ahead_s: (HOUR_NS - clock(49)) as f64 * 1e-9,
+                }),
+            ),
+            _ => (t, None),
+        });
+        assert_eq!(localised, 40);
+        // The same stray stamp as the very first sample: the next two agree with each other,
+        // and the odometry restarts from them.
+        let localised = localised_with_odometry(clock, |k, t| match k {
+            0 => (HOUR_NS, None),
+            2 => (
+                t,
+                Some(Warning::OdometryRestarted {
+                    back_s: (HOUR_NS - clock(1)) as f64 * 1e-9,
+                }),
+            ),
+            _ => (t, None),
+        });
+        assert_eq!(localised, 40);
+    }
+
+    #[test]
+    fn odometry_resuming_after_a_pause_longer_than_its_buffer_is_taken() {
+        // Robot and Lidar off for 7 s (longer than the 5 s buffer) after sample 51: sample 52
+        // is held, and the scan right after it, near it, says as the next sample would that
+        // time has moved on: the scan is placed from it, with nothing said.
+        let clock = |k: i64| k * 20_000_000 + if k >= 52 { 7_000_000_000 } else { 0 };
+        assert_eq!(localised_with_odometry(clock, |_, t| (t, None)), 40);
+    }
+
     #[test]
     fn odometry_is_interpolated_at_the_scan_stamp() {
-        let mut buffer = OdometryBuffer {
-            samples: VecDeque::new(),
-        };
+        let mut buffer = OdometryBuffer::default();
         let config = OdometryConfig::default();
         buffer.insert(0, Pose2::new(0.0, 0.0, 0.0), &config);
         buffer.insert(100_000_000, Pose2::new(0.1, 0.0, 0.2), &config);

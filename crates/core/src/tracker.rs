@@ -10,7 +10,8 @@
 //! - a new cluster only becomes a confirmed track after `confirm_hits` detections, so
 //!   transient clutter (multipath, a stray return) never takes over;
 //! - when the person's track has been unseen for `max_coast_s`, it is dropped and the most
-//!   established confirmed track becomes the person.
+//!   established confirmed track becomes the person; after a gap between scans longer than
+//!   that, every track is dropped before the next scan is matched.
 //!
 //! The filter is separable: with the same constant-velocity model and isotropic measurement
 //! noise on both axes, x and y evolve independently, so two 2-state filters are exact and
@@ -289,6 +290,8 @@ pub struct Tracker {
     confirmed_total: u64,
     /// Scratch: which clusters are taken in the current scan.
     taken: Vec<bool>,
+    /// The stamp of the previous scan, to tell a gap between scans.
+    previous_ns: Option<i64>,
 }
 
 impl Tracker {
@@ -300,6 +303,7 @@ impl Tracker {
             next_id: 1,
             confirmed_total: 0,
             taken: Vec::new(),
+            previous_ns: None,
         }
     }
 
@@ -313,10 +317,11 @@ impl Tracker {
         self.tracks.len()
     }
 
-    /// Forgets everything (after a jump in time or pose that breaks continuity).
+    /// Forgets every track (after a jump in time or pose that breaks continuity); ids go on.
     pub fn reset(&mut self) {
         self.tracks.clear();
         self.person = None;
+        self.previous_ns = None;
     }
 
     /// Advances every track to `stamp_ns` (not earlier than the previous call) and assigns
@@ -329,6 +334,10 @@ impl Tracker {
         clusters: &[Cluster],
         fragments: &[Cluster],
     ) -> Option<PersonEstimate> {
+        if self.after_gap(stamp_ns) {
+            self.reset();
+        }
+        self.previous_ns = Some(stamp_ns);
         self.predict(stamp_ns);
         let measured = self.assign(stamp_ns, clusters, fragments);
         self.correct(stamp_ns, &measured);
@@ -532,6 +541,19 @@ impl Tracker {
         }
     }
 
+    /// Whether `stamp_ns` comes more than `max_coast_s` after the previous scan (a Lidar
+    /// stopped while docked, scans skipped for lack of odometry): then every track has been
+    /// unseen for longer than that, and all are lost before this scan is matched, as they
+    /// would have been scan by scan. Matched first, the person was re-acquired on whatever
+    /// lay within the gate around where they were last seen, however long ago, with a
+    /// velocity the filter made up across the whole gap (it came back reversed). Only after
+    /// such a gap: scan by scan, a track unseen for `max_coast_s` keeps its last chance in
+    /// the scan that crosses it, as when the figures of docs/localiser.md were measured.
+    fn after_gap(&self, stamp_ns: i64) -> bool {
+        self.previous_ns
+            .is_some_and(|previous| (stamp_ns - previous) as f64 * 1e-9 > self.config.max_coast_s)
+    }
+
     /// Drops the confirmed tracks unseen for too long and the tentative ones missed too often.
     fn drop_lost(&mut self, stamp_ns: i64) {
         let config = &self.config;
@@ -609,8 +631,12 @@ impl Tracker {
     }
 
     /// Where the person's track expects them at `stamp_ns` (not before its last update), and
-    /// the radius of its gate there; `None` when no person is tracked.
+    /// the radius of its gate there; `None` when no person is tracked, or when `stamp_ns` is
+    /// so long after the previous scan that the person is lost at its update.
     pub fn person_prediction(&self, stamp_ns: i64) -> Option<(DVec2, f64)> {
+        if self.after_gap(stamp_ns) {
+            return None;
+        }
         let track = self.person_track()?;
         let dt = ((stamp_ns - track.stamp_ns) as f64 * 1e-9).max(0.0);
         let velocity = DVec2::new(track.x.vel, track.y.vel);
@@ -1140,6 +1166,48 @@ mod tests {
         let est = last.expect("new person");
         assert_ne!(est.track_id, first);
         assert!((est.position - far).length() < 0.1);
+    }
+
+    /// The Lidar stops for a minute (docked) while the person walks on: when scans resume,
+    /// with the person within `max_gate_m` of where they were last seen, they are someone
+    /// found anew (a new track, from rest), not the old track re-acquired with the velocity
+    /// the filter made up across the gap (it came back reversed: the whole gap's
+    /// prediction pulled back by the first measurement).
+    #[test]
+    fn a_person_unseen_across_a_gap_between_scans_is_lost() {
+        let mut tracker = Tracker::new(TrackerConfig::default());
+        let walk = |k: i64| DVec2::new(0.05 * k as f64, 1.0); // 1 m/s along x
+        let mut before = None;
+        for k in 0..40 {
+            before = tracker.update(k * PERIOD_NS, &[blob(walk(k))], &[]);
+        }
+        let before = before.expect("tracked before the gap");
+        let gap_ns = 60_000_000_000;
+        for k in 40..50 {
+            // Where they were last seen, then walking on.
+            let p = walk(k - 1);
+            if let Some(after) = tracker.update(gap_ns + k * PERIOD_NS, &[blob(p)], &[]) {
+                assert_ne!(
+                    after.track_id, before.track_id,
+                    "re-acquired across the gap"
+                );
+                assert!(after.velocity.x > -0.1, "velocity {}", after.velocity);
+            }
+        }
+        assert_eq!(tracker.confirmed_total(), 2);
+    }
+
+    /// A stray object seen twice, then the scans stop for a minute: seen once more after
+    /// the gap, it is a new tentative track, not the old one confirmed (misses are counted
+    /// in scans, and there were none).
+    #[test]
+    fn a_tentative_track_does_not_live_across_a_gap_between_scans() {
+        let mut tracker = Tracker::new(TrackerConfig::default());
+        let stray = [blob(DVec2::new(2.0, 0.0))];
+        tracker.update(0, &stray, &[]);
+        tracker.update(PERIOD_NS, &stray, &[]);
+        assert!(tracker.update(60_000_000_000, &stray, &[]).is_none());
+        assert_eq!(tracker.confirmed_total(), 0);
     }
 
     #[test]

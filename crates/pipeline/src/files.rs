@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use image::{GenericImageView, Rgba};
 use lidar_har_core::geometry::Pose2;
 use lidar_har_core::localiser::{ConfigError, LocaliserConfig};
 use lidar_har_core::map::{MAP_SERVER_OCCUPIED_THRESH, MapError, MapGeometry, OccupancyMap};
@@ -122,8 +123,10 @@ enum MapMode {
 }
 
 /// Loads a map_server map: the YAML file and the image it names (relative to the YAML).
-/// A cell is an obstacle when its occupancy (from the pixel's darkness, or the pixel value
-/// itself in `raw` mode) exceeds `occupied_thresh`, as map_server decides.
+/// Each pixel becomes the value nav2's map_server would publish for it on /map
+/// ([`map_server_value`]), and the grid is read as a /map grid is
+/// ([`OccupancyMap::from_grid_values`] with [`MAP_SERVER_OCCUPIED_THRESH`]): the same room
+/// with `--map` as from the bag's /map that map_server published from the same file.
 pub fn load_map(yaml_path: &Path) -> Result<OccupancyMap, FileError> {
     let path = || yaml_path.to_path_buf();
     let text = std::fs::read_to_string(yaml_path).map_err(|source| FileError::Read {
@@ -157,32 +160,17 @@ pub fn load_map(yaml_path: &Path) -> Result<OccupancyMap, FileError> {
         .parent()
         .unwrap_or(Path::new("."))
         .join(&spec.image);
-    let image = image::open(&image_path)
-        .map_err(|source| FileError::Image {
-            path: image_path.clone(),
-            cause: source,
-        })?
-        .to_luma8();
+    let image = image::open(&image_path).map_err(|source| FileError::Image {
+        path: image_path.clone(),
+        cause: source,
+    })?;
     let (width, height) = (image.width() as usize, image.height() as usize);
-    let mut occupied = vec![false; width * height];
-    let mut unknown = vec![false; width * height];
-    for (x, y, pixel) in image.enumerate_pixels() {
-        let value = f64::from(pixel.0[0]);
-        let occupancy = match (spec.mode == MapMode::Raw, spec.negate.is_set()) {
-            (true, _) => value / 100.0,
-            (false, true) => value / 255.0,
-            (false, false) => (255.0 - value) / 255.0,
-        };
+    let has_alpha = image.color().has_alpha();
+    let mut values = vec![0i8; width * height];
+    for (x, y, pixel) in image.pixels() {
         // Image row 0 is the top of the map, grid row 0 its bottom (at the origin).
         let row = height - 1 - y as usize;
-        let cell = row * width + x as usize;
-        occupied[cell] = occupancy > spec.occupied_thresh;
-        // map_server: between the thresholds is unknown; in raw mode, values above 100 are.
-        unknown[cell] = if spec.mode == MapMode::Raw {
-            value > 100.0
-        } else {
-            !occupied[cell] && occupancy >= spec.free_thresh
-        };
+        values[row * width + x as usize] = map_server_value(pixel, has_alpha, &spec);
     }
     let [x, y, theta] = spec.origin;
     let geometry = MapGeometry {
@@ -191,10 +179,68 @@ pub fn load_map(yaml_path: &Path) -> Result<OccupancyMap, FileError> {
         width,
         height,
     };
-    OccupancyMap::with_unknown(geometry, occupied, unknown).map_err(|source| FileError::Map {
-        path: path(),
-        cause: source,
-    })
+    OccupancyMap::from_grid_values(geometry, &values, MAP_SERVER_OCCUPIED_THRESH).map_err(
+        |source| FileError::Map {
+            path: path(),
+            cause: source,
+        },
+    )
+}
+
+/// The /map value (0..=100 occupancy in percent, -1 unknown) nav2's map_server publishes
+/// for `pixel` of an image with or without an alpha channel (its `map_io`): the pixel's
+/// shade is the mean of its colour channels (and, in trinary mode only, its opacity when
+/// the image has an alpha channel), its occupancy that shade's darkness (its brightness
+/// with `negate`), and then
+/// - trinary: above `occupied_thresh` 100, below `free_thresh` 0, else unknown;
+/// - scale: a pixel not fully opaque unknown, above and below the thresholds as in
+///   trinary, in between scaled linearly from 0 to 100 (a grey floor is free, not unknown);
+/// - raw: the shade itself, 0..=255 (`negate` and the thresholds unused), above 100
+///   unknown.
+///
+/// The mean, not the luminance these files were once read with, so a colour image loads as
+/// map_server reads it too; the occupancy is still one division of the pixel's integers, so
+/// a grey image (what map_saver and the simulator write) loads in trinary mode exactly as
+/// it did.
+fn map_server_value(pixel: Rgba<u8>, has_alpha: bool, spec: &MapSpec) -> i8 {
+    const UNKNOWN: i8 = -1;
+    let Rgba([r, g, b, a]) = pixel;
+    let mut total = u32::from(r) + u32::from(g) + u32::from(b);
+    let mut channels = 3;
+    if spec.mode == MapMode::Trinary && has_alpha {
+        total += u32::from(a);
+        channels += 1;
+    }
+    let full = f64::from(255 * channels);
+    let total = f64::from(total);
+    if spec.mode == MapMode::Raw {
+        let value = (total / f64::from(channels)).round();
+        return if value <= 100.0 { value as i8 } else { UNKNOWN };
+    }
+    if spec.mode == MapMode::Scale && a != u8::MAX {
+        return UNKNOWN;
+    }
+    let occupancy = if spec.negate.is_set() {
+        total / full
+    } else {
+        (full - total) / full
+    };
+    if occupancy > spec.occupied_thresh {
+        100
+    } else if occupancy < spec.free_thresh {
+        0
+    } else if spec.mode == MapMode::Scale {
+        // Equal thresholds leave nothing in between but the threshold itself: free.
+        let span = spec.occupied_thresh - spec.free_thresh;
+        let fraction = if span > 0.0 {
+            (occupancy - spec.free_thresh) / span
+        } else {
+            0.0
+        };
+        (fraction * 100.0).round_ties_even() as i8
+    } else {
+        UNKNOWN
+    }
 }
 
 #[cfg(test)]
@@ -240,6 +286,77 @@ mod tests {
         // The grey pixel (bottom-right of the image: grid row 0, column 3) is unknown.
         assert!(map.is_unknown(3, 0));
         assert!(!map.is_unknown(2, 0) && !map.is_unknown(0, 2));
+    }
+
+    /// The map of `yaml` (naming `image`) and the map read from `values` as /map is, with
+    /// the same geometry, must have the same cells occupied and unknown.
+    fn assert_loads_as_grid(yaml: &Path, values: &[i8]) {
+        let map = load_map(yaml).unwrap();
+        let geometry = *map.geometry();
+        let (width, height) = (geometry.width, geometry.height);
+        let grid =
+            OccupancyMap::from_grid_values(geometry, values, MAP_SERVER_OCCUPIED_THRESH).unwrap();
+        for (row, col) in (0..height).flat_map(|r| (0..width).map(move |c| (r, c))) {
+            assert_eq!(
+                (map.is_occupied(col, row), map.is_unknown(col, row)),
+                (grid.is_occupied(col, row), grid.is_unknown(col, row)),
+                "cell ({col}, {row}), published {}",
+                values[row * width + col]
+            );
+        }
+    }
+
+    /// One row of grey pixels in scale and raw modes: the room is the one map_server would
+    /// publish on /map from the same file. In scale mode a grey between the thresholds is
+    /// scaled, not unknown (a floor drawn light grey had been unknown, behind the walls: the
+    /// person was never seen with `--map`, and seen through the bag's /map).
+    #[test]
+    fn scale_and_raw_maps_load_as_map_server_publishes_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut pgm = b"P5\n5 1\n255\n".to_vec();
+        pgm.extend_from_slice(&[254, 185, 140, 100, 0]);
+        write(dir.path(), "row.pgm", &pgm);
+        let yaml = |mode: &str| {
+            let text = format!(
+                "image: row.pgm\nmode: {mode}\nresolution: 0.05\norigin: [0, 0, 0]\n\
+                 negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.25\n"
+            );
+            write(dir.path(), &format!("{mode}.yaml"), text.as_bytes())
+        };
+        // Occupancy 0.004, 0.27, 0.45, 0.61, 1: scaled from (0.25, 0.65) to (0, 100).
+        assert_loads_as_grid(&yaml("scale"), &[0, 6, 50, 89, 100]);
+        let scale = load_map(&yaml("scale")).unwrap();
+        assert!(!(0..5).any(|c| scale.is_unknown(c, 0)));
+        assert!(scale.is_occupied(3, 0) && scale.is_occupied(4, 0));
+        // Raw: the pixel values themselves, those above 100 unknown.
+        assert_loads_as_grid(&yaml("raw"), &[-1, -1, -1, 100, 0]);
+        // Trinary: between the thresholds unknown, as before.
+        assert_loads_as_grid(&yaml("trinary"), &[0, -1, -1, -1, 100]);
+    }
+
+    /// An RGBA PNG: map_server makes a pixel that is not opaque unknown in scale mode, and in
+    /// trinary mode averages its opacity in with the colour channels.
+    #[test]
+    fn a_png_maps_transparency_is_read_as_map_server_reads_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let pixels = [
+            [254, 254, 254, 255],
+            [185, 185, 185, 255],
+            [200, 200, 200, 0],
+        ];
+        let png = image::RgbaImage::from_fn(3, 1, |x, _| Rgba(pixels[x as usize]));
+        png.save(dir.path().join("row.png")).unwrap();
+        let yaml = |mode: &str| {
+            let text = format!(
+                "image: row.png\nmode: {mode}\nresolution: 0.05\norigin: [0, 0, 0]\n\
+                 negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.25\n"
+            );
+            write(dir.path(), &format!("{mode}.yaml"), text.as_bytes())
+        };
+        assert_loads_as_grid(&yaml("scale"), &[0, 6, -1]);
+        // Opacity averaged in: 185 grey comes out lighter (occupancy 0.21: free), a
+        // transparent 200 grey darker (0.41, between the thresholds: unknown).
+        assert_loads_as_grid(&yaml("trinary"), &[0, 0, -1]);
     }
 
     #[test]
