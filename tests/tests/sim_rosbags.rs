@@ -2,7 +2,12 @@
 //! message, with its types registered from the bag's own schemas) and `mcap` +
 //! `mcap-ros2-support`. Also checks the map_server files and the render.
 
+use lidar_har_bag::BagReader;
+use lidar_har_core::map::{MAP_SERVER_OCCUPIED_THRESH, OccupancyMap};
 use lidar_har_e2e::{checker_python, lidar_har, repo_root};
+use lidar_har_msgs::nav_msgs::OccupancyGrid;
+use lidar_har_msgs::topics;
+use lidar_har_pipeline::{convert, files};
 
 const CHECK: &str = r#"
 import sys, math, collections
@@ -175,4 +180,50 @@ fn commands_finish_their_work_when_the_reader_of_stdout_has_gone() {
     let reader = lidar_har_bag::BagReader::open(&bag).unwrap();
     let scans = reader.topics().iter().find(|t| t.name == "/scan").unwrap();
     assert_eq!(scans.message_count, 40, "2 s of 20 Hz scans");
+}
+
+/// The map files the simulator writes beside its bag load as the bag's /map: the same
+/// occupied and unknown cells (with map_server's reading of the grey, unknown is not floor).
+#[test]
+fn the_simulators_map_files_are_its_map_topic() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("living");
+    let status = lidar_har()
+        .current_dir(repo_root())
+        .args(["simulate", "--scene", "config/scenes/living_room.yaml"])
+        .args(["--duration", "1", "--seed", "1", "--out"])
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let from_files = files::load_map(&out.join("map.yaml")).unwrap();
+    let grid = BagReader::open(&out)
+        .unwrap()
+        .messages_on(&[topics::MAP.name])
+        .unwrap()
+        .map(|m| lidar_har_msgs::decode::<OccupancyGrid>(&m.unwrap().data).unwrap())
+        .next()
+        .expect("a /map message");
+    let from_topic = convert::map_from_grid(&grid, MAP_SERVER_OCCUPIED_THRESH).unwrap();
+    let g = from_topic.geometry();
+    let f = from_files.geometry();
+    // The message carries the resolution as a float32.
+    assert!((f.resolution - g.resolution).abs() < 1e-6, "{f:?} {g:?}");
+    assert_eq!((f.origin, f.width, f.height), (g.origin, g.width, g.height));
+    let cells = |map: &OccupancyMap, test: fn(&OccupancyMap, usize, usize) -> bool| {
+        (0..g.height)
+            .flat_map(|row| (0..g.width).map(move |col| (col, row)))
+            .filter(|&(col, row)| test(map, col, row))
+            .collect::<Vec<_>>()
+    };
+    let unknown = cells(&from_topic, OccupancyMap::is_unknown);
+    assert!(
+        !unknown.is_empty(),
+        "the living room's map has unknown cells"
+    );
+    assert_eq!(cells(&from_files, OccupancyMap::is_unknown), unknown);
+    assert_eq!(
+        cells(&from_files, OccupancyMap::is_occupied),
+        cells(&from_topic, OccupancyMap::is_occupied)
+    );
 }

@@ -103,6 +103,8 @@ impl OccupancyMap {
 
     /// Writes `<dir>/<stem>.pgm` and `<dir>/<stem>.yaml` as map_server reads them
     /// (trinary: 0 black occupied, 254 white free, 205 grey unknown; top row first).
+    /// `free_thresh` is map_saver's 0.196, just below 205's occupancy (50/255): with a higher
+    /// one the grey reads as free and the unknown cells of /map become floor.
     pub fn write_map_server(&self, dir: &Path, stem: &str) -> std::io::Result<()> {
         let pgm = dir.join(format!("{stem}.pgm"));
         let mut out = std::io::BufWriter::new(std::fs::File::create(&pgm)?);
@@ -123,7 +125,7 @@ impl OccupancyMap {
         }
         out.flush()?;
         let yaml = format!(
-            "image: {stem}.pgm\nmode: trinary\nresolution: {}\norigin: [{}, {}, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.25\n",
+            "image: {stem}.pgm\nmode: trinary\nresolution: {}\norigin: [{}, {}, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
             self.resolution, self.origin.x, self.origin.y
         );
         std::fs::write(dir.join(format!("{stem}.yaml")), yaml)
