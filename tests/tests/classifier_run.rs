@@ -563,6 +563,38 @@ fn alerts_refuses_what_it_cannot_measure_before_simulating() {
         assert!(!out.status.success(), "{extra:?}");
         assert!(err.contains(needle), "{extra:?}: {err}");
     }
+    // A room too small for any random script: every episode is skipped, and a report of
+    // nothing (no falls missed, no false alert) is refused rather than written.
+    let tmp = tempfile::tempdir().unwrap();
+    let closet = tmp.path().join("closet.yaml");
+    std::fs::write(
+        &closet,
+        "duration: 30\nroom: {outline: [[0, 0], [1.2, 0], [1.2, 1.2], [0, 1.2]]}\n\
+         robot: {start: {x: 0.2, y: 0.2}}\nperson: {start: {x: 0.7, y: 0.7}, script: \
+         [{activity: standing, duration: 30}]}\n",
+    )
+    .unwrap();
+    let report = tmp.path().join("report.json");
+    let out = lidar_har(&[
+        "alerts",
+        "--model",
+        path(&model),
+        "--scenes",
+        path(&closet),
+        "--fall-episodes",
+        "2",
+        "--no-fall-hours",
+        "0",
+        "--out",
+        path(&report),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("none of the 2 episodes with falls could be run"),
+        "{err}"
+    );
+    assert!(!report.exists());
 }
 
 #[test]

@@ -245,6 +245,11 @@ fn dataset_rejects_bad_arguments_with_a_clear_error() {
         (&["--window", "1"][..], "--window"),
         // 4 episodes x 0.1 rounds to none: an empty test split used to pass silently.
         (&["--test-fraction", "0.1"][..], "test split would be empty"),
+        // Its plans used to be allocated before any check: an abort, not an error.
+        (
+            &["--episodes", "1000000000000"][..],
+            "--episodes 1000000000000",
+        ),
     ] {
         let out = make_dataset(dir.path(), extra);
         let stderr = String::from_utf8_lossy(&out.stderr);

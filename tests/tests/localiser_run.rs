@@ -729,3 +729,37 @@ fn one_odometry_stamp_an_hour_ahead_does_not_stop_localisation() {
         serde_json::Value::Null
     );
 }
+
+/// `bag convert` of a bag cut short copies its complete messages and says so: the copy is
+/// all there is, and the command fails.
+#[test]
+fn converting_a_bag_cut_short_salvages_its_complete_messages_and_says_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in");
+    write_bag(&input);
+    let file = storage_file(&input, "mcap");
+    let bytes = std::fs::read(&file).unwrap();
+    std::fs::write(&file, &bytes[..bytes.len() * 3 / 5]).unwrap();
+    let copy = tmp.path().join("copy");
+    let out = lidar_har_command()
+        .args([
+            "bag".as_ref(),
+            "convert".as_ref(),
+            input.as_os_str(),
+            copy.as_os_str(),
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    let copied: u64 = stderr
+        .split("stopped after ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no count in: {stderr}"));
+    assert!(copied > 100, "{stderr}");
+    assert!(stderr.contains("holds those"), "{stderr}");
+    let salvaged = BagReader::open(&copy).unwrap().messages().unwrap().count() as u64;
+    assert_eq!(salvaged, copied);
+}

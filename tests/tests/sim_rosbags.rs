@@ -168,6 +168,19 @@ fn commands_finish_their_work_when_the_reader_of_stdout_has_gone() {
         assert!(output.status.success(), "{args:?}: {stderr}");
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     };
+    // Both closed (`... 2>&1 | head -1`, the reader gone): only the exit status can tell.
+    let with_both_closed = |args: &[&std::ffi::OsStr]| {
+        let mut child = lidar_har()
+            .current_dir(repo_root())
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        drop(child.stderr.take());
+        assert!(child.wait().unwrap().success(), "{args:?}");
+    };
     let duration = "2".as_ref();
     with_stdout_closed(&[
         "simulate".as_ref(),
@@ -177,6 +190,16 @@ fn commands_finish_their_work_when_the_reader_of_stdout_has_gone() {
         bag.as_os_str(),
     ]);
     with_stdout_closed(&["bag".as_ref(), "info".as_ref(), bag.as_os_str()]);
+    let out = tmp.path().join("run");
+    with_both_closed(&[
+        "run".as_ref(),
+        "--bag".as_ref(),
+        bag.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--no-classifier".as_ref(),
+    ]);
+    assert!(out.join("summary.json").is_file());
     let reader = lidar_har_bag::BagReader::open(&bag).unwrap();
     let scans = reader.topics().iter().find(|t| t.name == "/scan").unwrap();
     assert_eq!(scans.message_count, 40, "2 s of 20 Hz scans");

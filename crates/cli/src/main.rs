@@ -57,7 +57,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("lidar-har: error: {err:#}");
+            errln!("lidar-har: error: {err:#}");
             ExitCode::FAILURE
         }
     }

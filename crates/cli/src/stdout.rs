@@ -1,6 +1,7 @@
-//! The commands' reports on stdout. `println!` panics when the reader has gone
-//! (`lidar-har bag info BAG | head -2`); here the report stops instead, and the command goes
-//! on to finish the files it writes.
+//! The commands' reports on stdout, and their notes on stderr. `println!` and `eprintln!`
+//! panic when the reader has gone (`lidar-har bag info BAG | head -2`, `lidar-har dataset
+//! ... 2>&1 | head`); here the text stops instead, and the command goes on to finish the
+//! files it writes.
 
 use std::io::Write;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -16,9 +17,17 @@ pub fn write(args: std::fmt::Arguments) {
         READER_GONE.store(true, Ordering::Relaxed);
         // A reader leaving is normal; a full disk or a broken device is worth a word.
         if e.kind() != std::io::ErrorKind::BrokenPipe {
-            eprintln!("lidar-har: warning: the report on stdout stops here: {e}");
+            note(format_args!(
+                "lidar-har: warning: the report on stdout stops here: {e}\n"
+            ));
         }
     }
+}
+
+/// Writes a note to stderr; nothing when stderr cannot be written to.
+pub fn note(args: std::fmt::Arguments) {
+    // Nowhere left to say that the notes stopped: the files and exit status still say it all.
+    let _ = std::io::stderr().lock().write_fmt(args);
 }
 
 /// `print!` for reports, without the panic on a closed stdout.
@@ -35,5 +44,12 @@ macro_rules! outln {
     };
     ($($arg:tt)*) => {
         $crate::stdout::write(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// `eprintln!` for notes, without the panic on a closed stderr.
+macro_rules! errln {
+    ($($arg:tt)*) => {
+        $crate::stdout::note(format_args!("{}\n", format_args!($($arg)*)))
     };
 }

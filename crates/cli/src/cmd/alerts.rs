@@ -368,7 +368,11 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
     }
     let no_fall_episodes = (args.no_fall_hours * 3600.0 / args.episode_seconds).ceil() as usize;
 
-    let total = args.fall_episodes + no_fall_episodes + args.stay_down_episodes;
+    let total = args
+        .fall_episodes
+        .checked_add(no_fall_episodes)
+        .and_then(|n| n.checked_add(args.stay_down_episodes))
+        .context("--fall-episodes, --no-fall-hours and --stay-down-episodes: too many episodes")?;
     anyhow::ensure!(
         total > 0,
         "nothing to measure: --fall-episodes, --no-fall-hours and --stay-down-episodes are all 0"
@@ -422,7 +426,7 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
             match run_episode(id, &scene, seed, kind, run_on_s, &mut classifier, trace) {
                 Ok(episode) => episode,
                 Err(e) => {
-                    progress.suspend(|| eprintln!("alerts: skipping episode {id}: {e:#}"));
+                    progress.suspend(|| errln!("alerts: skipping episode {id}: {e:#}"));
                     progress.inc(1);
                     continue;
                 }
@@ -436,6 +440,26 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
     progress.finish_and_clear();
     if let Some(readings) = readings {
         readings.finish()?;
+    }
+    // A report of nothing would read as a clean bill: no falls missed, no false alerts.
+    for (kind, asked, ran) in [
+        ("with falls", args.fall_episodes, tally.fall_episodes_run),
+        (
+            "without falls",
+            no_fall_episodes,
+            tally.no_fall_episodes_run,
+        ),
+        (
+            "staying down",
+            args.stay_down_episodes,
+            tally.stay_down_episodes_run,
+        ),
+    ] {
+        anyhow::ensure!(
+            asked == 0 || ran > 0,
+            "none of the {asked} episodes {kind} could be run (each skipped above): the scenes \
+             leave no room for their scripts"
+        );
     }
     Ok(tally.report(
         args.model.display().to_string(),
@@ -784,11 +808,11 @@ fn trace_scan(frame: &Frame, start_s: f64, alerts: &[FallAlert]) {
     let stamp_s = frame.stamp_s(start_s);
     let truth = frame.truth.map_or("-", Activity::label);
     let Some(reading) = frame.reading else {
-        eprintln!("trace t={stamp_s:.2} truth={truth} tracked=false");
+        errln!("trace t={stamp_s:.2} truth={truth} tracked=false");
         return;
     };
     let (activity, confidence) = Activity::most_likely(&reading.probabilities);
-    eprintln!(
+    errln!(
         "trace t={stamp_s:.2} truth={truth} model={} p={confidence:.2} p_fall={:.2} seen={} \
          length={} at={} alerts=[{}]",
         activity.label(),

@@ -134,9 +134,8 @@ fn convert(
         }
         options.custom_data = metadata.custom_data.clone().unwrap_or_default();
     }
-    let mut writer = BagWriter::create(dst, options)
-        .with_context(|| format!("cannot create bag {}", dst.display()))?;
-    let mut handles = std::collections::HashMap::new();
+    // Every topic checked before the new bag is created: a refusal leaves nothing behind.
+    let mut topics = Vec::new();
     for topic in reader.topics() {
         let mut topic = topic.clone();
         if topic.schema_text.is_none() {
@@ -151,14 +150,33 @@ fn convert(
             };
             topic.schema_text = Some(definition.schema_text());
         }
+        topics.push(topic);
+    }
+    let mut writer = BagWriter::create(dst, options)
+        .with_context(|| format!("cannot create bag {}", dst.display()))?;
+    let mut handles = std::collections::HashMap::new();
+    for topic in &topics {
         let handle = writer
-            .add_topic_like(&topic)
+            .add_topic_like(topic)
             .with_context(|| format!("cannot add topic {}", topic.name))?;
         handles.insert(topic.name.clone(), handle);
     }
     let mut count = 0u64;
     for message in reader.messages()? {
-        let message = message.with_context(|| format!("reading {}", src.display()))?;
+        let message = match message {
+            Ok(message) => message,
+            Err(e) => {
+                // What was copied is kept, and said to be all there is: converting a bag
+                // cut short is how its complete messages are salvaged.
+                writer.finish()?;
+                bail!(
+                    "reading {} stopped after {count} messages: {e}; {} holds those {count} \
+                     messages and no more",
+                    src.display(),
+                    dst.display()
+                );
+            }
+        };
         let Some(&handle) = handles.get(&*message.topic) else {
             bail!(
                 "{}: message on unlisted topic `{}`",

@@ -204,6 +204,9 @@ impl DatasetIndex {
         }
         let images_path = dir.join(&entry.images);
         let labels_path = dir.join(&entry.labels);
+        let (t, size) = (self.spec.window, self.spec.size);
+        expect_npy_shape(&images_path, &[entry.windows, t, size, size])?;
+        expect_npy_shape(&labels_path, &[entry.windows, t])?;
         let images: Array4<u8> = ndarray_npy::read_npy(&images_path).with_context(|| {
             format!(
                 "cannot read {} as a uint8 [N, T, S, S] array",
@@ -216,7 +219,6 @@ impl DatasetIndex {
                 labels_path.display()
             )
         })?;
-        let (t, size) = (self.spec.window, self.spec.size);
         if images.dim() != (entry.windows, t, size, size) {
             bail!(
                 "{}: shape {:?}, index says {:?}",
@@ -321,9 +323,11 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
             Some(Ok(windows)) => windows,
             // A scene too small for a random script (e.g. no room to run) loses that episode only.
             Some(Err(err)) => {
-                eprintln!(
+                errln!(
                     "dataset: skipping episode {} (scene '{}', seed {}): {err:#}",
-                    plan.id, plan.scene.name, plan.seed
+                    plan.id,
+                    plan.scene.name,
+                    plan.seed
                 );
                 continue;
             }
@@ -377,6 +381,12 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         windows: Vec::new(),
     };
     // Before anything is written: a failed run leaves a dataset already in `--out` whole.
+    if index.episodes.is_empty() {
+        bail!(
+            "no episode could be run (each skipped above); nothing was written to {}",
+            args.out.display()
+        );
+    }
     if index.episodes.iter().all(|e| e.windows == 0) {
         let longest = index.episodes.iter().map(|e| e.scans).max().unwrap_or(0);
         bail!(
@@ -478,8 +488,11 @@ fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
     if !(args.test_fraction >= 0.0 && args.test_fraction < 1.0) {
         bail!("--test-fraction {} must be in [0, 1)", args.test_fraction);
     }
-    if args.episodes == 0 {
-        bail!("--episodes must be at least 1");
+    if !(1..=MAX_EPISODES).contains(&args.episodes) {
+        bail!(
+            "--episodes {} must be within 1..={MAX_EPISODES}",
+            args.episodes
+        );
     }
     if !(args.episode_seconds.is_finite() && args.episode_seconds > 0.0) {
         bail!(
@@ -512,7 +525,7 @@ pub(crate) fn load_scenes(patterns: &[String]) -> anyhow::Result<Vec<(String, Sc
     for path in paths {
         let scene = Scene::load(&path)?;
         if scene.person.is_none() {
-            eprintln!("skipping {} (no person in the scene)", path.display());
+            errln!("skipping {} (no person in the scene)", path.display());
             continue;
         }
         scenes.push((path.display().to_string(), scene));
@@ -797,9 +810,101 @@ fn print_counts(index: &DatasetIndex) {
     outln!();
 }
 
+/// More episodes than any dataset needs (the committed model's used 6,000): the plan of each
+/// is held in memory from the start, so a typo of 10^12 would abort on the allocation.
+const MAX_EPISODES: usize = 1_000_000;
+
+/// The largest `.npy` header read: numpy writes a few hundred bytes.
+const MAX_NPY_HEADER: usize = 1 << 16;
+
+/// Checks the shape an `.npy` file's header declares against `expected` before the array is
+/// read: the reader allocates what the header declares, so a corrupt one (a shape of 10^13)
+/// aborted the process instead of giving an error.
+fn expect_npy_shape(path: &Path, expected: &[usize]) -> anyhow::Result<()> {
+    let shape =
+        npy_shape(path).with_context(|| format!("{}: not a readable .npy file", path.display()))?;
+    if shape != expected {
+        bail!(
+            "{}: shape {shape:?}, index says {expected:?}",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// The `shape` of an `.npy` file's header (format versions 1 to 3).
+fn npy_shape(path: &Path) -> anyhow::Result<Vec<usize>> {
+    use std::io::Read;
+    let mut file = std::fs::File::open(path)?;
+    let mut preamble = [0u8; 8];
+    file.read_exact(&mut preamble)?;
+    anyhow::ensure!(&preamble[..6] == b"\x93NUMPY", "no .npy magic string");
+    let header_len = match preamble[6] {
+        1 => {
+            let mut len = [0u8; 2];
+            file.read_exact(&mut len)?;
+            usize::from(u16::from_le_bytes(len))
+        }
+        2 | 3 => {
+            let mut len = [0u8; 4];
+            file.read_exact(&mut len)?;
+            usize::try_from(u32::from_le_bytes(len))?
+        }
+        major => bail!("format version {major} unknown"),
+    };
+    anyhow::ensure!(
+        header_len <= MAX_NPY_HEADER,
+        "a header of {header_len} bytes"
+    );
+    let mut header = vec![0u8; header_len];
+    file.read_exact(&mut header)?;
+    let header = String::from_utf8_lossy(&header);
+    let tuple = header
+        .split_once("'shape':")
+        .and_then(|(_, rest)| rest.split_once('(')?.1.split_once(')'))
+        .map(|(inside, _)| inside)
+        .context("no shape in the header")?;
+    tuple
+        .split(',')
+        .map(str::trim)
+        .filter(|dim| !dim.is_empty())
+        .map(|dim| {
+            dim.parse::<usize>()
+                .with_context(|| format!("shape entry `{dim}`"))
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_npy_header_declaring_another_shape_is_refused_before_reading() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.npy");
+        ndarray_npy::write_npy(&path, &Array2::<u8>::zeros((3, 4))).unwrap();
+        npy_shape(&path).unwrap();
+        expect_npy_shape(&path, &[3, 4]).unwrap();
+        assert!(expect_npy_shape(&path, &[3, 5]).is_err());
+        // The same data under a header claiming 10^13 rows: an error, not 40 TB allocated.
+        let header = "{'descr': '|u1', 'fortran_order': False, 'shape': (9999999999999, 4), }";
+        let header = format!("{header:<117}\n");
+        let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+        bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+        bytes.extend_from_slice(header.as_bytes());
+        bytes.extend_from_slice(&[0; 12]);
+        let corrupt = dir.path().join("b.npy");
+        std::fs::write(&corrupt, &bytes).unwrap();
+        let err = expect_npy_shape(&corrupt, &[3, 4]).unwrap_err().to_string();
+        assert!(
+            err.contains("9999999999999") && err.contains("b.npy"),
+            "{err}"
+        );
+        std::fs::write(&corrupt, b"not npy").unwrap();
+        let err = format!("{:#}", expect_npy_shape(&corrupt, &[3, 4]).unwrap_err());
+        assert!(err.contains("not a readable .npy file"), "{err}");
+    }
 
     fn shipped_scene_path(name: &str) -> PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../config/scenes/{name}.yaml"))

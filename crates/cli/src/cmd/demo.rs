@@ -87,7 +87,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
     let mut trace = Trace::new((sim.frame_count() / 40).max(1));
     let mut truth: Vec<(f64, Activity)> = Vec::new();
     let sim_dir = args.out.join("sim");
-    eprintln!(
+    errln!(
         "simulating {} ({} scans) ...",
         args.scene.display(),
         sim.frame_count()
@@ -106,7 +106,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
     .with_context(|| format!("recording {}", sim_dir.display()))?;
 
     // 2. Run the pipeline over the recording, as `lidar-har run` does.
-    eprintln!("running the pipeline ...");
+    errln!("running the pipeline ...");
     let run_dir = args.out.join("run");
     let summary = run_bag(
         &sim_dir,

@@ -72,7 +72,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
                  docs/classifier.md), or run the localiser alone with --no-classifier",
                 super::shown_path(&classifier.model)
             );
-            eprintln!(
+            errln!(
                 "lidar-har: warning: no activity model at {}: running the localiser only (train \
                  one, see docs/classifier.md, or pass --model FILE; --no-classifier silences this)",
                 super::shown_path(&classifier.model)
@@ -88,7 +88,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let summary = run_bag(&args.bag, &args.out, options)
         .with_context(|| format!("running the pipeline over {}", args.bag.display()))?;
     outln!("{}", serde_json::to_string_pretty(&summary)?);
-    eprintln!(
+    errln!(
         "wrote {} (bag) and {}",
         args.out.display(),
         args.out.join("summary.json").display()
