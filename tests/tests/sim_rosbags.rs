@@ -148,13 +148,14 @@ fn simulate_renders_an_animation_and_refuses_other_formats() {
     );
 }
 
-/// `lidar-har simulate | head -1` and `lidar-har bag info BAG | head -1`: the report stops
-/// where the reader left (`println!` used to panic there), and the bag is written in full.
+/// `lidar-har simulate | head -1`, `lidar-har bag info BAG | head -1` and `lidar-har run ...
+/// 2>&1 | head -1`: the text stops where the reader left (`println!` and `eprintln!` used to
+/// panic there), and the files are written in full.
 #[test]
 fn commands_finish_their_work_when_the_reader_of_stdout_has_gone() {
     let tmp = tempfile::tempdir().unwrap();
     let bag = tmp.path().join("bag");
-    let with_stdout_closed = |args: &[&std::ffi::OsStr]| {
+    let spawn = |args: &[&std::ffi::OsStr]| {
         let mut child = lidar_har()
             .current_dir(repo_root())
             .args(args)
@@ -163,21 +164,17 @@ fn commands_finish_their_work_when_the_reader_of_stdout_has_gone() {
             .spawn()
             .unwrap();
         drop(child.stdout.take());
-        let output = child.wait_with_output().unwrap();
+        child
+    };
+    let with_stdout_closed = |args: &[&std::ffi::OsStr]| {
+        let output = spawn(args).wait_with_output().unwrap();
         let stderr = String::from_utf8_lossy(&output.stderr).to_string();
         assert!(output.status.success(), "{args:?}: {stderr}");
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     };
     // Both closed (`... 2>&1 | head -1`, the reader gone): only the exit status can tell.
     let with_both_closed = |args: &[&std::ffi::OsStr]| {
-        let mut child = lidar_har()
-            .current_dir(repo_root())
-            .args(args)
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        drop(child.stdout.take());
+        let mut child = spawn(args);
         drop(child.stderr.take());
         assert!(child.wait().unwrap().success(), "{args:?}");
     };
