@@ -404,6 +404,14 @@ fn storage_file(bag: &Path, ext: &str) -> std::path::PathBuf {
         .unwrap_or_else(|| panic!("no .{ext} file in {}", bag.display()))
 }
 
+/// The robot bag, its MCAP file cut at three fifths, as a recorder killed leaves it.
+fn write_bag_cut_short(dir: &Path) {
+    write_bag(dir);
+    let file = storage_file(dir, "mcap");
+    let bytes = std::fs::read(&file).unwrap();
+    std::fs::write(&file, &bytes[..bytes.len() * 3 / 5]).unwrap();
+}
+
 fn run_localiser(input: &Path, out: &Path, map: Option<&Path>) -> RunSummary {
     let options = RunOptions {
         map: map.map(|m| files::load_map(m).unwrap()),
@@ -460,10 +468,7 @@ fn a_bag_without_scans_is_an_error_naming_its_topics() {
 fn a_bag_cut_short_keeps_the_outputs_and_summary_of_what_was_read() {
     let tmp = tempfile::tempdir().unwrap();
     let input = tmp.path().join("in");
-    write_bag(&input);
-    let file = storage_file(&input, "mcap");
-    let bytes = std::fs::read(&file).unwrap();
-    std::fs::write(&file, &bytes[..bytes.len() * 3 / 5]).unwrap();
+    write_bag_cut_short(&input);
     let out = tmp.path().join("out");
     let output = lidar_har(&[
         "--bag".as_ref(),
@@ -736,10 +741,7 @@ fn one_odometry_stamp_an_hour_ahead_does_not_stop_localisation() {
 fn converting_a_bag_cut_short_salvages_its_complete_messages_and_says_so() {
     let tmp = tempfile::tempdir().unwrap();
     let input = tmp.path().join("in");
-    write_bag(&input);
-    let file = storage_file(&input, "mcap");
-    let bytes = std::fs::read(&file).unwrap();
-    std::fs::write(&file, &bytes[..bytes.len() * 3 / 5]).unwrap();
+    write_bag_cut_short(&input);
     let copy = tmp.path().join("copy");
     let out = lidar_har_command()
         .args([

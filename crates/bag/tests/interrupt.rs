@@ -11,7 +11,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
-use lidar_har_bag::{BagError, BagReader, BagWriter, Compression, StorageId, WriterOptions};
+use lidar_har_bag::{
+    BagError, BagReader, BagWriter, Compression, StorageId, TopicHandle, WriterOptions,
+};
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::qos::QosProfile;
 use lidar_har_msgs::sensor_msgs::LaserScan;
@@ -59,10 +61,7 @@ fn child_writer() {
         flush_interval: Duration::from_secs(3600),
         ..WriterOptions::default()
     };
-    let mut writer = BagWriter::create(Path::new(&dir), options).unwrap();
-    let topic = writer
-        .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
-        .unwrap();
+    let (mut writer, topic) = scan_writer(&dir, options);
     let mut i = 0u32;
     while !stop.load(Ordering::Relaxed) && i < 1_000_000 {
         writer
@@ -79,6 +78,15 @@ fn child_writer() {
     println!("finished {}", summary.metadata.message_count);
 }
 
+/// A child's bag in `dir`, with its /scan topic.
+fn scan_writer(dir: &std::ffi::OsStr, options: WriterOptions) -> (BagWriter, TopicHandle) {
+    let mut writer = BagWriter::create(Path::new(dir), options).unwrap();
+    let topic = writer
+        .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
+        .unwrap();
+    (writer, topic)
+}
+
 /// The sqlite3 child: flushes `SQLITE_FLUSHED` scans of about 6 KB, then writes 1000 more
 /// without flushing (printing `pending N` every 100) and waits to be killed: 6 MB in the open
 /// transaction, three times SQLite's default page cache of 2 MB, so its pages would be
@@ -93,10 +101,7 @@ fn child_sqlite_writer() {
         flush_interval: Duration::from_secs(3600),
         ..WriterOptions::default()
     };
-    let mut writer = BagWriter::create(Path::new(&dir), options).unwrap();
-    let topic = writer
-        .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
-        .unwrap();
+    let (mut writer, topic) = scan_writer(&dir, options);
     // Ends the harness's `test child_sqlite_writer ... ` line: the awaited lines start clean.
     println!();
     let big_scan = |i: u32| LaserScan {

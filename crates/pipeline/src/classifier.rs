@@ -1404,17 +1404,10 @@ mod tests {
             timeline: vec![(0.0, Activity::Walking)],
             now,
         };
-        let spec = PoseHeadSpec {
-            min_history: 1,
-            activities: Activity::ALL.to_vec(),
-            max_sigma_m: f64::INFINITY,
-        };
-        let status = PoseHeadStatus::Used {
-            path: "head.onnx".into(),
-        };
-        let mut stage = ClassifierStage::new(model, stream(), FallAlertConfig::default())
-            .unwrap()
-            .with_pose_head(Some(PelvisPlacer::new(spec, ShiftHead)), status);
+        let mut stage = with_head_for_all(
+            ClassifierStage::new(model, stream(), FallAlertConfig::default()).unwrap(),
+            ShiftHead,
+        );
         for k in 0..20 {
             let mut obs = observation(k as f64 * 0.05, true);
             if k >= 10 {
@@ -1427,6 +1420,22 @@ mod tests {
             assert_eq!(msgs.pelvis.is_some(), k < 10, "scan {k}");
         }
         assert_eq!(stage.non_finite_positions, 10);
+    }
+
+    /// `stage` with `head` placing the pelvis for every activity from the first scan.
+    fn with_head_for_all<H>(
+        stage: ClassifierStage<TimelineModel, NoPoseHead>,
+        head: H,
+    ) -> ClassifierStage<TimelineModel, H> {
+        let spec = PoseHeadSpec {
+            min_history: 1,
+            activities: Activity::ALL.to_vec(),
+            max_sigma_m: f64::INFINITY,
+        };
+        let status = PoseHeadStatus::Used {
+            path: "head.onnx".into(),
+        };
+        stage.with_pose_head(Some(PelvisPlacer::new(spec, head)), status)
     }
 
     /// A pose head that puts the pelvis 0.3 m along x from the localiser's position and
@@ -1464,15 +1473,7 @@ mod tests {
             ClassifierStage::new(model, stream(), FallAlertConfig::default()).unwrap()
         };
         let mut plain = stage();
-        let spec = PoseHeadSpec {
-            min_history: 1,
-            activities: Activity::ALL.to_vec(),
-            max_sigma_m: f64::INFINITY,
-        };
-        let status = PoseHeadStatus::Used {
-            path: "head.onnx".into(),
-        };
-        let mut broken = stage().with_pose_head(Some(PelvisPlacer::new(spec, BrokenHead)), status);
+        let mut broken = with_head_for_all(stage(), BrokenHead);
         for k in 0..40 {
             let t = k as f64 * 0.05;
             now.set(t);

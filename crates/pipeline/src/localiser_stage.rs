@@ -525,14 +525,19 @@ mod tests {
         assert_eq!(stage.mount_source(), MountSource::TfStatic);
     }
 
-    #[test]
-    fn a_scan_frame_without_a_static_chain_keeps_the_configured_mount() {
-        let mount = Pose2::new(0.15, 0.0, 0.0);
+    /// A stage in an empty room, its localiser configured with the Lidar at `mount`.
+    fn stage_with_mount(mount: Pose2) -> LocaliserStage {
         let config = LocaliserConfig {
             mount,
             ..LocaliserConfig::default()
         };
-        let mut stage = LocaliserStage::new(config, RoomSource::Map(empty_room()), false).unwrap();
+        LocaliserStage::new(config, RoomSource::Map(empty_room()), false).unwrap()
+    }
+
+    #[test]
+    fn a_scan_frame_without_a_static_chain_keeps_the_configured_mount() {
+        let mount = Pose2::new(0.15, 0.0, 0.0);
+        let mut stage = stage_with_mount(mount);
         // The robot description calls the Lidar `rplidar_link`; the driver says `laser`.
         stage.on_tf_static(&TFMessage {
             transforms: vec![tf("base_link", "rplidar_link", 0.2, 0.0)],
@@ -547,11 +552,7 @@ mod tests {
     #[test]
     fn scans_from_a_frame_the_static_chain_does_not_reach_get_the_configured_mount_again() {
         let mount = Pose2::new(0.15, 0.0, 0.0);
-        let config = LocaliserConfig {
-            mount,
-            ..LocaliserConfig::default()
-        };
-        let mut stage = LocaliserStage::new(config, RoomSource::Map(empty_room()), false).unwrap();
+        let mut stage = stage_with_mount(mount);
         stage.on_tf_static(&TFMessage {
             transforms: vec![tf("base_link", "laser", 0.2, 0.0)],
         });
