@@ -52,6 +52,14 @@ pub type Clock = Box<dyn Fn() -> i64 + Send>;
 
 /// Longest single wait on the port, so that reports stay on time.
 const POLL: Duration = Duration::from_millis(50);
+/// A read at least this large may have left more of a backlog in the kernel: a tty hands
+/// over at most 4095 bytes at a time (0.35 s of samples at 115200 baud, 40 ms at 1 Mbaud).
+const LARGE_READ: usize = 2048;
+/// How long to wait for the rest of a backlog after a large read (the wait ends with the
+/// first bytes).
+const BACKLOG_READ_WAIT: Duration = Duration::from_millis(10);
+/// The longest backlog dated as one (2.6 s at 1 Mbaud); a longer one crowds (`rotation`).
+const MAX_BACKLOG: usize = 256 * 1024;
 /// Pause after `STOP` (the device needs at least 1 ms to stop sending).
 const AFTER_STOP: Duration = Duration::from_millis(20);
 /// Requests that older firmware ignores (scan modes, accessory board, sample rate) get no
@@ -143,6 +151,19 @@ impl Link {
             }
             Err(e) => Err(self.io_error(e)),
         }
+    }
+
+    /// Reads what is available within `timeout` and the rest of a backlog that the kernel
+    /// hands over in several reads, so that its samples are dated from the arrival of the
+    /// last (see `rotation`).
+    fn read_backlog(&mut self, timeout: Duration) -> Result<usize> {
+        let mut total = self.read_some(timeout)?;
+        let mut last = total;
+        while last >= LARGE_READ && total < MAX_BACKLOG {
+            last = self.read_some(BACKLOG_READ_WAIT)?;
+            total += last;
+        }
+        Ok(total)
     }
 
     fn clear_input(&mut self) {
@@ -885,7 +906,7 @@ impl Driver {
             .next_report
             .saturating_duration_since(Instant::now())
             .min(POLL);
-        let read = session.link.read_some(wait);
+        let read = session.link.read_backlog(wait);
         let arrival = Instant::now();
         if let Err(e) = read {
             self.lose_device(e);
@@ -1360,5 +1381,32 @@ mod tests {
         }
         let hz = driver.status().rotation_hz.unwrap();
         assert!((8.0..12.5).contains(&hz), "{hz}");
+    }
+
+    #[test]
+    fn a_backlog_the_kernel_hands_over_in_several_reads_is_dated_as_one() {
+        let (mut driver, mut master, _slave) = scanning(Vec::new());
+        // 1.2 s of samples (6 KB): more than a tty passes in one read (4095 bytes).
+        let turns = 12;
+        let backlog = nodes(0..turns * TURN + 2);
+        assert!(backlog.len() > 4096);
+        master.write_all(&backlog).unwrap();
+        driver.poll_scan();
+        let read = scans(&mut driver);
+        assert_eq!(read.len(), turns);
+        for (k, scan) in read.iter().enumerate() {
+            assert!(
+                (scan.scan_time - 0.1).abs() < 1e-6,
+                "scan {k}: {}",
+                scan.scan_time
+            );
+        }
+        let stamps: Vec<i64> = read.iter().map(|s| s.header.stamp.to_nanos()).collect();
+        for pair in stamps.windows(2) {
+            assert!(
+                (pair[1] - pair[0] - 100_000_000).abs() < 1_000,
+                "{stamps:?}"
+            );
+        }
     }
 }

@@ -13,9 +13,10 @@
 //! apart. Each sample is therefore dated back from the read's arrival by the samples after
 //! it times the device's sample interval, and never before the sample preceding it, so that
 //! rotations read together keep their own periods and every rotation lasts a positive time.
-//! Dating back from the read is exact when one read takes the whole backlog; a backlog the
-//! port hands over in several reads (the kernel passes at most 4 KiB at a time) cannot be
-//! told from fresh data, and its later rotations crowd together in time.
+//! Dating back from the read is exact when one read takes the whole backlog: the driver
+//! reads a backlog that the kernel hands over in pieces (at most 4095 bytes at a time) to its
+//! end before passing it here, up to 256 KiB. Past that, the next piece cannot be told from
+//! fresh data, and its rotations crowd together in time.
 
 use std::time::{Duration, Instant};
 
