@@ -51,6 +51,23 @@ pub enum InferError {
         got: (usize, usize),
         expected: usize,
     },
+    #[error("frame pixel ({row}, {column}) is {value}; the model takes finite values only")]
+    FrameNotFinite {
+        row: usize,
+        column: usize,
+        value: f32,
+    },
+    #[error(
+        "state '{tensor}' has {found} values, but {model} takes a state of shape {expected:?} \
+         ({} values): the state was made for another model",
+        expected.iter().product::<usize>()
+    )]
+    StateMismatch {
+        model: PathBuf,
+        tensor: &'static str,
+        expected: [usize; 4],
+        found: usize,
+    },
     #[error(
         "pose head {path} was fitted on another activity model (sha256 {fitted_on}), not on \
          {model} (sha256 {found}): fit one for this model (python -m lidar_har_train.pose_head) \
@@ -136,6 +153,22 @@ impl ModelState {
     pub fn c(&self) -> &[f32] {
         &self.c
     }
+
+    /// Refuses a state made by another model (of another shape) before ONNX Runtime sees it.
+    fn check_fits(&self, expected: [usize; 4], model: &Path) -> Result<(), InferError> {
+        let values: usize = expected.iter().product();
+        for (tensor, data) in [("h", &self.h), ("c", &self.c)] {
+            if data.len() != values {
+                return Err(InferError::StateMismatch {
+                    model: model.to_path_buf(),
+                    tensor,
+                    expected,
+                    found: data.len(),
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 /// A loaded step model.
@@ -167,7 +200,6 @@ impl ActivityModel {
             path: path.clone(),
             message,
         };
-        let threads = threads.max(1);
         let session = open_session(env, &path, threads)?;
 
         let metadata = session.metadata().map_err(|e| load_error(e.to_string()))?;
@@ -211,7 +243,8 @@ impl ActivityModel {
         self.state_shape.iter().product()
     }
 
-    /// One step: returns the logits and updates `state` in place.
+    /// One step: returns the logits and updates `state` in place. A refused frame or state
+    /// leaves `state` as it was.
     pub fn step(
         &mut self,
         frame: ArrayView2<'_, f32>,
@@ -224,6 +257,7 @@ impl ActivityModel {
                 expected: size,
             });
         }
+        state.check_fits(self.state_shape, &self.info.path)?;
         let frame_data: &[f32] = match frame.as_slice() {
             Some(data) => data,
             None => {
@@ -232,6 +266,14 @@ impl ActivityModel {
                 &self.frame_buffer
             }
         };
+        // One NaN would stay in the recurrent state and make every later output NaN.
+        if let Some(at) = frame_data.iter().position(|v| !v.is_finite()) {
+            return Err(InferError::FrameNotFinite {
+                row: at / size,
+                column: at % size,
+                value: frame_data[at],
+            });
+        }
         let run = |e: ort::Error| InferError::Run(e.to_string());
         let inputs = ort::inputs![
             "frame" => TensorRef::from_array_view(([1usize, 1, size, size], frame_data)).map_err(run)?,
@@ -309,6 +351,10 @@ fn open_session(env: &Environment, path: &Path, threads: usize) -> Result<Sessio
         path: path.to_path_buf(),
         message,
     };
+    // ONNX Runtime would read 0 as "its default", one thread per core.
+    if threads == 0 {
+        return Err(load_error("threads must be at least 1, got 0".to_string()));
+    }
     Session::builder(env)
         .map_err(|e| load_error(e.to_string()))?
         .with_optimization_level(GraphOptimizationLevel::Level3)

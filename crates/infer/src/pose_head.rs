@@ -48,7 +48,7 @@ impl PoseHeadModel {
         if !path.is_file() {
             return Err(InferError::ModelMissing { path });
         }
-        let session = open_session(env, &path, threads.max(1))?;
+        let session = open_session(env, &path, threads)?;
         let metadata = session.metadata().map_err(|e| InferError::ModelLoad {
             path: path.clone(),
             message: e.to_string(),
@@ -109,6 +109,7 @@ impl PoseHead<ModelState> for PoseHeadModel {
     type Error = InferError;
 
     fn estimate(&mut self, state: &ModelState, located: DVec2) -> Result<HeadEstimate, InferError> {
+        state.check_fits(self.state_shape, &self.path)?;
         let run = |e: ort::Error| InferError::Run(e.to_string());
         let located = [located.x as f32, located.y as f32];
         let inputs = ort::inputs![

@@ -35,31 +35,31 @@ METADATA = {
 }
 
 
-def weights(logit_scale=1.0, classes=CLASSES):
+def weights(logit_scale=1.0, classes=CLASSES, hidden=HIDDEN):
     """Random weights of the cell, fixed seed."""
     rng = np.random.default_rng(5)
     return {
-        "w_conv": rng.normal(0.0, 0.4, (4 * HIDDEN, 1 + HIDDEN, 3, 3)).astype(np.float32),
-        "b_conv": rng.normal(0.0, 0.1, (4 * HIDDEN,)).astype(np.float32),
-        "w_out": (rng.normal(0.0, 1.0, (HIDDEN, classes)) * logit_scale).astype(np.float32),
+        "w_conv": rng.normal(0.0, 0.4, (4 * hidden, 1 + hidden, 3, 3)).astype(np.float32),
+        "b_conv": rng.normal(0.0, 0.1, (4 * hidden,)).astype(np.float32),
+        "w_out": (rng.normal(0.0, 1.0, (hidden, classes)) * logit_scale).astype(np.float32),
         "b_out": rng.normal(0.0, 0.1, (classes,)).astype(np.float32),
     }
 
 
-def build(w, frame_name="frame", classes=CLASSES, metadata=METADATA):
+def build(w, frame_name="frame", classes=CLASSES, metadata=METADATA, hidden=HIDDEN):
     f = TensorProto.FLOAT
     inputs = [
         helper.make_tensor_value_info(frame_name, f, [1, 1, SIZE, SIZE]),
-        helper.make_tensor_value_info("h", f, [1, HIDDEN, HS, HS]),
-        helper.make_tensor_value_info("c", f, [1, HIDDEN, HS, HS]),
+        helper.make_tensor_value_info("h", f, [1, hidden, HS, HS]),
+        helper.make_tensor_value_info("c", f, [1, hidden, HS, HS]),
     ]
     outputs = [
         helper.make_tensor_value_info("logits", f, [1, classes]),
-        helper.make_tensor_value_info("h_next", f, [1, HIDDEN, HS, HS]),
-        helper.make_tensor_value_info("c_next", f, [1, HIDDEN, HS, HS]),
+        helper.make_tensor_value_info("h_next", f, [1, hidden, HS, HS]),
+        helper.make_tensor_value_info("c_next", f, [1, hidden, HS, HS]),
     ]
     init = [numpy_helper.from_array(v, k) for k, v in w.items()]
-    init.append(numpy_helper.from_array(np.array([HIDDEN] * 4, dtype=np.int64), "split"))
+    init.append(numpy_helper.from_array(np.array([hidden] * 4, dtype=np.int64), "split"))
     n = helper.make_node
     nodes = [
         n("MaxPool", [frame_name], ["pooled"], kernel_shape=[2, 2], strides=[2, 2]),
@@ -199,6 +199,8 @@ def main():
     onnx.save(build(weights(classes=8), classes=8), OUT / "wrong_class_count.onnx")
     onnx.save(build(w, metadata={k: v for k, v in METADATA.items() if k != "lidar_har.window"}), OUT / "missing_window.onnx")
     onnx.save(build(w, metadata={**METADATA, "lidar_har.size": "32"}), OUT / "size_mismatch.onnx")
+    # A valid model whose state does not fit step_model.onnx (3 hidden channels, not 4).
+    onnx.save(build(weights(hidden=3), hidden=3), OUT / "three_channel_model.onnx")
 
     step_sha256 = hashlib.sha256((OUT / "step_model.onnx").read_bytes()).hexdigest()
     head = pose_head_weights()
@@ -231,7 +233,8 @@ def bench_model(argv):
     args = dict(zip(argv[::2], argv[1::2]))
     SIZE, HIDDEN = int(args["--size"]), int(args["--hidden"])
     HS = SIZE // 2
-    onnx.save(build(weights(), metadata={**METADATA, "lidar_har.size": str(SIZE)}), args["--out"])
+    onnx.save(build(weights(hidden=HIDDEN), metadata={**METADATA, "lidar_har.size": str(SIZE)}, hidden=HIDDEN),
+              args["--out"])
 
 
 if __name__ == "__main__":

@@ -147,6 +147,86 @@ fn a_frame_of_the_wrong_size_is_an_error() {
     assert!(e.to_string().contains("16x16"), "{e}");
 }
 
+#[test]
+fn a_frame_with_a_non_finite_pixel_is_refused_and_leaves_the_state_as_it_was() {
+    if !runtime_available() {
+        return;
+    }
+    let frames = expected_frames(&expected());
+    let mut model = load("step_model.onnx").unwrap();
+    let mut state = lidar_har_core::classifier::StepModel::initial_state(&model);
+    model.step(frames[0].view(), &mut state).unwrap();
+    let before = state.clone();
+    for value in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        let mut bad = frames[1].clone();
+        bad[[3, 5]] = value;
+        let e = model.step(bad.view(), &mut state).unwrap_err();
+        let text = e.to_string();
+        assert!(
+            text.contains("frame pixel (3, 5)") && text.contains(&value.to_string()),
+            "{text}"
+        );
+        // A transposed view takes the copying path: same check, same place.
+        let transposed = bad.t().to_owned();
+        let e = model.step(transposed.t(), &mut state).unwrap_err();
+        assert!(e.to_string().contains("(3, 5)"), "{e}");
+        // The NaN used to reach the state and make every later output NaN.
+        assert_eq!(state, before);
+    }
+    let logits = model.step(frames[1].view(), &mut state).unwrap();
+    assert!(logits.iter().all(|v| v.is_finite()), "{logits:?}");
+}
+
+#[test]
+fn a_state_of_another_model_is_refused_naming_tensor_and_shapes() {
+    if !runtime_available() {
+        return;
+    }
+    let frame = Array2::zeros((16, 16));
+    let other = load("three_channel_model.onnx").unwrap();
+    let mut foreign = lidar_har_core::classifier::StepModel::initial_state(&other);
+    let before = foreign.clone();
+    let mut model = load("step_model.onnx").unwrap();
+    let mut head = PoseHeadModel::load(fixture("pose_head.onnx"), &model, 1).unwrap();
+    let errors = [
+        model.step(frame.view(), &mut foreign).unwrap_err(),
+        head.estimate(&foreign, DVec2::ZERO).unwrap_err(),
+    ];
+    for (e, file) in errors.iter().zip(["step_model.onnx", "pose_head.onnx"]) {
+        assert!(matches!(e, InferError::StateMismatch { .. }), "{e}");
+        let text = e.to_string();
+        assert!(
+            text.contains("state 'h' has 192 values")
+                && text.contains(file)
+                && text.contains("[1, 4, 8, 8] (256 values)")
+                && text.contains("made for another model"),
+            "{text}"
+        );
+    }
+    assert_eq!(foreign, before);
+}
+
+#[test]
+fn zero_threads_are_refused_at_load_naming_the_model() {
+    if !runtime_available() {
+        return;
+    }
+    // Used to be turned into 1 silently.
+    let e = ActivityModel::load(fixture("step_model.onnx"), 0).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("step_model.onnx") && text.contains("threads must be at least 1"),
+        "{text}"
+    );
+    let model = load("step_model.onnx").unwrap();
+    let e = PoseHeadModel::load(fixture("pose_head.onnx"), &model, 0).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("pose_head.onnx") && text.contains("threads must be at least 1"),
+        "{text}"
+    );
+}
+
 fn person(t: f64, visible: bool, points: &[DVec2]) -> PersonScan<'_> {
     PersonScan {
         stamp_s: t,

@@ -1,6 +1,10 @@
 //! The CDR codec: the encapsulation header ROS 2 puts before every payload, then plain CDR
 //! (alignment counted from after the header), via `cdr-encoding`.
 
+use std::fmt;
+
+use serde::de::{self, Deserialize, Deserializer, Visitor};
+
 use crate::RosMessage;
 
 /// The 4-byte CDR encapsulation header ROS 2 puts before every message (CDR, little endian).
@@ -87,4 +91,83 @@ pub fn decode<M: RosMessage>(bytes: &[u8]) -> Result<M, CdrError> {
         });
     }
     Ok(msg)
+}
+
+/// Reads a CDR string strictly; every `String` field of the mirrors decodes through it
+/// (`#[serde(deserialize_with)]`). `cdr-encoding` itself only logs a missing NUL terminator
+/// and drops the last byte, so a corrupt string would lose text without an error.
+pub(crate) fn terminated_string<'de, D: Deserializer<'de>>(
+    deserializer: D,
+) -> Result<String, D::Error> {
+    // Text formats (the JSON of the golden values) have no terminator to check.
+    if deserializer.is_human_readable() {
+        return String::deserialize(deserializer);
+    }
+    // On the wire a string is laid out as bytes are: 4-aligned u32 length, then the bytes
+    // (here with the NUL counted in the length).
+    deserializer.deserialize_bytes(TerminatedString)
+}
+
+struct TerminatedString;
+
+impl Visitor<'_> for TerminatedString {
+    type Value = String;
+
+    fn expecting(&self, formatter: &mut fmt::Formatter<'_>) -> fmt::Result {
+        formatter.write_str("a NUL-terminated CDR string")
+    }
+
+    fn visit_bytes<E: de::Error>(self, bytes: &[u8]) -> Result<String, E> {
+        // Length 0 is the empty string to Fast-CDR (ROS 2's own reader), though ROS writes 1.
+        if bytes.is_empty() {
+            return Ok(String::new());
+        }
+        let Some((0, text)) = bytes.split_last() else {
+            return Err(E::custom(format!(
+                "string of length {} without its NUL terminator",
+                bytes.len()
+            )));
+        };
+        std::str::from_utf8(text)
+            .map(str::to_owned)
+            .map_err(|e| E::custom(format!("string is not UTF-8: {e}")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::std_msgs::Header;
+
+    /// A Header payload: zero stamp, then `frame_id` as the length `declared` and `bytes`.
+    fn header_payload(declared: u32, bytes: &[u8]) -> Vec<u8> {
+        let mut payload = CDR_LE_HEADER.to_vec();
+        payload.extend_from_slice(&[0; 8]);
+        payload.extend_from_slice(&declared.to_le_bytes());
+        payload.extend_from_slice(bytes);
+        payload
+    }
+
+    #[test]
+    fn a_string_without_its_nul_terminator_is_refused() {
+        assert_eq!(
+            decode::<Header>(&header_payload(4, b"abc\0"))
+                .unwrap()
+                .frame_id,
+            "abc"
+        );
+        assert_eq!(
+            decode::<Header>(&header_payload(0, b"")).unwrap().frame_id,
+            ""
+        );
+        // Used to decode as "ab" without an error.
+        let e = decode::<Header>(&header_payload(3, b"abc")).unwrap_err();
+        assert!(matches!(e, CdrError::Malformed { .. }), "{e}");
+        let text = e.to_string();
+        assert!(
+            text.contains("std_msgs/msg/Header")
+                && text.contains("string of length 3 without its NUL"),
+            "{text}"
+        );
+    }
 }

@@ -23,8 +23,11 @@ ros_message!(
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct DiagnosticStatus {
     pub level: u8,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub name: String,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub message: String,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub hardware_id: String,
     pub values: Vec<KeyValue>,
 }
@@ -55,7 +58,9 @@ impl DiagnosticStatus {
 /// `diagnostic_msgs/msg/KeyValue`: one named value of a status.
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct KeyValue {
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub key: String,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub value: String,
 }
 ros_message!(

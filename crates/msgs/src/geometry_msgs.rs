@@ -242,6 +242,7 @@ ros_message!(
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct TransformStamped {
     pub header: Header,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub child_frame_id: String,
     pub transform: Transform,
 }

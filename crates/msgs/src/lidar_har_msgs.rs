@@ -16,6 +16,7 @@ pub struct Activity {
     /// Class index, one of the class constants.
     pub activity: u8,
     /// Class name in snake_case, see [`Activity::LABELS`].
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub label: String,
     /// Probability of `activity`, 0..1.
     pub confidence: f32,
@@ -72,6 +73,7 @@ pub struct FallAlert {
     pub confidence: f32,
     /// When the fall happened, or since when the person is down.
     pub event_time: Time,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub description: String,
 }
 ros_message!(

@@ -12,6 +12,7 @@ use crate::std_msgs::Header;
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct Odometry {
     pub header: Header,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub child_frame_id: String,
     pub pose: PoseWithCovariance,
     pub twist: TwistWithCovariance,

@@ -42,6 +42,7 @@ float32[] intensities        # intensity data [device-specific units]
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct CompressedImage {
     pub header: Header,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub format: String,
     pub data: Vec<u8>,
 }

@@ -9,6 +9,7 @@ use crate::ros_message;
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct Header {
     pub stamp: Time,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub frame_id: String,
 }
 ros_message!(

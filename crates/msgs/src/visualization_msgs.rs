@@ -18,6 +18,7 @@ use crate::std_msgs::{ColorRGBA, Header};
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct Marker {
     pub header: Header,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub ns: String,
     pub id: i32,
     pub r#type: i32,
@@ -29,10 +30,13 @@ pub struct Marker {
     pub frame_locked: bool,
     pub points: Vec<Point>,
     pub colors: Vec<ColorRGBA>,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub texture_resource: String,
     pub texture: CompressedImage,
     pub uv_coordinates: Vec<UVCoordinate>,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub text: String,
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub mesh_resource: String,
     pub mesh_file: MeshFile,
     pub mesh_use_embedded_materials: bool,
@@ -139,6 +143,7 @@ ros_message!(
 /// `visualization_msgs/msg/MeshFile`: a mesh sent inline instead of by `mesh_resource`.
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct MeshFile {
+    #[serde(deserialize_with = "crate::codec::terminated_string")]
     pub filename: String,
     pub data: Vec<u8>,
 }

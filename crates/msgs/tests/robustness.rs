@@ -1,5 +1,5 @@
 //! Bad input gives a clear error naming the type, never a panic: short or truncated payloads,
-//! foreign encapsulations, trailing bytes, invalid booleans and strings.
+//! foreign encapsulations, trailing bytes, invalid booleans, invalid and unterminated strings.
 
 mod common;
 
@@ -108,6 +108,70 @@ fn invalid_bool_and_invalid_utf8_are_errors() {
     bad[4 + 8 + 4] = 0xff; // first byte of "map"
     let err = decode::<HumanObservation>(&bad).unwrap_err();
     assert!(err.to_string().contains("UTF-8"), "{err}");
+}
+
+/// The text of every string in `value`, in order.
+fn strings_of(value: &serde_json::Value, found: &mut Vec<String>) {
+    match value {
+        serde_json::Value::String(text) => found.push(text.clone()),
+        serde_json::Value::Array(items) => items.iter().for_each(|v| strings_of(v, found)),
+        serde_json::Value::Object(fields) => fields.values().for_each(|v| strings_of(v, found)),
+        _ => {}
+    }
+}
+
+/// Overwrites the NUL terminator of each string of `M`'s sample in turn: every one must be
+/// refused. Returns how many strings were checked.
+fn unterminated_strings<M: RosMessage>() -> usize {
+    let message = sample::<M>();
+    let bytes = encode(&message).expect("encodes");
+    let mut texts = Vec::new();
+    strings_of(&serde_json::to_value(&message).unwrap(), &mut texts);
+    // An empty string could not be told apart in the bytes, so values.json gives every
+    // string field text.
+    assert!(texts.iter().all(|t| !t.is_empty()), "{}", M::TYPE_NAME);
+    let distinct: std::collections::BTreeSet<&String> = texts.iter().collect();
+    let mut checked = 0;
+    for text in distinct {
+        let mut encoded = (text.len() as u32 + 1).to_le_bytes().to_vec();
+        encoded.extend_from_slice(text.as_bytes());
+        encoded.push(0);
+        for start in 0..=bytes.len() - encoded.len() {
+            if bytes[start..].starts_with(&encoded) {
+                let mut bad = bytes.clone();
+                bad[start + encoded.len() - 1] = b'!';
+                let Err(e) = decode::<M>(&bad) else {
+                    panic!("{}: {text:?} without its NUL decoded", M::TYPE_NAME);
+                };
+                let e = e.to_string();
+                assert!(
+                    e.contains(M::TYPE_NAME) && e.contains("without its NUL terminator"),
+                    "{e}"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(
+        checked,
+        texts.len(),
+        "{}: strings found in the bytes",
+        M::TYPE_NAME
+    );
+    checked
+}
+
+macro_rules! unterminate {
+    ($ty:ty) => {
+        unterminated_strings::<$ty>()
+    };
+}
+
+#[test]
+fn a_string_without_its_nul_terminator_is_refused_in_every_type() {
+    // Used to decode, the last byte of the string dropped.
+    let checked: usize = for_every_type!(unterminate).iter().sum();
+    assert!(checked > 50, "samples hold strings");
 }
 
 #[test]
