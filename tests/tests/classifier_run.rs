@@ -685,6 +685,23 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
         );
     }
 
+    // The localiser's sightings, not the images, say when the person was in view: blank the
+    // last image of a window seen throughout, as a person seen outside the image leaves it.
+    let positions: ndarray::Array3<f32> =
+        ndarray_npy::read_npy(data.join("test_positions.npy")).unwrap();
+    let seen: Vec<Vec<bool>> = positions
+        .outer_iter()
+        .map(|window| window.outer_iter().map(|p| p[2].is_finite()).collect())
+        .collect();
+    let images_path = data.join("test_images.npy");
+    let mut images: ndarray::Array4<u8> = ndarray_npy::read_npy(&images_path).unwrap();
+    let blanked = seen
+        .iter()
+        .position(|window| window.iter().all(|&s| s))
+        .expect("a window in full view");
+    images.slice_mut(ndarray::s![blanked, -1, .., ..]).fill(0);
+    ndarray_npy::write_npy(&images_path, &images).unwrap();
+
     let eval = tmp.path().join("eval");
     lidar_har_ok(&[
         "evaluate",
@@ -722,15 +739,7 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     // The person is hidden from some fixed spots for part of an episode, never from most.
     let in_view = &metrics["in_full_view"];
     let in_view_windows = in_view["windows"].as_u64().unwrap();
-    let images: ndarray::Array4<u8> = ndarray_npy::read_npy(data.join("test_images.npy")).unwrap();
-    let seen_throughout = images
-        .outer_iter()
-        .filter(|window| {
-            window
-                .outer_iter()
-                .all(|frame| frame.iter().any(|&v| v > 0))
-        })
-        .count() as u64;
+    let seen_throughout = seen.iter().filter(|w| w.iter().all(|&s| s)).count() as u64;
     assert_eq!(in_view_windows, seen_throughout);
     assert!(
         in_view_windows > 0 && in_view_windows <= windows,
@@ -739,10 +748,7 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     assert_eq!(confusion_total(in_view), in_view_windows);
     let published = &metrics["seen_at_last_scan"];
     let published_windows = published["windows"].as_u64().unwrap();
-    let seen_at_last_scan = images
-        .outer_iter()
-        .filter(|window| window.outer_iter().last().unwrap().iter().any(|&v| v > 0))
-        .count() as u64;
+    let seen_at_last_scan = seen.iter().filter(|w| w[w.len() - 1]).count() as u64;
     assert_eq!(published_windows, seen_at_last_scan);
     assert!(published_windows >= in_view_windows && published_windows <= windows);
     assert_eq!(confusion_total(published), published_windows);
@@ -768,10 +774,40 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     );
     assert!(eval.join("confusion_test.png").is_file());
 
-    // The same images said to be scanned at 10 Hz: the model's 20-scan window would span 2 s.
+    // A broken second split: an error naming its file, and no outputs from the good one.
     let index_path = data.join("index.json");
     let mut index: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&index_path).unwrap()).unwrap();
+    let mut unseen = index["splits"]["test"].clone();
+    unseen["labels"] = "test_unseen_labels.npy".into();
+    index["splits"]["test_unseen"] = unseen;
+    std::fs::write(&index_path, index.to_string()).unwrap();
+    std::fs::write(data.join("test_unseen_labels.npy"), b"cut short").unwrap();
+    let broken_eval = tmp.path().join("eval_broken");
+    let out = lidar_har(&[
+        "evaluate",
+        "--model",
+        "models/activity.onnx",
+        "--data",
+        path(&data),
+        "--out",
+        path(&broken_eval),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("test_unseen_labels.npy"),
+        "{err}"
+    );
+    assert!(
+        !broken_eval.exists(),
+        "outputs were written before the error"
+    );
+    index["splits"]
+        .as_object_mut()
+        .unwrap()
+        .remove("test_unseen");
+
+    // The same images said to be scanned at 10 Hz: the model's 20-scan window would span 2 s.
     index["spec"]["scan_rate_hz"] = 10.0.into();
     std::fs::write(&index_path, index.to_string()).unwrap();
     let out = lidar_har(&[

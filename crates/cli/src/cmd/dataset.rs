@@ -21,7 +21,7 @@ use lidar_har_sim::lidar::ScanGeometry;
 use lidar_har_sim::map::{DEFAULT_RESOLUTION, OccupancyMap as SimMap};
 use lidar_har_sim::scripts::{self, ScriptKind};
 use lidar_har_sim::{Scene, Simulator};
-use ndarray::{Array2, Array3, Array4, s};
+use ndarray::{Array2, Array3, Array4, Axis, s};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -190,12 +190,8 @@ impl DatasetIndex {
         Ok(index)
     }
 
-    /// The split's images `[N, T, S, S]` and per-scan labels `[N, T]`, shape-checked.
-    pub fn read_split(
-        &self,
-        dir: &Path,
-        split: &str,
-    ) -> anyhow::Result<Option<(Array4<u8>, Array2<u8>)>> {
+    /// The split's images, per-scan labels and sightings, shape-checked.
+    pub fn read_split(&self, dir: &Path, split: &str) -> anyhow::Result<Option<SplitData>> {
         let Some(entry) = self.splits.get(split) else {
             return Ok(None);
         };
@@ -204,9 +200,13 @@ impl DatasetIndex {
         }
         let images_path = dir.join(&entry.images);
         let labels_path = dir.join(&entry.labels);
-        let (t, size) = (self.spec.window, self.spec.size);
-        expect_npy_shape(&images_path, &[entry.windows, t, size, size])?;
-        expect_npy_shape(&labels_path, &[entry.windows, t])?;
+        let positions_path = entry.positions.as_ref().map(|file| dir.join(file));
+        let (n, t, size) = (entry.windows, self.spec.window, self.spec.size);
+        expect_npy_shape(&images_path, &[n, t, size, size])?;
+        expect_npy_shape(&labels_path, &[n, t])?;
+        if let Some(path) = &positions_path {
+            expect_npy_shape(path, &[n, t, 4])?;
+        }
         let images: Array4<u8> = ndarray_npy::read_npy(&images_path).with_context(|| {
             format!(
                 "cannot read {} as a uint8 [N, T, S, S] array",
@@ -219,30 +219,44 @@ impl DatasetIndex {
                 labels_path.display()
             )
         })?;
-        if images.dim() != (entry.windows, t, size, size) {
-            bail!(
-                "{}: shape {:?}, index says {:?}",
-                images_path.display(),
-                images.dim(),
-                (entry.windows, t, size, size)
-            );
-        }
-        if labels.dim() != (entry.windows, t) {
-            bail!(
-                "{}: shape {:?}, index says {:?}",
-                labels_path.display(),
-                labels.dim(),
-                (entry.windows, t)
-            );
-        }
         if let Some(bad) = labels.iter().find(|&&l| l as usize >= Activity::COUNT) {
             bail!(
                 "{}: class index {bad} is out of range 0..8",
                 labels_path.display()
             );
         }
-        Ok(Some((images, labels)))
+        let seen = match &positions_path {
+            Some(path) => {
+                let positions: Array3<f32> = ndarray_npy::read_npy(path).with_context(|| {
+                    format!(
+                        "cannot read {} as a float32 [N, T, 4] array",
+                        path.display()
+                    )
+                })?;
+                positions.map_axis(Axis(2), |p| p[2].is_finite() && p[3].is_finite())
+            }
+            None => images
+                .map_axis(Axis(3), |row| row.iter().any(|&v| v > 0))
+                .map_axis(Axis(2), |rows| rows.iter().any(|&r| r)),
+        };
+        Ok(Some(SplitData {
+            images,
+            labels,
+            seen,
+        }))
     }
+}
+
+/// One split of a dataset, in memory.
+pub struct SplitData {
+    /// `[N, T, S, S]`: pixel value x 255.
+    pub images: Array4<u8>,
+    /// `[N, T]`: the class index of each scan.
+    pub labels: Array2<u8>,
+    /// `[N, T]`: whether the localiser saw the person on the scan, which is when the robot
+    /// publishes. From the positions; in a dataset made before they were written, from a
+    /// non-empty image, which misses a person seen outside a room-fixed image.
+    pub seen: Array2<bool>,
 }
 
 /// One simulated episode, ready to run.

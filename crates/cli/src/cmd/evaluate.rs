@@ -19,7 +19,7 @@ use ndarray::{Array2, s};
 use plotters::prelude::*;
 use serde::Serialize;
 
-use super::dataset::DatasetIndex;
+use super::dataset::{DatasetIndex, SplitData};
 
 #[derive(clap::Args, Debug)]
 pub struct EvaluateArgs {
@@ -66,14 +66,15 @@ struct SplitMetrics {
     /// one activity each, while a quarter of ours end just after a change (a window whose last
     /// two scans are a fall after 18 of walking is labelled falling).
     within_one_activity: Scores,
-    /// Only the windows in which the person's points show in every frame: the rest had them
-    /// hidden (behind furniture, out of the Lidar's view) for at least one scan, which the
-    /// paper's samples, cut where the person was recorded, rarely are.
+    /// Only the windows in which the localiser saw the person on every scan: in the rest they
+    /// were hidden (behind furniture, out of the Lidar's view) for at least one scan, which
+    /// the paper's samples, cut where the person was recorded, rarely are.
     in_full_view: Scores,
     /// Within one activity and in full view: the closest to the paper's samples.
     within_one_activity_in_full_view: Scores,
-    /// Only the windows whose last scan shows the person: the robot publishes no activity for
-    /// a scan where the person is hidden, so these are the predictions it would publish.
+    /// Only the windows whose last scan the localiser saw the person on: the robot publishes
+    /// no activity for a scan where the person is hidden, so these are the predictions it
+    /// would publish.
     seen_at_last_scan: Scores,
     /// Accuracy per episode (one room, one robot path or fixed Lidar spot, one person).
     per_episode: Option<EpisodeSpread>,
@@ -164,24 +165,28 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
     if !index.windows.iter().any(|w| w.split == "test") {
         bail!("{}: the dataset has no test windows", args.data.display());
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
 
+    // Every split is scored before anything is written: a broken split leaves no outputs.
     let mut splits = std::collections::BTreeMap::new();
+    let mut confusions = Vec::new();
     let mut step_times = Vec::new();
     for split in ["test", "test_unseen"] {
-        let Some((images, labels)) = index.read_split(&args.data, split)? else {
+        let Some(data) = index.read_split(&args.data, split)? else {
             continue;
         };
-        let (mut metrics, confusion, correct) =
-            evaluate_split(&mut model, &images, &labels, &mut step_times)?;
+        let (mut metrics, confusion, correct) = evaluate_split(&mut model, &data, &mut step_times)?;
         metrics.per_episode = episode_spread(&index, split, &correct);
-        draw_confusion(&confusion, &args.out.join(format!("confusion_{split}.png")))?;
+        confusions.push((split, confusion));
         splits.insert(split.to_string(), metrics);
     }
     let Some(test) = splits.remove("test") else {
         bail!("{}: the test split has no images", args.data.display());
     };
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    for (split, confusion) in &confusions {
+        draw_confusion(confusion, &args.out.join(format!("confusion_{split}.png")))?;
+    }
     step_times.sort_by(f64::total_cmp);
     let mean = step_times.iter().sum::<f64>() / step_times.len().max(1) as f64;
     let p99 = nearest_rank(&step_times, 0.99).unwrap_or(0.0);
@@ -264,11 +269,10 @@ fn check_model_matches(
 
 fn evaluate_split(
     model: &mut ActivityModel,
-    images: &ndarray::Array4<u8>,
-    labels: &Array2<u8>,
+    data: &SplitData,
     step_times: &mut Vec<f64>,
 ) -> anyhow::Result<(SplitMetrics, ConfusionMatrix, Vec<bool>)> {
-    let (n, t, size, _) = images.dim();
+    let (n, t, size, _) = data.images.dim();
     let half = t / 2;
     let mut confusion = ConfusionMatrix::new();
     let mut within_one = ConfusionMatrix::new();
@@ -281,28 +285,24 @@ fn evaluate_split(
     let mut state = model.initial_state();
     for w in 0..n {
         model.reset_state(&mut state);
+        let labels = data.labels.row(w);
         for k in 0..t {
-            frame.zip_mut_with(&images.slice(s![w, k, .., ..]), |f, &v| {
+            frame.zip_mut_with(&data.images.slice(s![w, k, .., ..]), |f, &v| {
                 *f = f32::from(v) / 255.0
             });
             let started = Instant::now();
             let logits = model.step(frame.view(), &mut state)?;
             step_times.push(started.elapsed().as_secs_f64() * 1e3);
             let (predicted, _) = Activity::most_likely(&logits);
-            let truth = Activity::from_index(labels[[w, k]] as usize).unwrap_or(Activity::Standing);
+            let truth = Activity::from_index(labels[k] as usize).unwrap_or(Activity::Standing);
             if k == half && predicted == truth {
                 half_right += 1;
             }
             if k == t - 1 {
                 confusion.add(truth, predicted);
                 correct.push(predicted == truth);
-                let row = labels.row(w);
-                let one_activity = row.iter().all(|&l| l == row[0]);
-                let seen: Vec<bool> = images
-                    .slice(s![w, .., .., ..])
-                    .outer_iter()
-                    .map(|frame| frame.iter().any(|&v| v > 0))
-                    .collect();
+                let one_activity = labels.iter().all(|&l| l == labels[0]);
+                let seen = data.seen.row(w);
                 let seen_throughout = seen.iter().all(|&s| s);
                 if one_activity {
                     within_one.add(truth, predicted);
@@ -457,11 +457,11 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
     }
     out += "\n";
     out += "A window is scored at its last scan. \"Published\": only windows whose last scan \
-            shows the person; the robot publishes no activity for a scan where the person is \
-            hidden. \"Within one activity\": only windows whose scans \
+            the localiser saw the person on; the robot publishes no activity for a scan where \
+            the person is hidden. \"Within one activity\": only windows whose scans \
             all show one activity, as each of the paper's samples is cut from one activity; the \
             others end just after a change (the last two scans falling after 18 of walking). \
-            \"In full view\": only windows with the person's points in every frame; in the others \
+            \"In full view\": only windows with the person seen on every scan; in the others \
             furniture or the robot's path hid them for at least one scan.\n\n";
     if let Some(spread) = &m.test.per_episode {
         let at = |e: &EpisodeAccuracy| {
