@@ -8,7 +8,7 @@ namespace by tests/tests/ros_nodes.rs).
     ros_cyclone_interop.py publish-scan COUNT RATE_HZ    LaserScans with ranges [i, i, ...],
                                    once a reader has matched
 
-Topics use ROS 2 naming (`rt/` prefix) and the QoS of DESIGN.md's contract.
+Topics use ROS 2 naming (`rt/` prefix) and the QoS of the topic contract (`lidar_har_msgs::topics`).
 """
 
 import json

@@ -50,7 +50,7 @@ def load_index(data_dir: Path) -> dict:
     except json.JSONDecodeError as err:
         raise DatasetError(f"{path}: not valid JSON ({err})") from err
     if index.get("classes") != CLASSES:
-        raise DatasetError(f"{path}: classes {index.get('classes')} differ from DESIGN.md order {CLASSES}")
+        raise DatasetError(f"{path}: classes {index.get('classes')} differ from the class order {CLASSES}")
     return index
 
 

@@ -1,4 +1,4 @@
-//! The topic contract of DESIGN.md in one place: names, types and QoS.
+//! The topic contract in one place: names, types and QoS.
 
 use crate::qos::QosProfile;
 use crate::{
