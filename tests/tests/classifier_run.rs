@@ -128,6 +128,49 @@ fn demo_without_a_model_refuses_rather_than_faking() {
 }
 
 #[test]
+fn demo_run_again_replaces_its_own_output_but_nothing_else() {
+    if !runtime_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let demo_out = tmp.path().join("demo_out");
+    let outputs = [
+        "sim/metadata.yaml",
+        "run/summary.json",
+        "scene.png",
+        "timeline.png",
+    ];
+    lidar_har_ok(&["demo", "--out", path(&demo_out)]);
+    // Marks the first run's summary, to see it replaced.
+    std::fs::write(demo_out.join("run/summary.json"), "first").unwrap();
+    let again = lidar_har_ok(&["demo", "--out", path(&demo_out)]);
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(err.contains("replacing the earlier demo output"), "{err}");
+    assert_ne!(
+        std::fs::read_to_string(demo_out.join("run/summary.json")).unwrap(),
+        "first"
+    );
+    for output in outputs {
+        assert!(demo_out.join(output).is_file(), "{output}");
+    }
+
+    // Something the demo did not write: refused by name, and nothing deleted.
+    let notes = demo_out.join("notes.txt");
+    std::fs::write(&notes, "mine").unwrap();
+    let out = lidar_har(&["demo", "--out", path(&demo_out)]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("notes.txt") && err.contains("choose another or delete it"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&notes).unwrap(), "mine");
+    for output in outputs {
+        assert!(demo_out.join(output).is_file(), "{output} deleted");
+    }
+}
+
+#[test]
 fn run_with_a_model_records_activities_and_scores_them() {
     if !runtime_available() {
         return;
@@ -605,6 +648,28 @@ fn alerts_without_a_model_names_it() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains(path(&missing)), "{err}");
+
+    // The model a classifier configuration names counts, as for `run` and `demo`: it used
+    // to be ignored for models/activity.onnx. (Short, should it run at all.)
+    let config = tmp.path().join("classifier.yaml");
+    std::fs::write(&config, format!("model: {}\n", path(&missing))).unwrap();
+    let out = lidar_har(&[
+        "alerts",
+        "--classifier-config",
+        path(&config),
+        "--fall-episodes",
+        "1",
+        "--no-fall-hours",
+        "0",
+        "--episode-seconds",
+        "5",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(path(&missing)) && err.contains("--classifier-config"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -12,7 +12,7 @@
 //! publishes, so models trained on different window lengths compare on equal terms.
 //! The alerts' inputs can be saved and replayed with other alert settings ([`readings`]).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -22,24 +22,27 @@ use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
 use lidar_har_core::pose_head::NoPoseHead;
 use lidar_har_core::stats::Spread;
 use lidar_har_infer::ActivityModel;
-use lidar_har_pipeline::classifier::{
-    ClassifierConfig, ClassifierStage, load_classifier_config, with_fall_alert_setting,
-};
+use lidar_har_pipeline::classifier::{ClassifierConfig, ClassifierStage, with_fall_alert_setting};
 use lidar_har_pipeline::convert::observation_msg;
 use lidar_har_sim::scripts::{self, ScriptKind};
 use serde::Serialize;
 
-use super::dataset::{EpisodeStream, core_scan, episode_localiser, episode_seed, load_scenes};
+use super::dataset::{
+    EpisodeStream, core_scan, episode_localiser, episode_seed, load_scenes, with_episode_seconds,
+};
 use readings::{EpisodeLog, Frame, Header, Reading, ReadingsReader, ReadingsWriter};
 
 mod readings;
 
 #[derive(clap::Args)]
 pub struct AlertsArgs {
-    /// The activity model (ONNX step model).
-    #[arg(long, default_value = "models/activity.onnx")]
-    pub model: PathBuf,
-    /// Classifier parameters (YAML; the `fall_alert` block is used); defaults when absent.
+    /// The activity model (ONNX step model) [default: the classifier configuration's
+    /// `model`, models/activity.onnx].
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Classifier parameters (YAML, see config/classifier.yaml): `model`, the lanes
+    /// (`lanes`, `lane_period_windows`) and the `fall_alert` block are used, the rest
+    /// (threads, the pose head) is not; defaults when absent.
     #[arg(long)]
     pub classifier_config: Option<PathBuf>,
     /// One `fall_alert` setting changed from the configuration, e.g. `fall_min_scans=6`
@@ -88,7 +91,8 @@ pub struct AlertsArgs {
     /// Score the alerts over readings saved by `--save-readings` instead of simulating and
     /// running the model: seconds instead of minutes, and the same report a full run with
     /// `--classifier-config`'s `fall_alert` settings gives. Episodes, seed, model and lanes
-    /// are the recording's.
+    /// are the recording's: the configuration's `model` is not used (nor can `--model` be
+    /// given), and its lanes must be the recording's.
     #[arg(long, value_name = "FILE", conflicts_with_all = [
         "model", "scenes", "fall_episodes", "no_fall_hours", "stay_down_episodes",
         "episode_seconds", "seed", "latency_target_s", "save_readings",
@@ -326,10 +330,8 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.save_readings {
         super::prepare_output_file(path, "--save-readings")?;
     }
-    let mut config = match &args.classifier_config {
-        Some(path) => load_classifier_config(path)?,
-        None => ClassifierConfig::default(),
-    };
+    let mut config =
+        super::classifier_config(args.classifier_config.as_deref(), args.model.as_deref())?;
     for setting in &args.fall_alert {
         config.fall_alert =
             with_fall_alert_setting(&config.fall_alert, setting).context("--fall-alert")?;
@@ -350,19 +352,26 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
 /// Simulates the episodes, runs the localiser and the classifier stage over them, and scores
 /// the alerts the stage raised.
 fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<AlertsReport> {
-    let model = ActivityModel::load(&args.model, 1)
-        .with_context(|| format!("--model {}", args.model.display()))?;
+    let fall_run_on_s = match args.fall_episodes {
+        0 => 0.0,
+        _ => fall_run_on_s(args.latency_target_s),
+    };
+    let scenes = with_episode_seconds(
+        load_scenes(&args.scenes)?,
+        args.episode_seconds,
+        fall_run_on_s,
+    )?;
+    let model_source = model_source(args, &config.model);
+    let model = ActivityModel::load(&config.model, 1).context(model_source.clone())?;
     let stream = model.info().stream;
     // The pose head is left out: it reads the model's state but changes no activity or alert.
     let schedule = config.lane_schedule(stream.window, false);
     let mut classifier = ClassifierStage::with_schedule(model, stream, schedule, config.fall_alert)
-        .with_context(|| format!("--model {}", args.model.display()))?;
-    let scenes = load_scenes(&args.scenes)?;
+        .context(model_source.clone())?;
     let scene_hz = scenes[0].1.lidar.rate_hz;
     if (scene_hz / stream.scan_rate_hz - 1.0).abs() > 1e-6 {
         anyhow::bail!(
-            "--model {} was trained at {} Hz but the scenes scan at {scene_hz} Hz",
-            args.model.display(),
+            "{model_source} was trained at {} Hz but the scenes scan at {scene_hz} Hz",
             stream.scan_rate_hz
         );
     }
@@ -385,7 +394,7 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
         Some(path) => Some(ReadingsWriter::create(
             path,
             &Header::new(
-                args.model.display().to_string(),
+                config.model.display().to_string(),
                 scene_names.clone(),
                 args.seed,
                 args.episode_seconds,
@@ -414,16 +423,14 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
             ScriptKind::FallAndStayDown
         };
         let (_, scene) = &scenes[id % scenes.len()];
-        let mut scene = scene.clone();
-        scene.duration = args.episode_seconds;
         let seed = episode_seed(args.seed, id, EpisodeStream::Alerts);
         let trace = args.trace_episode.contains(&id);
         let run_on_s = match kind {
-            ScriptKind::WithFalls => fall_run_on_s(args.latency_target_s),
+            ScriptKind::WithFalls => fall_run_on_s,
             _ => 0.0,
         };
         let (log, alerts) =
-            match run_episode(id, &scene, seed, kind, run_on_s, &mut classifier, trace) {
+            match run_episode(id, scene, seed, kind, run_on_s, &mut classifier, trace) {
                 Ok(episode) => episode,
                 Err(e) => {
                     progress.suspend(|| errln!("alerts: skipping episode {id}: {e:#}"));
@@ -462,7 +469,7 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
         );
     }
     Ok(tally.report(
-        args.model.display().to_string(),
+        config.model.display().to_string(),
         scene_names,
         args.seed,
         args.episode_seconds,
@@ -474,7 +481,7 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
 fn replay(
     args: &AlertsArgs,
     config: &ClassifierConfig,
-    path: &std::path::Path,
+    path: &Path,
 ) -> anyhow::Result<AlertsReport> {
     let readings = ReadingsReader::open(path)?;
     let header = readings.header().clone();
@@ -721,6 +728,19 @@ impl Tally {
             false_alert_details: false_alerts,
             scans: self.scans.report(),
         }
+    }
+}
+
+/// The model and where it was named, for messages: `--model`, or the classifier
+/// configuration's `model`.
+fn model_source(args: &AlertsArgs, model: &Path) -> String {
+    match (&args.model, &args.classifier_config) {
+        (None, Some(config)) => format!(
+            "model {} (named by --classifier-config {})",
+            model.display(),
+            config.display()
+        ),
+        _ => format!("--model {}", model.display()),
     }
 }
 

@@ -75,7 +75,7 @@ pub struct DatasetArgs {
     /// A Lidar fixed in the room (at a random free spot per episode) instead of the moving robot.
     #[arg(long)]
     pub fixed_lidar: bool,
-    /// Worker threads (episodes run in parallel).
+    /// Worker threads (episodes run in parallel); at least 1.
     #[arg(long, default_value_t = 2)]
     pub threads: usize,
 }
@@ -164,7 +164,7 @@ pub struct DatasetIndex {
 }
 
 impl DatasetIndex {
-    /// Reads and checks `dir/index.json` (classes in DESIGN.md order, rows consistent).
+    /// Reads and checks `dir/index.json` (classes in `Activity::ALL` order, rows consistent).
     pub fn load(dir: &Path) -> anyhow::Result<Self> {
         let path = dir.join("index.json");
         let text = std::fs::read_to_string(&path)
@@ -285,7 +285,7 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         args.resolution,
     );
     let renderer = Renderer::new(spec).context("--size/--resolution")?;
-    let scenes = load_scenes(&args.scenes)?;
+    let scenes = with_episode_seconds(load_scenes(&args.scenes)?, args.episode_seconds, 0.0)?;
     for name in &args.held_out {
         if !scenes.iter().any(|(_, s)| &s.name == name) {
             bail!(
@@ -310,7 +310,7 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         Mutex::new((0..plans.len()).map(|_| None).collect());
     let next = std::sync::atomic::AtomicUsize::new(0);
     std::thread::scope(|scope| {
-        for _ in 0..args.threads.max(1) {
+        for _ in 0..args.threads {
             scope.spawn(|| {
                 loop {
                     let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -514,7 +514,39 @@ fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
             args.episode_seconds
         );
     }
+    if args.threads == 0 {
+        bail!("--threads 0: must be at least 1 (episodes run on this many threads)");
+    }
     Ok(())
+}
+
+/// The scenes with their `duration` set to `episode_seconds`, each checked as a scene file
+/// is, for `run_on_s` more than that (what episodes with falls add): a length the simulator
+/// refuses (over its limit, or past the last ROS stamp after a scene's `start_time`) is the
+/// option's fault, and would otherwise show only as every episode's script failing.
+pub(crate) fn with_episode_seconds(
+    mut scenes: Vec<(String, Scene)>,
+    episode_seconds: f64,
+    run_on_s: f64,
+) -> anyhow::Result<Vec<(String, Scene)>> {
+    let run_on = if run_on_s > 0.0 {
+        format!(
+            " plus the {run_on_s} s that episodes with falls run on (the longest fall and \
+             --latency-target-s)"
+        )
+    } else {
+        String::new()
+    };
+    for (file, scene) in &mut scenes {
+        scene.duration = episode_seconds + run_on_s;
+        scene.validate().map_err(|(key, message)| {
+            anyhow::anyhow!(
+                "--episode-seconds {episode_seconds}{run_on}: {key}: {message} (scene {file})"
+            )
+        })?;
+        scene.duration = episode_seconds;
+    }
+    Ok(scenes)
 }
 
 /// Scenes matching the globs (each must match a file), each file once, each with a person (the
@@ -594,11 +626,9 @@ fn plan_episodes(
     let mut plans = Vec::new();
     let mut push = |id: usize, (file, scene): &(String, Scene), split: &'static str| {
         let seed = episode_seed(args.seed, id, EpisodeStream::Dataset);
-        let mut scene = scene.clone();
-        scene.duration = args.episode_seconds;
         plans.push(EpisodePlan {
             id,
-            scene,
+            scene: scene.clone(),
             scene_file: file.clone(),
             seed,
             split,
@@ -1019,6 +1049,75 @@ mod tests {
             .map(|(_, scene)| scene.name)
             .collect();
         assert_eq!(names, ["alpha", "mu", "zeta"].map(String::from));
+    }
+
+    /// `lidar-har dataset`'s arguments as the command line gives them, with `extra`.
+    fn dataset_args(extra: &[&str]) -> DatasetArgs {
+        #[derive(clap::Parser)]
+        struct Command {
+            #[command(flatten)]
+            args: DatasetArgs,
+        }
+        let mut line = vec!["dataset", "--scenes", "s.yaml", "--out", "o"];
+        line.extend_from_slice(extra);
+        <Command as clap::Parser>::try_parse_from(line)
+            .unwrap()
+            .args
+    }
+
+    #[test]
+    fn threads_and_episode_lengths_the_run_cannot_use_are_refused_by_name() {
+        validate_args(&dataset_args(&[])).unwrap();
+        for (extra, needle) in [
+            (&["--threads", "0"][..], "--threads 0: must be at least 1"),
+            (&["--episode-seconds", "NaN"][..], "--episode-seconds NaN"),
+            (&["--episode-seconds=-5"][..], "--episode-seconds -5"),
+            (&["--episode-seconds", "inf"][..], "--episode-seconds inf"),
+        ] {
+            let error = validate_args(&dataset_args(extra)).unwrap_err().to_string();
+            assert!(error.contains(needle), "{extra:?}: {error}");
+        }
+    }
+
+    #[test]
+    fn an_episode_length_the_simulator_refuses_names_the_option_and_the_limit() {
+        let file = shipped_scene_path("living_room");
+        let scenes = || vec![(file.display().to_string(), Scene::load(&file).unwrap())];
+        let scenes_of_60_s = with_episode_seconds(scenes(), 60.0, 2.4).unwrap();
+        assert_eq!(scenes_of_60_s[0].1.duration, 60.0, "without the run-on");
+        for (episode_seconds, run_on_s, needle) in [
+            (
+                1e12,
+                0.0,
+                "--episode-seconds 1000000000000: duration: must be within",
+            ),
+            (
+                1e-4,
+                0.0,
+                "--episode-seconds 0.0001: duration: must be within",
+            ),
+            (9_999_999.0, 2.4, "--latency-target-s"),
+        ] {
+            let error = with_episode_seconds(scenes(), episode_seconds, run_on_s)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                error.contains(needle)
+                    && error.contains("10000000")
+                    && error.contains("living_room"),
+                "{error}"
+            );
+        }
+        // Past the last ROS stamp after the scene's start_time: named as well.
+        let mut late = scenes();
+        late[0].1.start_time = 2_140_000_000;
+        let error = with_episode_seconds(late, 1e7, 0.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.contains("--episode-seconds 10000000: start_time"),
+            "{error}"
+        );
     }
 
     #[test]

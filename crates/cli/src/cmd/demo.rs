@@ -9,9 +9,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use lidar_har_core::activity::Activity;
 use lidar_har_pipeline::bag_run::{RunOptions, RunSummary, run_bag};
-use lidar_har_pipeline::classifier::{
-    ActivitySummary, ClassifierConfig, ClassifierRun, load_classifier_config,
-};
+use lidar_har_pipeline::classifier::{ActivitySummary, ClassifierRun};
 use lidar_har_sim::map::OccupancyMap;
 use lidar_har_sim::record::record;
 use lidar_har_sim::render::{ACTIVITY_COLOURS, Trace, render_png};
@@ -23,8 +21,9 @@ pub struct DemoArgs {
     /// Scene to simulate (YAML, see docs/simulator.md); the default one contains a fall.
     #[arg(long, default_value = "config/scenes/living_room.yaml")]
     pub scene: PathBuf,
-    /// Output directory (created; must not exist or be empty): sim/ (the simulated bag),
-    /// run/ (the pipeline's bag and summary.json), scene.png, timeline.png.
+    /// Output directory (made if missing): sim/ (the simulated bag), run/ (the pipeline's
+    /// bag and summary.json), scene.png, timeline.png. An earlier demo's output there is
+    /// replaced; a folder holding anything else is refused.
     #[arg(long, default_value = "demo_out")]
     pub out: PathBuf,
     /// Mixed with the scene's seed.
@@ -39,16 +38,51 @@ pub struct DemoArgs {
     pub classifier_config: Option<PathBuf>,
 }
 
+/// What the demo writes into `--out`: two folders and two pictures.
+const SIM_DIR: &str = "sim";
+const RUN_DIR: &str = "run";
+const SCENE_PNG: &str = "scene.png";
+const TIMELINE_PNG: &str = "timeline.png";
+
+/// The entries of `out` an earlier demo left (its folders and pictures, by name and kind),
+/// for a new run to replace; an error naming any other entry, so that only the demo's own
+/// output is ever deleted. Nothing when `out` does not exist.
+fn earlier_demo_output(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let entries = match std::fs::read_dir(out) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        listed => listed.with_context(|| format!("--out {}: cannot list it", out.display()))?,
+    };
+    let mut earlier = Vec::new();
+    for entry in entries {
+        let entry = entry.with_context(|| format!("--out {}: cannot list it", out.display()))?;
+        // Not followed: a link, even to a folder of the right name, is not the demo's.
+        let kind = entry
+            .file_type()
+            .with_context(|| format!("--out {}: cannot list it", out.display()))?;
+        let name = entry.file_name();
+        let demos = if kind.is_dir() {
+            name == SIM_DIR || name == RUN_DIR
+        } else {
+            kind.is_file() && (name == SCENE_PNG || name == TIMELINE_PNG)
+        };
+        anyhow::ensure!(
+            demos,
+            "--out {} already exists and holds {}, which the demo does not write: choose \
+             another or delete it",
+            out.display(),
+            name.to_string_lossy()
+        );
+        earlier.push(entry.path());
+    }
+    earlier.sort();
+    Ok(earlier)
+}
+
 pub fn run(args: DemoArgs) -> anyhow::Result<()> {
     let _ = env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn"))
         .try_init();
-    let mut config = match &args.classifier_config {
-        Some(path) => load_classifier_config(path)?,
-        None => ClassifierConfig::default(),
-    };
-    if let Some(model) = &args.model {
-        config.model = model.clone();
-    }
+    let config =
+        super::classifier_config(args.classifier_config.as_deref(), args.model.as_deref())?;
     anyhow::ensure!(
         config.model.is_file(),
         "no activity model at {}: the demo needs a trained model and does not fake results. \
@@ -60,33 +94,39 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
         ClassifierRun::load(&config)
             .with_context(|| format!("loading {}", config.model.display()))?,
     );
+    // The scene too, so that a bad one leaves an earlier demo's output in place.
+    let scene = Scene::load(&args.scene)?;
+    let mut sim = Simulator::new(scene, args.seed)
+        .with_context(|| format!("scene {}", args.scene.display()))?;
     anyhow::ensure!(
         !args.out.exists() || args.out.is_dir(),
         "--out {} is a file: give a folder (made if missing)",
         args.out.display()
     );
-    if args.out.exists() {
-        let empty = std::fs::read_dir(&args.out)
-            .map(|mut d| d.next().is_none())
-            .unwrap_or(false);
-        anyhow::ensure!(
-            empty,
-            "--out {} already exists and is not empty: choose another or delete it",
+    let earlier = earlier_demo_output(&args.out)?;
+    if !earlier.is_empty() {
+        errln!(
+            "replacing the earlier demo output in {}",
             args.out.display()
         );
+    }
+    for path in earlier {
+        if path.is_dir() {
+            std::fs::remove_dir_all(&path)
+        } else {
+            std::fs::remove_file(&path)
+        }
+        .with_context(|| format!("removing the earlier demo output {}", path.display()))?;
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
 
     // 1. Simulate.
-    let scene = Scene::load(&args.scene)?;
-    let mut sim = Simulator::new(scene, args.seed)
-        .with_context(|| format!("scene {}", args.scene.display()))?;
     let geometry = sim.scan_geometry();
     let start_s = sim.start_ns() as f64 * 1e-9;
     let mut trace = Trace::new((sim.frame_count() / 40).max(1));
     let mut truth: Vec<(f64, Activity)> = Vec::new();
-    let sim_dir = args.out.join("sim");
+    let sim_dir = args.out.join(SIM_DIR);
     errln!(
         "simulating {} ({} scans) ...",
         args.scene.display(),
@@ -107,7 +147,7 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
 
     // 2. Run the pipeline over the recording, as `lidar-har run` does.
     errln!("running the pipeline ...");
-    let run_dir = args.out.join("run");
+    let run_dir = args.out.join(RUN_DIR);
     let summary = run_bag(
         &sim_dir,
         &run_dir,
@@ -126,11 +166,11 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
     out!("{}", timeline_text(activity, start_s));
     out!("{}", position_text(&summary));
     let map = OccupancyMap::from_world(sim.world(), lidar_har_sim::map::DEFAULT_RESOLUTION);
-    let scene_png = args.out.join("scene.png");
+    let scene_png = args.out.join(SCENE_PNG);
     render_png(&scene_png, &map, &trace)?;
     mark_alerts(&scene_png, &map, activity)
         .with_context(|| format!("marking alerts on {}", scene_png.display()))?;
-    let timeline_png = args.out.join("timeline.png");
+    let timeline_png = args.out.join(TIMELINE_PNG);
     draw_timeline(&timeline_png, activity, &truth, start_s)
         .with_context(|| format!("drawing {}", timeline_png.display()))?;
     outln!();
@@ -331,4 +371,46 @@ fn draw_timeline(
 /// plotters' errors carry the backend's error type; keep only the message.
 fn plot_error(e: impl std::fmt::Display) -> anyhow::Error {
     anyhow::anyhow!("{e}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_an_earlier_demos_own_output_is_to_be_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("demo_out");
+        assert!(
+            earlier_demo_output(&out).unwrap().is_empty(),
+            "no folder yet"
+        );
+        std::fs::create_dir(&out).unwrap();
+        assert!(earlier_demo_output(&out).unwrap().is_empty());
+        for folder in [SIM_DIR, RUN_DIR] {
+            std::fs::create_dir(out.join(folder)).unwrap();
+            std::fs::write(out.join(folder).join("metadata.yaml"), "").unwrap();
+        }
+        for picture in [SCENE_PNG, TIMELINE_PNG] {
+            std::fs::write(out.join(picture), "").unwrap();
+        }
+        let names: Vec<PathBuf> = [RUN_DIR, SCENE_PNG, SIM_DIR, TIMELINE_PNG]
+            .iter()
+            .map(|name| out.join(name))
+            .collect();
+        assert_eq!(earlier_demo_output(&out).unwrap(), names);
+
+        // Anything else, or one of the demo's names of the wrong kind, is refused by name.
+        std::fs::write(out.join("notes.txt"), "mine").unwrap();
+        let error = earlier_demo_output(&out).unwrap_err().to_string();
+        assert!(
+            error.contains("notes.txt") && error.contains("choose another or delete it"),
+            "{error}"
+        );
+        std::fs::remove_file(out.join("notes.txt")).unwrap();
+        std::fs::remove_file(out.join(SCENE_PNG)).unwrap();
+        std::fs::create_dir(out.join(SCENE_PNG)).unwrap();
+        let error = earlier_demo_output(&out).unwrap_err().to_string();
+        assert!(error.contains(SCENE_PNG), "{error}");
+    }
 }

@@ -37,7 +37,7 @@ pub struct EvaluateArgs {
     pub threads: usize,
 }
 
-/// The paper's Boolean-grid results (Bouazizi et al. 2023, DESIGN.md): recall, precision in %.
+/// The paper's per-class Boolean-grid results (Bouazizi et al. 2023): recall, precision in %.
 const PAPER_BOOLEAN: [(f64, f64); Activity::COUNT] = [
     (88.3, 91.2),
     (81.2, 88.5),

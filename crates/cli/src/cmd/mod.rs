@@ -10,9 +10,30 @@ pub mod run;
 pub mod simulate;
 pub mod topic;
 
+use std::path::Path;
+
+use lidar_har_pipeline::classifier::{ClassifierConfig, load_classifier_config};
+
+/// The classifier configuration a command runs with: `--classifier-config`'s file (defaults
+/// when absent) with its `model` replaced by `--model` when that is given. Shared, so that
+/// every command takes its model from the same place.
+pub fn classifier_config(
+    config: Option<&Path>,
+    model: Option<&Path>,
+) -> anyhow::Result<ClassifierConfig> {
+    let mut classifier = match config {
+        Some(path) => load_classifier_config(path)?,
+        None => ClassifierConfig::default(),
+    };
+    if let Some(model) = model {
+        classifier.model = model.to_path_buf();
+    }
+    Ok(classifier)
+}
+
 /// Makes the folder of an output file given as `flag` now, so that a bad path fails before
 /// the work rather than after it.
-pub fn prepare_output_file(path: &std::path::Path, flag: &str) -> anyhow::Result<()> {
+pub fn prepare_output_file(path: &Path, flag: &str) -> anyhow::Result<()> {
     use anyhow::Context;
     if let Some(folder) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(folder)
@@ -28,11 +49,35 @@ pub fn prepare_output_file(path: &std::path::Path, flag: &str) -> anyhow::Result
 
 /// A path for a message; a relative one says what it is relative to, since configuration
 /// files name models relative to the folder the command runs in, not to themselves.
-pub fn shown_path(path: &std::path::Path) -> String {
+pub fn shown_path(path: &Path) -> String {
     match std::env::current_dir() {
         Ok(folder) if path.is_relative() => {
             format!("{} (relative to {})", path.display(), folder.display())
         }
         _ => path.display().to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_model_is_the_command_lines_else_the_configurations_else_the_default() {
+        let dir = tempfile::tempdir().unwrap();
+        let config = dir.path().join("classifier.yaml");
+        std::fs::write(&config, "model: from_config.onnx\n").unwrap();
+        let model = |config: Option<&Path>, model: Option<&Path>| {
+            classifier_config(config, model).unwrap().model
+        };
+        let given = Path::new("given.onnx");
+        assert_eq!(model(Some(&config), Some(given)), given);
+        assert_eq!(model(Some(&config), None), Path::new("from_config.onnx"));
+        assert_eq!(model(None, None), ClassifierConfig::default().model);
+        let missing = dir.path().join("missing.yaml");
+        let error = classifier_config(Some(&missing), None)
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("missing.yaml"), "{error}");
     }
 }

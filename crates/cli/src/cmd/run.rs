@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use lidar_har_pipeline::bag_run::{RunOptions, run_bag};
-use lidar_har_pipeline::classifier::{ClassifierConfig, load_classifier_config};
 use lidar_har_pipeline::files;
 
 #[derive(clap::Args)]
@@ -26,8 +25,9 @@ pub struct RunArgs {
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Activity model (ONNX step model, docs/model_contract.md) for /human/activity and
-    /// /human/fall_alert [default: models/activity.onnx; when that is absent and no --model
-    /// is given, the localiser runs alone, with a warning].
+    /// /human/fall_alert, else the classifier configuration's `model` [default:
+    /// models/activity.onnx; when that is absent and neither --model nor
+    /// --classifier-config is given, the localiser runs alone, with a warning].
     #[arg(long)]
     pub model: Option<PathBuf>,
     /// Classifier parameters (YAML, see config/classifier.yaml).
@@ -54,15 +54,10 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let classifier = if args.no_classifier {
         None
     } else {
-        let mut classifier = match &args.classifier_config {
-            Some(path) => load_classifier_config(path)?,
-            None => ClassifierConfig::default(),
-        };
+        let classifier =
+            super::classifier_config(args.classifier_config.as_deref(), args.model.as_deref())?;
         // A model named on the command line or in a classifier configuration must exist.
         let explicit = args.model.is_some() || args.classifier_config.is_some();
-        if let Some(model) = &args.model {
-            classifier.model = model.clone();
-        }
         if classifier.model.is_file() {
             Some(classifier)
         } else {
