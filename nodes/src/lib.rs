@@ -16,6 +16,7 @@ const DEFAULT_LOG_FILTER: &str = "info,rustdds=warn,ros2_client=warn";
 pub struct NodeInfo {
     pub name: &'static str,
     pub about: &'static str,
+    /// The node's own parameters; `use_sim_time` is added as the node adds it.
     pub parameters: fn() -> Vec<ParamDecl>,
 }
 
@@ -27,7 +28,7 @@ impl NodeInfo {
              [-r FROM:=TO]...]\n\nParameters:\n",
             self.name, self.about, self.name
         );
-        for p in (self.parameters)() {
+        for p in lidar_har_ros::node_parameters((self.parameters)()) {
             text.push_str(&format!(
                 "  {} ({}, default {}): {}\n",
                 p.name,
@@ -282,6 +283,11 @@ mod tests {
         assert!(usage.contains("rate (double, default 1"), "{usage}");
         assert!(
             usage.contains("bag (string, default \"\"): the bag"),
+            "{usage}"
+        );
+        // Declared by every node without being in its own list; --help used to leave it out.
+        assert!(
+            usage.contains("  use_sim_time (bool, default false)"),
             "{usage}"
         );
     }

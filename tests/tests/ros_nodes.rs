@@ -303,6 +303,10 @@ fn ros_nodes_reject_bad_parameters_naming_them() {
             &["`rate`", "expected double"],
         ),
         (
+            r#""$REPLAY" --ros-args -p bag:="$BAG" -p start_offset:=100.0"#,
+            &["`start_offset`", "100 s", "past the end", "s long"],
+        ),
+        (
             r#""$REPLAY" --ros-args -p bag:="$BAG" -p speed:=2"#,
             &["`speed`", "unknown"],
         ),
@@ -421,6 +425,11 @@ fn ros_nodes_print_help_and_refuse_stray_arguments() {
         assert!(
             text.contains("--ros-args") && text.contains(&format!("  {parameter} (")),
             "{node} --help must list `{parameter}`: {text}"
+        );
+        // Every node declares use_sim_time; only rplidar_driver's help used to list it.
+        assert!(
+            text.contains("  use_sim_time (bool, default false)"),
+            "{node} --help must list `use_sim_time`: {text}"
         );
         // A parameter given without `--ros-args -p` used to be ignored: the node ran on.
         let stray = output_within(

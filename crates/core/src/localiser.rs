@@ -62,7 +62,9 @@ pub struct LocaliserConfig {
     pub shadow: ShadowConfig,
     pub background: BackgroundConfig,
     pub odometry: OdometryConfig,
-    /// Lidar pose on the robot (`base_link -> laser`) until /tf_static gives one.
+    /// Lidar pose on the robot (`base_link -> laser`) until /tf_static gives one. Each of
+    /// its `x`, `y` and `theta` may be left out of a file, like any other key.
+    #[serde(deserialize_with = "deserialize_mount")]
     pub mount: Pose2,
     pub frames: FrameConfig,
 }
@@ -85,6 +87,26 @@ impl Default for LocaliserConfig {
             frames: FrameConfig::default(),
         }
     }
+}
+
+/// Reads `mount` with each field optional, taking the default mount's where left out:
+/// `Pose2` on its own requires all three, so `mount: {x: 0.1}` used to be refused.
+fn deserialize_mount<'de, D: serde::Deserializer<'de>>(deserializer: D) -> Result<Pose2, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(deny_unknown_fields, default)]
+    struct MountFields {
+        x: f64,
+        y: f64,
+        theta: f64,
+    }
+    impl Default for MountFields {
+        fn default() -> Self {
+            let Pose2 { x, y, theta } = LocaliserConfig::default().mount;
+            Self { x, y, theta }
+        }
+    }
+    let MountFields { x, y, theta } = MountFields::deserialize(deserializer)?;
+    Ok(Pose2::new(x, y, theta))
 }
 
 /// Why a configuration cannot be used.

@@ -457,4 +457,16 @@ mod tests {
         assert_eq!(partial.tracker.gate_m, 1.0);
         assert_eq!(partial.obstacle_margin_m, 0.2);
     }
+
+    #[test]
+    fn a_partial_mount_takes_the_default_mounts_other_fields() {
+        // Used to fail with "mount: missing field `y`".
+        let config = parse_localiser_config("mount: {x: 0.1}\n").unwrap();
+        let default = LocaliserConfig::default().mount;
+        assert_eq!(config.mount, Pose2::new(0.1, default.y, default.theta));
+        let config = parse_localiser_config("mount:\n  theta: 1.5\n").unwrap();
+        assert_eq!(config.mount, Pose2::new(default.x, default.y, 1.5));
+        let err = parse_localiser_config("mount: {x: 0.1, z: 2}\n").unwrap_err();
+        assert!(err.to_string().contains("unknown field `z`"), "{err}");
+    }
 }

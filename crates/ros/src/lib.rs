@@ -27,7 +27,7 @@ use lidar_har_msgs::topics::TopicSpec;
 use lidar_har_msgs::{CdrError, RosMessage};
 
 pub use args::RosArgs;
-pub use params::{ParamDecl, ParamValue, Parameters};
+pub use params::{ParamDecl, ParamValue, Parameters, node_parameters};
 
 /// Everything that can go wrong in the transport, each naming what it is about.
 #[derive(Debug, thiserror::Error)]
@@ -195,14 +195,7 @@ impl Node {
         };
         args::validate_node_name(&name).map_err(bad_name)?;
         args::validate_namespace(&namespace).map_err(bad_name)?;
-        let mut decls = setup.parameters.clone();
-        if !decls.iter().any(|d| d.name == "use_sim_time") {
-            decls.push(ParamDecl::new(
-                "use_sim_time",
-                ParamValue::Bool(false),
-                "stamp with /clock instead of the system clock",
-            ));
-        }
+        let decls = params::node_parameters(setup.parameters.clone());
         let params = Parameters::resolve(
             &decls,
             &fqn,

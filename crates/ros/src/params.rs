@@ -181,6 +181,20 @@ impl ParamDecl {
     }
 }
 
+/// Every parameter a node declares: its own `decls`, then `use_sim_time`, which every ROS 2
+/// node has, unless `decls` declares it itself (for its own description). The node and its
+/// `--help` both list them from here, so the help cannot leave one out.
+pub fn node_parameters(mut decls: Vec<ParamDecl>) -> Vec<ParamDecl> {
+    if !decls.iter().any(|d| d.name == "use_sim_time") {
+        decls.push(ParamDecl::new(
+            "use_sim_time",
+            ParamValue::Bool(false),
+            "stamp with /clock instead of the system clock",
+        ));
+    }
+    decls
+}
+
 /// The resolved start-up parameters of a node.
 #[derive(Debug, Clone, Default)]
 pub struct Parameters {
@@ -501,6 +515,23 @@ mod tests {
             ParamDecl::new("bag", ParamValue::String(String::new()), ""),
             ParamDecl::new("topics", ParamValue::StringArray(vec![]), ""),
         ]
+    }
+
+    fn names(decls: &[ParamDecl]) -> Vec<&str> {
+        decls.iter().map(|d| d.name.as_str()).collect()
+    }
+
+    #[test]
+    fn every_node_declares_use_sim_time_once_keeping_its_own_description() {
+        let all = node_parameters(decls());
+        assert_eq!(
+            names(&all),
+            ["rate", "loop", "bag", "topics", "use_sim_time"]
+        );
+        let own = ParamDecl::new("use_sim_time", ParamValue::Bool(false), "mine");
+        let all = node_parameters(vec![own]);
+        assert_eq!(names(&all), ["use_sim_time"]);
+        assert_eq!(all[0].description, "mine");
     }
 
     #[test]

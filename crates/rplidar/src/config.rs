@@ -6,6 +6,10 @@ use std::time::Duration;
 use crate::error::{Error, Result};
 use crate::scan::ScanGeometry;
 
+/// The slowest rate an RPLIDAR speaks (A1, A2M8): at a lower one no device answers, and the
+/// driver would only reconnect for ever.
+pub const MIN_BAUD: u32 = 115_200;
+
 /// Which measurement mode to start.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ScanModeChoice {
@@ -98,10 +102,12 @@ impl Config {
                 "port is empty; give the serial device path, e.g. /dev/ttyUSB0".into(),
             ));
         }
-        if self.baud == 0 {
-            return Err(Error::Config(
-                "baud must be positive (115200, 256000 or 1000000)".into(),
-            ));
+        if self.baud < MIN_BAUD {
+            return Err(Error::Config(format!(
+                "baud = {} is below {MIN_BAUD}, the slowest RPLIDAR rate: use 115200 \
+                 (A1/A2M8), 256000 (A2M12/A3/S1), 1000000 (S2/S3) or another rate >= {MIN_BAUD}",
+                self.baud
+            )));
         }
         if self.frame_id.trim().is_empty() {
             return Err(Error::Config("frame_id is empty".into()));
@@ -210,6 +216,29 @@ mod tests {
         for (config, field) in cases {
             let e = config.validate().unwrap_err().to_string();
             assert!(e.contains(field), "{field}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_baud_below_the_slowest_rplidar_rate_is_refused_naming_it() {
+        // 12 used to pass (only 0 was refused), and the driver retried for ever.
+        for baud in [0, 12, 9600, MIN_BAUD - 1] {
+            let config = Config {
+                baud,
+                ..Config::new("/dev/ttyUSB0")
+            };
+            let e = config.validate().unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("baud = {baud} ")) && e.contains("115200"),
+                "{baud}: {e}"
+            );
+        }
+        for baud in [MIN_BAUD, 256_000, 460_800, 1_000_000] {
+            let config = Config {
+                baud,
+                ..Config::new("/dev/ttyUSB0")
+            };
+            config.validate().unwrap();
         }
     }
 

@@ -3,8 +3,8 @@
 //! available to late subscribers), and /clock from the bag's time line for `use_sim_time`.
 //!
 //! Parameters: `bag` (required), `rate` (1.0; 0 = as fast as possible), `loop`,
-//! `start_offset` (s into the bag), `topics` (only these; empty = all; those the bag lacks
-//! are skipped with a warning, none present is an error), `publish_clock`,
+//! `start_offset` (s into the bag, up to its length), `topics` (only these; empty = all;
+//! those the bag lacks are skipped with a warning, none present is an error), `publish_clock`,
 //! `wait_for_subscriber` (a topic to wait on before playing, up to `wait_timeout` s),
 //! `wait_for_all_acked` (s to wait at the end for reliable subscribers to acknowledge
 //! everything, so the last messages are not lost when the process exits; 0 = don't wait).
@@ -50,7 +50,7 @@ fn decls() -> Vec<ParamDecl> {
         ParamDecl::new(
             "start_offset",
             V::Double(0.0),
-            "seconds into the bag to start at",
+            "seconds into the bag to start at, up to its length",
         ),
         ParamDecl::new(
             "topics",
@@ -168,6 +168,22 @@ fn select_topics(
     Ok(Selection { play, missing })
 }
 
+/// A `start_offset` past the bag's last message would play nothing (with `loop`, nothing
+/// again and again) and exit 0 as if all went well: refused like any other bad parameter.
+fn check_start_offset(offset_ns: i64, bag_length_ns: i64, bag: &str) -> Result<(), RosError> {
+    if offset_ns <= bag_length_ns {
+        return Ok(());
+    }
+    Err(bad_parameter(
+        "start_offset",
+        format!(
+            "{} s is past the end of the bag {bag}, which is {:.3} s long: nothing would be played",
+            offset_ns as f64 / 1e9,
+            bag_length_ns as f64 / 1e9
+        ),
+    ))
+}
+
 /// The contract's QoS for a known topic, else what the bag says was offered, else reliable.
 fn qos_for(topic: &lidar_har_bag::TopicInfo) -> QosProfile {
     topics::find(&topic.name)
@@ -188,6 +204,11 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     // A bag that cannot be opened is a bad parameter (exit status 2), like any other.
     let reader = BagReader::open(&settings.bag)
         .map_err(|e| bad_parameter("bag", format!("cannot open it: {e:#}")))?;
+    check_start_offset(
+        settings.start_offset_ns,
+        reader.metadata().duration_ns(),
+        &settings.bag,
+    )?;
     let in_bag: Vec<String> = reader.topics().iter().map(|t| t.name.clone()).collect();
     let selection = select_topics(&settings.topics, &in_bag, &settings.bag)?;
     if !selection.missing.is_empty() {
@@ -369,6 +390,21 @@ mod tests {
         assert_eq!(due, later + Duration::from_millis(50));
         // A stamp at the end of time neither waits nor overflows.
         assert_eq!(pacing.due(i64::MAX, later, "/scan"), later);
+    }
+
+    #[test]
+    fn a_start_offset_past_the_bags_end_is_an_error_naming_it_and_the_bags_length() {
+        // Used to play no message and exit 0 without a word.
+        let err = check_start_offset(100_000_000_000, 5_000_000_000, "my_bag")
+            .unwrap_err()
+            .to_string();
+        for needle in ["`start_offset`", "100 s", "my_bag", "5.000 s long"] {
+            assert!(err.contains(needle), "{needle} missing from: {err}");
+        }
+        // Up to the last message something is played.
+        check_start_offset(0, 5_000_000_000, "b").unwrap();
+        check_start_offset(5_000_000_000, 5_000_000_000, "b").unwrap();
+        check_start_offset(0, 0, "empty").unwrap();
     }
 
     #[test]

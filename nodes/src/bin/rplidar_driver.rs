@@ -15,6 +15,7 @@ use std::process::ExitCode;
 use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
 use lidar_har_msgs::topics;
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, Parameters, RosError};
+use lidar_har_rplidar::config::MIN_BAUD;
 use lidar_har_rplidar::{Config, Driver, Error, Event, ScanModeChoice};
 
 /// Allowed `diagnostics_period`: the node sees a shutdown signal only between events, which
@@ -44,7 +45,7 @@ fn decls() -> Vec<ParamDecl> {
         ParamDecl::new(
             "baud",
             V::Integer(i64::from(d.baud)),
-            "115200 (A1/A2M8), 256000 (A2M12/A3/S1), 1000000 (S2/S3)",
+            "115200 (A1/A2M8), 256000 (A2M12/A3/S1), 1000000 (S2/S3); at least 115200",
         ),
         ParamDecl::new(
             "frame_id",
@@ -109,7 +110,7 @@ fn optional_u16(p: &Parameters, name: &str) -> Result<Option<u16>, RosError> {
 
 fn config(p: &Parameters) -> Result<Config, RosError> {
     let mut c = Config::new(p.string("port")?);
-    c.baud = integer(p, "baud", "a positive baud rate")?;
+    c.baud = integer(p, "baud", &format!("{MIN_BAUD}..={}", u32::MAX))?;
     c.frame_id = p.string("frame_id")?;
     c.geometry.beams = integer(p, "beams", "a positive number of beams")?;
     c.geometry.range_min_m = p.f64_checked("range_min", ">= 0 m", |v| v >= 0.0)? as f32;
@@ -209,6 +210,21 @@ mod tests {
             format!("{err:#}").contains("`Boost` is not offered"),
             "{err:#}"
         );
+    }
+
+    #[test]
+    fn a_baud_too_slow_for_any_rplidar_is_a_bad_baud() {
+        // `baud:=12` used to be accepted, and the driver retried for ever.
+        for bad in [12, -1, 0] {
+            let err = config(&params(&[("baud", ParamValue::Integer(bad))])).unwrap_err();
+            let text = err.to_string();
+            assert!(
+                matches!(&err, RosError::Parameter { name, .. } if name == "baud")
+                    && text.contains(&bad.to_string())
+                    && text.contains("115200"),
+                "{bad}: {text}"
+            );
+        }
     }
 
     #[test]
