@@ -35,7 +35,12 @@ pub enum InferError {
         "could not load ONNX Runtime from {path}: {message}; run scripts/setup.sh to reinstall it"
     )]
     RuntimeLoad { path: PathBuf, message: String },
-    #[error("model file {path} not found (train one with training/, see docs/classifier.md)")]
+    #[error(
+        "model file {}{} not found: the committed models are in models/ of the source tree and \
+         share/lidar_har/models/ of an installed package; or train one (docs/training.md)",
+        path.display(),
+        relative_to_working_directory(path)
+    )]
     ModelMissing { path: PathBuf },
     #[error("could not load model {path}: {message}")]
     ModelLoad { path: PathBuf, message: String },
@@ -193,9 +198,7 @@ impl ActivityModel {
     pub fn load(path: impl AsRef<Path>, threads: usize) -> Result<Self, InferError> {
         let path = path.as_ref().to_path_buf();
         let env = environment()?;
-        if !path.is_file() {
-            return Err(InferError::ModelMissing { path });
-        }
+        check_model_file(&path)?;
         let load_error = |message: String| InferError::ModelLoad {
             path: path.clone(),
             message,
@@ -346,6 +349,30 @@ impl StepModel for ActivityModel {
 }
 
 /// An ONNX Runtime session on the model file at `path` with `threads` intra-op threads.
+/// A model path must name a file: a missing one says where it was looked for.
+fn check_model_file(path: &Path) -> Result<(), InferError> {
+    if path.is_dir() {
+        return Err(InferError::ModelLoad {
+            path: path.to_path_buf(),
+            message: "it is a directory, not an ONNX file".into(),
+        });
+    }
+    if !path.is_file() {
+        return Err(InferError::ModelMissing {
+            path: path.to_path_buf(),
+        });
+    }
+    Ok(())
+}
+
+/// " (relative to DIR)" for a relative path: a node's working directory is not obvious.
+fn relative_to_working_directory(path: &Path) -> String {
+    match std::env::current_dir() {
+        Ok(dir) if path.is_relative() => format!(" (relative to {})", dir.display()),
+        _ => String::new(),
+    }
+}
+
 fn open_session(env: &Environment, path: &Path, threads: usize) -> Result<Session, InferError> {
     let load_error = |message: String| InferError::ModelLoad {
         path: path.to_path_buf(),

@@ -11,8 +11,8 @@ use ort::value::{Outlet, TensorRef};
 use sha2::{Digest, Sha256};
 
 use crate::{
-    ActivityModel, InferError, ModelState, check_outlet_names, copy_outputs, environment,
-    float_outlet_shape, open_session, shape_matches,
+    ActivityModel, InferError, ModelState, check_model_file, check_outlet_names, copy_outputs,
+    environment, float_outlet_shape, open_session, shape_matches,
 };
 
 /// Metadata key: the SHA-256 (hex) of the activity model file whose state the head reads.
@@ -45,9 +45,7 @@ impl PoseHeadModel {
     ) -> Result<Self, InferError> {
         let path = path.as_ref().to_path_buf();
         let env = environment()?;
-        if !path.is_file() {
-            return Err(InferError::ModelMissing { path });
-        }
+        check_model_file(&path)?;
         let session = open_session(env, &path, threads)?;
         let metadata = session.metadata().map_err(|e| InferError::ModelLoad {
             path: path.clone(),

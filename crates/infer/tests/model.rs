@@ -119,6 +119,21 @@ fn missing_garbage_and_truncated_files_give_clear_errors() {
     let e = load("no_such_model.onnx").unwrap_err();
     assert!(matches!(e, InferError::ModelMissing { .. }), "{e}");
     assert!(e.to_string().contains("no_such_model.onnx"));
+    // A relative path says where it was looked for, and where the committed models are.
+    let e = ActivityModel::load("no_such_model.onnx", 1).unwrap_err();
+    let text = e.to_string();
+    let working_directory = std::env::current_dir().unwrap();
+    assert!(
+        text.contains("no_such_model.onnx")
+            && text.contains(&format!("relative to {}", working_directory.display()))
+            && text.contains("share/lidar_har/models/"),
+        "{text}"
+    );
+    let e = ActivityModel::load(std::env::temp_dir(), 1).unwrap_err();
+    assert!(
+        e.to_string().contains("a directory, not an ONNX file"),
+        "{e}"
+    );
 
     let dir = tempfile::tempdir().unwrap();
     let garbage = dir.path().join("garbage.onnx");
