@@ -12,6 +12,50 @@ use lidar_har_ros::{ParamDecl, RosArgs, RosError};
 /// (whose info level describes every discovery packet).
 const DEFAULT_LOG_FILTER: &str = "info,rustdds=warn,ros2_client=warn";
 
+/// The module of RustDDS that warns about every UDP datagram over 1500 bytes
+/// (`try_send_to_locator: Message size = 3012`), such as each 720-beam scan: one warning per
+/// scan from the driver and the replay. Such datagrams are normal (the IP layer fragments
+/// them), so [`NodeLogger`] drops these warnings, whatever `RUST_LOG` says, and keeps the
+/// module's others (failed sends, a send buffer smaller than asked for).
+const UDP_SENDER_TARGET: &str = "rustdds::network::udp_sender";
+
+/// env_logger without RustDDS's datagram size warnings.
+struct NodeLogger(env_logger::Logger);
+
+fn is_datagram_size_warning(record: &log::Record) -> bool {
+    record.level() == log::Level::Warn
+        && record.target() == UDP_SENDER_TARGET
+        && record.args().to_string().contains(": Message size = ")
+}
+
+impl log::Log for NodeLogger {
+    fn enabled(&self, metadata: &log::Metadata) -> bool {
+        self.0.enabled(metadata)
+    }
+
+    fn log(&self, record: &log::Record) {
+        if !is_datagram_size_warning(record) {
+            self.0.log(record);
+        }
+    }
+
+    fn flush(&self) {
+        self.0.flush();
+    }
+}
+
+/// Logs to stderr: `RUST_LOG`, default [`DEFAULT_LOG_FILTER`], through [`NodeLogger`].
+fn init_logging() {
+    let logger = env_logger::Builder::from_env(
+        env_logger::Env::default().default_filter_or(DEFAULT_LOG_FILTER),
+    )
+    .build();
+    let max_level = logger.filter();
+    if log::set_boxed_logger(Box::new(NodeLogger(logger))).is_ok() {
+        log::set_max_level(max_level);
+    }
+}
+
 /// What a node is, for its `--help`: its name, one line on what it does, its parameters.
 pub struct NodeInfo {
     pub name: &'static str,
@@ -62,7 +106,7 @@ fn program_args(args: &[String]) -> Result<ProgramArgs, RosError> {
     }
 }
 
-/// Runs a node's body: logs to stderr (`RUST_LOG`, default [`DEFAULT_LOG_FILTER`]), and turns
+/// Runs a node's body: logs to stderr ([`init_logging`]), and turns
 /// an error into a one-line message and a non-zero exit code: 2 for a bad argument or
 /// parameter, 1 otherwise. `--help` prints the node's usage instead.
 pub fn run(node: &NodeInfo, body: impl FnOnce(&Shutdown) -> anyhow::Result<()>) -> ExitCode {
@@ -79,8 +123,7 @@ pub fn run(node: &NodeInfo, body: impl FnOnce(&Shutdown) -> anyhow::Result<()>) 
             return ExitCode::from(2);
         }
     }
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(DEFAULT_LOG_FILTER))
-        .init();
+    init_logging();
     let shutdown = match Shutdown::install() {
         Ok(s) => s,
         Err(e) => {
@@ -290,6 +333,37 @@ mod tests {
             usage.contains("  use_sim_time (bool, default false)"),
             "{usage}"
         );
+    }
+
+    #[test]
+    fn rustdds_datagram_size_warnings_are_dropped_and_its_other_warnings_kept() {
+        use log::{Level, Record};
+        let dropped = |target: &str, message: &str| {
+            is_datagram_size_warning(
+                &Record::builder()
+                    .level(Level::Warn)
+                    .target(target)
+                    .args(format_args!("{message}"))
+                    .build(),
+            )
+        };
+        // One per full-size scan, from the driver and the replay.
+        assert!(dropped(
+            UDP_SENDER_TARGET,
+            "try_send_to_locator: Message size = 3012"
+        ));
+        assert!(dropped(
+            UDP_SENDER_TARGET,
+            "send_to_locator: Message size = 1600"
+        ));
+        assert!(!dropped(
+            UDP_SENDER_TARGET,
+            "raw_send: Unicast to 127.0.0.1:7412 : Os { code: 101 } len=3012"
+        ));
+        assert!(!dropped(
+            "rustdds::other",
+            "try_send_to_locator: Message size = 3012"
+        ));
     }
 
     #[test]

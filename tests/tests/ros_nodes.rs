@@ -271,6 +271,66 @@ wait $E; echo "scan_echo=$?"
     );
 }
 
+/// A subscriber that was already running gets the transient-local /map of a replay that ends
+/// at once: the replay used to exit before discovery had matched it (RustDDS's wait for
+/// acknowledgements returns at once while no reader has matched).
+#[test]
+fn ros_a_short_replay_reaches_a_subscriber_that_was_already_running() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 2);
+    let script = r#"
+"$LH" topic echo /map --count 1 --timeout 30 --require-count > "$OUT/map.jsonl" & E=$!
+# The echo's reader is on the graph before the replay starts.
+wait_until 20 topics_listed /map
+# Discovery may take a while on a loaded machine: allow it 10 s.
+"$REPLAY" --ros-args -p bag:="$BAG" -p topics:="[/map]" -p wait_for_all_acked:=10; echo "replay=$?"
+wait $E; echo "echo=$?"
+"#;
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(60));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["replay=0", "echo=0"] {
+        assert!(stdout.contains(want), "expected {want}");
+    }
+    assert_eq!(json_lines(&dir.path().join("map.jsonl")).len(), 1);
+}
+
+/// With `loop`, a pass lasts at least a second of bag time: a selection spanning no bag time
+/// (a lone /map) used to be published again and again at once, thousands a second.
+#[test]
+fn ros_replay_loops_a_lone_map_once_a_second() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 2);
+    let script = r#"
+"$LH" topic echo /map --timeout 60 > "$OUT/map.jsonl" & E=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p topics:="[/map]" -p loop:=true -p wait_for_subscriber:=/map &
+R=$!
+# It loops: a second /map comes.
+wait_until 20 has_lines "$OUT/map.jsonl" 2
+before=$(wc -l < "$OUT/map.jsonl"); sleep 3; after=$(wc -l < "$OUT/map.jsonl")
+echo "maps_in_3s=$((after - before))"
+kill -TERM $R; wait $R; echo "replay=$?"
+kill -TERM $E; wait $E; echo "echo=$?"
+"#;
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(60));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["replay=0", "echo=0"] {
+        assert!(stdout.contains(want), "expected {want}");
+    }
+    let maps: usize = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("maps_in_3s="))
+        .and_then(|v| v.trim().parse().ok())
+        .expect("count printed");
+    // About three (one a second); a slow machine may show fewer, never many more.
+    assert!(maps <= 6, "{maps} /map in 3 s: the loop does not pause");
+}
+
 #[test]
 fn ros_nodes_reject_bad_parameters_naming_them() {
     if !netns_available() {
@@ -963,7 +1023,7 @@ P=$!
 # All nodes up before the first scan: the localiser subscribes /tf (only it does), the
 # classifiers advertise their pelvis topics once their models are loaded.
 wait_until 30 topics_listed /tf /human/pelvis /no_head/pelvis
-"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan -p topics:="[/scan, /odom, /map, /tf, /tf_static]"; echo "replay=$?"
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan -p topics:="[/scan, /odom, /map, /tf, /tf_static]" 2> "$OUT/replay.err"; echo "replay=$?"
 wait $P; echo "pose_echo=$?"
 wait $A; echo "activity_echo=$?"
 wait $V; echo "pelvis_echo=$?"
@@ -1013,6 +1073,11 @@ wait $N; echo "classifier_no_head=$?"
     for node in ["localiser", "classifier", "classifier_no_head"] {
         let text = log(node);
         assert!(!text.contains("ERROR"), "{node} logged errors:\n{text}");
+    }
+    // RustDDS warned about every datagram over 1500 bytes: each 720-beam scan the replay sent.
+    for node in ["replay", "localiser", "classifier"] {
+        let text = log(node);
+        assert!(!text.contains("Message size"), "{node}:\n{text}");
     }
     let classifier_log = log("classifier");
     assert!(

@@ -7,8 +7,8 @@
 
 use std::collections::HashMap;
 use std::net::Ipv4Addr;
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use lidar_har_msgs::qos::{Durability, History, QosProfile, Reliability};
@@ -25,7 +25,7 @@ use rustdds::{
 };
 
 use crate::args::DiscoveryRange;
-use crate::params::{ParamDecl, ParamValue, Parameters};
+use crate::params::{ParamValue, Parameters};
 use crate::{
     NodeBackend, PublisherBackend, RosError, Sample, SubscriberBackend, TopicInfo, split_type_name,
 };
@@ -125,6 +125,27 @@ fn from_ros2_value(v: Ros2Value) -> Option<ParamValue> {
         Ros2Value::IntegerArray(v) => ParamValue::IntegerArray(v),
         Ros2Value::DoubleArray(v) => ParamValue::DoubleArray(v),
         Ros2Value::StringArray(v) => ParamValue::StringArray(v),
+    })
+}
+
+/// What ros2-client's `NodeOptions::parameter_validator` takes: the reason for refusing a set.
+type ParameterValidator = Box<dyn Fn(&str, &Ros2Value) -> Result<(), String> + Send + Sync>;
+
+/// Refuses every `ros2 param set` once `serving` is true (ros2-client also runs the validator
+/// on the values the node is created with, which must pass). The nodes read their parameters
+/// once, at start-up: a set that succeeded used to change the value served to `ros2 param get`
+/// and nothing else. `use_sim_time` never reaches the validator: ros2-client checks it itself.
+fn read_only_validator(serving: Arc<AtomicBool>) -> ParameterValidator {
+    Box::new(move |name, value| {
+        if !serving.load(Ordering::Relaxed) {
+            return Ok(());
+        }
+        let value =
+            from_ros2_value(value.clone()).map_or_else(|| "VALUE".into(), |v| v.to_string());
+        Err(format!(
+            "read-only: {name} is read at start-up; restart the node with \
+             --ros-args -p {name}:={value}"
+        ))
     })
 }
 
@@ -248,7 +269,6 @@ impl DdsNode {
     pub(crate) fn new(
         name: &str,
         namespace: &str,
-        decls: &[ParamDecl],
         params: &Parameters,
         parameter_services: bool,
     ) -> Result<Self, RosError> {
@@ -264,33 +284,10 @@ impl DdsNode {
         for (pname, value) in params.iter() {
             options = options.declare_parameter(pname, to_ros2_value(value));
         }
-        // `ros2 param set` may change a value but not its type (as rclcpp's default).
-        let types: HashMap<String, ParamValue> = decls
-            .iter()
-            .map(|d| (d.name.clone(), d.default.clone()))
-            .collect();
-        options = options.parameter_validator(Box::new(move |pname, value| {
-            let declared = types
-                .get(pname)
-                .ok_or_else(|| format!("parameter `{pname}` is not declared"))?;
-            let given = from_ros2_value(value.clone())
-                .ok_or_else(|| format!("parameter `{pname}`: unsupported value"))?;
-            let same = std::mem::discriminant(declared) == std::mem::discriminant(&given)
-                || matches!(
-                    (declared, &given),
-                    (ParamValue::Double(_), ParamValue::Integer(_))
-                );
-            if same {
-                Ok(())
-            } else {
-                Err(format!(
-                    "parameter `{pname}` is {}, not {}",
-                    declared.type_name(),
-                    given.type_name()
-                ))
-            }
-        }));
+        let serving = Arc::new(AtomicBool::new(false));
+        options = options.parameter_validator(read_only_validator(serving.clone()));
         let mut node = context.new_node(node_name, options).map_err(dds_err)?;
+        serving.store(true, Ordering::Relaxed);
         // The spinner serves parameter services (and the graph); it ends when the node is
         // dropped.
         // The spinner also reads /clock, as builtin_interfaces/msg/Time: beside our own
@@ -408,6 +405,7 @@ impl NodeBackend for DdsNode {
             topic: topic.to_string(),
             writer,
             matched: AtomicUsize::new(0),
+            matched_ever: AtomicUsize::new(0),
         }))
     }
 
@@ -473,6 +471,23 @@ struct DdsPublisher {
     writer: DataWriter<RawCdr, RawAdapter>,
     /// Matched readers, from the writer's status events (RustDDS has no direct query).
     matched: AtomicUsize,
+    /// Readers matched at any time, also from the status events.
+    matched_ever: AtomicUsize,
+}
+
+impl DdsPublisher {
+    /// Takes in the writer's status events so far.
+    fn update_matched(&self) {
+        while let Some(status) = self.writer.try_recv_status() {
+            if let DataWriterStatus::PublicationMatched { total, current, .. } = status {
+                let count = |c: i32| usize::try_from(c).unwrap_or(0);
+                self.matched
+                    .store(count(current.count()), Ordering::Relaxed);
+                self.matched_ever
+                    .store(count(total.count()), Ordering::Relaxed);
+            }
+        }
+    }
 }
 
 impl PublisherBackend for DdsPublisher {
@@ -501,15 +516,13 @@ impl PublisherBackend for DdsPublisher {
     }
 
     fn subscription_count(&self) -> usize {
-        while let Some(status) = self.writer.try_recv_status() {
-            if let DataWriterStatus::PublicationMatched { current, .. } = status {
-                self.matched.store(
-                    usize::try_from(current.count()).unwrap_or(0),
-                    Ordering::Relaxed,
-                );
-            }
-        }
+        self.update_matched();
         self.matched.load(Ordering::Relaxed)
+    }
+
+    fn has_matched(&self) -> bool {
+        self.update_matched();
+        self.matched_ever.load(Ordering::Relaxed) > 0
     }
 
     fn wait_for_acknowledgments(&self, timeout: Duration) -> Result<bool, RosError> {
@@ -560,6 +573,22 @@ impl SubscriberBackend for DdsSubscriber {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ros2_param_set_is_refused_naming_the_restart_that_would_apply_it() {
+        let serving = Arc::new(AtomicBool::new(false));
+        let validate = read_only_validator(serving.clone());
+        // ros2-client validates the values the node is created with.
+        validate("rate", &Ros2Value::Double(2.0)).unwrap();
+        serving.store(true, Ordering::Relaxed);
+        // Used to be accepted (and then ignored by the node).
+        assert_eq!(
+            validate("rate", &Ros2Value::Double(2.5)).unwrap_err(),
+            "read-only: rate is read at start-up; restart the node with --ros-args -p rate:=2.5"
+        );
+        let err = validate("model", &Ros2Value::String("/m.onnx".into())).unwrap_err();
+        assert!(err.ends_with("-p model:=\"/m.onnx\""), "{err}");
+    }
 
     #[test]
     fn rtps_time_converts_to_nanoseconds() {

@@ -164,6 +164,11 @@ trait NodeBackend: Send + Sync {
 trait PublisherBackend: Send + Sync {
     fn publish(&self, cdr: &[u8]) -> Result<(), RosError>;
     fn subscription_count(&self) -> usize;
+    /// Whether any subscriber has matched, one that has left since included (r2r tells only
+    /// how many are matched now).
+    fn has_matched(&self) -> bool {
+        self.subscription_count() > 0
+    }
     fn wait_for_acknowledgments(&self, timeout: Duration) -> Result<bool, RosError>;
 }
 
@@ -206,7 +211,6 @@ impl Node {
             Backend::Dds => Box::new(dds::DdsNode::new(
                 &name,
                 &namespace,
-                &decls,
                 &params,
                 setup.parameter_services,
             )?),
@@ -240,7 +244,8 @@ impl Node {
         &self.params
     }
 
-    /// The current value of a parameter, including changes made with `ros2 param set`.
+    /// The value of a parameter that the node serves to `ros2 param get`: with the DDS backend,
+    /// which refuses `ros2 param set` (but of `use_sim_time`), its start-up value.
     pub fn parameter(&self, name: &str) -> Option<ParamValue> {
         self.backend
             .parameter(name)
@@ -344,6 +349,12 @@ impl Publisher {
     /// Subscribers matched so far.
     pub fn subscription_count(&self) -> usize {
         self.inner.subscription_count()
+    }
+
+    /// Whether any subscriber has matched so far, including one that has left since (with
+    /// r2r: one is matched now).
+    pub fn has_matched(&self) -> bool {
+        self.inner.has_matched()
     }
 
     /// Blocks until every matched reliable subscriber has acknowledged all that was

@@ -7,7 +7,13 @@
 //! those the bag lacks are skipped with a warning, none present is an error), `publish_clock`,
 //! `wait_for_subscriber` (a topic to wait on before playing, up to `wait_timeout` s),
 //! `wait_for_all_acked` (s to wait at the end for reliable subscribers to acknowledge
-//! everything, so the last messages are not lost when the process exits; 0 = don't wait).
+//! everything, so the last messages are not lost when the process exits, and, while the
+//! replay has run for less than that, for a subscriber to match each reliable topic first;
+//! 0 = don't wait).
+//!
+//! With `loop`, each pass lasts the whole bag (from `start_offset` to its last message, of any
+//! topic) and at least a second of bag time, both over the rate: a selection of topics that
+//! spans no bag time (`topics:=[/map]`) used to be published again and again without a pause.
 
 use std::collections::HashMap;
 use std::process::ExitCode;
@@ -17,7 +23,7 @@ use anyhow::{Context, bail};
 use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
 use lidar_har_bag::BagReader;
 use lidar_har_msgs::builtin_interfaces::Time;
-use lidar_har_msgs::qos::QosProfile;
+use lidar_har_msgs::qos::{QosProfile, Reliability};
 use lidar_har_msgs::rosgraph_msgs::Clock;
 use lidar_har_msgs::topics;
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, Publisher, RosError};
@@ -75,7 +81,8 @@ fn decls() -> Vec<ParamDecl> {
         ParamDecl::new(
             "wait_for_all_acked",
             V::Double(2.0),
-            "seconds to wait at the end for reliable subscribers to acknowledge all messages",
+            "seconds to wait at the end for reliable subscribers to acknowledge all messages \
+             (and, in a shorter replay, for them to match first)",
         ),
     ]
 }
@@ -220,12 +227,18 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
         );
     }
     let mut publishers: HashMap<String, Publisher> = HashMap::new();
+    let mut reliable = Vec::new();
     for topic in reader.topics() {
         if selection.play.contains(&topic.name) {
-            let publisher = node.publisher(&topic.name, &topic.type_name, qos_for(topic))?;
+            let qos = qos_for(topic);
+            let publisher = node.publisher(&topic.name, &topic.type_name, qos)?;
             publishers.insert(topic.name.clone(), publisher);
+            if qos.reliability == Reliability::Reliable {
+                reliable.push(topic.name.clone());
+            }
         }
     }
+    let writers_created = Instant::now();
     let clock = if settings.publish_clock {
         Some(node.publisher_for(&topics::CLOCK)?)
     } else {
@@ -252,7 +265,7 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
             }
         }
     }
-    let bag_start = reader.metadata().start_ns;
+    let (bag_start, bag_end) = (reader.metadata().start_ns, reader.metadata().end_ns);
     let mut played = 0u64;
     loop {
         let begin = bag_start.saturating_add(settings.start_offset_ns);
@@ -285,10 +298,14 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
         if !settings.looping || shutdown.requested() {
             break;
         }
+        if settings.rate > 0.0 && !shutdown.sleep_until(pacing.pass_end(bag_end, Instant::now())) {
+            break;
+        }
     }
     log::info!("replay: played {played} messages from {}", settings.bag);
     if !shutdown.requested() && !settings.acked_timeout.is_zero() {
-        wait_for_all_acked(publishers.values(), settings.acked_timeout);
+        let reliable = reliable.iter().filter_map(|topic| publishers.get(topic));
+        wait_for_all_acked(reliable, writers_created, settings.acked_timeout, shutdown);
     }
     Ok(())
 }
@@ -296,6 +313,10 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
 /// Bag time between two messages beyond which the replay plays on at once instead of
 /// waiting: a damaged stamp (a sqlite3 row at -9e18 ns) or a recorder paused for hours.
 const MAX_WAITED_GAP_NS: i64 = 3_600_000_000_000;
+
+/// The least bag time a pass of `loop` lasts: one second, so that a selection of topics
+/// that spans no bag time (a single /map) is not published again and again at once.
+const MIN_PASS_NS: i64 = 1_000_000_000;
 
 /// When each message is due on the wall clock: its bag time since an anchor, scaled by the
 /// rate. The anchor moves to a message that comes more than [`MAX_WAITED_GAP_NS`] after the
@@ -305,6 +326,7 @@ struct Pacing {
     anchor_ns: i64,
     anchor_at: Instant,
     previous_ns: i64,
+    start: Instant,
 }
 
 impl Pacing {
@@ -315,7 +337,17 @@ impl Pacing {
             anchor_ns: begin_ns,
             anchor_at: start,
             previous_ns: begin_ns,
+            start,
         }
+    }
+
+    /// When a pass of `loop` that played its messages ends: at the bag's end `end_ns` (the
+    /// last message of any topic, played or not), paced as a message would be, and at least
+    /// [`MIN_PASS_NS`] of bag time after the pass started.
+    fn pass_end(&mut self, end_ns: i64, now: Instant) -> Instant {
+        let at_bag_end = self.due(end_ns, now, "the end of the bag");
+        let shortest = Duration::from_secs_f64(MIN_PASS_NS as f64 / 1e9 / self.rate);
+        at_bag_end.max(self.start + shortest)
     }
 
     fn due(&mut self, log_time_ns: i64, now: Instant, topic: &str) -> Instant {
@@ -341,10 +373,29 @@ impl Pacing {
     }
 }
 
-/// Waits, up to `timeout` in all, until the reliable subscribers acknowledged everything.
-fn wait_for_all_acked<'a>(publishers: impl Iterator<Item = &'a Publisher>, timeout: Duration) {
+/// At the end, waits for each reliable writer in `reliable` to have had a subscriber, up to
+/// `timeout` after the writers were `created`, then, up to `timeout` again in all, for the
+/// subscribers to acknowledge everything. RustDDS's wait for acknowledgements returns at once
+/// while no reader has matched: a short replay exited before discovery had matched a
+/// subscriber that was already running, which never got the transient-local /map. A replay
+/// without subscribers waits at most `timeout`, and not at all once it has played as long.
+fn wait_for_all_acked<'a>(
+    reliable: impl Iterator<Item = &'a Publisher> + Clone,
+    created: Instant,
+    timeout: Duration,
+    shutdown: &Shutdown,
+) {
+    let matching_deadline = created + timeout;
+    for publisher in reliable.clone() {
+        while !publisher.has_matched() && Instant::now() < matching_deadline {
+            let next_look = Instant::now() + Duration::from_millis(20);
+            if !shutdown.sleep_until(next_look.min(matching_deadline)) {
+                return;
+            }
+        }
+    }
     let deadline = Instant::now() + timeout;
-    for publisher in publishers {
+    for publisher in reliable {
         let left = deadline.saturating_duration_since(Instant::now());
         match publisher.wait_for_acknowledgments(left) {
             Ok(true) => {}
@@ -390,6 +441,35 @@ mod tests {
         assert_eq!(due, later + Duration::from_millis(50));
         // A stamp at the end of time neither waits nor overflows.
         assert_eq!(pacing.due(i64::MAX, later, "/scan"), later);
+    }
+
+    #[test]
+    fn a_loop_pass_lasts_until_the_bags_end_over_the_rate() {
+        // Only /map, at the start of a 4 s bag, is played: the pass still lasts 4 s of bag time.
+        let start = Instant::now();
+        let mut pacing = Pacing::new(0, start, 2.0);
+        assert_eq!(pacing.due(0, start, "/map"), start);
+        let end = pacing.pass_end(4_000_000_000, start);
+        assert_eq!(end, start + Duration::from_secs(2));
+    }
+
+    #[test]
+    fn a_loop_pass_of_no_bag_time_lasts_a_second_of_it() {
+        // A bag of one message used to be played again and again at once (a core spinning).
+        let start = Instant::now();
+        let mut pacing = Pacing::new(5, start, 4.0);
+        pacing.due(5, start, "/map");
+        assert_eq!(
+            pacing.pass_end(5, start),
+            start + Duration::from_millis(250)
+        );
+        // A bag's end an hour of bag time after the last message played is not waited for
+        // (as a gap between messages), but the pass still lasts a second of bag time.
+        let mut pacing = Pacing::new(0, start, 1.0);
+        pacing.due(0, start, "/map");
+        let later = start + Duration::from_millis(10);
+        let end = pacing.pass_end(2 * MAX_WAITED_GAP_NS, later);
+        assert_eq!(end, start + Duration::from_secs(1));
     }
 
     #[test]
