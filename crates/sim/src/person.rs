@@ -16,6 +16,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::body::{BodyDims, Capsule, PARTS, PoseParams, capsules};
 use crate::scene::{FallDirection, PersonSpec, SceneError, ScriptStep, is_locomotion};
+use crate::validate::describe;
 use crate::world::World;
 
 /// Per-person traits drawn once per episode.
@@ -482,6 +483,9 @@ impl Person {
             world_check: Some(world.clone()),
         };
         let first = person.make_plan(0.0, start.position(), start.theta, None)?;
+        if first.activity == Activity::Crawling {
+            check_room_to_crawl(world, &person.traits, &first)?;
+        }
         person.plans.push(first);
         // Plan the whole first pass now, so path errors surface before simulating.
         while person.next_step < person.steps.len() {
@@ -539,27 +543,38 @@ impl Person {
         };
         self.next_step += 1;
         let a = step.activity;
-        let prev_lying = prev.map(|(p, _)| p.lying);
-        let lying = match (a, step.fall) {
-            (Activity::FallingDown, Some(d)) => d,
-            (Activity::FallingDown, None) => [
+        let prev_activity = prev.map(|(p, _)| p.activity);
+        // After a fall, lying or getting up the body stays on the side it fell on.
+        let keeps_side = matches!(
+            prev_activity,
+            Some(Activity::FallingDown | Activity::LyingDown | Activity::GettingUp)
+        );
+        let lying = match (a, step.fall, prev) {
+            (Activity::FallingDown, Some(d), _) => d,
+            (Activity::FallingDown, None, _) => [
                 FallDirection::Forward,
                 FallDirection::Backward,
                 FallDirection::Left,
                 FallDirection::Right,
             ][self.rng.random_range(0..4)],
-            _ => match (prev.map(|(p, _)| p.activity), prev_lying) {
-                (
-                    Some(Activity::FallingDown | Activity::LyingDown | Activity::GettingUp),
-                    Some(d),
-                ) => d,
-                _ => [
-                    FallDirection::Backward,
-                    FallDirection::Left,
-                    FallDirection::Right,
-                ][self.rng.random_range(0..3)],
-            },
+            (_, _, Some((p, _))) if keeps_side => p.lying,
+            _ => [
+                FallDirection::Backward,
+                FallDirection::Left,
+                FallDirection::Right,
+            ][self.rng.random_range(0..3)],
         };
+        // Lying down without a fall, or getting up without being on the floor first (a
+        // script's first step), lays the body on a side drawn here: it needs the room a
+        // fall's landing needs.
+        // Getting up from sitting or crawling is left alone: random scripts do it all the
+        // time, and checking it would draw some of them again.
+        let lies_down_unchecked = !keeps_side
+            && match a {
+                Activity::LyingDown => true,
+                Activity::GettingUp => !prev_activity.is_some_and(Activity::is_on_floor),
+                _ => false,
+            };
         let (base_speed, base_freq) = gait_defaults(a);
         let speed = step.speed.unwrap_or(
             base_speed * self.traits.pace * self.traits.stride * self.rng.random_range(0.9..=1.1),
@@ -601,19 +616,34 @@ impl Person {
             motion_time: step.duration.min(15.0),
         };
         // A fall needs room on the floor: the body may twist as it goes down, or fall
-        // another way, so that it lands clear of walls and furniture.
+        // another way, so that it lands clear of walls and furniture. Lying down without a
+        // fall takes the same care; there the pelvis stays where it was and the feet go
+        // where the re-anchoring below puts them.
         let mut heading = heading;
-        if a == Activity::FallingDown
+        if (a == Activity::FallingDown || lies_down_unchecked)
             && let Some(world) = &self.world_check
         {
-            let (lying, twist) =
-                fall_direction(world, root, heading, self.traits.dims.height, plan.lying).map_err(
-                    |message| SceneError::Invalid {
-                        origin: "scene".to_string(),
-                        key: format!("person.script[{index}].fall"),
-                        message,
-                    },
-                )?;
+            let (verb, key) = if a == Activity::FallingDown {
+                ("fall", format!("person.script[{index}].fall"))
+            } else {
+                ("lie", format!("person.script[{index}]"))
+            };
+            let feet = |dir: FallDirection, heading: f64| match prev {
+                Some((_, prev_pose)) if a != Activity::FallingDown => {
+                    root + rotate(
+                        prev_pose.pelvis - self.traits.lying(dir, 0.0).pelvis,
+                        heading,
+                    )
+                }
+                _ => root,
+            };
+            let height = self.traits.dims.height;
+            let (lying, twist) = fall_direction(world, feet, heading, height, plan.lying, verb)
+                .map_err(|message| SceneError::Invalid {
+                    origin: "scene".to_string(),
+                    key,
+                    message,
+                })?;
             plan.lying = lying;
             heading += twist;
             plan.heading0 = heading;
@@ -731,25 +761,39 @@ impl Person {
 /// Room a fallen body needs on each side of its axis, metres.
 const FALLEN_BODY_HALF_WIDTH: f64 = 0.12;
 
+/// What a body lying on the floor from `feet` along the unit vector `axis`, `length` metres
+/// long, would hit: nine points along it need [`FALLEN_BODY_HALF_WIDTH`] from walls and
+/// furniture. `Some(None)` is a wall, `Some(Some(i))` furniture `i`.
+fn body_axis_blocker(
+    world: &World,
+    feet: DVec2,
+    axis: DVec2,
+    length: f64,
+) -> Option<Option<usize>> {
+    (1..=9).find_map(|k| {
+        let p = feet + axis * (length * k as f64 / 10.0);
+        let (clearance, what) = world.person_clearance(p);
+        (clearance < FALLEN_BODY_HALF_WIDTH).then_some(what)
+    })
+}
+
 /// How a fall lands clear of walls and furniture: `wanted` straight on when it fits, else
 /// the smallest twist of the body (up to 60 degrees either way), else another direction with
 /// the smallest twist. A scripted direction is a preference: the person's random size and
-/// sway decide where exactly they stand and face when they fall. Returns the direction and
-/// the twist (radians, added to the heading).
+/// sway decide where exactly they stand and face when they fall. `feet(direction, heading)`
+/// is where the feet of the body lying that way end up; `verb` names the motion in the
+/// error. Returns the direction and the twist (radians, added to the heading).
 fn fall_direction(
     world: &World,
-    feet: DVec2,
+    feet: impl Fn(FallDirection, f64) -> DVec2,
     heading: f64,
     height: f64,
     wanted: FallDirection,
+    verb: &str,
 ) -> Result<(FallDirection, f64), String> {
     let blocker = |dir: FallDirection, twist: f64| {
         let axis = rotate(lying_vector(dir), heading + twist);
-        (1..=9).find_map(|k| {
-            let p = feet + axis * (height * k as f64 / 10.0);
-            let (clearance, what) = world.person_clearance(p);
-            (clearance < FALLEN_BODY_HALF_WIDTH).then_some(what)
-        })
+        body_axis_blocker(world, feet(dir, heading + twist), axis, height)
     };
     let order = [
         FallDirection::Forward,
@@ -770,16 +814,37 @@ fn fall_direction(
             }
         }
     }
-    let what = match wanted_blocker.flatten() {
-        Some(i) => format!(
-            "furniture[{i}] '{}'",
-            world.furniture.get(i).map_or("", |f| f.name.as_str())
-        ),
-        None => "a wall".to_string(),
-    };
     Err(format!(
-        "no room to fall here: the body would hit {what}, and walls or furniture every other way"
+        "no room to {verb} here: the body would hit {}, and walls or furniture every other way",
+        describe(world, wanted_blocker.flatten())
     ))
+}
+
+/// A script that starts crawling starts with the body stretched out on the floor, the legs
+/// behind the start: the body from its rearmost to its foremost joint needs the room a
+/// fall's landing needs.
+fn check_room_to_crawl(world: &World, traits: &Traits, first: &Plan) -> Result<(), SceneError> {
+    let (pose, heading) = first.pose(traits, first.start);
+    let root = first.root(first.start);
+    let axis = DVec2::from_angle(heading);
+    let (behind, ahead) = capsules(&traits.dims, &pose, root, heading)
+        .iter()
+        .flat_map(|c| [c.a, c.b])
+        .map(|end| (end.truncate() - root).dot(axis))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+            (lo.min(x), hi.max(x))
+        });
+    match body_axis_blocker(world, root + axis * behind, axis, ahead - behind) {
+        Some(what) => Err(SceneError::Invalid {
+            origin: "scene".to_string(),
+            key: "person.script[0]".to_string(),
+            message: format!(
+                "no room to crawl here: the body would reach into {}",
+                describe(world, what)
+            ),
+        }),
+        None => Ok(()),
+    }
 }
 
 fn path_error(step: usize, point: usize, message: String) -> SceneError {
@@ -971,6 +1036,90 @@ mod tests {
                 && err.to_string().contains("no room"),
             "{err}"
         );
+    }
+
+    /// The least clearance from walls and furniture of the ends of the body's parts at `t`
+    /// (of the trunk alone with `trunk_only`).
+    fn body_clearance(person: &mut Person, world: &World, t: f64, trunk_only: bool) -> f64 {
+        let st = person.state_at(t);
+        let parts = if trunk_only {
+            &st.parts[10..11]
+        } else {
+            &st.parts[..]
+        };
+        parts
+            .iter()
+            .flat_map(|c| [c.a, c.b])
+            .map(|end| world.person_clearance(end.truncate()).0)
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn lying_down_without_a_fall_lies_clear_of_the_wall() {
+        // 0.11 m from the wall at y = 0, facing along it: lying backward (along the wall) or
+        // on the right side (into it) put the body through the wall; such a side is drawn
+        // at random for a script that starts lying or getting up, or lies down standing.
+        // Like a fall's landing, the trunk lies clear; a limb may still touch the wall.
+        let room = |y: f64, script: &str| {
+            let text = format!(
+                "duration: 30\nroom: {{outline: [[0,0],[8,0],[8,6],[0,6]]}}\nrobot: {{start: {{x: 7, y: 5}}}}\nperson:\n  start: {{x: 4, y: {y}, yaw_deg: 0}}\n  script:\n{script}"
+            );
+            Scene::parse(&text, "test").unwrap()
+        };
+        for (y, script, t) in [
+            (0.11, "    - {activity: lying_down, duration: 5}\n", 1.0),
+            (0.11, "    - {activity: getting_up, duration: 3}\n", 0.0),
+            (
+                1.2,
+                "    - {activity: standing, duration: 1}\n    - {activity: lying_down, duration: 5}\n",
+                3.0,
+            ),
+        ] {
+            let s = room(y, script);
+            let world = World::new(&s);
+            for seed in 0..8 {
+                let mut p = Person::new(s.person.as_ref().unwrap(), &world, seed).unwrap();
+                let clear = body_clearance(&mut p, &world, t, true);
+                assert!(
+                    clear > FALLEN_BODY_HALF_WIDTH,
+                    "seed {seed}, {script}: the trunk {clear} m from the wall"
+                );
+            }
+        }
+        // A spot boxed in on every side has no room to lie: an error naming the step.
+        let cramped = "duration: 60\nroom: {outline: [[0,0],[1.2,0],[1.2,1.2],[0,1.2]]}\nrobot: {start: {x: 0.2, y: 0.2}}\nperson:\n  start: {x: 0.6, y: 0.6}\n  script:\n    - {activity: standing, duration: 1}\n    - {activity: lying_down, duration: 5}\n";
+        let s = Scene::parse(cramped, "test").unwrap();
+        let err = Person::new(s.person.as_ref().unwrap(), &World::new(&s), 1)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("person.script[1]: no room to lie here: the body would hit a wall"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_script_that_starts_crawling_needs_room_for_the_legs() {
+        // Crawling away from a wall 0.3 m behind: the legs trail about 0.9 m.
+        let text = |x: f64| {
+            format!(
+                "duration: 10\nroom: {{outline: [[0,0],[8,0],[8,6],[0,6]]}}\nrobot: {{start: {{x: 7, y: 5}}}}\nperson:\n  start: {{x: {x}, y: 3}}\n  script:\n    - {{activity: crawling, duration: 5, path: [[4, 3]]}}\n"
+            )
+        };
+        let s = Scene::parse(&text(0.3), "test").unwrap();
+        let err = Person::new(s.person.as_ref().unwrap(), &World::new(&s), 1)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(
+                "person.script[0]: no room to crawl here: the body would reach into a wall"
+            ),
+            "{err}"
+        );
+        let s = Scene::parse(&text(1.2), "test").unwrap();
+        let world = World::new(&s);
+        let mut p = Person::new(s.person.as_ref().unwrap(), &world, 1).unwrap();
+        assert!(body_clearance(&mut p, &world, 0.0, false) > 0.0);
     }
 
     #[test]

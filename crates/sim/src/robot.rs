@@ -17,6 +17,8 @@ use crate::world::World;
 /// Extra distance the planner keeps from obstacles beyond the robot's radius.
 pub const PLANNING_MARGIN: f64 = 0.03;
 const GRID_RESOLUTION: f64 = 0.05;
+/// The shortest straight run a `bounce` motion drives; shorter ones end the bouncing.
+const MIN_BOUNCE_RUN: f64 = 0.05;
 
 /// The robot's velocity in its own frame (base_link): forward speed and turn rate.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -226,6 +228,24 @@ impl Grid {
         Some(out)
     }
 
+    /// The longest of up to 32 runs from `p` in random directions, stopping at the first
+    /// longer than half a metre: `(length, direction)`.
+    fn longest_free_run(&self, p: DVec2, rng: &mut ChaCha8Rng) -> Option<(f64, DVec2)> {
+        let mut best: Option<(f64, DVec2)> = None;
+        for _ in 0..32 {
+            let dir =
+                DVec2::from_angle(rng.random_range(-std::f64::consts::PI..std::f64::consts::PI));
+            let d = self.free_run(p, dir);
+            if best.is_none_or(|(bd, _)| d > bd) {
+                best = Some((d, dir));
+            }
+            if d > 0.5 {
+                break;
+            }
+        }
+        best
+    }
+
     /// How far the robot can drive from `p` along `dir` before leaving free space.
     fn free_run(&self, p: DVec2, dir: DVec2) -> f64 {
         let step = GRID_RESOLUTION * 0.2;
@@ -351,22 +371,21 @@ impl RobotMotion {
             Motion::Bounce { runs } => {
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
                 let mut p = s;
-                for _ in 0..*runs {
-                    let mut best: Option<(f64, DVec2)> = None;
-                    for _ in 0..32 {
-                        let dir = DVec2::from_angle(
-                            rng.random_range(-std::f64::consts::PI..std::f64::consts::PI),
-                        );
-                        let d = grid.free_run(p, dir);
-                        if best.is_none_or(|(bd, _)| d > bd) {
-                            best = Some((d, dir));
-                        }
-                        if d > 0.5 {
-                            break;
-                        }
+                for run in 0..*runs {
+                    let mut best = grid.longest_free_run(p, &mut rng);
+                    // A start within the planning margin of a wall lies outside the grid's
+                    // free space, where no run begins: set off from the nearest free cell
+                    // instead (the first leg drives there). Robots that found a first run
+                    // keep their plan.
+                    if run == 0
+                        && best.is_none_or(|(d, _)| d <= MIN_BOUNCE_RUN)
+                        && let Some(cell) = grid.nearest_free(s)
+                    {
+                        p = grid.center(cell);
+                        best = grid.longest_free_run(p, &mut rng);
                     }
                     match best {
-                        Some((d, dir)) if d > 0.05 => {
+                        Some((d, dir)) if d > MIN_BOUNCE_RUN => {
                             p += dir * d;
                             stops.push(p);
                         }
@@ -572,6 +591,24 @@ mod tests {
             let s = scene(motion);
             let m = RobotMotion::new(&s.robot, &World::new(&s), 3).unwrap();
             assert!(m.period() > 10.0, "{motion}");
+            check_clear(&s, &m);
+        }
+    }
+
+    #[test]
+    fn a_bounce_started_near_a_wall_sets_off() {
+        // The start is 2 cm beyond the robot's radius from the wall at x = 0, inside the
+        // planning margin: no run starts there, and the robot once shuttled 5 cm for ever.
+        for seed in 0..4 {
+            let text = "duration: 10\nroom: {outline: [[0,0],[6,0],[6,4],[0,4]]}\nrobot: {start: {x: 0.19, y: 2}, motion: {kind: bounce, runs: 10}}\n";
+            let s = Scene::parse(text, "t").unwrap();
+            let m = RobotMotion::new(&s.robot, &World::new(&s), seed).unwrap();
+            let driven: f64 = m.path.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+            assert!(
+                driven > 2.0,
+                "seed {seed}: drove {driven} m, path {:?}",
+                m.path
+            );
             check_clear(&s, &m);
         }
     }

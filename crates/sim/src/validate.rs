@@ -16,6 +16,11 @@ type Check = Result<(), (String, String)>;
 /// How close to furniture or a wall a person may start (about half a body's depth).
 pub const PERSON_START_CLEARANCE: f64 = 0.1;
 
+/// How close to furniture or a wall a person whose script starts sitting on the floor may
+/// start: a seated body of 1.75 m reaches about 0.6 m ahead (the feet) and behind (the
+/// hands). Random scripts start at least this far from everything, so none is refused.
+pub const SEATED_START_CLEARANCE: f64 = 0.6;
+
 fn fail(key: impl Into<String>, message: impl Into<String>) -> Check {
     Err((key.into(), message.into()))
 }
@@ -77,7 +82,8 @@ fn polygon(key: &str, pts: &[[f64; 2]]) -> Check {
     Ok(())
 }
 
-fn describe(world: &World, furniture: Option<usize>) -> String {
+/// Names what a check hit: furniture `i` (with its name when it has one) or a wall.
+pub(crate) fn describe(world: &World, furniture: Option<usize>) -> String {
     match furniture {
         Some(i) if world.furniture[i].name.is_empty() => format!("furniture[{i}]"),
         Some(i) => format!("furniture[{i}] '{}'", world.furniture[i].name),
@@ -404,6 +410,16 @@ fn check_person(world: &World, p: &PersonSpec) -> Check {
     if p.script.is_empty() {
         return fail("person.script", "needs at least one step");
     }
+    if p.script[0].activity == Activity::SittingOnFloor && clear < SEATED_START_CLEARANCE {
+        return fail(
+            "person.script[0]",
+            format!(
+                "sitting on the floor from the start needs {SEATED_START_CLEARANCE} m around \
+                 person.start; it is {clear:.2} m from {}",
+                describe(world, what)
+            ),
+        );
+    }
     for (i, s) in p.script.iter().enumerate() {
         check_script_step(world, &format!("person.script[{i}]"), s)?;
     }
@@ -694,6 +710,21 @@ mod tests {
         ] {
             accepted(&room(piece));
         }
+    }
+
+    #[test]
+    fn a_script_that_starts_sitting_on_the_floor_needs_room_to_sit() {
+        let sitting = |x: f64| {
+            format!(
+                "duration: 5\nroom: {{outline: [[0,0],[5,0],[5,4],[0,4]]}}\nrobot: {{start: {{x: 4.5, y: 3.5}}}}\nperson: {{start: {{x: {x}, y: 2}}, script: [{{activity: sitting_on_floor, duration: 5}}]}}\n"
+            )
+        };
+        assert_eq!(
+            error(&sitting(0.3)),
+            "bad.yaml: person.script[0]: sitting on the floor from the start needs 0.6 m around \
+             person.start; it is 0.30 m from a wall"
+        );
+        accepted(&sitting(0.6));
     }
 
     #[test]
