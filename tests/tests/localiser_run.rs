@@ -3,8 +3,8 @@
 //! ground truth on /ground_truth/human_pose. Checks the output bag and summary.json, the
 //! errors for a missing map, a garbled map, a missing bag and a bag without scans, odometry
 //! given only on /tf, a map file against the bag's /map, a bag cut short, a sweeping
-//! Lidar on a turning robot (de-skew), an hour without scans, and one odometry stamp an hour
-//! ahead.
+//! Lidar on a turning robot (de-skew), an hour without scans, one odometry stamp an hour
+//! ahead, and odometry delivered late.
 
 use std::path::Path;
 
@@ -731,6 +731,70 @@ fn one_odometry_stamp_an_hour_ahead_does_not_stop_localisation() {
     assert_eq!(summary["warnings"]["odometry_ahead"], 1, "{summary:#}");
     assert_eq!(
         summary["warnings"]["odometry_too_old"],
+        serde_json::Value::Null
+    );
+}
+
+/// Copies the bag at `src` to `dst` with the messages on `topic` received (logged)
+/// `delay_ns` after they were, their stamps kept: a base whose odometry comes late.
+fn delay_topic(src: &Path, dst: &Path, topic: &str, delay_ns: i64) {
+    let reader = BagReader::open(src).unwrap();
+    let mut writer = BagWriter::create(dst, WriterOptions::default()).unwrap();
+    let handles: Vec<_> = reader
+        .topics()
+        .iter()
+        .map(|t| (t.name.clone(), writer.add_topic_like(t).unwrap()))
+        .collect();
+    let mut messages: Vec<_> = reader
+        .messages()
+        .unwrap()
+        .map(|m| {
+            let mut m = m.unwrap();
+            if *m.topic == *topic {
+                m.log_time_ns += delay_ns;
+            }
+            m
+        })
+        .collect();
+    // Stable: a delayed message goes before those logged at its new time.
+    messages.sort_by_key(|m| m.log_time_ns);
+    for m in messages {
+        let (_, handle) = handles.iter().find(|(name, _)| *name == *m.topic).unwrap();
+        writer.write(*handle, m.log_time_ns, &m.data).unwrap();
+    }
+    writer.finish().unwrap();
+}
+
+/// A simulated recording whose /odom messages each arrive 150 ms after their stamp: each
+/// scan waits for the odometry at its stamp (`odometry.max_wait_s`) and is placed as on
+/// time. (Placed on arrival, every scan was newer than the newest odometry by more than
+/// `max_extrapolation_s` and skipped.)
+#[test]
+fn scans_wait_for_odometry_delivered_late_and_are_all_placed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let on_time = tmp.path().join("on_time");
+    let simulated = lidar_har_command()
+        .args(["simulate", "--duration", "10", "--out"])
+        .arg(&on_time)
+        .current_dir(lidar_har_e2e::repo_root())
+        .output()
+        .unwrap();
+    assert!(simulated.status.success(), "{simulated:?}");
+    let late = tmp.path().join("late");
+    delay_topic(&on_time, &late, topics::ODOM.name, 150_000_000);
+    let (expected, _) = run_observed(&on_time, &tmp.path().join("on_time_out"));
+    let (summary, _) = run_observed(&late, &tmp.path().join("late_out"));
+    assert_eq!(
+        expected["scans_localised"], expected["scans"],
+        "{expected:#}"
+    );
+    assert_eq!(
+        summary["scans_localised"], expected["scans_localised"],
+        "{summary:#}"
+    );
+    assert_eq!(summary["position_error_m"], expected["position_error_m"]);
+    assert_eq!(
+        summary["warnings"]["odometry_stale"],
         serde_json::Value::Null
     );
 }

@@ -155,6 +155,7 @@ impl LocaliserConfig {
                 "odometry.max_extrapolation_s",
                 self.odometry.max_extrapolation_s,
             ),
+            ("odometry.max_wait_s", self.odometry.max_wait_s),
         ];
         let positive = [
             // 0 would split every pair of returns: nobody found, and nothing said.
@@ -233,6 +234,11 @@ pub struct OdometryConfig {
     pub max_interpolation_gap_s: f64,
     /// A scan may be this much newer (or older) than the newest (oldest) sample (s).
     pub max_extrapolation_s: f64,
+    /// A scan newer than the newest sample waits up to this long, in receive time, for a
+    /// sample at or after its stamp (odometry delivered late, as a tf2 message filter
+    /// waits for its transform); then it is placed with what there is (s; 0: no wait).
+    /// The host does the waiting (`lidar_har_pipeline::odometry_wait`), not the core.
+    pub max_wait_s: f64,
     /// Motion between samples faster than this is a jump (a reset or a glitch), not driving.
     pub max_speed_mps: f64,
     pub max_turn_rate_radps: f64,
@@ -250,6 +256,8 @@ impl Default for OdometryConfig {
         Self {
             max_interpolation_gap_s: 0.5,
             max_extrapolation_s: 0.1,
+            // A few scans' delay: odometry delivered a few hundred ms late is waited for.
+            max_wait_s: 0.5,
             max_speed_mps: 2.0,
             max_turn_rate_radps: 6.0,
             buffer_s: 5.0,
@@ -669,6 +677,12 @@ impl Localiser {
     /// An odometry sample: the pose of `base_link` in `odom` at `stamp_ns`.
     pub fn add_odometry(&mut self, stamp_ns: i64, pose: Pose2) -> Option<Warning> {
         self.odometry.insert(stamp_ns, pose, &self.config.odometry)
+    }
+
+    /// The stamp of the newest odometry sample in use, if any: a scan stamped after it would
+    /// be placed by extrapolation.
+    pub fn latest_odometry_ns(&self) -> Option<i64> {
+        self.odometry.samples.back().map(|&(stamp_ns, _)| stamp_ns)
     }
 
     /// The latest `map -> odom` correction (from AMCL or SLAM on /tf).

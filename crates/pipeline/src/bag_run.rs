@@ -3,7 +3,6 @@
 //! `summary.json` beside them.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use glam::DVec2;
 use lidar_har_bag::{BagError, BagMessage, BagReader, BagWriter, TopicHandle, WriterOptions};
@@ -20,7 +19,7 @@ use crate::classifier::{
     ClassifierStage,
 };
 use crate::localiser_stage::{MountSource, carries_odometry};
-use crate::{LocaliserStage, Outgoing, RoomSource};
+use crate::{LocaliserStage, Outgoing, PipelineError, RoomSource, Step};
 
 /// What to run with.
 #[derive(Debug, Clone, Default)]
@@ -281,6 +280,10 @@ impl Stages {
             ));
             return Ok(());
         }
+        // Scans whose wait for odometry ran out before this message go first, whatever it is,
+        // as on a node's clock.
+        let expired = self.localiser.release_expired(message.log_time_ns);
+        self.record(expired, message.log_time_ns, out_dir, tally)?;
         if let Some(taken) = self
             .classifier
             .as_mut()
@@ -304,8 +307,7 @@ impl Stages {
         self.localise(message, out_dir, tally)
     }
 
-    /// Feeds one of the localiser's inputs to it and writes what it publishes, each message
-    /// after the classifier has seen it (its own outputs go first).
+    /// Feeds one of the localiser's inputs to it.
     fn localise(
         &mut self,
         message: &BagMessage,
@@ -313,38 +315,52 @@ impl Stages {
         tally: &mut Tally,
     ) -> Result<(), RunError> {
         let topic = &*message.topic;
-        let is_scan = topic == topics::SCAN.name;
-        tally.scans += u64::from(is_scan);
-        let started = Instant::now();
-        let step = match self.localiser.handle(topic, &message.data) {
+        tally.scans += u64::from(topic == topics::SCAN.name);
+        let step = self
+            .localiser
+            .handle(topic, &message.data, message.log_time_ns);
+        self.record(step, message.log_time_ns, out_dir, tally)
+    }
+
+    /// Tallies the scans the localiser went through and writes what it publishes at
+    /// `log_time_ns`, each message after the classifier has seen it (its own outputs go
+    /// first); a message it could not use is counted as skipped.
+    fn record(
+        &mut self,
+        step: Result<Step, PipelineError>,
+        log_time_ns: i64,
+        out_dir: &Path,
+        tally: &mut Tally,
+    ) -> Result<(), RunError> {
+        let step = match step {
             Ok(step) => step,
             Err(e) => {
-                tally.skip(format_args!("skipped at {} ns: {e}", message.log_time_ns));
+                tally.skip(format_args!("skipped at {log_time_ns} ns: {e}"));
                 return Ok(());
             }
         };
-        if is_scan {
+        for scan in &step.scans {
             tally
                 .pipeline_times
-                .push(started.elapsed().as_secs_f64() * 1e6);
-            if let Some(t) = self.localiser.last_scan_time() {
-                tally.scan_times.push(t.as_secs_f64() * 1e6);
-            }
-        }
-        if let Some(output) = &step.localised {
-            tally.scans_localised += 1;
-            if let Some(person) = &output.person {
-                tally.tracked += 1;
-                tally.visible += u64::from(person.visible);
-                tally.estimates.push((output.stamp_ns, person.position));
+                .push(scan.pipeline_time.as_secs_f64() * 1e6);
+            tally
+                .scan_times
+                .push(scan.localise_time.as_secs_f64() * 1e6);
+            if let Some(output) = &scan.output {
+                tally.scans_localised += 1;
+                if let Some(person) = &output.person {
+                    tally.tracked += 1;
+                    tally.visible += u64::from(person.visible);
+                    tally.estimates.push((output.stamp_ns, person.position));
+                }
             }
         }
         for out in &step.outgoing {
             if let Some(c) = self.classifier.as_mut() {
-                c.on_localiser_output(out, message.log_time_ns, &mut self.outputs)?;
+                c.on_localiser_output(out, log_time_ns, &mut self.outputs)?;
             }
             self.outputs
-                .write(out, message.log_time_ns)
+                .write(out, log_time_ns)
                 .map_err(output_error(out_dir))?;
         }
         Ok(())
@@ -360,9 +376,13 @@ fn replay(
     stages: &mut Stages,
 ) -> Result<Tally, RunError> {
     let mut tally = Tally::default();
+    let mut last_log_time_ns = 0;
     for message in reader.messages().map_err(input_error(input))? {
         match message {
-            Ok(message) => stages.feed(&message, out_dir, &mut tally)?,
+            Ok(message) => {
+                stages.feed(&message, out_dir, &mut tally)?;
+                last_log_time_ns = last_log_time_ns.max(message.log_time_ns);
+            }
             Err(e) => {
                 // Keep what was read: finish the outputs and the summary, then report it.
                 tally.read_error = Some(e.to_string());
@@ -370,6 +390,9 @@ fn replay(
             }
         }
     }
+    // Scans still waiting for odometry are localised with what there is, not lost.
+    let left = stages.localiser.finish();
+    stages.record(left, last_log_time_ns, out_dir, &mut tally)?;
     Ok(tally)
 }
 

@@ -15,12 +15,15 @@ pub mod classifier;
 pub mod convert;
 pub mod files;
 pub mod localiser_stage;
+pub mod odometry_wait;
+
+use std::time::Duration;
 
 use lidar_har_core::localiser::LocaliserOutput;
 use lidar_har_msgs::topics::TopicSpec;
 use lidar_har_msgs::{CdrError, RosMessage};
 
-pub use localiser_stage::{LocaliserMessages, LocaliserStage, RoomSource};
+pub use localiser_stage::{LocaliserInput, LocaliserMessages, LocaliserStage, RoomSource};
 
 /// A message for a topic of the contract, ready to publish or record.
 #[derive(Debug, Clone)]
@@ -64,8 +67,21 @@ impl From<CdrError> for PipelineError {
 /// What one incoming message produced.
 #[derive(Debug, Default)]
 pub struct Step {
-    /// The localiser's result, when the message was a scan that could be used.
-    pub localised: Option<LocaliserOutput>,
+    /// The scans localised, in the order they came: the message itself when it is a scan
+    /// with its odometry, and scans that waited for odometry (`odometry.max_wait_s`) which
+    /// this message's odometry, or its receive time, let go.
+    pub scans: Vec<ProcessedScan>,
     /// Messages to publish, in order.
     pub outgoing: Vec<Outgoing>,
+}
+
+/// One scan through the localiser.
+#[derive(Debug)]
+pub struct ProcessedScan {
+    /// The localiser's result; `None` when the scan was skipped or learned from.
+    pub output: Option<LocaliserOutput>,
+    /// The core's time (conversion and logging excluded).
+    pub localise_time: Duration,
+    /// Decoding, localising and encoding the outputs (not the wait for odometry).
+    pub pipeline_time: Duration,
 }

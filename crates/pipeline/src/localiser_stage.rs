@@ -1,5 +1,6 @@
 //! The localiser fed with ROS messages: resolves frames from /tf and /tf_static, converts
-//! each message, logs the core's warnings (rate-limited) and builds the output messages.
+//! each message, holds scans that came before their odometry ([`crate::odometry_wait`]),
+//! logs the core's warnings (rate-limited) and builds the output messages.
 
 use std::collections::{BTreeMap, HashMap};
 use std::time::{Duration, Instant};
@@ -19,7 +20,8 @@ use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_msgs::visualization_msgs::MarkerArray;
 use serde::Serialize;
 
-use crate::{Outgoing, PipelineError, Step, convert};
+use crate::odometry_wait::OdometryWait;
+use crate::{Outgoing, PipelineError, ProcessedScan, Step, convert};
 
 /// How the room is told apart from the person.
 #[derive(Debug, Clone)]
@@ -30,6 +32,24 @@ pub enum RoomSource {
     MapTopic,
     /// No map exists: learn the background from the first scans of a stationary Lidar.
     LearnedBackground,
+}
+
+/// A decoded input message of the stage (one of [`LocaliserStage::INPUTS`]).
+#[derive(Debug, Clone)]
+pub enum LocaliserInput {
+    Scan(LaserScan),
+    /// Boxed: its covariances make it five times the size of the others.
+    Odometry(Box<Odometry>),
+    Map(OccupancyGrid),
+    Tf(TFMessage),
+    TfStatic(TFMessage),
+}
+
+/// A scan decoded on arrival, waiting for the odometry at its stamp.
+#[derive(Debug)]
+struct ArrivedScan {
+    msg: LaserScan,
+    decode_time: Duration,
 }
 
 /// The three messages the localiser publishes for one scan.
@@ -102,8 +122,8 @@ pub struct LocaliserStage {
     warnings: WarningLog,
     occupied_thresh: f64,
     last_stamp_ns: i64,
-    /// Time the core took for the latest scan.
-    last_scan_time: Option<Duration>,
+    /// Scans that came before the odometry at their stamp, oldest first.
+    waiting: OdometryWait<ArrivedScan>,
     scans_learning: u64,
     mount: MountSource,
     /// The localiser configuration's mount, for a scan frame /tf_static does not reach.
@@ -144,6 +164,12 @@ impl LocaliserStage {
         let configured_mount = config.mount;
         let learned_background = matches!(room, RoomSource::LearnedBackground);
         let map_given = matches!(room, RoomSource::Map(_));
+        // A fixed Lidar needs no odometry: its scans never wait.
+        let max_wait_s = if moving && !learned_background {
+            config.odometry.max_wait_s
+        } else {
+            0.0
+        };
         let localiser = match room {
             RoomSource::LearnedBackground => Localiser::with_learned_background(config)?,
             RoomSource::Map(map) => Localiser::new(config, Reference::Map(map), motion(moving))?,
@@ -161,7 +187,7 @@ impl LocaliserStage {
             warnings: WarningLog::default(),
             occupied_thresh: MAP_SERVER_OCCUPIED_THRESH,
             last_stamp_ns: 0,
-            last_scan_time: None,
+            waiting: OdometryWait::new(max_wait_s),
             scans_learning: 0,
             mount: if learned_background {
                 MountSource::None
@@ -175,11 +201,6 @@ impl LocaliserStage {
 
     pub fn localiser(&self) -> &Localiser {
         &self.localiser
-    }
-
-    /// How long the core took for the latest scan (conversion and logging excluded).
-    pub fn last_scan_time(&self) -> Option<Duration> {
-        self.last_scan_time
     }
 
     /// Where the Lidar's mount comes from.
@@ -230,37 +251,120 @@ impl LocaliserStage {
         Self::INPUTS.iter().any(|t| t.name == topic)
     }
 
-    /// Feeds one message (CDR with its encapsulation header) received on `topic`; messages
-    /// on other topics than [`Self::INPUTS`] are ignored.
-    pub fn handle(&mut self, topic: &str, cdr: &[u8]) -> Result<Step, PipelineError> {
-        let mut step = Step::default();
+    /// Feeds one message (CDR with its encapsulation header) received on `topic` at
+    /// `received_ns` (the host's receive time: a bag's log time, a node's clock); messages on
+    /// other topics than [`Self::INPUTS`] are ignored. A scan stamped after the newest
+    /// odometry waits for it up to `odometry.max_wait_s` ([`crate::odometry_wait`]), so the
+    /// step may hold no scan, or several that waited.
+    pub fn handle(
+        &mut self,
+        topic: &str,
+        cdr: &[u8],
+        received_ns: i64,
+    ) -> Result<Step, PipelineError> {
         let decode_error = |source| PipelineError::Decode {
             topic: topic.to_string(),
             cause: source,
         };
-        match topic {
+        let started = Instant::now();
+        let input = match topic {
             t if t == topics::SCAN.name => {
-                let scan = lidar_har_msgs::decode(cdr).map_err(decode_error)?;
-                if let Some(output) = self.on_scan(&scan) {
-                    step.outgoing = self.outgoing(&output)?;
-                    step.localised = Some(output);
-                }
+                LocaliserInput::Scan(lidar_har_msgs::decode(cdr).map_err(decode_error)?)
             }
-            t if t == topics::ODOM.name => {
-                self.on_odom(&lidar_har_msgs::decode(cdr).map_err(decode_error)?)
-            }
+            t if t == topics::ODOM.name => LocaliserInput::Odometry(Box::new(
+                lidar_har_msgs::decode(cdr).map_err(decode_error)?,
+            )),
             t if t == topics::MAP.name => {
-                self.on_map(&lidar_har_msgs::decode(cdr).map_err(decode_error)?)
+                LocaliserInput::Map(lidar_har_msgs::decode(cdr).map_err(decode_error)?)
             }
             t if t == topics::TF.name => {
-                self.on_tf(&lidar_har_msgs::decode(cdr).map_err(decode_error)?)
+                LocaliserInput::Tf(lidar_har_msgs::decode(cdr).map_err(decode_error)?)
             }
             t if t == topics::TF_STATIC.name => {
-                self.on_tf_static(&lidar_har_msgs::decode(cdr).map_err(decode_error)?)
+                LocaliserInput::TfStatic(lidar_har_msgs::decode(cdr).map_err(decode_error)?)
             }
-            _ => {}
+            _ => return Ok(Step::default()),
+        };
+        self.accept(input, received_ns, started.elapsed())
+    }
+
+    /// Feeds one decoded message received at `received_ns`, as [`Self::handle`] does.
+    pub fn receive(
+        &mut self,
+        input: LocaliserInput,
+        received_ns: i64,
+    ) -> Result<Step, PipelineError> {
+        self.accept(input, received_ns, Duration::ZERO)
+    }
+
+    /// Localises the scans whose wait for odometry is over at `now_ns` (receive time): for a
+    /// host that has no message to hand over for a while.
+    pub fn release_expired(&mut self, now_ns: i64) -> Result<Step, PipelineError> {
+        let mut step = Step::default();
+        while let Some(scan) = self.waiting.pop_expired(now_ns) {
+            self.localise_into(&mut step, scan)?;
         }
         Ok(step)
+    }
+
+    /// When the oldest waiting scan stops waiting (receive time), if one waits: a host with
+    /// no message by then calls [`Self::release_expired`].
+    pub fn wait_deadline_ns(&self) -> Option<i64> {
+        self.waiting.deadline_ns()
+    }
+
+    /// Localises every scan still waiting for odometry, with what there is: the input has
+    /// ended (a bag's end, a node's shutdown).
+    pub fn finish(&mut self) -> Result<Step, PipelineError> {
+        let mut step = Step::default();
+        while let Some(scan) = self.waiting.pop_any() {
+            self.localise_into(&mut step, scan)?;
+        }
+        Ok(step)
+    }
+
+    /// Scans whose wait ran out before this message came go first, as a host waiting on
+    /// its clock had let them go; then the message, then the scans it lets go.
+    fn accept(
+        &mut self,
+        input: LocaliserInput,
+        received_ns: i64,
+        decode_time: Duration,
+    ) -> Result<Step, PipelineError> {
+        let mut step = self.release_expired(received_ns)?;
+        match input {
+            LocaliserInput::Scan(msg) => {
+                let stamp_ns = msg.header.stamp.to_nanos();
+                let scan = ArrivedScan { msg, decode_time };
+                self.waiting.push(stamp_ns, received_ns, scan);
+            }
+            LocaliserInput::Odometry(msg) => self.on_odom(&msg),
+            LocaliserInput::Map(msg) => self.on_map(&msg),
+            LocaliserInput::Tf(msg) => self.on_tf(&msg),
+            LocaliserInput::TfStatic(msg) => self.on_tf_static(&msg),
+        }
+        while let Some(scan) = self
+            .waiting
+            .pop_ready(self.localiser.latest_odometry_ns(), received_ns)
+        {
+            self.localise_into(&mut step, scan)?;
+        }
+        Ok(step)
+    }
+
+    /// Localises one scan and adds it, with its output messages, to `step`.
+    fn localise_into(&mut self, step: &mut Step, scan: ArrivedScan) -> Result<(), PipelineError> {
+        let started = Instant::now();
+        let (output, localise_time) = self.localise(&scan.msg);
+        if let Some(output) = &output {
+            step.outgoing.extend(self.outgoing(output)?);
+        }
+        step.scans.push(ProcessedScan {
+            output,
+            localise_time,
+            pipeline_time: scan.decode_time + started.elapsed(),
+        });
+        Ok(())
     }
 
     /// One output's messages, encoded for their topics.
@@ -286,8 +390,9 @@ impl LocaliserStage {
         Ok(out)
     }
 
-    /// Localises the person in one scan; `None` when the scan was skipped or learned from.
-    pub fn on_scan(&mut self, msg: &LaserScan) -> Option<LocaliserOutput> {
+    /// Localises the person in one scan (`None` when the scan was skipped or learned from),
+    /// and the time the core took.
+    fn localise(&mut self, msg: &LaserScan) -> (Option<LocaliserOutput>, Duration) {
         let frame = msg.header.frame_id.trim_start_matches('/');
         if self.laser_frame.as_deref() != Some(frame) {
             self.laser_frame = Some(frame.to_string());
@@ -297,7 +402,7 @@ impl LocaliserStage {
         self.last_stamp_ns = scan.stamp_ns;
         let started = Instant::now();
         let result = self.localiser.process_scan(&scan);
-        self.last_scan_time = Some(started.elapsed());
+        let localise_time = started.elapsed();
         self.scans_learning += u64::from(result.learning);
         // A configured mount is a choice unless /tf_static speaks, but of other frames.
         if self.mount == MountSource::Configuration
@@ -317,11 +422,11 @@ impl LocaliserStage {
         for w in &result.warnings {
             self.warnings.record(w, scan.stamp_ns);
         }
-        result.output
+        (result.output, localise_time)
     }
 
     /// Odometry: the pose of the base in the odom frame.
-    pub fn on_odom(&mut self, msg: &Odometry) {
+    fn on_odom(&mut self, msg: &Odometry) {
         self.odom_topic_seen = true;
         let stamp_ns = msg.header.stamp.to_nanos();
         self.last_stamp_ns = stamp_ns;
@@ -333,7 +438,7 @@ impl LocaliserStage {
 
     /// A new map replaces the previous one (not a map file the user gave, nor the learned
     /// background, which needs none).
-    pub fn on_map(&mut self, msg: &OccupancyGrid) {
+    fn on_map(&mut self, msg: &OccupancyGrid) {
         if self.learned_background {
             return;
         }
@@ -351,7 +456,7 @@ impl LocaliserStage {
 
     /// Dynamic transforms: the `map -> odom` correction, and `odom -> base_link` as the
     /// odometry while no /odom message has come.
-    pub fn on_tf(&mut self, msg: &TFMessage) {
+    fn on_tf(&mut self, msg: &TFMessage) {
         for t in &msg.transforms {
             let parent = t.header.frame_id.trim_start_matches('/');
             let child = t.child_frame_id.trim_start_matches('/');
@@ -372,7 +477,7 @@ impl LocaliserStage {
     }
 
     /// Static transforms: the mount of the Lidar on the base, possibly through a chain.
-    pub fn on_tf_static(&mut self, msg: &TFMessage) {
+    fn on_tf_static(&mut self, msg: &TFMessage) {
         for t in &msg.transforms {
             let parent = t.header.frame_id.trim_start_matches('/').to_string();
             let child = t.child_frame_id.trim_start_matches('/').to_string();
@@ -482,6 +587,20 @@ mod tests {
         }
     }
 
+    /// Feeds `msg` (received at 0) and gives the output of the one scan that goes through.
+    fn scan_output(stage: &mut LocaliserStage, msg: LaserScan) -> Option<LocaliserOutput> {
+        let mut step = stage.receive(LocaliserInput::Scan(msg), 0).unwrap();
+        assert_eq!(step.scans.len(), 1, "the scan did not go through at once");
+        step.scans.remove(0).output
+    }
+
+    fn odometry(stamp_ns: i64, x: f64) -> LocaliserInput {
+        let mut odom = Odometry::default();
+        odom.header.stamp = Time::from_nanos(stamp_ns);
+        odom.pose.pose.position.x = x;
+        LocaliserInput::Odometry(Box::new(odom))
+    }
+
     fn empty_room() -> OccupancyMap {
         let geometry = lidar_har_core::map::MapGeometry {
             resolution: 0.1,
@@ -513,7 +632,7 @@ mod tests {
         let mut odom = Odometry::default();
         odom.pose.pose.position.y = 2.0;
         stage.on_odom(&odom);
-        let out = stage.on_scan(&scan(0)).expect("localised");
+        let out = scan_output(&mut stage, scan(0)).expect("localised");
         assert!(
             (out.laser_pose.x - 1.3).abs() < 1e-12,
             "{:?}",
@@ -543,7 +662,7 @@ mod tests {
             transforms: vec![tf("base_link", "rplidar_link", 0.2, 0.0)],
         });
         for k in 0..=SCANS_BEFORE_MOUNT_WARNING {
-            let out = stage.on_scan(&scan(i64::from(k))).expect("localised");
+            let out = scan_output(&mut stage, scan(i64::from(k))).expect("localised");
             assert_eq!(out.laser_pose, mount);
         }
         assert_eq!(stage.mount_source(), MountSource::Configuration);
@@ -556,7 +675,7 @@ mod tests {
         stage.on_tf_static(&TFMessage {
             transforms: vec![tf("base_link", "laser", 0.2, 0.0)],
         });
-        let out = stage.on_scan(&scan(0)).expect("localised");
+        let out = scan_output(&mut stage, scan(0)).expect("localised");
         assert!(
             (out.laser_pose.x - 0.2).abs() < 1e-12,
             "{:?}",
@@ -565,10 +684,10 @@ mod tests {
         assert_eq!(stage.mount_source(), MountSource::TfStatic);
         let mut other = scan(1);
         other.header.frame_id = "other_laser".into();
-        let out = stage.on_scan(&other).expect("localised");
+        let out = scan_output(&mut stage, other).expect("localised");
         assert_eq!(out.laser_pose, mount);
         assert_eq!(stage.mount_source(), MountSource::Configuration);
-        let out = stage.on_scan(&scan(2)).expect("localised");
+        let out = scan_output(&mut stage, scan(2)).expect("localised");
         assert!(
             (out.laser_pose.x - 0.2).abs() < 1e-12,
             "{:?}",
@@ -582,7 +701,7 @@ mod tests {
         let mut stage =
             LocaliserStage::new(LocaliserConfig::default(), RoomSource::MapTopic, false).unwrap();
         for k in 0..5 {
-            assert!(stage.on_scan(&scan(k)).is_none());
+            assert!(scan_output(&mut stage, scan(k)).is_none());
         }
         assert_eq!(stage.warning_counts().get("no_map"), Some(&5));
     }
@@ -595,7 +714,95 @@ mod tests {
             false,
         )
         .unwrap();
-        assert!(stage.on_scan(&scan(0)).is_none(), "learning");
+        assert!(scan_output(&mut stage, scan(0)).is_none(), "learning");
         assert_eq!(stage.output_frame(), "laser");
+    }
+
+    const MS: i64 = 1_000_000;
+
+    fn moving_stage() -> LocaliserStage {
+        LocaliserStage::new(
+            LocaliserConfig::default(),
+            RoomSource::Map(empty_room()),
+            true,
+        )
+        .unwrap()
+    }
+
+    /// The x of each scan's Lidar pose in `step`, in order (`None`: skipped).
+    fn placed_x(step: &Step) -> Vec<Option<f64>> {
+        step.scans
+            .iter()
+            .map(|s| s.output.as_ref().map(|o| o.laser_pose.x))
+            .collect()
+    }
+
+    #[test]
+    fn scans_before_their_odometry_wait_for_it_and_keep_their_order() {
+        let mut stage = moving_stage();
+        // Odometry 150 ms late: each sample comes 150 ms after its stamp.
+        let step = stage.receive(odometry(0, 0.0), 150 * MS).unwrap();
+        assert!(step.scans.is_empty());
+        for k in 1..=3 {
+            let step = stage.receive(LocaliserInput::Scan(scan(k * 100 * MS)), k * 100 * MS);
+            assert!(step.unwrap().scans.is_empty(), "scan {k} waits");
+        }
+        assert_eq!(stage.wait_deadline_ns(), Some(600 * MS));
+        let step = stage.receive(odometry(200 * MS, 0.2), 350 * MS).unwrap();
+        assert_eq!(placed_x(&step), [Some(0.1), Some(0.2)]);
+        assert_eq!(step.outgoing.len(), 2, "markers of both scans");
+        let step = stage.receive(odometry(300 * MS, 0.3), 450 * MS).unwrap();
+        assert_eq!(placed_x(&step), [Some(0.3)]);
+        assert_eq!(stage.wait_deadline_ns(), None);
+        assert!(
+            stage.warning_counts().is_empty(),
+            "{:?}",
+            stage.warning_counts()
+        );
+    }
+
+    #[test]
+    fn a_scan_whose_wait_runs_out_is_placed_with_what_there_is() {
+        let mut stage = moving_stage();
+        stage.receive(odometry(0, 0.0), 0).unwrap();
+        stage.receive(odometry(100 * MS, 0.1), 100 * MS).unwrap();
+        let step = stage.receive(LocaliserInput::Scan(scan(150 * MS)), 150 * MS);
+        assert!(step.unwrap().scans.is_empty());
+        let step = stage.receive(LocaliserInput::Scan(scan(400 * MS)), 400 * MS);
+        assert!(step.unwrap().scans.is_empty());
+        assert!(stage.release_expired(649 * MS).unwrap().scans.is_empty());
+        // Extrapolated 50 ms, within `max_extrapolation_s`.
+        let step = stage.release_expired(650 * MS).unwrap();
+        let [Some(x)] = placed_x(&step)[..] else {
+            panic!("{:?}", placed_x(&step));
+        };
+        assert!((x - 0.15).abs() < 1e-9, "{x}");
+        // A message after the next deadline lets that scan go before it is taken in: the
+        // odometry it brings comes too late for it, as on a node's clock.
+        let step = stage.receive(odometry(400 * MS, 0.4), 901 * MS).unwrap();
+        assert_eq!(placed_x(&step), [None]);
+        assert_eq!(stage.warning_counts().get("odometry_stale"), Some(&1));
+    }
+
+    #[test]
+    fn scans_waiting_when_the_input_ends_are_localised() {
+        let mut stage = moving_stage();
+        stage.receive(odometry(0, 0.0), 0).unwrap();
+        stage
+            .receive(LocaliserInput::Scan(scan(50 * MS)), 50 * MS)
+            .unwrap();
+        assert_eq!(placed_x(&stage.finish().unwrap()), [Some(0.0)]);
+        assert_eq!(stage.wait_deadline_ns(), None);
+    }
+
+    #[test]
+    fn a_fixed_lidar_never_waits_for_odometry() {
+        let mut stage = LocaliserStage::new(
+            LocaliserConfig::default(),
+            RoomSource::Map(empty_room()),
+            false,
+        )
+        .unwrap();
+        assert!(scan_output(&mut stage, scan(0)).is_some());
     }
 }

@@ -5,14 +5,16 @@
 //! Parameters: `config` (a `config/localiser.yaml`-format file; empty = defaults),
 //! `map_file` (a map_server YAML; empty = wait for /map), `learned_background` (no map: learn
 //! the room from the first scans of a fixed Lidar), `moving` (odometry moves the robot).
+//! A scan stamped after the newest odometry waits for it up to the configuration's
+//! `odometry.max_wait_s` on this node's clock; scans still waiting at shutdown are published.
 
 use std::process::ExitCode;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use lidar_har::{NodeInfo, Outputs, Shutdown, bad_parameter, optional_path};
 use lidar_har_msgs::qos::{QosProfile, Reliability};
 use lidar_har_msgs::topics::{self, TopicSpec};
-use lidar_har_pipeline::{LocaliserStage, RoomSource, files};
+use lidar_har_pipeline::{LocaliserStage, PipelineError, RoomSource, Step, files};
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, RosError};
 
 fn main() -> ExitCode {
@@ -104,7 +106,10 @@ fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
         })
         .collect::<Result<Vec<_>, RosError>>()?;
     let outputs = Outputs::new(&node, &LocaliserStage::OUTPUTS)?;
-    let mut decode_errors = 0u64;
+    // Receive time for the stage's wait for odometry: this node's monotonic clock.
+    let clock = Instant::now();
+    let now_ns = || clock.elapsed().as_nanos() as i64;
+    let mut unusable = UnusableMessages::default();
     let mut batch = Vec::new();
     while !shutdown.requested() {
         for (topic, sub) in &inputs {
@@ -113,7 +118,9 @@ fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
             }
         }
         if batch.is_empty() {
-            node.wait(Duration::from_millis(100))?;
+            // A scan waiting for odometry goes when its wait is over, message or not.
+            unusable.publish(&outputs, stage.release_expired(now_ns()))?;
+            node.wait(idle_wait(stage.wait_deadline_ns(), now_ns()))?;
             continue;
         }
         // Messages of different topics that arrived together are used in publication order
@@ -125,25 +132,72 @@ fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
                 *topic == topics::SCAN.name,
             )
         });
+        let received_ns = now_ns();
         for (topic, sample) in batch.drain(..) {
-            match stage.handle(topic, &sample.bytes) {
-                Ok(step) => outputs.publish(&step.outgoing)?,
-                Err(e) => {
-                    decode_errors += 1;
-                    if decode_errors.is_power_of_two() {
-                        log::warn!("{e} ({decode_errors} undecodable messages so far)");
-                    }
+            unusable.publish(&outputs, stage.handle(topic, &sample.bytes, received_ns))?;
+        }
+    }
+    // Scans still waiting for odometry are localised with what there is, not lost.
+    unusable.publish(&outputs, stage.finish())?;
+    log::info!(
+        "localiser: stopped; {} undecodable messages",
+        unusable.count
+    );
+    Ok(())
+}
+
+/// Longest wait for messages before the loop looks at shutdown again.
+const POLL_INTERVAL: Duration = Duration::from_millis(100);
+
+/// How long to wait for messages: until the oldest scan waiting for odometry stops waiting
+/// (`deadline_ns`, on the clock that gives `now_ns`), at most [`POLL_INTERVAL`].
+fn idle_wait(deadline_ns: Option<i64>, now_ns: i64) -> Duration {
+    deadline_ns.map_or(POLL_INTERVAL, |deadline_ns| {
+        let left_ns = u64::try_from(deadline_ns.saturating_sub(now_ns)).unwrap_or(0);
+        POLL_INTERVAL.min(Duration::from_nanos(left_ns))
+    })
+}
+
+/// Counts the messages the stage could not use, and logs them sparingly.
+#[derive(Default)]
+struct UnusableMessages {
+    count: u64,
+}
+
+impl UnusableMessages {
+    /// Publishes what the stage produced, or counts why it could not.
+    fn publish(
+        &mut self,
+        outputs: &Outputs,
+        step: Result<Step, PipelineError>,
+    ) -> anyhow::Result<()> {
+        match step {
+            Ok(step) => outputs.publish(&step.outgoing)?,
+            Err(e) => {
+                self.count += 1;
+                if self.count.is_power_of_two() {
+                    log::warn!("{e} ({} undecodable messages so far)", self.count);
                 }
             }
         }
+        Ok(())
     }
-    log::info!("localiser: stopped; {decode_errors} undecodable messages");
-    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_idle_wait_ends_when_a_scan_stops_waiting_for_odometry() {
+        assert_eq!(idle_wait(None, 0), POLL_INTERVAL);
+        assert_eq!(
+            idle_wait(Some(30_000_000), 10_000_000),
+            Duration::from_millis(20)
+        );
+        assert_eq!(idle_wait(Some(5), 10), Duration::ZERO);
+        assert_eq!(idle_wait(Some(i64::MAX), 0), POLL_INTERVAL);
+    }
 
     #[test]
     fn odom_is_asked_best_effort_and_the_rest_as_offered() {
