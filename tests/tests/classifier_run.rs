@@ -65,6 +65,19 @@ fn dataset_for_the_committed_model(out: &Path, args: &[&str]) {
     lidar_har_ok(&all);
 }
 
+/// `lidar-har evaluate` of the committed model on the dataset `data`, into `out`.
+fn evaluate_committed_model(data: &Path, out: &Path) -> Output {
+    lidar_har(&[
+        "evaluate",
+        "--model",
+        "models/activity.onnx",
+        "--data",
+        path(data),
+        "--out",
+        path(out),
+    ])
+}
+
 /// The small real step model the infer crate is tested with (untrained: checks plumbing).
 fn test_model() -> PathBuf {
     repo_root().join("crates/infer/tests/fixtures/step_model.onnx")
@@ -693,15 +706,7 @@ fn evaluate_refuses_a_dataset_without_test_windows_before_writing_anything() {
         ],
     );
     let eval = tmp.path().join("eval");
-    let out = lidar_har(&[
-        "evaluate",
-        "--model",
-        "models/activity.onnx",
-        "--data",
-        path(&data),
-        "--out",
-        path(&eval),
-    ]);
+    let out = evaluate_committed_model(&data, &eval);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("no test windows"),
@@ -768,15 +773,12 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     ndarray_npy::write_npy(&images_path, &images).unwrap();
 
     let eval = tmp.path().join("eval");
-    lidar_har_ok(&[
-        "evaluate",
-        "--model",
-        "models/activity.onnx",
-        "--data",
-        path(&data),
-        "--out",
-        path(&eval),
-    ]);
+    let out = evaluate_committed_model(&data, &eval);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let metrics: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(eval.join("metrics.json")).unwrap()).unwrap();
     let confusion_total = |scores: &serde_json::Value| -> u64 {
@@ -849,15 +851,7 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     std::fs::write(&index_path, index.to_string()).unwrap();
     std::fs::write(data.join("test_unseen_labels.npy"), b"cut short").unwrap();
     let broken_eval = tmp.path().join("eval_broken");
-    let out = lidar_har(&[
-        "evaluate",
-        "--model",
-        "models/activity.onnx",
-        "--data",
-        path(&data),
-        "--out",
-        path(&broken_eval),
-    ]);
+    let out = evaluate_committed_model(&data, &broken_eval);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("test_unseen_labels.npy"),
@@ -875,15 +869,7 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     // The same images said to be scanned at 10 Hz: the model's 20-scan window would span 2 s.
     index["spec"]["scan_rate_hz"] = 10.0.into();
     std::fs::write(&index_path, index.to_string()).unwrap();
-    let out = lidar_har(&[
-        "evaluate",
-        "--model",
-        "models/activity.onnx",
-        "--data",
-        path(&data),
-        "--out",
-        path(&tmp.path().join("eval10")),
-    ]);
+    let out = evaluate_committed_model(&data, &tmp.path().join("eval10"));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(err.contains("20 Hz") && err.contains("10 Hz"), "{err}");
