@@ -44,9 +44,9 @@ const RUN_DIR: &str = "run";
 const SCENE_PNG: &str = "scene.png";
 const TIMELINE_PNG: &str = "timeline.png";
 
-/// The entries of `out` an earlier demo left (its folders and pictures, by name and kind),
-/// for a new run to replace; an error naming any other entry, so that only the demo's own
-/// output is ever deleted. Nothing when `out` does not exist.
+/// The entries of `out` an earlier demo left (its bags and pictures, by name and kind), for
+/// a new run to replace; an error naming any other entry, so that only the demo's own output
+/// is ever deleted. Nothing when `out` does not exist.
 fn earlier_demo_output(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let entries = match std::fs::read_dir(out) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
@@ -61,14 +61,15 @@ fn earlier_demo_output(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
             .with_context(|| format!("--out {}: cannot list it", out.display()))?;
         let name = entry.file_name();
         let demos = if kind.is_dir() {
-            name == SIM_DIR || name == RUN_DIR
+            // A folder of one of the demo's names that is not a bag is someone else's.
+            (name == SIM_DIR || name == RUN_DIR) && entry.path().join("metadata.yaml").is_file()
         } else {
             kind.is_file() && (name == SCENE_PNG || name == TIMELINE_PNG)
         };
         anyhow::ensure!(
             demos,
-            "--out {} already exists and holds {}, which the demo does not write: choose \
-             another or delete it",
+            "--out {} already exists and holds {}, which is not an earlier demo's output: \
+             choose another or delete it",
             out.display(),
             name.to_string_lossy()
         );
@@ -408,6 +409,10 @@ mod tests {
             "{error}"
         );
         std::fs::remove_file(out.join("notes.txt")).unwrap();
+        std::fs::remove_file(out.join(RUN_DIR).join("metadata.yaml")).unwrap();
+        let error = earlier_demo_output(&out).unwrap_err().to_string();
+        assert!(error.contains("holds run, which is not"), "{error}");
+        std::fs::write(out.join(RUN_DIR).join("metadata.yaml"), "").unwrap();
         std::fs::remove_file(out.join(SCENE_PNG)).unwrap();
         std::fs::create_dir(out.join(SCENE_PNG)).unwrap();
         let error = earlier_demo_output(&out).unwrap_err().to_string();
