@@ -12,7 +12,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use lidar_har::{NodeInfo, Outputs, Shutdown, bad_parameter, optional_path};
-use lidar_har_msgs::qos::{QosProfile, Reliability};
+use lidar_har_msgs::qos::{History, QosProfile, Reliability};
 use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_pipeline::{LocaliserStage, PipelineError, RoomSource, Step, files};
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, RosError};
@@ -83,17 +83,28 @@ fn stage(node: &Node) -> Result<LocaliserStage, RosError> {
 /// with; /odom is asked best effort, which matches reliable and best-effort publishers
 /// alike (robot bases such as the iRobot Create 3 publish their sensor topics best effort,
 /// and a reliable subscription would never match them). A lost odometry message only
-/// widens the interpolation between its neighbours.
+/// widens the interpolation between its neighbours. /tf_static is kept 100 deep, as tf2's
+/// static listener keeps it: joining late, the node gets every static publisher's latched
+/// message at once (robot_state_publisher's and a static_transform_publisher's), and a
+/// depth of 1 would keep only the last, perhaps not the one with the Lidar's mount.
 fn subscription_qos(spec: &TopicSpec) -> QosProfile {
     if spec.name == topics::ODOM.name {
         QosProfile {
             reliability: Reliability::BestEffort,
             ..spec.qos
         }
+    } else if spec.name == topics::TF_STATIC.name {
+        QosProfile {
+            history: History::KeepLast(TF_STATIC_DEPTH),
+            ..spec.qos
+        }
     } else {
         spec.qos
     }
 }
+
+/// tf2_ros's `StaticListenerQoS` depth.
+const TF_STATIC_DEPTH: u32 = 100;
 
 fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = Node::new(NodeSetup::new("localiser").parameters(decls()))?;
@@ -187,6 +198,7 @@ impl UnusableMessages {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lidar_har_msgs::qos::Durability;
 
     #[test]
     fn the_idle_wait_ends_when_a_scan_stops_waiting_for_odometry() {
@@ -200,11 +212,17 @@ mod tests {
     }
 
     #[test]
-    fn odom_is_asked_best_effort_and_the_rest_as_offered() {
+    fn odom_is_asked_best_effort_tf_static_deep_and_the_rest_as_offered() {
         let odom = subscription_qos(&topics::ODOM);
         assert_eq!(odom.reliability, Reliability::BestEffort);
         assert_eq!(odom.history, topics::ODOM.qos.history);
-        for spec in [topics::SCAN, topics::MAP, topics::TF, topics::TF_STATIC] {
+        let tf_static = subscription_qos(&topics::TF_STATIC);
+        assert_eq!(tf_static.history, History::KeepLast(100));
+        assert_eq!(
+            (tf_static.reliability, tf_static.durability),
+            (Reliability::Reliable, Durability::TransientLocal)
+        );
+        for spec in [topics::SCAN, topics::MAP, topics::TF] {
             assert_eq!(subscription_qos(&spec), spec.qos, "{}", spec.name);
         }
     }
