@@ -841,6 +841,11 @@ fn evaluate_scores_a_fixed_lidar_dataset_per_lidar_spot() {
     );
     assert!(eval.join("confusion_test.png").is_file());
 
+    // A file in the way of --out is refused before the scoring.
+    let out = evaluate_committed_model(&data, &eval.join("report.md"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("is a file"), "{err}");
+
     // A broken second split: an error naming its file, and no outputs from the good one.
     let index_path = data.join("index.json");
     let mut index: serde_json::Value =

@@ -348,7 +348,6 @@ impl StepModel for ActivityModel {
     }
 }
 
-/// An ONNX Runtime session on the model file at `path` with `threads` intra-op threads.
 /// A model path must name a file: a missing one says where it was looked for.
 fn check_model_file(path: &Path) -> Result<(), InferError> {
     if path.is_dir() {
@@ -373,6 +372,7 @@ fn relative_to_working_directory(path: &Path) -> String {
     }
 }
 
+/// An ONNX Runtime session on the model file at `path` with `threads` intra-op threads.
 fn open_session(env: &Environment, path: &Path, threads: usize) -> Result<Session, InferError> {
     let load_error = |message: String| InferError::ModelLoad {
         path: path.to_path_buf(),

@@ -11,6 +11,7 @@ use lidar_har_core::localiser::{
     Warning,
 };
 use lidar_har_core::map::{MAP_SERVER_OCCUPIED_THRESH, OccupancyMap};
+use lidar_har_core::scan::MAX_SWEEP_S;
 use lidar_har_msgs::geometry_msgs::PoseWithCovarianceStamped;
 use lidar_har_msgs::lidar_har_msgs::HumanObservation;
 use lidar_har_msgs::nav_msgs::{OccupancyGrid, Odometry};
@@ -334,9 +335,13 @@ impl LocaliserStage {
         let mut step = self.release_expired(received_ns)?;
         match input {
             LocaliserInput::Scan(msg) => {
-                let stamp_ns = msg.header.stamp.to_nanos();
+                let needed_ns = msg
+                    .header
+                    .stamp
+                    .to_nanos()
+                    .saturating_add(self.last_beam_after_stamp_ns(&msg));
                 let scan = ArrivedScan { msg, decode_time };
-                self.waiting.push(stamp_ns, received_ns, scan);
+                self.waiting.push(needed_ns, received_ns, scan);
             }
             LocaliserInput::Odometry(msg) => self.on_odom(&msg),
             LocaliserInput::Map(msg) => self.on_map(&msg),
@@ -350,6 +355,21 @@ impl LocaliserStage {
             self.localise_into(&mut step, scan)?;
         }
         Ok(step)
+    }
+
+    /// How long after its stamp the scan's last beam was measured, when de-skewing places it
+    /// from the pose at that time: a Lidar that measures beam 0 first (`time_increment` > 0)
+    /// needs odometry up to the end of its sweep, not only up to the stamp.
+    fn last_beam_after_stamp_ns(&self, msg: &LaserScan) -> i64 {
+        if !self.localiser.config().odometry.deskew {
+            return 0;
+        }
+        let sweep_s = f64::from(msg.time_increment) * msg.ranges.len().saturating_sub(1) as f64;
+        if sweep_s.is_finite() && sweep_s > 0.0 && sweep_s <= MAX_SWEEP_S {
+            (sweep_s * 1e9) as i64
+        } else {
+            0
+        }
     }
 
     /// Localises one scan and adds it, with its output messages, to `step`.
@@ -754,6 +774,29 @@ mod tests {
         let step = stage.receive(odometry(300 * MS, 0.3), 450 * MS).unwrap();
         assert_eq!(placed_x(&step), [Some(0.3)]);
         assert_eq!(stage.wait_deadline_ns(), None);
+        assert!(
+            stage.warning_counts().is_empty(),
+            "{:?}",
+            stage.warning_counts()
+        );
+    }
+
+    #[test]
+    fn a_scan_measured_from_beam_zero_waits_for_odometry_to_the_end_of_its_sweep() {
+        let mut stage = moving_stage();
+        // 11 beams 20 ms apart, beam 0 first: the last beam is measured 200 ms after the stamp.
+        let mut swept = scan(100 * MS);
+        swept.ranges = vec![f32::INFINITY; 11];
+        swept.time_increment = 0.02;
+        stage.receive(odometry(0, 0.0), 0).unwrap();
+        let step = stage
+            .receive(LocaliserInput::Scan(swept), 110 * MS)
+            .unwrap();
+        assert!(step.scans.is_empty());
+        let step = stage.receive(odometry(200 * MS, 0.2), 210 * MS).unwrap();
+        assert!(step.scans.is_empty(), "odometry at the stamp only");
+        let step = stage.receive(odometry(300 * MS, 0.3), 310 * MS).unwrap();
+        assert_eq!(placed_x(&step), [Some(0.1)]);
         assert!(
             stage.warning_counts().is_empty(),
             "{:?}",

@@ -22,8 +22,8 @@ pub struct DemoArgs {
     #[arg(long, default_value = "config/scenes/living_room.yaml")]
     pub scene: PathBuf,
     /// Output directory (made if missing): sim/ (the simulated bag), run/ (the pipeline's
-    /// bag and summary.json), scene.png, timeline.png. An earlier demo's output there is
-    /// replaced; a folder holding anything else is refused.
+    /// bag and summary.json), scene.png, timeline.png, .lidar_har_demo. An earlier demo's
+    /// output there is replaced; a folder holding anything else is refused.
     #[arg(long, default_value = "demo_out")]
     pub out: PathBuf,
     /// Mixed with the scene's seed.
@@ -38,33 +38,34 @@ pub struct DemoArgs {
     pub classifier_config: Option<PathBuf>,
 }
 
-/// What the demo writes into `--out`: two folders and two pictures.
+/// What the demo writes into `--out`: two folders and two pictures, and a mark that says
+/// the folder is a demo's.
 const SIM_DIR: &str = "sim";
 const RUN_DIR: &str = "run";
 const SCENE_PNG: &str = "scene.png";
 const TIMELINE_PNG: &str = "timeline.png";
+const DEMO_MARK: &str = ".lidar_har_demo";
 
-/// The entries of `out` an earlier demo left (its bags and pictures, by name and kind), for
-/// a new run to replace; an error naming any other entry, so that only the demo's own output
-/// is ever deleted. Nothing when `out` does not exist.
+/// The entries of `out` an earlier demo left, for a new run to replace: only in a folder the
+/// demo marked as its own, and only its folders and pictures (by name and kind). Otherwise
+/// an error naming what is in the way, so that nothing but a demo's output is ever deleted.
+/// Nothing when `out` does not exist or is empty.
 fn earlier_demo_output(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let listing = || format!("--out {}: cannot list it", out.display());
     let entries = match std::fs::read_dir(out) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        listed => listed.with_context(|| format!("--out {}: cannot list it", out.display()))?,
+        listed => listed.with_context(listing)?,
     };
     let mut earlier = Vec::new();
     for entry in entries {
-        let entry = entry.with_context(|| format!("--out {}: cannot list it", out.display()))?;
+        let entry = entry.with_context(listing)?;
         // Not followed: a link, even to a folder of the right name, is not the demo's.
-        let kind = entry
-            .file_type()
-            .with_context(|| format!("--out {}: cannot list it", out.display()))?;
+        let kind = entry.file_type().with_context(listing)?;
         let name = entry.file_name();
         let demos = if kind.is_dir() {
-            // A folder of one of the demo's names that is not a bag is someone else's.
-            (name == SIM_DIR || name == RUN_DIR) && entry.path().join("metadata.yaml").is_file()
+            name == SIM_DIR || name == RUN_DIR
         } else {
-            kind.is_file() && (name == SCENE_PNG || name == TIMELINE_PNG)
+            kind.is_file() && (name == SCENE_PNG || name == TIMELINE_PNG || name == DEMO_MARK)
         };
         anyhow::ensure!(
             demos,
@@ -75,6 +76,12 @@ fn earlier_demo_output(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
         );
         earlier.push(entry.path());
     }
+    anyhow::ensure!(
+        earlier.is_empty() || out.join(DEMO_MARK).is_file(),
+        "--out {} already exists and was not written by the demo (no {DEMO_MARK} in it): \
+         choose another or delete it",
+        out.display()
+    );
     earlier.sort();
     Ok(earlier)
 }
@@ -121,6 +128,13 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
+    let mark = args.out.join(DEMO_MARK);
+    std::fs::write(
+        &mark,
+        "Written by `lidar-har demo`: run again, it replaces sim/, run/, scene.png and \
+         timeline.png here.\n",
+    )
+    .with_context(|| format!("writing {}", mark.display()))?;
 
     // 1. Simulate.
     let geometry = sim.scan_geometry();
@@ -395,7 +409,14 @@ mod tests {
         for picture in [SCENE_PNG, TIMELINE_PNG] {
             std::fs::write(out.join(picture), "").unwrap();
         }
-        let names: Vec<PathBuf> = [RUN_DIR, SCENE_PNG, SIM_DIR, TIMELINE_PNG]
+        // Someone's own bag named run/ and picture named scene.png are not the demo's.
+        let error = earlier_demo_output(&out).unwrap_err().to_string();
+        assert!(
+            error.contains("not written by the demo") && error.contains(DEMO_MARK),
+            "{error}"
+        );
+        std::fs::write(out.join(DEMO_MARK), "").unwrap();
+        let names: Vec<PathBuf> = [DEMO_MARK, RUN_DIR, SCENE_PNG, SIM_DIR, TIMELINE_PNG]
             .iter()
             .map(|name| out.join(name))
             .collect();
@@ -409,10 +430,6 @@ mod tests {
             "{error}"
         );
         std::fs::remove_file(out.join("notes.txt")).unwrap();
-        std::fs::remove_file(out.join(RUN_DIR).join("metadata.yaml")).unwrap();
-        let error = earlier_demo_output(&out).unwrap_err().to_string();
-        assert!(error.contains("holds run, which is not"), "{error}");
-        std::fs::write(out.join(RUN_DIR).join("metadata.yaml"), "").unwrap();
         std::fs::remove_file(out.join(SCENE_PNG)).unwrap();
         std::fs::create_dir(out.join(SCENE_PNG)).unwrap();
         let error = earlier_demo_output(&out).unwrap_err().to_string();

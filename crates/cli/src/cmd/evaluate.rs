@@ -165,6 +165,13 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
     if !index.windows.iter().any(|w| w.split == "test") {
         bail!("{}: the dataset has no test windows", args.data.display());
     }
+    // A file in the way is found now, not after minutes of scoring.
+    if args.out.exists() && !args.out.is_dir() {
+        bail!(
+            "--out {} is a file: give a folder (made if missing)",
+            args.out.display()
+        );
+    }
 
     // Every split is scored before anything is written: a broken split leaves no outputs.
     let mut splits = std::collections::BTreeMap::new();
