@@ -219,6 +219,31 @@ pub fn runtime_available() -> bool {
 /// Copies the bag at `src` into a new bag at `dst`, leaving out the topics `dropped` and
 /// passing each message's bytes through `edit(topic, bytes)`: inputs a test breaks on purpose.
 pub fn copy_bag(src: &Path, dst: &Path, dropped: &[&str], edit: impl Fn(&str, Vec<u8>) -> Vec<u8>) {
+    copy_messages(src, dst, dropped, |message| {
+        message.data = edit(&message.topic, std::mem::take(&mut message.data));
+    });
+}
+
+/// Copies the bag at `src` into a new bag at `dst` with the messages on `topic` received
+/// (logged) `delay_ns` after they were, their stamps kept: a publisher whose messages come
+/// late.
+pub fn copy_bag_delaying(src: &Path, dst: &Path, topic: &str, delay_ns: i64) {
+    copy_messages(src, dst, &[], |message| {
+        if *message.topic == *topic {
+            message.log_time_ns += delay_ns;
+        }
+    });
+}
+
+/// The copy both of the above make: every message of the kept topics through `edit`, then
+/// written in order of (edited) log time, a moved message before those already logged at its
+/// new time.
+fn copy_messages(
+    src: &Path,
+    dst: &Path,
+    dropped: &[&str],
+    mut edit: impl FnMut(&mut lidar_har_bag::BagMessage),
+) {
     let reader = lidar_har_bag::BagReader::open(src).expect("the bag to copy opens");
     let mut writer = lidar_har_bag::BagWriter::create(dst, lidar_har_bag::WriterOptions::default())
         .expect("the copy can be created");
@@ -233,14 +258,23 @@ pub fn copy_bag(src: &Path, dst: &Path, dropped: &[&str], edit: impl Fn(&str, Ve
             )
         })
         .collect();
+    let mut messages = Vec::new();
     for message in reader.messages().expect("the bag to copy reads") {
-        let message = message.expect("a message of the bag to copy");
-        if let Some((topic, handle)) = kept.iter().find(|(name, _)| *name == *message.topic) {
-            let data = edit(topic, message.data);
-            writer
-                .write(*handle, message.log_time_ns, &data)
-                .expect("message copied");
+        let mut message = message.expect("a message of the bag to copy");
+        if kept.iter().any(|(name, _)| *name == *message.topic) {
+            edit(&mut message);
+            messages.push(message);
         }
+    }
+    messages.sort_by_key(|m| m.log_time_ns);
+    for message in messages {
+        let (_, handle) = kept
+            .iter()
+            .find(|(name, _)| *name == *message.topic)
+            .expect("a kept topic");
+        writer
+            .write(*handle, message.log_time_ns, &message.data)
+            .expect("message copied");
     }
     writer.finish().expect("the copy is finished");
 }

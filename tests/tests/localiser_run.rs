@@ -10,7 +10,7 @@ use std::path::Path;
 
 use glam::DVec2;
 use lidar_har_bag::{BagReader, BagWriter, WriterOptions};
-use lidar_har_e2e::{copy_bag, lidar_har as lidar_har_command};
+use lidar_har_e2e::{copy_bag, copy_bag_delaying, lidar_har as lidar_har_command};
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::geometry_msgs::{
     Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3,
@@ -735,36 +735,6 @@ fn one_odometry_stamp_an_hour_ahead_does_not_stop_localisation() {
     );
 }
 
-/// Copies the bag at `src` to `dst` with the messages on `topic` received (logged)
-/// `delay_ns` after they were, their stamps kept: a base whose odometry comes late.
-fn delay_topic(src: &Path, dst: &Path, topic: &str, delay_ns: i64) {
-    let reader = BagReader::open(src).unwrap();
-    let mut writer = BagWriter::create(dst, WriterOptions::default()).unwrap();
-    let handles: Vec<_> = reader
-        .topics()
-        .iter()
-        .map(|t| (t.name.clone(), writer.add_topic_like(t).unwrap()))
-        .collect();
-    let mut messages: Vec<_> = reader
-        .messages()
-        .unwrap()
-        .map(|m| {
-            let mut m = m.unwrap();
-            if *m.topic == *topic {
-                m.log_time_ns += delay_ns;
-            }
-            m
-        })
-        .collect();
-    // Stable: a delayed message goes before those logged at its new time.
-    messages.sort_by_key(|m| m.log_time_ns);
-    for m in messages {
-        let (_, handle) = handles.iter().find(|(name, _)| *name == *m.topic).unwrap();
-        writer.write(*handle, m.log_time_ns, &m.data).unwrap();
-    }
-    writer.finish().unwrap();
-}
-
 /// A simulated recording whose /odom messages each arrive 150 ms after their stamp: each
 /// scan waits for the odometry at its stamp (`odometry.max_wait_s`) and is placed as on
 /// time. (Placed on arrival, every scan was newer than the newest odometry by more than
@@ -781,7 +751,7 @@ fn scans_wait_for_odometry_delivered_late_and_are_all_placed() {
         .unwrap();
     assert!(simulated.status.success(), "{simulated:?}");
     let late = tmp.path().join("late");
-    delay_topic(&on_time, &late, topics::ODOM.name, 150_000_000);
+    copy_bag_delaying(&on_time, &late, topics::ODOM.name, 150_000_000);
     let (expected, _) = run_observed(&on_time, &tmp.path().join("on_time_out"));
     let (summary, _) = run_observed(&late, &tmp.path().join("late_out"));
     assert_eq!(
