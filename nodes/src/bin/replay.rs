@@ -211,11 +211,8 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     // A bag that cannot be opened is a bad parameter (exit status 2), like any other.
     let reader = BagReader::open(&settings.bag)
         .map_err(|e| bad_parameter("bag", format!("cannot open it: {e:#}")))?;
-    check_start_offset(
-        settings.start_offset_ns,
-        reader.metadata().duration_ns(),
-        &settings.bag,
-    )?;
+    let info = reader.metadata();
+    check_start_offset(settings.start_offset_ns, info.duration_ns(), &settings.bag)?;
     let in_bag: Vec<String> = reader.topics().iter().map(|t| t.name.clone()).collect();
     let selection = select_topics(&settings.topics, &in_bag, &settings.bag)?;
     if !selection.missing.is_empty() {
@@ -265,7 +262,7 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
             }
         }
     }
-    let (bag_start, bag_end) = (reader.metadata().start_ns, reader.metadata().end_ns);
+    let (bag_start, bag_end) = (info.start_ns, info.end_ns);
     let mut played = 0u64;
     loop {
         let begin = bag_start.saturating_add(settings.start_offset_ns);
