@@ -674,6 +674,46 @@ echo "zombies=$(ps -o stat= --ppid $$ | grep -c Z)"
     }
 }
 
+/// SIGINT while the replay waits at the end for a subscriber that stopped acknowledging (here
+/// stopped with SIGSTOP mid-stream) stops it at once: it used to wait out all of
+/// `wait_for_all_acked`.
+#[test]
+fn ros_sigint_during_the_replays_wait_for_acknowledgements_stops_it() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_alert_bag(dir.path());
+    let script = r#"
+"$LH" topic echo /human/activity --timeout 60 > "$OUT/activity.jsonl" & E=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p topics:="[/human/activity]" \
+  -p wait_for_subscriber:=/human/activity -p wait_for_all_acked:=40 2> "$OUT/replay.log" & R=$!
+wait_until 20 has_lines "$OUT/activity.jsonl" 3
+kill -STOP $E
+wait_until 20 grep -q "played" "$OUT/replay.log"
+sleep 0.5
+t0=$(date +%s%N)
+kill -INT $R
+wait $R; echo "replay=$?"
+t1=$(date +%s%N)
+echo "replay_stop_ms=$(( (t1 - t0) / 1000000 ))"
+kill -CONT $E; kill -TERM $E; wait $E
+"#;
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(90));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("replay=0"), "expected replay=0");
+    let stop_ms: u64 = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("replay_stop_ms="))
+        .and_then(|v| v.trim().parse().ok())
+        .expect("stop time printed");
+    // Without the signal the wait would last 40 s.
+    assert!(
+        stop_ms < 5000,
+        "replay took {stop_ms} ms to stop after SIGINT"
+    );
+}
+
 /// Activity `i` of the alert bag: every field set to something that tells messages apart.
 fn activity(i: usize) -> Activity {
     let class = (i % usize::from(Activity::NUM_CLASSES)) as u8;

@@ -376,6 +376,7 @@ impl Pacing {
 /// while no reader has matched: a short replay exited before discovery had matched a
 /// subscriber that was already running, which never got the transient-local /map. A replay
 /// without subscribers waits at most `timeout`, and not at all once it has played as long.
+/// SIGINT or SIGTERM ends either wait within a fraction of a second.
 fn wait_for_all_acked<'a>(
     reliable: impl Iterator<Item = &'a Publisher> + Clone,
     created: Instant,
@@ -393,20 +394,31 @@ fn wait_for_all_acked<'a>(
     }
     let deadline = Instant::now() + timeout;
     for publisher in reliable {
-        let left = deadline.saturating_duration_since(Instant::now());
-        match publisher.wait_for_acknowledgments(left) {
-            Ok(true) => {}
-            Ok(false) => log::warn!(
+        // In slices, so that a signal stops the wait within one.
+        let acknowledged = loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match publisher.wait_for_acknowledgments(left.min(ACK_WAIT_SLICE)) {
+                Ok(true) => break true,
+                Ok(false) if left <= ACK_WAIT_SLICE => break false,
+                Ok(false) if shutdown.requested() => return,
+                Ok(false) => {}
+                Err(e) => {
+                    log::warn!("replay: {e}");
+                    return;
+                }
+            }
+        };
+        if !acknowledged {
+            log::warn!(
                 "replay: {}: not every subscriber acknowledged within {timeout:?}",
                 publisher.topic()
-            ),
-            Err(e) => {
-                log::warn!("replay: {e}");
-                return;
-            }
+            );
         }
     }
 }
+
+/// Longest single wait for acknowledgements between looks at the shutdown flag.
+const ACK_WAIT_SLICE: Duration = Duration::from_millis(100);
 
 #[cfg(test)]
 mod tests {
