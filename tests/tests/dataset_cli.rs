@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use lidar_har_e2e::{lidar_har, repo_root};
+use lidar_har_e2e::{checker_python, lidar_har, repo_root};
 use serde_json::Value;
 
 /// The shape in a `.npy` header, and the byte count after the header.
@@ -71,6 +71,18 @@ fn make_dataset(out: &Path, overrides: &[&str]) -> std::process::Output {
         .expect("lidar-har runs")
 }
 
+/// Prints, per split, how many scans training's reader (training/lidar_har_train/data.py)
+/// counts as seen by the localiser.
+const TRAINING_READER: &str = r#"
+import json, sys
+from pathlib import Path
+from lidar_har_train.data import load_index, load_split
+data = Path(sys.argv[1])
+index = load_index(data)
+splits = {name: load_split(data, index, name) for name in index["splits"]}
+print(json.dumps({name: int(s.seen.sum()) for name, s in splits.items() if s is not None}))
+"#;
+
 #[test]
 fn dataset_splits_by_episode_and_arrays_match_the_index() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -125,6 +137,7 @@ fn dataset_splits_by_episode_and_arrays_match_the_index() {
     }
 
     // Arrays: shapes, rows and class counts agree with the index.
+    let mut seen_scans = serde_json::Map::new();
     for (name, split) in index["splits"].as_object().expect("splits") {
         let n = split["windows"].as_u64().expect("windows") as usize;
         let listed: Vec<&Value> = windows
@@ -187,6 +200,7 @@ fn dataset_splits_by_episode_and_arrays_match_the_index() {
             );
         }
         assert!(seen > 0, "{name}: some scans saw the person");
+        seen_scans.insert(name.clone(), seen.into());
         for (row, w) in listed.iter().enumerate() {
             assert_eq!(w["row"].as_u64(), Some(row as u64));
             let last = labels[row * 8 + 7] as usize;
@@ -209,6 +223,22 @@ fn dataset_splits_by_episode_and_arrays_match_the_index() {
         visible * 2 > scans,
         "person visible in {visible} of {scans} scans"
     );
+
+    // Training reads the same windows and the same sightings.
+    if let Some(mut python) = checker_python() {
+        let out = python
+            .env("PYTHONPATH", repo_root().join("training"))
+            .args(["-c", TRAINING_READER, &dir.path().to_string_lossy()])
+            .output()
+            .expect("python runs");
+        assert!(
+            out.status.success(),
+            "training's reader failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let read: Value = serde_json::from_slice(&out.stdout).expect("JSON from the reader");
+        assert_eq!(read, Value::Object(seen_scans), "seen scans per split");
+    }
 
     // Same seed, same dataset (bit for bit).
     let again = tempfile::tempdir().expect("tempdir");

@@ -23,18 +23,21 @@ CLASSES = [
 
 @dataclass
 class Split:
-    """The windows of one split: images `[N, T, S, S]` (uint8, value/255), labels `[N, T]`."""
+    """The windows of one split: images `[N, T, S, S]` (uint8, value/255), labels `[N, T]`, and
+    `seen` `[N, T]`: whether the localiser saw the person at each scan, as the robot publishes
+    (a person seen outside a room-fixed image counts)."""
 
     name: str
     images: np.ndarray
     labels: np.ndarray
     episodes: np.ndarray
+    seen: np.ndarray
 
     def __len__(self) -> int:
         return self.images.shape[0]
 
     def subset(self, mask: np.ndarray, name: str) -> "Split":
-        return Split(name, self.images[mask], self.labels[mask], self.episodes[mask])
+        return Split(name, self.images[mask], self.labels[mask], self.episodes[mask], self.seen[mask])
 
 
 class DatasetError(Exception):
@@ -73,7 +76,20 @@ def load_split(data_dir: Path, index: dict, name: str, mapped: bool = False) -> 
     episodes = np.array([w["episode"] for w in rows], dtype=np.int64)
     if len(episodes) != expected[0]:
         raise DatasetError(f"{data_dir / 'index.json'}: {len(episodes)} windows listed for {name}, arrays hold {expected[0]}")
-    return Split(name, images, labels.astype(np.int64), episodes)
+    return Split(name, images, labels.astype(np.int64), episodes, seen_steps(data_dir, info, expected, images))
+
+
+def seen_steps(data_dir: Path, info: dict, expected: tuple, images: np.ndarray) -> np.ndarray:
+    """`[N, T]`: from the localiser's positions (`*_positions.npy`, columns 2 and 3 finite where it
+    saw the person), as `lidar-har evaluate` reads them; from the images in a dataset made before
+    positions were written."""
+    if "positions" not in info:
+        return visible_steps(images)
+    path = data_dir / info["positions"]
+    positions = np.load(path)
+    if positions.shape != (*expected[:2], 4) or positions.dtype != np.float32:
+        raise DatasetError(f"{path}: shape {positions.shape} {positions.dtype}, expected {(*expected[:2], 4)} float32")
+    return np.isfinite(positions[:, :, 2:]).all(axis=2)
 
 
 def visible_steps(images: np.ndarray) -> np.ndarray:

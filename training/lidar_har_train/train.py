@@ -26,7 +26,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .data import CLASSES, DatasetError, Split, load_index, load_split, visible_steps
+from .data import CLASSES, DatasetError, Split, load_index, load_split
 from .export import ExportError, export_step_model, model_from_onnx
 from .model import ActivityConvLSTM
 
@@ -59,8 +59,8 @@ def parse_args(argv):
                    help="bfloat16 autocast for the forward pass (GPUs, and CPUs with AVX-512 BF16 or AMX): 1.25x "
                         "the steps per second on the development machine; weights, loss and export stay float32")
     p.add_argument("--mask-hidden-steps", action="store_true",
-                   help="leave out of the loss, and of the validation score, the steps whose image shows nothing "
-                        "of the person (hidden, or seen outside the room-fixed image, whom the robot does publish)")
+                   help="leave out of the loss, and of the validation score, the steps at which the localiser did "
+                        "not see the person (the dataset's positions; the robot publishes nothing for them)")
     p.add_argument("--init-from", type=Path, metavar="MODEL.onnx",
                    help="start from an exported model's weights instead of random ones (fine-tuning, or going on "
                         "where a time budget stopped); its image must be the dataset's, and its hidden and encoder "
@@ -173,9 +173,9 @@ def predict(model: ActivityConvLSTM, split: Split, batch: int = 256) -> np.ndarr
 
 def summarise(logits: np.ndarray, split: Split, only_visible_last: bool = False) -> dict:
     """Accuracy at the window's last step (history T) and at step T/2 (the shortest history);
-    with `only_visible_last`, over the windows whose last scan shows the person."""
+    with `only_visible_last`, over the windows whose last scan saw the person."""
     if only_visible_last:
-        keep = visible_steps(split.images[:, -1:])[:, 0]
+        keep = split.seen[:, -1]
         logits, labels = logits[keep], split.labels[keep]
     else:
         labels = split.labels
@@ -247,7 +247,7 @@ def train(args) -> int:
         for step in range(args.steps_per_epoch):
             rows = np.sort(rng.choice(len(train_split), size=args.batch, p=sampling))
             images = train_split.images[rows]
-            mask = visible_steps(images) if args.mask_hidden_steps else None
+            mask = train_split.seen[rows] if args.mask_hidden_steps else None
             if not args.no_augment:
                 images = augment(images, rng, args.shift_px)
             with torch.autocast(device.type, dtype=torch.bfloat16, enabled=args.bf16):
