@@ -221,7 +221,14 @@ pub fn runtime_available() -> bool {
 pub fn copy_bag(src: &Path, dst: &Path, dropped: &[&str], edit: impl Fn(&str, Vec<u8>) -> Vec<u8>) {
     copy_messages(src, dst, dropped, |message| {
         message.data = edit(&message.topic, std::mem::take(&mut message.data));
+        true
     });
+}
+
+/// Copies the bag at `src` into a new bag at `dst` with the topics `emptied` declared but
+/// holding no message, as `ros2 bag record -a` leaves a topic nobody published on.
+pub fn copy_bag_emptying(src: &Path, dst: &Path, emptied: &[&str]) {
+    copy_messages(src, dst, &[], |message| !emptied.contains(&&*message.topic));
 }
 
 /// Copies the bag at `src` into a new bag at `dst` with the messages on `topic` received
@@ -232,17 +239,18 @@ pub fn copy_bag_delaying(src: &Path, dst: &Path, topic: &str, delay_ns: i64) {
         if *message.topic == *topic {
             message.log_time_ns += delay_ns;
         }
+        true
     });
 }
 
-/// The copy both of the above make: every message of the kept topics through `edit`, then
-/// written in order of (edited) log time, a moved message before those already logged at its
-/// new time.
+/// The copy the above make: every message of the kept topics through `edit` (false leaves
+/// the message out), then written in order of (edited) log time, a moved message before
+/// those already logged at its new time.
 fn copy_messages(
     src: &Path,
     dst: &Path,
     dropped: &[&str],
-    mut edit: impl FnMut(&mut lidar_har_bag::BagMessage),
+    mut edit: impl FnMut(&mut lidar_har_bag::BagMessage) -> bool,
 ) {
     let reader = lidar_har_bag::BagReader::open(src).expect("the bag to copy opens");
     let mut writer = lidar_har_bag::BagWriter::create(dst, lidar_har_bag::WriterOptions::default())
@@ -261,8 +269,7 @@ fn copy_messages(
     let mut messages = Vec::new();
     for message in reader.messages().expect("the bag to copy reads") {
         let mut message = message.expect("a message of the bag to copy");
-        if kept.iter().any(|(name, _)| *name == *message.topic) {
-            edit(&mut message);
+        if kept.iter().any(|(name, _)| *name == *message.topic) && edit(&mut message) {
             messages.push(message);
         }
     }

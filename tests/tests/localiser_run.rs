@@ -10,7 +10,9 @@ use std::path::Path;
 
 use glam::DVec2;
 use lidar_har_bag::{BagReader, BagWriter, WriterOptions};
-use lidar_har_e2e::{copy_bag, copy_bag_delaying, lidar_har as lidar_har_command};
+use lidar_har_e2e::{
+    copy_bag, copy_bag_delaying, copy_bag_emptying, lidar_har as lidar_har_command,
+};
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::geometry_msgs::{
     Pose, PoseStamped, Quaternion, Transform, TransformStamped, Vector3,
@@ -529,6 +531,25 @@ fn a_negative_log_time_in_the_input_skips_that_message_only() {
     assert_eq!(summary.decode_errors, whole.decode_errors + 1);
     assert_eq!(summary.scans + 1, whole.scans);
     assert!(tmp.path().join("out/summary.json").is_file());
+    // Converting it leaves that message out, with a warning, and copies the rest.
+    let copy = tmp.path().join("copy");
+    let converted = lidar_har_command()
+        .args([
+            "bag".as_ref(),
+            "convert".as_ref(),
+            input.as_os_str(),
+            copy.as_os_str(),
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&converted.stderr);
+    assert!(converted.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("1 messages with a negative log time left out"),
+        "{stderr}"
+    );
+    let count = |bag: &Path| BagReader::open(bag).unwrap().messages().unwrap().count();
+    assert_eq!(count(&copy) + 1, count(&mcap));
 }
 
 /// A robot bouncing round the living room with a 5 Hz Lidar (an RPLIDAR A1's usual speed)
@@ -601,6 +622,31 @@ fn ground_truth_in_another_frame_than_the_estimates_gives_no_position_error() {
         Some(&199),
         "{summary:?}"
     );
+}
+
+/// `ros2 bag record -a` declares a topic it discovered even when nothing was published on it:
+/// an empty /map is no map (the background is learned), an empty /odom no odometry. Both
+/// had left every scan unlocalised, waiting for a map or odometry that never came.
+#[test]
+fn topics_declared_without_messages_count_as_absent() {
+    let tmp = tempfile::tempdir().unwrap();
+    let robot = tmp.path().join("robot");
+    write_bag(&robot);
+    let no_map = tmp.path().join("no_map");
+    copy_bag_emptying(&robot, &no_map, &[topics::MAP.name]);
+    let summary = run_localiser(&no_map, &tmp.path().join("out_no_map"), None);
+    assert_eq!(summary.room, "learned_background", "{summary:?}");
+    assert_eq!(
+        summary.scans_localised + summary.scans_learning,
+        summary.scans,
+        "{summary:?}"
+    );
+
+    let no_odometry = tmp.path().join("no_odometry");
+    copy_bag_emptying(&robot, &no_odometry, &[topics::ODOM.name]);
+    let summary = run_localiser(&no_odometry, &tmp.path().join("out_no_odom"), None);
+    assert_eq!(summary.motion, "stationary", "{summary:?}");
+    assert_eq!(summary.scans_localised, summary.scans, "{summary:?}");
 }
 
 /// A message of the robot bag on `topic` (/scan, /odom, /ground_truth/human_pose) with its

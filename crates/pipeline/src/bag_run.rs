@@ -212,10 +212,10 @@ fn choose_room(
     frames: &FrameConfig,
 ) -> (RoomSource, bool) {
     let has_odometry =
-        reader.topic(topics::ODOM.name).is_some() || tf_carries_odometry(reader, frames);
+        has_messages(reader, topics::ODOM.name) || tf_carries_odometry(reader, frames);
     let room = match map {
         Some(map) => RoomSource::Map(map),
-        None if reader.topic(topics::MAP.name).is_some() => RoomSource::MapTopic,
+        None if has_messages(reader, topics::MAP.name) => RoomSource::MapTopic,
         None => RoomSource::LearnedBackground,
     };
     let learned = matches!(room, RoomSource::LearnedBackground);
@@ -226,6 +226,12 @@ fn choose_room(
         );
     }
     (room, has_odometry && !learned)
+}
+
+/// Whether the bag holds messages on `topic`: `ros2 bag record -a` also declares topics it
+/// discovered but got nothing on.
+fn has_messages(reader: &BagReader, topic: &str) -> bool {
+    reader.topic(topic).is_some_and(|t| t.message_count > 0)
 }
 
 /// The stages a run feeds, and the bag their outputs go into.

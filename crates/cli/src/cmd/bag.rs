@@ -161,7 +161,7 @@ fn convert(
             .with_context(|| format!("cannot add topic {}", topic.name))?;
         handles.insert(topic.name.clone(), handle);
     }
-    let mut count = 0u64;
+    let (mut count, mut negative_times) = (0u64, 0u64);
     for message in reader.messages()? {
         let message = match message {
             Ok(message) => message,
@@ -184,10 +184,22 @@ fn convert(
                 message.topic
             );
         };
+        // A damaged sqlite3 row can hold one; it sorts first, and stopping at it would leave
+        // the new bag empty.
+        if message.log_time_ns < 0 {
+            negative_times += 1;
+            continue;
+        }
         writer.write(handle, message.log_time_ns, &message.data)?;
         count += 1;
     }
     let summary = writer.finish()?;
+    if negative_times > 0 {
+        errln!(
+            "lidar-har: warning: {}: {negative_times} messages with a negative log time left out",
+            src.display()
+        );
+    }
     outln!(
         "Converted {count} messages on {} topics: {} ({}) -> {} ({storage})",
         handles.len(),
