@@ -34,6 +34,16 @@ pub enum BagError {
         format: String,
         mode: String,
     },
+    /// Compression mode MESSAGE: the message's data is not a zstd frame.
+    #[error(
+        "{path}: message on `{topic}` at {log_time_ns} ns: its data does not zstd-decompress (compression mode MESSAGE): {cause}"
+    )]
+    MessageDecompression {
+        path: PathBuf,
+        topic: String,
+        log_time_ns: i64,
+        cause: std::io::Error,
+    },
     #[error("{path}: invalid MCAP: {cause}")]
     Mcap {
         path: PathBuf,

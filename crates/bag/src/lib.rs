@@ -1,18 +1,20 @@
-//! rosbag2 bags without ROS 2: read MCAP and sqlite3 storage (metadata.yaml versions 1 to 9,
-//! zstd/lz4 chunks, bare `.mcap` files) and write MCAP (or sqlite3) bags that `ros2 bag play`,
-//! `rosbags` and Foxglove accept.
+//! rosbag2 bags without ROS 2: read MCAP and sqlite3 storage (metadata.yaml versions 1 to 9 or
+//! none, zstd/lz4 chunks, rosbag2's zstd file and message compression, bare storage files) and
+//! write MCAP (or sqlite3) bags that `ros2 bag play`, `rosbags` and Foxglove accept.
 //!
 //! The API is byte-level: messages are CDR bytes made by `lidar-har-msgs`; a bag stores them
 //! with their type name and `ros2msg` schema text. Reading streams in constant memory; writing
 //! flushes at the first write after each flush interval, so a recorder killed while messages
 //! keep coming loses about one interval at most.
 
+mod compression;
 mod error;
 mod mcap_records;
 mod mcap_storage;
 pub mod metadata;
 pub mod qos;
 mod reader;
+mod source;
 mod sqlite_storage;
 mod writer;
 

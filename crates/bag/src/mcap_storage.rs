@@ -19,6 +19,7 @@ use crate::mcap_records::{ChunkRecords, check_summary_section, decompress_chunk,
 use crate::metadata::{BagMetadata, METADATA_VERSION};
 use crate::qos;
 use crate::reader::{BagMessage, TopicInfo};
+use crate::source::StorageSource;
 use crate::writer::{Compression, StorageSink, WriterTopic};
 
 /// The MCAP profile, schema encoding and message encoding of rosbag2.
@@ -160,7 +161,7 @@ impl StorageSink for McapSink {
 /// Something an MCAP can be read from more than once: a file, or bytes in memory.
 #[derive(Clone)]
 pub(crate) enum McapInput {
-    File(PathBuf),
+    File(StorageSource),
     Bytes(Arc<[u8]>),
 }
 
@@ -170,15 +171,16 @@ impl<T: Read + Seek> ReadSeek for T {}
 impl McapInput {
     fn path(&self) -> PathBuf {
         match self {
-            McapInput::File(path) => path.clone(),
+            McapInput::File(source) => source.path.clone(),
             McapInput::Bytes(_) => PathBuf::from("<memory>"),
         }
     }
 
     fn open(&self) -> Result<(Box<dyn ReadSeek + Send>, u64)> {
         match self {
-            McapInput::File(path) => {
-                let file = File::open(path).map_err(io_error(path, "cannot open"))?;
+            McapInput::File(source) => {
+                let path = &source.path;
+                let file = File::open(&source.bytes).map_err(io_error(path, "cannot open"))?;
                 let len = file
                     .metadata()
                     .map_err(io_error(path, "cannot stat"))?
@@ -196,8 +198,7 @@ impl McapInput {
 /// What opening an MCAP learnt: its topics, and how to stream its messages.
 pub(crate) struct McapFile {
     input: McapInput,
-    /// The summary, when the file was finished; `None` for a file cut short.
-    summary: Option<Summary>,
+    layout: Layout,
     pub(crate) topics: Vec<TopicInfo>,
     /// (first, last) log time, when there are messages.
     pub(crate) time_bounds: Option<(i64, i64)>,
@@ -206,16 +207,41 @@ pub(crate) struct McapFile {
     pub(crate) truncated: bool,
 }
 
+/// How the messages of an MCAP are read.
+enum Layout {
+    /// A finished file: in log-time order, through its summary's chunk indexes.
+    Indexed(Box<Summary>),
+    /// A file without a summary (cut short, or unchunked): in file order, from start to end.
+    Linear,
+    /// A file shorter than its magic, which holds no record at all: why, as the reason of a
+    /// truncation. rosbag2 opens the next split file before it writes into it, so a recorder
+    /// killed just after a split leaves it empty.
+    CutInMagic(String),
+}
+
 impl McapFile {
     pub(crate) fn open(input: McapInput) -> Result<Self> {
         let path = input.path();
         let (mut reader, len) = input.open()?;
         let mut magic = [0u8; 8];
         let got = read_fully(&mut reader, &mut magic).map_err(io_error(&path, "cannot read"))?;
-        if magic[..got] != mcap::MAGIC[..got.min(8)] || got < mcap::MAGIC.len() {
+        if magic[..got] != mcap::MAGIC[..got] {
             return Err(BagError::NotABag {
                 path,
                 reason: "not an MCAP file (bad magic bytes)".into(),
+            });
+        }
+        if got < mcap::MAGIC.len() {
+            let reason = match got {
+                0 => "the file is empty".to_string(),
+                _ => format!("the file ends inside its magic (after {got} bytes of 8)"),
+            };
+            return Ok(Self {
+                input,
+                layout: Layout::CutInMagic(reason),
+                topics: Vec::new(),
+                time_bounds: None,
+                truncated: true,
             });
         }
         reader
@@ -273,7 +299,7 @@ impl McapFile {
         }
         Ok(Self {
             input,
-            summary: Some(summary),
+            layout: Layout::Indexed(Box::new(summary)),
             topics,
             time_bounds,
             truncated: damaged,
@@ -311,7 +337,7 @@ impl McapFile {
         }
         Ok(Self {
             input,
-            summary: None,
+            layout: Layout::Linear,
             topics,
             time_bounds,
             truncated,
@@ -319,28 +345,34 @@ impl McapFile {
     }
 
     /// Streams the messages (of `topics` if given) in log-time order when the file has a
-    /// summary, else in file order. Memory stays bounded by the chunks in flight.
+    /// summary, else in file order. Memory stays bounded by the chunks in flight. A file cut
+    /// in its magic has no messages to stream: its truncation is the error.
     pub(crate) fn messages(&self, topics: Option<&BTreeSet<String>>) -> Result<McapMessages> {
-        match &self.summary {
+        match &self.layout {
             // `mcap`'s indexed reader turns the topics into the channel ids that carry them and
             // takes an empty set for no filter at all: a file with none of the topics (a split
             // file written before a topic first appeared) would yield every message.
-            Some(_)
+            Layout::Indexed(_)
                 if topics.is_some_and(|wanted| {
                     !self.topics.iter().any(|t| wanted.contains(&t.name))
                 }) =>
             {
                 Ok(McapMessages::Empty)
             }
-            Some(summary) => Ok(McapMessages::Indexed(IndexedMessages::new(
+            Layout::Indexed(summary) => Ok(McapMessages::Indexed(IndexedMessages::new(
                 &self.input,
                 summary,
                 topics,
             )?)),
-            None => Ok(McapMessages::Linear(LinearMessages::new(
+            Layout::Linear => Ok(McapMessages::Linear(LinearMessages::new(
                 &self.input,
                 topics,
             )?)),
+            Layout::CutInMagic(reason) => Err(BagError::Truncated {
+                path: self.input.path(),
+                messages_read: 0,
+                reason: reason.clone(),
+            }),
         }
     }
 }
@@ -492,6 +524,8 @@ pub(crate) struct IndexedMessages {
     channels: HashMap<u16, Arc<str>>,
     chunk: Vec<u8>,
     failed: bool,
+    /// Keeps a temporary copy that `file` reads alive (last: dropped after `file`).
+    _input: McapInput,
 }
 
 impl IndexedMessages {
@@ -520,6 +554,7 @@ impl IndexedMessages {
             channels,
             chunk: Vec::new(),
             failed: false,
+            _input: input.clone(),
         })
     }
 
@@ -618,6 +653,8 @@ pub(crate) struct LinearMessages {
     /// The records of the chunk being read, checked and decompressed by `mcap_records`.
     chunk: Option<ChunkRecords>,
     done: bool,
+    /// Keeps a temporary copy that `file` reads alive (last: dropped after `file`).
+    _input: McapInput,
 }
 
 impl LinearMessages {
@@ -641,6 +678,7 @@ impl LinearMessages {
             messages_read: 0,
             chunk: None,
             done: false,
+            _input: input.clone(),
         })
     }
 
@@ -900,6 +938,44 @@ mod tests {
         assert_eq!(topics, vec!["/b"; 10]);
         let on_a = reader.messages_on(&["/a"]).unwrap().count();
         assert_eq!(on_a, 30);
+    }
+
+    /// `ros2 bag record` opens the next split file before writing into it: killed just after
+    /// a split, it leaves that file empty, or holding only part of the magic. The file opens as
+    /// truncated with no messages, and the bag's other file is read whole. A single file whose
+    /// bytes are not the start of the magic is still no MCAP.
+    #[test]
+    fn a_split_file_cut_in_its_magic_opens_as_truncated_and_empty() {
+        let tmp = tempfile::tempdir().unwrap();
+        write_mcap(&tmp.path().join("split_0.mcap"), &["/a"], 20, true, None);
+        for (cut, says) in [(0, "is empty"), (3, "inside its magic")] {
+            std::fs::write(tmp.path().join("split_1.mcap"), &mcap::MAGIC[..cut]).unwrap();
+            let reader = BagReader::open(tmp.path()).unwrap_or_else(|e| panic!("open: {e}"));
+            let info = reader.metadata();
+            assert!(info.truncated, "cut at {cut}");
+            assert_eq!(info.message_count, 20);
+            let (times, errors) = read_all(tmp.path());
+            assert_eq!(times, (1000..1020).collect::<Vec<_>>());
+            let [error] = &errors[..] else {
+                panic!("one error expected: {errors:?}");
+            };
+            let text = error.to_string();
+            assert!(
+                matches!(
+                    error,
+                    BagError::Truncated {
+                        messages_read: 0,
+                        ..
+                    }
+                ) && text.contains("split_1.mcap")
+                    && text.contains(says),
+                "{text}"
+            );
+        }
+        let not_mcap = tmp.path().join("notes.mcap");
+        std::fs::write(&not_mcap, b"\x89MCAx").unwrap();
+        let error = BagReader::open(&not_mcap).err().unwrap();
+        assert!(matches!(error, BagError::NotABag { .. }), "{error}");
     }
 
     /// The bytes up to the end of the file's last chunk (a file without its summary, as a

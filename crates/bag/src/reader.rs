@@ -1,5 +1,6 @@
 //! Reading rosbag2 bags: a directory with `metadata.yaml` (MCAP or sqlite3 storage, one or
-//! more files) or a bare `.mcap` file. Messages stream in log-time order in constant memory.
+//! more files, compressed or not), a directory of storage files without it, or a bare storage
+//! file. Messages stream in log-time order in constant memory.
 
 use std::collections::{BTreeSet, VecDeque};
 use std::path::{Path, PathBuf};
@@ -7,6 +8,7 @@ use std::sync::Arc;
 
 use lidar_har_msgs::RosMessage;
 
+use crate::compression;
 use crate::error::{BagError, Result};
 use crate::mcap_storage::{McapFile, McapInput, McapMessages};
 use crate::metadata::BagMetadata;
@@ -53,7 +55,8 @@ pub struct BagInfo {
     pub ros_distro: String,
     /// True when a storage file cannot be read to its end: cut short (a recorder was killed)
     /// or damaged (an MCAP chunk that fails its CRC or does not decompress, a malformed
-    /// record). Counts cover the part before; reading the messages ends with the error.
+    /// record), or, in a bag of several files, one cannot be opened at all. Counts cover the
+    /// part before; reading the messages ends with the error.
     pub truncated: bool,
 }
 
@@ -67,6 +70,10 @@ impl BagInfo {
 enum StorageFile {
     Mcap(Box<McapFile>),
     Sqlite(SqliteFile),
+    /// A file of a bag of several that could not be opened. Like an error while reading a
+    /// file, that ends this file only: it is opened again when messages are read, and its
+    /// stream is the error.
+    Unreadable,
 }
 
 /// An opened bag.
@@ -76,46 +83,30 @@ pub struct BagReader {
     files: Vec<(PathBuf, StorageFile)>,
     topics: Vec<TopicInfo>,
     metadata: Option<BagMetadata>,
+    /// rosbag2 compression mode MESSAGE: each message's data is a zstd frame.
+    messages_compressed: bool,
 }
 
 impl BagReader {
-    /// Opens a rosbag2 directory or a bare `.mcap` file.
+    /// Opens a rosbag2 directory, or a bare storage file (`.mcap`, `.db3`, or one of them
+    /// compressed whole by rosbag2, `.zstd`).
     pub fn open(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
         if !path.exists() {
             return Err(BagError::NotFound { path });
         }
         if path.is_file() {
-            let file = McapFile::open(McapInput::File(path.clone()))?;
-            return Ok(Self::from_mcap_files(
-                path.clone(),
-                vec![(path, file)],
-                None,
-            ));
+            // A file named for neither storage is tried as MCAP, whose magic tells.
+            let storage = storage_of(&path).unwrap_or(StorageId::Mcap);
+            return Self::from_files(path.clone(), storage, vec![path], None, false);
         }
         let metadata_path = path.join("metadata.yaml");
         if !metadata_path.is_file() {
-            let mcaps = list_mcap_files(&path)?;
-            if mcaps.is_empty() {
-                return Err(BagError::NotABag {
-                    path,
-                    reason: "no metadata.yaml and no .mcap file in it".into(),
-                });
-            }
-            let files = mcaps
-                .into_iter()
-                .map(|file| McapFile::open(McapInput::File(file.clone())).map(|m| (file, m)))
-                .collect::<Result<Vec<_>>>()?;
-            return Ok(Self::from_mcap_files(path, files, None));
+            let (storage, files) = list_storage_files(&path)?;
+            return Self::from_files(path, storage, files, None, false);
         }
         let metadata = BagMetadata::read(&path)?;
-        if !metadata.compression_format.is_empty() {
-            return Err(BagError::UnsupportedCompression {
-                path: metadata_path,
-                format: metadata.compression_format.clone(),
-                mode: metadata.compression_mode.clone(),
-            });
-        }
+        let messages_compressed = compression::messages_compressed(&metadata, &metadata_path)?;
         let storage = match metadata.storage_identifier.as_str() {
             "mcap" => StorageId::Mcap,
             "sqlite3" => StorageId::Sqlite3,
@@ -137,68 +128,83 @@ impl BagReader {
                 message: "relative_file_paths: no storage file listed".into(),
             });
         }
-        let mut files = Vec::new();
-        for name in relative {
-            let file_path = storage_file_path(&path, metadata.version, &name);
-            if !file_path.is_file() {
-                return Err(BagError::NotFound { path: file_path });
-            }
-            let file = match storage {
-                StorageId::Mcap => StorageFile::Mcap(Box::new(McapFile::open(McapInput::File(
-                    file_path.clone(),
-                ))?)),
-                StorageId::Sqlite3 => StorageFile::Sqlite(SqliteFile::open(&file_path)?),
-            };
-            files.push((file_path, file));
-        }
-        let mut reader = Self {
-            path,
-            storage,
-            files,
-            topics: Vec::new(),
-            metadata: Some(metadata),
-        };
-        reader.topics = reader.merge_topics()?;
-        Ok(reader)
+        let files = relative
+            .iter()
+            .map(|name| storage_file_path(&path, metadata.version, name))
+            .collect();
+        Self::from_files(path, storage, files, Some(metadata), messages_compressed)
     }
 
     /// Opens MCAP bytes held in memory as a bare `.mcap` (for fuzzing and embedded data).
     pub fn from_mcap_bytes(bytes: impl Into<Arc<[u8]>>) -> Result<Self> {
         let file = McapFile::open(McapInput::Bytes(bytes.into()))?;
-        Ok(Self::from_mcap_files(
-            PathBuf::from("<memory>"),
-            vec![(PathBuf::from("<memory>"), file)],
-            None,
+        let path = PathBuf::from("<memory>");
+        let files = vec![(path.clone(), StorageFile::Mcap(Box::new(file)))];
+        Ok(Self::new(path, StorageId::Mcap, files, None, false))
+    }
+
+    /// Opens the storage files of a bag. A file that cannot be opened ends that file only (see
+    /// [`StorageFile::Unreadable`]), unless no file opens: a bag of one file that is not a bag
+    /// is refused, with that file's error.
+    fn from_files(
+        path: PathBuf,
+        storage: StorageId,
+        file_paths: Vec<PathBuf>,
+        metadata: Option<BagMetadata>,
+        messages_compressed: bool,
+    ) -> Result<Self> {
+        let mut first_error = None;
+        let mut files = Vec::new();
+        for file_path in file_paths {
+            let file = open_storage_file(storage, &file_path).unwrap_or_else(|e| {
+                first_error.get_or_insert(e);
+                StorageFile::Unreadable
+            });
+            files.push((file_path, file));
+        }
+        if let Some(error) = first_error
+            && files
+                .iter()
+                .all(|(_, file)| matches!(file, StorageFile::Unreadable))
+        {
+            return Err(error);
+        }
+        Ok(Self::new(
+            path,
+            storage,
+            files,
+            metadata,
+            messages_compressed,
         ))
     }
 
-    fn from_mcap_files(
+    fn new(
         path: PathBuf,
-        files: Vec<(PathBuf, McapFile)>,
+        storage: StorageId,
+        files: Vec<(PathBuf, StorageFile)>,
         metadata: Option<BagMetadata>,
+        messages_compressed: bool,
     ) -> Self {
-        let files: Vec<_> = files
-            .into_iter()
-            .map(|(p, f)| (p, StorageFile::Mcap(Box::new(f))))
-            .collect();
         let mut reader = Self {
             path,
-            storage: StorageId::Mcap,
+            storage,
             files,
             topics: Vec::new(),
             metadata,
+            messages_compressed,
         };
-        reader.topics = reader.merge_topics().unwrap_or_default();
+        reader.topics = reader.merge_topics();
         reader
     }
 
     /// Topics of all storage files, counts summed; QoS and hashes completed from metadata.yaml.
-    fn merge_topics(&self) -> Result<Vec<TopicInfo>> {
+    fn merge_topics(&self) -> Vec<TopicInfo> {
         let mut topics: Vec<TopicInfo> = Vec::new();
         for (_, file) in &self.files {
-            let file_topics = match file {
+            let file_topics: &[TopicInfo] = match file {
                 StorageFile::Mcap(m) => &m.topics,
                 StorageFile::Sqlite(s) => &s.topics,
+                StorageFile::Unreadable => &[],
             };
             for topic in file_topics {
                 match topics.iter_mut().find(|t| t.name == topic.name) {
@@ -220,7 +226,7 @@ impl BagReader {
                 }
             }
         }
-        Ok(topics)
+        topics
     }
 
     pub fn path(&self) -> &Path {
@@ -253,6 +259,7 @@ impl BagReader {
             let (file_bounds, file_truncated) = match file {
                 StorageFile::Mcap(m) => (m.time_bounds, m.truncated),
                 StorageFile::Sqlite(s) => (s.time_bounds, false),
+                StorageFile::Unreadable => (None, true),
             };
             truncated |= file_truncated;
             if let Some((lo, hi)) = file_bounds {
@@ -296,19 +303,40 @@ impl BagReader {
     }
 
     fn messages_filtered(&self, topics: Option<&BTreeSet<String>>) -> Result<Messages> {
-        let mut sources = Vec::new();
-        for (_, file) in &self.files {
-            sources.push(match file {
-                StorageFile::Mcap(m) => Source::Mcap(m.messages(topics)?),
-                StorageFile::Sqlite(s) => Source::Sqlite(s.messages(topics)?),
-            });
-        }
+        let sources: Vec<Source> = self
+            .files
+            .iter()
+            .map(|(path, file)| Source {
+                path: path.clone(),
+                stream: self
+                    .stream(path, file, topics)
+                    .unwrap_or_else(|e| Stream::Failed(Some(e))),
+                messages_compressed: self.messages_compressed,
+            })
+            .collect();
         let heads = sources.iter().map(|_| None).collect();
         Ok(Messages {
             sources,
             heads,
             primed: false,
             errors: VecDeque::new(),
+        })
+    }
+
+    /// The messages of one storage file; one that could not be opened is opened again.
+    fn stream(
+        &self,
+        path: &Path,
+        file: &StorageFile,
+        topics: Option<&BTreeSet<String>>,
+    ) -> Result<Stream> {
+        Ok(match file {
+            StorageFile::Mcap(m) => Stream::Mcap(m.messages(topics)?),
+            StorageFile::Sqlite(s) => Stream::Sqlite(s.messages(topics)?),
+            StorageFile::Unreadable => {
+                let file = open_storage_file(self.storage, path)?;
+                return self.stream(path, &file, topics);
+            }
         })
     }
 
@@ -353,28 +381,106 @@ fn storage_file_path(dir: &Path, version: u32, listed: &str) -> PathBuf {
         .unwrap_or(in_dir)
 }
 
-fn list_mcap_files(dir: &Path) -> Result<Vec<PathBuf>> {
-    let entries = std::fs::read_dir(dir).map_err(crate::error::io_error(dir, "cannot list"))?;
-    let mut files: Vec<PathBuf> = entries
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
-        .collect();
-    files.sort();
-    Ok(files)
+/// Opens a storage file of `storage`; one that rosbag2 compressed whole is read from a
+/// decompressed copy.
+fn open_storage_file(storage: StorageId, path: &Path) -> Result<StorageFile> {
+    if !path.is_file() {
+        return Err(BagError::NotFound {
+            path: path.to_path_buf(),
+        });
+    }
+    let source = compression::open_source(path)?;
+    Ok(match storage {
+        StorageId::Mcap => StorageFile::Mcap(Box::new(McapFile::open(McapInput::File(source))?)),
+        StorageId::Sqlite3 => StorageFile::Sqlite(SqliteFile::open(source)?),
+    })
 }
 
-enum Source {
+/// The storage a file's name says it holds: `.mcap` or `.db3`, also compressed whole (`.zstd`).
+fn storage_of(path: &Path) -> Option<StorageId> {
+    let name = compression::compressed_file_name(path).map_or(path, Path::new);
+    let extension = name.extension()?;
+    [StorageId::Mcap, StorageId::Sqlite3]
+        .into_iter()
+        .find(|storage| extension == storage.extension())
+}
+
+/// The storage files of a directory without metadata.yaml (rosbag2 writes it when recording
+/// ends, so a killed recorder leaves none), in split order. A file compressed whole is left out
+/// while the file it was made from is still there: rosbag2 deletes that file once the
+/// compressed one is complete, so its compression was cut short.
+fn list_storage_files(dir: &Path) -> Result<(StorageId, Vec<PathBuf>)> {
+    let entries = std::fs::read_dir(dir).map_err(crate::error::io_error(dir, "cannot list"))?;
+    let mut files: Vec<(StorageId, PathBuf)> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .filter_map(|p| Some((storage_of(&p)?, p)))
+        .collect();
+    files.retain(|(_, p)| {
+        compression::compressed_file_name(p).is_none_or(|name| !dir.join(name).exists())
+    });
+    let Some(&(storage, _)) = files.first() else {
+        return Err(BagError::NotABag {
+            path: dir.to_path_buf(),
+            reason: "no metadata.yaml and no storage file (.mcap, .db3, or either .zstd) in it"
+                .into(),
+        });
+    };
+    if files.iter().any(|(other, _)| *other != storage) {
+        return Err(BagError::NotABag {
+            path: dir.to_path_buf(),
+            reason: "no metadata.yaml, and both .mcap and .db3 files in it: which of them \
+                     make up the bag is unknown"
+                .into(),
+        });
+    }
+    let mut paths: Vec<PathBuf> = files.into_iter().map(|(_, p)| p).collect();
+    paths.sort_by_cached_key(|p| split_order(p));
+    Ok((storage, paths))
+}
+
+/// Sorts rosbag2's split files `<name>_<N>.<ext>` by name, then by the number N (`_10` after
+/// `_9`); other names come first among those with the same name.
+fn split_order(path: &Path) -> (String, Option<u64>, PathBuf) {
+    let name = compression::compressed_file_name(path).map_or(path, Path::new);
+    let stem = name.file_stem().unwrap_or_default().to_string_lossy();
+    let split = stem
+        .rsplit_once('_')
+        .and_then(|(prefix, n)| Some((prefix.to_string(), Some(n.parse().ok()?))));
+    let (prefix, index) = split.unwrap_or_else(|| (stem.to_string(), None));
+    (prefix, index, path.to_path_buf())
+}
+
+/// The messages of one storage file, ending at its first error.
+struct Source {
+    /// The file, named in errors of message decompression.
+    path: PathBuf,
+    stream: Stream,
+    /// rosbag2 compression mode MESSAGE: each message's data is a zstd frame.
+    messages_compressed: bool,
+}
+
+enum Stream {
     Mcap(McapMessages),
     Sqlite(SqliteMessages),
+    /// A file whose messages cannot be read at all: why, once.
+    Failed(Option<BagError>),
 }
 
 impl Iterator for Source {
     type Item = Result<BagMessage>;
     fn next(&mut self) -> Option<Self::Item> {
-        match self {
-            Source::Mcap(m) => m.next(),
-            Source::Sqlite(m) => m.next(),
-        }
+        let item = match &mut self.stream {
+            Stream::Mcap(m) => m.next(),
+            Stream::Sqlite(m) => m.next(),
+            Stream::Failed(error) => error.take().map(Err),
+        }?;
+        Some(match item {
+            Ok(message) if self.messages_compressed => {
+                compression::decompress_message(&self.path, message)
+            }
+            item => item,
+        })
     }
 }
 
@@ -425,5 +531,245 @@ impl Messages {
             }
             None => None,
         };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::{Path, PathBuf};
+
+    use lidar_har_msgs::qos::QosProfile;
+
+    use crate::metadata::BagMetadata;
+    use crate::{BagError, BagReader, BagWriter, StorageId, WriterOptions};
+
+    /// A bag at `dir` of one storage file with `data` on `/raw`, one message a nanosecond from
+    /// `t0`; returns the file.
+    fn write_bag(dir: &Path, storage: StorageId, t0: i64, data: &[Vec<u8>]) -> PathBuf {
+        let options = WriterOptions {
+            storage,
+            ..WriterOptions::default()
+        };
+        let mut writer = BagWriter::create(dir, options).unwrap();
+        let topic = writer
+            .add_topic(
+                "/raw",
+                "std_msgs/msg/String",
+                "string data\n",
+                QosProfile::sensor_data(),
+            )
+            .unwrap();
+        for (i, data) in data.iter().enumerate() {
+            writer.write(topic, t0 + i as i64, data).unwrap();
+        }
+        writer.finish().unwrap();
+        let name = dir.file_name().unwrap().to_string_lossy();
+        dir.join(format!("{name}_0.{}", storage.extension()))
+    }
+
+    /// Message `i`: CDR of a `std_msgs/String`, different for each `i`.
+    fn payload(i: u32) -> Vec<u8> {
+        let text = format!("message {i}");
+        let mut cdr = vec![0, 1, 0, 0];
+        cdr.extend((text.len() as u32 + 1).to_le_bytes());
+        cdr.extend(text.as_bytes());
+        cdr.push(0);
+        cdr
+    }
+
+    /// Every message (log time, data) of the bag at `path`, and the errors after them.
+    fn read_all(path: &Path) -> (Vec<(i64, Vec<u8>)>, Vec<BagError>) {
+        let reader = BagReader::open(path).unwrap_or_else(|e| panic!("open: {e}"));
+        let (mut messages, mut errors) = (Vec::new(), Vec::new());
+        for item in reader.messages().unwrap() {
+            match item {
+                Ok(m) => messages.push((m.log_time_ns, m.data)),
+                Err(e) => errors.push(e),
+            }
+        }
+        (messages, errors)
+    }
+
+    fn zstd_file_name(path: &Path) -> PathBuf {
+        let mut name = path.as_os_str().to_owned();
+        name.push(".zstd");
+        PathBuf::from(name)
+    }
+
+    /// Replaces the file at `path` by `<path>.zstd`, as rosbag2's mode FILE does; returns it.
+    fn zstd_file(path: &Path) -> PathBuf {
+        let compressed = zstd_file_name(path);
+        let bytes = std::fs::read(path).unwrap();
+        std::fs::write(&compressed, zstd::encode_all(&bytes[..], 3).unwrap()).unwrap();
+        std::fs::remove_file(path).unwrap();
+        compressed
+    }
+
+    /// A killed recorder leaves no metadata.yaml; with sqlite3 storage (Humble's default) its
+    /// files are `.db3`. They are read in split order (`_10` after `_9`), and so is one given
+    /// on its own.
+    #[test]
+    fn db3_files_without_metadata_are_read_in_split_order() {
+        let tmp = tempfile::tempdir().unwrap();
+        let rec = tmp.path().join("rec");
+        std::fs::create_dir(&rec).unwrap();
+        for split in 0..11u32 {
+            let dir = tmp.path().join(format!("w{split}"));
+            let data = [payload(split)];
+            let file = write_bag(&dir, StorageId::Sqlite3, 1000 + i64::from(split), &data);
+            std::fs::rename(file, rec.join(format!("rec_{split}.db3"))).unwrap();
+        }
+        let reader = BagReader::open(&rec).unwrap_or_else(|e| panic!("open: {e}"));
+        let info = reader.metadata();
+        assert_eq!(info.storage, StorageId::Sqlite3);
+        let names: Vec<String> = info
+            .files
+            .iter()
+            .map(|f| f.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        let expected: Vec<String> = (0..11).map(|i| format!("rec_{i}.db3")).collect();
+        assert_eq!(names, expected);
+        let (messages, errors) = read_all(&rec);
+        assert!(errors.is_empty(), "{errors:?}");
+        let expected: Vec<_> = (0..11).map(|i| (1000 + i64::from(i), payload(i))).collect();
+        assert_eq!(messages, expected);
+
+        let (messages, errors) = read_all(&rec.join("rec_10.db3"));
+        assert!(errors.is_empty(), "{errors:?}");
+        assert_eq!(messages, vec![(1010, payload(10))]);
+    }
+
+    /// `--compression-mode file`: each storage file is replaced by `<file>.zstd`, listed so in
+    /// metadata.yaml. It is read from a decompressed copy, with metadata.yaml or without (a
+    /// killed recorder), where it is read beside the file being recorded, uncompressed.
+    #[test]
+    fn files_compressed_whole_are_read_decompressed() {
+        for storage in [StorageId::Mcap, StorageId::Sqlite3] {
+            let tmp = tempfile::tempdir().unwrap();
+            let bag = tmp.path().join("bag");
+            let written: Vec<Vec<u8>> = (0..30).map(payload).collect();
+            let file = write_bag(&bag, storage, 1000, &written);
+            let compressed = zstd_file(&file);
+            let mut metadata = BagMetadata::read(&bag).unwrap();
+            let listed = compressed.file_name().unwrap().to_string_lossy();
+            metadata.relative_file_paths = vec![listed.to_string()];
+            metadata.files[0].path = listed.to_string();
+            metadata.compression_format = "zstd".into();
+            metadata.compression_mode = "FILE".into();
+            metadata.write(&bag).unwrap();
+            let expected: Vec<_> = (1000..).zip(written.iter().cloned()).collect();
+            let (messages, errors) = read_all(&bag);
+            assert!(errors.is_empty(), "{storage}: {errors:?}");
+            assert_eq!(messages, expected, "{storage}");
+            let reader = BagReader::open(&bag).unwrap();
+            assert_eq!(reader.metadata().files, vec![compressed.clone()]);
+
+            std::fs::remove_file(bag.join("metadata.yaml")).unwrap();
+            let last = write_bag(&tmp.path().join("last"), storage, 2000, &[payload(99)]);
+            let last_in_bag = bag.join(format!("bag_1.{}", storage.extension()));
+            std::fs::rename(last, &last_in_bag).unwrap();
+            // Its compression, cut short by the kill: rosbag2 deletes the file compressed
+            // only once the compressed file is complete.
+            let cut = zstd::encode_all(&std::fs::read(&last_in_bag).unwrap()[..], 3).unwrap();
+            std::fs::write(zstd_file_name(&last_in_bag), &cut[..cut.len() / 2]).unwrap();
+            let (messages, errors) = read_all(&bag);
+            assert!(errors.is_empty(), "{storage}: {errors:?}");
+            assert_eq!(messages.len(), 31, "{storage}");
+            assert_eq!(&messages[..30], &expected[..], "{storage}");
+            let reader = BagReader::open(&bag).unwrap();
+            assert_eq!(reader.metadata().files, vec![compressed, last_in_bag]);
+        }
+    }
+
+    /// `--compression-mode message`: each message's data is one zstd frame. A frame that does
+    /// not decompress ends its file with an error naming it; another format is refused.
+    #[test]
+    fn messages_compressed_one_by_one_are_decompressed() {
+        let tmp = tempfile::tempdir().unwrap();
+        let bag = tmp.path().join("bag");
+        let written: Vec<Vec<u8>> = (0..30).map(payload).collect();
+        let mut stored: Vec<Vec<u8>> = written
+            .iter()
+            .map(|data| zstd::bulk::compress(data, 3).unwrap())
+            .collect();
+        stored[20] = b"not zstd".to_vec();
+        write_bag(&bag, StorageId::Mcap, 1000, &stored);
+        let mut metadata = BagMetadata::read(&bag).unwrap();
+        metadata.compression_format = "zstd".into();
+        metadata.compression_mode = "message".into();
+        metadata.write(&bag).unwrap();
+
+        let (messages, errors) = read_all(&bag);
+        let expected: Vec<_> = (1000..).zip(written[..20].iter().cloned()).collect();
+        assert_eq!(messages, expected);
+        let [error] = &errors[..] else {
+            panic!("one error expected: {errors:?}");
+        };
+        let text = error.to_string();
+        assert!(
+            matches!(error, BagError::MessageDecompression { .. })
+                && text.contains("bag_0.mcap")
+                && text.contains("1020 ns"),
+            "{text}"
+        );
+
+        metadata.compression_format = "lz4".into();
+        metadata.write(&bag).unwrap();
+        let error = BagReader::open(&bag).err().unwrap();
+        assert!(
+            matches!(error, BagError::UnsupportedCompression { .. })
+                && error.to_string().contains("lz4"),
+            "{error}"
+        );
+    }
+
+    /// A file of a bag of several that cannot be opened at all ends that file only, as an
+    /// error while reading it does; a bag of that file alone is refused with its error.
+    #[test]
+    fn a_file_that_cannot_be_opened_ends_that_file_only() {
+        let tmp = tempfile::tempdir().unwrap();
+        let bag = tmp.path().join("bag");
+        let written: Vec<Vec<u8>> = (0..10).map(payload).collect();
+        write_bag(&bag, StorageId::Sqlite3, 1000, &written);
+        std::fs::write(bag.join("bag_1.db3"), vec![0x5a; 4096]).unwrap();
+        let mut metadata = BagMetadata::read(&bag).unwrap();
+        metadata.relative_file_paths.push("bag_1.db3".into());
+        metadata.write(&bag).unwrap();
+
+        let reader = BagReader::open(&bag).unwrap_or_else(|e| panic!("open: {e}"));
+        assert!(reader.metadata().truncated);
+        assert_eq!(reader.metadata().message_count, 10);
+        let (messages, errors) = read_all(&bag);
+        assert_eq!(messages.len(), 10);
+        let [error] = &errors[..] else {
+            panic!("one error expected: {errors:?}");
+        };
+        assert!(
+            matches!(error, BagError::Sqlite { .. }) && error.to_string().contains("bag_1.db3"),
+            "{error}"
+        );
+
+        metadata.relative_file_paths = vec!["bag_1.db3".into()];
+        metadata.write(&bag).unwrap();
+        let error = BagReader::open(&bag).err().unwrap();
+        assert!(matches!(error, BagError::Sqlite { .. }), "{error}");
+    }
+
+    /// Without metadata.yaml nothing says whether `.mcap` or `.db3` files make up the bag.
+    #[test]
+    fn a_directory_of_both_storages_without_metadata_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let bag = tmp.path().join("bag");
+        write_bag(&bag, StorageId::Mcap, 1000, &[payload(0)]);
+        let other = write_bag(
+            &tmp.path().join("o"),
+            StorageId::Sqlite3,
+            1000,
+            &[payload(0)],
+        );
+        std::fs::rename(other, bag.join("bag_1.db3")).unwrap();
+        std::fs::remove_file(bag.join("metadata.yaml")).unwrap();
+        let error = BagReader::open(&bag).err().unwrap();
+        assert!(error.to_string().contains(".mcap and .db3"), "{error}");
     }
 }

@@ -8,10 +8,11 @@ use std::sync::Arc;
 
 use rusqlite::{Connection, OpenFlags, OptionalExtension, ffi, params};
 
-use crate::error::{BagError, Result, io_error, sqlite_error};
+use crate::error::{BagError, Result, sqlite_error};
 use crate::metadata::{BagMetadata, METADATA_VERSION};
 use crate::qos;
 use crate::reader::{BagMessage, TopicInfo};
+use crate::source::StorageSource;
 use crate::writer::{StorageSink, WriterTopic};
 
 const SCHEMA_VERSION: i64 = 4;
@@ -161,20 +162,10 @@ impl StorageSink for SqliteSink {
 
 /// An opened `.db3` file: its topics, and how to stream its messages.
 pub(crate) struct SqliteFile {
-    /// The bag's file, named in errors.
-    path: PathBuf,
-    source: ReadSource,
+    /// The file, and the copy its messages are read from when it needed one.
+    source: StorageSource,
     pub(crate) topics: Vec<TopicInfo>,
     pub(crate) time_bounds: Option<(i64, i64)>,
-}
-
-/// Where the messages of a `.db3` are read from: the file itself, or a private copy on which
-/// a hot rollback journal was rolled back ([`open_for_reading`]).
-#[derive(Clone)]
-struct ReadSource {
-    db: PathBuf,
-    /// The copy's directory, deleted when the file and its last message stream are dropped.
-    _copy: Option<Arc<tempfile::TempDir>>,
 }
 
 fn open_read_only(db: &Path) -> rusqlite::Result<Connection> {
@@ -196,7 +187,7 @@ fn probe(conn: &Connection) -> rusqlite::Result<()> {
     conn.query_row("SELECT count(*) FROM sqlite_master", [], |_| Ok(()))
 }
 
-/// Opens `path` for reading without changing it. A writer killed in the middle of a commit,
+/// Opens `source` for reading without changing it. A writer killed in the middle of a commit,
 /// or one that let SQLite spill a transaction larger than its page cache into the file (as
 /// other writers may), leaves a hot rollback journal: the file holds pages of a transaction
 /// that never committed until the journal is rolled back, which a read-only connection cannot
@@ -204,61 +195,52 @@ fn probe(conn: &Connection) -> rusqlite::Result<()> {
 /// which rosbag2's read-only reader does not do either; so the file and its journal are copied
 /// to a temporary directory and SQLite rolls the copy back, as it would the file itself on
 /// opening it for writing: every committed message, nothing of the unfinished transaction.
-fn open_for_reading(path: &Path) -> Result<(Connection, ReadSource)> {
-    let conn = open_read_only(path).map_err(sqlite_error(path))?;
+fn open_for_reading(source: StorageSource) -> Result<(Connection, StorageSource)> {
+    let path = &source.path;
+    let conn = open_read_only(&source.bytes).map_err(sqlite_error(path))?;
     match probe(&conn) {
-        Ok(()) => {
-            let source = ReadSource {
-                db: path.to_path_buf(),
-                _copy: None,
-            };
-            return Ok((conn, source));
-        }
+        Ok(()) => return Ok((conn, source)),
         Err(e)
             if e.sqlite_error()
                 .is_some_and(|e| e.extended_code == ffi::SQLITE_READONLY_ROLLBACK) => {}
         Err(e) => return Err(sqlite_error(path)(e)),
     }
     drop(conn);
-    let source = roll_back_on_copy(path)?;
-    let conn = open_read_only(&source.db).map_err(sqlite_error(path))?;
+    let copy = roll_back_on_copy(&source)?;
+    let conn = open_read_only(&copy.bytes).map_err(sqlite_error(path))?;
     probe(&conn).map_err(sqlite_error(path))?;
-    Ok((conn, source))
+    Ok((conn, copy))
 }
 
-/// Copies `path` and its hot journal to a new temporary directory and rolls the copy back.
-fn roll_back_on_copy(path: &Path) -> Result<ReadSource> {
+/// Copies `source` and its hot journal to a new temporary directory and rolls the copy back.
+fn roll_back_on_copy(source: &StorageSource) -> Result<StorageSource> {
     const CANNOT_COPY: &str = "has a hot rollback journal beside it (`-journal`, left by a \
         writer killed in a transaction); copying the two aside to roll it back there failed \
         (opening the file for writing once, e.g. with the sqlite3 tool, rolls it back in place)";
-    let dir = tempfile::Builder::new()
-        .prefix("lidar-har-bag-")
-        .tempdir()
-        .map_err(io_error(path, CANNOT_COPY))?;
-    let db = dir
-        .path()
-        .join(path.file_name().unwrap_or("bag.db3".as_ref()));
-    for (from, to) in [
-        (path.to_path_buf(), db.clone()),
-        (journal_of(path), journal_of(&db)),
-    ] {
-        // Copied into new files (not `fs::copy`, which keeps a read-only file's mode): the
-        // roll-back writes to them.
-        std::fs::File::open(&from)
-            .and_then(|mut from| std::io::copy(&mut from, &mut std::fs::File::create_new(&to)?))
-            .map_err(io_error(path, CANNOT_COPY))?;
-    }
+    let name = source.path.file_name().unwrap_or("bag.db3".as_ref());
+    let copy = source.copy(&name.to_string_lossy(), CANNOT_COPY, |db| {
+        for (from, to) in [
+            (source.bytes.clone(), db.to_path_buf()),
+            (journal_of(&source.bytes), journal_of(db)),
+        ] {
+            // Copied into new files (not `fs::copy`, which keeps a read-only file's mode):
+            // the roll-back writes to them.
+            std::io::copy(
+                &mut std::fs::File::open(&from)?,
+                &mut std::fs::File::create_new(&to)?,
+            )?;
+        }
+        Ok(())
+    })?;
+    let path = &source.path;
     let conn = Connection::open_with_flags(
-        &db,
+        &copy.bytes,
         OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_NO_MUTEX,
     )
     .map_err(sqlite_error(path))?;
     probe(&conn).map_err(sqlite_error(path))?;
     conn.close().map_err(|(_, e)| sqlite_error(path)(e))?;
-    Ok(ReadSource {
-        db,
-        _copy: Some(Arc::new(dir)),
-    })
+    Ok(copy)
 }
 
 fn has_column(conn: &Connection, table: &str, column: &str) -> rusqlite::Result<bool> {
@@ -270,8 +252,9 @@ fn has_column(conn: &Connection, table: &str, column: &str) -> rusqlite::Result<
 }
 
 impl SqliteFile {
-    pub(crate) fn open(path: &Path) -> Result<Self> {
-        let (conn, source) = open_for_reading(path)?;
+    pub(crate) fn open(source: StorageSource) -> Result<Self> {
+        let (conn, source) = open_for_reading(source)?;
+        let path = source.path.clone();
         let err = |e| BagError::Sqlite {
             path: path.to_path_buf(),
             cause: e,
@@ -362,7 +345,6 @@ impl SqliteFile {
             _ => None,
         };
         Ok(Self {
-            path: path.to_path_buf(),
             source,
             topics,
             time_bounds,
@@ -372,7 +354,7 @@ impl SqliteFile {
     /// Streams messages in timestamp order, a batch of rows at a time (keyset pagination on
     /// the `timestamp_idx` index), so memory stays constant whatever the file's size.
     pub(crate) fn messages(&self, topics: Option<&BTreeSet<String>>) -> Result<SqliteMessages> {
-        let conn = open_read_only(&self.source.db).map_err(sqlite_error(&self.path))?;
+        let conn = open_read_only(&self.source.bytes).map_err(sqlite_error(&self.source.path))?;
         let wanted = self
             .topics
             .iter()
@@ -380,7 +362,7 @@ impl SqliteFile {
             .map(|t| (t.storage_id, Arc::from(t.name.as_str())))
             .collect();
         Ok(SqliteMessages {
-            path: self.path.clone(),
+            path: self.source.path.clone(),
             conn,
             topics: wanted,
             all_topics: self.topics.iter().map(|t| t.storage_id).collect(),
@@ -402,7 +384,7 @@ pub(crate) struct SqliteMessages {
     batch: std::collections::VecDeque<(i64, i64, i64, Vec<u8>)>,
     done: bool,
     /// Keeps a rolled-back copy alive while its messages are read (last: dropped after `conn`).
-    _source: ReadSource,
+    _source: StorageSource,
 }
 
 impl SqliteMessages {
@@ -476,6 +458,7 @@ mod tests {
     use rusqlite::{Connection, params};
 
     use super::{SqliteFile, SqliteSink};
+    use crate::source::StorageSource;
     use crate::writer::{StorageSink, WriterTopic};
     use crate::{BagReader, BagWriter, StorageId, WriterOptions};
 
@@ -506,7 +489,7 @@ mod tests {
         for i in 0..100 {
             sink.write(id, 1000 + i64::from(i), &payload(i)).unwrap();
         }
-        let file = SqliteFile::open(&path).unwrap();
+        let file = SqliteFile::open(StorageSource::file(&path)).unwrap();
         let on_disk: Vec<Vec<u8>> = file
             .messages(None)
             .unwrap()

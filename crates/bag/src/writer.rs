@@ -37,7 +37,7 @@ impl StorageId {
         }
     }
 
-    fn extension(self) -> &'static str {
+    pub(crate) fn extension(self) -> &'static str {
         match self {
             StorageId::Mcap => "mcap",
             StorageId::Sqlite3 => "db3",
