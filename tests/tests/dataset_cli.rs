@@ -355,6 +355,19 @@ fn random_rooms_are_trained_on_beside_the_drawn_scenes() {
     let again = dir.path().join("again");
     assert!(random_scenes(&again, "5", "1").status.success());
     assert_eq!(std::fs::read(again.join("random_5.yaml")).unwrap(), first);
+    // A second run into the folder is refused and leaves the rooms there as they are (a
+    // user's edits; the dataset would have taken both runs' rooms).
+    let edited = [first.as_slice(), b"# edited\n"].concat();
+    std::fs::write(rooms.join("random_5.yaml"), &edited).unwrap();
+    let out = random_scenes(&rooms, "7", "1");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("already holds 2 random rooms (random_5.yaml, random_6.yaml)"),
+        "{stderr}"
+    );
+    assert!(!rooms.join("random_7.yaml").exists());
+    assert_eq!(std::fs::read(rooms.join("random_5.yaml")).unwrap(), edited);
 
     let data = dir.path().join("data");
     let out = lidar_har()
