@@ -10,6 +10,7 @@ use std::path::Path;
 
 use glam::DVec2;
 use lidar_har_bag::{BagReader, BagWriter, WriterOptions};
+use lidar_har_core::localiser::LocaliserConfig;
 use lidar_har_e2e::{
     copy_bag, copy_bag_delaying, copy_bag_emptying, lidar_har as lidar_har_command,
 };
@@ -26,6 +27,7 @@ use lidar_har_msgs::topics;
 use lidar_har_msgs::visualization_msgs::MarkerArray;
 use lidar_har_pipeline::bag_run::{RunOptions, RunSummary, run_bag};
 use lidar_har_pipeline::files;
+use lidar_har_pipeline::localiser_stage::MountSource;
 
 const HALF: f64 = 5.0;
 const RES: f64 = 0.05;
@@ -82,7 +84,14 @@ enum OdometryOn {
     Topic,
     /// Only the `odom -> base_link` transform on /tf (bases that publish no /odom).
     Tf,
+    /// Nowhere: the Lidar is fixed at [`FIXED_BASE`], and /tf_static places it there
+    /// (`map -> odom` and `odom -> base_link`, as static_transform_publisher gives them).
+    Fixed,
 }
+
+/// Where a fixed Lidar's base is in the map, clear of the person's circle: through
+/// `map -> odom` at (1, -1).
+const FIXED_BASE: (f64, f64, f64) = (3.5, -3.0, 2.5);
 
 fn write_bag(dir: &Path) {
     write_robot_bag(dir, OdometryOn::Topic);
@@ -102,9 +111,11 @@ fn write_robot_bag(dir: &Path, odometry_on: OdometryOn) {
         .add_topic_for::<TFMessage>(topics::TF_STATIC.name, topics::TF_STATIC.qos)
         .unwrap();
     let odom_t = match odometry_on {
-        OdometryOn::Topic => w.add_topic_for::<Odometry>(topics::ODOM.name, topics::ODOM.qos),
-        OdometryOn::Tf => w.add_topic_for::<TFMessage>(topics::TF.name, topics::TF.qos),
+        OdometryOn::Topic => Some(w.add_topic_for::<Odometry>(topics::ODOM.name, topics::ODOM.qos)),
+        OdometryOn::Tf => Some(w.add_topic_for::<TFMessage>(topics::TF.name, topics::TF.qos)),
+        OdometryOn::Fixed => None,
     }
+    .transpose()
     .unwrap();
     let scan_t = w
         .add_topic_for::<LaserScan>(topics::SCAN.name, topics::SCAN.qos)
@@ -145,21 +156,31 @@ fn write_robot_bag(dir: &Path, odometry_on: OdometryOn) {
             rotation: Quaternion::IDENTITY,
         },
     };
-    w.write_message(
-        tf_t,
-        0,
-        &TFMessage {
-            transforms: vec![mount],
-        },
-    )
-    .unwrap();
+    let mut transforms = vec![mount];
+    if odometry_on == OdometryOn::Fixed {
+        let (x, y, yaw) = FIXED_BASE;
+        let placed = |parent: &str, child: &str, x: f64, y: f64, yaw: f64| TransformStamped {
+            header: header(0.0, parent),
+            child_frame_id: child.into(),
+            transform: Transform {
+                translation: Vector3::new(x, y, 0.0),
+                rotation: Quaternion::from_yaw(yaw),
+            },
+        };
+        transforms.push(placed("map", "odom", 1.0, -1.0, 0.0));
+        transforms.push(placed("odom", "base_link", x - 1.0, y + 1.0, yaw));
+    }
+    w.write_message(tf_t, 0, &TFMessage { transforms }).unwrap();
     // Merge both rates in time order: odometry every 20 ms, scans every 50 ms.
     let mut events: Vec<(i64, bool)> = (0..=500).map(|k| (k * 20_000_000, false)).collect();
     events.extend((1..200).map(|k| (k * 50_000_000 + 1, true)));
     events.sort();
     for (ns, is_scan) in events {
         let t = ns as f64 * 1e-9;
-        let (base, heading) = robot(t);
+        let (base, heading) = match odometry_on {
+            OdometryOn::Fixed => (DVec2::new(FIXED_BASE.0, FIXED_BASE.1), FIXED_BASE.2),
+            _ => robot(t),
+        };
         if is_scan {
             let laser = base + DVec2::from_angle(heading) * MOUNT_X;
             let scan = LaserScan {
@@ -179,7 +200,9 @@ fn write_robot_bag(dir: &Path, odometry_on: OdometryOn) {
                 pose: Pose::from_xy_yaw(p.x, p.y, 0.0),
             };
             w.write_message(gt_t, ns, &gt).unwrap();
-        } else if odometry_on == OdometryOn::Topic {
+        } else if let Some(odom_t) = odom_t
+            && odometry_on == OdometryOn::Topic
+        {
             let mut odom = Odometry {
                 header: header(t, "odom"),
                 child_frame_id: "base_link".into(),
@@ -187,7 +210,7 @@ fn write_robot_bag(dir: &Path, odometry_on: OdometryOn) {
             };
             odom.pose.pose = Pose::from_xy_yaw(base.x, base.y, heading);
             w.write_message(odom_t, ns, &odom).unwrap();
-        } else {
+        } else if let Some(odom_t) = odom_t {
             let pose = Pose::from_xy_yaw(base.x, base.y, heading);
             let transform = TransformStamped {
                 header: header(t, "odom"),
@@ -432,6 +455,42 @@ fn odometry_given_only_on_tf_moves_the_robot() {
     assert!(summary.visible_ratio > 0.95, "{summary:?}");
     let error = summary.position_error_m.unwrap();
     assert!(error.median < 0.2 && error.p95 < 0.3, "{error:?}");
+}
+
+/// A Lidar fixed in a mapped room, placed there by /tf_static as static_transform_publisher
+/// places a fixed sensor: those transforms had been ignored and the Lidar put at the map
+/// origin (1.9 m position error on the reviewer's room), without a word.
+#[test]
+fn a_fixed_lidar_is_placed_in_the_map_by_its_static_transforms() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in");
+    write_robot_bag(&input, OdometryOn::Fixed);
+    let summary = run_localiser(&input, &tmp.path().join("out"), None);
+    assert_eq!(
+        (summary.room, summary.motion, summary.mount),
+        ("map", "stationary", MountSource::TfStatic)
+    );
+    assert!(summary.warnings.is_empty(), "{summary:?}");
+    assert!(summary.visible_ratio > 0.95, "{summary:?}");
+    let error = summary.position_error_m.unwrap();
+    assert!(error.median < 0.2 && error.p95 < 0.3, "{error:?}");
+
+    // Without the transforms that place it, the Lidar is at the map origin, and that is said.
+    let unplaced = tmp.path().join("unplaced");
+    copy_bag(&input, &unplaced, &[], |topic, data| {
+        if topic != topics::TF_STATIC.name {
+            return data;
+        }
+        let mut tf: TFMessage = lidar_har_msgs::decode(&data).unwrap();
+        tf.transforms.retain(|t| t.child_frame_id == "laser");
+        lidar_har_msgs::encode(&tf).unwrap()
+    });
+    let summary = run_localiser(&unplaced, &tmp.path().join("out_unplaced"), None);
+    assert_eq!(
+        summary.warnings.get("lidar_at_map_origin"),
+        Some(&summary.scans_localised),
+        "{summary:?}"
+    );
 }
 
 #[test]
@@ -844,4 +903,46 @@ fn converting_a_bag_cut_short_salvages_its_complete_messages_and_says_so() {
     assert!(stderr.contains("holds those"), "{stderr}");
     let salvaged = BagReader::open(&copy).unwrap().messages().unwrap().count() as u64;
     assert_eq!(salvaged, copied);
+}
+
+/// A `tracker.max_coast_s` under the scan period loses every track between two scans, and a
+/// background that takes longer to learn than the bag lasts localises nothing: both had given
+/// empty outputs, without a word.
+#[test]
+fn settings_that_leave_nobody_tracked_are_warned_about_in_the_summary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let robot = tmp.path().join("robot");
+    write_bag(&robot);
+    let mut config = LocaliserConfig::default();
+    config.tracker.max_coast_s = 0.04; // The scans come every 0.05 s.
+    let options = RunOptions {
+        config,
+        ..RunOptions::default()
+    };
+    let summary = run_bag(&robot, &tmp.path().join("out_coast"), options).unwrap();
+    assert!(
+        summary.warnings.get("scan_period_over_max_coast") > Some(&0),
+        "{summary:?}"
+    );
+
+    let fixed = tmp.path().join("fixed");
+    copy_bag(
+        &robot,
+        &fixed,
+        &[topics::MAP.name, topics::ODOM.name],
+        |_, data| data,
+    );
+    let mut config = LocaliserConfig::default();
+    config.background.learn_duration_s = 30.0; // The bag lasts 10 s.
+    let options = RunOptions {
+        config,
+        ..RunOptions::default()
+    };
+    let summary = run_bag(&fixed, &tmp.path().join("out_learning"), options).unwrap();
+    assert_eq!(summary.scans_learning, summary.scans, "{summary:?}");
+    assert_eq!(
+        summary.warnings.get("background_not_learned"),
+        Some(&1),
+        "{summary:?}"
+    );
 }

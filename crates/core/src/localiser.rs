@@ -139,7 +139,6 @@ impl LocaliserConfig {
                 self.tracker.part_merge_still_m,
             ),
             ("tracker.still_speed_mps", self.tracker.still_speed_mps),
-            ("tracker.max_coast_s", self.tracker.max_coast_s),
             (
                 "tracker.hidden_speed_decay_s",
                 self.tracker.hidden_speed_decay_s,
@@ -170,6 +169,8 @@ impl LocaliserConfig {
                 self.tracker.initial_velocity_std_mps,
             ),
             ("tracker.max_speed_mps", self.tracker.max_speed_mps),
+            // 0 would drop every track between two scans: nobody tracked, and nothing said.
+            ("tracker.max_coast_s", self.tracker.max_coast_s),
             ("shadow.body_radius_m", self.shadow.body_radius_m),
             ("shadow.search_m", self.shadow.search_m),
             (
@@ -325,6 +326,11 @@ pub enum Warning {
     NonFinite { what: &'static str },
     #[error("scan not de-skewed (every beam placed from the pose at its stamp): {0}")]
     NotDeskewed(DeskewProblem),
+    #[error(
+        "scans come {period_s:.3} s apart, more than tracker.max_coast_s = {max_coast_s} s: \
+         every track is lost between two scans, so nobody is tracked"
+    )]
+    ScanPeriodOverCoast { period_s: f64, max_coast_s: f64 },
 }
 
 /// Why a scan's beams could not each be placed from their own pose.
@@ -367,6 +373,7 @@ impl Warning {
             Warning::OdometryRestarted { .. } => "odometry_restarted",
             Warning::NonFinite { .. } => "non_finite",
             Warning::NotDeskewed(_) => "not_deskewed",
+            Warning::ScanPeriodOverCoast { .. } => "scan_period_over_max_coast",
         }
     }
 }
@@ -387,7 +394,8 @@ pub enum Reference {
 pub enum Motion {
     /// A moving robot: odometry (and the `map -> odom` correction) at each scan's stamp.
     Odometry,
-    /// A Lidar that does not move: `base_link` sits at this pose in the map.
+    /// A Lidar that does not move: `base_link` sits at this pose in the map (until
+    /// [`Localiser::set_fixed_base`] says where its transforms place it).
     Stationary(Pose2),
 }
 
@@ -609,6 +617,8 @@ pub struct Localiser {
     mount: Pose2,
     tracker: Tracker,
     last_scan_ns: Option<i64>,
+    /// Whether the scan before came more than `tracker.max_coast_s` after the one before it.
+    slow_scan: bool,
     directions: BeamDirections,
     clusterer: Clusterer,
     foreground: Vec<DVec2>,
@@ -631,6 +641,7 @@ impl Localiser {
             mount: config.mount,
             tracker: Tracker::new(config.tracker.clone()),
             last_scan_ns: None,
+            slow_scan: false,
             directions: BeamDirections::default(),
             clusterer: Clusterer::default(),
             foreground: Vec::new(),
@@ -696,6 +707,21 @@ impl Localiser {
         None
     }
 
+    /// Where a fixed Lidar's base sits in the map: its transforms (`map -> odom -> base_link`),
+    /// which the host resolves, place a sensor that has no odometry. A moving robot's base
+    /// is placed by its odometry, and this does nothing.
+    pub fn set_fixed_base(&mut self, pose: Pose2) -> Option<Warning> {
+        if !pose.is_finite() {
+            return Some(Warning::NonFinite {
+                what: "map -> base_link transform",
+            });
+        }
+        if let Motion::Stationary(base) = &mut self.motion {
+            *base = pose;
+        }
+        None
+    }
+
     /// The Lidar's mount on the robot (`base_link -> laser`, from /tf_static).
     pub fn set_mount(&mut self, pose: Pose2) -> Option<Warning> {
         if !pose.is_finite() {
@@ -751,6 +777,9 @@ impl Localiser {
                 return result;
             }
         };
+        result
+            .warnings
+            .extend(self.check_scan_period(scan.stamp_ns));
         let last_beam_pose = self.last_beam_pose(scan, laser_pose, &mut result.warnings);
         let beam_poses = BeamPoses::sweep(laser_pose, last_beam_pose, scan.ranges.len());
 
@@ -868,6 +897,24 @@ impl Localiser {
             person,
         });
         result
+    }
+
+    /// Warns when scans keep coming farther apart than `tracker.max_coast_s`: the tracker
+    /// loses every track across such a gap, so none lives from one scan to the next (a
+    /// 5.5 Hz Lidar and a `max_coast_s` under its 0.18 s period tracked nobody, silently).
+    /// One such gap alone (a Lidar stopped while docked) is not warned about: losing the
+    /// tracks across it is meant.
+    fn check_scan_period(&mut self, stamp_ns: i64) -> Option<Warning> {
+        let max_coast_s = self.config.tracker.max_coast_s;
+        let period_s = self
+            .last_scan_ns
+            .map_or(0.0, |previous| (stamp_ns - previous) as f64 * 1e-9);
+        let slow = period_s > max_coast_s;
+        let slow_before = std::mem::replace(&mut self.slow_scan, slow);
+        (slow && slow_before).then_some(Warning::ScanPeriodOverCoast {
+            period_s,
+            max_coast_s,
+        })
     }
 
     /// The Lidar's pose in the map at `stamp_ns`.
@@ -1731,5 +1778,65 @@ mod tests {
             ..LocaliserConfig::default()
         };
         assert_eq!(c.validate().unwrap_err().key, "obstacle_margin_m");
+        let mut c = LocaliserConfig::default();
+        c.tracker.max_coast_s = 0.0;
+        assert_eq!(c.validate().unwrap_err().key, "tracker.max_coast_s");
+    }
+
+    #[test]
+    fn a_fixed_lidar_is_placed_where_its_transforms_put_it() {
+        let mut loc = map_localiser(Motion::Stationary(Pose2::IDENTITY));
+        let base = Pose2::new(1.0, -0.5, 0.3);
+        assert_eq!(loc.set_fixed_base(base), None);
+        let placed = |out: LocaliserOutput| {
+            out.laser_pose.position().distance(base.position()) < 1e-12
+                && (out.laser_pose.theta - base.theta).abs() < 1e-12
+        };
+        let out = loc.process_scan(&cast(0, base, None)).output.unwrap();
+        assert_eq!(
+            out.foreground_points, 0,
+            "the walls are where the map has them"
+        );
+        assert!(placed(out));
+        assert!(matches!(
+            loc.set_fixed_base(Pose2::new(f64::NAN, 0.0, 0.0)),
+            Some(Warning::NonFinite { .. })
+        ));
+        let out = loc.process_scan(&cast(PERIOD_NS, base, None)).output;
+        assert!(placed(out.unwrap()), "a NaN pose is ignored");
+    }
+
+    #[test]
+    fn scans_that_keep_coming_farther_apart_than_max_coast_are_warned_about() {
+        let warned = |stamps_ms: &[i64]| {
+            let mut loc = map_localiser(Motion::Stationary(Pose2::IDENTITY));
+            let kinds: Vec<Vec<&str>> = stamps_ms
+                .iter()
+                .map(|&ms| {
+                    let result = loc.process_scan(&cast(ms * 1_000_000, Pose2::IDENTITY, None));
+                    result.warnings.iter().map(Warning::kind).collect()
+                })
+                .collect();
+            kinds.iter().filter(|k| !k.is_empty()).count()
+        };
+        // Twice in a row more than the default 2 s apart: a Lidar this slow tracks nobody.
+        assert_eq!(warned(&[0, 2100, 4200, 6300]), 2);
+        // One gap (a Lidar stopped while docked) loses the tracks as meant: no warning.
+        assert_eq!(warned(&[0, 50, 100, 5000, 5050, 5100]), 0);
+        let mut loc = map_localiser(Motion::Stationary(Pose2::IDENTITY));
+        for k in 0..3 {
+            let warnings = loc
+                .process_scan(&cast(k * 2_500_000_000, Pose2::IDENTITY, None))
+                .warnings;
+            if k == 2 {
+                assert_eq!(
+                    warnings,
+                    [Warning::ScanPeriodOverCoast {
+                        period_s: 2.5,
+                        max_coast_s: 2.0
+                    }]
+                );
+            }
+        }
     }
 }

@@ -78,8 +78,7 @@ pub struct WarningLog {
 impl WarningLog {
     pub fn record(&mut self, warning: &Warning, stamp_ns: i64) {
         let kind = warning.kind();
-        let count = self.counts.entry(kind).or_default();
-        *count += 1;
+        let count = self.tally(kind);
         let due = match self.last_logged.get(kind) {
             None => true,
             Some(&(at, _)) => stamp_ns.abs_diff(at) >= WARNING_LOG_INTERVAL_NS as u64,
@@ -88,14 +87,22 @@ impl WarningLog {
             let unlogged = self
                 .last_logged
                 .get(kind)
-                .map_or(0, |&(_, logged_count)| *count - logged_count - 1);
+                .map_or(0, |&(_, logged_count)| count - logged_count - 1);
             if unlogged > 0 {
                 log::warn!("localiser: {warning} ({unlogged} more like it since the last report)");
             } else {
                 log::warn!("localiser: {warning}");
             }
-            self.last_logged.insert(kind, (stamp_ns, *count));
+            self.last_logged.insert(kind, (stamp_ns, count));
         }
+    }
+
+    /// Counts one more warning of `kind` (the stage's own kinds are logged where they arise),
+    /// and says how many there have been.
+    pub fn tally(&mut self, kind: &'static str) -> u64 {
+        let count = self.counts.entry(kind).or_default();
+        *count += 1;
+        *count
     }
 
     /// Warnings so far, by kind.
@@ -110,6 +117,11 @@ pub struct LocaliserStage {
     localiser: Localiser,
     frames: FrameConfig,
     learned_background: bool,
+    /// A Lidar that does not move, in a map: its transforms place its base there.
+    fixed_in_map: bool,
+    /// Whether transforms have placed the fixed Lidar's base in the map (until they do, it
+    /// is at the map origin).
+    base_placed: bool,
     /// A map file was given, so /map is not used (and that is logged once).
     map_given: bool,
     map_topic_ignored: bool,
@@ -118,7 +130,8 @@ pub struct LocaliserStage {
     odom_topic_seen: bool,
     /// The scan's frame (from its header), where the mount ends.
     laser_frame: Option<String>,
-    /// child frame -> (parent frame, pose in parent), from /tf_static.
+    /// child frame -> (parent frame, pose in parent), the latest from /tf_static, and for a
+    /// Lidar fixed in a map from /tf too: its transforms do not change, whatever carries them.
     static_tf: HashMap<String, (String, Pose2)>,
     warnings: WarningLog,
     occupied_thresh: f64,
@@ -126,6 +139,10 @@ pub struct LocaliserStage {
     /// Scans that came before the odometry at their stamp, oldest first.
     waiting: OdometryWait<ArrivedScan>,
     scans_learning: u64,
+    /// Receive time of the first scan, from which a background's learning is timed.
+    first_scan_received_ns: Option<i64>,
+    /// Whether learning that takes too long has been warned about.
+    learning_overdue_warned: bool,
     mount: MountSource,
     /// The localiser configuration's mount, for a scan frame /tf_static does not reach.
     configured_mount: Pose2,
@@ -146,16 +163,26 @@ pub enum MountSource {
     None,
 }
 
-/// Scans localised with the configured mount before a missing /tf_static chain is warned
-/// about (2 s at 20 Hz: /tf_static is latched, so it normally comes before the first scans).
-const SCANS_BEFORE_MOUNT_WARNING: u32 = 40;
+/// Scans localised with the configured mount, or at the map origin, before a missing
+/// transform is warned about (2 s at 20 Hz: /tf_static is latched, so it normally comes
+/// before the first scans).
+const SCANS_BEFORE_TF_WARNING: u32 = 40;
 
-/// Longest chain of static transforms between the base and the laser.
+/// Summary warning key: scans of a fixed Lidar placed at the map origin, since no transform
+/// placed its base in the map.
+const LIDAR_AT_MAP_ORIGIN: &str = "lidar_at_map_origin";
+
+/// Summary warning key: the input ended before the background was learned.
+const BACKGROUND_NOT_LEARNED: &str = "background_not_learned";
+
+/// Longest chain of static transforms between two frames (the base and the laser, the map
+/// and the base).
 const MAX_TF_CHAIN: usize = 16;
 
 impl LocaliserStage {
-    /// `moving`: whether odometry gives the robot's pose (otherwise the Lidar is fixed and
-    /// `base_link` is the map origin). A learned background implies a fixed Lidar.
+    /// `moving`: whether odometry gives the robot's pose (otherwise the Lidar is fixed, and
+    /// `base_link` is where the transforms place it in the map, or at its origin). A learned
+    /// background implies a fixed Lidar.
     pub fn new(
         config: LocaliserConfig,
         room: RoomSource,
@@ -180,6 +207,8 @@ impl LocaliserStage {
             localiser,
             frames,
             learned_background,
+            fixed_in_map: !moving && !learned_background,
+            base_placed: false,
             map_given,
             map_topic_ignored: false,
             odom_topic_seen: false,
@@ -190,6 +219,8 @@ impl LocaliserStage {
             last_stamp_ns: 0,
             waiting: OdometryWait::new(max_wait_s),
             scans_learning: 0,
+            first_scan_received_ns: None,
+            learning_overdue_warned: false,
             mount: if learned_background {
                 MountSource::None
             } else {
@@ -321,7 +352,42 @@ impl LocaliserStage {
         while let Some(scan) = self.waiting.pop_any() {
             self.localise_into(&mut step, scan)?;
         }
+        if self.learning() {
+            self.warnings.tally(BACKGROUND_NOT_LEARNED);
+            log::warn!(
+                "localiser: the background was never learned ({} scans learned from, short of \
+                 background.learn_duration_s = {} s of scans): nothing was localised",
+                self.scans_learning,
+                self.localiser.config().background.learn_duration_s
+            );
+        }
         Ok(step)
+    }
+
+    /// Whether a learned background is still being learned: no scan is localised until it is.
+    fn learning(&self) -> bool {
+        matches!(self.localiser.reference(), Reference::Background(b) if !b.is_ready())
+    }
+
+    /// Warns once when the background is still not learned twice its learning time after the
+    /// first scan came (the Lidar sends broken scans, its stamps keep going back): nothing
+    /// is localised until it is, and nothing else would say so while the input lasts.
+    fn check_learning_time(&mut self, received_ns: i64) {
+        let first_ns = *self.first_scan_received_ns.get_or_insert(received_ns);
+        if self.learning_overdue_warned || !self.learning() {
+            return;
+        }
+        let learn_s = self.localiser.config().background.learn_duration_s;
+        let waited_s = received_ns.saturating_sub(first_ns) as f64 * 1e-9;
+        if waited_s > 2.0 * learn_s {
+            self.learning_overdue_warned = true;
+            log::warn!(
+                "localiser: the background is still not learned {waited_s:.1} s after the first \
+                 scan ({} scans learned from; background.learn_duration_s = {learn_s} s): \
+                 nothing is localised until it is",
+                self.scans_learning
+            );
+        }
     }
 
     /// Scans whose wait ran out before this message came go first, as a host waiting on
@@ -335,6 +401,7 @@ impl LocaliserStage {
         let mut step = self.release_expired(received_ns)?;
         match input {
             LocaliserInput::Scan(msg) => {
+                self.check_learning_time(received_ns);
                 let needed_ns = msg
                     .header
                     .stamp
@@ -420,17 +487,40 @@ impl LocaliserStage {
         }
         let scan = convert::scan_from_msg(msg);
         self.last_stamp_ns = scan.stamp_ns;
+        let learning = self.learning();
         let started = Instant::now();
         let result = self.localiser.process_scan(&scan);
         let localise_time = started.elapsed();
         self.scans_learning += u64::from(result.learning);
+        if learning && !self.learning() {
+            log::info!(
+                "localiser: background learned from {} scans (background.learn_duration_s = {} s)",
+                self.scans_learning,
+                self.localiser.config().background.learn_duration_s
+            );
+        }
+        if self.fixed_in_map && !self.base_placed && result.output.is_some() {
+            let scans = self.warnings.tally(LIDAR_AT_MAP_ORIGIN);
+            if scans == u64::from(SCANS_BEFORE_TF_WARNING) {
+                log::warn!(
+                    "localiser: no transform places `{}` in `{}` (`{} -> {} -> {}` on /tf_static \
+                     or /tf): the fixed Lidar is assumed at the map origin (publish them, e.g. \
+                     with static_transform_publisher)",
+                    self.frames.base,
+                    self.frames.map,
+                    self.frames.map,
+                    self.frames.odom,
+                    self.frames.base
+                );
+            }
+        }
         // A configured mount is a choice unless /tf_static speaks, but of other frames.
         if self.mount == MountSource::Configuration
             && !self.static_tf.is_empty()
             && result.output.is_some()
         {
             self.scans_without_tf_mount += 1;
-            if self.scans_without_tf_mount == SCANS_BEFORE_MOUNT_WARNING {
+            if self.scans_without_tf_mount == SCANS_BEFORE_TF_WARNING {
                 log::warn!(
                     "no /tf_static chain from the scan's frame `{frame}` to `{}`: the Lidar \
                      mount of the localiser configuration is used (publish the transform, or \
@@ -475,8 +565,12 @@ impl LocaliserStage {
     }
 
     /// Dynamic transforms: the `map -> odom` correction, and `odom -> base_link` as the
-    /// odometry while no /odom message has come.
+    /// odometry while no /odom message has come. A fixed Lidar's do not change: they place
+    /// it as static ones do.
     fn on_tf(&mut self, msg: &TFMessage) {
+        if self.fixed_in_map {
+            return self.on_tf_static(msg);
+        }
         for t in &msg.transforms {
             let parent = t.header.frame_id.trim_start_matches('/');
             let child = t.child_frame_id.trim_start_matches('/');
@@ -496,7 +590,8 @@ impl LocaliserStage {
         }
     }
 
-    /// Static transforms: the mount of the Lidar on the base, possibly through a chain.
+    /// Static transforms: the mount of the Lidar on the base, possibly through a chain, and
+    /// where a fixed Lidar's base is in the map.
     fn on_tf_static(&mut self, msg: &TFMessage) {
         for t in &msg.transforms {
             let parent = t.header.frame_id.trim_start_matches('/').to_string();
@@ -505,6 +600,7 @@ impl LocaliserStage {
                 .insert(child, (parent, convert::pose2_from_transform(&t.transform)));
         }
         self.update_mount();
+        self.update_base();
     }
 
     /// Recomputes `base -> laser` from the static transforms, when they connect the two.
@@ -515,32 +611,49 @@ impl LocaliserStage {
         let Some(laser) = self.laser_frame.clone() else {
             return;
         };
-        let mut frame = laser.as_str();
-        let mut mount = Pose2::IDENTITY;
+        if let Some(mount) = self.static_pose(&laser, &self.frames.base) {
+            let w = self.localiser.set_mount(mount);
+            self.warn(w);
+            self.mount = MountSource::TfStatic;
+        } else if self.mount == MountSource::TfStatic {
+            // The scans now come from another frame: the old chain's mount is not theirs.
+            log::warn!(
+                "localiser: the scans' frame is now `{laser}`, which /tf_static does not \
+                 connect to `{}`: the mount of the localiser configuration is used",
+                self.frames.base
+            );
+            let w = self.localiser.set_mount(self.configured_mount);
+            self.warn(w);
+            self.mount = MountSource::Configuration;
+        }
+    }
+
+    /// Places a fixed Lidar's base in the map from the latest transforms that link the two
+    /// (`map -> odom -> base_link`, or `map -> base_link`), as tf2 would look them up.
+    fn update_base(&mut self) {
+        if !self.fixed_in_map {
+            return;
+        }
+        if let Some(base) = self.static_pose(&self.frames.base, &self.frames.map) {
+            let w = self.localiser.set_fixed_base(base);
+            self.base_placed |= w.is_none();
+            self.warn(w);
+        }
+    }
+
+    /// The pose of `frame` in `ancestor` through the static transforms, when they link them.
+    fn static_pose(&self, frame: &str, ancestor: &str) -> Option<Pose2> {
+        let mut frame = frame;
+        let mut pose = Pose2::IDENTITY;
         for _ in 0..MAX_TF_CHAIN {
-            if frame == self.frames.base {
-                let w = self.localiser.set_mount(mount);
-                self.warn(w);
-                self.mount = MountSource::TfStatic;
-                return;
+            if frame == ancestor {
+                return Some(pose);
             }
-            let Some((parent, pose)) = self.static_tf.get(frame) else {
-                if self.mount == MountSource::TfStatic {
-                    // The scans now come from another frame: the old chain's mount is not theirs.
-                    log::warn!(
-                        "localiser: the scans' frame is now `{laser}`, which /tf_static does not \
-                         connect to `{}`: the mount of the localiser configuration is used",
-                        self.frames.base
-                    );
-                    let w = self.localiser.set_mount(self.configured_mount);
-                    self.warn(w);
-                    self.mount = MountSource::Configuration;
-                }
-                return;
-            };
-            mount = pose.compose(&mount);
+            let (parent, to_parent) = self.static_tf.get(frame)?;
+            pose = to_parent.compose(&pose);
             frame = parent;
         }
+        None
     }
 
     /// The messages to publish for one output.
@@ -681,7 +794,7 @@ mod tests {
         stage.on_tf_static(&TFMessage {
             transforms: vec![tf("base_link", "rplidar_link", 0.2, 0.0)],
         });
-        for k in 0..=SCANS_BEFORE_MOUNT_WARNING {
+        for k in 0..=SCANS_BEFORE_TF_WARNING {
             let out = scan_output(&mut stage, scan(i64::from(k))).expect("localised");
             assert_eq!(out.laser_pose, mount);
         }
@@ -714,6 +827,123 @@ mod tests {
             out.laser_pose
         );
         assert_eq!(stage.mount_source(), MountSource::TfStatic);
+    }
+
+    /// A stage for a Lidar fixed in an empty room.
+    fn fixed_stage() -> LocaliserStage {
+        LocaliserStage::new(
+            LocaliserConfig::default(),
+            RoomSource::Map(empty_room()),
+            false,
+        )
+        .unwrap()
+    }
+
+    fn assert_near(pose: Pose2, expected: Pose2) {
+        let d = pose.position().distance(expected.position());
+        let turn = lidar_har_core::geometry::normalize_angle(pose.theta - expected.theta);
+        assert!(d < 1e-9 && turn.abs() < 1e-9, "{pose:?}, not {expected:?}");
+    }
+
+    /// A fixed sensor's transforms as static_transform_publisher gives them: `map -> odom`
+    /// and `odom -> base_link` on /tf_static. They had been ignored, and the Lidar put at the
+    /// map origin: 1.9 m position error on a real layout.
+    #[test]
+    fn a_fixed_lidar_in_a_map_is_placed_by_its_transforms() {
+        let mut stage = fixed_stage();
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![
+                tf("base_link", "laser", 0.2, 0.0),
+                tf("map", "odom", 1.0, 0.5),
+                tf("odom", "base_link", 2.0, 3.0),
+            ],
+        });
+        let base = Pose2::new(1.0, 0.0, 0.5).compose(&Pose2::new(2.0, 0.0, 3.0));
+        let out = scan_output(&mut stage, scan(0)).expect("localised");
+        assert_near(out.laser_pose, base.compose(&Pose2::new(0.2, 0.0, 0.0)));
+        // The latest transform counts, whatever carries it (a fixed Lidar's /tf is static).
+        stage.on_tf(&TFMessage {
+            transforms: vec![tf("map", "odom", -1.0, 0.0)],
+        });
+        let out = scan_output(&mut stage, scan(1)).expect("localised");
+        let base = Pose2::new(-1.0, 0.0, 0.0).compose(&Pose2::new(2.0, 0.0, 3.0));
+        assert_near(out.laser_pose, base.compose(&Pose2::new(0.2, 0.0, 0.0)));
+        assert_eq!(stage.mount_source(), MountSource::TfStatic);
+        assert!(
+            stage.warning_counts().is_empty(),
+            "{:?}",
+            stage.warning_counts()
+        );
+    }
+
+    #[test]
+    fn a_fixed_lidar_without_transforms_is_at_the_map_origin_with_a_warning() {
+        let mut stage = fixed_stage();
+        for k in 0..3 {
+            let out = scan_output(&mut stage, scan(k)).expect("localised");
+            assert_eq!(out.laser_pose, Pose2::IDENTITY);
+        }
+        assert_eq!(stage.warning_counts().get(LIDAR_AT_MAP_ORIGIN), Some(&3));
+        // A mount alone does not place the base.
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![tf("base_link", "laser", 0.2, 0.0)],
+        });
+        scan_output(&mut stage, scan(3)).expect("localised");
+        assert_eq!(stage.warning_counts().get(LIDAR_AT_MAP_ORIGIN), Some(&4));
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![tf("map", "base_link", 1.0, 0.0)],
+        });
+        let out = scan_output(&mut stage, scan(4)).expect("localised");
+        assert_near(out.laser_pose, Pose2::new(1.2, 0.0, 0.0));
+        assert_eq!(stage.warning_counts().get(LIDAR_AT_MAP_ORIGIN), Some(&4));
+    }
+
+    #[test]
+    fn a_learned_background_says_when_it_was_never_learned() {
+        let config = |learn_duration_s| {
+            let mut config = LocaliserConfig::default();
+            config.background.learn_duration_s = learn_duration_s;
+            config
+        };
+        let learned = |learn_duration_s| {
+            let mut stage = LocaliserStage::new(
+                config(learn_duration_s),
+                RoomSource::LearnedBackground,
+                false,
+            )
+            .unwrap();
+            // 4 s of scans, every 0.5 s.
+            for k in 0..=8 {
+                stage
+                    .receive(LocaliserInput::Scan(scan(k * 500 * MS)), k * 500 * MS)
+                    .unwrap();
+            }
+            stage.finish().unwrap();
+            stage
+        };
+        let stage = learned(3.0);
+        assert_eq!(stage.scans_learning(), 6);
+        assert!(!stage.learning_overdue_warned);
+        assert!(
+            stage.warning_counts().is_empty(),
+            "{:?}",
+            stage.warning_counts()
+        );
+        let stage = learned(10.0);
+        assert_eq!(stage.scans_learning(), 9);
+        assert_eq!(stage.warning_counts().get(BACKGROUND_NOT_LEARNED), Some(&1));
+        assert!(!stage.learning_overdue_warned, "4 s is not twice 10 s");
+        // Scans whose stamp never moves on never complete it: that is said while the input
+        // lasts, once twice the learning time has passed since the first scan came.
+        let mut stage =
+            LocaliserStage::new(config(1.5), RoomSource::LearnedBackground, false).unwrap();
+        for k in 0..=7 {
+            assert!(!stage.learning_overdue_warned, "at {k}");
+            stage
+                .receive(LocaliserInput::Scan(scan(0)), k * 500 * MS)
+                .unwrap();
+        }
+        assert!(stage.learning_overdue_warned);
     }
 
     #[test]

@@ -4,7 +4,10 @@
 //!
 //! Parameters: `config` (a `config/localiser.yaml`-format file; empty = defaults),
 //! `map_file` (a map_server YAML; empty = wait for /map), `learned_background` (no map: learn
-//! the room from the first scans of a fixed Lidar), `moving` (odometry moves the robot).
+//! the room from the first scans of a fixed Lidar), `moving` (odometry moves the robot;
+//! false: a fixed Lidar, which its transforms place in the map, `map -> odom -> base_link`
+//! on /tf_static or /tf, else the map origin, warned about). A background still not
+//! learned twice `background.learn_duration_s` after the first scan is warned about.
 //! A scan stamped after the newest odometry waits for it up to the configuration's
 //! `odometry.max_wait_s` on this node's clock; scans still waiting at shutdown are published.
 
