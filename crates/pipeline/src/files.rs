@@ -3,11 +3,14 @@
 
 use std::path::{Path, PathBuf};
 
-use image::{GenericImageView, Rgba};
+use std::collections::BTreeMap;
+
+use image::{DynamicImage, ImageBuffer, Pixel, Primitive, Rgba};
 use lidar_har_core::geometry::Pose2;
 use lidar_har_core::localiser::{ConfigError, LocaliserConfig};
 use lidar_har_core::map::{MAP_SERVER_OCCUPIED_THRESH, MapError, MapGeometry, OccupancyMap};
-use serde::Deserialize;
+use serde::de::{Error as _, IgnoredAny};
+use serde::{Deserialize, Deserializer};
 
 /// Why a configuration or map file cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -72,9 +75,9 @@ pub fn parse_localiser_config(text: &str) -> Result<LocaliserConfig, ParseConfig
     Ok(config)
 }
 
-/// map_server's YAML map description (ROS 2 nav2_map_server format).
+/// map_server's YAML map description (ROS 2 nav2_map_server format). Other keys are ignored
+/// with a warning, as nav2 ignores them: forks add their own (`name`, `elevation_image`...).
 #[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
 struct MapSpec {
     image: PathBuf,
     resolution: f64,
@@ -83,10 +86,12 @@ struct MapSpec {
     occupied_thresh: f64,
     #[serde(default = "default_free_thresh")]
     free_thresh: f64,
-    #[serde(default)]
-    negate: Flag,
+    #[serde(default, deserialize_with = "negate_flag")]
+    negate: bool,
     #[serde(default)]
     mode: MapMode,
+    #[serde(flatten)]
+    other: BTreeMap<String, IgnoredAny>,
 }
 
 fn default_occupied_thresh() -> f64 {
@@ -97,29 +102,99 @@ fn default_free_thresh() -> f64 {
     0.196
 }
 
-/// map_server writes `negate: 0`; hand-written files often say `false`.
-#[derive(Debug, Default, Deserialize)]
-#[serde(untagged)]
-enum Flag {
-    Bool(bool),
-    Int(i64),
-    #[default]
-    Unset,
+/// `negate` as nav2 reads it with yaml-cpp: an integer (non-zero is true), else a YAML 1.1
+/// boolean, whether or not the scalar is quoted. map_server writes `negate: 0`, hand-written
+/// files say `false`, `yes` or `"0"`; `0.0` is neither to yaml-cpp, so nav2 refuses it too.
+fn negate_flag<'de, D: Deserializer<'de>>(deserializer: D) -> Result<bool, D::Error> {
+    let value = serde_yaml_ng::Value::deserialize(deserializer)?;
+    let flag = match &value {
+        serde_yaml_ng::Value::Bool(b) => Some(*b),
+        serde_yaml_ng::Value::Number(n) => n
+            .as_i64()
+            .and_then(|i| i32::try_from(i).ok())
+            .map(|i| i != 0),
+        serde_yaml_ng::Value::String(s) => {
+            yaml_cpp_int(s).map(|i| i != 0).or_else(|| yaml_cpp_bool(s))
+        }
+        _ => None,
+    };
+    flag.ok_or_else(|| {
+        let given = match &value {
+            serde_yaml_ng::Value::Sequence(_) => "a list".to_owned(),
+            serde_yaml_ng::Value::Mapping(_) => "a mapping".to_owned(),
+            scalar => serde_yaml_ng::to_string(scalar)
+                .unwrap_or_default()
+                .trim_end()
+                .to_owned(),
+        };
+        D::Error::custom(format!(
+            "negate must be an integer (0 or 1) or a boolean (true/false, yes/no, on/off), not {given}"
+        ))
+    })
 }
 
-impl Flag {
-    fn is_set(&self) -> bool {
-        matches!(self, Flag::Bool(true)) || matches!(self, Flag::Int(i) if *i != 0)
+/// yaml-cpp's `int`: the whole scalar, trailing spaces aside, read by a C++ stream that takes
+/// a sign and then `0x` for hexadecimal, a leading `0` for octal or decimal digits.
+fn yaml_cpp_int(text: &str) -> Option<i32> {
+    let text = text.trim_end();
+    let (negative, unsigned) = match text.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, text.strip_prefix('+').unwrap_or(text)),
+    };
+    let (radix, digits) = match unsigned.strip_prefix("0x").or(unsigned.strip_prefix("0X")) {
+        Some(hex) => (16, hex),
+        None if unsigned.len() > 1 && unsigned.starts_with('0') => (8, &unsigned[1..]),
+        None => (10, unsigned),
+    };
+    // `from_str_radix` would take a second sign.
+    if digits.is_empty() || !digits.chars().all(|c| c.is_digit(radix)) {
+        return None;
+    }
+    let magnitude = i64::from_str_radix(digits, radix).ok()?;
+    i32::try_from(if negative { -magnitude } else { magnitude }).ok()
+}
+
+/// yaml-cpp's `bool`: y/yes/true/on and n/no/false/off, in lower case, upper case or
+/// capitalised.
+fn yaml_cpp_bool(text: &str) -> Option<bool> {
+    let lower = text.to_lowercase();
+    let capitalised = lower
+        .chars()
+        .take(1)
+        .flat_map(char::to_uppercase)
+        .chain(lower.chars().skip(1))
+        .collect::<String>();
+    if text != lower && text != text.to_uppercase() && text != capitalised {
+        return None;
+    }
+    match lower.as_str() {
+        "y" | "yes" | "true" | "on" => Some(true),
+        "n" | "no" | "false" | "off" => Some(false),
+        _ => None,
     }
 }
 
-#[derive(Debug, Default, Deserialize, PartialEq)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Default, PartialEq)]
 enum MapMode {
     #[default]
     Trinary,
     Scale,
     Raw,
+}
+
+/// nav2 lowercases the mode before naming it (`map_mode_from_string`): `Trinary` is trinary.
+impl<'de> Deserialize<'de> for MapMode {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let mode = String::deserialize(deserializer)?;
+        match mode.to_lowercase().as_str() {
+            "trinary" => Ok(MapMode::Trinary),
+            "scale" => Ok(MapMode::Scale),
+            "raw" => Ok(MapMode::Raw),
+            _ => Err(D::Error::custom(format!(
+                "mode must be trinary, scale or raw, not {mode}"
+            ))),
+        }
+    }
 }
 
 /// Loads a map_server map: the YAML file and the image it names (relative to the YAML).
@@ -156,22 +231,41 @@ pub fn load_map(yaml_path: &Path) -> Result<OccupancyMap, FileError> {
             why: format!("origin {:?} is not finite", spec.origin),
         });
     }
+    for key in spec.other.keys() {
+        log::warn!(
+            "map {}: ignoring key `{key}`, which nav2's map_server does not read either",
+            yaml_path.display()
+        );
+    }
+    if spec.image.as_os_str().is_empty() {
+        return Err(FileError::MapSpec {
+            path: path(),
+            why: "the image tag is empty".into(),
+        });
+    }
     let image_path = yaml_path
         .parent()
         .unwrap_or(Path::new("."))
         .join(&spec.image);
-    let image = image::open(&image_path).map_err(|source| FileError::Image {
+    let image_error = |cause| FileError::Image {
         path: image_path.clone(),
-        cause: source,
-    })?;
+        cause,
+    };
+    // By content, as nav2's GraphicsMagick reads it: PNG bytes in a `.pgm`, or no extension.
+    let image = image::ImageReader::open(&image_path)
+        .and_then(|reader| reader.with_guessed_format())
+        .map_err(|e| image_error(e.into()))?
+        .decode()
+        .map_err(image_error)?;
     let (width, height) = (image.width() as usize, image.height() as usize);
-    let has_alpha = image.color().has_alpha();
-    let mut values = vec![0i8; width * height];
-    for (x, y, pixel) in image.pixels() {
-        // Image row 0 is the top of the map, grid row 0 its bottom (at the origin).
-        let row = height - 1 - y as usize;
-        values[row * width + x as usize] = map_server_value(pixel, has_alpha, &spec);
+    if width == 0 || height == 0 {
+        return Err(FileError::Map {
+            path: path(),
+            cause: MapError::Empty { width, height },
+        });
     }
+    // The image goes before the map is built: it can take 8 bytes a cell.
+    let values = grid_values(image, &spec);
     let [x, y, theta] = spec.origin;
     let geometry = MapGeometry {
         resolution: spec.resolution,
@@ -187,23 +281,67 @@ pub fn load_map(yaml_path: &Path) -> Result<OccupancyMap, FileError> {
     )
 }
 
+/// The /map values of `image` (row-major, grid row 0 at the bottom of the image), from
+/// its pixels at 16 bits whatever their depth: GraphicsMagick's quantum in nav2's builds, so a
+/// 16-bit image is thresholded at its full depth rather than cut to 8 bits first.
+fn grid_values(image: DynamicImage, spec: &MapSpec) -> Vec<i8> {
+    let has_alpha = image.color().has_alpha();
+    match image {
+        DynamicImage::ImageLuma8(i) => pixel_values(&i, has_alpha, spec),
+        DynamicImage::ImageLumaA8(i) => pixel_values(&i, has_alpha, spec),
+        DynamicImage::ImageRgb8(i) => pixel_values(&i, has_alpha, spec),
+        DynamicImage::ImageRgba8(i) => pixel_values(&i, has_alpha, spec),
+        DynamicImage::ImageLuma16(i) => pixel_values(&i, has_alpha, spec),
+        DynamicImage::ImageLumaA16(i) => pixel_values(&i, has_alpha, spec),
+        DynamicImage::ImageRgb16(i) => pixel_values(&i, has_alpha, spec),
+        DynamicImage::ImageRgba16(i) => pixel_values(&i, has_alpha, spec),
+        // Floating-point images: none of the enabled formats decodes to them.
+        other => pixel_values(&other.to_rgba16(), has_alpha, spec),
+    }
+}
+
+fn pixel_values<P>(
+    image: &ImageBuffer<P, Vec<P::Subpixel>>,
+    has_alpha: bool,
+    spec: &MapSpec,
+) -> Vec<i8>
+where
+    P: Pixel,
+    P::Subpixel: Into<u16>,
+{
+    // 257 for 8-bit channels (GraphicsMagick's ScaleCharToQuantum), 1 for 16-bit ones.
+    let scale = u16::MAX / P::Subpixel::DEFAULT_MAX_VALUE.into();
+    let (width, height) = (image.width() as usize, image.height() as usize);
+    let mut values = vec![0i8; width * height];
+    for (x, y, pixel) in image.enumerate_pixels() {
+        let Rgba(channels) = pixel.to_rgba();
+        let quantum = Rgba(channels.map(|c| c.into() * scale));
+        // Image row 0 is the top of the map, grid row 0 its bottom (at the origin).
+        let row = height - 1 - y as usize;
+        values[row * width + x as usize] = map_server_value(quantum, has_alpha, spec);
+    }
+    values
+}
+
 /// The /map value (0..=100 occupancy in percent, -1 unknown) nav2's map_server publishes
-/// for `pixel` of an image with or without an alpha channel (its `map_io`): the pixel's
-/// shade is the mean of its colour channels (and, in trinary mode only, its opacity when
-/// the image has an alpha channel), its occupancy that shade's darkness (its brightness
-/// with `negate`), and then
+/// for `pixel` (16-bit quanta) of an image with or without an alpha channel (its `map_io`):
+/// the pixel's shade is the mean of its colour channels (and, in trinary mode only, its
+/// opacity when the image has an alpha channel), its occupancy that shade's darkness (its
+/// brightness with `negate`), and then
 /// - trinary: above `occupied_thresh` 100, below `free_thresh` 0, else unknown;
 /// - scale: a pixel not fully opaque unknown, above and below the thresholds as in
 ///   trinary, in between scaled linearly from 0 to 100 (a grey floor is free, not unknown);
-/// - raw: the shade itself, 0..=255 (`negate` and the thresholds unused), above 100
-///   unknown.
+/// - raw: the shade itself on 0..=255, rounded (`negate` and the thresholds unused), above
+///   100 unknown.
 ///
 /// The mean, not the luminance these files were once read with, so a colour image loads as
-/// map_server reads it too; the occupancy is still one division of the pixel's integers, so
-/// a grey image (what map_saver and the simulator write) loads in trinary mode exactly as
-/// it did.
-fn map_server_value(pixel: Rgba<u8>, has_alpha: bool, spec: &MapSpec) -> i8 {
+/// map_server reads it too. The occupancy is one division of the pixel's integers: an 8-bit
+/// pixel's quanta are 257 times its values, so the quotient, correctly rounded, is the one
+/// its 8-bit values gave, and a grey image (what map_saver and the simulator write) loads
+/// exactly as it did.
+fn map_server_value(pixel: Rgba<u16>, has_alpha: bool, spec: &MapSpec) -> i8 {
     const UNKNOWN: i8 = -1;
+    const QUANTUM_PER_BYTE: u32 = 257;
     let Rgba([r, g, b, a]) = pixel;
     let mut total = u32::from(r) + u32::from(g) + u32::from(b);
     let mut channels = 3;
@@ -211,16 +349,16 @@ fn map_server_value(pixel: Rgba<u8>, has_alpha: bool, spec: &MapSpec) -> i8 {
         total += u32::from(a);
         channels += 1;
     }
-    let full = f64::from(255 * channels);
+    let full = f64::from(u32::from(u16::MAX) * channels);
     let total = f64::from(total);
     if spec.mode == MapMode::Raw {
-        let value = (total / f64::from(channels)).round();
+        let value = (total / f64::from(QUANTUM_PER_BYTE * channels)).round();
         return if value <= 100.0 { value as i8 } else { UNKNOWN };
     }
-    if spec.mode == MapMode::Scale && a != u8::MAX {
+    if spec.mode == MapMode::Scale && a != u16::MAX {
         return UNKNOWN;
     }
-    let occupancy = if spec.negate.is_set() {
+    let occupancy = if spec.negate {
         total / full
     } else {
         (full - total) / full
@@ -433,6 +571,150 @@ mod tests {
             load_map(&yaml).unwrap_err(),
             FileError::MapSpec { .. }
         ));
+    }
+
+    /// `yaml` naming `image` in `dir`, the rest of the file `extra` and the defaults.
+    fn map_yaml(dir: &Path, name: &str, image: &str, extra: &str) -> PathBuf {
+        let text = format!("image: {image}\nresolution: 0.5\norigin: [0, 0, 0]\n{extra}");
+        write(dir, name, text.as_bytes())
+    }
+
+    /// Used to panic inside `image` ("Image index (0, 1) out of bounds (0, 2)").
+    #[test]
+    fn an_image_without_columns_is_an_empty_map() {
+        let dir = tempfile::tempdir().unwrap();
+        for (name, header) in [("z02.pgm", "0 2"), ("z40.pgm", "4 0"), ("z00.pgm", "0 0")] {
+            write(dir.path(), name, format!("P2\n{header}\n255\n").as_bytes());
+            let yaml = map_yaml(dir.path(), &format!("{name}.yaml"), name, "");
+            let err = load_map(&yaml).unwrap_err();
+            assert!(
+                matches!(
+                    err,
+                    FileError::Map {
+                        cause: MapError::Empty { .. },
+                        ..
+                    }
+                ),
+                "{name}: {err}"
+            );
+        }
+    }
+
+    /// nav2 reads `negate` as a yaml-cpp int, else a yaml-cpp bool: `yes` and `"0"` used to
+    /// fail here ("data did not match any variant of untagged enum Flag").
+    #[test]
+    fn negate_is_read_as_nav2_reads_it() {
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), "room.pgm", &pgm());
+        let negated = |value: &str| {
+            let yaml = map_yaml(
+                dir.path(),
+                "n.yaml",
+                "room.pgm",
+                &format!("negate: {value}\n"),
+            );
+            load_map(&yaml).map(|map| map.occupied_cells() == 11)
+        };
+        for value in [
+            "1", "-1", "true", "True", "yes", "YES", "On", "y", "\"1\"", "'0x1'",
+        ] {
+            assert!(negated(value).unwrap(), "{value}");
+        }
+        for value in ["0", "false", "no", "No", "off", "N", "\"0\"", "'00'"] {
+            assert!(!negated(value).unwrap(), "{value}");
+        }
+        let refused = [
+            ("0.0", "0.0"),
+            ("maybe", "maybe"),
+            ("yEs", "yEs"),
+            ("\"1.0\"", "'1.0'"),
+            ("[0]", "a list"),
+            ("~", "null"),
+        ];
+        for (value, given) in refused {
+            let err = negated(value).unwrap_err().to_string();
+            assert!(
+                err.contains("negate must be an integer") && err.contains(&format!("not {given}")),
+                "{value}: {err}"
+            );
+        }
+    }
+
+    /// nav2 ignores keys it does not know (forks add their own) and lowercases the mode.
+    #[test]
+    fn unknown_keys_are_ignored_and_the_mode_is_read_in_any_case() {
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), "room.pgm", &pgm());
+        let extra = "name: room\nelevation_image: room_h.pgm\nmin_height: 0.1\nmode: Trinary\n";
+        let map = load_map(&map_yaml(dir.path(), "a.yaml", "room.pgm", extra)).unwrap();
+        assert_eq!((map.occupied_cells(), map.is_unknown(3, 0)), (1, true));
+        let scale = load_map(&map_yaml(dir.path(), "b.yaml", "room.pgm", "mode: SCALE\n"));
+        assert!(!scale.unwrap().is_unknown(3, 0));
+        let err = load_map(&map_yaml(
+            dir.path(),
+            "c.yaml",
+            "room.pgm",
+            "mode: binary\n",
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("trinary, scale or raw, not binary"), "{err}");
+    }
+
+    /// GraphicsMagick reads an image by its content: a PNG named `.pgm` and an image without
+    /// an extension load; an empty `image` is refused as nav2 refuses it, naming the YAML.
+    #[test]
+    fn the_image_is_read_by_content_and_must_be_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = image::GrayImage::from_fn(4, 3, |x, y| {
+            image::Luma([if (x, y) == (0, 0) { 0 } else { 254 }])
+        });
+        png.save_with_format(dir.path().join("png.pgm"), image::ImageFormat::Png)
+            .unwrap();
+        write(dir.path(), "room", &pgm());
+        for image in ["png.pgm", "room"] {
+            let map = load_map(&map_yaml(dir.path(), "a.yaml", image, "")).unwrap();
+            assert!(
+                map.is_occupied(0, 2) && map.occupied_cells() == 1,
+                "{image}"
+            );
+        }
+        let err = load_map(&map_yaml(dir.path(), "empty.yaml", "\"\"", "")).unwrap_err();
+        assert!(matches!(err, FileError::MapSpec { .. }), "{err}");
+        let message = err.to_string();
+        assert!(
+            message.contains("empty.yaml") && message.contains("image tag is empty"),
+            "{message}"
+        );
+    }
+
+    /// A grey of 22938 / 65535 is occupancy 0.649989, not above 0.65: nav2 publishes it
+    /// unknown. Cut to 8 bits it was 89 / 255 (0.651), occupied.
+    #[test]
+    fn sixteen_bit_images_are_thresholded_at_full_depth() {
+        let dir = tempfile::tempdir().unwrap();
+        let grey: u16 = 22938;
+        let mut pgm = b"P5\n2 1\n65535\n".to_vec();
+        for v in [grey, 0] {
+            pgm.extend_from_slice(&v.to_be_bytes());
+        }
+        write(dir.path(), "g16.pgm", &pgm);
+        image::ImageBuffer::<image::Luma<u16>, _>::from_vec(2, 1, vec![grey, 0])
+            .unwrap()
+            .save(dir.path().join("g16.png"))
+            .unwrap();
+        for image in ["g16.pgm", "g16.png"] {
+            let yaml = map_yaml(dir.path(), &format!("{image}.yaml"), image, "");
+            assert_loads_as_grid(&yaml, &[-1, 100]);
+        }
+        // Raw mode rounds the 16-bit shade on 0..=255 as nav2 does: 22938 / 257 = 89.25.
+        write(
+            dir.path(),
+            "raw.pgm",
+            &[b"P5\n1 1\n65535\n".as_slice(), &[0x59, 0xa0]].concat(),
+        );
+        let yaml = map_yaml(dir.path(), "raw.yaml", "raw.pgm", "mode: raw\n");
+        assert_loads_as_grid(&yaml, &[89]);
     }
 
     #[test]
