@@ -47,7 +47,7 @@ impl FromStr for ScanModeChoice {
 pub struct Config {
     /// Serial device path, e.g. `/dev/ttyUSB0` or a udev symlink like `/dev/rplidar`.
     pub port: String,
-    /// 115200 for A1/A2M8, 256000 for A2M12/A3/S1, 1000000 for S2/S3.
+    /// 115200 for A1/A2M8, 256000 for A2M12/A3/S1, 460800 for C1, 1000000 for S2/S3.
     pub baud: u32,
     /// `frame_id` of the published scans.
     pub frame_id: String,
@@ -105,7 +105,8 @@ impl Config {
         if self.baud < MIN_BAUD {
             return Err(Error::Config(format!(
                 "baud = {} is below {MIN_BAUD}, the slowest RPLIDAR rate: use 115200 \
-                 (A1/A2M8), 256000 (A2M12/A3/S1), 1000000 (S2/S3) or another rate >= {MIN_BAUD}",
+                 (A1/A2M8), 256000 (A2M12/A3/S1), 460800 (C1), 1000000 (S2/S3) or another rate >= \
+                 {MIN_BAUD}",
                 self.baud
             )));
         }

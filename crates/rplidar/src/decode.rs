@@ -31,6 +31,12 @@ pub struct Sample {
     pub start_of_rotation: bool,
 }
 
+/// How far the angles of neighbouring samples of triangulation devices can step back, or
+/// ahead beyond their spacing: each angle carries a distance-dependent compensation (the
+/// device's for standard nodes, the capsule's for capsules) of about 8° for far returns and
+/// down to about -20° for returns at 5 cm (see [`ultra_compensation_deg`]).
+pub(crate) const COMPENSATION_SPREAD_DEG: f32 = 30.0;
+
 /// Quality reported for valid samples of formats that carry no quality.
 pub const CAPSULE_QUALITY: u8 = 188;
 
@@ -405,11 +411,12 @@ fn standard_angle_q6(p: &[u8]) -> Option<u16> {
     (sync_ok && angle_word & 1 == 1 && angle_word >> 1 < FULL_CIRCLE_Q6).then_some(angle_word >> 1)
 }
 
-/// Whether `next` can be the angle of the node after one at `angle` (q6): a small step
-/// forward, across 360 included, or a little jitter back.
+/// Whether `next` can be the angle of the node after one at `angle` (q6): a step forward
+/// (across 360 included) of at most the compensation spread plus a few lost nodes, or a step
+/// back within the compensation spread, as at the near and far edges of an object.
 fn angle_follows(angle: u16, next: u16) -> bool {
-    const MAX_STEP_Q6: i32 = 15 * 64;
-    const MAX_BACK_Q6: i32 = 2 * 64;
+    const MAX_STEP_Q6: i32 = (COMPENSATION_SPREAD_DEG as i32 + 15) * 64;
+    const MAX_BACK_Q6: i32 = COMPENSATION_SPREAD_DEG as i32 * 64;
     let delta = (i32::from(next) - i32::from(angle)).rem_euclid(i32::from(FULL_CIRCLE_Q6));
     delta <= MAX_STEP_Q6 || delta >= i32::from(FULL_CIRCLE_Q6) - MAX_BACK_Q6
 }
@@ -484,8 +491,9 @@ fn ultra_distances(word: u32, next_word: Option<u32>) -> [u32; 3] {
     [major, predicted(predict1, base1, scale1), third]
 }
 
-/// Angle compensation of ultra capsules: a distance-dependent offset of about 7.5 to 8
-/// degrees (the optical geometry of triangulation devices).
+/// Angle compensation of ultra capsules, from the optical geometry of triangulation
+/// devices: about 7.5 to 8 degrees for far returns, falling with distance to 0 at about
+/// 17 cm and to about -20 degrees at 5 cm (7.5 again below that).
 fn ultra_compensation_deg(distance_mm: u32) -> f32 {
     let dist_q2 = distance_mm.saturating_mul(4);
     let offset_rad_q16: i64 = if dist_q2 >= 50 * 4 {
@@ -552,6 +560,34 @@ mod tests {
         // The node before the garbage has no valid successor and the last one waits.
         assert!(out.len() >= 98, "lost more than one node: {}", out.len());
         assert!(out.iter().all(|s| s.distance_mm == 1000.0));
+    }
+
+    #[test]
+    fn standard_nodes_keep_the_edges_of_close_objects() {
+        // A device compensates each angle for its distance: at the edges of a person at 0.3 m
+        // before a wall at 4 m the angle steps 4° back or ahead, and 17° around a return at
+        // 8 cm. Every node is valid and must be kept.
+        let distance = |k: usize| match k {
+            100..140 => 300,
+            400 => 80,
+            _ => 4000,
+        };
+        let mut bytes = Vec::new();
+        for _ in 0..3 {
+            for k in 0..720 {
+                let d = distance(k);
+                let angle = (k as f32 * 0.5 + 8.0 - ultra_compensation_deg(d)).rem_euclid(360.0);
+                bytes.extend_from_slice(&encode::standard_node(angle, d as f32, 188, k == 0));
+            }
+        }
+        let (out, stats) = decode_all(ScanFormat::Standard, &bytes, 64);
+        assert_eq!(stats.rejected_packets, 0, "{stats:?}");
+        assert_eq!(out.len(), 3 * 720 - 1, "all but the last, which waits");
+        assert_eq!(
+            out.iter().filter(|s| s.distance_mm == 300.0).count(),
+            3 * 40
+        );
+        assert_eq!(out.iter().filter(|s| s.distance_mm == 80.0).count(), 3);
     }
 
     fn express_stream(
@@ -749,6 +785,37 @@ mod tests {
         let nominal = 30.0 + 4.0 * 30.0 / 96.0;
         let comp = nominal - out[96 + 4].angle_deg;
         assert!((7.0..8.1).contains(&comp), "{comp}");
+    }
+
+    #[test]
+    fn a_close_ultra_return_just_before_the_zero_mark_does_not_split_the_rotation() {
+        // 8 capsules of 96 samples a turn, all at 3 m but for one cabin at 8 cm at nominal
+        // 357°: compensated by -9.4° instead of 7.7°, it lands past the zero mark ahead of
+        // its neighbours.
+        let turns = 4;
+        let capsules: Vec<(f32, Vec<[u32; 3]>)> = (0..turns * 8)
+            .map(|c| {
+                let mut cabins = vec![[3000u32; 3]; 32];
+                if c % 8 == 7 {
+                    cabins[30] = [80; 3];
+                }
+                ((c % 8) as f32 * 45.0, cabins)
+            })
+            .collect();
+        let mut bytes = Vec::new();
+        for (i, (start, cabins)) in capsules.iter().enumerate() {
+            let next_major = capsules.get(i + 1).map_or(3000, |c| c.1[0][0]);
+            bytes.extend_from_slice(&encode::ultra_capsule(*start, cabins, next_major, i == 0));
+        }
+        let (samples, stats) = decode_all(ScanFormat::Ultra, &bytes, 132);
+        assert_eq!(stats.rejected_packets, 0);
+        let mut assembler = crate::rotation::RotationAssembler::new();
+        let mut rotations = Vec::new();
+        assembler.push(&samples, std::time::Instant::now(), &mut rotations);
+        let sizes: Vec<usize> = rotations.iter().map(|r| r.samples.len()).collect();
+        // One rotation a turn (the first starts mid-turn, the last capsule has no successor).
+        assert_eq!(sizes.len(), turns - 1, "{sizes:?}");
+        assert!(sizes[1..].iter().all(|&n| n == 8 * 96), "{sizes:?}");
     }
 
     #[test]

@@ -96,12 +96,19 @@ pub struct DriverStatus {
     pub last_error: Option<String>,
 }
 
-/// The serial port with a receive buffer.
+/// The serial port with a receive buffer. It leaves the device stopped with its motor off
+/// when dropped, whatever failed before: a motor started for a scan that then did not
+/// start would otherwise keep turning through every retry and after the host exits.
 struct Link {
     port: Box<dyn SerialPort>,
     path: String,
     rx: Vec<u8>,
     chunk: Vec<u8>,
+    /// A request that starts measurements or the motor was sent, or DTR set to run it.
+    started: bool,
+    /// A non-zero duty cycle was sent: the accessory board keeps the motor turning until
+    /// told 0 (`STOP` ends the measurements only).
+    motor_pwm: bool,
 }
 
 impl Link {
@@ -118,6 +125,8 @@ impl Link {
             path: config.port.clone(),
             rx: Vec::with_capacity(8192),
             chunk: vec![0; 8192],
+            started: false,
+            motor_pwm: false,
         })
     }
 
@@ -130,6 +139,17 @@ impl Link {
 
     fn send(&mut self, request: &Request) -> Result<()> {
         debug!("{}: send {request:?}", self.path);
+        match request {
+            Request::Scan
+            | Request::ForceScan
+            | Request::ExpressScan { .. }
+            | Request::SetMotorRpm(_) => self.started = true,
+            Request::SetMotorPwm(pwm) => {
+                self.started = true;
+                self.motor_pwm = *pwm != 0;
+            }
+            _ => {}
+        }
         let bytes = request.encode();
         self.port.write_all(&bytes).map_err(|e| self.io_error(e))?;
         self.port.flush().map_err(|e| self.io_error(e))
@@ -176,6 +196,7 @@ impl Link {
     /// Motor on/off through DTR (A1/A2 on their USB adapter: DTR low runs the motor).
     /// Ports without modem lines (pseudo-terminals: ENOTTY) are fine.
     fn set_motor_dtr(&mut self, on: bool) {
+        self.started |= on;
         if let Err(e) = self.port.write_data_terminal_ready(!on) {
             debug!(
                 "{}: DTR not supported on this port ({e}); motor left as it is",
@@ -317,7 +338,7 @@ struct Session {
     /// When the last rotation completed (or the scan started).
     last_rotation: Instant,
     baud_readback: Option<u32>,
-    /// Duty cycle sent with `SET_MOTOR_PWM`, so that shutting down sends 0.
+    /// Duty cycle sent with `SET_MOTOR_PWM`, for the diagnostics.
     motor_pwm: Option<u16>,
 }
 
@@ -547,17 +568,9 @@ impl Driver {
             warn!("{}: {message}", self.config.port);
             self.report(DiagnosticStatus::WARN, message);
         }
-        // Chosen before the motor is started, so that a mode the device lacks (permanent)
-        // leaves the motor off.
-        let mut plan = match self.plan_scan(&mut link, &info) {
-            Ok(plan) => plan,
-            Err(e) => {
-                if matches!(e, Error::Unsupported { .. }) {
-                    link.set_motor_dtr(false);
-                }
-                return Err(e);
-            }
-        };
+        // Chosen before a PWM motor is started, so that a mode the device lacks (permanent)
+        // never starts it; the link stops a DTR motor when dropped with the error.
+        let mut plan = self.plan_scan(&mut link, &info)?;
         let mut motor_pwm = None;
         if info.is_time_of_flight() {
             if let Some(rpm) = self.config.motor_rpm {
@@ -1122,18 +1135,20 @@ impl Driver {
     }
 }
 
-impl Drop for Driver {
-    /// Leaves the device stopped with its motor off: `STOP` ends the measurements only; an
-    /// accessory-board motor needs PWM 0 (as Slamtec's SDK `stopMotor`), the others DTR.
+impl Drop for Link {
+    /// Stops as Slamtec's SDK `stop()` does: `STOP` ends the measurements only; an
+    /// accessory-board motor needs PWM 0, the others DTR. Errors are moot here (an unplugged
+    /// device has stopped anyway).
     fn drop(&mut self) {
-        if let State::Scanning(session) = &mut self.state {
-            let _ = session.link.send(&Request::Stop);
-            if session.motor_pwm.is_some() {
-                std::thread::sleep(AFTER_STOP);
-                let _ = session.link.send(&Request::SetMotorPwm(0));
-            }
-            session.link.set_motor_dtr(false);
+        if !self.started {
+            return;
         }
+        let _ = self.send(&Request::Stop);
+        if self.motor_pwm {
+            std::thread::sleep(AFTER_STOP);
+            let _ = self.send(&Request::SetMotorPwm(0));
+        }
+        self.set_motor_dtr(false);
     }
 }
 
@@ -1327,6 +1342,16 @@ mod tests {
                 "{nonsense}"
             );
         }
+    }
+
+    #[test]
+    fn the_c1_baud_rate_is_set_on_the_port() {
+        // 460800 has no classic termios constant everywhere; Linux sets any rate (BOTHER).
+        let (_master, slave) = TTYPort::pair().unwrap();
+        let mut config = Config::new(slave.name().unwrap());
+        config.baud = 460_800;
+        let link = Link::open(&config).unwrap();
+        assert_eq!(link.port.baud_rate().unwrap(), 460_800);
     }
 
     #[test]

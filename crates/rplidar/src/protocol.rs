@@ -282,6 +282,9 @@ impl DeviceInfo {
             1 => "A1".into(),
             2 => "A2".into(),
             3 => "A3".into(),
+            // Slamtec's SDK 2 numbers the C series (C1) from major model 4, the S series
+            // from 6.
+            m @ (4 | 5) => format!("C-series (major model {m})"),
             m if m >= 6 => format!("S-series (time of flight, major model {m})"),
             m => format!("unknown (major model {m})"),
         }
@@ -557,6 +560,11 @@ mod tests {
         let parsed = DeviceInfo::parse(&info.encode()).unwrap();
         assert_eq!(parsed, info);
         assert_eq!(parsed.family(), "A1");
+        let c1 = DeviceInfo {
+            model: 0x41,
+            ..info.clone()
+        };
+        assert_eq!(c1.family(), "C-series (major model 4)");
         assert_eq!(parsed.firmware(), "1.29");
         assert!(parsed.supports_express());
         assert!(!parsed.lacks_scan_modes());

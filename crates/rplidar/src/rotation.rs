@@ -5,7 +5,9 @@
 //! of a turn; one elsewhere is corruption and is ignored). A start that comes less than half
 //! a turn after the previous one is ignored, so a flag and a wrap a few samples apart do not
 //! make a one-sample rotation. The angle swept counts forward jumps over lost samples, so a
-//! gap does not hide the next wrap. Samples before the first start are dropped: a scan starts
+//! gap does not hide the next wrap; a "jump" of nearly a turn is a step back across the zero
+//! mark instead (a close return compensated past it, see `MAX_STEP_BACK_DEG`), so such a
+//! return moves the start of its turn by a few samples but never splits the turn. Samples before the first start are dropped: a scan starts
 //! mid-rotation.
 //!
 //! Arrival times: one read from the port can hold many samples (after a stall of the host,
@@ -69,8 +71,11 @@ pub struct RotationAssembler {
 const DEFAULT_MAX_SAMPLES: usize = 20_000;
 
 /// Largest step back of the angle between neighbouring samples that is jitter, not a jump
-/// forward over lost samples: capsule samples carry compensations that differ by up to 8°.
-const MAX_STEP_BACK_DEG: f32 = 10.0;
+/// forward over lost samples. A close return just before the zero mark is compensated past
+/// it, ahead of its neighbours by up to the compensation spread: the next sample, back
+/// before the zero mark, must not count as nearly a turn of progress, or the turn splits in
+/// two at the real zero mark a few samples later.
+const MAX_STEP_BACK_DEG: f32 = crate::decode::COMPENSATION_SPREAD_DEG;
 
 /// How far from the zero mark a start flag may lie (the first sample of a turn).
 const START_FLAG_WINDOW_DEG: f32 = 10.0;
@@ -358,6 +363,28 @@ mod tests {
         let sizes = sizes(&stream);
         assert_eq!(sizes.len(), 2, "{sizes:?}");
         assert!(sizes.iter().all(|n| (360..=364).contains(n)), "{sizes:?}");
+    }
+
+    #[test]
+    fn a_close_return_compensated_past_the_zero_mark_does_not_split_its_turn() {
+        // 720 samples a turn; in each, the return at 357° is a close one that the (negative)
+        // compensation of a triangulation device puts 17.5° ahead, past the zero mark.
+        let mut stream = Vec::new();
+        for _ in 0..4 {
+            stream.extend((0..720).map(|k| {
+                let angle = k as f32 * 0.5;
+                let angle = if k == 714 {
+                    angle + 17.5 - 360.0
+                } else {
+                    angle
+                };
+                sample(angle, false)
+            }));
+        }
+        stream.push(sample(0.0, false));
+        let sizes = sizes(&stream);
+        // The first turn starts at its close return; each later one is one whole turn.
+        assert_eq!(sizes, [720, 720, 720], "{sizes:?}");
     }
 
     #[test]

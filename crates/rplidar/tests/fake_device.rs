@@ -812,6 +812,59 @@ fn accessory_board_motor_gets_the_default_pwm_and_pwm_0_on_drop() {
 }
 
 #[test]
+fn a_scan_that_does_not_start_leaves_the_motor_off() {
+    // An A2 whose board drives the motor and whose typical mode (ultra capsules) never
+    // answers EXPRESS_SCAN: the motor, started by PWM before the request, must not keep
+    // turning while the driver waits to retry, nor after it is dropped.
+    let dir = tempfile::tempdir().unwrap();
+    let mut info = FakeConfig::default().info;
+    info.model = 0x28;
+    let fake = spawn(
+        dir.path(),
+        FakeConfig {
+            info,
+            accessory_board_motor: true,
+            scan_modes: vec![
+                FakeScanMode::new("Standard", 0x81),
+                FakeScanMode::new("Sensitivity", 0x84),
+            ],
+            typical_mode: 1,
+            ..FakeConfig::default()
+        },
+    );
+    let mut cfg = config(fake.path(), ScanModeChoice::Auto);
+    cfg.request_timeout = Duration::from_secs(2);
+    cfg.reconnect_min = Duration::from_secs(60);
+    cfg.reconnect_max = Duration::from_secs(60);
+    let mut driver = Driver::new(cfg).unwrap();
+    let (_, diags) = run_until(&mut driver, LIMIT, |_, d| {
+        d.iter().any(|s| s.message.starts_with("cannot start"))
+    });
+    let failed = diags
+        .iter()
+        .find(|d| d.message.starts_with("cannot start"))
+        .unwrap();
+    assert!(failed.message.contains("scan start"), "{}", failed.message);
+    let stopped = |l: &FakeLog| {
+        let scan = l.commands.iter().rposition(|&c| c == 0x82);
+        l.motor_pwm == Some(0) && scan.is_some_and(|i| l.commands[i..].contains(&0x25))
+    };
+    let log = log_when(&fake, LIMIT, stopped);
+    assert!(
+        stopped(&log),
+        "STOP and PWM 0 after the failed start: {log:?}"
+    );
+    drop(driver);
+    let log = fake.log();
+    assert_eq!(log.motor_pwm, Some(0), "{log:?}");
+    assert_eq!(
+        log.commands.last(),
+        Some(&0xF0),
+        "nothing restarted it: {log:?}"
+    );
+}
+
+#[test]
 fn motor_without_accessory_board_control_gets_no_pwm() {
     // An A2 whose board does not drive the motor (DTR does), and an A1, which is not asked.
     for (model, asked) in [(0x28, true), (0x18, false)] {

@@ -45,7 +45,7 @@ fn decls() -> Vec<ParamDecl> {
         ParamDecl::new(
             "baud",
             V::Integer(i64::from(d.baud)),
-            "115200 (A1/A2M8), 256000 (A2M12/A3/S1), 1000000 (S2/S3); at least 115200",
+            "115200 (A1/A2M8), 256000 (A2M12/A3/S1), 460800 (C1), 1000000 (S2/S3); at least 115200",
         ),
         ParamDecl::new(
             "frame_id",
