@@ -374,6 +374,11 @@ fn ros_nodes_reject_bad_parameters_naming_them() {
             r#""$REPLAY" --ros-args -p bag:="$BAG" -p topics:=[/nope]"#,
             &["`topics`", "/nope"],
         ),
+        // A bad name in a remapping used to fail with status 1 once DDS had started.
+        (
+            r#""$REPLAY" --ros-args -p bag:="$BAG" -r /scan:=/robot-1/scan"#,
+            &["`/scan:=/robot-1/scan`", "'-'"],
+        ),
         (
             r#""$REPLAY" --ros-args -p bag:="$BAG" --params-file "$PF""#,
             &["`rate`", "bad.yaml"],
@@ -419,6 +424,77 @@ fn ros_nodes_reject_bad_parameters_naming_them() {
             !stderr.contains("panicked"),
             "{command}: panicked: {stderr}"
         );
+    }
+}
+
+/// The replay checks its bag before it joins the graph: a bad one used to be found once the
+/// participant was up, which, dropped while it registered its writers, logged up to a dozen
+/// ERROR lines of the DDS stack before the one-line error. A bad `ROS_DOMAIN_ID`, which only
+/// joining the graph reads, shows the order: the bag's error comes first.
+#[test]
+fn ros_replay_checks_its_bag_before_joining_the_graph() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let script = r#"
+for i in 1 2 3 4 5; do
+  "$REPLAY" --ros-args -p bag:=/nonexistent/bag 2>> "$OUT/err.txt"; echo "exit=$?"
+done
+ROS_DOMAIN_ID=999 "$REPLAY" --ros-args -p bag:=/nonexistent/bag 2> "$OUT/domain_err.txt"
+echo "domain_exit=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[("REPLAY", &workspace_bin("replay")), ("OUT", dir.path())],
+        Duration::from_secs(60),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(stdout.matches("exit=2").count(), 6, "{stdout}");
+    let err = std::fs::read_to_string(dir.path().join("err.txt")).unwrap();
+    assert_eq!(err.lines().count(), 5, "one line per run: {err}");
+    assert!(err.lines().all(|l| l.contains("`bag`")), "{err}");
+    let err = std::fs::read_to_string(dir.path().join("domain_err.txt")).unwrap();
+    assert!(
+        err.contains("`bag`") && !err.contains("ROS_DOMAIN_ID"),
+        "the bag must be checked before the node joins the graph: {err}"
+    );
+}
+
+/// `topic echo` reads a topic with the QoS its publishers offer, as `ros2 topic echo`: a
+/// latched /map remapped out of the contract (/robot1/map) used to be read best effort and
+/// volatile, so a late echo printed nothing; a best-effort publisher of a reliable contract
+/// topic (here /scan remapped onto /odom) was never matched. A relative name is in `/`.
+#[test]
+fn ros_topic_echo_matches_the_qos_of_the_publishers() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 60);
+    let script = r#"
+"$REPLAY" --ros-args -p bag:="$BAG" -p rate:=0.25 -p wait_for_all_acked:=0 -r /map:=/robot1/map -r /scan:=/odom &
+R=$!
+# The map was published when the replay started: the echo joins later.
+wait_until 20 topics_listed /robot1/map /odom
+"$LH" topic echo robot1/map --count 1 --timeout 10 --require-count > "$OUT/map.jsonl"; echo "map_echo=$?"
+"$LH" topic echo /odom --type sensor_msgs/msg/LaserScan --count 3 --timeout 10 --require-count > "$OUT/odom.jsonl"; echo "odom_echo=$?"
+kill -TERM $R; wait $R; echo "replay=$?"
+"#;
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(60));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["map_echo=0", "odom_echo=0", "replay=0"] {
+        assert!(stdout.contains(want), "expected {want}");
+    }
+    let map = json_lines(&dir.path().join("map.jsonl"));
+    assert_eq!(map.len(), 1);
+    assert_eq!(map[0]["topic"], "/robot1/map");
+    assert_eq!(map[0]["type"], "nav_msgs/msg/OccupancyGrid");
+    assert_eq!(map[0]["msg"]["info"]["width"], 4);
+    let scans = json_lines(&dir.path().join("odom.jsonl"));
+    assert_eq!(scans.len(), 3);
+    for line in &scans {
+        scan_index(&line["msg"]);
     }
 }
 

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use crate::RosError;
-use crate::params::{ParamValue, section_applies};
+use crate::params::{ParamSource, ParamValue, section_applies};
 
 /// What `--ros-args` sections of a command line say.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -15,10 +15,9 @@ pub struct RosArgs {
     pub node_names: Vec<NodeRule>,
     /// `-r [node:]__ns:=/namespace`, in order; see [`RosArgs::namespace`].
     pub namespaces: Vec<NodeRule>,
-    /// `-p [node:]name:=value`, in order (later ones win); see [`RosArgs::params_for`].
-    pub params: Vec<ParamOverride>,
-    /// `--params-file FILE`, in order.
-    pub params_files: Vec<PathBuf>,
+    /// `-p [node:]name:=value` and `--params-file FILE`, in command-line order: rcl applies
+    /// them in that order, a later one winning; see [`RosArgs::params_for`].
+    pub params: Vec<ParamArg>,
     /// Arguments outside `--ros-args` sections (the program's own).
     pub rest: Vec<String>,
 }
@@ -38,6 +37,13 @@ pub struct NodeRule {
     /// Applies only to the node of this name (`node:__node:=...`), or to every node.
     pub node: Option<String>,
     pub to: String,
+}
+
+/// A `-p` or `--params-file` argument.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamArg {
+    Override(ParamOverride),
+    File(PathBuf),
 }
 
 /// One `-p` parameter override.
@@ -78,9 +84,11 @@ impl RosArgs {
                     }
                     "-p" | "--param" => {
                         let rule = value("`name:=value`")?;
-                        out.params.push(parse_param(&rule)?);
+                        out.params.push(ParamArg::Override(parse_param(&rule)?));
                     }
-                    "--params-file" => out.params_files.push(PathBuf::from(value("a file")?)),
+                    "--params-file" => out
+                        .params
+                        .push(ParamArg::File(PathBuf::from(value("a file")?))),
                     // Accepted and ignored: logging and security settings of rcl.
                     "--log-level" | "--log-config-file" | "-e" | "--enclave" => {
                         value("a value")?;
@@ -109,6 +117,13 @@ impl RosArgs {
         }
         let node = node.map(String::from);
         let to = to.to_string();
+        let topic_rule = !matches!(from, "__node" | "__name" | "__ns");
+        if topic_rule {
+            // rcl parses both sides of a topic rule when it parses the arguments: a name the
+            // middleware would refuse fails here, as a bad argument, before any DDS traffic.
+            validate_topic_name(from).map_err(|e| bad(&e))?;
+            validate_topic_name(&to).map_err(|e| bad(&e))?;
+        }
         match from {
             "__node" | "__name" => {
                 validate_node_name(&to).map_err(|e| bad(&e))?;
@@ -140,19 +155,22 @@ impl RosArgs {
         first_rule_for(&self.namespaces, name).unwrap_or(default)
     }
 
-    /// The `-p` overrides for the node `node_fqn` (`/ns/name`), in order: those without a
-    /// node prefix, and those whose prefix names it. rcl keeps `node:name:=value` as a
-    /// parameter of the node `node`, which rclcpp matches with the fully qualified name like
-    /// a parameter file's section: `localiser:` is `/localiser`, not `/robot1/localiser`.
-    pub fn params_for(&self, node_fqn: &str) -> Vec<(String, ParamValue)> {
+    /// The parameter files and the `-p` overrides for the node `node_fqn` (`/ns/name`), in
+    /// command-line order: every file, the overrides without a node prefix, and those whose
+    /// prefix names it. rcl keeps `node:name:=value` as a parameter of the node `node`, which
+    /// rclcpp matches with the fully qualified name like a parameter file's section:
+    /// `localiser:` is `/localiser`, not `/robot1/localiser`.
+    pub fn params_for(&self, node_fqn: &str) -> Vec<ParamSource> {
         self.params
             .iter()
-            .filter(|p| {
-                p.node
+            .filter_map(|arg| match arg {
+                ParamArg::File(path) => Some(ParamSource::File(path.clone())),
+                ParamArg::Override(p) => p
+                    .node
                     .as_deref()
                     .is_none_or(|node| section_applies(node, node_fqn))
+                    .then(|| ParamSource::Value(p.name.clone(), p.value.clone())),
             })
-            .map(|p| (p.name.clone(), p.value.clone()))
             .collect()
     }
 }
@@ -248,8 +266,35 @@ pub fn validate_namespace(namespace: &str) -> Result<(), String> {
     Ok(())
 }
 
+/// Checks a topic name as rcl parses one side of a `-r` rule (and rmw validates a topic
+/// name): relative, absolute (`/...`) or private (`~/...`), then name tokens (see
+/// [`validate_node_name`]) between single '/', without a trailing '/'. rcl has no wildcards
+/// or back-references in rules yet, and neither does this.
+pub fn validate_topic_name(name: &str) -> Result<(), String> {
+    let bad = |e: &str| Err(format!("topic name `{name}` {e}"));
+    let tokens = name
+        .strip_prefix("~/")
+        .or_else(|| name.strip_prefix('/'))
+        .unwrap_or(name);
+    if tokens.is_empty() {
+        return bad("has no name token");
+    }
+    if tokens.ends_with('/') {
+        return bad("must not end with '/'");
+    }
+    for token in tokens.split('/') {
+        if token.is_empty() {
+            return bad("must not contain `//` (an empty token)");
+        }
+        if let Err(e) = validate_token(token) {
+            return bad(&format!("has a token `{token}` that {e}"));
+        }
+    }
+    Ok(())
+}
+
 /// A name token of rmw: only letters, digits and '_', not starting with a digit.
-fn validate_token(token: &str) -> Result<(), String> {
+pub(crate) fn validate_token(token: &str) -> Result<(), String> {
     if let Some(c) = token
         .chars()
         .find(|c| !(c.is_ascii_alphanumeric() || *c == '_'))
@@ -385,9 +430,36 @@ mod tests {
         assert_eq!(a.namespace("loc2", "/"), "/r1");
         assert_eq!(
             a.params_for("/r1/loc2"),
-            vec![("rate".to_string(), ParamValue::Double(2.5))]
+            vec![
+                ParamSource::Value("rate".into(), ParamValue::Double(2.5)),
+                ParamSource::File("p.yaml".into())
+            ]
         );
-        assert_eq!(a.params_files, vec![PathBuf::from("p.yaml")]);
+    }
+
+    /// rcl applies `-p` and `--params-file` in command-line order; `-p` used to win always.
+    #[test]
+    fn params_and_files_keep_their_command_line_order() {
+        let a = RosArgs::parse([
+            "--ros-args",
+            "--params-file",
+            "a.yaml",
+            "-p",
+            "rate:=2",
+            "--params-file",
+            "b.yaml",
+            "-p",
+            "other:rate:=3",
+        ])
+        .unwrap();
+        assert_eq!(
+            a.params_for("/replay"),
+            vec![
+                ParamSource::File("a.yaml".into()),
+                ParamSource::Value("rate".into(), ParamValue::Integer(2)),
+                ParamSource::File("b.yaml".into()),
+            ]
+        );
     }
 
     #[test]
@@ -421,8 +493,8 @@ mod tests {
         assert_eq!(a.namespace("loc2", "/"), "/r1");
         assert_eq!(a.namespace("first", "/"), "/");
         assert_eq!(a.namespace("classifier", "/x"), "/c");
-        let rate = |v| ("rate".to_string(), ParamValue::Integer(v));
-        let moving = ("moving".to_string(), ParamValue::Bool(false));
+        let rate = |v| ParamSource::Value("rate".into(), ParamValue::Integer(v));
+        let moving = ParamSource::Value("moving".into(), ParamValue::Bool(false));
         assert_eq!(a.params_for("/localiser"), vec![moving, rate(2)]);
         // A `node:` prefix is matched with the whole name, as a parameter file's section.
         assert_eq!(a.params_for("/r1/localiser"), vec![rate(2)]);
@@ -455,6 +527,35 @@ mod tests {
             assert!(err.to_string().contains(rule), "{rule}: {err}");
         }
         for good in ["__ns:=/", "__ns:=/a/b_2", "__node:=_x9", "n1:__node:=n2"] {
+            RosArgs::parse(["--ros-args", "-r", good]).unwrap();
+        }
+    }
+
+    /// Both sides of a topic rule are checked as rcl parses them; a bad name used to be
+    /// accepted and fail once DDS had started (or never, on the side that never matched).
+    #[test]
+    fn bad_topic_names_in_remappings_are_argument_errors() {
+        for (rule, needle) in [
+            ("/scan:=/robot-1/scan", "'-'"),
+            ("/robot-1/scan:=/scan", "'-'"),
+            ("/scan:=/a//b", "//"),
+            ("/scan:=/a/", "end with '/'"),
+            ("/**:=/x", "'*'"),
+            ("a:b:c:=d", "':'"),
+            ("scan:=a:b", "':'"),
+            ("scan:=~", "'~'"),
+            ("~x:=/y", "'~'"),
+            ("/1scan:=/x", "digit"),
+            ("/:=/x", "no name token"),
+        ] {
+            let err = RosArgs::parse(["--ros-args", "-r", rule]).unwrap_err();
+            let text = err.to_string();
+            assert!(
+                matches!(err, RosError::Args(_)) && text.contains(rule) && text.contains(needle),
+                "{rule}: {text}"
+            );
+        }
+        for good in ["scan:=/r1/scan", "~/x:=/y", "n:/a/b_2:=c", "/scan:=~/s"] {
             RosArgs::parse(["--ros-args", "-r", good]).unwrap();
         }
     }

@@ -27,7 +27,8 @@ use rustdds::{
 use crate::args::DiscoveryRange;
 use crate::params::{ParamValue, Parameters};
 use crate::{
-    NodeBackend, PublisherBackend, RosError, Sample, SubscriberBackend, TopicInfo, split_type_name,
+    NodeBackend, OfferedQos, PublisherBackend, RosError, Sample, SubscriberBackend, TopicInfo,
+    split_type_name,
 };
 
 /// CDR bytes after the encapsulation header, with the header's representation identifier.
@@ -464,6 +465,35 @@ impl NodeBackend for DdsNode {
             })
             .collect()
     }
+
+    fn publishers_qos(&self, topic: &str) -> Vec<OfferedQos> {
+        self.context
+            .domain_participant()
+            .discovered_writers()
+            .into_iter()
+            .map(|w| w.publication_topic_data)
+            .filter(|p| crate::ros_topic_from_dds(&p.topic_name).as_deref() == Some(topic))
+            .map(|p| offered_qos(p.reliability, p.durability))
+            .collect()
+    }
+}
+
+/// A discovered writer's QoS; a policy it does not announce has the DDS default of a
+/// writer: reliable, volatile.
+fn offered_qos(
+    reliability: Option<rustdds::policy::Reliability>,
+    durability: Option<rustdds::policy::Durability>,
+) -> OfferedQos {
+    OfferedQos {
+        reliability: match reliability {
+            Some(rustdds::policy::Reliability::BestEffort) => Reliability::BestEffort,
+            _ => Reliability::Reliable,
+        },
+        durability: match durability {
+            None | Some(rustdds::policy::Durability::Volatile) => Durability::Volatile,
+            Some(_) => Durability::TransientLocal,
+        },
+    }
 }
 
 struct DdsPublisher {
@@ -588,6 +618,30 @@ mod tests {
         );
         let err = validate("model", &Ros2Value::String("/m.onnx".into())).unwrap_err();
         assert!(err.ends_with("-p model:=\"/m.onnx\""), "{err}");
+    }
+
+    #[test]
+    fn an_unannounced_policy_is_the_dds_default_of_a_writer() {
+        use rustdds::policy::{Durability as D, Reliability as R};
+        let reliable = R::Reliable {
+            max_blocking_time: rustdds::Duration::ZERO,
+        };
+        let qos = |r, d| {
+            let q = offered_qos(r, d);
+            (q.reliability, q.durability)
+        };
+        assert_eq!(
+            qos(None, None),
+            (Reliability::Reliable, Durability::Volatile)
+        );
+        assert_eq!(
+            qos(Some(R::BestEffort), Some(D::TransientLocal)),
+            (Reliability::BestEffort, Durability::TransientLocal)
+        );
+        assert_eq!(
+            qos(Some(reliable), Some(D::Persistent)),
+            (Reliability::Reliable, Durability::TransientLocal)
+        );
     }
 
     #[test]

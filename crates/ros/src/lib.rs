@@ -22,12 +22,12 @@ mod yaml;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use lidar_har_msgs::qos::QosProfile;
+use lidar_har_msgs::qos::{Durability, QosProfile, Reliability};
 use lidar_har_msgs::topics::TopicSpec;
 use lidar_har_msgs::{CdrError, RosMessage};
 
 pub use args::RosArgs;
-pub use params::{ParamDecl, ParamValue, Parameters, node_parameters};
+pub use params::{ParamDecl, ParamSource, ParamValue, Parameters, node_parameters};
 
 /// Everything that can go wrong in the transport, each naming what it is about.
 #[derive(Debug, thiserror::Error)]
@@ -115,6 +115,31 @@ impl NodeSetup {
         self.args = args.into_iter().map(Into::into).collect();
         self
     }
+
+    /// Parses the command line and resolves the parameters (defaults, then parameter files
+    /// and `-p` in command-line order). Bad arguments or parameters are errors naming them.
+    pub fn prepare(self) -> Result<PreparedNode, RosError> {
+        let ros_args = RosArgs::parse(self.args.clone())?;
+        let name = ros_args.node_name(&self.name).to_string();
+        let namespace = ros_args.namespace(&name, &self.namespace).to_string();
+        let fqn = args::expand_name(&name, &namespace, &name);
+        // The arguments' names are checked as they are parsed; these catch the program's own.
+        let bad_name = |reason| RosError::Name {
+            name: fqn.clone(),
+            reason,
+        };
+        args::validate_node_name(&name).map_err(bad_name)?;
+        args::validate_namespace(&namespace).map_err(bad_name)?;
+        let decls = params::node_parameters(self.parameters.clone());
+        let params = Parameters::resolve_sources(&decls, &fqn, &ros_args.params_for(&fqn))?;
+        Ok(PreparedNode {
+            setup: self,
+            name,
+            namespace,
+            ros_args,
+            params,
+        })
+    }
 }
 
 /// A received message: its CDR bytes (with encapsulation header) and when it was published.
@@ -141,6 +166,15 @@ pub struct TopicInfo {
     pub type_name: String,
 }
 
+/// What a discovered publisher offers of the QoS policies that decide whether a subscriber
+/// matches it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OfferedQos {
+    pub reliability: Reliability,
+    /// Transient-local stands for anything at least as durable (transient, persistent).
+    pub durability: Durability,
+}
+
 trait NodeBackend: Send + Sync {
     fn publisher(
         &self,
@@ -159,6 +193,7 @@ trait NodeBackend: Send + Sync {
     fn now_ns(&self) -> i64;
     fn parameter(&self, name: &str) -> Option<ParamValue>;
     fn topics(&self) -> Vec<TopicInfo>;
+    fn publishers_qos(&self, topic: &str) -> Vec<OfferedQos>;
 }
 
 trait PublisherBackend: Send + Sync {
@@ -185,28 +220,33 @@ pub struct Node {
     backend: Box<dyn NodeBackend>,
 }
 
-impl Node {
-    /// Parses the command line, resolves the parameters (defaults, then parameter files, then
-    /// `-p`) and joins the ROS graph. Bad arguments or parameters are errors naming them.
-    pub fn new(setup: NodeSetup) -> Result<Self, RosError> {
-        let ros_args = RosArgs::parse(setup.args.clone())?;
-        let name = ros_args.node_name(&setup.name).to_string();
-        let namespace = ros_args.namespace(&name, &setup.namespace).to_string();
-        let fqn = args::expand_name(&name, &namespace, &name);
-        // The arguments' names are checked as they are parsed; these catch the program's own.
-        let bad_name = |reason| RosError::Name {
-            name: fqn.clone(),
-            reason,
-        };
-        args::validate_node_name(&name).map_err(bad_name)?;
-        args::validate_namespace(&namespace).map_err(bad_name)?;
-        let decls = params::node_parameters(setup.parameters.clone());
-        let params = Parameters::resolve(
-            &decls,
-            &fqn,
-            &ros_args.params_files,
-            &ros_args.params_for(&fqn),
-        )?;
+/// A node whose arguments and parameters are checked, before it joins the ROS graph: a
+/// program can check what its parameters name (a file, a device) first, so that a bad one
+/// fails before any DDS traffic (a participant dropped while it registered its endpoints
+/// logged a dozen ERROR lines of the DDS stack before the one-line error).
+pub struct PreparedNode {
+    setup: NodeSetup,
+    name: String,
+    namespace: String,
+    ros_args: RosArgs,
+    params: Parameters,
+}
+
+impl PreparedNode {
+    /// Parameter values at start-up.
+    pub fn params(&self) -> &Parameters {
+        &self.params
+    }
+
+    /// Joins the ROS graph.
+    pub fn join(self) -> Result<Node, RosError> {
+        let Self {
+            setup,
+            name,
+            namespace,
+            ros_args,
+            params,
+        } = self;
         let backend: Box<dyn NodeBackend> = match setup.backend {
             Backend::Dds => Box::new(dds::DdsNode::new(
                 &name,
@@ -217,13 +257,20 @@ impl Node {
             #[cfg(feature = "r2r")]
             Backend::Rcl => Box::new(rcl::RclNode::new(&name, &namespace, &setup.args)?),
         };
-        Ok(Self {
+        Ok(Node {
             name,
             namespace,
             ros_args,
             params,
             backend,
         })
+    }
+}
+
+impl Node {
+    /// [`NodeSetup::prepare`], then [`PreparedNode::join`].
+    pub fn new(setup: NodeSetup) -> Result<Self, RosError> {
+        setup.prepare()?.join()
     }
 
     pub fn name(&self) -> &str {
@@ -307,6 +354,11 @@ impl Node {
     /// from every subscriber until empty before waiting again.
     pub fn wait(&self, timeout: Duration) -> Result<(), RosError> {
         self.backend.wait(timeout)
+    }
+
+    /// The QoS of each publisher of `topic` (a fully qualified name) discovered so far.
+    pub fn publishers_qos(&self, topic: &str) -> Vec<OfferedQos> {
+        self.backend.publishers_qos(topic)
     }
 
     /// Topics discovered on the network so far, sorted.

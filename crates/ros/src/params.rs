@@ -7,7 +7,7 @@
 
 use std::collections::BTreeMap;
 use std::fmt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::RosError;
 use crate::yaml::{self, Yaml};
@@ -81,7 +81,7 @@ impl ParamValue {
             Ok(Self::IntegerArray(
                 scalars.iter().filter_map(|v| v.as_i64()).collect(),
             ))
-        } else if all(|v| matches!(v, Self::Integer(_) | Self::Double(_))) {
+        } else if all(|v| matches!(v, Self::Double(_))) {
             Ok(Self::DoubleArray(
                 scalars.iter().filter_map(|v| v.as_f64()).collect(),
             ))
@@ -93,7 +93,8 @@ impl ParamValue {
                     .collect(),
             ))
         } else {
-            Err("a list must hold values of one type (bools, numbers or strings)".into())
+            // rcl refuses `[1, 2.5]` too ("Sequence should be of same type"): write `1.0`.
+            Err("a list must hold values of one type (bools, integers, doubles or strings)".into())
         }
     }
 
@@ -195,6 +196,16 @@ pub fn node_parameters(mut decls: Vec<ParamDecl>) -> Vec<ParamDecl> {
     decls
 }
 
+/// Where a node's start-up values come from. Applied in order, a later one winning: rcl
+/// applies `--params-file` and `-p` in command-line order (see [`crate::RosArgs::params_for`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamSource {
+    /// A parameter file: its sections for the node.
+    File(PathBuf),
+    /// A `-p name:=value` for the node.
+    Value(String, ParamValue),
+}
+
 /// The resolved start-up parameters of a node.
 #[derive(Debug, Clone, Default)]
 pub struct Parameters {
@@ -202,12 +213,31 @@ pub struct Parameters {
 }
 
 impl Parameters {
-    /// Defaults of `decls`, overridden by parameter files (in order), then by `-p` overrides.
+    /// Defaults of `decls`, overridden by the parameter `files` (in order), then by the
+    /// `overrides`: [`Parameters::resolve_sources`] for callers without a command line.
     pub fn resolve(
         decls: &[ParamDecl],
         node_fqn: &str,
-        files: &[std::path::PathBuf],
+        files: &[PathBuf],
         overrides: &[(String, ParamValue)],
+    ) -> Result<Self, RosError> {
+        let sources: Vec<ParamSource> = files
+            .iter()
+            .map(|path| ParamSource::File(path.clone()))
+            .chain(
+                overrides
+                    .iter()
+                    .map(|(name, value)| ParamSource::Value(name.clone(), value.clone())),
+            )
+            .collect();
+        Self::resolve_sources(decls, node_fqn, &sources)
+    }
+
+    /// Defaults of `decls`, overridden by each of `sources` in turn.
+    pub fn resolve_sources(
+        decls: &[ParamDecl],
+        node_fqn: &str,
+        sources: &[ParamSource],
     ) -> Result<Self, RosError> {
         let mut values: BTreeMap<String, ParamValue> = decls
             .iter()
@@ -240,7 +270,14 @@ impl Parameters {
                 values.insert(name.to_string(), coerced);
                 Ok(())
             };
-        for path in files {
+        for source in sources {
+            let path = match source {
+                ParamSource::File(path) => path,
+                ParamSource::Value(name, value) => {
+                    set(name, value.clone(), "-p on the command line", true)?;
+                    continue;
+                }
+            };
             let file = ParamsFile::read(path)?;
             let source = format!("parameter file {}", path.display());
             let sections = file.sections_for(node_fqn);
@@ -258,9 +295,6 @@ impl Parameters {
                     set(name, value.clone(), &source, !section.is_wildcard())?;
                 }
             }
-        }
-        for (name, value) in overrides {
-            set(name, value.clone(), "-p on the command line", true)?;
         }
         Ok(Self { values })
     }
@@ -468,7 +502,25 @@ fn collect_sections(
         } else {
             format!("{prefix}/{key}")
         };
+        validate_section_name(&name)?;
         collect_sections(&name, children, out)?;
+    }
+    Ok(())
+}
+
+/// rcl refuses a node name or namespace in a parameter file that rmw would refuse: one that
+/// could never match a node is a typo (`robot-1:`), not a section to skip in silence.
+fn validate_section_name(name: &str) -> Result<(), String> {
+    let tokens = name.strip_prefix('/').unwrap_or(name);
+    for token in tokens.split('/') {
+        if token.is_empty() {
+            return Err(format!("section `{name}` has an empty name token"));
+        }
+        if !matches!(token, "*" | "**") {
+            crate::args::validate_token(token).map_err(|e| {
+                format!("section `{name}` is no node name: its token `{token}` {e}")
+            })?;
+        }
     }
     Ok(())
 }
@@ -550,9 +602,11 @@ mod tests {
             ParamValue::String("hello".into())
         );
         assert_eq!(
-            ParamValue::parse_cli("[1, 2.5]").unwrap(),
+            ParamValue::parse_cli("[1.0, 2.5]").unwrap(),
             ParamValue::DoubleArray(vec![1.0, 2.5])
         );
+        // As rcl: one type per list ("Sequence should be of same type").
+        assert!(ParamValue::parse_cli("[1, 2.5]").is_err());
         assert_eq!(
             ParamValue::parse_cli("[/scan, /odom]").unwrap(),
             ParamValue::StringArray(vec!["/scan".into(), "/odom".into()])
@@ -579,6 +633,11 @@ mod tests {
             ParamValue::BoolArray(vec![true, false])
         );
         assert!(ParamValue::parse_cli("[on, 'off']").is_err());
+        // The documented way to give one of those words as a string; it used to be a bool.
+        assert_eq!(
+            ParamValue::parse_cli("!!str on").unwrap(),
+            ParamValue::String("on".into())
+        );
     }
 
     /// (section, node, applies), as rclcpp's `parameter_map_from` decides.
@@ -707,6 +766,11 @@ robot1:
             ("replay: {ros__parameters: {x: null}}", "`x`"),
             // Every section is checked, as rcl parses the whole file.
             ("other: {ros__parameters: {y: [1, a]}}", "`y`"),
+            ("other: {ros__parameters: {y: [1, 2.5]}}", "one type"),
+            // A section no node could have, as rcl refuses it.
+            ("robot-1: {n: {ros__parameters: {a: 1}}}", "'-'"),
+            ("/ns/: {n: {ros__parameters: {a: 1}}}", "empty name token"),
+            ("ns: {1n: {ros__parameters: {a: 1}}}", "digit"),
         ] {
             let err = ParamsFile::parse(yaml).unwrap_err();
             assert!(err.contains(needle), "{yaml}: {err}");
@@ -806,6 +870,27 @@ robot1:
             .unwrap_err()
             .to_string();
         assert!(err.contains("missing.yaml"), "{err}");
+    }
+
+    /// A parameter file after a `-p` wins over it, as in rcl; `-p` used to win always.
+    #[test]
+    fn sources_apply_in_order_whatever_their_kind() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = ParamSource::File(dir.path().join("p.yaml"));
+        std::fs::write(
+            dir.path().join("p.yaml"),
+            "/**:\n  ros__parameters:\n    rate: 2.0\n",
+        )
+        .unwrap();
+        let cli = ParamSource::Value("rate".into(), ParamValue::Double(5.0));
+        let rate = |sources: &[ParamSource]| {
+            Parameters::resolve_sources(&decls(), "/replay", sources)
+                .unwrap()
+                .f64("rate")
+                .unwrap()
+        };
+        assert_eq!(rate(&[cli.clone(), file.clone()]), 2.0);
+        assert_eq!(rate(&[file, cli]), 5.0);
     }
 
     #[test]

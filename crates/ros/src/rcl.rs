@@ -9,7 +9,9 @@ use futures::{FutureExt, Stream, StreamExt};
 use lidar_har_msgs::qos::{Durability, History, QosProfile, Reliability};
 
 use crate::params::ParamValue;
-use crate::{NodeBackend, PublisherBackend, RosError, Sample, SubscriberBackend, TopicInfo};
+use crate::{
+    NodeBackend, OfferedQos, PublisherBackend, RosError, Sample, SubscriberBackend, TopicInfo,
+};
 
 fn rcl_err(e: impl std::fmt::Display) -> RosError {
     RosError::Dds(format!("rcl: {e}"))
@@ -141,6 +143,30 @@ impl NodeBackend for RclNode {
                             name: name.clone(),
                             type_name: t,
                         })
+                    })
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    fn publishers_qos(&self, topic: &str) -> Vec<OfferedQos> {
+        use r2r::qos::{DurabilityPolicy, ReliabilityPolicy};
+        let Ok(node) = self.lock() else {
+            return Vec::new();
+        };
+        node.get_publishers_info_by_topic(topic, false)
+            .map(|publishers| {
+                publishers
+                    .into_iter()
+                    .map(|p| OfferedQos {
+                        reliability: match p.qos_profile.reliability {
+                            ReliabilityPolicy::BestEffort => Reliability::BestEffort,
+                            _ => Reliability::Reliable,
+                        },
+                        durability: match p.qos_profile.durability {
+                            DurabilityPolicy::TransientLocal => Durability::TransientLocal,
+                            _ => Durability::Volatile,
+                        },
                     })
                     .collect()
             })

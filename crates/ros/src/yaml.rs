@@ -43,14 +43,29 @@ fn rcl_bool(word: &str) -> Option<bool> {
     }
 }
 
-/// Whether `s`, a string serde_yaml_ng lent out of `text`, was written without quotes. It
-/// lends a scalar's characters where they stand in the text, so a quoted scalar's characters
-/// are followed by its closing quote, while a plain scalar never ends just before a quote
-/// (one written there would belong to the scalar).
+/// Whether `s`, a string serde_yaml_ng lent out of `text`, was written without quotes and
+/// without a `!!str` tag, which rcl honours as well (`!!str on`, the way to write the word as
+/// a string) and serde_yaml_ng's `Value` forgets. It lends a scalar's characters where they
+/// stand in the text, so a quoted scalar's characters are followed by its closing quote,
+/// while a plain scalar never ends just before a quote (one written there would belong to
+/// the scalar); a tag stands before the scalar, an anchor (`&a`) possibly between them.
 fn is_plain(text: &str, s: &str) -> bool {
     let start = (s.as_ptr() as usize).wrapping_sub(text.as_ptr() as usize);
     let end = start.saturating_add(s.len());
-    end <= text.len() && !matches!(text.as_bytes().get(end), Some(b'\'' | b'"'))
+    if end > text.len() || matches!(text.as_bytes().get(end), Some(b'\'' | b'"')) {
+        return false;
+    }
+    let mut props = text[..start].trim_end();
+    if let Some(i) = props.rfind(char::is_whitespace)
+        && props[i + 1..].starts_with('&')
+    {
+        props = props[..i].trim_end();
+    }
+    !["!!str", "!<tag:yaml.org,2002:str>"].iter().any(|tag| {
+        props.strip_suffix(tag).is_some_and(|rest| {
+            rest.is_empty() || rest.ends_with(|c: char| c.is_whitespace() || "[{,:-?".contains(c))
+        })
+    })
 }
 
 impl<'a> Yaml<'a> {
@@ -186,6 +201,29 @@ mod tests {
                     str("b"),
                     Yaml::Map(vec![(str("c"), str("on")), (str("d"), Yaml::Bool(true))])
                 ),
+            ])
+        );
+    }
+
+    /// rcl keeps a `!!str` scalar a string; `!!str on` used to be the bool true.
+    #[test]
+    fn a_str_tag_keeps_the_words_strings() {
+        for text in [
+            "!!str on",
+            "!!str  yes",
+            "!<tag:yaml.org,2002:str> off",
+            "&a !!str n",
+            "!!str &a Y",
+        ] {
+            let word = text.rsplit(' ').next().unwrap();
+            assert_eq!(parse(text).unwrap(), str(word), "{text}");
+        }
+        assert_eq!(
+            parse("a: !!str yes\nb: [!!str no, no]\nc: x!!str on\n").unwrap(),
+            Yaml::Map(vec![
+                (str("a"), str("yes")),
+                (str("b"), Yaml::Seq(vec![str("no"), Yaml::Bool(false)])),
+                (str("c"), str("x!!str on")),
             ])
         );
     }

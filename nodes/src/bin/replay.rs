@@ -26,7 +26,7 @@ use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::qos::{QosProfile, Reliability};
 use lidar_har_msgs::rosgraph_msgs::Clock;
 use lidar_har_msgs::topics;
-use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, Publisher, RosError};
+use lidar_har_ros::{NodeSetup, ParamDecl, ParamValue, Parameters, Publisher, RosError};
 
 fn main() -> ExitCode {
     lidar_har::run(
@@ -107,8 +107,7 @@ struct Settings {
 }
 
 impl Settings {
-    fn from(node: &Node) -> Result<Self, RosError> {
-        let p = node.params();
+    fn from(p: &Parameters) -> Result<Self, RosError> {
         let bag = p.string("bag")?;
         if bag.is_empty() {
             return Err(RosError::Parameter {
@@ -202,12 +201,12 @@ fn qos_for(topic: &lidar_har_bag::TopicInfo) -> QosProfile {
 fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     // No `ros2 param` services: ros2-client's server subscribes /clock as
     // builtin_interfaces/msg/Time, which clashes with the /clock the replay publishes.
-    let node = Node::new(
-        NodeSetup::new("replay")
-            .parameters(decls())
-            .without_parameter_services(),
-    )?;
-    let settings = Settings::from(&node)?;
+    let setup = NodeSetup::new("replay")
+        .parameters(decls())
+        .without_parameter_services()
+        .prepare()?;
+    // The bag and what the parameters ask of it are checked before the node joins the graph.
+    let settings = Settings::from(setup.params())?;
     // A bag that cannot be opened is a bad parameter (exit status 2), like any other.
     let reader = BagReader::open(&settings.bag)
         .map_err(|e| bad_parameter("bag", format!("cannot open it: {e:#}")))?;
@@ -223,6 +222,11 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
             in_bag.join(", ")
         );
     }
+    if !settings.wait_for.is_empty() && !selection.play.contains(&settings.wait_for) {
+        let reason = format!("{} is not a played topic", settings.wait_for);
+        return Err(bad_parameter("wait_for_subscriber", reason).into());
+    }
+    let node = setup.join()?;
     let mut publishers: HashMap<String, Publisher> = HashMap::new();
     let mut reliable = Vec::new();
     for topic in reader.topics() {
@@ -241,13 +245,7 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     } else {
         None
     };
-    if !settings.wait_for.is_empty() {
-        let publisher = publishers
-            .get(&settings.wait_for)
-            .ok_or_else(|| RosError::Parameter {
-                name: "wait_for_subscriber".into(),
-                reason: format!("{} is not a played topic", settings.wait_for),
-            })?;
+    if let Some(publisher) = publishers.get(&settings.wait_for) {
         let deadline = Instant::now() + settings.wait_timeout;
         while publisher.subscription_count() == 0 {
             if Instant::now() >= deadline {

@@ -5,9 +5,9 @@ use std::io::Write;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
-use lidar_har_msgs::qos::QosProfile;
+use lidar_har_msgs::qos::{Durability, QosProfile, Reliability};
 use lidar_har_msgs::topics;
-use lidar_har_ros::{Node, NodeSetup};
+use lidar_har_ros::{Node, NodeSetup, OfferedQos, RosError, args};
 
 #[derive(clap::Subcommand)]
 pub enum TopicCommand {
@@ -22,7 +22,7 @@ pub enum TopicCommand {
     },
     /// Print the messages of a topic as JSON lines.
     Echo {
-        /// Topic name, e.g. /human/activity.
+        /// Topic name, e.g. /human/activity (a relative name is in `/`).
         topic: String,
         /// Message type (e.g. lidar_har_msgs/msg/Activity); found by discovery when omitted.
         #[arg(long = "type")]
@@ -65,12 +65,15 @@ fn seconds(value: f64, flag: &str) -> anyhow::Result<Duration> {
     Ok(Duration::from_secs_f64(value))
 }
 
+/// The tool's node name, unique per process: several `topic echo` may run at once.
+fn cli_node_name() -> String {
+    format!("lidar_har_cli_{}", std::process::id())
+}
+
 fn cli_node() -> anyhow::Result<Node> {
-    // A unique name per process: several `topic echo` may run at once.
-    let name = format!("lidar_har_cli_{}", std::process::id());
     // Without parameter services: their /clock reader would be listed as a topic.
     Node::new(
-        NodeSetup::new(&name)
+        NodeSetup::new(&cli_node_name())
             .args(Vec::<String>::new())
             .without_parameter_services(),
     )
@@ -90,11 +93,54 @@ fn list(wait: Duration, show_types: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The contract's QoS for a known topic; best effort (which matches every writer) otherwise.
-fn qos_for(topic: &str) -> QosProfile {
-    topics::find(topic)
-        .map(|spec| spec.qos)
-        .unwrap_or(QosProfile::sensor_data())
+/// `topic` as given on the command line, checked and expanded as ros2 does it: relative to
+/// `/` (`scan` is /scan), `~/x` in the tool's node.
+fn topic_name(topic: &str) -> Result<String, RosError> {
+    args::validate_topic_name(topic).map_err(|reason| RosError::Name {
+        name: topic.to_string(),
+        reason,
+    })?;
+    Ok(args::expand_name(topic, "/", &cli_node_name()))
+}
+
+/// How long `echo` waits for the topic's publishers to be discovered, to match their QoS.
+const PUBLISHER_DISCOVERY: Duration = Duration::from_secs(2);
+
+/// The QoS to read a topic with, chosen as `ros2 topic echo` does from the publishers found
+/// (`choose_qos` in ros2cli): reliable only if every one offers it, transient-local only if
+/// every one does (so a latched message of any of them is still received), best effort and
+/// volatile otherwise, which every publisher matches. Without publishers, `fallback`.
+fn echo_qos(fallback: QosProfile, publishers: &[OfferedQos]) -> QosProfile {
+    if publishers.is_empty() {
+        return fallback;
+    }
+    let all = |pred: fn(&OfferedQos) -> bool| publishers.iter().all(pred);
+    QosProfile {
+        reliability: if all(|p| p.reliability == Reliability::Reliable) {
+            Reliability::Reliable
+        } else {
+            Reliability::BestEffort
+        },
+        durability: if all(|p| p.durability == Durability::TransientLocal) {
+            Durability::TransientLocal
+        } else {
+            Durability::Volatile
+        },
+        history: fallback.history,
+    }
+}
+
+/// The publishers of `topic` discovered within [`PUBLISHER_DISCOVERY`] (or until `deadline`).
+fn discover_publishers(node: &Node, topic: &str, deadline: Option<Instant>) -> Vec<OfferedQos> {
+    let until = Instant::now() + PUBLISHER_DISCOVERY;
+    let until = deadline.map_or(until, |d| d.min(until));
+    loop {
+        let publishers = node.publishers_qos(topic);
+        if !publishers.is_empty() || Instant::now() >= until {
+            return publishers;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
 }
 
 fn echo(
@@ -106,15 +152,21 @@ fn echo(
 ) -> anyhow::Result<()> {
     let start = Instant::now();
     let deadline = timeout.map(|t| start + t);
+    let topic = &topic_name(topic)?;
     let node = cli_node()?;
+    let contract = topics::find(topic);
     let type_name = match type_name {
         Some(t) => t,
-        None => match topics::find(topic) {
+        None => match contract {
             Some(spec) => spec.type_name.to_string(),
             None => discover_type(&node, topic, deadline)?,
         },
     };
-    let sub = node.subscriber(topic, &type_name, qos_for(topic))?;
+    // Without publishers to go by: the contract's QoS, else best effort, which every
+    // publisher matches.
+    let fallback = contract.map_or(QosProfile::sensor_data(), |spec| spec.qos);
+    let qos = echo_qos(fallback, &discover_publishers(&node, topic, deadline));
+    let sub = node.subscriber(topic, &type_name, qos)?;
     let stop = stop_flag()?;
     let mut received = 0u64;
     let mut out = std::io::stdout().lock();
@@ -191,6 +243,54 @@ fn to_json(type_name: &str, bytes: &[u8]) -> serde_json::Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn topic_names_are_expanded_in_the_root_namespace_and_checked() {
+        assert_eq!(topic_name("scan").unwrap(), "/scan");
+        assert_eq!(topic_name("human/activity").unwrap(), "/human/activity");
+        assert_eq!(topic_name("/robot1/map").unwrap(), "/robot1/map");
+        for bad in ["/scan/", "/bad-name", "//scan", ""] {
+            let err = topic_name(bad).unwrap_err();
+            assert!(matches!(err, RosError::Name { .. }), "{bad}: {err}");
+        }
+    }
+
+    /// As `ros2 topic echo`: the echo used to read every topic outside the contract best
+    /// effort and volatile (missing a latched /robot1/map) and every contract topic with the
+    /// contract's QoS (never matching a best-effort publisher of a reliable topic).
+    #[test]
+    fn echo_qos_follows_the_publishers() {
+        use Durability::{TransientLocal, Volatile};
+        use Reliability::{BestEffort, Reliable};
+        let offered = |reliability, durability| OfferedQos {
+            reliability,
+            durability,
+        };
+        let latched = offered(Reliable, TransientLocal);
+        let chosen = |fallback: QosProfile, publishers: &[OfferedQos]| {
+            let q = echo_qos(fallback, publishers);
+            assert_eq!(q.history, fallback.history);
+            (q.reliability, q.durability)
+        };
+        let sensor = QosProfile::sensor_data();
+        assert_eq!(chosen(sensor, &[latched]), (Reliable, TransientLocal));
+        assert_eq!(
+            chosen(sensor, &[latched, offered(Reliable, Volatile)]),
+            (Reliable, Volatile)
+        );
+        let reliable = QosProfile::reliable(10);
+        assert_eq!(
+            chosen(reliable, &[offered(BestEffort, Volatile)]),
+            (BestEffort, Volatile)
+        );
+        assert_eq!(
+            chosen(reliable, &[latched, offered(BestEffort, TransientLocal)]),
+            (BestEffort, TransientLocal)
+        );
+        // None found: the fallback.
+        let map = topics::MAP.qos;
+        assert_eq!(chosen(map, &[]), (map.reliability, map.durability));
+    }
 
     #[test]
     fn waits_are_refused_outside_zero_to_a_day_naming_the_flag() {
