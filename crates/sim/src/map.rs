@@ -2,7 +2,7 @@
 //! occupancy grid and in map_server's PGM + YAML format.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::DVec2;
 use lidar_har_core::geometry::Pose2;
@@ -105,9 +105,15 @@ impl OccupancyMap {
     /// (trinary: 0 black occupied, 254 white free, 205 grey unknown; top row first).
     /// `free_thresh` is map_saver's 0.196, just below 205's occupancy (50/255): with a higher
     /// one the grey reads as free and the unknown cells of /map become floor.
+    /// Both files are created new, so a map already there (or one another process writes
+    /// meanwhile) is never clobbered.
     pub fn write_map_server(&self, dir: &Path, stem: &str) -> std::io::Result<()> {
-        let pgm = dir.join(format!("{stem}.pgm"));
-        let mut out = std::io::BufWriter::new(std::fs::File::create(&pgm)?);
+        let [pgm_path, yaml_path] = map_server_files(dir, stem);
+        let mut out = std::io::BufWriter::new(create_new(&pgm_path)?);
+        let mut yaml_file = create_new(&yaml_path).inspect_err(|_| {
+            // The PGM is ours and empty: leave nothing half-written behind.
+            let _ = std::fs::remove_file(&pgm_path);
+        })?;
         write!(
             out,
             "P5\n# lidar_har simulator map\n{} {}\n255\n",
@@ -128,8 +134,39 @@ impl OccupancyMap {
             "image: {stem}.pgm\nmode: trinary\nresolution: {}\norigin: [{}, {}, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
             self.resolution, self.origin.x, self.origin.y
         );
-        std::fs::write(dir.join(format!("{stem}.yaml")), yaml)
+        yaml_file.write_all(yaml.as_bytes())
     }
+}
+
+/// The two files `write_map_server` writes: `<dir>/<stem>.pgm` and `<dir>/<stem>.yaml`.
+fn map_server_files(dir: &Path, stem: &str) -> [PathBuf; 2] {
+    [
+        dir.join(format!("{stem}.pgm")),
+        dir.join(format!("{stem}.yaml")),
+    ]
+}
+
+/// Fails naming the first of `write_map_server`'s files already in `dir`, so that a caller
+/// can refuse before it writes anything else there.
+pub fn check_map_server_free(dir: &Path, stem: &str) -> std::io::Result<()> {
+    match map_server_files(dir, stem).into_iter().find(|p| p.exists()) {
+        Some(p) => Err(already_exists(&p)),
+        None => Ok(()),
+    }
+}
+
+fn already_exists(path: &Path) -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::AlreadyExists,
+        format!("{} already exists", path.display()),
+    )
+}
+
+fn create_new(path: &Path) -> std::io::Result<std::fs::File> {
+    std::fs::File::create_new(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::AlreadyExists => already_exists(path),
+        _ => e,
+    })
 }
 
 #[cfg(test)]
@@ -160,5 +197,18 @@ mod tests {
             m.width, m.height
         );
         assert_eq!(pgm.len(), header.len() + (m.width * m.height) as usize);
+        let yaml = std::fs::read(dir.path().join("map.yaml")).unwrap();
+        let err = m.write_map_server(dir.path(), "map").unwrap_err();
+        assert_eq!(err.kind(), std::io::ErrorKind::AlreadyExists);
+        let want = format!("{} already exists", dir.path().join("map.pgm").display());
+        assert_eq!(err.to_string(), want);
+        assert_eq!(std::fs::read(dir.path().join("map.pgm")).unwrap(), pgm);
+        assert_eq!(std::fs::read(dir.path().join("map.yaml")).unwrap(), yaml);
+        // A YAML alone is kept too, and no PGM is left beside it.
+        std::fs::remove_file(dir.path().join("map.pgm")).unwrap();
+        std::fs::write(dir.path().join("map.yaml"), "mine").unwrap();
+        assert!(m.write_map_server(dir.path(), "map").is_err());
+        assert!(!dir.path().join("map.pgm").exists());
+        assert_eq!(std::fs::read(dir.path().join("map.yaml")).unwrap(), b"mine");
     }
 }

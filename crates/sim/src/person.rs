@@ -483,9 +483,6 @@ impl Person {
             world_check: Some(world.clone()),
         };
         let first = person.make_plan(0.0, start.position(), start.theta, None)?;
-        if first.activity == Activity::Crawling {
-            check_room_to_crawl(world, &person.traits, &first)?;
-        }
         person.plans.push(first);
         // Plan the whole first pass now, so path errors surface before simulating.
         while person.next_step < person.steps.len() {
@@ -639,11 +636,7 @@ impl Person {
             };
             let height = self.traits.dims.height;
             let (lying, twist) = fall_direction(world, feet, heading, height, plan.lying, verb)
-                .map_err(|message| SceneError::Invalid {
-                    origin: "scene".to_string(),
-                    key,
-                    message,
-                })?;
+                .map_err(|message| SceneError::Refused { key, message })?;
             plan.lying = lying;
             heading += twist;
             plan.heading0 = heading;
@@ -665,13 +658,13 @@ impl Person {
                 });
                 let outside = world.wall_clearance(w[1]) < 0.0
                     || crate::shapes::segments_cross_outline(w[0], w[1], &world.outline);
-                if let Some((fi, f)) = blocked {
+                if let Some((fi, _)) = blocked {
                     return Err(path_error(
                         index,
                         j,
                         format!(
-                            "the walk to this point crosses furniture[{fi}] '{}'",
-                            f.name
+                            "the walk to this point crosses {}",
+                            describe(world, Some(fi))
                         ),
                     ));
                 }
@@ -709,6 +702,16 @@ impl Person {
             plan.from = prev_pose;
         } else {
             plan.from = plan.raw_pose(&self.traits, start);
+        }
+        // A script that starts sitting is held to validation's wider circle around
+        // `person.start` instead.
+        let on_floor = match a {
+            Activity::Crawling => Some("crawl"),
+            Activity::SittingOnFloor if prev.is_some() => Some("sit"),
+            _ => None,
+        };
+        if let (Some(verb), Some(world)) = (on_floor, &self.world_check) {
+            check_room_on_floor(world, &self.traits, &plan, index, verb)?;
         }
         Ok(plan)
     }
@@ -762,18 +765,19 @@ impl Person {
 const FALLEN_BODY_HALF_WIDTH: f64 = 0.12;
 
 /// What a body lying on the floor from `feet` along the unit vector `axis`, `length` metres
-/// long, would hit: nine points along it need [`FALLEN_BODY_HALF_WIDTH`] from walls and
-/// furniture. `Some(None)` is a wall, `Some(Some(i))` furniture `i`.
+/// long, would hit: nine points along it need `half_width` from walls and furniture.
+/// `Some(None)` is a wall, `Some(Some(i))` furniture `i`.
 fn body_axis_blocker(
     world: &World,
     feet: DVec2,
     axis: DVec2,
     length: f64,
+    half_width: f64,
 ) -> Option<Option<usize>> {
     (1..=9).find_map(|k| {
         let p = feet + axis * (length * k as f64 / 10.0);
         let (clearance, what) = world.person_clearance(p);
-        (clearance < FALLEN_BODY_HALF_WIDTH).then_some(what)
+        (clearance < half_width).then_some(what)
     })
 }
 
@@ -793,7 +797,13 @@ fn fall_direction(
 ) -> Result<(FallDirection, f64), String> {
     let blocker = |dir: FallDirection, twist: f64| {
         let axis = rotate(lying_vector(dir), heading + twist);
-        body_axis_blocker(world, feet(dir, heading + twist), axis, height)
+        body_axis_blocker(
+            world,
+            feet(dir, heading + twist),
+            axis,
+            height,
+            FALLEN_BODY_HALF_WIDTH,
+        )
     };
     let order = [
         FallDirection::Forward,
@@ -820,12 +830,24 @@ fn fall_direction(
     ))
 }
 
-/// A script that starts crawling starts with the body stretched out on the floor, the legs
-/// behind the start: the body from its rearmost to its foremost joint needs the room a
-/// fall's landing needs.
-fn check_room_to_crawl(world: &World, traits: &Traits, first: &Plan) -> Result<(), SceneError> {
-    let (pose, heading) = first.pose(traits, first.start);
-    let root = first.root(first.start);
+/// Crawling, and sitting down on the floor later in a script, put the body on the floor
+/// where the step starts (a crawler's legs trail behind, a seated body's feet reach ahead
+/// and its hands behind). A script that starts crawling needs a fall's room along the body
+/// from its rearmost to its foremost joint. Later steps start where the script has taken
+/// the person, and the shipped scenes and random scripts sit and crawl off closer to walls
+/// and furniture than that: there only the body's axis must stay out of them, which still
+/// refuses a body going through a wall. The step's own body is checked, not the pose it
+/// blends from. `verb` names the motion in the error.
+fn check_room_on_floor(
+    world: &World,
+    traits: &Traits,
+    plan: &Plan,
+    index: usize,
+    verb: &str,
+) -> Result<(), SceneError> {
+    let pose = plan.raw_pose(traits, plan.start);
+    let heading = plan.raw_heading(traits, plan.start);
+    let root = plan.root(plan.start);
     let axis = DVec2::from_angle(heading);
     let (behind, ahead) = capsules(&traits.dims, &pose, root, heading)
         .iter()
@@ -834,12 +856,22 @@ fn check_room_to_crawl(world: &World, traits: &Traits, first: &Plan) -> Result<(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
             (lo.min(x), hi.max(x))
         });
-    match body_axis_blocker(world, root + axis * behind, axis, ahead - behind) {
-        Some(what) => Err(SceneError::Invalid {
-            origin: "scene".to_string(),
-            key: "person.script[0]".to_string(),
+    let half_width = if index == 0 {
+        FALLEN_BODY_HALF_WIDTH
+    } else {
+        0.0
+    };
+    match body_axis_blocker(
+        world,
+        root + axis * behind,
+        axis,
+        ahead - behind,
+        half_width,
+    ) {
+        Some(what) => Err(SceneError::Refused {
+            key: format!("person.script[{index}]"),
             message: format!(
-                "no room to crawl here: the body would reach into {}",
+                "no room to {verb} here: the body would reach into {}",
                 describe(world, what)
             ),
         }),
@@ -848,8 +880,7 @@ fn check_room_to_crawl(world: &World, traits: &Traits, first: &Plan) -> Result<(
 }
 
 fn path_error(step: usize, point: usize, message: String) -> SceneError {
-    SceneError::Invalid {
-        origin: "scene".to_string(),
+    SceneError::Refused {
         key: format!("person.script[{step}].path[{point}]"),
         message,
     }
@@ -1123,6 +1154,48 @@ mod tests {
     }
 
     #[test]
+    fn sitting_or_crawling_later_in_a_script_needs_the_room_a_first_step_needs() {
+        // Standing 0.25 m from the wall at y = 0, then sitting down facing it or crawling
+        // away from it: unchecked, the seated body went 0.70 m through the wall, the
+        // crawler's legs 0.46 m.
+        let text = |y: f64, yaw: f64, later: &str| {
+            format!(
+                "duration: 8\nroom: {{outline: [[0,0],[5,0],[5,4],[0,4]]}}\nrobot: {{start: {{x: 4.5, y: 3.5}}}}\nperson:\n  start: {{x: 2.5, y: {y}, yaw_deg: {yaw}}}\n  script:\n    - {{activity: standing, duration: 2}}\n    - {later}\n"
+            )
+        };
+        let sit = "{activity: sitting_on_floor, duration: 6}";
+        let crawl = "{activity: crawling, duration: 6, path: [[2.5, 2.5]]}";
+        let err = |text: String| {
+            let s = Scene::parse(&text, "test").unwrap();
+            Person::new(s.person.as_ref().unwrap(), &World::new(&s), 1)
+                .unwrap_err()
+                .to_string()
+        };
+        let e = err(text(0.25, -90.0, sit));
+        assert_eq!(
+            e,
+            "person.script[1]: no room to sit here: the body would reach into a wall"
+        );
+        let e = err(text(0.25, 90.0, crawl));
+        assert_eq!(
+            e,
+            "person.script[1]: no room to crawl here: the body would reach into a wall"
+        );
+        // With room, both go ahead, clear of the wall.
+        for (y, yaw, later) in [(1.5, -90.0, sit), (1.2, 90.0, crawl)] {
+            let s = Scene::parse(&text(y, yaw, later), "test").unwrap();
+            let world = World::new(&s);
+            let mut p = Person::new(s.person.as_ref().unwrap(), &world, 1).unwrap();
+            for t in [2.5, 4.0, 7.5] {
+                assert!(
+                    body_clearance(&mut p, &world, t, false) > 0.0,
+                    "{later} at {t}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn walking_path_is_followed_back_and_forth() {
         let s = scene("    - {activity: walking, duration: 100, path: [[6,3]], speed: 1.0}\n");
         let world = World::new(&s);
@@ -1144,6 +1217,14 @@ mod tests {
         assert!(
             err.contains("person.script[1].path[0]") && err.contains("sofa"),
             "{err}"
+        );
+        // Unnamed, the piece is named by its index alone; the error names no scene: the
+        // caller, which holds the scene, does.
+        let s = Scene::parse(&text.replace("name: sofa, ", ""), "t").unwrap();
+        let err = Person::new(s.person.as_ref().unwrap(), &World::new(&s), 0).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "person.script[1].path[0]: the walk to this point crosses furniture[0]"
         );
     }
 }

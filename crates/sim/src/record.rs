@@ -20,7 +20,7 @@ use lidar_har_msgs::std_msgs::Header;
 use lidar_har_msgs::tf2_msgs::TFMessage;
 use lidar_har_msgs::topics;
 
-use crate::map::OccupancyMap;
+use crate::map::{OccupancyMap, check_map_server_free};
 use crate::simulator::{Frame, Simulator};
 
 // The bag's frame names, following REP 105 (`map` -> `odom` -> `base_link` -> `laser`), so
@@ -121,6 +121,12 @@ pub fn record(
     map_resolution: f64,
     mut on_frame: impl FnMut(&Frame),
 ) -> Result<RecordSummary, RecordError> {
+    // The bag writer refuses only a bag already there: a map from an earlier run in the same
+    // folder must stop the run before the bag's files are created beside it.
+    check_map_server_free(out, "map").map_err(|cause| RecordError::Map {
+        path: out.display().to_string(),
+        cause,
+    })?;
     let options = WriterOptions {
         flush_interval: Duration::MAX,
         ..WriterOptions::default()
@@ -238,4 +244,28 @@ pub fn record(
     }
     bag.finish()?;
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Scene;
+
+    #[test]
+    fn refuses_a_folder_holding_a_map_before_writing_anything() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/hall.yaml");
+        let mut scene = Scene::load(&path).unwrap();
+        scene.duration = 0.5;
+        for existing in ["map.pgm", "map.yaml"] {
+            let dir = tempfile::tempdir().unwrap();
+            std::fs::write(dir.path().join(existing), "mine").unwrap();
+            let mut sim = Simulator::new(scene.clone(), 1).unwrap();
+            let err = record(&mut sim, dir.path(), 0.05, |_| {}).unwrap_err();
+            let want = format!("{} already exists", dir.path().join(existing).display());
+            assert!(err.to_string().ends_with(&want), "{err}");
+            let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+            assert_eq!(left.len(), 1, "only {existing} is there");
+            assert_eq!(std::fs::read(dir.path().join(existing)).unwrap(), b"mine");
+        }
+    }
 }

@@ -164,33 +164,7 @@ impl Grid {
                 break;
             }
             let c = cost[idx(cell)];
-            for (di, dj) in [
-                (1i64, 0i64),
-                (-1, 0),
-                (0, 1),
-                (0, -1),
-                (1, 1),
-                (1, -1),
-                (-1, 1),
-                (-1, -1),
-            ] {
-                let (ni, nj) = (cell.0 as i64 + di, cell.1 as i64 + dj);
-                if ni < 0 || nj < 0 || ni as usize >= self.width || nj as usize >= self.height {
-                    continue;
-                }
-                let n = (ni as usize, nj as usize);
-                // Diagonal steps may not cut a blocked corner.
-                if !self.free[idx(n)]
-                    || !self.free[idx((n.0, cell.1))]
-                    || !self.free[idx((cell.0, n.1))]
-                {
-                    continue;
-                }
-                let step = if di != 0 && dj != 0 {
-                    std::f64::consts::SQRT_2
-                } else {
-                    1.0
-                };
+            for (n, step) in self.moves(cell) {
                 if c + step < cost[idx(n)] {
                     cost[idx(n)] = c + step;
                     parent[idx(n)] = idx(cell);
@@ -226,6 +200,59 @@ impl Grid {
             i = j;
         }
         Some(out)
+    }
+
+    /// The free cells one planner step from `cell`, with the step's length in cells: the
+    /// eight neighbours, a diagonal step cutting no blocked corner.
+    fn moves(&self, cell: (usize, usize)) -> impl Iterator<Item = ((usize, usize), f64)> + '_ {
+        let idx = |(i, j): (usize, usize)| j * self.width + i;
+        [
+            (1i64, 0i64),
+            (-1, 0),
+            (0, 1),
+            (0, -1),
+            (1, 1),
+            (1, -1),
+            (-1, 1),
+            (-1, -1),
+        ]
+        .into_iter()
+        .filter_map(move |(di, dj)| {
+            let (ni, nj) = (cell.0 as i64 + di, cell.1 as i64 + dj);
+            if ni < 0 || nj < 0 || ni as usize >= self.width || nj as usize >= self.height {
+                return None;
+            }
+            let n = (ni as usize, nj as usize);
+            let open =
+                self.free[idx(n)] && self.free[idx((n.0, cell.1))] && self.free[idx((cell.0, n.1))];
+            let step = if di != 0 && dj != 0 {
+                std::f64::consts::SQRT_2
+            } else {
+                1.0
+            };
+            open.then_some((n, step))
+        })
+    }
+
+    /// This grid with only the free cells the planner reaches from `p` (from the nearest
+    /// free cell, as [`Grid::plan`] sets off): a free pocket walled off by furniture is no
+    /// place to drive to.
+    fn reachable_from(&self, p: DVec2) -> Grid {
+        let mut free = vec![false; self.free.len()];
+        if let Some(start) = self.nearest_free(p) {
+            free[start.1 * self.width + start.0] = true;
+            let mut queue = std::collections::VecDeque::from([start]);
+            while let Some(cell) = queue.pop_front() {
+                for (n, _) in self.moves(cell) {
+                    let k = n.1 * self.width + n.0;
+                    if !free[k] {
+                        free[k] = true;
+                        queue.push_back(n);
+                    }
+                }
+            }
+        }
+        Grid { free, ..*self }
     }
 
     /// The longest of up to 32 runs from `p` in random directions, stopping at the first
@@ -278,8 +305,7 @@ impl PartialOrd for Node {
 }
 
 fn motion_error(key: &str, message: String) -> SceneError {
-    SceneError::Invalid {
-        origin: "scene".to_string(),
+    SceneError::Refused {
         key: key.to_string(),
         message,
     }
@@ -311,6 +337,7 @@ impl RobotMotion {
                 repeat = *r;
             }
             Motion::Coverage { spacing, along_y } => {
+                let reachable = grid.reachable_from(s);
                 let (lo, hi) = world.bounds();
                 let (axis_lo, axis_hi, cross_lo, cross_hi) = if *along_y {
                     (lo.y, hi.y, lo.x, hi.x)
@@ -333,7 +360,7 @@ impl RobotMotion {
                     let step = GRID_RESOLUTION * 0.5;
                     let mut along = axis_lo;
                     while along <= axis_hi {
-                        let free = grid.is_free(point(along, across));
+                        let free = reachable.is_free(point(along, across));
                         match (free, run_start) {
                             (true, None) => run_start = Some(along),
                             (false, Some(a0)) => {
@@ -362,9 +389,17 @@ impl RobotMotion {
                     across += spacing;
                 }
                 if stops.is_empty() {
+                    let size = hi - lo;
                     return Err(motion_error(
-                        "robot.motion",
-                        "coverage found no free lane for the robot".to_string(),
+                        "robot.motion.spacing",
+                        format!(
+                            "coverage found no free lane for the robot: lanes {spacing} m apart, \
+                             the first {} m in from the room's side, in a room of {:.2} m x \
+                             {:.2} m",
+                            spacing / 2.0,
+                            size.x,
+                            size.y
+                        ),
                     ));
                 }
             }
@@ -593,6 +628,36 @@ mod tests {
             assert!(m.period() > 10.0, "{motion}");
             check_clear(&s, &m);
         }
+    }
+
+    #[test]
+    fn coverage_leaves_out_a_pocket_the_robot_cannot_reach() {
+        // A sofa and a cabinet 10 cm apart wall off the strip along y = 0 left of x = 2.1:
+        // free on the grid, out of reach. Its lanes made the plan fail.
+        let text = "duration: 5\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nfurniture:\n  - {kind: box, name: sofa, center: [1.0, 1.2], size: [2.0, 0.8], height: 0.85}\n  - {kind: box, name: cabinet, center: [2.3, 0.4], size: [0.4, 0.8], height: 0.9}\nrobot: {start: {x: 3.5, y: 2.5}, motion: {kind: coverage}}\n";
+        let s = Scene::parse(text, "t").unwrap();
+        let m = RobotMotion::new(&s.robot, &World::new(&s), 0).unwrap();
+        assert!(
+            m.path.iter().all(|p| !(p.x < 2.1 && p.y < 0.8)),
+            "{:?}",
+            m.path
+        );
+        assert!(
+            m.path.iter().any(|p| p.x < 1.0 && p.y > 3.0),
+            "the rest is covered"
+        );
+        check_clear(&s, &m);
+    }
+
+    #[test]
+    fn coverage_with_lanes_wider_than_the_room_names_the_spacing() {
+        let s = scene("{kind: coverage, spacing: 100}");
+        let err = RobotMotion::new(&s.robot, &World::new(&s), 0).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "robot.motion.spacing: coverage found no free lane for the robot: lanes 100 m \
+             apart, the first 50 m in from the room's side, in a room of 6.00 m x 4.00 m"
+        );
     }
 
     #[test]

@@ -446,6 +446,10 @@ pub enum SceneError {
         key: String,
         message: String,
     },
+    /// A scene the simulator refuses after it was read (its values changed since, or it
+    /// cannot be planned): the caller holds the scene and names it, so only the key is given.
+    #[error("{key}: {message}")]
+    Refused { key: String, message: String },
 }
 
 /// Activities that move the person along a path.

@@ -75,11 +75,7 @@ impl Simulator {
     pub fn new(scene: Scene, seed: u64) -> Result<Self, SceneError> {
         scene
             .validate()
-            .map_err(|(key, message)| SceneError::Invalid {
-                origin: "scene".to_string(),
-                key,
-                message,
-            })?;
+            .map_err(|(key, message)| SceneError::Refused { key, message })?;
         let base = base_seed(&scene, seed);
         let world = World::new(&scene);
         let robot = RobotMotion::new(&scene.robot, &world, mix(base ^ 1))?;

@@ -19,6 +19,7 @@ pub const PERSON_START_CLEARANCE: f64 = 0.1;
 /// How close to furniture or a wall a person whose script starts sitting on the floor may
 /// start: a seated body of 1.75 m reaches about 0.6 m ahead (the feet) and behind (the
 /// hands). Random scripts start at least this far from everything, so none is refused.
+/// Sitting down later in a script is checked by the planner, along the seated body.
 pub const SEATED_START_CLEARANCE: f64 = 0.6;
 
 fn fail(key: impl Into<String>, message: impl Into<String>) -> Check {
@@ -69,6 +70,16 @@ fn polygon(key: &str, pts: &[[f64; 2]]) -> Check {
         );
     }
     points(key, pts)?;
+    // GIS formats close a ring by repeating its first point; here the closing edge is
+    // implied, and the repeat would read as a zero-length edge touching the first.
+    let last = pts.len() - 1;
+    if pts[last] == pts[0] {
+        return fail(
+            format!("{key}[{last}]"),
+            "repeats the first point: list each corner once, the last edge back to the \
+             first point is implied",
+        );
+    }
     let poly: Vec<DVec2> = pts.iter().map(|p| DVec2::new(p[0], p[1])).collect();
     if let Some((i, j)) = polygon_self_intersection(&poly) {
         return fail(
@@ -88,6 +99,16 @@ pub(crate) fn describe(world: &World, furniture: Option<usize>) -> String {
         Some(i) if world.furniture[i].name.is_empty() => format!("furniture[{i}]"),
         Some(i) => format!("furniture[{i}] '{}'", world.furniture[i].name),
         None => "a wall".to_string(),
+    }
+}
+
+/// Where a point lies when it is `clear` from what `world.*_clearance` named `what`, and
+/// less than a check asks: `outside the room`, `inside <furniture>`, or `{near} <it>`.
+pub(crate) fn place(world: &World, clear: f64, what: Option<usize>, near: &str) -> String {
+    match (clear < 0.0, what) {
+        (true, None) => "outside the room".to_string(),
+        (true, Some(_)) => format!("inside {}", describe(world, what)),
+        (false, _) => format!("{near} {}", describe(world, what)),
     }
 }
 
@@ -276,8 +297,22 @@ fn check_robot(r: &RobotSpec) -> Check {
     positive("robot.turn_rate_deg", r.turn_rate_deg)
 }
 
+/// The slowest Lidar: a rotation of 10 s. Slower rates turn every scan into a long smear of
+/// the robot's and the person's motion, and a typo such as `1e-9` gave `scan_time` 1e9 s.
+pub const MIN_LIDAR_RATE_HZ: f64 = 0.1;
+
+/// The smallest `range_min`, metres: real Lidars' are centimetres, and a tiny value such as
+/// `1e-300` rounds to 0 in the LaserScan's f32, where 0 reads as "every range is valid".
+pub const MIN_RANGE_MIN_M: f64 = 1e-3;
+
 fn check_lidar(l: &LidarSpec) -> Check {
     positive("lidar.rate_hz", l.rate_hz)?;
+    if l.rate_hz < MIN_LIDAR_RATE_HZ {
+        return fail(
+            "lidar.rate_hz",
+            format!("at least {MIN_LIDAR_RATE_HZ} Hz, got {:?}", l.rate_hz),
+        );
+    }
     if l.rate_hz > 1000.0 {
         return fail(
             "lidar.rate_hz",
@@ -298,6 +333,12 @@ fn check_lidar(l: &LidarSpec) -> Check {
             "lidar.range_min",
             "must be positive: a Lidar inside furniture or the person measures 0, which \
              must read as no return",
+        );
+    }
+    if l.range_min < MIN_RANGE_MIN_M {
+        return fail(
+            "lidar.range_min",
+            format!("at least {MIN_RANGE_MIN_M} m, got {:?}", l.range_min),
         );
     }
     in_range("lidar.range_max", l.range_max, 0.0, 1e6)?;
@@ -339,14 +380,13 @@ fn check_noise(n: &NoiseSpec) -> Check {
 fn check_robot_start(world: &World, r: &RobotSpec) -> Check {
     let (clear, what) = world.robot_clearance(r.start.to_pose().position());
     if clear < r.radius {
-        let place = match (clear < 0.0, what) {
-            (true, None) => "outside the room".to_string(),
-            (true, Some(_)) => format!("inside {}", describe(world, what)),
-            (false, _) => format!("overlapping {}", describe(world, what)),
-        };
         return fail(
             "robot.start",
-            format!("the robot (radius {} m) starts {place}", r.radius),
+            format!(
+                "the robot (radius {} m) starts {}",
+                r.radius,
+                place(world, clear, what, "overlapping")
+            ),
         );
     }
     Ok(())
@@ -367,9 +407,9 @@ fn check_robot_motion(world: &World, r: &RobotSpec) -> Check {
                     return fail(
                         format!("robot.motion.points[{i}]"),
                         format!(
-                            "the robot (radius {} m) cannot stand here: it would touch {}",
+                            "the robot (radius {} m) cannot stand here: {}",
                             r.radius,
-                            describe(world, what)
+                            place(world, clear, what, "it would touch")
                         ),
                     );
                 }
@@ -400,12 +440,13 @@ fn check_person(world: &World, p: &PersonSpec) -> Check {
     finite("person.start.yaw_deg", p.start.yaw_deg)?;
     let (clear, what) = world.person_clearance(p.start.to_pose().position());
     if clear < PERSON_START_CLEARANCE {
-        let place = match (clear < 0.0, what) {
-            (true, None) => "outside the room".to_string(),
-            (true, Some(_)) => format!("inside {}", describe(world, what)),
-            (false, _) => format!("too close to {}", describe(world, what)),
-        };
-        return fail("person.start", format!("the person starts {place}"));
+        return fail(
+            "person.start",
+            format!(
+                "the person starts {}",
+                place(world, clear, what, "too close to")
+            ),
+        );
     }
     if p.script.is_empty() {
         return fail("person.script", "needs at least one step");
@@ -480,7 +521,7 @@ fn check_script_step(world: &World, k: &str, s: &ScriptStep) -> Check {
         if clear < PERSON_START_CLEARANCE {
             return fail(
                 format!("{k}.path[{j}]"),
-                format!("too close to {}", describe(world, what)),
+                place(world, clear, what, "too close to"),
             );
         }
     }
@@ -614,6 +655,89 @@ mod tests {
             let e = error(&text);
             assert!(e.contains(expect), "expected `{expect}` in `{e}`");
         }
+    }
+
+    #[test]
+    fn points_outside_the_room_or_inside_furniture_say_so() {
+        let ok_robot = "{start: {x: 0.5, y: 0.5}}";
+        let walk = |x: f64, y: f64| {
+            with(
+                ok_robot,
+                &format!(
+                    "person: {{start: {{x: 4, y: 1}}, script: [{{activity: walking, duration: 5, path: [[{x}, {y}]]}}]}}"
+                ),
+            )
+        };
+        let drive = |x: f64, y: f64| {
+            with(
+                &format!(
+                    "{{start: {{x: 0.5, y: 0.5}}, motion: {{kind: waypoints, points: [[{x}, {y}]]}}}}"
+                ),
+                "",
+            )
+        };
+        let cases = [
+            (
+                walk(-20.0, 2.0),
+                "person.script[0].path[0]: outside the room",
+            ),
+            (
+                walk(2.5, 2.0),
+                "person.script[0].path[0]: inside furniture[0] 'sofa'",
+            ),
+            (
+                walk(1.95, 2.0),
+                "person.script[0].path[0]: too close to furniture[0] 'sofa'",
+            ),
+            (
+                drive(50.0, 3.0),
+                "robot.motion.points[0]: the robot (radius 0.17 m) cannot stand here: outside \
+                 the room",
+            ),
+            (
+                drive(2.5, 2.0),
+                "robot.motion.points[0]: the robot (radius 0.17 m) cannot stand here: inside \
+                 furniture[0] 'sofa'",
+            ),
+            (
+                drive(1.9, 2.0),
+                "robot.motion.points[0]: the robot (radius 0.17 m) cannot stand here: it would \
+                 touch furniture[0] 'sofa'",
+            ),
+        ];
+        for (text, expect) in cases {
+            assert_eq!(error(&text), format!("bad.yaml: {expect}"));
+        }
+    }
+
+    #[test]
+    fn an_outline_that_repeats_its_first_point_says_so() {
+        let e = error(
+            "duration: 1\nroom: {outline: [[0,0],[5,0],[5,4],[0,4],[0,0]]}\nrobot: {start: {x: 0.5, y: 0.5}}\n",
+        );
+        assert_eq!(
+            e,
+            "bad.yaml: room.outline[4]: repeats the first point: list each corner once, the \
+             last edge back to the first point is implied"
+        );
+    }
+
+    #[test]
+    fn lidar_values_too_small_for_a_laser_scan_are_refused() {
+        let ok_robot = "{start: {x: 0.5, y: 0.5}}";
+        assert_eq!(
+            error(&with(ok_robot, "lidar: {range_min: 1e-300}")),
+            "bad.yaml: lidar.range_min: at least 0.001 m, got 1e-300"
+        );
+        assert_eq!(
+            error(&with(ok_robot, "lidar: {rate_hz: 0.05}")),
+            "bad.yaml: lidar.rate_hz: at least 0.1 Hz, got 0.05"
+        );
+        assert_eq!(
+            error(&with(ok_robot, "lidar: {rate_hz: 1e-9}")),
+            "bad.yaml: lidar.rate_hz: at least 0.1 Hz, got 1e-9"
+        );
+        accepted(&with(ok_robot, "lidar: {rate_hz: 0.1, range_min: 0.001}"));
     }
 
     fn accepted(text: &str) {
