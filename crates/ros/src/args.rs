@@ -255,15 +255,7 @@ pub fn validate_namespace(namespace: &str) -> Result<(), String> {
     if tokens.ends_with('/') {
         return bad("must not end with '/' (only the root namespace `/` does)");
     }
-    for token in tokens.split('/') {
-        if token.is_empty() {
-            return bad("must not contain `//` (an empty token)");
-        }
-        if let Err(e) = validate_token(token) {
-            return bad(&format!("has a token `{token}` that {e}"));
-        }
-    }
-    Ok(())
+    validate_tokens(tokens).or_else(|e| bad(&e))
 }
 
 /// Checks a topic name as rcl parses one side of a `-r` rule (and rmw validates a topic
@@ -282,13 +274,16 @@ pub fn validate_topic_name(name: &str) -> Result<(), String> {
     if tokens.ends_with('/') {
         return bad("must not end with '/'");
     }
+    validate_tokens(tokens).or_else(|e| bad(&e))
+}
+
+/// The name tokens of a namespace or topic name, between single '/'.
+fn validate_tokens(tokens: &str) -> Result<(), String> {
     for token in tokens.split('/') {
         if token.is_empty() {
-            return bad("must not contain `//` (an empty token)");
+            return Err("must not contain `//` (an empty token)".into());
         }
-        if let Err(e) = validate_token(token) {
-            return bad(&format!("has a token `{token}` that {e}"));
-        }
+        validate_token(token).map_err(|e| format!("has a token `{token}` that {e}"))?;
     }
     Ok(())
 }
