@@ -563,16 +563,7 @@ fn a_negative_log_time_in_the_input_skips_that_message_only() {
     let mcap = tmp.path().join("mcap");
     write_bag(&mcap);
     let input = tmp.path().join("in");
-    let converted = lidar_har_command()
-        .args([
-            "bag".as_ref(),
-            "convert".as_ref(),
-            mcap.as_os_str(),
-            input.as_os_str(),
-        ])
-        .args(["--storage", "sqlite3"])
-        .output()
-        .unwrap();
+    let converted = bag_convert(&mcap, &input, &["--storage", "sqlite3"]);
     assert!(converted.status.success(), "{converted:?}");
     let db = storage_file(&input, "db3");
     let changed = rusqlite::Connection::open(&db)
@@ -592,15 +583,7 @@ fn a_negative_log_time_in_the_input_skips_that_message_only() {
     assert!(tmp.path().join("out/summary.json").is_file());
     // Converting it leaves that message out, with a warning, and copies the rest.
     let copy = tmp.path().join("copy");
-    let converted = lidar_har_command()
-        .args([
-            "bag".as_ref(),
-            "convert".as_ref(),
-            input.as_os_str(),
-            copy.as_os_str(),
-        ])
-        .output()
-        .unwrap();
+    let converted = bag_convert(&input, &copy, &[]);
     let stderr = String::from_utf8_lossy(&converted.stderr);
     assert!(converted.status.success(), "{stderr}");
     assert!(
@@ -874,6 +857,20 @@ fn scans_wait_for_odometry_delivered_late_and_are_all_placed() {
     );
 }
 
+/// `lidar-har bag convert SRC DST` with `options`.
+fn bag_convert(src: &Path, dst: &Path, options: &[&str]) -> std::process::Output {
+    lidar_har_command()
+        .args([
+            "bag".as_ref(),
+            "convert".as_ref(),
+            src.as_os_str(),
+            dst.as_os_str(),
+        ])
+        .args(options)
+        .output()
+        .unwrap()
+}
+
 /// `bag convert` of a bag cut short copies its complete messages and says so: the copy is
 /// all there is, and the command fails.
 #[test]
@@ -882,15 +879,7 @@ fn converting_a_bag_cut_short_salvages_its_complete_messages_and_says_so() {
     let input = tmp.path().join("in");
     write_bag_cut_short(&input);
     let copy = tmp.path().join("copy");
-    let out = lidar_har_command()
-        .args([
-            "bag".as_ref(),
-            "convert".as_ref(),
-            input.as_os_str(),
-            copy.as_os_str(),
-        ])
-        .output()
-        .unwrap();
+    let out = bag_convert(&input, &copy, &[]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{stderr}");
     let copied: u64 = stderr
