@@ -617,6 +617,10 @@ pub struct Localiser {
     mount: Pose2,
     tracker: Tracker,
     last_scan_ns: Option<i64>,
+    /// The stamp of the latest scan that passed the checks of its stamp, localised or not:
+    /// the Lidar's period is measured between arrivals, since scans skipped for want of a
+    /// pose say nothing of its rate.
+    last_arrival_ns: Option<i64>,
     /// Whether the scan before came more than `tracker.max_coast_s` after the one before it.
     slow_scan: bool,
     directions: BeamDirections,
@@ -641,6 +645,7 @@ impl Localiser {
             mount: config.mount,
             tracker: Tracker::new(config.tracker.clone()),
             last_scan_ns: None,
+            last_arrival_ns: None,
             slow_scan: false,
             directions: BeamDirections::default(),
             clusterer: Clusterer::default(),
@@ -722,6 +727,12 @@ impl Localiser {
         None
     }
 
+    /// The Lidar's mount in use: a host that knows where the Lidar is, not its base, places
+    /// the base with it.
+    pub fn mount(&self) -> Pose2 {
+        self.mount
+    }
+
     /// The Lidar's mount on the robot (`base_link -> laser`, from /tf_static).
     pub fn set_mount(&mut self, pose: Pose2) -> Option<Warning> {
         if !pose.is_finite() {
@@ -758,6 +769,9 @@ impl Localiser {
             // odometry has not arrived yet): the next scan is not another restart.
             self.last_scan_ns = Some(scan.stamp_ns);
         }
+        result
+            .warnings
+            .extend(self.check_scan_period(scan.stamp_ns));
         let nan = scan.ranges.iter().filter(|r| r.is_nan()).count();
         if nan > 0 {
             result.warnings.push(Warning::NanRanges { count: nan });
@@ -777,9 +791,6 @@ impl Localiser {
                 return result;
             }
         };
-        result
-            .warnings
-            .extend(self.check_scan_period(scan.stamp_ns));
         let last_beam_pose = self.last_beam_pose(scan, laser_pose, &mut result.warnings);
         let beam_poses = BeamPoses::sweep(laser_pose, last_beam_pose, scan.ranges.len());
 
@@ -903,11 +914,13 @@ impl Localiser {
     /// loses every track across such a gap, so none lives from one scan to the next (a
     /// 5.5 Hz Lidar and a `max_coast_s` under its 0.18 s period tracked nobody, silently).
     /// One such gap alone (a Lidar stopped while docked) is not warned about: losing the
-    /// tracks across it is meant.
+    /// tracks across it is meant. Measured between scans that arrived, not only those
+    /// localised: two odometry outages in a row had blamed the Lidar's rate.
     fn check_scan_period(&mut self, stamp_ns: i64) -> Option<Warning> {
         let max_coast_s = self.config.tracker.max_coast_s;
         let period_s = self
-            .last_scan_ns
+            .last_arrival_ns
+            .replace(stamp_ns)
             .map_or(0.0, |previous| (stamp_ns - previous) as f64 * 1e-9);
         let slow = period_s > max_coast_s;
         let slow_before = std::mem::replace(&mut self.slow_scan, slow);
@@ -1838,5 +1851,46 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Scans skipped for want of odometry still arrived at the Lidar's rate: two outages
+    /// longer than `tracker.max_coast_s` in a row had been blamed on the Lidar.
+    #[test]
+    fn the_scan_period_is_measured_between_scans_that_arrived() {
+        // Scans at `stamps_ms`, odometry only for those in `odometry_ms`: how many warnings
+        // about the scan period.
+        let warned = |stamps_ms: &[i64], odometry_ms: &[i64]| {
+            let mut config = LocaliserConfig::default();
+            // No scan is placed from odometry older than its stamp.
+            config.odometry.max_extrapolation_s = 0.0;
+            let mut loc = Localiser::new(config, Reference::Map(room()), Motion::Odometry).unwrap();
+            let mut count = 0;
+            for &ms in stamps_ms {
+                let stamp_ns = ms * 1_000_000;
+                if odometry_ms.contains(&ms) {
+                    for ago_ns in [10_000_000, 0] {
+                        assert_eq!(loc.add_odometry(stamp_ns - ago_ns, Pose2::IDENTITY), None);
+                    }
+                }
+                let result = loc.process_scan(&cast(stamp_ns, Pose2::IDENTITY, None));
+                // Only the scans with odometry are localised.
+                assert_eq!(
+                    result.output.is_some(),
+                    odometry_ms.contains(&ms),
+                    "{ms} ms"
+                );
+                count += result
+                    .warnings
+                    .iter()
+                    .filter(|w| matches!(w, Warning::ScanPeriodOverCoast { .. }))
+                    .count();
+            }
+            count
+        };
+        // A 20 Hz Lidar through two outages of 2.5 s: its scans never came 2 s apart.
+        let every_50_ms: Vec<i64> = (0..=100).map(|k| k * 50).collect();
+        assert_eq!(warned(&every_50_ms, &[0, 2500, 5000]), 0);
+        // A Lidar 2.5 s apart is slow, whether or not its scans between were localised.
+        assert_eq!(warned(&[0, 2500, 5000, 7500], &[0, 5000, 7500]), 2);
     }
 }

@@ -205,8 +205,14 @@ impl OccupancyMap {
 /// none): the distance down every column in whole cells, then the exact lower envelope along
 /// every row of their squares. The column distances are kept as `u32` rather than squared
 /// distances as `f64`, and each row goes straight into the `f32` field: a map of 10000 x 10000
-/// cells took 1.57 GB to build with a whole `f64` grid. Every square is an integer well within
-/// `f64`'s exact range, so the field is the same to the bit.
+/// cells took 1.57 GB to build with a whole `f64` grid. The squares are integers, exact in
+/// `f64` below 2^53: in a map at least two cells each way every distance and index is under
+/// `MAX_CELLS / 2`, so the field is the same to the bit. Only a single column or row longer
+/// than 94.9 million cells (which `MAX_CELLS` allows: a strip 4.7 km long at 5 cm) gets past
+/// 2^53. A column's field is still exact, as `sqrt` rounds the square of an integer under 2^27
+/// back to it; a row's parabola crossings may round to the next cell, and a cell there may
+/// come out one cell farther from an obstacle than it is. The bound is not lowered for it:
+/// no room is such a strip.
 fn distance_field(occupied: &[bool], width: usize, height: usize, resolution: f64) -> Vec<f32> {
     // No real distance gets near it: a column has at most MAX_CELLS cells.
     const NONE: u32 = u32::MAX;

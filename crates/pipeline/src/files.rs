@@ -581,7 +581,7 @@ mod tests {
 
     /// Used to panic inside `image` ("Image index (0, 1) out of bounds (0, 2)").
     #[test]
-    fn an_image_without_columns_is_an_empty_map() {
+    fn an_image_without_columns_is_refused_as_an_empty_map() {
         let dir = tempfile::tempdir().unwrap();
         for (name, header) in [("z02.pgm", "0 2"), ("z40.pgm", "4 0"), ("z00.pgm", "0 0")] {
             write(dir.path(), name, format!("P2\n{header}\n255\n").as_bytes());

@@ -484,6 +484,7 @@ impl LocaliserStage {
         if self.laser_frame.as_deref() != Some(frame) {
             self.laser_frame = Some(frame.to_string());
             self.update_mount();
+            self.update_base();
         }
         let scan = convert::scan_from_msg(msg);
         self.last_stamp_ns = scan.stamp_ns;
@@ -503,14 +504,15 @@ impl LocaliserStage {
             let scans = self.warnings.tally(LIDAR_AT_MAP_ORIGIN);
             if scans == u64::from(SCANS_BEFORE_TF_WARNING) {
                 log::warn!(
-                    "localiser: no transform places `{}` in `{}` (`{} -> {} -> {}` on /tf_static \
-                     or /tf): the fixed Lidar is assumed at the map origin (publish them, e.g. \
-                     with static_transform_publisher)",
+                    "localiser: no transform places `{}` in `{}` (`{} -> {} -> {}`, or \
+                     `{} -> {frame}`, on /tf_static or /tf): the fixed Lidar is assumed at the \
+                     map origin (publish them, e.g. with static_transform_publisher)",
                     self.frames.base,
                     self.frames.map,
                     self.frames.map,
                     self.frames.odom,
-                    self.frames.base
+                    self.frames.base,
+                    self.frames.map
                 );
             }
         }
@@ -629,12 +631,20 @@ impl LocaliserStage {
     }
 
     /// Places a fixed Lidar's base in the map from the latest transforms that link the two
-    /// (`map -> odom -> base_link`, or `map -> base_link`), as tf2 would look them up.
+    /// (`map -> odom -> base_link`, or `map -> base_link`), as tf2 would look them up. When
+    /// none reaches the base but some reach the scan's frame (a plain `map -> laser`, as tf2
+    /// would resolve too), the base is where that puts it, the mount in use taken back off.
     fn update_base(&mut self) {
         if !self.fixed_in_map {
             return;
         }
-        if let Some(base) = self.static_pose(&self.frames.base, &self.frames.map) {
+        let base = self
+            .static_pose(&self.frames.base, &self.frames.map)
+            .or_else(|| {
+                let laser = self.static_pose(self.laser_frame.as_deref()?, &self.frames.map)?;
+                Some(laser.compose(&self.localiser.mount().inverse()))
+            });
+        if let Some(base) = base {
             let w = self.localiser.set_fixed_base(base);
             self.base_placed |= w.is_none();
             self.warn(w);
@@ -896,6 +906,33 @@ mod tests {
         let out = scan_output(&mut stage, scan(4)).expect("localised");
         assert_near(out.laser_pose, Pose2::new(1.2, 0.0, 0.0));
         assert_eq!(stage.warning_counts().get(LIDAR_AT_MAP_ORIGIN), Some(&4));
+    }
+
+    /// A plain `static_transform_publisher map laser`: no chain reaches `base_link`, but tf2
+    /// would place the scans from it. It had left the Lidar at the map origin.
+    #[test]
+    fn a_fixed_lidar_placed_by_a_transform_to_its_own_frame_is_there() {
+        let mount = Pose2::new(0.15, -0.05, 0.2);
+        let mut stage = stage_with_mount(mount);
+        // Before the first scan names the laser frame.
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![tf("map", "laser", 1.0, 0.5)],
+        });
+        let out = scan_output(&mut stage, scan(0)).expect("localised");
+        assert_near(out.laser_pose, Pose2::new(1.0, 0.0, 0.5));
+        // After it, through a chain, and from /tf as well.
+        stage.on_tf(&TFMessage {
+            transforms: vec![tf("map", "room", -2.0, 1.0), tf("room", "laser", 0.5, -0.5)],
+        });
+        let out = scan_output(&mut stage, scan(1)).expect("localised");
+        let laser = Pose2::new(-2.0, 0.0, 1.0).compose(&Pose2::new(0.5, 0.0, -0.5));
+        assert_near(out.laser_pose, laser);
+        assert_eq!(stage.mount_source(), MountSource::Configuration);
+        assert!(
+            stage.warning_counts().is_empty(),
+            "{:?}",
+            stage.warning_counts()
+        );
     }
 
     #[test]

@@ -17,6 +17,9 @@ use crate::world::World;
 /// Extra distance the planner keeps from obstacles beyond the robot's radius.
 pub const PLANNING_MARGIN: f64 = 0.03;
 const GRID_RESOLUTION: f64 = 0.05;
+/// Free space the start reaches, as a share of all the robot's free space, under which a
+/// coverage that finds no lane blames the start's pocket rather than the lane spacing.
+const POCKET_FRACTION: f64 = 0.25;
 /// The shortest straight run a `bounce` motion drives; shorter ones end the bouncing.
 const MIN_BOUNCE_RUN: f64 = 0.05;
 
@@ -105,6 +108,11 @@ impl Grid {
                 (i as f64 + 0.5) * GRID_RESOLUTION,
                 (j as f64 + 0.5) * GRID_RESOLUTION,
             )
+    }
+
+    /// Square metres of free cells.
+    fn free_area(&self) -> f64 {
+        self.free.iter().filter(|&&f| f).count() as f64 * GRID_RESOLUTION * GRID_RESOLUTION
     }
 
     fn is_free(&self, p: DVec2) -> bool {
@@ -351,10 +359,8 @@ impl RobotMotion {
                         DVec2::new(along, across)
                     }
                 };
-                let mut lane = 0usize;
-                let mut across = cross_lo + spacing / 2.0;
-                while across < cross_hi {
-                    // Free stretches of this lane.
+                // Free stretches of the lane at `across`.
+                let runs_at = |across: f64| {
                     let mut runs: Vec<(f64, f64)> = Vec::new();
                     let mut run_start: Option<f64> = None;
                     let step = GRID_RESOLUTION * 0.5;
@@ -375,6 +381,12 @@ impl RobotMotion {
                         runs.push((a0, along - step));
                     }
                     runs.retain(|(a, b)| b - a > 0.1);
+                    runs
+                };
+                let mut lane = 0usize;
+                let mut across = cross_lo + spacing / 2.0;
+                while across < cross_hi {
+                    let mut runs = runs_at(across);
                     if lane % 2 == 1 {
                         runs.reverse();
                         for r in &mut runs {
@@ -389,16 +401,38 @@ impl RobotMotion {
                     across += spacing;
                 }
                 if stops.is_empty() {
-                    let size = hi - lo;
+                    // A lane on any row of the grid: whether a finer spacing would find one.
+                    let rows = ((cross_hi - cross_lo) / GRID_RESOLUTION).ceil() as usize;
+                    let any_lane = (0..rows).any(|k| {
+                        !runs_at(cross_lo + (k as f64 + 0.5) * GRID_RESOLUTION).is_empty()
+                    });
+                    let (reached_m2, free_m2) = (reachable.free_area(), grid.free_area());
+                    if any_lane && reached_m2 >= free_m2 * POCKET_FRACTION {
+                        let size = hi - lo;
+                        return Err(motion_error(
+                            "robot.motion.spacing",
+                            format!(
+                                "coverage found no free lane for the robot: lanes {spacing} m \
+                                 apart, the first {} m in from the room's side, in a room of \
+                                 {:.2} m x {:.2} m",
+                                spacing / 2.0,
+                                size.x,
+                                size.y
+                            ),
+                        ));
+                    }
+                    let why = if any_lane {
+                        format!("lanes {spacing} m apart cross none of it")
+                    } else {
+                        "too little for a lane at any spacing".to_string()
+                    };
                     return Err(motion_error(
-                        "robot.motion.spacing",
+                        "robot.start",
                         format!(
-                            "coverage found no free lane for the robot: lanes {spacing} m apart, \
-                             the first {} m in from the room's side, in a room of {:.2} m x \
-                             {:.2} m",
-                            spacing / 2.0,
-                            size.x,
-                            size.y
+                            "coverage found no free lane for the robot: its start ({}, {}) is \
+                             walled in, reaching {reached_m2:.2} m² of the {free_m2:.2} m² free \
+                             for it in the room ({why})",
+                            s.x, s.y
                         ),
                     ));
                 }
@@ -657,6 +691,42 @@ mod tests {
             err.to_string(),
             "robot.motion.spacing: coverage found no free lane for the robot: lanes 100 m \
              apart, the first 50 m in from the room's side, in a room of 6.00 m x 4.00 m"
+        );
+    }
+
+    /// A start walled in by furniture left coverage no lane too, and the error named the
+    /// spacing and the room's size, neither of which was the cause.
+    #[test]
+    fn coverage_from_a_walled_in_start_names_the_start() {
+        // Two boxes close off the corner x < `width`, y < 0.5 (1 cm from the walls), the
+        // robot starting in it.
+        let error = |width: f64| {
+            let text = format!(
+                "duration: 5\nroom: {{outline: [[0,0],[6,0],[6,4],[0,4]]}}\nfurniture:\n  - \
+                 {{kind: box, center: [{}, 0.31], size: [0.1, 0.6], height: 0.9}}\n  - \
+                 {{kind: box, center: [{}, 0.55], size: [{}, 0.1], height: 0.9}}\nrobot: \
+                 {{start: {{x: 0.25, y: 0.25}}, motion: {{kind: coverage}}}}\n",
+                width + 0.05,
+                (width + 0.1) / 2.0,
+                width + 0.08,
+            );
+            let s = Scene::parse(&text, "t").unwrap();
+            RobotMotion::new(&s.robot, &World::new(&s), 0)
+                .unwrap_err()
+                .to_string()
+        };
+        assert_eq!(
+            error(0.5),
+            "robot.start: coverage found no free lane for the robot: its start (0.25, 0.25) is \
+             walled in, reaching 0.01 m² of the 19.82 m² free for it in the room (too little \
+             for a lane at any spacing)"
+        );
+        // A corridor a finer spacing would have lanes in, but a pocket all the same.
+        assert_eq!(
+            error(3.0),
+            "robot.start: coverage found no free lane for the robot: its start (0.25, 0.25) is \
+             walled in, reaching 0.26 m² of the 18.57 m² free for it in the room (lanes 0.35 m \
+             apart cross none of it)"
         );
     }
 
