@@ -4,7 +4,7 @@
 //! errors for a missing map, a garbled map, a missing bag and a bag without scans, odometry
 //! given only on /tf, a map file against the bag's /map, a bag cut short, a sweeping
 //! Lidar on a turning robot (de-skew), an hour without scans, one odometry stamp an hour
-//! ahead, and odometry delivered late.
+//! ahead, odometry delivered late, and Ctrl-C while a compressed bag is read.
 
 use std::path::Path;
 
@@ -892,6 +892,126 @@ fn converting_a_bag_cut_short_salvages_its_complete_messages_and_says_so() {
     assert!(stderr.contains("holds those"), "{stderr}");
     let salvaged = BagReader::open(&copy).unwrap().messages().unwrap().count() as u64;
     assert_eq!(salvaged, copied);
+}
+
+/// `bytes` as one zstd frame of stored (raw) blocks, which every zstd decoder reads: a file
+/// as rosbag2 compresses it (mode FILE), without a compressor among the test's dependencies.
+fn zstd_frame_stored(bytes: &[u8]) -> Vec<u8> {
+    const BLOCK: usize = 128 << 10;
+    // The magic, then a frame header without content size or checksum, window 128 KiB.
+    let mut frame = vec![0x28, 0xB5, 0x2F, 0xFD, 0x00, 0x38];
+    let blocks = bytes.len().div_ceil(BLOCK);
+    for (i, block) in bytes.chunks(BLOCK).enumerate() {
+        // Size, block type 0 (raw), and whether it is the last block.
+        let header = (block.len() as u32) << 3 | u32::from(i + 1 == blocks);
+        frame.extend(&header.to_le_bytes()[..3]);
+        frame.extend(block);
+    }
+    frame
+}
+
+/// A bare `<name>_0.mcap.zstd` in `dir` of `mib` one-MiB messages.
+fn write_compressed_bag(dir: &Path, mib: usize) -> std::path::PathBuf {
+    let bag = dir.join(format!("big{mib}"));
+    let mut writer = BagWriter::create(&bag, WriterOptions::default()).unwrap();
+    let topic = writer
+        .add_topic(
+            "/raw",
+            "std_msgs/msg/String",
+            "string data\n",
+            lidar_har_msgs::qos::QosProfile::sensor_data(),
+        )
+        .unwrap();
+    let text = 1 << 20;
+    let mut cdr = vec![0, 1, 0, 0];
+    cdr.extend((text as u32 + 1).to_le_bytes());
+    cdr.resize(8 + text, b'x');
+    cdr.push(0);
+    for i in 0..mib {
+        writer.write(topic, 1000 + i as i64, &cdr).unwrap();
+    }
+    writer.finish().unwrap();
+    let file = storage_file(&bag, "mcap");
+    let compressed = dir.join(format!("big{mib}_0.mcap.zstd"));
+    std::fs::write(
+        &compressed,
+        zstd_frame_stored(&std::fs::read(&file).unwrap()),
+    )
+    .unwrap();
+    std::fs::remove_dir_all(&bag).unwrap();
+    compressed
+}
+
+/// A `.zstd` storage file is read from a decompressed copy in $TMPDIR; Ctrl-C while a bag
+/// is read must not leave it there (a process ended by a signal runs no destructors). The
+/// signal goes once the copy exists; a bag converted before it arrives is made larger.
+#[test]
+fn ctrl_c_while_a_compressed_bag_is_read_leaves_no_copy_behind() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::time::{Duration, Instant};
+    let tmp = tempfile::tempdir().unwrap();
+    let temporary = tmp.path().join("tmp");
+    std::fs::create_dir(&temporary).unwrap();
+    let copies = || {
+        std::fs::read_dir(&temporary)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|name| name.starts_with("lidar-har-bag-"))
+            .collect::<Vec<_>>()
+    };
+    for mib in [32, 96, 256] {
+        let src = write_compressed_bag(tmp.path(), mib);
+        let dst = tmp.path().join(format!("copy{mib}"));
+        let mut child = lidar_har_command()
+            .args([
+                "bag".as_ref(),
+                "convert".as_ref(),
+                src.as_os_str(),
+                dst.as_os_str(),
+            ])
+            .env("TMPDIR", &temporary)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let deadline = Instant::now() + Duration::from_secs(120);
+        let mut signalled = false;
+        let status = loop {
+            if let Some(status) = child.try_wait().unwrap() {
+                break status;
+            }
+            if !signalled && !copies().is_empty() {
+                let kill = std::process::Command::new("kill")
+                    .args(["-INT", &child.id().to_string()])
+                    .status()
+                    .unwrap();
+                assert!(kill.success());
+                signalled = true;
+            }
+            if Instant::now() > deadline {
+                let _ = child.kill();
+                panic!("lidar-har bag convert of {mib} MiB ran past 120 s");
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        };
+        let stderr = child.wait_with_output().unwrap().stderr;
+        std::fs::remove_file(&src).unwrap();
+        if status.success() {
+            // Done before the signal came: the copy was deleted as usual. Larger, then.
+            assert!(copies().is_empty());
+            std::fs::remove_dir_all(&dst).unwrap();
+            continue;
+        }
+        assert_eq!(
+            status.signal(),
+            Some(2),
+            "ended by SIGINT, as before: {status:?} {}",
+            String::from_utf8_lossy(&stderr)
+        );
+        assert_eq!(copies(), Vec::<String>::new(), "left in $TMPDIR");
+        return;
+    }
+    panic!("every conversion ended before SIGINT reached it");
 }
 
 /// A `tracker.max_coast_s` under the scan period loses every track between two scans, and a

@@ -20,18 +20,45 @@ const COMPRESSED_EXTENSION: &str = "zstd";
 /// is that large, and a corrupt frame must not exhaust memory.
 const MESSAGE_LIMIT: u64 = 256 << 20;
 
+/// The first bytes of a zstd frame. CDR data starts with its encapsulation header, whose
+/// first byte is 0, so message data starting so is compressed.
+const ZSTD_MAGIC: [u8; 4] = [0x28, 0xB5, 0x2F, 0xFD];
+
+/// Which messages' data is a zstd frame (mode MESSAGE).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum MessageCompression {
+    None,
+    All,
+    /// Those that start with [`ZSTD_MAGIC`]: without metadata.yaml (a killed recorder leaves
+    /// none, whatever its mode) nothing says whether the messages are compressed.
+    ByMagic,
+}
+
+impl MessageCompression {
+    pub(crate) fn applies_to(self, data: &[u8]) -> bool {
+        match self {
+            MessageCompression::None => false,
+            MessageCompression::All => true,
+            MessageCompression::ByMagic => data.starts_with(&ZSTD_MAGIC),
+        }
+    }
+}
+
 /// Whether each message's data is compressed (mode MESSAGE), from metadata.yaml. Files
 /// compressed whole are known by their name, as in a directory without metadata.yaml. The mode
 /// is read without regard to case and ignored without a format, as rosbag2 does; another format
 /// or an unknown mode is refused.
-pub(crate) fn messages_compressed(metadata: &BagMetadata, metadata_path: &Path) -> Result<bool> {
+pub(crate) fn message_compression(
+    metadata: &BagMetadata,
+    metadata_path: &Path,
+) -> Result<MessageCompression> {
     if metadata.compression_format.is_empty() {
-        return Ok(false);
+        return Ok(MessageCompression::None);
     }
     let mode = metadata.compression_mode.to_ascii_uppercase();
     match (metadata.compression_format.as_str(), mode.as_str()) {
-        ("zstd", "MESSAGE") => Ok(true),
-        ("zstd", "FILE" | "NONE" | "") => Ok(false),
+        ("zstd", "MESSAGE") => Ok(MessageCompression::All),
+        ("zstd", "FILE" | "NONE" | "") => Ok(MessageCompression::None),
         _ => Err(BagError::UnsupportedCompression {
             path: metadata_path.to_path_buf(),
             format: metadata.compression_format.clone(),

@@ -215,7 +215,8 @@ enum Layout {
     Linear,
     /// A file shorter than its magic, which holds no record at all: why, as the reason of a
     /// truncation. rosbag2 opens the next split file before it writes into it, so a recorder
-    /// killed just after a split leaves it empty.
+    /// killed just after a split leaves it empty; but any empty file looks so, hence a bag
+    /// is refused unless another of its files opens (`BagReader`).
     CutInMagic(String),
 }
 
@@ -263,7 +264,16 @@ impl McapFile {
     fn from_summary(input: McapInput, summary: Summary) -> Result<Self> {
         let path = input.path();
         let (counts, time_bounds, damaged) = match &summary.stats {
-            Some(stats) => {
+            // The per-channel counts are optional inside the record (an empty map means "not
+            // available", as some writers leave it), and a writer that skips a channel with
+            // messages gives no usable count either: counted then, as without statistics.
+            Some(stats)
+                if stats
+                    .channel_message_counts
+                    .values()
+                    .try_fold(0u64, |sum, &n| sum.checked_add(n))
+                    == Some(stats.message_count) =>
+            {
                 let bounds = if stats.message_count > 0 {
                     Some((
                         to_i64(&path, "", stats.message_start_time)?,
@@ -274,7 +284,7 @@ impl McapFile {
                 };
                 (stats.channel_message_counts.clone(), bounds, false)
             }
-            None => count_messages(&input, &summary)?,
+            _ => count_messages(&input, &summary)?,
         };
         let mut ids: Vec<_> = summary.channels.keys().copied().collect();
         ids.sort_unstable();
@@ -342,6 +352,14 @@ impl McapFile {
             time_bounds,
             truncated,
         })
+    }
+
+    /// Why the file holds no record (it is empty or ends inside its magic), if so.
+    pub(crate) fn cut_in_magic(&self) -> Option<&str> {
+        match &self.layout {
+            Layout::CutInMagic(reason) => Some(reason),
+            _ => None,
+        }
     }
 
     /// Streams the messages (of `topics` if given) in log-time order when the file has a
@@ -423,8 +441,8 @@ fn read_summary(
 type Counts = (BTreeMap<u16, u64>, Option<(i64, i64)>, bool);
 
 /// Per-channel counts and time bounds of a file whose summary has no Statistics record (the
-/// record is optional: e.g. Python's `mcap` writer with `use_statistics=False`), by reading
-/// every chunk once. Chunk indexes alone would give the time span but not the counts. A chunk
+/// record is optional: e.g. Python's `mcap` writer with `use_statistics=False`) or one without
+/// per-channel counts, by reading every chunk once. Chunk indexes alone would give the time span but not the counts. A chunk
 /// that cannot be read ends the count there, not the opening: the message stream stops at the
 /// same chunk and reports why.
 fn count_messages(input: &McapInput, summary: &Summary) -> Result<Counts> {
@@ -976,6 +994,64 @@ mod tests {
         std::fs::write(&not_mcap, b"\x89MCAx").unwrap();
         let error = BagReader::open(&not_mcap).err().unwrap();
         assert!(matches!(error, BagError::NotABag { .. }), "{error}");
+    }
+
+    /// `bytes`, written without statistics, with a Statistics record whose map of counts per
+    /// channel is empty, which the MCAP specification reads as "not available" (Python's
+    /// `mcap` writer can leave it so). Inserted before the summary offsets, whose offsets
+    /// into the summary stay right; the footer's offset and summary CRC are updated.
+    fn with_statistics_without_channel_counts(bytes: &[u8], message_count: u64) -> Vec<u8> {
+        let summary = mcap::Summary::read(bytes).unwrap().unwrap();
+        let footer = bytes.len() - (1 + 8 + 8 + 8 + 4 + 8);
+        let field = |at: usize| {
+            u64::from_le_bytes(bytes[footer + at..footer + at + 8].try_into().unwrap()) as usize
+        };
+        let (summary_start, offsets_start) = (field(9), field(17));
+        assert!(summary_start > 0 && offsets_start > 0);
+        let chunks = &summary.chunk_indexes;
+        let mut body = message_count.to_le_bytes().to_vec();
+        body.extend((summary.schemas.len() as u16).to_le_bytes());
+        body.extend((summary.channels.len() as u32).to_le_bytes());
+        body.extend([0; 8]); // attachments, metadata
+        body.extend((chunks.len() as u32).to_le_bytes());
+        let start = chunks.iter().map(|c| c.message_start_time).min().unwrap();
+        body.extend(start.to_le_bytes());
+        let end = chunks.iter().map(|c| c.message_end_time).max().unwrap();
+        body.extend(end.to_le_bytes());
+        body.extend(0u32.to_le_bytes()); // channel_message_counts: no entries
+        let mut record = vec![mcap::records::op::STATISTICS];
+        record.extend((body.len() as u64).to_le_bytes());
+        record.extend(body);
+        let mut out = [&bytes[..offsets_start], &record, &bytes[offsets_start..]].concat();
+        let footer = footer + record.len();
+        let moved = (offsets_start + record.len()) as u64;
+        out[footer + 17..footer + 25].copy_from_slice(&moved.to_le_bytes());
+        let crc = crc32fast::hash(&out[summary_start..footer + 25]);
+        out[footer + 25..footer + 29].copy_from_slice(&crc.to_le_bytes());
+        let stats = mcap::Summary::read(&out).unwrap().unwrap().stats.unwrap();
+        assert!(stats.channel_message_counts.is_empty() && stats.message_count > 0);
+        out
+    }
+
+    /// Counts "not available" are not zero: a topic counted 0 is a topic without messages
+    /// (`lidar-har run` took /map and /odom for absent). They are counted from the chunks.
+    #[test]
+    fn statistics_without_counts_per_channel_are_counted_from_the_chunks() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("rec_0.mcap");
+        let bytes = write_mcap(&path, &["/a", "/b"], 30, false, None);
+        std::fs::write(&path, with_statistics_without_channel_counts(&bytes, 60)).unwrap();
+        let reader = BagReader::open(&path).unwrap_or_else(|e| panic!("open: {e}"));
+        let counts: Vec<(&str, u64)> = reader
+            .topics()
+            .iter()
+            .map(|t| (t.name.as_str(), t.message_count))
+            .collect();
+        assert_eq!(counts, vec![("/a", 30), ("/b", 30)]);
+        let info = reader.metadata();
+        assert_eq!(info.message_count, 60);
+        assert_eq!((info.start_ns, info.end_ns), (1000, 1059));
+        assert!(!info.truncated);
     }
 
     /// The bytes up to the end of the file's last chunk (a file without its summary, as a

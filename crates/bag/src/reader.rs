@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use lidar_har_msgs::RosMessage;
 
-use crate::compression;
+use crate::compression::{self, MessageCompression};
 use crate::error::{BagError, Result};
 use crate::mcap_storage::{McapFile, McapInput, McapMessages};
 use crate::metadata::BagMetadata;
@@ -76,6 +76,28 @@ enum StorageFile {
     Unreadable,
 }
 
+impl StorageFile {
+    /// Whether the file opened as storage with records in it (which may be none of messages).
+    fn has_records(&self) -> bool {
+        match self {
+            StorageFile::Mcap(m) => m.cut_in_magic().is_none(),
+            StorageFile::Sqlite(_) => true,
+            StorageFile::Unreadable => false,
+        }
+    }
+
+    /// The refusal of a bag of this file alone, when it opened cut in its magic.
+    fn cut_in_magic(&self, path: &Path) -> Option<BagError> {
+        let StorageFile::Mcap(m) = self else {
+            return None;
+        };
+        m.cut_in_magic().map(|reason| BagError::NotABag {
+            path: path.to_path_buf(),
+            reason: reason.to_string(),
+        })
+    }
+}
+
 /// An opened bag.
 pub struct BagReader {
     path: PathBuf,
@@ -83,8 +105,7 @@ pub struct BagReader {
     files: Vec<(PathBuf, StorageFile)>,
     topics: Vec<TopicInfo>,
     metadata: Option<BagMetadata>,
-    /// rosbag2 compression mode MESSAGE: each message's data is a zstd frame.
-    messages_compressed: bool,
+    message_compression: MessageCompression,
 }
 
 impl BagReader {
@@ -98,15 +119,21 @@ impl BagReader {
         if path.is_file() {
             // A file named for neither storage is tried as MCAP, whose magic tells.
             let storage = storage_of(&path).unwrap_or(StorageId::Mcap);
-            return Self::from_files(path.clone(), storage, vec![path], None, false);
+            return Self::from_files(
+                path.clone(),
+                storage,
+                vec![path],
+                None,
+                MessageCompression::ByMagic,
+            );
         }
         let metadata_path = path.join("metadata.yaml");
         if !metadata_path.is_file() {
             let (storage, files) = list_storage_files(&path)?;
-            return Self::from_files(path, storage, files, None, false);
+            return Self::from_files(path, storage, files, None, MessageCompression::ByMagic);
         }
         let metadata = BagMetadata::read(&path)?;
-        let messages_compressed = compression::messages_compressed(&metadata, &metadata_path)?;
+        let message_compression = compression::message_compression(&metadata, &metadata_path)?;
         let storage = match metadata.storage_identifier.as_str() {
             "mcap" => StorageId::Mcap,
             "sqlite3" => StorageId::Sqlite3,
@@ -132,26 +159,36 @@ impl BagReader {
             .iter()
             .map(|name| storage_file_path(&path, metadata.version, name))
             .collect();
-        Self::from_files(path, storage, files, Some(metadata), messages_compressed)
+        Self::from_files(path, storage, files, Some(metadata), message_compression)
     }
 
     /// Opens MCAP bytes held in memory as a bare `.mcap` (for fuzzing and embedded data).
     pub fn from_mcap_bytes(bytes: impl Into<Arc<[u8]>>) -> Result<Self> {
-        let file = McapFile::open(McapInput::Bytes(bytes.into()))?;
+        let file = StorageFile::Mcap(Box::new(McapFile::open(McapInput::Bytes(bytes.into()))?));
         let path = PathBuf::from("<memory>");
-        let files = vec![(path.clone(), StorageFile::Mcap(Box::new(file)))];
-        Ok(Self::new(path, StorageId::Mcap, files, None, false))
+        if let Some(error) = file.cut_in_magic(&path) {
+            return Err(error);
+        }
+        let files = vec![(path.clone(), file)];
+        Ok(Self::new(
+            path,
+            StorageId::Mcap,
+            files,
+            None,
+            MessageCompression::ByMagic,
+        ))
     }
 
     /// Opens the storage files of a bag. A file that cannot be opened ends that file only (see
-    /// [`StorageFile::Unreadable`]), unless no file opens: a bag of one file that is not a bag
-    /// is refused, with that file's error.
+    /// [`StorageFile::Unreadable`]), and an MCAP cut in its magic is a truncated split file,
+    /// unless no file opens with records: any empty file looks cut in its magic, so a bag of
+    /// one file that is not a bag is refused, with the (first) file's error.
     fn from_files(
         path: PathBuf,
         storage: StorageId,
         file_paths: Vec<PathBuf>,
         metadata: Option<BagMetadata>,
-        messages_compressed: bool,
+        message_compression: MessageCompression,
     ) -> Result<Self> {
         let mut first_error = None;
         let mut files = Vec::new();
@@ -160,12 +197,13 @@ impl BagReader {
                 first_error.get_or_insert(e);
                 StorageFile::Unreadable
             });
+            if let Some(error) = file.cut_in_magic(&file_path) {
+                first_error.get_or_insert(error);
+            }
             files.push((file_path, file));
         }
         if let Some(error) = first_error
-            && files
-                .iter()
-                .all(|(_, file)| matches!(file, StorageFile::Unreadable))
+            && !files.iter().any(|(_, file)| file.has_records())
         {
             return Err(error);
         }
@@ -174,7 +212,7 @@ impl BagReader {
             storage,
             files,
             metadata,
-            messages_compressed,
+            message_compression,
         ))
     }
 
@@ -183,7 +221,7 @@ impl BagReader {
         storage: StorageId,
         files: Vec<(PathBuf, StorageFile)>,
         metadata: Option<BagMetadata>,
-        messages_compressed: bool,
+        message_compression: MessageCompression,
     ) -> Self {
         let mut reader = Self {
             path,
@@ -191,7 +229,7 @@ impl BagReader {
             files,
             topics: Vec::new(),
             metadata,
-            messages_compressed,
+            message_compression,
         };
         reader.topics = reader.merge_topics();
         reader
@@ -311,7 +349,7 @@ impl BagReader {
                 stream: self
                     .stream(path, file, topics)
                     .unwrap_or_else(|e| Stream::Failed(Some(e))),
-                messages_compressed: self.messages_compressed,
+                compression: self.message_compression,
             })
             .collect();
         let heads = sources.iter().map(|_| None).collect();
@@ -456,8 +494,7 @@ struct Source {
     /// The file, named in errors of message decompression.
     path: PathBuf,
     stream: Stream,
-    /// rosbag2 compression mode MESSAGE: each message's data is a zstd frame.
-    messages_compressed: bool,
+    compression: MessageCompression,
 }
 
 enum Stream {
@@ -476,7 +513,7 @@ impl Iterator for Source {
             Stream::Failed(error) => error.take().map(Err),
         }?;
         Some(match item {
-            Ok(message) if self.messages_compressed => {
+            Ok(message) if self.compression.applies_to(&message.data) => {
                 compression::decompress_message(&self.path, message)
             }
             item => item,
@@ -721,6 +758,74 @@ mod tests {
                 && error.to_string().contains("lz4"),
             "{error}"
         );
+    }
+
+    /// An empty file looks like an MCAP split file cut in its magic, which is a truncation
+    /// beside a file with records; alone (as a bare file, the only file of a directory, or
+    /// the only one listed in metadata.yaml) it is no bag.
+    #[test]
+    fn a_bag_of_files_cut_in_their_magic_only_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let bag = tmp.path().join("bag");
+        write_bag(&bag, StorageId::Mcap, 1000, &[payload(0)]);
+        let mut metadata = BagMetadata::read(&bag).unwrap();
+        std::fs::remove_file(bag.join("bag_0.mcap")).unwrap();
+        let notes = tmp.path().join("notes.txt");
+        std::fs::write(&notes, b"").unwrap();
+        for (cut, says) in [(0, "the file is empty"), (5, "ends inside its magic")] {
+            std::fs::write(bag.join("bag_1.mcap"), &mcap::MAGIC[..cut]).unwrap();
+            std::fs::write(bag.join("bag_2.mcap"), b"").unwrap();
+            metadata.relative_file_paths = vec!["bag_1.mcap".into(), "bag_2.mcap".into()];
+            metadata.write(&bag).unwrap();
+            let with_metadata = BagReader::open(&bag).err();
+            std::fs::remove_file(bag.join("metadata.yaml")).unwrap();
+            let without = BagReader::open(&bag).err();
+            let bare = BagReader::open(bag.join("bag_1.mcap")).err();
+            for error in [with_metadata, without, bare] {
+                let error = error.expect("refused");
+                let text = error.to_string();
+                assert!(
+                    matches!(error, BagError::NotABag { .. })
+                        && text.contains("bag_1.mcap")
+                        && text.contains(says),
+                    "{text}"
+                );
+            }
+        }
+        let error = BagReader::open(&notes).err().expect("refused");
+        assert!(
+            matches!(error, BagError::NotABag { .. }) && error.to_string().contains("notes.txt"),
+            "{error}"
+        );
+        let error = BagReader::from_mcap_bytes(&mcap::MAGIC[..3])
+            .err()
+            .expect("refused");
+        assert!(matches!(error, BagError::NotABag { .. }), "{error}");
+    }
+
+    /// A killed recorder in mode MESSAGE leaves no metadata.yaml to say that messages are
+    /// compressed: one whose data starts with zstd's magic (CDR data starts with 0) is.
+    #[test]
+    fn compressed_messages_without_metadata_are_known_by_their_magic() {
+        let tmp = tempfile::tempdir().unwrap();
+        let bag = tmp.path().join("bag");
+        let written: Vec<Vec<u8>> = (0..10).map(payload).collect();
+        let stored: Vec<Vec<u8>> = written
+            .iter()
+            .enumerate()
+            .map(|(i, data)| match i % 2 {
+                0 => zstd::bulk::compress(data, 3).unwrap(),
+                _ => data.clone(),
+            })
+            .collect();
+        let file = write_bag(&bag, StorageId::Mcap, 1000, &stored);
+        std::fs::remove_file(bag.join("metadata.yaml")).unwrap();
+        let expected: Vec<_> = (1000..).zip(written).collect();
+        for path in [&bag, &file] {
+            let (messages, errors) = read_all(path);
+            assert!(errors.is_empty(), "{errors:?}");
+            assert_eq!(messages, expected, "{}", path.display());
+        }
     }
 
     /// A file of a bag of several that cannot be opened at all ends that file only, as an

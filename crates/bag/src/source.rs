@@ -1,7 +1,7 @@
 //! Where the bytes of a bag's storage file are read from.
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 use crate::error::{Result, io_error};
 
@@ -15,7 +15,7 @@ pub(crate) struct StorageSource {
     pub(crate) path: PathBuf,
     /// The file that is opened: `path`, or the copy.
     pub(crate) bytes: PathBuf,
-    _copy: Option<Arc<tempfile::TempDir>>,
+    _copy: Option<Arc<CopyDir>>,
 }
 
 impl StorageSource {
@@ -35,16 +35,72 @@ impl StorageSource {
         failed: &'static str,
         make: impl FnOnce(&Path) -> std::io::Result<()>,
     ) -> Result<Self> {
-        let dir = tempfile::Builder::new()
-            .prefix("lidar-har-bag-")
-            .tempdir()
-            .map_err(io_error(&self.path, failed))?;
-        let bytes = dir.path().join(name);
+        let dir = CopyDir::new().map_err(io_error(&self.path, failed))?;
+        let bytes = dir.0.join(name);
         make(&bytes).map_err(io_error(&self.path, failed))?;
         Ok(Self {
             path: self.path.clone(),
             bytes,
             _copy: Some(Arc::new(dir)),
         })
+    }
+}
+
+/// The directories of this process's temporary copies. A copy is as large as its storage file
+/// uncompressed, and a process ended by a signal runs no destructors: its signal handler calls
+/// [`remove_temporary_copies`] first.
+static COPIES: Mutex<Copies> = Mutex::new(Copies {
+    dirs: Vec::new(),
+    removed: false,
+});
+
+struct Copies {
+    dirs: Vec<PathBuf>,
+    /// The process is ending: a copy made now would be left behind.
+    removed: bool,
+}
+
+fn copies() -> MutexGuard<'static, Copies> {
+    COPIES.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// Deletes the temporary copies of storage files (rosbag2 `.zstd` files decompressed, sqlite
+/// files rolled back) that this process holds, and makes opening a file that needs one fail
+/// from then on: for a process about to end on a signal (SIGINT, SIGTERM), which runs no
+/// destructors and would leave the copies in `$TMPDIR`.
+pub fn remove_temporary_copies() {
+    let mut copies = copies();
+    copies.removed = true;
+    for dir in copies.dirs.drain(..) {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
+
+/// A directory of temporary copies, deleted when dropped.
+struct CopyDir(PathBuf);
+
+impl CopyDir {
+    /// Made and listed under the lock, so that a signal cannot come between the two.
+    fn new() -> std::io::Result<Self> {
+        let mut copies = copies();
+        if copies.removed {
+            return Err(std::io::Error::other(
+                "the process is ending (its temporary copies were removed)",
+            ));
+        }
+        let dir = tempfile::Builder::new()
+            .prefix("lidar-har-bag-")
+            .tempdir()?
+            .keep();
+        copies.dirs.push(dir.clone());
+        Ok(Self(dir))
+    }
+}
+
+impl Drop for CopyDir {
+    fn drop(&mut self) {
+        let mut copies = copies();
+        copies.dirs.retain(|dir| *dir != self.0);
+        let _ = std::fs::remove_dir_all(&self.0);
     }
 }

@@ -4,6 +4,7 @@
 
 use std::process::ExitCode;
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
 
 #[macro_use]
@@ -44,9 +45,9 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Bag(c) => cmd::bag::run(c),
+        Command::Bag(c) => remove_bag_copies_on_signal().and_then(|()| cmd::bag::run(c)),
         Command::Simulate(a) => cmd::simulate::run(a),
-        Command::Run(a) => cmd::run::run(a),
+        Command::Run(a) => remove_bag_copies_on_signal().and_then(|()| cmd::run::run(a)),
         Command::RandomScenes(a) => cmd::random_scenes::run(a),
         Command::Dataset(a) => cmd::dataset::run(a),
         Command::Evaluate(a) => cmd::evaluate::run(a),
@@ -60,5 +61,38 @@ fn main() -> ExitCode {
             errln!("lidar-har: error: {err:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// For commands that read bags given by the user: a storage file rosbag2 compressed whole
+/// (`.zstd`) is read from a decompressed copy in $TMPDIR, as large as the file uncompressed,
+/// which only the reader's destructor deletes, and a process ended by SIGINT (Ctrl-C) or
+/// SIGTERM runs none. A thread waits for either, deletes the copies, and ends the process by
+/// that same signal, as it ended before (the shell sees 130 or 143). A signal the process
+/// started with ignored (a background job of a script) stays ignored. Not for `topic echo`,
+/// which turns both signals into a clean stop of its own.
+fn remove_bag_copies_on_signal() -> anyhow::Result<()> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let handled = [SIGINT, SIGTERM].into_iter().filter(|&s| !ignored(s));
+    let mut signals =
+        signal_hook::iterator::Signals::new(handled).context("cannot install signal handler")?;
+    std::thread::spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            lidar_har_bag::remove_temporary_copies();
+            let _ = signal_hook::low_level::emulate_default_handler(signal);
+            std::process::exit(128 + signal);
+        }
+    });
+    Ok(())
+}
+
+fn ignored(signal: i32) -> bool {
+    use nix::libc;
+    // SAFETY: an all-zero `sigaction` is a valid value, and a null new action makes
+    // `sigaction` only read the current one into it.
+    unsafe {
+        let mut current: libc::sigaction = std::mem::zeroed();
+        libc::sigaction(signal, std::ptr::null(), &mut current) == 0
+            && current.sa_sigaction == libc::SIG_IGN
     }
 }

@@ -10,12 +10,13 @@ pub enum BagCommand {
     /// Show storage, files, duration, start/end time and topics (type, count, QoS) of a bag,
     /// like `ros2 bag info`.
     Info {
-        /// A rosbag2 directory (with metadata.yaml) or a bare .mcap file.
+        /// A rosbag2 directory (with metadata.yaml or without) or a bare storage file (.mcap,
+        /// .db3, or either compressed by rosbag2, .zstd).
         bag: PathBuf,
     },
     /// Copy every message of a bag into a new bag, changing storage and/or compression.
     Convert {
-        /// The bag to read (directory or bare .mcap file).
+        /// The bag to read (directory or bare storage file, as for `info`).
         src: PathBuf,
         /// The bag directory to create (must not already hold a bag).
         dst: PathBuf,
