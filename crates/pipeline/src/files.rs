@@ -671,8 +671,9 @@ mod tests {
         });
         png.save_with_format(dir.path().join("png.pgm"), image::ImageFormat::Png)
             .unwrap();
+        png.save(dir.path().join("room.bmp")).unwrap();
         write(dir.path(), "room", &pgm());
-        for image in ["png.pgm", "room"] {
+        for image in ["png.pgm", "room", "room.bmp"] {
             let map = load_map(&map_yaml(dir.path(), "a.yaml", image, "")).unwrap();
             assert!(
                 map.is_occupied(0, 2) && map.occupied_cells() == 1,

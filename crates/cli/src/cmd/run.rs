@@ -17,7 +17,7 @@ pub struct RunArgs {
     /// summary.json. Must not already hold a bag.
     #[arg(long)]
     pub out: PathBuf,
-    /// map_server map (YAML naming a PGM/PNG image). Without it: the bag's /map, or else a
+    /// map_server map (YAML naming a PGM, PNG or BMP image). Without it: the bag's /map, or else a
     /// background learned from the first scans (fixed Lidar).
     #[arg(long)]
     pub map: Option<PathBuf>,
