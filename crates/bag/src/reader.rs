@@ -572,7 +572,7 @@ impl Messages {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use std::path::{Path, PathBuf};
 
     use lidar_har_msgs::qos::QosProfile;
@@ -582,7 +582,7 @@ mod tests {
 
     /// A bag at `dir` of one storage file with `data` on `/raw`, one message a nanosecond from
     /// `t0`; returns the file.
-    fn write_bag(dir: &Path, storage: StorageId, t0: i64, data: &[Vec<u8>]) -> PathBuf {
+    pub(crate) fn write_bag(dir: &Path, storage: StorageId, t0: i64, data: &[Vec<u8>]) -> PathBuf {
         let options = WriterOptions {
             storage,
             ..WriterOptions::default()

@@ -454,13 +454,13 @@ impl Iterator for SqliteMessages {
 
 #[cfg(test)]
 mod tests {
-    use lidar_har_msgs::qos::QosProfile;
     use rusqlite::{Connection, params};
 
     use super::{SqliteFile, SqliteSink};
+    use crate::reader::tests::write_bag;
     use crate::source::StorageSource;
     use crate::writer::{StorageSink, WriterTopic};
-    use crate::{BagReader, BagWriter, StorageId, WriterOptions};
+    use crate::{BagReader, StorageId};
 
     /// Message `i`: 6 KB of bytes that differ from message to message.
     fn payload(i: u32) -> Vec<u8> {
@@ -515,28 +515,10 @@ mod tests {
     fn a_hot_journal_is_rolled_back_on_a_copy_and_the_bag_is_not_changed() {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().join("rec");
-        let options = WriterOptions {
-            storage: StorageId::Sqlite3,
-            ..WriterOptions::default()
-        };
-        let mut writer = BagWriter::create(&dir, options).unwrap();
-        let topic = writer
-            .add_topic(
-                "/raw",
-                "std_msgs/msg/String",
-                "string data\n",
-                QosProfile::sensor_data(),
-            )
-            .unwrap();
         let written: Vec<Vec<u8>> = (0..50).map(payload).collect();
-        for (i, data) in written.iter().enumerate() {
-            writer.write(topic, 1000 + i as i64, data).unwrap();
-        }
-        writer.finish().unwrap();
-
         // Another writer's transaction, larger than its page cache: its pages spill into the
         // file and the journal becomes hot. A copy of both now is what a kill would leave.
-        let db = dir.join("rec_0.db3");
+        let db = write_bag(&dir, StorageId::Sqlite3, 1000, &written);
         let conn = Connection::open(&db).unwrap();
         conn.execute_batch("PRAGMA cache_size = 8; BEGIN").unwrap();
         for i in 0..200 {
