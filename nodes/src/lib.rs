@@ -155,15 +155,24 @@ pub fn run(node: &NodeInfo, body: impl FnOnce(&Shutdown) -> anyhow::Result<()>) 
 }
 
 /// Set by SIGINT or SIGTERM; nodes poll it between messages and leave their loop cleanly.
+/// The signal also deletes the bag reader's temporary copies at once (see
+/// [`lidar_har_bag::remove_temporary_copies`]), which stops a decompression under way.
 #[derive(Clone)]
 pub struct Shutdown(Arc<AtomicBool>);
 
 impl Shutdown {
     fn install() -> std::io::Result<Self> {
         let flag = Arc::new(AtomicBool::new(false));
-        for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        let handled = [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM];
+        for signal in handled {
             signal_hook::flag::register(signal, flag.clone())?;
         }
+        let mut signals = signal_hook::iterator::Signals::new(handled)?;
+        std::thread::spawn(move || {
+            if signals.forever().next().is_some() {
+                lidar_har_bag::remove_temporary_copies();
+            }
+        });
         Ok(Self(flag))
     }
 

@@ -790,6 +790,54 @@ kill -CONT $E; kill -TERM $E; wait $E
     );
 }
 
+/// A `.zstd` storage file of `gib` GiB of zeros decompressed, a few KiB on disk: one zstd
+/// frame of RLE blocks (block type 1, a byte repeated), written without a compressor.
+fn write_zeros_compressed(path: &Path, gib: usize) {
+    const BLOCK: u32 = 128 << 10;
+    let blocks = gib << 13;
+    // The magic, then a frame header without content size or checksum, window 128 KiB.
+    let mut frame = vec![0x28, 0xB5, 0x2F, 0xFD, 0x00, 0x38];
+    for i in 0..blocks {
+        let header = BLOCK << 3 | 1 << 1 | u32::from(i + 1 == blocks);
+        frame.extend(&header.to_le_bytes()[..3]);
+        frame.push(0);
+    }
+    std::fs::write(path, frame).unwrap();
+}
+
+/// A signal while the replay decompresses a bag (rosbag2 file compression, into `$TMPDIR`)
+/// stops the decompression: it used to run to the end first, seconds for a large bag, and
+/// only then see the signal. The bag here is 1 GiB of zeros, not a bag: finished, its copy
+/// would be refused as no MCAP file.
+#[test]
+fn ros_a_signal_stops_the_replays_decompression() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("bag");
+    std::fs::create_dir_all(dir.path().join("tmp")).unwrap();
+    std::fs::create_dir_all(&bag).unwrap();
+    write_zeros_compressed(&bag.join("bag_0.mcap.zstd"), 1);
+    let script = r#"
+TMPDIR="$OUT/tmp" "$REPLAY" --ros-args -p bag:="$BAG" 2> "$OUT/replay.log" & R=$!
+copying() { ls "$OUT"/tmp/lidar-har-bag-*/bag_0.mcap > /dev/null 2>&1; }
+until copying || ! kill -0 $R 2> /dev/null; do sleep 0.005; done
+kill -TERM $R
+wait $R; echo "replay=$?"
+echo "left=$(ls "$OUT/tmp" | wc -l)"
+"#;
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(60));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let log = std::fs::read_to_string(dir.path().join("replay.log")).unwrap();
+    assert!(stdout.contains("replay=0"), "{stdout} {log}");
+    assert!(stdout.contains("left=0"), "the copy stays behind: {stdout}");
+    assert!(
+        log.contains("stopped by signal") && log.contains("the process is ending"),
+        "the decompression must stop on the signal: {log}"
+    );
+}
+
 /// Activity `i` of the alert bag: every field set to something that tells messages apart.
 fn activity(i: usize) -> Activity {
     let class = (i % usize::from(Activity::NUM_CLASSES)) as u8;

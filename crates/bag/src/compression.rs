@@ -11,7 +11,7 @@ use std::path::Path;
 use crate::error::{BagError, Result};
 use crate::metadata::BagMetadata;
 use crate::reader::BagMessage;
-use crate::source::StorageSource;
+use crate::source::{StorageSource, copy_for_temporary};
 
 /// The extension rosbag2 adds to a file it compressed (mode FILE).
 const COMPRESSED_EXTENSION: &str = "zstd";
@@ -86,7 +86,7 @@ pub(crate) fn open_source(path: &Path) -> Result<StorageSource> {
         "cannot zstd-decompress (rosbag2 file compression) into a temporary file",
         |to| {
             let mut decoder = zstd::stream::read::Decoder::new(File::open(path)?)?;
-            std::io::copy(&mut decoder, &mut File::create_new(to)?)?;
+            copy_for_temporary(&mut decoder, &mut File::create_new(to)?)?;
             Ok(())
         },
     )

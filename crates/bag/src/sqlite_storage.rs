@@ -12,7 +12,7 @@ use crate::error::{BagError, Result, sqlite_error};
 use crate::metadata::{BagMetadata, METADATA_VERSION};
 use crate::qos;
 use crate::reader::{BagMessage, TopicInfo};
-use crate::source::StorageSource;
+use crate::source::{StorageSource, copy_for_temporary};
 use crate::writer::{StorageSink, WriterTopic};
 
 const SCHEMA_VERSION: i64 = 4;
@@ -225,7 +225,7 @@ fn roll_back_on_copy(source: &StorageSource) -> Result<StorageSource> {
         ] {
             // Copied into new files (not `fs::copy`, which keeps a read-only file's mode):
             // the roll-back writes to them.
-            std::io::copy(
+            copy_for_temporary(
                 &mut std::fs::File::open(&from)?,
                 &mut std::fs::File::create_new(&to)?,
             )?;

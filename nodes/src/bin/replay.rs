@@ -35,7 +35,14 @@ fn main() -> ExitCode {
             about: "plays a rosbag2 directory (MCAP or sqlite3) onto ROS 2 topics",
             parameters: decls,
         },
-        play,
+        |shutdown| match play(shutdown) {
+            // The signal deletes the bag's temporary copies, which fails a read under way.
+            Err(e) if shutdown.requested() => {
+                log::info!("replay: stopped by signal ({e:#})");
+                Ok(())
+            }
+            done => done,
+        },
     )
 }
 
