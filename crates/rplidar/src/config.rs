@@ -113,6 +113,14 @@ impl Config {
         if self.frame_id.trim().is_empty() {
             return Err(Error::Config("frame_id is empty".into()));
         }
+        // tf2 refuses such frame ids, so rviz and every transform lookup would drop the scans.
+        if self.frame_id.starts_with('/') || self.frame_id.trim() != self.frame_id {
+            return Err(Error::Config(format!(
+                "frame_id = {:?}: a tf2 frame id has no leading '/' (a ROS 1 habit) and no \
+                 surrounding spaces, e.g. \"laser\"",
+                self.frame_id
+            )));
+        }
         self.geometry.validate()?;
         if let Some(pwm) = self.motor_pwm
             && pwm > 1023
@@ -177,6 +185,20 @@ mod tests {
             (
                 Config {
                     frame_id: String::new(),
+                    ..base.clone()
+                },
+                "frame_id",
+            ),
+            (
+                Config {
+                    frame_id: "/laser".into(),
+                    ..base.clone()
+                },
+                "frame_id",
+            ),
+            (
+                Config {
+                    frame_id: "laser ".into(),
                     ..base.clone()
                 },
                 "frame_id",
