@@ -2,9 +2,10 @@
 //! driving with /odom and a Lidar mounted off-centre (/tf_static), a person walking round,
 //! ground truth on /ground_truth/human_pose. Checks the output bag and summary.json, the
 //! errors for a missing map, a garbled map, a missing bag and a bag without scans, odometry
-//! given only on /tf, a map file against the bag's /map, a bag cut short, a sweeping
-//! Lidar on a turning robot (de-skew), an hour without scans, one odometry stamp an hour
-//! ahead, odometry delivered late, and Ctrl-C while a compressed bag is read.
+//! given only on /tf (after other transforms too), a map file against the bag's /map, a bag
+//! cut short, a sweeping Lidar on a turning robot (de-skew), an hour without scans, one
+//! odometry stamp an hour ahead, odometry delivered late, and Ctrl-C while a compressed bag
+//! is read or a bag is written.
 
 use std::path::Path;
 
@@ -12,7 +13,8 @@ use glam::DVec2;
 use lidar_har_bag::{BagReader, BagWriter, WriterOptions};
 use lidar_har_core::localiser::LocaliserConfig;
 use lidar_har_e2e::{
-    copy_bag, copy_bag_delaying, copy_bag_emptying, lidar_har as lidar_har_command,
+    checker_python, copy_bag, copy_bag_delaying, copy_bag_emptying, lidar_har as lidar_har_command,
+    repo_root,
 };
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::geometry_msgs::{
@@ -520,7 +522,7 @@ fn a_bag_without_scans_is_an_error_naming_its_topics() {
     let error = run_bag(&input, &tmp.path().join("out"), RunOptions::default()).unwrap_err();
     let text = error.to_string();
     assert!(
-        text.contains("no /scan topic") && text.contains("/odom") && text.contains("in"),
+        text.contains("no /scan messages") && text.contains("/odom (1)") && text.contains("in"),
         "{text}"
     );
 }
@@ -689,6 +691,68 @@ fn topics_declared_without_messages_count_as_absent() {
     let summary = run_localiser(&no_odometry, &tmp.path().join("out_no_odom"), None);
     assert_eq!(summary.motion, "stationary", "{summary:?}");
     assert_eq!(summary.scans_localised, summary.scans, "{summary:?}");
+
+    // An empty /scan (a silent Lidar) is no /scan: an error naming the topics, not an empty
+    // output that looks like a run without anybody in the room.
+    let no_scans = tmp.path().join("no_scans");
+    copy_bag_emptying(&robot, &no_scans, &[topics::SCAN.name]);
+    let out = tmp.path().join("out_no_scans");
+    let text = run_bag(&no_scans, &out, RunOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        text.contains("no /scan messages")
+            && text.contains("/scan (0), ")
+            && text.contains("/odom (501)"),
+        "{text}"
+    );
+    assert!(!out.exists(), "an output was made");
+}
+
+/// A base driver that starts after other transform publishers: `odom -> base_link` comes on
+/// /tf after 150 other transforms (3 s of a 50 Hz publisher). Only the first 100 /tf messages
+/// had been searched, and the robot taken for a fixed Lidar.
+#[test]
+fn odometry_on_tf_after_other_transforms_still_moves_the_robot() {
+    let tmp = tempfile::tempdir().unwrap();
+    let robot = tmp.path().join("robot");
+    write_robot_bag(&robot, OdometryOn::Tf);
+    let input = tmp.path().join("in");
+    copy_bag(&robot, &input, &[], |topic, data| {
+        if topic != topics::TF.name {
+            return data;
+        }
+        let mut tf: TFMessage = lidar_har_msgs::decode(&data).unwrap();
+        for t in &mut tf.transforms {
+            if t.header.stamp.to_nanos() < 3_000_000_000 {
+                t.header.frame_id = "base_link".into();
+                t.child_frame_id = "wheel_left".into();
+            }
+        }
+        lidar_har_msgs::encode(&tf).unwrap()
+    });
+    let summary = run_localiser(&input, &tmp.path().join("out"), None);
+    assert_eq!(summary.motion, "odometry", "{summary:?}");
+    assert!(summary.visible_ratio > 0.6, "{summary:?}");
+}
+
+/// A run asked to stop (a signal, in `lidar-har run`) stops reading there and finishes as at
+/// a bag cut short: a complete output bag, and a summary that says why it stopped.
+#[test]
+fn a_run_asked_to_stop_finishes_its_outputs_and_says_why() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("in");
+    write_bag(&input);
+    let out = tmp.path().join("out");
+    let options = RunOptions::default();
+    options.stop.request("interrupted by a test");
+    let summary = run_bag(&input, &out, options).unwrap();
+    assert_eq!(summary.read_error.as_deref(), Some("interrupted by a test"));
+    assert_eq!(summary.scans, 0, "{summary:?}");
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(written["read_error"], "interrupted by a test");
+    assert!(!BagReader::open(&out).unwrap().metadata().truncated);
 }
 
 /// A message of the robot bag on `topic` (/scan, /odom, /ground_truth/human_pose) with its
@@ -1014,6 +1078,155 @@ fn a_signal_while_a_compressed_bag_is_read_leaves_no_copy_behind() {
         return;
     }
     panic!("every conversion ended before SIGTERM reached it");
+}
+
+/// `lidar-har ARGS`, sent SIGTERM once `storage` (the bag file it writes) has `bytes` or more;
+/// its output once it has ended.
+fn terminated_once_written(
+    args: &[&std::ffi::OsStr],
+    storage: &Path,
+    bytes: u64,
+) -> std::process::Output {
+    use std::time::{Duration, Instant};
+    let mut child = lidar_har_command()
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let written = || std::fs::metadata(storage).is_ok_and(|m| m.len() >= bytes);
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while !written() {
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!(
+                "lidar-har {args:?} ended ({status}) before {} had data: simulate longer",
+                storage.display()
+            );
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("lidar-har {args:?} wrote nothing in 120 s");
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let kill = std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    child.wait_with_output().unwrap()
+}
+
+/// Prints how many messages `rosbags` reads from the bag directory given.
+const ROSBAGS_COUNT: &str = "import sys
+from rosbags.rosbag2 import Reader
+with Reader(sys.argv[1]) as reader:
+    print(sum(1 for _ in reader.messages()))
+";
+
+/// Checks that `rosbags` reads the bag at `dir` whole, as many messages as our reader.
+fn assert_rosbags_reads(dir: &Path) {
+    let Some(mut python) = checker_python() else {
+        return;
+    };
+    let ours = BagReader::open(dir).unwrap().messages().unwrap().count();
+    let read = python
+        .args(["-c", ROSBAGS_COUNT])
+        .arg(dir)
+        .output()
+        .unwrap();
+    assert!(
+        read.status.success(),
+        "rosbags: {}",
+        String::from_utf8_lossy(&read.stderr)
+    );
+    assert_eq!(
+        String::from_utf8_lossy(&read.stdout).trim(),
+        ours.to_string()
+    );
+}
+
+/// Ctrl-C or a kill while `lidar-har run` reads a long bag: the run stops at the next message,
+/// finishes its output bag and writes `summary.json` saying why it stopped, then ends by that
+/// signal as before (143 in a shell). The signal had ended the process at once: an output bag
+/// without its MCAP footer, which `rosbags` refuses ("File end magic is invalid"), and no
+/// summary. `bag convert` likewise finishes its new bag and says what it holds. SIGTERM, as
+/// in the test above; it goes once the output bag has data.
+#[test]
+fn a_signal_during_a_run_or_a_conversion_finishes_the_bag_it_writes() {
+    use std::os::unix::process::ExitStatusExt;
+    let tmp = tempfile::tempdir().unwrap();
+    let sim = tmp.path().join("sim");
+    let simulated = lidar_har_command()
+        .args(["simulate", "--scene"])
+        .arg(repo_root().join("config/scenes/living_room.yaml"))
+        .args(["--duration", "600", "--out"])
+        .arg(&sim)
+        .output()
+        .unwrap();
+    assert!(
+        simulated.status.success(),
+        "{}",
+        String::from_utf8_lossy(&simulated.stderr)
+    );
+
+    let out = tmp.path().join("out");
+    let args = [
+        "run".as_ref(),
+        "--bag".as_ref(),
+        sim.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--no-classifier".as_ref(),
+    ];
+    let output = terminated_once_written(&args, &out.join("out_0.mcap"), 1);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.signal(), Some(15), "{stderr}");
+    assert!(stderr.contains("interrupted by SIGTERM"), "{stderr}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(
+        summary["read_error"], "interrupted by SIGTERM",
+        "{summary:#}"
+    );
+    let scans_in_bag = BagReader::open(&sim)
+        .unwrap()
+        .topic(topics::SCAN.name)
+        .unwrap()
+        .message_count;
+    let scans_read = summary["scans"].as_u64().unwrap();
+    assert!(scans_read < scans_in_bag, "{scans_read} of {scans_in_bag}");
+    assert_rosbags_reads(&out);
+
+    // The conversion is quicker: the signal goes as soon as the new bag's file is there.
+    let copy = tmp.path().join("copy");
+    let args = [
+        "bag".as_ref(),
+        "convert".as_ref(),
+        sim.as_os_str(),
+        copy.as_os_str(),
+    ];
+    let output = terminated_once_written(&args, &copy.join("copy_0.mcap"), 0);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.signal(), Some(15), "{stderr}");
+    let copied: usize = stderr
+        .split("stopped after ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no count in: {stderr}"));
+    assert!(
+        stderr.contains("messages: interrupted by SIGTERM"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("holds those"), "{stderr}");
+    let in_bag = BagReader::open(&sim).unwrap().metadata().message_count as usize;
+    assert!(copied < in_bag, "{copied} of {in_bag}");
+    assert_eq!(
+        BagReader::open(&copy).unwrap().messages().unwrap().count(),
+        copied
+    );
+    assert_rosbags_reads(&copy);
 }
 
 /// A `tracker.max_coast_s` under the scan period loses every track between two scans, and a

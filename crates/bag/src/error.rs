@@ -44,7 +44,7 @@ pub enum BagError {
         log_time_ns: i64,
         cause: std::io::Error,
     },
-    #[error("{path}: invalid MCAP: {cause}")]
+    #[error("{path}: {}", McapCause(.cause))]
     Mcap {
         path: PathBuf,
         cause: mcap::McapError,
@@ -94,6 +94,19 @@ pub enum BagError {
 
 pub type Result<T, E = BagError> = std::result::Result<T, E>;
 
+/// What went wrong in the `mcap` crate: the file's content, or an I/O error, whose own text
+/// (a full disk) that crate's message leaves out.
+struct McapCause<'a>(&'a mcap::McapError);
+
+impl std::fmt::Display for McapCause<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            mcap::McapError::Io(e) => write!(f, "I/O error: {e}"),
+            other => write!(f, "invalid MCAP: {other}"),
+        }
+    }
+}
+
 pub(crate) fn io_error(
     path: impl Into<PathBuf>,
     action: &'static str,
@@ -114,4 +127,33 @@ pub(crate) fn sqlite_error(path: impl Into<PathBuf>) -> impl FnOnce(rusqlite::Er
 pub(crate) fn mcap_error(path: impl Into<PathBuf>) -> impl FnOnce(mcap::McapError) -> BagError {
     let path = path.into();
     move |cause| BagError::Mcap { path, cause }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A full disk while the output bag was written had read "invalid MCAP: I/O error from
+    /// writing, or reading a compression stream", without what the system said.
+    #[test]
+    fn an_mcap_io_error_says_what_the_system_said() {
+        let disk_full = BagError::Mcap {
+            path: "out/out_0.mcap".into(),
+            cause: mcap::McapError::Io(std::io::Error::from_raw_os_error(28)),
+        };
+        let text = disk_full.to_string();
+        assert!(
+            text.starts_with("out/out_0.mcap: I/O error: No space left on device"),
+            "{text}"
+        );
+        assert!(!text.contains("invalid MCAP"), "{text}");
+        let corrupt = BagError::Mcap {
+            path: "in.mcap".into(),
+            cause: mcap::McapError::BadMagic,
+        };
+        assert!(
+            corrupt.to_string().starts_with("in.mcap: invalid MCAP: "),
+            "{corrupt}"
+        );
+    }
 }

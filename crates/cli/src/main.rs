@@ -3,9 +3,11 @@
 //! library crates.
 
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicI32, Ordering};
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
+use lidar_har_pipeline::bag_run::StopRequest;
 
 #[macro_use]
 mod stdout;
@@ -45,9 +47,9 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Bag(c) => remove_bag_copies_on_signal().and_then(|()| cmd::bag::run(c)),
+        Command::Bag(c) => stop_on_signal().and_then(|stop| cmd::bag::run(c, &stop)),
         Command::Simulate(a) => cmd::simulate::run(a),
-        Command::Run(a) => remove_bag_copies_on_signal().and_then(|()| cmd::run::run(a)),
+        Command::Run(a) => stop_on_signal().and_then(|stop| cmd::run::run(a, stop)),
         Command::RandomScenes(a) => cmd::random_scenes::run(a),
         Command::Dataset(a) => cmd::dataset::run(a),
         Command::Evaluate(a) => cmd::evaluate::run(a),
@@ -55,35 +57,63 @@ fn main() -> ExitCode {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Topic(c) => cmd::topic::run(c),
     };
+    if let Err(err) = &result {
+        errln!("lidar-har: error: {err:#}");
+    }
+    match STOP_SIGNAL.load(Ordering::SeqCst) {
+        0 => {}
+        signal => {
+            let _ = std::io::Write::flush(&mut std::io::stdout());
+            end_by(signal)
+        }
+    }
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(err) => {
-            errln!("lidar-har: error: {err:#}");
-            ExitCode::FAILURE
-        }
+        Err(_) => ExitCode::FAILURE,
     }
 }
 
-/// For commands that read bags given by the user: a storage file rosbag2 compressed whole
-/// (`.zstd`) is read from a decompressed copy in $TMPDIR, as large as the file uncompressed,
-/// which only the reader's destructor deletes, and a process ended by SIGINT (Ctrl-C) or
-/// SIGTERM runs none. A thread waits for either, deletes the copies, and ends the process by
-/// that same signal, as it ended before (the shell sees 130 or 143). A signal the process
-/// started with ignored (a background job of a script) stays ignored. Not for `topic echo`,
-/// which turns both signals into a clean stop of its own.
-fn remove_bag_copies_on_signal() -> anyhow::Result<()> {
+/// The SIGINT or SIGTERM that asked the command to stop; 0 until one comes.
+static STOP_SIGNAL: AtomicI32 = AtomicI32::new(0);
+
+/// For commands that read bags given by the user (`run`, `bag`): the first SIGINT (Ctrl-C) or
+/// SIGTERM asks the command to stop at the next message, so that it finishes the bag it
+/// writes (a bag left without its MCAP footer is refused by other readers) and `run` its
+/// `summary.json`; the process then ends by that signal, as it did when the signal ended it
+/// at once (the shell sees 130 or 143). The signal also deletes the bag reader's temporary
+/// copies (a storage file rosbag2 compressed whole, `.zstd`, is read from a decompressed copy
+/// in $TMPDIR as large as the file uncompressed), which stops a decompression under way: a
+/// process ended by a signal runs no destructors. A second signal ends the process at once.
+/// A signal the process started with ignored (a background job of a script) stays ignored.
+/// Not for `topic echo`, which turns both signals into a clean stop of its own.
+fn stop_on_signal() -> anyhow::Result<StopRequest> {
     use signal_hook::consts::{SIGINT, SIGTERM};
     let handled = [SIGINT, SIGTERM].into_iter().filter(|&s| !ignored(s));
     let mut signals =
         signal_hook::iterator::Signals::new(handled).context("cannot install signal handler")?;
+    let stop = StopRequest::default();
+    let request = stop.clone();
     std::thread::spawn(move || {
-        if let Some(signal) = signals.forever().next() {
+        let mut received = signals.forever();
+        if let Some(signal) = received.next() {
+            STOP_SIGNAL.store(signal, Ordering::SeqCst);
+            let name = signal_hook::low_level::signal_name(signal).unwrap_or("a signal");
+            // Asked before the copies go, so that a read they break is put down to it.
+            request.request(format!("interrupted by {name}"));
             lidar_har_bag::remove_temporary_copies();
-            let _ = signal_hook::low_level::emulate_default_handler(signal);
-            std::process::exit(128 + signal);
+        }
+        if let Some(signal) = received.next() {
+            end_by(signal);
         }
     });
-    Ok(())
+    Ok(stop)
+}
+
+/// Ends the process by `signal`, its default action, as if it had not been handled.
+fn end_by(signal: i32) -> ! {
+    lidar_har_bag::remove_temporary_copies();
+    let _ = signal_hook::low_level::emulate_default_handler(signal);
+    std::process::exit(128 + signal);
 }
 
 fn ignored(signal: i32) -> bool {

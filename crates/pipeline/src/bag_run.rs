@@ -3,6 +3,7 @@
 //! `summary.json` beside them.
 
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
 
 use glam::DVec2;
 use lidar_har_bag::{BagError, BagMessage, BagReader, BagWriter, TopicHandle, WriterOptions};
@@ -30,6 +31,26 @@ pub struct RunOptions {
     pub map: Option<OccupancyMap>,
     /// Classifier parameters, model included; `None` runs the localiser only.
     pub classifier: Option<ClassifierConfig>,
+    /// Asks the run to stop reading its input (a signal): it then finishes as at a bag cut
+    /// short, with the outputs and `summary.json` of what was read.
+    pub stop: StopRequest,
+}
+
+/// A request, made from another thread (a signal handler's), that a run stop reading its
+/// input at the next message and finish its outputs; it says why, for `read_error`.
+#[derive(Debug, Clone, Default)]
+pub struct StopRequest(Arc<OnceLock<String>>);
+
+impl StopRequest {
+    /// Asks the run to stop, saying why; a later request keeps the first reason.
+    pub fn request(&self, reason: impl Into<String>) {
+        let _ = self.0.set(reason.into());
+    }
+
+    /// Why the run was asked to stop, if it was.
+    pub fn reason(&self) -> Option<&str> {
+        self.0.get().map(String::as_str)
+    }
 }
 
 /// Why a run failed.
@@ -45,7 +66,7 @@ pub enum RunError {
     Classifier(#[from] ClassifierError),
     #[error(transparent)]
     ClassifierRun(#[from] ClassifierRunError),
-    #[error("input bag {}: no {} topic to localise from (topics: {topics})", path.display(), topics::SCAN.name)]
+    #[error("input bag {}: no {} messages to localise from (topics and their message counts: {topics})", path.display(), topics::SCAN.name)]
     NoScans { path: PathBuf, topics: String },
     #[error("cannot write {}: {cause}", path.display())]
     Summary {
@@ -90,8 +111,9 @@ pub struct RunSummary {
     /// Messages that could not be decoded, or that carry a negative log time (sqlite3 bags can
     /// hold one; a rosbag2 output cannot), and were skipped.
     pub decode_errors: u64,
-    /// Why reading the input stopped before its end (a file cut short, corrupt data); the
-    /// outputs cover the messages read before it. `None` when the whole bag was read.
+    /// Why reading the input stopped before its end (a file cut short, corrupt data, a
+    /// signal); the outputs cover the messages read before it. `None` when the whole bag
+    /// was read.
     pub read_error: Option<String>,
     /// The classifier's results (activities, accuracy, alerts), when it ran.
     pub activity: Option<ActivitySummary>,
@@ -159,7 +181,7 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         moving,
         options.classifier.as_ref(),
     )?;
-    let tally = replay(&reader, input, out_dir, &mut stages)?;
+    let tally = replay(&reader, input, out_dir, &mut stages, &options.stop)?;
     let Stages {
         localiser,
         classifier,
@@ -185,18 +207,25 @@ fn output_error(out_dir: &Path) -> impl FnOnce(BagError) -> RunError + '_ {
     }
 }
 
-/// Opens the input bag; one without scans is refused before any output is made.
+/// Opens the input bag; one without scans (no /scan, or one declared with no message, as
+/// `ros2 bag record -a` leaves it when the Lidar is silent) is refused before any output is
+/// made.
 fn open_input(input: &Path) -> Result<BagReader, RunError> {
     let reader = BagReader::open(input).map_err(input_error(input))?;
-    // A file cut short may not list its topics; reading it says what is wrong instead.
-    if reader.topic(topics::SCAN.name).is_none() && !reader.metadata().truncated {
-        let names: Vec<&str> = reader.topics().iter().map(|t| t.name.as_str()).collect();
+    // A file cut short counts only what comes before the cut; reading it up to there says
+    // what is wrong instead.
+    if !has_messages(&reader, topics::SCAN.name) && !reader.metadata().truncated {
+        let counts: Vec<String> = reader
+            .topics()
+            .iter()
+            .map(|t| format!("{} ({})", t.name, t.message_count))
+            .collect();
         return Err(RunError::NoScans {
             path: input.to_path_buf(),
-            topics: if names.is_empty() {
+            topics: if counts.is_empty() {
                 "none".into()
             } else {
-                names.join(", ")
+                counts.join(", ")
             },
         });
     }
@@ -373,17 +402,23 @@ impl Stages {
     }
 }
 
-/// Feeds the bag's messages to the stages in log-time order, up to its end or the first
-/// message that cannot be read.
+/// Feeds the bag's messages to the stages in log-time order, up to its end, the first
+/// message that cannot be read, or a request to stop.
 fn replay(
     reader: &BagReader,
     input: &Path,
     out_dir: &Path,
     stages: &mut Stages,
+    stop: &StopRequest,
 ) -> Result<Tally, RunError> {
     let mut tally = Tally::default();
     let mut last_log_time_ns = 0;
     for message in reader.messages().map_err(input_error(input))? {
+        // Before the message: what stops the run (a signal) may also have made it unreadable.
+        if let Some(reason) = stop.reason() {
+            tally.read_error = Some(reason.to_string());
+            break;
+        }
         match message {
             Ok(message) => {
                 stages.feed(&message, out_dir, &mut tally)?;
@@ -536,17 +571,25 @@ fn write_summary(out_dir: &Path, summary: &RunSummary) -> Result<(), RunError> {
     std::fs::write(&path, json + "\n").map_err(|cause| RunError::Summary { path, cause })
 }
 
-/// /tf messages looked at for `odom -> base_link` before deciding the bag has no odometry.
-const TF_MESSAGES_TO_PROBE: usize = 100;
+/// How much of the bag's /tf (log time from its first message) is searched for
+/// `odom -> base_link` before the bag is taken to have no odometry: a base driver may start
+/// after the other transform publishers, and /tf is busy, but a fixed Lidar's long bag
+/// need not be read to its end twice.
+const TF_ODOMETRY_SEARCH_NS: i64 = 60_000_000_000;
 
-/// Whether the bag's /tf carries the odometry transform (a base that publishes no /odom).
+/// Whether the bag's /tf carries the odometry transform (a base that publishes no /odom)
+/// within its first [`TF_ODOMETRY_SEARCH_NS`].
 fn tf_carries_odometry(reader: &BagReader, frames: &FrameConfig) -> bool {
     let Ok(messages) = reader.messages_on(&[topics::TF.name]) else {
         return false;
     };
+    let mut first_ns = None;
     messages
-        .take(TF_MESSAGES_TO_PROBE)
         .map_while(Result::ok)
+        .take_while(|m| {
+            let first_ns = *first_ns.get_or_insert(m.log_time_ns);
+            m.log_time_ns.saturating_sub(first_ns) <= TF_ODOMETRY_SEARCH_NS
+        })
         .any(|m| {
             lidar_har_msgs::decode::<TFMessage>(&m.data)
                 .is_ok_and(|tf| carries_odometry(&tf, frames))

@@ -1,6 +1,6 @@
 //! Messages to core types and back. Pure functions: no state, no logging.
 
-use glam::DVec2;
+use glam::{DQuat, DVec2, DVec3};
 use lidar_har_core::geometry::Pose2;
 use lidar_har_core::localiser::LocaliserOutput;
 use lidar_har_core::map::{MapError, MapGeometry, OccupancyMap};
@@ -38,6 +38,94 @@ pub fn pose2_from_pose(pose: &Pose) -> Pose2 {
 /// The planar part of a transform.
 pub fn pose2_from_transform(t: &Transform) -> Pose2 {
     Pose2::new(t.translation.x, t.translation.y, t.rotation.yaw())
+}
+
+/// `scan` as seen from its Lidar turned upside down: each beam at the opposite angle, in the
+/// same order, so measured at the same time.
+pub fn mirrored_scan(scan: Scan) -> Scan {
+    Scan {
+        angle_min: -scan.angle_min,
+        angle_increment: -scan.angle_increment,
+        ..scan
+    }
+}
+
+/// A transform between two frames in space, so that a chain of them composes as tf2
+/// composes it before it is laid into the plane of the scans: a Lidar mounted upside down
+/// through a chain of rolled frames is only seen as such in the whole.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpatialTransform {
+    pub translation: DVec3,
+    /// Unit length; not finite when the message's quaternion has no direction (all zeros),
+    /// which tf2 refuses too.
+    pub rotation: DQuat,
+}
+
+impl SpatialTransform {
+    pub const IDENTITY: Self = Self {
+        translation: DVec3::ZERO,
+        rotation: DQuat::IDENTITY,
+    };
+
+    pub fn from_msg(t: &Transform) -> Self {
+        let q = t.rotation;
+        Self {
+            translation: DVec3::new(t.translation.x, t.translation.y, t.translation.z),
+            rotation: DQuat::from_xyzw(q.x, q.y, q.z, q.w).normalize(),
+        }
+    }
+
+    /// A planar pose as a transform in the plane of the scans.
+    pub fn from_pose2(pose: Pose2) -> Self {
+        Self {
+            translation: DVec3::new(pose.x, pose.y, 0.0),
+            rotation: DQuat::from_rotation_z(pose.theta),
+        }
+    }
+
+    /// `self` followed by `child`, the pose of `child`'s frame in `self`'s parent.
+    pub fn compose(&self, child: &Self) -> Self {
+        Self {
+            translation: self.translation + self.rotation * child.translation,
+            rotation: self.rotation * child.rotation,
+        }
+    }
+
+    pub fn inverse(&self) -> Self {
+        let rotation = self.rotation.inverse();
+        Self {
+            translation: rotation * -self.translation,
+            rotation,
+        }
+    }
+
+    /// The transform laid into the plane of the scans (z up, REP-103): the position, the
+    /// heading of the child's x axis, and how the child's z axis lies.
+    pub fn in_scan_plane(&self) -> PlanarTransform {
+        let x_axis = self.rotation * DVec3::X;
+        let z_up = (self.rotation * DVec3::Z).z;
+        PlanarTransform {
+            pose: Pose2::new(
+                self.translation.x,
+                self.translation.y,
+                x_axis.y.atan2(x_axis.x),
+            ),
+            mirrored: z_up < 0.0,
+            tilt_rad: z_up.abs().min(1.0).acos(),
+        }
+    }
+}
+
+/// A [`SpatialTransform`] in the plane of the scans.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlanarTransform {
+    pub pose: Pose2,
+    /// The child's z axis points down (a Lidar mounted upside down): its scans turn the other
+    /// way ([`mirrored_scan`]) before `pose` places them.
+    pub mirrored: bool,
+    /// The angle of the child's z axis from the vertical (up, or down when mirrored), rad:
+    /// a tilted Lidar's scan plane meets the floor, or passes over people.
+    pub tilt_rad: f64,
 }
 
 /// An OccupancyGrid as the localiser's map; cells above `occupied_thresh` (0..1) are obstacles.
@@ -184,6 +272,7 @@ mod tests {
     use super::*;
     use lidar_har_core::map::MAP_SERVER_OCCUPIED_THRESH;
     use lidar_har_msgs::nav_msgs::MapMetaData;
+    use std::f64::consts::PI;
 
     fn output(visible: bool) -> LocaliserOutput {
         LocaliserOutput {
@@ -256,6 +345,72 @@ mod tests {
         let markers = markers_msg(&out, "map");
         assert_eq!(markers.markers.len(), 1);
         assert_eq!(markers.markers[0].action, Marker::DELETEALL);
+    }
+
+    fn quaternion(q: DQuat) -> Quaternion {
+        Quaternion {
+            x: q.x,
+            y: q.y,
+            z: q.z,
+            w: q.w,
+        }
+    }
+
+    /// A chain of static transforms composed in space, as tf2 composes it: a Lidar rolled
+    /// upside down through one frame and turned in the next is mirrored, with the heading of
+    /// its x axis; the roll and the turn in one transform give the same.
+    #[test]
+    fn an_upside_down_chain_lies_mirrored_in_the_scan_plane() {
+        let transform = |x: f64, rotation: DQuat| Transform {
+            translation: Vector3::new(x, 0.0, 0.3),
+            rotation: quaternion(rotation),
+        };
+        let flip = SpatialTransform::from_msg(&transform(0.2, DQuat::from_rotation_x(PI)));
+        let turn = SpatialTransform::from_msg(&transform(0.1, DQuat::from_rotation_z(0.5)));
+        let chain = flip.compose(&turn).in_scan_plane();
+        assert!(chain.mirrored && chain.tilt_rad < 1e-9, "{chain:?}");
+        assert!((chain.pose.x - 0.3).abs() < 1e-12, "{chain:?}");
+        assert!((chain.pose.theta + 0.5).abs() < 1e-12, "{chain:?}");
+        let one = transform(
+            0.3,
+            DQuat::from_rotation_x(PI) * DQuat::from_rotation_z(0.5),
+        );
+        let one = SpatialTransform::from_msg(&one).in_scan_plane();
+        assert!(one.mirrored && (one.pose.theta - chain.pose.theta).abs() < 1e-12);
+        // Upright, a transform is its planar part; tilted, it says by how much.
+        let upright = SpatialTransform::from_msg(&transform(0.2, DQuat::from_rotation_z(0.5)));
+        let planar = upright.in_scan_plane();
+        assert!(!planar.mirrored && planar.tilt_rad < 1e-9);
+        assert!((planar.pose.theta - 0.5).abs() < 1e-12);
+        let pitched = transform(0.2, DQuat::from_rotation_y(0.1));
+        let tilt = SpatialTransform::from_msg(&pitched)
+            .in_scan_plane()
+            .tilt_rad;
+        assert!((tilt - 0.1).abs() < 1e-9, "{tilt}");
+        // The inverse undoes it.
+        let back = flip.compose(&turn).compose(&flip.compose(&turn).inverse());
+        assert!(back.translation.length() < 1e-12 && back.rotation.w.abs() > 1.0 - 1e-12);
+    }
+
+    #[test]
+    fn a_mirrored_scan_points_each_beam_the_other_way() {
+        let scan = Scan {
+            stamp_ns: 1,
+            angle_min: -1.0,
+            angle_increment: 0.5,
+            time_increment: 0.001,
+            range_min: 0.1,
+            range_max: 10.0,
+            ranges: vec![1.0, 2.0, 3.0],
+        };
+        let mirrored = mirrored_scan(scan.clone());
+        for beam in 0..3 {
+            assert_eq!(mirrored.beam_angle(beam), -scan.beam_angle(beam));
+        }
+        assert_eq!(
+            (mirrored.ranges, mirrored.time_increment),
+            (scan.ranges, scan.time_increment)
+        );
     }
 
     #[test]

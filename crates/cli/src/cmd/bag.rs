@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use lidar_har_bag::{BagReader, BagWriter, Compression, StorageId, WriterOptions};
+use lidar_har_pipeline::bag_run::StopRequest;
 
 #[derive(clap::Subcommand)]
 pub enum BagCommand {
@@ -37,7 +38,8 @@ fn parse_compression(s: &str) -> Result<Compression, String> {
     s.parse()
 }
 
-pub fn run(command: BagCommand) -> anyhow::Result<()> {
+/// Runs a bag command; `stop` (a signal) ends a conversion early, its new bag finished.
+pub fn run(command: BagCommand, stop: &StopRequest) -> anyhow::Result<()> {
     match command {
         BagCommand::Info { bag } => info(&bag),
         BagCommand::Convert {
@@ -45,7 +47,7 @@ pub fn run(command: BagCommand) -> anyhow::Result<()> {
             dst,
             storage,
             compression,
-        } => convert(&src, &dst, storage, compression),
+        } => convert(&src, &dst, storage, compression, stop),
     }
 }
 
@@ -121,6 +123,7 @@ fn convert(
     dst: &Path,
     storage: StorageId,
     compression: Compression,
+    stop: &StopRequest,
 ) -> anyhow::Result<()> {
     let reader =
         BagReader::open(src).with_context(|| format!("cannot open bag {}", src.display()))?;
@@ -163,19 +166,18 @@ fn convert(
         handles.insert(topic.name.clone(), handle);
     }
     let (mut count, mut negative_times) = (0u64, 0u64);
+    let mut stopped = None;
     for message in reader.messages()? {
+        // Before the message: what stops the copy (a signal) may also have made it unreadable.
+        if let Some(reason) = stop.reason() {
+            stopped = Some(reason.to_string());
+            break;
+        }
         let message = match message {
             Ok(message) => message,
             Err(e) => {
-                // What was copied is kept, and said to be all there is: converting a bag
-                // cut short is how its complete messages are salvaged.
-                writer.finish()?;
-                bail!(
-                    "reading {} stopped after {count} messages: {e}; {} holds those {count} \
-                     messages and no more",
-                    src.display(),
-                    dst.display()
-                );
+                stopped = Some(e.to_string());
+                break;
             }
         };
         let Some(&handle) = handles.get(&*message.topic) else {
@@ -195,6 +197,16 @@ fn convert(
         count += 1;
     }
     let summary = writer.finish()?;
+    if let Some(why) = stopped {
+        // What was copied is kept, and said to be all there is: converting a bag cut short
+        // is how its complete messages are salvaged.
+        bail!(
+            "reading {} stopped after {count} messages: {why}; {} holds those {count} messages \
+             and no more",
+            src.display(),
+            dst.display()
+        );
+    }
     if negative_times > 0 {
         errln!(
             "lidar-har: warning: {}: {negative_times} messages with a negative log time left out",

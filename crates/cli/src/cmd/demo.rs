@@ -45,11 +45,15 @@ const RUN_DIR: &str = "run";
 const SCENE_PNG: &str = "scene.png";
 const TIMELINE_PNG: &str = "timeline.png";
 const DEMO_MARK: &str = ".lidar_har_demo";
+/// What the demo writes inside its folders: the simulator's bag and map in sim/,
+/// `lidar-har run`'s bag and summary in run/ (a bag's storage file is named after its folder).
+const SIM_FILES: [&str; 4] = ["metadata.yaml", "sim_0.mcap", "map.pgm", "map.yaml"];
+const RUN_FILES: [&str; 3] = ["metadata.yaml", "run_0.mcap", "summary.json"];
 
 /// The entries of `out` an earlier demo left, for a new run to replace: only in a folder the
-/// demo marked as its own, and only its folders and pictures (by name and kind). Otherwise
-/// an error naming what is in the way, so that nothing but a demo's output is ever deleted.
-/// Nothing when `out` does not exist or is empty.
+/// demo marked as its own, and only its folders, holding only its files, and its pictures
+/// (by name and kind). Otherwise an error naming what is in the way, so that nothing but a
+/// demo's output is ever deleted. Nothing when `out` does not exist or is empty.
 fn earlier_demo_output(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let listing = || format!("--out {}: cannot list it", out.display());
     let entries = match std::fs::read_dir(out) {
@@ -67,13 +71,12 @@ fn earlier_demo_output(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
         } else {
             kind.is_file() && (name == SCENE_PNG || name == TIMELINE_PNG || name == DEMO_MARK)
         };
-        anyhow::ensure!(
-            demos,
-            "--out {} already exists and holds {}, which is not an earlier demo's output: \
-             choose another or delete it",
-            out.display(),
-            name.to_string_lossy()
-        );
+        anyhow::ensure!(demos, not_the_demos(out, Path::new(&name)));
+        if name == SIM_DIR {
+            ensure_only_demo_files(out, SIM_DIR, &SIM_FILES)?;
+        } else if name == RUN_DIR {
+            ensure_only_demo_files(out, RUN_DIR, &RUN_FILES)?;
+        }
         earlier.push(entry.path());
     }
     anyhow::ensure!(
@@ -84,6 +87,30 @@ fn earlier_demo_output(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
     );
     earlier.sort();
     Ok(earlier)
+}
+
+/// Checks that the demo's folder `folder` of `out` holds nothing but plain files named as
+/// in `files`: it is deleted whole when replaced.
+fn ensure_only_demo_files(out: &Path, folder: &str, files: &[&str]) -> anyhow::Result<()> {
+    let listing = || format!("--out {}: cannot list {folder}", out.display());
+    for entry in std::fs::read_dir(out.join(folder)).with_context(listing)? {
+        let entry = entry.with_context(listing)?;
+        let name = entry.file_name();
+        let demos = entry.file_type().with_context(listing)?.is_file()
+            && files.iter().any(|file| name == *file);
+        anyhow::ensure!(demos, not_the_demos(out, &Path::new(folder).join(&name)));
+    }
+    Ok(())
+}
+
+/// The refusal of an `out` that holds `entry` (relative to it), not the demo's.
+fn not_the_demos(out: &Path, entry: &Path) -> String {
+    format!(
+        "--out {} already exists and holds {}, which is not an earlier demo's output: \
+         choose another or delete it",
+        out.display(),
+        entry.display()
+    )
 }
 
 pub fn run(args: DemoArgs) -> anyhow::Result<()> {
@@ -430,6 +457,30 @@ mod tests {
             "{error}"
         );
         std::fs::remove_file(out.join("notes.txt")).unwrap();
+        // Inside the demo's folders too: they are deleted whole.
+        for (folder, file) in [(SIM_DIR, "my_recording.mcap"), (RUN_DIR, "notes.txt")] {
+            let path = out.join(folder).join(file);
+            std::fs::write(&path, "mine").unwrap();
+            let error = earlier_demo_output(&out).unwrap_err().to_string();
+            let named = Path::new(folder).join(file).display().to_string();
+            assert!(error.contains(&named), "{error}");
+            std::fs::remove_file(&path).unwrap();
+        }
+        std::fs::create_dir(out.join(RUN_DIR).join(RUN_FILES[1])).unwrap();
+        let error = earlier_demo_output(&out).unwrap_err().to_string();
+        assert!(error.contains(RUN_FILES[1]), "{error}");
+        std::fs::remove_dir(out.join(RUN_DIR).join(RUN_FILES[1])).unwrap();
+        for file in SIM_FILES {
+            std::fs::write(out.join(SIM_DIR).join(file), "").unwrap();
+        }
+        for file in RUN_FILES {
+            std::fs::write(out.join(RUN_DIR).join(file), "").unwrap();
+        }
+        assert_eq!(
+            earlier_demo_output(&out).unwrap(),
+            names,
+            "every file of a demo's"
+        );
         std::fs::remove_file(out.join(SCENE_PNG)).unwrap();
         std::fs::create_dir(out.join(SCENE_PNG)).unwrap();
         let error = earlier_demo_output(&out).unwrap_err().to_string();

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use lidar_har_pipeline::bag_run::{RunOptions, run_bag};
+use lidar_har_pipeline::bag_run::{RunOptions, StopRequest, run_bag};
 use lidar_har_pipeline::files;
 
 #[derive(clap::Args)]
@@ -38,7 +38,8 @@ pub struct RunArgs {
     pub no_classifier: bool,
 }
 
-pub fn run(args: RunArgs) -> anyhow::Result<()> {
+/// Runs the pipeline; `stop` (a signal) ends the reading early, as a bag cut short does.
+pub fn run(args: RunArgs, stop: StopRequest) -> anyhow::Result<()> {
     let _ = env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn"))
         .try_init();
     let config = match &args.config {
@@ -79,6 +80,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         config,
         map,
         classifier,
+        stop,
     };
     let summary = run_bag(&args.bag, &args.out, options)
         .with_context(|| format!("running the pipeline over {}", args.bag.display()))?;
