@@ -29,6 +29,8 @@ pub trait StepModel {
     fn initial_state(&self) -> Self::State;
     /// Sets `state` back to the initial state without allocating.
     fn reset_state(&self, state: &mut Self::State);
+    /// Finite logits, or an error that leaves `state` as it was: a broken model's NaN kept in
+    /// the state would spoil every later step, and its logits would read as a class.
     fn step(
         &mut self,
         frame: ArrayView2<'_, f32>,
@@ -395,7 +397,9 @@ impl<M: StepModel> StreamingClassifier<M> {
     }
 
     /// Classifies one scan. Scans must come in time order; a gap over `T` scan periods or a
-    /// stamp going backwards restarts the lanes.
+    /// stamp going backwards restarts the lanes. A failed step is this scan's error: the
+    /// lanes stepped before it keep the scan, the failing lane and those after it do not
+    /// (their history says so), and the next scan goes on from there.
     pub fn classify(&mut self, scan: &PersonScan<'_>) -> Result<Prediction, StepError> {
         let window = self.spec.window;
         let max_gap = window as f64 / self.spec.scan_rate_hz;
@@ -490,6 +494,8 @@ mod tests {
     struct CountingModel {
         steps: usize,
         images: Vec<Array2<f32>>,
+        /// The step (counted from 1) that fails, leaving the state as it was.
+        fails_at_step: Option<usize>,
     }
 
     #[derive(Debug, Clone, PartialEq)]
@@ -516,6 +522,9 @@ mod tests {
             state: &mut CountState,
         ) -> Result<[f32; 9], std::io::Error> {
             self.steps += 1;
+            if self.fails_at_step == Some(self.steps) {
+                return Err(std::io::Error::other("a broken step"));
+            }
             self.images.push(frame.to_owned());
             state.frames += 1;
             state.lit += frame.sum();
@@ -696,6 +705,34 @@ mod tests {
         let message = refused_between(8, 2, 4).unwrap().to_string();
         assert!(message.contains("make 10 states"), "{message}");
         assert!(refused_between(8, 2, 3).is_none());
+    }
+
+    #[test]
+    fn a_failed_step_is_the_scans_error_and_the_next_scan_goes_on() {
+        let model = CountingModel {
+            fails_at_step: Some(12),
+            ..CountingModel::default()
+        };
+        let mut c = StreamingClassifier::new(model, spec(Framing::PersonCentred, 8)).unwrap();
+        let frames = |c: &StreamingClassifier<CountingModel>| -> Vec<usize> {
+            c.states_with_history(0, DVec2::ZERO)
+                .map(|(state, _)| state.frames)
+                .collect()
+        };
+        for k in 0..5 {
+            c.classify(&scan(k as f64 * 0.05, None, &[])).unwrap();
+        }
+        // Step 12 is lane 1's on scan 5 (it restarted on scan 4): lane 0 keeps the scan.
+        let e = c.classify(&scan(0.25, None, &[])).unwrap_err();
+        assert!(e.to_string().contains("a broken step"), "{e}");
+        assert_eq!(frames(&c), [6, 1]);
+        let p = c.classify(&scan(0.3, None, &[])).unwrap();
+        assert_eq!(p.history, 7);
+        assert_eq!(frames(&c), [7, 2]);
+        assert_eq!(
+            c.lanes[1].history, 2,
+            "the history counts the frames stepped"
+        );
     }
 
     #[test]

@@ -75,12 +75,13 @@ pub struct FallAlertConfig {
     /// Consecutive scans read as `falling_down` needed for `FallDetected`.
     pub fall_min_scans: u32,
     /// Such a run raises `FallDetected` only once the person then lands on the floor (lying,
-    /// with `fall_lands_lying`; else any floor posture) within this time of the run: the alert
-    /// comes on landing instead of during the fall, and a stagger or a sudden stop that the
-    /// model reads as falling, after which the person stays upright, raises none. Being read
-    /// upright for a moment in between does not cancel it: the model misreads a fallen person
-    /// as standing for a moment (seed 2 of `lidar-har alerts`, docs/classifier.md); being
-    /// upright for `fall_cancel_upright_s` does. Seconds; 0 raises it at the run itself.
+    /// with `fall_lands_lying`; else any floor posture) within this time of the run (the
+    /// landing's first scan; its confirmation may come after): the alert comes on landing
+    /// instead of during the fall, and a stagger or a sudden stop that the model reads as
+    /// falling, after which the person stays upright, raises none. Being read upright for a
+    /// moment in between does not cancel it: the model misreads a fallen person as standing
+    /// for a moment (seed 2 of `lidar-har alerts`, docs/classifier.md); being upright for
+    /// `fall_cancel_upright_s` does. Seconds; 0 raises it at the run itself.
     pub fall_then_floor_s: f64,
     /// A `falling_down` run waiting for its landing is dropped when the person is confirmed
     /// upright this long after its last scan read as falling (a run counts while the person
@@ -878,8 +879,10 @@ impl FallDetector {
 
     /// With `fall_lands_lying`, raises a pending fall once `confirm_scans` consecutive scans
     /// read as lying without doubt begin within `fall_then_floor_s` of it; drops it when none
-    /// can any more. The scans slide along the lying run: a landing read as lying with doubt
-    /// at first and surely a moment later is still a landing.
+    /// can any more (without `fall_lands_lying`: when no floor posture that began within the
+    /// window is being confirmed, as the posture's confirmation lands it). The scans slide
+    /// along the lying run: a landing read as lying with doubt at first and surely a moment
+    /// later is still a landing.
     fn check_lying_landing(
         &mut self,
         t: f64,
@@ -910,14 +913,30 @@ impl FallDetector {
             self.lying_run.clear();
         }
         let window = self.config.fall_then_floor_s;
+        let landing_since = if self.config.fall_lands_lying {
+            self.lying_run.front().map(|scan| scan.stamp_s)
+        } else {
+            // A sitting landing begun in time was dropped here before its confirmation.
+            self.floor_landing_since(t, best)
+        };
         if let Some(run_at) = self.pending_fall.map(|fall| fall.counted_at_s)
             && t - run_at > window
-            && self
-                .lying_run
-                .front()
-                .is_none_or(|scan| scan.stamp_s - run_at > window)
+            && landing_since.is_none_or(|since| since - run_at > window)
         {
             self.pending_fall = None;
+        }
+    }
+
+    /// Since when the person has been read on the floor on every scan seen, this scan (`t`,
+    /// read as `best`) included, while that floor posture is yet to be confirmed (on this
+    /// scan at the latest): the start its confirmation will date the landing from.
+    fn floor_landing_since(&self, t: f64, best: Activity) -> Option<f64> {
+        if posture_of(best) != Posture::OnFloor {
+            return None;
+        }
+        match self.candidate {
+            Some((Posture::OnFloor, since, n)) => (n < self.config.confirm_scans).then_some(since),
+            _ => Some(t),
         }
     }
 
@@ -1656,6 +1675,58 @@ mod tests {
         ];
         let alerts = run_scans(&mut without_descent(), &unsure);
         assert!(alerts.is_empty(), "{alerts:?}");
+    }
+
+    #[test]
+    fn without_landing_lying_a_sitting_landing_begun_in_time_is_a_fall() {
+        // Standing, read as falling (counted at 2.2 s), hidden, then found sitting on the
+        // floor `found_after_s` after the run counted; confirmed 5 scans (0.2 s) later.
+        let landing = |lands_lying, found_after_s: f64| {
+            let script = [
+                (Standing, 2.0, true),
+                (FallingDown, 0.25, true),
+                (Standing, found_after_s - DT, false),
+                (SittingOnFloor, 2.0, true),
+            ];
+            run(
+                &mut detector_with(|c| c.fall_lands_lying = lands_lying),
+                &script,
+            )
+        };
+        // Begun within `fall_then_floor_s` (3 s), confirmed after it: used to be dropped
+        // before its confirmation, as a lying landing is not.
+        let alerts = landing(false, 2.9);
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected]);
+        assert!((alerts[0].event_time_s - 2.0).abs() < 1e-9, "{alerts:?}");
+        assert!((alerts[0].raised_at_s - 5.3).abs() < 1e-6, "{alerts:?}");
+        // Begun after it: no fall; and landing lying (the default) sitting is none.
+        assert!(landing(false, 3.05).is_empty());
+        assert!(landing(true, 2.9).is_empty());
+    }
+
+    #[test]
+    fn without_landing_lying_a_fall_run_on_a_person_already_down_is_dropped_in_time() {
+        // Confirmed sitting on the floor, then a run of 3 scans read as falling (not enough
+        // to confirm a posture; 2.6 s after being upright), then sitting on: no floor posture
+        // is confirmed anew, so the run is dropped once `fall_then_floor_s` is over.
+        let pending_after = |sitting_s| {
+            let mut d = detector_with(|c| {
+                c.fall_lands_lying = false;
+                c.fall_min_scans = 3;
+            });
+            let script = [
+                (Standing, 2.0, true),
+                (SittingOnFloor, 2.5, true),
+                (FallingDown, 0.15, true),
+                (SittingOnFloor, sitting_s, true),
+            ];
+            let alerts = run(&mut d, &script);
+            assert!(alerts.is_empty(), "{alerts:?}");
+            d.pending_fall.is_some()
+        };
+        // Counted at 4.6 s: pending up to 7.6 s (the last scan at 7.5 s), not after.
+        assert!(pending_after(2.9));
+        assert!(!pending_after(3.1));
     }
 
     #[test]

@@ -227,7 +227,9 @@ impl<H> PelvisPlacer<H> {
                 .estimate(state, located)
                 .map_err(|e| StepError(Box::new(e)))?;
             let HeadEstimate { offset, sigma_m } = estimate;
-            if offset.is_finite() && sigma_m >= 0.0 && sigma_m <= self.spec.max_sigma_m {
+            // Non-finite estimates are left out by the combination, even without a limit
+            // (`max_sigma_m` inf).
+            if sigma_m <= self.spec.max_sigma_m {
                 combined.add(offset, sigma_m);
             }
         }
@@ -315,7 +317,14 @@ impl Combination {
     /// Below this the weight stops growing: a head sure to the millimetre is no surer.
     const SIGMA_FLOOR_M: f64 = 1e-3;
 
+    /// Adds an estimate; one without a finite place and a finite, non-negative expected
+    /// error counts for nothing (docs/model_contract.md): an infinite error (a head's exp()
+    /// overflowing on an older state) weighed 0 but made the mean error 0 x inf = NaN, and a
+    /// NaN one weighed as much as a millimetre's (NaN.max(floor)).
     fn add(&mut self, estimate: DVec2, sigma_m: f64) {
+        if !(estimate.is_finite() && sigma_m.is_finite() && sigma_m >= 0.0) {
+            return;
+        }
         let weight = sigma_m.max(Self::SIGMA_FLOOR_M).powi(-2);
         self.weights += weight;
         self.sum += weight * estimate;
@@ -692,6 +701,78 @@ mod tests {
             .map(|p| p.map(|p| (p.sigma_m * 1e3).round() / 1e3))
             .collect();
         assert_eq!(sigmas, [None, None, None, Some(0.04), Some(0.05), None]);
+    }
+
+    /// Offset 0.1 m along x, expected error exp(-3) m; on states with more than 5 frames
+    /// behind them the log of it is 100, and exp() overflows to infinity.
+    struct OverflowingHead;
+
+    impl PoseHead<usize> for OverflowingHead {
+        type Error = std::io::Error;
+        fn estimate(&mut self, frames: &usize, _: DVec2) -> Result<HeadEstimate, Self::Error> {
+            let log_sigma: f32 = if *frames > 5 { 100.0 } else { -3.0 };
+            Ok(HeadEstimate {
+                offset: DVec2::new(0.1, 0.0),
+                sigma_m: f64::from(log_sigma.exp()),
+            })
+        }
+    }
+
+    #[test]
+    fn an_infinite_expected_error_counts_for_nothing_even_without_a_limit() {
+        let spec = PoseHeadSpec {
+            min_history: 4,
+            activities: vec![Activity::SittingOnFloor],
+            max_sigma_m: f64::INFINITY,
+        };
+        let mut placer = PelvisPlacer::new(spec, OverflowingHead).fusing_on_floor_within(1.0, 0.5);
+        let mut classifier = classifier_with_lanes_between(Framing::PersonCentred, 1);
+        let points = [DVec2::ONE];
+        let mut placed = 0;
+        for k in 0..40 {
+            let prediction = classifier
+                .classify(&PersonScan {
+                    stamp_s: k as f64 * 0.05,
+                    points: &points,
+                    position: Some(DVec2::ONE),
+                    sensor: DVec2::ZERO,
+                })
+                .unwrap();
+            let person = PersonAt::Seen(DVec2::ONE);
+            // Where every state overflows there is no pelvis; elsewhere the finite ones
+            // alone. Their mean error used to be 0 x inf = NaN, on /human/pelvis.
+            if let Some(pelvis) = placer.place(&classifier, person, &prediction).unwrap() {
+                placed += 1;
+                assert!(
+                    (pelvis.sigma_m - (-3.0f32).exp() as f64).abs() < 1e-9,
+                    "{pelvis:?}"
+                );
+                assert!(
+                    pelvis.position.distance(DVec2::new(1.1, 1.0)) < 1e-9,
+                    "{pelvis:?}"
+                );
+            }
+        }
+        assert!(placed > 20, "{placed}");
+    }
+
+    #[test]
+    fn a_combination_leaves_out_estimates_that_are_not_finite() {
+        let mut combination = Combination::default();
+        combination.add(DVec2::new(1.0, 2.0), 0.125);
+        for (estimate, sigma_m) in [
+            (DVec2::new(5.0, 5.0), f64::INFINITY),
+            // A NaN expected error weighed as a millimetre's (NaN.max(floor)).
+            (DVec2::new(5.0, 5.0), f64::NAN),
+            (DVec2::new(f64::NAN, 5.0), 0.1),
+            (DVec2::new(5.0, 5.0), -0.1),
+        ] {
+            combination.add(estimate, sigma_m);
+        }
+        assert_eq!(combination.mean(), Some((DVec2::new(1.0, 2.0), 0.125)));
+        let mut nothing = Combination::default();
+        nothing.add(DVec2::ONE, f64::INFINITY);
+        assert_eq!(nothing.mean(), None);
     }
 
     #[test]

@@ -84,6 +84,18 @@ pub enum InferError {
         fitted_on: String,
         found: String,
     },
+    #[error(
+        "model {} gave {value} in output '{output}' (value {index}): a broken model (a NaN or \
+         an overflow in its weights or arithmetic); the step was refused and the state left \
+         as it was",
+        model.display()
+    )]
+    OutputNotFinite {
+        model: PathBuf,
+        output: &'static str,
+        index: usize,
+        value: f32,
+    },
     #[error("ONNX Runtime failed to run the model: {0}")]
     Run(String),
 }
@@ -246,8 +258,8 @@ impl ActivityModel {
         self.state_shape.iter().product()
     }
 
-    /// One step: returns the logits and updates `state` in place. A refused frame or state
-    /// leaves `state` as it was.
+    /// One step: returns the logits and updates `state` in place. A refused frame or state,
+    /// a failed run, or outputs that are not all finite leave `state` as it was.
     pub fn step(
         &mut self,
         frame: ArrayView2<'_, f32>,
@@ -284,43 +296,54 @@ impl ActivityModel {
             "c" => TensorRef::from_array_view((self.state_shape, state.c.as_slice())).map_err(run)?,
         ];
         let outputs = self.session.run(inputs).map_err(run)?;
+        let logits_out = output_values(&outputs, "the model", "logits", Activity::COUNT)?;
+        let h_next = output_values(&outputs, "the model", "h_next", state.h.len())?;
+        let c_next = output_values(&outputs, "the model", "c_next", state.c.len())?;
+        // A NaN or infinity kept in the state would make every later output of the lane NaN,
+        // and NaN logits were published as the uniform distribution's first class
+        // (crawling at 11 %): refuse the step before anything is copied.
+        for (output, values) in [
+            ("logits", logits_out),
+            ("h_next", h_next),
+            ("c_next", c_next),
+        ] {
+            if let Some(index) = values.iter().position(|v| !v.is_finite()) {
+                return Err(InferError::OutputNotFinite {
+                    model: self.info.path.clone(),
+                    output,
+                    index,
+                    value: values[index],
+                });
+            }
+        }
         let mut logits = [0.0; Activity::COUNT];
-        copy_outputs(
-            &outputs,
-            "the model",
-            [
-                ("logits", &mut logits[..]),
-                ("h_next", &mut state.h[..]),
-                ("c_next", &mut state.c[..]),
-            ],
-        )?;
+        logits.copy_from_slice(logits_out);
+        state.h.copy_from_slice(h_next);
+        state.c.copy_from_slice(c_next);
         Ok(logits)
     }
 }
 
-/// Copies each named float output of a run into its target, which must be its exact size.
-fn copy_outputs<const N: usize>(
-    outputs: &SessionOutputs<'_>,
+/// The values of the float output `name` of a run, which must hold exactly `len` of them.
+fn output_values<'a>(
+    outputs: &'a SessionOutputs<'_>,
     model: &str,
-    targets: [(&str, &mut [f32]); N],
-) -> Result<(), InferError> {
-    for (name, target) in targets {
-        let value = outputs
-            .get(name)
-            .ok_or_else(|| InferError::Run(format!("{model} gave no '{name}' output")))?;
-        let (_, data) = value
-            .try_extract_tensor::<f32>()
-            .map_err(|e| InferError::Run(e.to_string()))?;
-        if data.len() != target.len() {
-            return Err(InferError::Run(format!(
-                "output '{name}' has {} values, expected {}",
-                data.len(),
-                target.len()
-            )));
-        }
-        target.copy_from_slice(data);
+    name: &str,
+    len: usize,
+) -> Result<&'a [f32], InferError> {
+    let value = outputs
+        .get(name)
+        .ok_or_else(|| InferError::Run(format!("{model} gave no '{name}' output")))?;
+    let (_, data) = value
+        .try_extract_tensor::<f32>()
+        .map_err(|e| InferError::Run(e.to_string()))?;
+    if data.len() != len {
+        return Err(InferError::Run(format!(
+            "output '{name}' has {} values, expected {len}",
+            data.len()
+        )));
     }
-    Ok(())
+    Ok(data)
 }
 
 impl StepModel for ActivityModel {

@@ -11,8 +11,8 @@ use ort::value::{Outlet, TensorRef};
 use sha2::{Digest, Sha256};
 
 use crate::{
-    ActivityModel, InferError, ModelState, check_model_file, check_outlet_names, copy_outputs,
-    environment, float_outlet_shape, open_session, shape_matches,
+    ActivityModel, InferError, ModelState, check_model_file, check_outlet_names, environment,
+    float_outlet_shape, open_session, output_values, shape_matches,
 };
 
 /// Metadata key: the SHA-256 (hex) of the activity model file whose state the head reads.
@@ -77,11 +77,14 @@ impl PoseHeadModel {
             message: e.to_string(),
         })?;
         let found = format!("{:x}", Sha256::digest(&model_bytes));
-        if fitted_on.trim() != found {
+        // Hex is hex in either case: an exporter that writes it in upper case fitted the head
+        // on this very model.
+        let fitted_on = fitted_on.trim();
+        if !fitted_on.eq_ignore_ascii_case(&found) {
             return Err(InferError::PoseHeadMismatch {
                 path,
                 model: info.path.clone(),
-                fitted_on,
+                fitted_on: fitted_on.to_string(),
                 found,
             });
         }
@@ -115,12 +118,10 @@ impl PoseHead<ModelState> for PoseHeadModel {
             "located" => TensorRef::from_array_view(([1usize, 2], &located[..])).map_err(run)?,
         ];
         let outputs = self.session.run(inputs).map_err(run)?;
-        let (mut offset, mut sigma) = ([0.0f32; 2], [0.0f32; 1]);
-        copy_outputs(
-            &outputs,
-            "the pose head",
-            [("offset", &mut offset[..]), ("sigma", &mut sigma[..])],
-        )?;
+        // Not checked for finiteness here: a state the head doubts without bound is the
+        // placer's to leave out (`lidar_har_core::pose_head`), not an error.
+        let offset = output_values(&outputs, "the pose head", "offset", 2)?;
+        let sigma = output_values(&outputs, "the pose head", "sigma", 1)?;
         Ok(HeadEstimate {
             offset: DVec2::new(f64::from(offset[0]), f64::from(offset[1])),
             sigma_m: f64::from(sigma[0]),

@@ -201,6 +201,8 @@ def main():
     onnx.save(build(w, metadata={**METADATA, "lidar_har.size": "32"}), OUT / "size_mismatch.onnx")
     # A valid model whose state does not fit step_model.onnx (3 hidden channels, not 4).
     onnx.save(build(weights(hidden=3), hidden=3), OUT / "three_channel_model.onnx")
+    # A broken model: a NaN in the gates' bias makes every output NaN (logits and state).
+    onnx.save(build({**w, "b_conv": np.full_like(w["b_conv"], np.nan)}), OUT / "nan_model.onnx")
 
     step_sha256 = hashlib.sha256((OUT / "step_model.onnx").read_bytes()).hexdigest()
     head = pose_head_weights()

@@ -9,6 +9,7 @@ use lidar_har_core::classifier::{PersonScan, StreamingClassifier};
 use lidar_har_core::pose_head::PoseHead;
 use lidar_har_infer::{ActivityModel, InferError, PoseHeadModel, runtime_library_path};
 use ndarray::Array2;
+use sha2::{Digest, Sha256};
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -190,6 +191,38 @@ fn a_frame_with_a_non_finite_pixel_is_refused_and_leaves_the_state_as_it_was() {
     }
     let logits = model.step(frames[1].view(), &mut state).unwrap();
     assert!(logits.iter().all(|v| v.is_finite()), "{logits:?}");
+}
+
+#[test]
+fn a_model_that_outputs_nan_is_refused_naming_file_and_output_and_leaves_the_state() {
+    if !runtime_available() {
+        return;
+    }
+    let frames = expected_frames(&expected());
+    let mut model = load("nan_model.onnx").unwrap();
+    let mut state = lidar_har_core::classifier::StepModel::initial_state(&model);
+    let before = state.clone();
+    for frame in &frames {
+        let e = model.step(frame.view(), &mut state).unwrap_err();
+        assert!(matches!(e, InferError::OutputNotFinite { .. }), "{e}");
+        let text = e.to_string();
+        assert!(
+            text.contains("nan_model.onnx") && text.contains("NaN in output 'logits'"),
+            "{text}"
+        );
+        // The NaN used to be copied into the state, and the logits read as crawling.
+        assert_eq!(state, before);
+    }
+    // Streamed, every scan is an error naming the model: nothing is published.
+    let spec = model.info().stream;
+    let mut classifier = StreamingClassifier::new(model, spec).unwrap();
+    let points = [DVec2::new(0.05, 0.05)];
+    for k in 0..20 {
+        let e = classifier
+            .classify(&person(k as f64 * 0.05, k % 2 == 0, &points))
+            .unwrap_err();
+        assert!(e.to_string().contains("nan_model.onnx"), "{e}");
+    }
 }
 
 #[test]
@@ -401,4 +434,28 @@ fn pose_head_for_another_model_or_state_or_missing_is_refused_naming_files() {
     // An activity model is not a pose head.
     let e = PoseHeadModel::load(fixture("step_model.onnx"), &model, 1).unwrap_err();
     assert!(e.to_string().contains("lidar_har.pose_head"), "{e}");
+}
+
+#[test]
+fn pose_head_fitted_on_the_model_is_taken_with_its_hash_in_upper_case() {
+    if !runtime_available() {
+        return;
+    }
+    let model = load("step_model.onnx").unwrap();
+    let sha = format!(
+        "{:x}",
+        Sha256::digest(std::fs::read(fixture("step_model.onnx")).unwrap())
+    );
+    let mut head = std::fs::read(fixture("pose_head.onnx")).unwrap();
+    let at = head
+        .windows(sha.len())
+        .position(|w| w == sha.as_bytes())
+        .expect("the head's metadata names the model's hash");
+    head[at..at + sha.len()].make_ascii_uppercase();
+    let dir = tempfile::tempdir().unwrap();
+    let upper = dir.path().join("pose_head_upper_case.onnx");
+    std::fs::write(&upper, &head).unwrap();
+    // Used to be refused as fitted on another model, naming the same hash twice.
+    let head = PoseHeadModel::load(&upper, &model, 1).unwrap();
+    assert_eq!(head.spec().min_history, 3);
 }
