@@ -727,12 +727,6 @@ impl Localiser {
         None
     }
 
-    /// The Lidar's mount in use: a host that knows where the Lidar is, not its base, places
-    /// the base with it.
-    pub fn mount(&self) -> Pose2 {
-        self.mount
-    }
-
     /// The Lidar's mount on the robot (`base_link -> laser`, from /tf_static).
     pub fn set_mount(&mut self, pose: Pose2) -> Option<Warning> {
         if !pose.is_finite() {
