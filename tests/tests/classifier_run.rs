@@ -281,12 +281,12 @@ fn run_with_a_pose_head_records_the_pelvis_and_scores_it() {
     let sim = tmp.path().join("sim");
     simulate_living_room("3", &sim);
     let fixtures = repo_root().join("crates/infer/tests/fixtures");
-    let run_with_head = |head: &str, name: &str| -> serde_json::Value {
+    let run_with_head = |head: &str, name: &str, settings: &str| -> serde_json::Value {
         let config = tmp.path().join(format!("{name}.yaml"));
         std::fs::write(
             &config,
             format!(
-                "model: {}\npose_head: {}\n",
+                "model: {}\npose_head: {}\n{settings}",
                 path(&test_model()),
                 path(&fixtures.join(head))
             ),
@@ -307,7 +307,7 @@ fn run_with_a_pose_head_records_the_pelvis_and_scores_it() {
 
     // The fixture head reads the test model's state and places a pelvis on every seen scan
     // with 3 scans of history.
-    let summary = run_with_head("pose_head.onnx", "with_head");
+    let summary = run_with_head("pose_head.onnx", "with_head", "");
     let activity = &summary["activity"];
     assert_eq!(activity["pose_head"]["status"], "used", "{activity:#}");
     let published = activity["pelvis_published"].as_u64().unwrap();
@@ -358,7 +358,7 @@ fn run_with_a_pose_head_records_the_pelvis_and_scores_it() {
     );
 
     // A head fitted on another model is left out, and the run says why.
-    let summary = run_with_head("pose_head_other_model.onnx", "other_head");
+    let summary = run_with_head("pose_head_other_model.onnx", "other_head", "");
     let activity = &summary["activity"];
     assert_eq!(activity["pose_head"]["status"], "not_used", "{activity:#}");
     let reason = activity["pose_head"]["reason"].as_str().unwrap();
@@ -368,6 +368,17 @@ fn run_with_a_pose_head_records_the_pelvis_and_scores_it() {
     );
     assert_eq!(activity["pelvis_published"], 0);
     assert!(summary["pelvis_error_m"].is_null());
+    assert!(activity["scans_classified"].as_u64().unwrap() > 20);
+
+    // Lanes that leave no room for the head's states between them (4 x (1 + 3) = 16 states
+    // in a period of 10 scans, the test model's window of 8 x 1.2) lose the head, not the
+    // activity and the alerts: the run used to fail.
+    let settings = "lanes: 4\npose_head_lanes_between: 3\n";
+    let summary = run_with_head("pose_head.onnx", "crowded_lanes", settings);
+    let activity = &summary["activity"];
+    assert_eq!(activity["pose_head"]["status"], "not_used", "{activity:#}");
+    let reason = activity["pose_head"]["reason"].as_str().unwrap();
+    assert!(reason.contains("pose_head_lanes_between = 3"), "{reason}");
     assert!(activity["scans_classified"].as_u64().unwrap() > 20);
 }
 

@@ -364,8 +364,21 @@ impl ClassifierStage<ActivityModel, PoseHeadModel> {
     pub fn load(config: &ClassifierConfig, model: Option<&Path>) -> Result<Self, ClassifierError> {
         let path = model.unwrap_or(&config.model);
         let model = ActivityModel::load(path, config.threads)?;
+        let stream = model.info().stream;
         let (pelvis, status) = match &config.pose_head {
             None => (None, PoseHeadStatus::Off),
+            // The head's states between the lanes must fit in the lane period, which only the
+            // model's window sets; without room for them the activity and the alerts still run.
+            Some(head_path) if let Some(reason) = no_room_for_the_head(config, stream.window) => {
+                log::warn!("classifier: no /human/pelvis: {reason}");
+                (
+                    None,
+                    PoseHeadStatus::NotUsed {
+                        path: head_path.clone(),
+                        reason,
+                    },
+                )
+            }
             Some(head_path) => match PoseHeadModel::load(head_path, &model, config.threads) {
                 Ok(head) => (
                     Some(
@@ -392,11 +405,27 @@ impl ClassifierStage<ActivityModel, PoseHeadModel> {
                 }
             },
         };
-        let stream = model.info().stream;
         let schedule = config.lane_schedule(stream.window, pelvis.is_some());
         let stage = ClassifierStage::with_schedule(model, stream, schedule, config.fall_alert)?;
         Ok(stage.with_pose_head(pelvis, status))
     }
+}
+
+/// Why `config`'s lanes leave no room for the pose head's states between them with a model of
+/// `window` scans, if they do not.
+fn no_room_for_the_head(config: &ClassifierConfig, window: usize) -> Option<String> {
+    let schedule = config.lane_schedule(window, true);
+    (schedule.states() > schedule.period).then(|| {
+        format!(
+            "{} lanes with pose_head_lanes_between = {} more between each two make {} states, \
+             more than the lane period's {} scans (lane_period_windows x the model's window of \
+             {window}): lower pose_head_lanes_between or lanes",
+            schedule.lanes,
+            schedule.lanes_between,
+            schedule.states(),
+            schedule.period
+        )
+    })
 }
 
 impl<M: StepModel> ClassifierStage<M, NoPoseHead> {
