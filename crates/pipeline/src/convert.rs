@@ -268,7 +268,7 @@ pub fn markers_msg(output: &LocaliserOutput, frame_id: &str) -> MarkerArray {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use lidar_har_core::map::MAP_SERVER_OCCUPIED_THRESH;
     use lidar_har_msgs::nav_msgs::MapMetaData;
@@ -347,7 +347,8 @@ mod tests {
         assert_eq!(markers.markers[0].action, Marker::DELETEALL);
     }
 
-    fn quaternion(q: DQuat) -> Quaternion {
+    /// `q` as a message's quaternion.
+    pub(crate) fn quaternion(q: DQuat) -> Quaternion {
         Quaternion {
             x: q.x,
             y: q.y,

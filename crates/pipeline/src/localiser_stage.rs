@@ -766,6 +766,7 @@ fn motion(moving: bool) -> Motion {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::convert::tests::quaternion;
     use lidar_har_msgs::builtin_interfaces::Time;
     use lidar_har_msgs::geometry_msgs::{Quaternion, Transform, TransformStamped, Vector3};
     use lidar_har_msgs::std_msgs::Header;
@@ -941,15 +942,6 @@ mod tests {
                 out.person.map(|p| p.position)
             })
             .collect()
-    }
-
-    fn quaternion(q: glam::DQuat) -> Quaternion {
-        Quaternion {
-            x: q.x,
-            y: q.y,
-            z: q.z,
-            w: q.w,
-        }
     }
 
     /// Some robots mount the Lidar upside down (`base_link -> laser` rolled by pi): its scans
