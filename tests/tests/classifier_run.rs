@@ -506,8 +506,9 @@ fn alerts_replayed_from_saved_readings_match_a_full_run() {
             "0",
             "--stay-down-episodes",
             "1",
+            // Long enough for the stay-down episode's spell to fall due (15 s on the floor).
             "--episode-seconds",
-            "20",
+            "30",
             "--seed",
             "4",
             "--out",

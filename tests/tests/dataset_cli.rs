@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use lidar_har_e2e::{checker_python, lidar_har, repo_root};
+use lidar_har_e2e::{checker_python, lidar_har, repo_root, runtime_available};
 use serde_json::Value;
 
 /// The shape in a `.npy` header, and the byte count after the header.
@@ -275,6 +275,11 @@ fn dataset_rejects_bad_arguments_with_a_clear_error() {
         (&["--window", "1"][..], "--window"),
         // 4 episodes x 0.1 rounds to none: an empty test split used to pass silently.
         (&["--test-fraction", "0.1"][..], "test split would be empty"),
+        // 1 episode x 0.6 rounds to all: an empty train split used to pass silently.
+        (
+            &["--episodes", "1", "--test-fraction", "0.6"][..],
+            "--test-fraction 0.6 of --episodes 1 rounds to every episode: the train split would be empty",
+        ),
         // Its plans used to be allocated before any check: an abort, not an error.
         (
             &["--episodes", "1000000000000"][..],
@@ -422,4 +427,261 @@ fn random_scenes_rejects_a_count_of_zero() {
     let out = random_scenes(dir.path(), "1", "0");
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--count 0"));
+}
+
+/// A dataset of short episodes in the committed model's image (room-fixed, 32 px at 8 cm),
+/// with a test split (kitchen) and a `test_unseen` one (office).
+fn dataset_for_the_committed_model(out: &Path) {
+    let made = make_dataset(
+        out,
+        &[
+            "--size",
+            "32",
+            "--resolution",
+            "0.08",
+            "--framing",
+            "room_fixed",
+        ],
+    );
+    assert!(
+        made.status.success(),
+        "{}",
+        String::from_utf8_lossy(&made.stderr)
+    );
+}
+
+/// `lidar-har evaluate --model model --data data --out out`.
+fn evaluate(model: &Path, data: &Path, out: &Path) -> std::process::Output {
+    lidar_har()
+        .current_dir(repo_root())
+        .arg("evaluate")
+        .arg("--model")
+        .arg(model)
+        .arg("--data")
+        .arg(data)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .expect("lidar-har runs")
+}
+
+#[test]
+fn evaluate_refuses_a_dataset_whose_test_episodes_the_model_trained_on() {
+    if !runtime_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let data = dir.path().join("data");
+    dataset_for_the_committed_model(&data);
+    let index: Value =
+        serde_json::from_str(&std::fs::read_to_string(data.join("index.json")).unwrap()).unwrap();
+    assert_eq!(index["generator"]["test_fraction"], 0.25, "recorded");
+    // The committed model, said to be trained on a dataset of the same seed and scenes, of 8
+    // episodes: episodes 0-3 are this dataset's, split otherwise.
+    let model = dir.path().join("model.onnx");
+    std::fs::copy(repo_root().join("models/activity.onnx"), &model).unwrap();
+    let training_report = |generator: &Value| {
+        let report = serde_json::json!({ "dataset_generator": generator });
+        std::fs::write(dir.path().join("model.training.json"), report.to_string()).unwrap();
+    };
+    let mut larger = index["generator"].clone();
+    larger["episodes"] = 8.into();
+    training_report(&larger);
+    let out = evaluate(&model, &data, &dir.path().join("eval"));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("test episodes are episodes")
+            && stderr.contains("`--seed 3 --episodes 8 --test-fraction 0.25`")
+            && stderr.contains("`--seed 3 --episodes 4 --test-fraction 0.25`")
+            && stderr.contains("another --seed"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("eval").exists());
+    // Trained on this very dataset: its test episodes were not trained on.
+    training_report(&index["generator"]);
+    let out = evaluate(&model, &data, &dir.path().join("eval"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn evaluate_removes_the_confusion_picture_of_a_split_it_no_longer_scores() {
+    if !runtime_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let data = dir.path().join("data");
+    dataset_for_the_committed_model(&data);
+    let model = repo_root().join("models/activity.onnx");
+    let eval = dir.path().join("eval");
+    let scored = |out: std::process::Output| {
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    scored(evaluate(&model, &data, &eval));
+    assert!(eval.join("confusion_test_unseen.png").is_file());
+    // The same dataset without its unseen room, evaluated into the same folder.
+    let index_path = data.join("index.json");
+    let mut index: Value =
+        serde_json::from_str(&std::fs::read_to_string(&index_path).unwrap()).unwrap();
+    index["splits"]
+        .as_object_mut()
+        .unwrap()
+        .remove("test_unseen");
+    std::fs::write(&index_path, index.to_string()).unwrap();
+    scored(evaluate(&model, &data, &eval));
+    assert!(eval.join("confusion_test.png").is_file());
+    assert!(
+        !eval.join("confusion_test_unseen.png").exists(),
+        "an earlier run's picture stays beside this one's report"
+    );
+}
+
+/// `lidar-har alerts` with the committed model and `args`.
+fn alerts(args: &[&str]) -> std::process::Output {
+    lidar_har()
+        .current_dir(repo_root())
+        .args(["alerts", "--model", "models/activity.onnx"])
+        .args(args)
+        .output()
+        .expect("lidar-har runs")
+}
+
+#[test]
+fn alerts_that_could_run_no_episode_leave_no_readings_to_replay() {
+    if !runtime_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    // A closet: no room for a fall, so no script with falls fits.
+    let closet = dir.path().join("closet.yaml");
+    std::fs::write(
+        &closet,
+        "name: closet\nduration: 30\nseed: 6\n\
+         room:\n  outline: [[0, 0], [1.2, 0], [1.2, 1.0], [0, 1.0]]\n\
+         robot:\n  start: {x: 0.3, y: 0.3, yaw_deg: 90}\n  motion: {kind: static}\n\
+         lidar: {range_max: 8.0}\n\
+         person:\n  start: {x: 0.8, y: 0.6, yaw_deg: 180}\n  script:\n    - {activity: standing, duration: 5}\n",
+    )
+    .unwrap();
+    let readings = dir.path().join("readings.zst");
+    let out = alerts(&[
+        "--scenes",
+        closet.to_str().unwrap(),
+        "--fall-episodes",
+        "1",
+        "--no-fall-hours",
+        "0",
+        "--save-readings",
+        readings.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("could be run"),
+        "{stderr}"
+    );
+    assert!(
+        !readings.exists(),
+        "the failed run's readings would replay as a clean result"
+    );
+}
+
+#[test]
+fn alerts_episodes_staying_down_run_on_and_must_have_a_spell_due() {
+    if !runtime_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let stay_down = |seconds: &str, report: &Path| {
+        alerts(&[
+            "--scenes",
+            "config/scenes/kitchen.yaml",
+            "--fall-episodes",
+            "0",
+            "--no-fall-hours",
+            "0",
+            "--stay-down-episodes",
+            "1",
+            "--seed",
+            "27",
+            "--episode-seconds",
+            seconds,
+            "--out",
+            report.to_str().unwrap(),
+        ])
+    };
+    // The fall comes 5 s or more in: down_after_s (15 s) later is past a 10 s episode.
+    let out = stay_down("10", &dir.path().join("short.json"));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("--episode-seconds 10") && stderr.contains("down_after_s (15 s)"),
+        "{stderr}"
+    );
+    // In 30 s the spell falls due 0.3 s before the end; its PERSON_DOWN comes after the end,
+    // while the episode runs on (without the run-on it counted as missed).
+    let report = dir.path().join("long.json");
+    let out = stay_down("30", &report);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let spells = r["person_down_due"].as_array().unwrap();
+    assert_eq!(spells.len(), 1, "{r}");
+    let spell = |key: &str| {
+        spells[0][key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key}: {r}"))
+    };
+    let due_s = spell("start_s") + 15.0;
+    assert!((29.0..30.0).contains(&due_s), "{r}");
+    assert!(due_s + spell("delay_s") > 30.0, "{r}");
+    assert!((30.5..=33.0).contains(&spell("end_s")), "{r}");
+}
+
+/// Runs training/lidar_har_train/sweep.py's `main` with `--only` and the names given, on
+/// training/sweep.toml (no PyTorch needed: it stops before training).
+const SWEEP_ONLY: &str = r#"
+import sys
+from lidar_har_train import sweep
+sys.exit(sweep.main(["--config", "training/sweep.toml", "--out", sys.argv[1],
+                     "--lidar-har", "/nonexistent/lidar-har", "--only", *sys.argv[2:]]))
+"#;
+
+#[test]
+fn the_sweep_refuses_configurations_it_does_not_have() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (names, needle) in [
+        (
+            &["room_fixed", "room_fixd"][..],
+            "--only: no configuration named room_fixd (known: reference, room_fixed,",
+        ),
+        (
+            &[][..],
+            "--only: give at least one configuration (known: reference,",
+        ),
+    ] {
+        let Some(mut python) = checker_python() else {
+            return;
+        };
+        let out = python
+            .env("PYTHONPATH", repo_root().join("training"))
+            .args(["-c", SWEEP_ONLY])
+            .arg(dir.path())
+            .args(names)
+            .output()
+            .expect("python runs");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{names:?}: {stderr}");
+        assert!(stderr.contains(needle), "{names:?}: {stderr}");
+    }
 }

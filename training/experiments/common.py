@@ -17,10 +17,11 @@ def model_and_split_from_argv():
     model_path, data = Path(sys.argv[1]), Path(sys.argv[2])
     split_name = sys.argv[3] if len(sys.argv) > 3 else "test"
     torch.set_num_threads(2)
-    split = load_split(data, load_index(data), split_name)
+    index = load_index(data)
+    split = load_split(data, index, split_name)
     if split is None:
         sys.exit(f"{data}: no {split_name} split")
-    return model_from_onnx(model_path), split
+    return model_from_onnx(model_path, index["spec"]), split
 
 
 def step_logits(model, split: Split, transform=lambda windows: windows) -> np.ndarray:

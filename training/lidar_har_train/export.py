@@ -208,10 +208,13 @@ def main(argv=None) -> int:
     p.add_argument("--data", type=Path, required=True, help="dataset whose first 16 test windows are stepped")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     try:
-        split = load_split(args.data, load_index(args.data), "test")
+        index = load_index(args.data)
+        split = load_split(args.data, index, "test")
         if split is None:
             raise DatasetError(f"{args.data}: no test split")
-        figures = parity(model_from_onnx(args.model), args.model, split.images[:16])
+        # The dataset's image settings: a model of another image is named as such, not
+        # refused by ONNX Runtime with a shape error.
+        figures = parity(model_from_onnx(args.model, index["spec"]), args.model, split.images[:16])
     except (DatasetError, ExportError, OSError) as err:
         print(f"export: error: {err}", file=sys.stderr)
         return 1

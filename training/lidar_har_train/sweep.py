@@ -22,8 +22,6 @@ import time
 import tomllib
 from pathlib import Path
 
-from . import train as train_module
-
 DATASET_KEYS = ("representation", "framing", "size", "resolution", "window", "fixed_lidar")
 MODEL_KEYS = ("hidden", "encoder_channels")
 
@@ -38,7 +36,8 @@ def parse_args(argv):
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--lidar-har", type=Path, default=Path("target/release/lidar-har"),
                    help="the lidar-har binary (cargo build --release --bin lidar-har)")
-    p.add_argument("--only", nargs="*", default=None, help="run only these configurations")
+    p.add_argument("--only", nargs="*", default=None,
+                   help="run only these configurations (names of training/sweep.toml's runs)")
     p.add_argument("--report-only", action="store_true", help="redraw sweep.md/png from sweep.json")
     p.add_argument("--retime", action="store_true",
                    help="re-measure every model's per-scan time with the classify benchmark, one after "
@@ -101,7 +100,23 @@ def dataset_for(run: dict, common: dict, args, log: Path) -> Path:
     return data
 
 
+def check_only(only: list[str] | None, runs: list[dict]) -> None:
+    """`--only` must name configurations of the sweep: a misspelt name ran nothing and the
+    sweep reported success."""
+    if only is None:
+        return
+    known = [run["name"] for run in runs]
+    if not only:
+        raise SweepError(f"--only: give at least one configuration (known: {', '.join(known)})")
+    unknown = [name for name in only if name not in known]
+    if unknown:
+        raise SweepError(f"--only: no configuration named {', '.join(unknown)} (known: {', '.join(known)})")
+
+
 def run_one(run: dict, common: dict, args) -> dict:
+    # Imported here: training needs PyTorch, the rest of the sweep (and its checks) does not.
+    from . import train as train_module
+
     folder = args.out / run["name"]
     folder.mkdir(parents=True, exist_ok=True)
     log = folder / "log.txt"
@@ -249,6 +264,7 @@ def main(argv=None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     try:
         common, runs = load_config(args.config)
+        check_only(args.only, runs)
         args.out.mkdir(parents=True, exist_ok=True)
         results_path = args.out / "sweep.json"
         results = json.loads(results_path.read_text()) if results_path.exists() else []

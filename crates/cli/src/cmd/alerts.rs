@@ -7,6 +7,8 @@
 //! ending with a fall after which the person stays down for PERSON_DOWN where it is due.
 //! Episodes with falls run on past their end until a fall that began on their last scan has
 //! ended and its alert has fallen due; falls that begin in that time are not counted.
+//! Episodes staying down run on for PERSON_DOWN's scoring window, so that a spell due on
+//! their last scan can be answered; spells that fall due in that time are not counted.
 //! The report also scores the streaming classification itself, scan by scan over every
 //! episode: unlike `lidar-har evaluate`'s windows from a zero state, this is what the robot
 //! publishes, so models trained on different window lengths compare on equal terms.
@@ -61,12 +63,14 @@ pub struct AlertsArgs {
     pub no_fall_hours: f64,
     /// Episodes that end with a fall after which the person stays on the floor, so that
     /// PERSON_DOWN falls due (`down_after_s` after the fall): run after the others, so the
-    /// others' seeds do not move.
+    /// others' seeds do not move. They run on 3 s past their end, for a spell due near it to
+    /// be answered; a run where none of them has a spell due before its end fails (lengthen
+    /// `--episode-seconds`).
     #[arg(long, default_value_t = 0)]
     pub stay_down_episodes: usize,
     /// Length of one episode, seconds. Episodes with falls run on for the longest fall and
     /// `--latency-target-s` more, so that a fall near the end can be answered in time; falls
-    /// that begin then are not counted.
+    /// that begin then are not counted. Episodes staying down run on 3 s.
     #[arg(long, default_value_t = 60.0)]
     pub episode_seconds: f64,
     #[arg(long, default_value_t = 1)]
@@ -92,7 +96,9 @@ pub struct AlertsArgs {
     /// running the model: seconds instead of minutes, and the same report a full run with
     /// `--classifier-config`'s `fall_alert` settings gives. Episodes, seed, model and lanes
     /// are the recording's: the configuration's `model` is not used (nor can `--model` be
-    /// given), and its lanes must be the recording's.
+    /// given), and its lanes must be the recording's. A file cut short (a recording stopped
+    /// half-way) is scored over its complete episodes, the report marked `cut_short`, and
+    /// the command fails; a file without a complete episode is refused.
     #[arg(long, value_name = "FILE", conflicts_with_all = [
         "model", "scenes", "fall_episodes", "no_fall_hours", "stay_down_episodes",
         "episode_seconds", "seed", "latency_target_s", "save_readings",
@@ -178,6 +184,18 @@ pub struct AlertsReport {
     /// The streaming classification over every episode, one sample per scan the classifier
     /// publishes (person seen, model history ready), against the true activity at that scan.
     pub scans: MetricsReport,
+    /// Replayed readings (`--readings`) that end half-way: the report covers only the
+    /// complete episodes before the cut. Absent when the file was whole.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cut_short: Option<CutShort>,
+}
+
+/// Where replayed readings end early, and how many complete episodes came before.
+#[derive(Debug, Serialize)]
+pub struct CutShort {
+    /// The reader's error, naming the file and the line.
+    pub error: String,
+    pub episodes_scored: usize,
 }
 
 /// The reasons of [`FallOutcome::unalerted_because`].
@@ -346,6 +364,14 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
         std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
         outln!("report: {}", path.display());
     }
+    // The report of a cut recording is printed and written, but must not pass for a whole one.
+    if let Some(cut) = &report.cut_short {
+        anyhow::bail!(
+            "{}: the report covers only the {} complete episodes before it",
+            cut.error,
+            cut.episodes_scored
+        );
+    }
     Ok(())
 }
 
@@ -356,10 +382,14 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
         0 => 0.0,
         _ => fall_run_on_s(args.latency_target_s),
     };
+    let stay_down_run_on_s = match args.stay_down_episodes {
+        0 => 0.0,
+        _ => PERSON_DOWN_WINDOW_S,
+    };
     let scenes = with_episode_seconds(
         load_scenes(&args.scenes)?,
         args.episode_seconds,
-        fall_run_on_s,
+        fall_run_on_s.max(stay_down_run_on_s),
     )?;
     let model_source = model_source(args, &config.model);
     let model = ActivityModel::load(&config.model, 1).context(model_source.clone())?;
@@ -427,7 +457,8 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
         let trace = args.trace_episode.contains(&id);
         let run_on_s = match kind {
             ScriptKind::WithFalls => fall_run_on_s,
-            _ => 0.0,
+            ScriptKind::FallAndStayDown => stay_down_run_on_s,
+            ScriptKind::Everyday => 0.0,
         };
         let (log, alerts) =
             match run_episode(id, scene, seed, kind, run_on_s, &mut classifier, trace) {
@@ -445,11 +476,9 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
         progress.inc(1);
     }
     progress.finish_and_clear();
-    if let Some(readings) = readings {
-        readings.finish()?;
-    }
-    // A report of nothing would read as a clean bill: no falls missed, no false alerts.
-    for (kind, asked, ran) in [
+    // A report of nothing would read as a clean bill: no falls missed, no false alerts; and
+    // so would a replay of its readings, which are removed.
+    let unrun = [
         ("with falls", args.fall_episodes, tally.fall_episodes_run),
         (
             "without falls",
@@ -461,19 +490,27 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
             args.stay_down_episodes,
             tally.stay_down_episodes_run,
         ),
-    ] {
-        anyhow::ensure!(
-            asked == 0 || ran > 0,
+    ]
+    .into_iter()
+    .find(|&(_, asked, ran)| asked > 0 && ran == 0);
+    if let Some((kind, asked, _)) = unrun {
+        if let Some(readings) = readings {
+            readings.discard()?;
+        }
+        anyhow::bail!(
             "none of the {asked} episodes {kind} could be run (each skipped above): the scenes \
              leave no room for their scripts"
         );
     }
-    Ok(tally.report(
+    if let Some(readings) = readings {
+        readings.finish()?;
+    }
+    tally.report(
         config.model.display().to_string(),
         scene_names,
         args.seed,
         args.episode_seconds,
-    ))
+    )
 }
 
 /// Scores the alerts `config`'s `fall_alert` settings raise over saved readings: the fall
@@ -502,8 +539,18 @@ fn replay(
         .with_context(|| format!("--readings {}: fall_alert", path.display()))?;
     let mut tally = Tally::new(config.fall_alert, header.latency_target_s);
     let mut traced = Vec::new();
+    let mut scored = 0;
+    let mut cut_short = None;
     for log in readings {
-        let log = log?;
+        // A recording stopped half-way (a signal, a full disk) still holds complete episodes:
+        // they are scored, and the report says where the file ends.
+        let log = match log {
+            Ok(log) => log,
+            Err(e) => {
+                cut_short = Some(format!("{e:#}"));
+                break;
+            }
+        };
         let trace = args.trace_episode.contains(&log.id);
         if trace {
             traced.push(log.id);
@@ -522,16 +569,31 @@ fn replay(
             alerts.extend(raised.iter().map(|a| in_episode_time(a, start_s)));
         }
         tally.add(&log, alerts);
+        scored += 1;
+    }
+    if scored == 0 {
+        // A header alone (a recording that failed or was stopped before its first episode)
+        // would score as a clean result: no falls missed, no false alerts.
+        let why = cut_short.map_or(String::new(), |cut| format!(" ({cut})"));
+        anyhow::bail!(
+            "--readings {}: no episode in it{why}: nothing to score",
+            path.display()
+        );
     }
     if let Some(missing) = args.trace_episode.iter().find(|id| !traced.contains(id)) {
         anyhow::bail!("--trace-episode {missing}: no such episode in the readings");
     }
-    Ok(tally.report(
+    let mut report = tally.report(
         header.model,
         header.scenes,
         header.seed,
         header.episode_seconds,
-    ))
+    )?;
+    report.cut_short = cut_short.map(|error| CutShort {
+        error,
+        episodes_scored: scored,
+    });
+    Ok(report)
 }
 
 /// What the episodes scored so far add up to.
@@ -550,6 +612,8 @@ struct Tally {
     fall_episodes_run: usize,
     no_fall_episodes_run: usize,
     stay_down_episodes_run: usize,
+    /// Episodes staying down in which no spell fell due before the end: they measure nothing.
+    stay_down_without_spell: usize,
     stay_down_fall_detected: usize,
 }
 
@@ -570,6 +634,7 @@ impl Tally {
             fall_episodes_run: 0,
             no_fall_episodes_run: 0,
             stay_down_episodes_run: 0,
+            stay_down_without_spell: 0,
             stay_down_fall_detected: 0,
         }
     }
@@ -579,9 +644,7 @@ impl Tally {
         let id = log.id;
         let episode = Episode::of(log, alerts);
         self.scans.merge(&episode.scans);
-        let in_episode =
-            &episode.truth[..episode.truth.partition_point(|&(t, _)| t < episode.end_s)];
-        let spells = down_spells(in_episode, self.fall_alert.down_after_s);
+        let spells = down_spells(&episode.truth, episode.end_s, self.fall_alert.down_after_s);
         let answers: Vec<Option<&FallAlert>> = spells
             .iter()
             .map(|&spell| person_down_answering(&episode.alerts, spell))
@@ -634,6 +697,7 @@ impl Tally {
             }
             ScriptKind::FallAndStayDown => {
                 self.stay_down_episodes_run += 1;
+                self.stay_down_without_spell += usize::from(spells.is_empty());
                 let fall_start = episode.falls.first().map_or(f64::INFINITY, |&(s, _)| s);
                 self.unmatched += episode
                     .alerts
@@ -662,13 +726,31 @@ impl Tally {
         }
     }
 
+    /// The report; an error where the episodes staying down measured nothing (an empty
+    /// `person_down_due` would read as no PERSON_DOWN missed).
     fn report(
         self,
         model: String,
         scenes: Vec<String>,
         seed: u64,
         episode_seconds: f64,
-    ) -> AlertsReport {
+    ) -> anyhow::Result<AlertsReport> {
+        let (ran, without) = (self.stay_down_episodes_run, self.stay_down_without_spell);
+        let down_after_s = self.fall_alert.down_after_s;
+        anyhow::ensure!(
+            ran == 0 || without < ran,
+            "none of the {ran} episodes staying down had the person down for down_after_s \
+             ({down_after_s} s) before its end (--episode-seconds {episode_seconds}): PERSON_DOWN \
+             never fell due there; give a longer --episode-seconds (their fall comes 5 s to \
+             about 40 % into an episode) or a lower down_after_s"
+        );
+        if without > 0 {
+            errln!(
+                "alerts: {without} of the {ran} episodes staying down had the person down for \
+                 down_after_s ({down_after_s} s) only after their end (--episode-seconds \
+                 {episode_seconds}): no spell of theirs is counted"
+            );
+        }
         let latencies: Vec<f64> = self.outcomes.iter().filter_map(|o| o.latency_s).collect();
         let false_alerts = self.false_alerts;
         let count = |kind: AlertKind| false_alerts.iter().filter(|a| a.kind == kind).count();
@@ -690,7 +772,7 @@ impl Tally {
             .filter_map(|d| d.delay_s)
             .collect();
         let no_fall_hours = self.no_fall_episodes_run as f64 * episode_seconds / 3600.0;
-        AlertsReport {
+        Ok(AlertsReport {
             model,
             scenes,
             seed,
@@ -727,7 +809,8 @@ impl Tally {
             outcomes: self.outcomes,
             false_alert_details: false_alerts,
             scans: self.scans.report(),
-        }
+            cut_short: None,
+        })
     }
 }
 
@@ -750,6 +833,12 @@ fn model_source(args: &AlertsArgs, model: &Path) -> String {
 fn fall_run_on_s(latency_target_s: f64) -> f64 {
     scripts::FALL_SECONDS.end + latency_target_s
 }
+
+/// How long after PERSON_DOWN fell due it is counted in time in the figures (README,
+/// docs/classifier.md: "within 3 s of due"), and so how long an episode staying down runs on
+/// past its end: a spell due on its last scan can then be answered. Before, such episodes
+/// stopped at their end, and a spell due just before it counted as missed.
+const PERSON_DOWN_WINDOW_S: f64 = 3.0;
 
 /// An alert's times in episode time (from `start_s` on the stream's clock), as the ground
 /// truth's are.
@@ -891,11 +980,16 @@ fn down_for(truth: &[(f64, Activity)], t: f64) -> f64 {
     down_since.map_or(0.0, |&(s, _)| t - s)
 }
 
-/// The (start, end) of every spell of at least `min_s` in which the truth has the person
-/// falling or on the floor (getting up ends it: PERSON_DOWN is for not getting up).
-fn down_spells(truth: &[(f64, Activity)], min_s: f64) -> Vec<(f64, f64)> {
+/// The (start, end) of every spell in which the truth has the person falling or on the floor
+/// (getting up ends it: PERSON_DOWN is for not getting up) for at least `min_s` by the last
+/// scan before `end_s`, the episode's end. A spell still on then runs on to where the truth,
+/// run-on included, ends it: an alert for it may come after the episode's end.
+fn down_spells(truth: &[(f64, Activity)], end_s: f64, min_s: f64) -> Vec<(f64, f64)> {
+    let last_scan = truth[..truth.partition_point(|&(t, _)| t < end_s)]
+        .last()
+        .map_or(f64::NEG_INFINITY, |&(t, _)| t);
     let mut spells = runs_where(truth, |a| a.is_on_floor() || a == Activity::FallingDown);
-    spells.retain(|&(s, e)| e - s >= min_s);
+    spells.retain(|&(s, e)| e.min(last_scan) - s >= min_s);
     spells
 }
 
@@ -1246,9 +1340,41 @@ mod tests {
         .collect();
         // Falling and lying until getting up (1-4 s) is 3 s; sitting (5-6 s) only 1; crawling
         // and lying to the end (7-9 s) 2.
-        assert_eq!(down_spells(&truth, 2.0), vec![(1.0, 4.0), (7.0, 9.0)]);
-        assert_eq!(down_spells(&truth, 2.5), vec![(1.0, 4.0)]);
-        assert!(down_spells(&[], 0.0).is_empty());
+        assert_eq!(down_spells(&truth, 9.5, 2.0), vec![(1.0, 4.0), (7.0, 9.0)]);
+        assert_eq!(down_spells(&truth, 9.5, 2.5), vec![(1.0, 4.0)]);
+        assert!(down_spells(&[], 0.0, 0.0).is_empty());
+    }
+
+    #[test]
+    fn a_spell_on_at_the_end_runs_on_and_counts_only_if_due_by_then() {
+        use Activity::*;
+        // The episode ends at 8.5 s (its last scan at 8 s), then runs on to 11 s.
+        let truth: Vec<(f64, Activity)> = [
+            Walking,
+            FallingDown,
+            LyingDown,
+            LyingDown,
+            LyingDown,
+            LyingDown,
+            LyingDown,
+            LyingDown,
+            LyingDown,
+            LyingDown,
+            GettingUp,
+            FallingDown,
+        ]
+        .into_iter()
+        .enumerate()
+        .map(|(i, a)| (i as f64, a))
+        .collect();
+        // Down 1-8 s by the end (7 s): due at 5 s, the spell runs on to getting up at 10 s.
+        assert_eq!(down_spells(&truth, 8.5, 5.0), vec![(1.0, 10.0)]);
+        // Due only at 9 s, in the run-on: not counted; nor is the fall that begins at 11 s.
+        assert!(down_spells(&truth, 8.5, 8.0).is_empty());
+        assert_eq!(
+            down_spells(&truth, 11.5, 0.0),
+            vec![(1.0, 10.0), (11.0, 11.0)]
+        );
     }
 
     #[test]
@@ -1405,6 +1531,167 @@ mod tests {
                 Some("at the episode's end"),
             ]
         );
+    }
+
+    /// An episode at 20 Hz: `script` gives each stretch's true activity and seconds, every
+    /// scan read surely as the truth; `seconds` is where the episode ends (the rest runs on).
+    fn logged(id: usize, kind: ScriptKind, script: &[(Activity, f64)], seconds: f64) -> EpisodeLog {
+        let start_ns = 1_700_000_000_000_000_000;
+        let mut frames = Vec::new();
+        for &(activity, span_s) in script {
+            for _ in 0..(span_s * 20.0).round() as usize {
+                let mut probabilities = [0.0; Activity::COUNT];
+                probabilities[activity.index()] = 1.0;
+                frames.push(Frame {
+                    stamp_ns: start_ns + frames.len() as u64 * 50_000_000,
+                    truth: Some(activity),
+                    reading: Some(Reading {
+                        visible: true,
+                        ready: true,
+                        position: [1.0, 1.0],
+                        probabilities,
+                        body_length_m: Some(0.5),
+                    }),
+                });
+            }
+        }
+        EpisodeLog {
+            id,
+            kind,
+            scene: "kitchen".into(),
+            start_ns,
+            end_s: seconds - 0.025,
+            frames,
+        }
+    }
+
+    /// `lidar-har alerts` with `line`'s options.
+    fn alerts_args(line: &[&str]) -> AlertsArgs {
+        #[derive(clap::Parser)]
+        struct Command {
+            #[command(flatten)]
+            args: AlertsArgs,
+        }
+        let line = ["alerts"].iter().chain(line);
+        <Command as clap::Parser>::try_parse_from(line)
+            .unwrap()
+            .args
+    }
+
+    /// A readings file of `episodes`, as `--save-readings` writes it with the default
+    /// classifier configuration; returns the file's length after each episode.
+    fn write_readings(path: &Path, episodes: &[EpisodeLog]) -> Vec<u64> {
+        let schedule = ClassifierConfig::default().lane_schedule(20, false);
+        let header = Header::new(
+            "m.onnx".into(),
+            vec!["kitchen".into()],
+            1,
+            10.0,
+            1.0,
+            20,
+            schedule,
+        );
+        let mut writer = ReadingsWriter::create(path, &header).unwrap();
+        let mut lengths = Vec::new();
+        for episode in episodes {
+            writer.write(episode).unwrap();
+            lengths.push(std::fs::metadata(path).unwrap().len());
+        }
+        writer.finish().unwrap();
+        lengths
+    }
+
+    #[test]
+    fn replayed_readings_cut_short_are_scored_up_to_the_cut_and_fail() {
+        let dir = tempfile::tempdir().unwrap();
+        let whole = dir.path().join("whole.zst");
+        let standing = [(Activity::Standing, 10.0)];
+        let episodes: Vec<EpisodeLog> = (0..3)
+            .map(|id| logged(id, ScriptKind::Everyday, &standing, 10.0))
+            .collect();
+        let lengths = write_readings(&whole, &episodes);
+        let report = dir.path().join("whole.json");
+        run(alerts_args(&[
+            "--readings",
+            &whole.display().to_string(),
+            "--out",
+            &report.display().to_string(),
+        ]))
+        .unwrap();
+        let text = std::fs::read_to_string(&report).unwrap();
+        assert!(!text.contains("cut_short"), "{text}");
+
+        // Stopped while the third episode was being written: two complete ones, then half a line.
+        let cut = dir.path().join("cut.zst");
+        let bytes = std::fs::read(&whole).unwrap();
+        let at = (lengths[1] + lengths[2]) / 2;
+        std::fs::write(&cut, &bytes[..at as usize]).unwrap();
+        let report = dir.path().join("cut.json");
+        let error = run(alerts_args(&[
+            "--readings",
+            &cut.display().to_string(),
+            "--out",
+            &report.display().to_string(),
+        ]))
+        .unwrap_err();
+        let error = format!("{error:#}");
+        assert!(
+            error.contains("cut.zst: line 4: cut short")
+                && error.contains("only the 2 complete episodes"),
+            "{error}"
+        );
+        let written: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        assert_eq!(written["cut_short"]["episodes_scored"], 2, "{written}");
+        assert!(
+            written["cut_short"]["error"]
+                .as_str()
+                .unwrap()
+                .contains("line 4"),
+            "{written}"
+        );
+        assert!((written["no_fall_hours"].as_f64().unwrap() - 20.0 / 3600.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn readings_without_an_episode_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let header_only = dir.path().join("header.zst");
+        write_readings(&header_only, &[]);
+        let error = run(alerts_args(&[
+            "--readings",
+            &header_only.display().to_string(),
+        ]))
+        .unwrap_err()
+        .to_string();
+        assert!(error.contains("header.zst: no episode in it"), "{error}");
+    }
+
+    #[test]
+    fn episodes_staying_down_without_a_spell_due_fail_the_report() {
+        use Activity::*;
+        let config = FallAlertConfig::default();
+        assert_eq!(config.down_after_s, 15.0);
+        let report = |stay_down: &[(Activity, f64)]| {
+            let mut tally = Tally::new(config, 1.0);
+            tally.add(
+                &logged(0, ScriptKind::FallAndStayDown, stay_down, 20.0),
+                Vec::new(),
+            );
+            tally
+                .report(String::new(), Vec::new(), 1, 20.0)
+                .map(|r| r.person_down_due.len())
+        };
+        // Down from 10 s: due at 25 s, after the end at 20 s (the run-on not counted).
+        let late = [(Walking, 10.0), (FallingDown, 1.0), (LyingDown, 12.0)];
+        let error = report(&late).unwrap_err().to_string();
+        assert!(
+            error.contains("--episode-seconds 20") && error.contains("down_after_s (15 s)"),
+            "{error}"
+        );
+        // Down from 3 s: due at 18 s; answered in the run-on or not, it is measured.
+        let early = [(Walking, 3.0), (FallingDown, 1.0), (LyingDown, 19.0)];
+        assert_eq!(report(&early).unwrap(), 1);
     }
 
     #[test]

@@ -7,6 +7,7 @@
 //! windows, are split into train and test; scenes named by `--held-out` are never trained on
 //! and form the `test_unseen` split. Layout on disk: docs/training.md.
 
+use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -28,6 +29,7 @@ use serde::{Deserialize, Serialize};
 
 /// Bumped when the layout of `index.json` or the arrays changes.
 pub const FORMAT_VERSION: u32 = 1;
+const DEFAULT_TEST_FRACTION: f64 = 0.2;
 pub const SPLITS: [&str; 3] = ["train", "test", "test_unseen"];
 
 #[derive(clap::Args, Debug, Clone)]
@@ -36,7 +38,11 @@ pub struct DatasetArgs {
     #[arg(long, required = true, num_args = 1..)]
     pub scenes: Vec<String>,
     /// Episodes over the training scenes (train + test); the held-out scenes get
-    /// `test_fraction` of this many more.
+    /// `test_fraction` of this many more. Which episodes are test depends on it (and on
+    /// `--test-fraction`) while each episode depends only on `--seed` and its number: the same
+    /// `--seed` with another count gives the same episodes split otherwise, so a model trained
+    /// on one would be tested on its own training episodes (`evaluate` refuses that when the
+    /// model's training report lies beside it). Test with another `--seed`.
     #[arg(long, default_value_t = 40)]
     pub episodes: usize,
     #[arg(long, default_value_t = 1)]
@@ -63,8 +69,9 @@ pub struct DatasetArgs {
     /// Scans between the starts of consecutive windows.
     #[arg(long, default_value_t = 10)]
     pub stride: usize,
-    /// Share of the training scenes' episodes that go to the test split.
-    #[arg(long, default_value_t = 0.2)]
+    /// Share of the training scenes' episodes that go to the test split (rounded to whole
+    /// episodes; neither split may end up empty, unless 0 is given for no test split).
+    #[arg(long, default_value_t = DEFAULT_TEST_FRACTION)]
     pub test_fraction: f64,
     /// Scene names (their `name:` field) kept out of training: the `test_unseen` split.
     #[arg(long, value_delimiter = ',')]
@@ -146,9 +153,68 @@ pub struct Generator {
     pub held_out: Vec<String>,
     pub episodes: usize,
     pub seed: u64,
+    /// With `seed` and `episodes`, what decides the split. Recorded since session 48; before,
+    /// only in `command` ([`Generator::test_fraction`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub test_fraction: Option<f64>,
     pub episode_seconds: f64,
     /// How the person's points were found.
     pub person_points: String,
+}
+
+impl Generator {
+    /// The test fraction the dataset was made with: recorded, else read from the recorded
+    /// command line (the default when it names none; the default has not changed).
+    fn test_fraction(&self) -> Option<f64> {
+        if self.test_fraction.is_some() {
+            return self.test_fraction;
+        }
+        let mut words = self.command.split_whitespace();
+        while let Some(word) = words.next() {
+            if word == "--test-fraction" {
+                return words.next()?.parse().ok();
+            }
+            if let Some(value) = word.strip_prefix("--test-fraction=") {
+                return value.parse().ok();
+            }
+        }
+        Some(DEFAULT_TEST_FRACTION)
+    }
+
+    /// The options that decide the split, as the command line gives them.
+    pub(crate) fn split_options(&self) -> String {
+        let fraction = self
+            .test_fraction()
+            .map_or("?".to_string(), |f| f.to_string());
+        format!(
+            "--seed {} --episodes {} --test-fraction {fraction}",
+            self.seed, self.episodes
+        )
+    }
+
+    /// The (scene name, simulator seed) of every episode a dataset made so trained on: the
+    /// training scenes' episodes outside its test split. `None` when its test fraction cannot
+    /// be told.
+    pub(crate) fn trained_episodes(&self) -> Option<HashSet<(String, u64)>> {
+        let test = test_episodes(self.seed, self.episodes, self.test_fraction()?);
+        let seen: Vec<&String> = self
+            .scenes
+            .iter()
+            .filter(|name| !self.held_out.contains(name))
+            .collect();
+        if seen.is_empty() {
+            return Some(HashSet::new());
+        }
+        Some(
+            (0..self.episodes)
+                .filter(|id| !test.contains(id))
+                .map(|id| {
+                    let seed = episode_seed(self.seed, id, EpisodeStream::Dataset);
+                    (seen[id % seen.len()].clone(), seed)
+                })
+                .collect(),
+        )
+    }
 }
 
 /// `index.json`: everything about a dataset except the pixels.
@@ -385,6 +451,7 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
             held_out: args.held_out.clone(),
             episodes: args.episodes,
             seed: args.seed,
+            test_fraction: Some(args.test_fraction),
             episode_seconds: args.episode_seconds,
             person_points:
                 "localiser (map subtraction, clustering, tracker; lidar_har_core::localiser)"
@@ -521,7 +588,7 @@ fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
 }
 
 /// The scenes with their `duration` set to `episode_seconds`, each checked as a scene file
-/// is, for `run_on_s` more than that (what episodes with falls add): a length the simulator
+/// is, for `run_on_s` more than that (what `alerts` episodes run on): a length the simulator
 /// refuses (over its limit, or past the last ROS stamp after a scene's `start_time`) is the
 /// option's fault, and would otherwise show only as every episode's script failing.
 pub(crate) fn with_episode_seconds(
@@ -531,8 +598,8 @@ pub(crate) fn with_episode_seconds(
 ) -> anyhow::Result<Vec<(String, Scene)>> {
     let run_on = if run_on_s > 0.0 {
         format!(
-            " plus the {run_on_s} s that episodes with falls run on (the longest fall and \
-             --latency-target-s)"
+            " plus the {run_on_s} s that episodes run on past their end (with falls: the \
+             longest fall and --latency-target-s; staying down: 3 s)"
         )
     } else {
         String::new()
@@ -608,9 +675,8 @@ fn plan_episodes(
     if seen.is_empty() {
         bail!("every scene is held out: nothing left to train on");
     }
-    let mut rng = ChaCha8Rng::seed_from_u64(args.seed);
-    let test_count = (args.test_fraction * args.episodes as f64).round() as usize;
-    if test_count == 0 && args.test_fraction > 0.0 {
+    let test = test_episodes(args.seed, args.episodes, args.test_fraction);
+    if test.is_empty() && args.test_fraction > 0.0 {
         bail!(
             "--test-fraction {} of --episodes {} rounds to no episode: the test split would be \
              empty (raise --episodes, or give --test-fraction 0 for no test split)",
@@ -618,11 +684,14 @@ fn plan_episodes(
             args.episodes
         );
     }
-    let mut order: Vec<usize> = (0..args.episodes).collect();
-    for i in (1..order.len()).rev() {
-        order.swap(i, rng.random_range(0..=i));
+    if test.len() == args.episodes {
+        bail!(
+            "--test-fraction {} of --episodes {} rounds to every episode: the train split would \
+             be empty (raise --episodes or lower --test-fraction)",
+            args.test_fraction,
+            args.episodes
+        );
     }
-    let test: std::collections::HashSet<usize> = order.into_iter().take(test_count).collect();
     let mut plans = Vec::new();
     let mut push = |id: usize, (file, scene): &(String, Scene), split: &'static str| {
         let seed = episode_seed(args.seed, id, EpisodeStream::Dataset);
@@ -639,12 +708,24 @@ fn plan_episodes(
         push(id, seen[id % seen.len()], split);
     }
     if !unseen.is_empty() {
-        let count = test_count.max(unseen.len());
+        let count = test.len().max(unseen.len());
         for k in 0..count {
             push(args.episodes + k, unseen[k % unseen.len()], "test_unseen");
         }
     }
     Ok(plans)
+}
+
+/// The numbers of the test episodes among `episodes` (a seeded shuffle): a share of them, so
+/// which they are depends on the count as well as the seed.
+fn test_episodes(seed: u64, episodes: usize, test_fraction: f64) -> HashSet<usize> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let test_count = (test_fraction * episodes as f64).round() as usize;
+    let mut order: Vec<usize> = (0..episodes).collect();
+    for i in (1..order.len()).rev() {
+        order.swap(i, rng.random_range(0..=i));
+    }
+    order.into_iter().take(test_count).collect()
 }
 
 /// Whose episodes a seed makes: `lidar-har alerts` must not replay the episodes a dataset
@@ -1118,6 +1199,79 @@ mod tests {
             error.contains("--episode-seconds 10000000: start_time"),
             "{error}"
         );
+    }
+
+    /// The episodes `lidar-har dataset` plans over the shipped scenes with `extra` options,
+    /// as (scene, simulator seed, split), and the generator it records.
+    fn planned(extra: &[&str]) -> (Vec<(String, u64, &'static str)>, Generator) {
+        let args = dataset_args(extra);
+        let pattern = shipped_scene_path("*").display().to_string();
+        let scenes = load_scenes(&[pattern]).unwrap();
+        let plans = plan_episodes(&args, &scenes).unwrap();
+        let generator = Generator {
+            command: format!("lidar-har dataset {}", extra.join(" ")),
+            scenes: scenes.iter().map(|(_, s)| s.name.clone()).collect(),
+            held_out: args.held_out.clone(),
+            episodes: args.episodes,
+            seed: args.seed,
+            test_fraction: Some(args.test_fraction),
+            episode_seconds: args.episode_seconds,
+            person_points: String::new(),
+        };
+        let plans = plans
+            .into_iter()
+            .map(|p| (p.scene.name, p.seed, p.split))
+            .collect();
+        (plans, generator)
+    }
+
+    #[test]
+    fn the_same_seed_with_another_episode_count_tests_on_trained_episodes() {
+        let options = |episodes| {
+            [
+                "--seed",
+                "11",
+                "--held-out",
+                "office",
+                "--episodes",
+                episodes,
+            ]
+        };
+        let (plans, generator) = planned(&options("40"));
+        let trained = generator.trained_episodes().unwrap();
+        let of = |plans: &[(String, u64, &str)], test: bool| -> HashSet<(String, u64)> {
+            plans
+                .iter()
+                .filter(|(_, _, split)| (*split != "train") == test)
+                .map(|(scene, seed, _)| (scene.clone(), *seed))
+                .collect()
+        };
+        // What the generator says it trained on is what the plan trained on.
+        assert_eq!(trained, of(&plans, false));
+        assert!(of(&plans, true).is_disjoint(&trained));
+        // Twice the episodes: the first 40 are the same, split otherwise.
+        let (more, _) = planned(&options("80"));
+        let leaked = of(&more, true).intersection(&trained).count();
+        assert!(leaked > 0, "{leaked}");
+        // Another test fraction splits the same episodes otherwise too.
+        let mut fraction = options("40").to_vec();
+        fraction.extend(["--test-fraction", "0.4"]);
+        assert!(!of(&planned(&fraction).0, true).is_disjoint(&trained));
+        // Another seed: other episodes.
+        let (other, _) = planned(&["--seed", "12", "--held-out", "office", "--episodes", "80"]);
+        assert!(of(&other, true).is_disjoint(&trained));
+    }
+
+    #[test]
+    fn a_dataset_made_before_the_test_fraction_was_recorded_has_it_in_its_command() {
+        let (_, mut generator) = planned(&["--test-fraction", "0.5"]);
+        generator.test_fraction = None;
+        assert_eq!(generator.test_fraction(), Some(0.5));
+        generator.command = "lidar-har dataset --test-fraction=0.3 --out o".into();
+        assert_eq!(generator.test_fraction(), Some(0.3));
+        generator.command = "lidar-har dataset --seed 4".into();
+        assert_eq!(generator.test_fraction(), Some(DEFAULT_TEST_FRACTION));
+        assert!(generator.split_options().ends_with("--test-fraction 0.2"));
     }
 
     #[test]

@@ -19,11 +19,13 @@ use ndarray::{Array2, s};
 use plotters::prelude::*;
 use serde::Serialize;
 
-use super::dataset::{DatasetIndex, SplitData};
+use super::dataset::{DatasetIndex, Generator, SplitData};
 
 #[derive(clap::Args, Debug)]
 pub struct EvaluateArgs {
-    /// The ONNX step model (e.g. models/activity.onnx).
+    /// The ONNX step model (e.g. models/activity.onnx). Its training report beside it
+    /// (`M.training.json`, written by training/train.sh) names the dataset it trained on: a
+    /// dataset whose test episodes it trained on is refused.
     #[arg(long)]
     pub model: PathBuf,
     /// A dataset directory written by `lidar-har dataset`.
@@ -80,7 +82,10 @@ struct SplitMetrics {
     per_episode: Option<EpisodeSpread>,
 }
 
-/// Accuracy, per-class figures and confusion over a set of windows.
+/// Accuracy, per-class figures and confusion over a set of windows. A class's precision,
+/// recall or F1 without windows to measure it by is 0 here (scikit-learn's
+/// `zero_division=0`, kept for readers of earlier reports); `support` and the confusion's
+/// columns tell those apart, and report.md shows them as "-".
 #[derive(Serialize)]
 struct Scores {
     windows: usize,
@@ -88,12 +93,39 @@ struct Scores {
     precision: std::collections::BTreeMap<String, f64>,
     recall: std::collections::BTreeMap<String, f64>,
     f1: std::collections::BTreeMap<String, f64>,
+    /// Windows truly of each class.
+    support: std::collections::BTreeMap<String, u64>,
     macro_f1: f64,
     weighted_f1: f64,
     confusion: Vec<Vec<u64>>,
 }
 
 impl Scores {
+    /// Windows predicted as `class`.
+    fn predicted(&self, class: Activity) -> u64 {
+        self.confusion.iter().map(|row| row[class.index()]).sum()
+    }
+
+    /// Recall, precision and F1 of `class` in % for report.md; "-" where there is nothing to
+    /// measure them by (no window of the class; none predicted as it; neither), which 0 %
+    /// beside the paper's figures would misstate.
+    fn class_cells(&self, class: Activity) -> [String; 3] {
+        let label = class.label();
+        let (support, predicted) = (self.support[label], self.predicted(class));
+        let cell = |value: f64, defined: bool| {
+            if defined {
+                format!("{:.1}", 100.0 * value)
+            } else {
+                "-".to_string()
+            }
+        };
+        [
+            cell(self.recall[label], support > 0),
+            cell(self.precision[label], predicted > 0),
+            cell(self.f1[label], support + predicted > 0),
+        ]
+    }
+
     /// One window is one sample of the matrix.
     fn new(confusion: &ConfusionMatrix) -> Self {
         let report = confusion.report();
@@ -110,6 +142,11 @@ impl Scores {
             precision: by_class(|c| c.precision),
             recall: by_class(|c| c.recall),
             f1: by_class(|c| c.f1),
+            support: report
+                .per_class
+                .iter()
+                .map(|c| (c.activity.label().to_string(), c.support))
+                .collect(),
             macro_f1: report.macro_f1,
             weighted_f1: report.weighted_f1,
             confusion: report.confusion.clone(),
@@ -141,6 +178,9 @@ struct EpisodeAccuracy {
 
 const MIN_EPISODE_WINDOWS: usize = 20;
 
+/// The splits scored, each with its `confusion_<split>.png`.
+const SCORED_SPLITS: [&str; 2] = ["test", "test_unseen"];
+
 #[derive(Serialize)]
 struct Metrics {
     model: String,
@@ -162,6 +202,7 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
     let index = DatasetIndex::load(&args.data)?;
     let mut model = ActivityModel::load(&args.model, args.threads)?;
     check_model_matches(&model, &index, &args.model)?;
+    check_not_trained_on(&args.model, &index, &args.data)?;
     if !index.windows.iter().any(|w| w.split == "test") {
         bail!("{}: the dataset has no test windows", args.data.display());
     }
@@ -177,7 +218,7 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
     let mut splits = std::collections::BTreeMap::new();
     let mut confusions = Vec::new();
     let mut step_times = Vec::new();
-    for split in ["test", "test_unseen"] {
+    for split in SCORED_SPLITS {
         let Some(data) = index.read_split(&args.data, split)? else {
             continue;
         };
@@ -193,6 +234,14 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     for (split, confusion) in &confusions {
         draw_confusion(confusion, &args.out.join(format!("confusion_{split}.png")))?;
+    }
+    // An earlier run's picture of a split this dataset lacks would pass for this one's.
+    for split in SCORED_SPLITS {
+        let path = args.out.join(format!("confusion_{split}.png"));
+        if !confusions.iter().any(|(s, _)| *s == split) && path.exists() {
+            std::fs::remove_file(&path)
+                .with_context(|| format!("cannot remove {}", path.display()))?;
+        }
     }
     step_times.sort_by(f64::total_cmp);
     let mean = step_times.iter().sum::<f64>() / step_times.len().max(1) as f64;
@@ -269,6 +318,52 @@ fn check_model_matches(
             path.display(),
             stream.scan_rate_hz,
             spec.scan_rate_hz
+        );
+    }
+    Ok(())
+}
+
+/// Refuses a dataset whose test episodes the model trained on, as its training report
+/// (`M.training.json` beside `M.onnx`) records: a dataset made with the same `--seed` but
+/// another `--episodes` or `--test-fraction` holds the same episodes split otherwise, and
+/// its figures would flatter the model. Without a report (or one naming no dataset)
+/// nothing can be checked. A model fine-tuned from another (`--init-from`) names only its
+/// last dataset.
+fn check_not_trained_on(model: &Path, index: &DatasetIndex, data: &Path) -> anyhow::Result<()> {
+    let report = model.with_extension("training.json");
+    let Ok(text) = std::fs::read_to_string(&report) else {
+        return Ok(());
+    };
+    let trained_on: Option<Generator> = serde_json::from_str::<serde_json::Value>(&text)
+        .ok()
+        .and_then(|r| serde_json::from_value(r.get("dataset_generator")?.clone()).ok());
+    let Some(trained_on) = trained_on else {
+        return Ok(());
+    };
+    let Some(trained) = trained_on.trained_episodes() else {
+        return Ok(());
+    };
+    let tested: Vec<_> = index
+        .episodes
+        .iter()
+        .filter(|e| e.split != "train")
+        .collect();
+    let overlap = tested
+        .iter()
+        .filter(|e| trained.contains(&(e.scene.clone(), e.seed)))
+        .count();
+    if overlap > 0 {
+        bail!(
+            "{}: {overlap} of its {} test episodes are episodes {} trained on ({}: a dataset of \
+             `{}`, this one of `{}`): the same --seed with another --episodes or \
+             --test-fraction splits the same episodes otherwise; make the test data with \
+             another --seed",
+            data.display(),
+            tested.len(),
+            model.display(),
+            report.display(),
+            trained_on.split_options(),
+            index.generator.split_options(),
         );
     }
     Ok(())
@@ -500,16 +595,16 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
     out += "Per class on the test split, recall / precision in % (paper: Boolean grid):\n\n";
     out += "| class | ours recall | ours precision | ours F1 | ours recall, within one activity | paper recall | paper precision |\n|---|---|---|---|---|---|---|\n";
     for a in Activity::ALL {
-        let l = a.label();
         let (pr, pp) = PAPER_BOOLEAN[a.index()];
+        let [recall, precision, f1] = m.test.all.class_cells(a);
+        let [within_recall, _, _] = m.test.within_one_activity.class_cells(a);
         out += &format!(
-            "| {l} | {} | {} | {} | {} | {pr:.1} | {pp:.1} |\n",
-            pct(m.test.all.recall[l]),
-            pct(m.test.all.precision[l]),
-            pct(m.test.all.f1[l]),
-            pct(m.test.within_one_activity.recall[l])
+            "| {} | {recall} | {precision} | {f1} | {within_recall} | {pr:.1} | {pp:.1} |\n",
+            a.label()
         );
     }
+    out += "\n\"-\": no test window of the class (recall), none predicted as it (precision), \
+            neither (F1).\n";
     out += "\nConfusion matrix on the test split (rows: truth, columns: prediction, class order above):\n\n";
     out += "| | ";
     out += &(0..Activity::COUNT)
@@ -576,4 +671,101 @@ fn draw_confusion(confusion: &ConfusionMatrix, path: &Path) -> anyhow::Result<()
     }
     root.present().map_err(|e| draw(&e))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cmd::dataset::{DatasetSpec, FORMAT_VERSION};
+    use lidar_har_core::representation::{Framing, RepresentationKind};
+
+    #[test]
+    fn classes_without_windows_or_predictions_are_shown_as_unmeasured() {
+        use Activity::*;
+        // Walking 4 (one taken for running), standing 1 (taken for walking); running never
+        // true, standing never predicted, crawling neither.
+        let confusion = ConfusionMatrix::from_pairs([
+            (Walking, Walking),
+            (Walking, Walking),
+            (Walking, Walking),
+            (Walking, Running),
+            (Standing, Walking),
+        ]);
+        let scores = || Scores::new(&confusion);
+        let split = SplitMetrics {
+            all: scores(),
+            accuracy_at_half_window: 0.6,
+            within_one_activity: scores(),
+            in_full_view: scores(),
+            within_one_activity_in_full_view: scores(),
+            seen_at_last_scan: scores(),
+            per_episode: None,
+        };
+        let json = serde_json::to_value(&split).unwrap();
+        assert_eq!(json["support"]["walking"], 4);
+        assert_eq!(json["support"]["running"], 0);
+        assert_eq!(json["recall"]["running"], 0.0, "kept for earlier readers");
+        let metrics = Metrics {
+            model: "m.onnx".into(),
+            data: "d".into(),
+            classes: Activity::ALL.iter().map(|a| a.label()).collect(),
+            representation: "boolean_grid".into(),
+            framing: "room_fixed".into(),
+            test: split,
+            splits: Default::default(),
+            step_ms_mean: 0.1,
+            step_ms_p99: 0.2,
+            threads: 1,
+        };
+        let index = DatasetIndex {
+            format_version: FORMAT_VERSION,
+            spec: DatasetSpec {
+                representation: RepresentationKind::BooleanGrid,
+                framing: Framing::RoomFixed,
+                size: 32,
+                resolution_m: 0.08,
+                window: 20,
+                stride: 10,
+                scan_rate_hz: 20.0,
+                fixed_lidar: false,
+            },
+            classes: Vec::new(),
+            generator: Generator {
+                command: String::new(),
+                scenes: Vec::new(),
+                held_out: Vec::new(),
+                episodes: 1,
+                seed: 1,
+                test_fraction: Some(0.2),
+                episode_seconds: 60.0,
+                person_points: String::new(),
+            },
+            splits: Default::default(),
+            episodes: Vec::new(),
+            windows: Vec::new(),
+        };
+        let text = report(&metrics, &index);
+        let row = |class: &str| {
+            text.lines()
+                .find(|l| l.starts_with(&format!("| {class} |")))
+                .unwrap_or_else(|| panic!("no row for {class}:\n{text}"))
+                .to_string()
+        };
+        assert_eq!(
+            row("crawling"),
+            "| crawling | - | - | - | - | 88.3 | 91.2 |"
+        );
+        assert_eq!(
+            row("running"),
+            "| running | - | 0.0 | 0.0 | - | 73.0 | 77.5 |"
+        );
+        assert_eq!(
+            row("standing"),
+            "| standing | 0.0 | - | 0.0 | 0.0 | 97.4 | 95.3 |"
+        );
+        assert_eq!(
+            row("walking"),
+            "| walking | 75.0 | 75.0 | 75.0 | 75.0 | 83.4 | 87.0 |"
+        );
+    }
 }

@@ -174,7 +174,8 @@ impl ReadingsWriter {
         Ok(writer)
     }
 
-    /// Each episode is flushed as its own block: a run cut short keeps what it recorded.
+    /// Each episode is flushed as its own block: a run cut short keeps what it recorded, and
+    /// `--readings` scores those episodes (and says the file is cut short).
     pub fn write(&mut self, episode: &EpisodeLog) -> anyhow::Result<()> {
         self.line(episode)?;
         self.out
@@ -187,6 +188,13 @@ impl ReadingsWriter {
             .map_err(anyhow::Error::from)
             .and_then(|()| Ok(self.out.write_all(b"\n")?))
             .with_context(|| format!("--save-readings {}: writing", self.path.display()))
+    }
+
+    /// Removes the file of a run that failed: its readings would replay as a result.
+    pub fn discard(self) -> anyhow::Result<()> {
+        drop(self.out);
+        std::fs::remove_file(&self.path)
+            .with_context(|| format!("--save-readings {}: removing it", self.path.display()))
     }
 
     pub fn finish(self) -> anyhow::Result<()> {
