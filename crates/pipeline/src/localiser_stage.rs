@@ -146,13 +146,13 @@ pub struct LocaliserStage {
     /// Whether learning that takes too long has been warned about.
     learning_overdue_warned: bool,
     mount: MountSource,
-    /// The mount in use, in space: a fixed Lidar placed by a transform to its own frame has
-    /// its base there less this.
+    /// The mount in use, in space: a fixed Lidar placed in the map by its transforms has its
+    /// base there less this.
     mount_transform: SpatialTransform,
-    /// The mount in use points the Lidar down (mounted upside down): its scans are mirrored.
-    mount_mirrored: bool,
-    /// Whether a mount tilted out of the plane of the scans has been warned about.
-    mount_tilt_warned: bool,
+    /// The Lidar points down in its root frame (mounted upside down): its scans are mirrored.
+    scans_mirrored: bool,
+    /// Whether a Lidar tilted out of the plane of the scans has been warned about.
+    tilt_warned: bool,
     /// The localiser configuration's mount, for a scan frame /tf_static does not reach.
     configured_mount: Pose2,
     /// Scans localised with the configured mount while /tf_static had transforms but no
@@ -184,8 +184,8 @@ const LIDAR_AT_MAP_ORIGIN: &str = "lidar_at_map_origin";
 /// Summary warning key: the input ended before the background was learned.
 const BACKGROUND_NOT_LEARNED: &str = "background_not_learned";
 
-/// Summary warning key: the mount tilts the Lidar more than [`MAX_MOUNT_TILT_RAD`] out of
-/// the plane of the scans (warned about once).
+/// Summary warning key: the mount (or for a fixed Lidar its transforms in the map) tilts the
+/// Lidar more than [`MAX_MOUNT_TILT_RAD`] out of the plane of the scans (warned about once).
 const MOUNT_TILTED: &str = "mount_tilted";
 
 /// A mount tilted up to this from level (or from upside down) is taken as level: 2 degrees
@@ -244,8 +244,8 @@ impl LocaliserStage {
                 MountSource::Configuration
             },
             mount_transform: SpatialTransform::from_pose2(configured_mount),
-            mount_mirrored: false,
-            mount_tilt_warned: false,
+            scans_mirrored: false,
+            tilt_warned: false,
             configured_mount,
             scans_without_tf_mount: 0,
         })
@@ -503,11 +503,10 @@ impl LocaliserStage {
         let frame = msg.header.frame_id.trim_start_matches('/');
         if self.laser_frame.as_deref() != Some(frame) {
             self.laser_frame = Some(frame.to_string());
-            self.update_mount();
-            self.update_base();
+            self.update_placement();
         }
         let mut scan = convert::scan_from_msg(msg);
-        if self.mount_mirrored {
+        if self.scans_mirrored {
             scan = convert::mirrored_scan(scan);
         }
         self.last_stamp_ns = scan.stamp_ns;
@@ -624,26 +623,30 @@ impl LocaliserStage {
             self.static_tf
                 .insert(child, (parent, SpatialTransform::from_msg(&t.transform)));
         }
-        self.update_mount();
-        self.update_base();
+        self.update_placement();
     }
 
-    /// Recomputes `base -> laser` from the static transforms, when they connect the two and
-    /// the localiser accepts it: a Lidar upside down is used with its scans mirrored, one
-    /// tilted further out of the plane of the scans is warned about.
-    fn update_mount(&mut self) {
+    /// Recomputes the mount, then lays the Lidar into the plane of the scans (once the scans
+    /// name their frame; a learned background works in it).
+    fn update_placement(&mut self) {
         if self.learned_background {
             return;
         }
         let Some(laser) = self.laser_frame.clone() else {
             return;
         };
-        if let Some(mount) = self.static_pose(&laser, &self.frames.base) {
-            let planar = mount.in_scan_plane();
-            let w = self.localiser.set_mount(planar.pose);
+        self.update_mount(&laser);
+        self.place_lidar(&laser);
+    }
+
+    /// Recomputes `base -> laser` from the static transforms, when they connect the two and
+    /// the localiser accepts it.
+    fn update_mount(&mut self, laser: &str) {
+        if let Some(mount) = self.static_pose(laser, &self.frames.base) {
+            let w = self.localiser.set_mount(mount.in_scan_plane().pose);
             if w.is_none() {
-                self.use_mount(MountSource::TfStatic, mount, planar.mirrored);
-                self.check_mount_tilt(&laser, planar.tilt_rad);
+                self.mount = MountSource::TfStatic;
+                self.mount_transform = mount;
             }
             self.warn(w);
         } else if self.mount == MountSource::TfStatic {
@@ -655,62 +658,64 @@ impl LocaliserStage {
             );
             let w = self.localiser.set_mount(self.configured_mount);
             if w.is_none() {
-                let configured = SpatialTransform::from_pose2(self.configured_mount);
-                self.use_mount(MountSource::Configuration, configured, false);
+                self.mount = MountSource::Configuration;
+                self.mount_transform = SpatialTransform::from_pose2(self.configured_mount);
             }
             self.warn(w);
         }
     }
 
-    /// Records the mount the localiser now uses, and whether it mirrors the scans.
-    fn use_mount(&mut self, source: MountSource, mount: SpatialTransform, mirrored: bool) {
-        if mirrored && !self.mount_mirrored {
+    /// Lays the Lidar into the plane of the scans from its whole transform in its root frame,
+    /// as tf2 resolves it: for a fixed Lidar its transforms place, `map -> ... -> laser`;
+    /// otherwise the mount (a moving base is level, an unplaced fixed one at the map origin).
+    /// That transform alone decides whether the scans are mirrored (the Lidar's z axis points
+    /// down) and whether the Lidar is tilted (warned about once); a fixed Lidar's base is
+    /// placed so that the planar mount in use puts the Lidar where that transform lays it.
+    fn place_lidar(&mut self, laser: &str) {
+        let mut root = self.frames.base.clone();
+        let mut lidar = self.mount_transform;
+        if let Some(in_map) = self.lidar_in_map(laser) {
+            let mount = self.mount_transform.in_scan_plane().pose;
+            let base = in_map.in_scan_plane().pose.compose(&mount.inverse());
+            let w = self.localiser.set_fixed_base(base);
+            if w.is_none() {
+                self.base_placed = true;
+                root = self.frames.map.clone();
+                lidar = in_map;
+            }
+            self.warn(w);
+        }
+        let planar = lidar.in_scan_plane();
+        if planar.mirrored && !self.scans_mirrored {
             log::info!(
-                "localiser: the Lidar is mounted upside down (its z axis points down in `{}`): \
-                 its scans are mirrored",
-                self.frames.base
+                "localiser: the Lidar is upside down in `{root}` (its z axis points down): its \
+                 scans are mirrored"
             );
         }
-        self.mount = source;
-        self.mount_transform = mount;
-        self.mount_mirrored = mirrored;
-    }
-
-    /// Warns once when the mount tilts the Lidar out of the plane of the scans: the points are
-    /// laid into the plane as if it were level, and the scans may meet the floor.
-    fn check_mount_tilt(&mut self, laser: &str, tilt_rad: f64) {
-        if tilt_rad <= MAX_MOUNT_TILT_RAD || self.mount_tilt_warned {
-            return;
+        self.scans_mirrored = planar.mirrored;
+        if planar.tilt_rad > MAX_MOUNT_TILT_RAD && !self.tilt_warned {
+            self.tilt_warned = true;
+            self.warnings.tally(MOUNT_TILTED);
+            log::warn!(
+                "localiser: `{root} -> {laser}` tilts the Lidar {:.1} degrees out of the plane of \
+                 the scans (more than {:.0}): its points are placed as if it were level",
+                planar.tilt_rad.to_degrees(),
+                MAX_MOUNT_TILT_RAD.to_degrees()
+            );
         }
-        self.mount_tilt_warned = true;
-        self.warnings.tally(MOUNT_TILTED);
-        log::warn!(
-            "localiser: the mount `{} -> {laser}` tilts the Lidar {:.1} degrees out of the \
-             plane of the scans (more than {:.0}): its points are placed as if it were level",
-            self.frames.base,
-            tilt_rad.to_degrees(),
-            MAX_MOUNT_TILT_RAD.to_degrees()
-        );
     }
 
-    /// Places a fixed Lidar's base in the map from the latest transforms that link the two
-    /// (`map -> odom -> base_link`, or `map -> base_link`), as tf2 would look them up. When
-    /// none reaches the base but some reach the scan's frame (a plain `map -> laser`, as tf2
-    /// would resolve too), the base is where that puts it, the mount in use taken back off.
-    fn update_base(&mut self) {
+    /// A fixed Lidar's transform in the map, from the latest transforms, as tf2 would look
+    /// them up: its base's (`map -> odom -> base_link`, or `map -> base_link`) and the mount
+    /// in use, or when none reaches the base, a chain to the scan's frame (a plain
+    /// `map -> laser`).
+    fn lidar_in_map(&self, laser: &str) -> Option<SpatialTransform> {
         if !self.fixed_in_map {
-            return;
+            return None;
         }
-        let base = self
-            .static_pose(&self.frames.base, &self.frames.map)
-            .or_else(|| {
-                let laser = self.static_pose(self.laser_frame.as_deref()?, &self.frames.map)?;
-                Some(laser.compose(&self.mount_transform.inverse()))
-            });
-        if let Some(base) = base {
-            let w = self.localiser.set_fixed_base(base.in_scan_plane().pose);
-            self.base_placed |= w.is_none();
-            self.warn(w);
+        match self.static_pose(&self.frames.base, &self.frames.map) {
+            Some(base) => Some(base.compose(&self.mount_transform)),
+            None => self.static_pose(laser, &self.frames.map),
         }
     }
 
@@ -904,16 +909,22 @@ mod tests {
         assert_eq!(stage.mount_source(), MountSource::TfStatic);
     }
 
+    /// `tf(parent, child, x, 0.0)` turned by `rotation`.
+    fn rotated_tf(parent: &str, child: &str, x: f64, rotation: glam::DQuat) -> TransformStamped {
+        let mut t = tf(parent, child, x, 0.0);
+        t.transform.rotation = quaternion(rotation);
+        t
+    }
+
     /// The person positions a Lidar fixed in an empty room gives over 20 scans of a person
-    /// standing 1.8 m off, mounted on its base by `mount` (its translation that of `tf`),
-    /// each scan's beams in reverse order when `reversed`.
-    fn person_positions(mount: Quaternion, reversed: bool) -> Vec<Option<glam::DVec2>> {
+    /// standing 1.8 m off, the Lidar placed by the static `transforms`, each scan's beams in
+    /// reverse order when `reversed`.
+    fn person_positions(
+        transforms: Vec<TransformStamped>,
+        reversed: bool,
+    ) -> Vec<Option<glam::DVec2>> {
         let mut stage = fixed_stage();
-        let mut mount_tf = tf("base_link", "laser", 0.2, 0.0);
-        mount_tf.transform.rotation = mount;
-        stage.on_tf_static(&TFMessage {
-            transforms: vec![mount_tf],
-        });
+        stage.on_tf_static(&TFMessage { transforms });
         let increment = std::f64::consts::TAU / 720.0;
         let person = glam::DVec2::new(1.5, 1.0);
         let mut ranges: Vec<f32> = (0..720)
@@ -950,18 +961,62 @@ mod tests {
     #[test]
     fn an_upside_down_mount_places_its_mirrored_scans_as_the_upright_one() {
         let yaw = glam::DQuat::from_rotation_z(0.5);
-        let upright = person_positions(quaternion(yaw), false);
-        let flipped = quaternion(yaw * glam::DQuat::from_rotation_x(std::f64::consts::PI));
-        let upside_down = person_positions(flipped, true);
-        assert!(upright.iter().any(Option::is_some), "{upright:?}");
-        assert_eq!(upright.len(), upside_down.len());
-        for (a, b) in upright.iter().zip(&upside_down) {
-            match (a, b) {
-                (Some(a), Some(b)) => assert!(a.distance(*b) < 1e-5, "{a} against {b}"),
+        let upright = person_positions(vec![rotated_tf("base_link", "laser", 0.2, yaw)], false);
+        let flipped = yaw * glam::DQuat::from_rotation_x(std::f64::consts::PI);
+        let mount = rotated_tf("base_link", "laser", 0.2, flipped);
+        assert_same_positions(&upright, &person_positions(vec![mount], true));
+    }
+
+    /// Both runs saw the person, on the same scans, at the same places.
+    fn assert_same_positions(a: &[Option<glam::DVec2>], b: &[Option<glam::DVec2>]) {
+        assert!(a.iter().any(Option::is_some), "{a:?}");
+        assert_eq!(a.len(), b.len());
+        for (p, q) in a.iter().zip(b) {
+            match (p, q) {
+                (Some(p), Some(q)) => assert!(p.distance(*q) < 1e-5, "{p} against {q}"),
                 (None, None) => {}
-                _ => panic!("{upright:?} against {upside_down:?}"),
+                _ => panic!("{a:?} against {b:?}"),
             }
         }
+    }
+
+    /// A fixed Lidar's whole transform in the map decides, not the mount alone: upside down
+    /// by a plain `map -> laser`, or by its base rolled over in the map under an upright
+    /// mount, it is mirrored as tf2 resolves it. Only `base_link -> laser` had decided: the
+    /// person seen 1.8 m off, on a third of the scans.
+    #[test]
+    fn an_upside_down_fixed_lidar_placed_by_its_transforms_is_mirrored_too() {
+        let yaw = glam::DQuat::from_rotation_z(0.5);
+        let flip = glam::DQuat::from_rotation_x(std::f64::consts::PI);
+        let upright = person_positions(vec![rotated_tf("map", "laser", 0.2, yaw)], false);
+        let by_map = person_positions(vec![rotated_tf("map", "laser", 0.2, yaw * flip)], true);
+        assert_same_positions(&upright, &by_map);
+        // The base rolled over in the map (0.2 along its x, which keeps its heading), the
+        // mount upright at its origin.
+        let by_base = person_positions(
+            vec![
+                rotated_tf("map", "base_link", 0.2, yaw * flip),
+                rotated_tf("base_link", "laser", 0.0, glam::DQuat::IDENTITY),
+            ],
+            true,
+        );
+        assert_same_positions(&upright, &by_base);
+    }
+
+    /// An upright Lidar placed by `map -> laser` is where that puts it, as one placed at the
+    /// same pose through its base: its scans are not mirrored.
+    #[test]
+    fn an_upright_fixed_lidar_placed_by_map_to_laser_is_not_mirrored() {
+        let yaw = glam::DQuat::from_rotation_z(0.5);
+        let by_map = person_positions(vec![rotated_tf("map", "laser", 0.2, yaw)], false);
+        let by_mount = person_positions(vec![rotated_tf("base_link", "laser", 0.2, yaw)], false);
+        assert_same_positions(&by_map, &by_mount);
+        // The person, 1.5 m ahead and 1 m to the left of the Lidar, is found there (within
+        // their 0.2 m radius: the points are on their near side).
+        let person =
+            glam::DVec2::new(0.2, 0.0) + glam::DVec2::from_angle(0.5).rotate((1.5, 1.0).into());
+        let last = by_map.iter().flatten().last().expect("found");
+        assert!(last.distance(person) < 0.2, "{last} against {person}");
     }
 
     #[test]
@@ -985,6 +1040,30 @@ mod tests {
         scan_output(&mut stage, scan(MS)).expect("localised");
         assert_eq!(stage.warning_counts().get(MOUNT_TILTED), Some(&1));
         assert_eq!(stage.mount_source(), MountSource::TfStatic);
+    }
+
+    /// A fixed Lidar tilted by its transforms in the map is warned about as a tilted mount
+    /// is, once; one the map's transforms level again is not.
+    #[test]
+    fn a_fixed_lidar_tilted_in_the_map_is_warned_about_once() {
+        let pitch = glam::DQuat::from_rotation_y;
+        let mut stage = fixed_stage();
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![
+                rotated_tf("map", "base_link", 1.0, pitch(-0.2)),
+                rotated_tf("base_link", "laser", 0.2, pitch(0.2)),
+            ],
+        });
+        scan_output(&mut stage, scan(0)).expect("localised");
+        assert_eq!(stage.warning_counts().get(MOUNT_TILTED), None);
+        let mut stage = fixed_stage();
+        for k in 0..2 {
+            stage.on_tf_static(&TFMessage {
+                transforms: vec![rotated_tf("map", "laser", 1.0, pitch(0.2 + 0.1 * k as f64))],
+            });
+            scan_output(&mut stage, scan(k)).expect("localised");
+        }
+        assert_eq!(stage.warning_counts().get(MOUNT_TILTED), Some(&1));
     }
 
     /// A mount the localiser refuses (not finite) is not the one in use: `mount` had said
