@@ -974,8 +974,8 @@ fn zstd_frame_stored(bytes: &[u8]) -> Vec<u8> {
     frame
 }
 
-/// A bare `<name>_0.mcap.zstd` in `dir` of `mib` one-MiB messages.
-fn write_compressed_bag(dir: &Path, mib: usize) -> std::path::PathBuf {
+/// A bag `big<mib>` in `dir` of `mib` one-MiB messages.
+fn write_big_bag(dir: &Path, mib: usize) -> std::path::PathBuf {
     let bag = dir.join(format!("big{mib}"));
     let mut writer = BagWriter::create(&bag, WriterOptions::default()).unwrap();
     let topic = writer
@@ -995,6 +995,12 @@ fn write_compressed_bag(dir: &Path, mib: usize) -> std::path::PathBuf {
         writer.write(topic, 1000 + i as i64, &cdr).unwrap();
     }
     writer.finish().unwrap();
+    bag
+}
+
+/// A bare `<name>_0.mcap.zstd` in `dir` of `mib` one-MiB messages.
+fn write_compressed_bag(dir: &Path, mib: usize) -> std::path::PathBuf {
+    let bag = write_big_bag(dir, mib);
     let file = storage_file(&bag, "mcap");
     let compressed = dir.join(format!("big{mib}_0.mcap.zstd"));
     std::fs::write(
@@ -1078,6 +1084,66 @@ fn a_signal_while_a_compressed_bag_is_read_leaves_no_copy_behind() {
         return;
     }
     panic!("every conversion ended before SIGTERM reached it");
+}
+
+/// Whether process `pid` has a handler for SIGTERM (`SigCgt` in its /proc status).
+fn catches_sigterm(pid: u32) -> bool {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
+    status
+        .lines()
+        .find_map(|line| line.strip_prefix("SigCgt:"))
+        .and_then(|mask| u64::from_str_radix(mask.trim(), 16).ok())
+        .is_some_and(|mask| mask & 1 << (15 - 1) != 0)
+}
+
+/// Before a command writes anything (here `bag info` scanning a recorder's MCAP cut short,
+/// which has no index: every record is read), a signal ends it at once, as it always had:
+/// stopping at the next message, for a command that has a bag to finish, had made the first
+/// Ctrl-C wait for the whole scan. A scan done before the signal lands is made larger.
+#[test]
+fn a_signal_before_any_output_ends_the_command_at_once() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::time::{Duration, Instant};
+    let tmp = tempfile::tempdir().unwrap();
+    for mib in [64, 256] {
+        let bag = write_big_bag(tmp.path(), mib);
+        let file = storage_file(&bag, "mcap");
+        let length = std::fs::metadata(&file).unwrap().len();
+        std::fs::File::options()
+            .write(true)
+            .open(&file)
+            .unwrap()
+            .set_len(length - 4096)
+            .unwrap();
+        let mut child = lidar_har_command()
+            .args(["bag".as_ref(), "info".as_ref(), bag.as_os_str()])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while !catches_sigterm(child.id()) && child.try_wait().unwrap().is_none() {
+            assert!(Instant::now() < deadline, "no SIGTERM handler in 60 s");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let kill = std::process::Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success());
+        let output = child.wait_with_output().unwrap();
+        std::fs::remove_dir_all(&bag).unwrap();
+        if !output.stdout.is_empty() && output.status.signal() == Some(15) && mib < 256 {
+            continue;
+        }
+        assert_eq!(output.status.signal(), Some(15), "{output:?}");
+        assert!(
+            output.stdout.is_empty(),
+            "the scan went on after the signal: {}",
+            String::from_utf8_lossy(&output.stdout)
+        );
+        return;
+    }
 }
 
 /// `lidar-har ARGS`, sent SIGTERM once `storage` (the bag file it writes) has `bytes` or more;

@@ -21,5 +21,5 @@ mod writer;
 pub use error::{BagError, Result};
 pub use qos::OfferedQos;
 pub use reader::{BagInfo, BagMessage, BagReader, Messages, TopicInfo};
-pub use source::remove_temporary_copies;
+pub use source::{PROCESS_ENDING, remove_temporary_copies};
 pub use writer::{BagSummary, BagWriter, Compression, StorageId, TopicHandle, WriterOptions};

@@ -81,7 +81,8 @@ fn ending() -> bool {
     copies().removed
 }
 
-const ENDING: &str = "the process is ending (its temporary copies were removed)";
+/// What a read says that failed because [`remove_temporary_copies`] was called meanwhile.
+pub const PROCESS_ENDING: &str = "the process is ending (its temporary copies were removed)";
 
 /// Copies `from` into `to` as `std::io::copy` does, but in pieces, and fails between two once
 /// `ending` says so: a copy is as large as a storage file uncompressed, seconds to write.
@@ -94,7 +95,7 @@ pub(crate) fn copy_unless_ending(
     let mut copied = 0u64;
     loop {
         if ending() {
-            return Err(std::io::Error::other(ENDING));
+            return Err(std::io::Error::other(PROCESS_ENDING));
         }
         let read = match from.read(&mut piece) {
             Ok(0) => return Ok(copied),
@@ -123,7 +124,7 @@ impl CopyDir {
     fn new() -> std::io::Result<Self> {
         let mut copies = copies();
         if copies.removed {
-            return Err(std::io::Error::other(ENDING));
+            return Err(std::io::Error::other(PROCESS_ENDING));
         }
         let dir = tempfile::Builder::new()
             .prefix("lidar-har-bag-")

@@ -76,16 +76,18 @@ fn main() -> ExitCode {
 /// The SIGINT or SIGTERM that asked the command to stop; 0 until one comes.
 static STOP_SIGNAL: AtomicI32 = AtomicI32::new(0);
 
-/// For commands that read bags given by the user (`run`, `bag`): the first SIGINT (Ctrl-C) or
-/// SIGTERM asks the command to stop at the next message, so that it finishes the bag it
-/// writes (a bag left without its MCAP footer is refused by other readers) and `run` its
-/// `summary.json`; the process then ends by that signal, as it did when the signal ended it
-/// at once (the shell sees 130 or 143). The signal also deletes the bag reader's temporary
-/// copies (a storage file rosbag2 compressed whole, `.zstd`, is read from a decompressed copy
-/// in $TMPDIR as large as the file uncompressed), which stops a decompression under way: a
-/// process ended by a signal runs no destructors. A second signal ends the process at once.
-/// A signal the process started with ignored (a background job of a script) stays ignored.
-/// Not for `topic echo`, which turns both signals into a clean stop of its own.
+/// For commands that read bags given by the user (`run`, `bag`): once the command writes its
+/// outputs message by message ([`StopRequest::arm`]), the first SIGINT (Ctrl-C) or SIGTERM
+/// asks it to stop at the next message, so that it finishes the bag it writes (a bag left
+/// without its MCAP footer is refused by other readers) and `run` its `summary.json`; the
+/// process then ends by that signal (the shell sees 130 or 143). Before that (opening a
+/// large bag, scanning one cut short, `bag info`) the signal ends the process at once. Either
+/// way it deletes the bag reader's temporary copies (a storage file rosbag2 compressed whole,
+/// `.zstd`, is read from a decompressed copy in $TMPDIR as large as the file uncompressed),
+/// which also stops a decompression under way: a process ended by a signal runs no
+/// destructors. A second signal ends the process at once. A signal the process started with
+/// ignored (a background job of a script) stays ignored. Not for `topic echo`, which turns
+/// both signals into a clean stop of its own.
 fn stop_on_signal() -> anyhow::Result<StopRequest> {
     use signal_hook::consts::{SIGINT, SIGTERM};
     let handled = [SIGINT, SIGTERM].into_iter().filter(|&s| !ignored(s));
@@ -96,7 +98,11 @@ fn stop_on_signal() -> anyhow::Result<StopRequest> {
     std::thread::spawn(move || {
         let mut received = signals.forever();
         if let Some(signal) = received.next() {
+            // Stored first: a command that finishes meanwhile still ends by the signal.
             STOP_SIGNAL.store(signal, Ordering::SeqCst);
+            if !request.is_armed() {
+                end_by(signal);
+            }
             let name = signal_hook::low_level::signal_name(signal).unwrap_or("a signal");
             // Asked before the copies go, so that a read they break is put down to it.
             request.request(format!("interrupted by {name}"));

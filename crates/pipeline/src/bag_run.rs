@@ -3,6 +3,7 @@
 //! `summary.json` beside them.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use glam::DVec2;
@@ -39,17 +40,35 @@ pub struct RunOptions {
 /// A request, made from another thread (a signal handler's), that a run stop reading its
 /// input at the next message and finish its outputs; it says why, for `read_error`.
 #[derive(Debug, Clone, Default)]
-pub struct StopRequest(Arc<OnceLock<String>>);
+pub struct StopRequest(Arc<StopState>);
+
+#[derive(Debug, Default)]
+struct StopState {
+    armed: AtomicBool,
+    reason: OnceLock<String>,
+}
 
 impl StopRequest {
     /// Asks the run to stop, saying why; a later request keeps the first reason.
     pub fn request(&self, reason: impl Into<String>) {
-        let _ = self.0.set(reason.into());
+        let _ = self.0.reason.set(reason.into());
     }
 
     /// Why the run was asked to stop, if it was.
     pub fn reason(&self) -> Option<&str> {
-        self.0.get().map(String::as_str)
+        self.0.reason.get().map(String::as_str)
+    }
+
+    /// Says that the run is about to write outputs and then read its input message by
+    /// message, where it looks at the request. Before that (opening a large bag, scanning one
+    /// cut short) a requester had better end the process at once.
+    pub fn arm(&self) {
+        self.0.armed.store(true, Ordering::SeqCst);
+    }
+
+    /// Whether [`StopRequest::arm`] was called.
+    pub fn is_armed(&self) -> bool {
+        self.0.armed.load(Ordering::SeqCst)
     }
 }
 
@@ -174,6 +193,9 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
     let reader = open_input(input)?;
     let (room, moving) = choose_room(&reader, input, options.map, &options.config.frames);
     let learned = matches!(room, RoomSource::LearnedBackground);
+    // From here a stop is honoured at the first message, outputs finished, even one that
+    // comes while they are being made.
+    options.stop.arm();
     let mut stages = Stages::start(
         out_dir,
         options.config,

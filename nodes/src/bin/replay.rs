@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
-use lidar_har_bag::BagReader;
+use lidar_har_bag::{BagReader, PROCESS_ENDING};
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::qos::{QosProfile, Reliability};
 use lidar_har_msgs::rosgraph_msgs::Clock;
@@ -37,7 +37,7 @@ fn main() -> ExitCode {
         },
         |shutdown| match play(shutdown) {
             // The signal deletes the bag's temporary copies, which fails a read under way.
-            Err(e) if shutdown.requested() => {
+            Err(e) if shutdown.requested() && format!("{e:#}").contains(PROCESS_ENDING) => {
                 log::info!("replay: stopped by signal ({e:#})");
                 Ok(())
             }

@@ -156,6 +156,8 @@ fn convert(
         }
         topics.push(topic);
     }
+    // From here a stop is honoured at the first message, the new bag finished.
+    stop.arm();
     let mut writer = BagWriter::create(dst, options)
         .with_context(|| format!("cannot create bag {}", dst.display()))?;
     let mut handles = std::collections::HashMap::new();
