@@ -8,7 +8,8 @@
 //! Episodes with falls run on past their end until a fall that began on their last scan has
 //! ended and its alert has fallen due; falls that begin in that time are not counted.
 //! Episodes staying down run on for PERSON_DOWN's scoring window, so that a spell due on
-//! their last scan can be answered; spells that fall due in that time are not counted.
+//! their last scan can be answered; spells that fall due in that time are not counted, but
+//! a PERSON_DOWN raised in one is not counted as false either: it was due.
 //! The report also scores the streaming classification itself, scan by scan over every
 //! episode: unlike `lidar-har evaluate`'s windows from a zero state, this is what the robot
 //! publishes, so models trained on different window lengths compare on equal terms.
@@ -147,7 +148,9 @@ pub struct AlertsReport {
     pub unmatched_alerts_in_fall_episodes: usize,
     /// `PERSON_DOWN` alerts in those episodes raised in no spell where it was due (the fall's
     /// own alert answers the fall; these are false, unless the person tried to get up and
-    /// never stood: the ground truth ends a spell at any getting up).
+    /// never stood: the ground truth ends a spell at any getting up). A spell that fell due
+    /// only in the run-on past the episode's end is not counted in `person_down_due`, but
+    /// the PERSON_DOWN that answers it is not counted here either.
     pub person_down_not_due_in_fall_episodes: usize,
     /// `FALL_DETECTED` alerts after the first in the same fall's window (until the next fall):
     /// one fall alerted twice, which the hysteresis should prevent.
@@ -168,7 +171,8 @@ pub struct AlertsReport {
     /// Of those, the spells with a PERSON_DOWN raised in them (or within a second of their end).
     pub person_down_due_alerted: usize,
     /// `PERSON_DOWN` alerts after the first in the same spell: one spell alerted twice,
-    /// which the hysteresis should prevent.
+    /// which the hysteresis should prevent. Spells that fell due only in the run-on past an
+    /// episode's end count here too.
     pub repeated_person_down: usize,
     /// How long after it fell due those came, seconds.
     pub person_down_delay_s: Option<Spread>,
@@ -510,6 +514,7 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
         scene_names,
         args.seed,
         args.episode_seconds,
+        None,
     )
 }
 
@@ -588,6 +593,7 @@ fn replay(
         header.scenes,
         header.seed,
         header.episode_seconds,
+        Some(path),
     )?;
     report.cut_short = cut_short.map(|error| CutShort {
         error,
@@ -644,13 +650,23 @@ impl Tally {
         let id = log.id;
         let episode = Episode::of(log, alerts);
         self.scans.merge(&episode.scans);
-        let spells = down_spells(&episode.truth, episode.end_s, self.fall_alert.down_after_s);
+        let down_after_s = self.fall_alert.down_after_s;
+        // The spells scored: due by the episode's end.
+        let spells = down_spells(&episode.truth, episode.end_s, down_after_s);
         let answers: Vec<Option<&FallAlert>> = spells
             .iter()
             .map(|&spell| person_down_answering(&episode.alerts, spell))
             .collect();
+        // Whether an alert is due is judged over the whole truth, run-on included: a
+        // PERSON_DOWN in a spell that fell due only after the end is right, not false, though
+        // that spell is not scored. The scored spells are among these, with the same bounds.
+        let due_spells = down_spells(&episode.truth, f64::INFINITY, down_after_s);
+        let due_answers: Vec<&FallAlert> = due_spells
+            .iter()
+            .filter_map(|&spell| person_down_answering(&episode.alerts, spell))
+            .collect();
         let answers_a_spell =
-            |alert: &FallAlert| answers.iter().flatten().any(|a| std::ptr::eq(*a, alert));
+            |alert: &FallAlert| due_answers.iter().any(|a| std::ptr::eq(*a, alert));
         if log.kind != ScriptKind::Everyday {
             self.person_down_not_due_in_fall_episodes += episode
                 .alerts
@@ -713,7 +729,7 @@ impl Tally {
                 );
             }
         }
-        self.repeated_person_down += repeated_person_down_alerts(&spells, &episode.alerts);
+        self.repeated_person_down += repeated_person_down_alerts(&due_spells, &episode.alerts);
         for (&(start, end), alert) in spells.iter().zip(answers) {
             self.person_down_due.push(DownSpell {
                 episode: id,
@@ -727,23 +743,37 @@ impl Tally {
     }
 
     /// The report; an error where the episodes staying down measured nothing (an empty
-    /// `person_down_due` would read as no PERSON_DOWN missed).
+    /// `person_down_due` would read as no PERSON_DOWN missed). `readings`: the file replayed
+    /// (`--readings`), `None` for a simulated run.
     fn report(
         self,
         model: String,
         scenes: Vec<String>,
         seed: u64,
         episode_seconds: f64,
+        readings: Option<&Path>,
     ) -> anyhow::Result<AlertsReport> {
         let (ran, without) = (self.stay_down_episodes_run, self.stay_down_without_spell);
         let down_after_s = self.fall_alert.down_after_s;
-        anyhow::ensure!(
-            ran == 0 || without < ran,
-            "none of the {ran} episodes staying down had the person down for down_after_s \
-             ({down_after_s} s) before its end (--episode-seconds {episode_seconds}): PERSON_DOWN \
-             never fell due there; give a longer --episode-seconds (their fall comes 5 s to \
-             about 40 % into an episode) or a lower down_after_s"
-        );
+        if ran > 0 && without == ran {
+            let never_due = format!(
+                "none of the {ran} episodes staying down had the person down for down_after_s \
+                 ({down_after_s} s) before its end (--episode-seconds {episode_seconds}): \
+                 PERSON_DOWN never fell due there"
+            );
+            anyhow::bail!(match readings {
+                None => format!(
+                    "{never_due}; give a longer --episode-seconds (their fall comes 5 s to \
+                     about 40 % into an episode) or a lower down_after_s"
+                ),
+                Some(path) => format!(
+                    "--readings {}: {never_due}; record again with a longer --episode-seconds \
+                     (their fall comes 5 s to about 40 % into an episode), or replay with a \
+                     lower down_after_s (--fall-alert down_after_s=SECONDS)",
+                    path.display()
+                ),
+            });
+        }
         if without > 0 {
             errln!(
                 "alerts: {without} of the {ran} episodes staying down had the person down for \
@@ -1679,7 +1709,7 @@ mod tests {
                 Vec::new(),
             );
             tally
-                .report(String::new(), Vec::new(), 1, 20.0)
+                .report(String::new(), Vec::new(), 1, 20.0, None)
                 .map(|r| r.person_down_due.len())
         };
         // Down from 10 s: due at 25 s, after the end at 20 s (the run-on not counted).
@@ -1692,6 +1722,80 @@ mod tests {
         // Down from 3 s: due at 18 s; answered in the run-on or not, it is measured.
         let early = [(Walking, 3.0), (FallingDown, 1.0), (LyingDown, 19.0)];
         assert_eq!(report(&early).unwrap(), 1);
+    }
+
+    #[test]
+    fn person_down_for_a_spell_due_only_in_the_run_on_is_not_false() {
+        use Activity::*;
+        let config = FallAlertConfig::default();
+        let mut tally = Tally::new(config, 1.0);
+        // Down from 3 s: due at 18 s, before the end at 20 s: scored.
+        let early = [(Walking, 3.0), (FallingDown, 1.0), (LyingDown, 19.0)];
+        tally.add(
+            &logged(0, ScriptKind::FallAndStayDown, &early, 20.0),
+            vec![alert(AlertKind::PersonDown, 18.5)],
+        );
+        // Down from 6 s: due at 21 s, in the 3 s run-on; the PERSON_DOWN at 21.5 s is right
+        // (the person has been down 15 s), and a second one in that spell is a repeat.
+        let late = [(Walking, 6.0), (FallingDown, 1.0), (LyingDown, 16.0)];
+        tally.add(
+            &logged(1, ScriptKind::FallAndStayDown, &late, 20.0),
+            vec![
+                alert(AlertKind::PersonDown, 21.5),
+                alert(AlertKind::PersonDown, 22.5),
+            ],
+        );
+        // Down from 8 s: due at 23 s, after the run-on's last scan: a PERSON_DOWN at 22 s
+        // was not due.
+        let early_alert = [(Walking, 8.0), (FallingDown, 1.0), (LyingDown, 14.0)];
+        tally.add(
+            &logged(2, ScriptKind::FallAndStayDown, &early_alert, 20.0),
+            vec![alert(AlertKind::PersonDown, 22.0)],
+        );
+        let report = tally
+            .report(String::new(), Vec::new(), 1, 20.0, None)
+            .unwrap();
+        // Only the spell due by the end is scored.
+        assert_eq!(report.person_down_due.len(), 1);
+        assert_eq!(report.person_down_due_alerted, 1);
+        // The repeat at 22.5 s counts as one, as in a scored spell, and the early one at 22 s
+        // was not due; the PERSON_DOWN at 21.5 s, 15 s after the fall, was.
+        assert_eq!(
+            report.person_down_not_due_in_fall_episodes, 2,
+            "the PERSON_DOWN at 21.5 s, 15 s after the fall, was due"
+        );
+        assert_eq!(report.repeated_person_down, 1);
+    }
+
+    #[test]
+    fn replayed_readings_without_a_spell_due_name_the_file_and_ask_for_a_new_recording() {
+        use Activity::*;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("short.zst");
+        // Down from 5 s in a 10 s episode: due at 20 s, after the run-on.
+        let late = [(Walking, 5.0), (FallingDown, 1.0), (LyingDown, 7.0)];
+        write_readings(
+            &path,
+            &[logged(0, ScriptKind::FallAndStayDown, &late, 10.0)],
+        );
+        let error = run(alerts_args(&["--readings", &path.display().to_string()]))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.contains(&format!("--readings {}:", path.display()))
+                && error.contains("record again with a longer --episode-seconds")
+                && error.contains("--fall-alert down_after_s=")
+                && !error.contains("give a longer --episode-seconds"),
+            "{error}"
+        );
+        // down_after_s 4 s on replay: due at 9 s, before the end; the report is given.
+        run(alerts_args(&[
+            "--readings",
+            &path.display().to_string(),
+            "--fall-alert",
+            "down_after_s=4",
+        ]))
+        .unwrap();
     }
 
     #[test]
