@@ -1053,11 +1053,7 @@ fn a_signal_while_a_compressed_bag_is_read_leaves_no_copy_behind() {
                 break status;
             }
             if !signalled && !copies().is_empty() {
-                let kill = std::process::Command::new("kill")
-                    .args(["-TERM", &child.id().to_string()])
-                    .status()
-                    .unwrap();
-                assert!(kill.success());
+                send_sigterm(&child);
                 signalled = true;
             }
             if Instant::now() > deadline {
@@ -1084,6 +1080,15 @@ fn a_signal_while_a_compressed_bag_is_read_leaves_no_copy_behind() {
         return;
     }
     panic!("every conversion ended before SIGTERM reached it");
+}
+
+/// Sends SIGTERM to `child`, as `kill` from a shell does.
+fn send_sigterm(child: &std::process::Child) {
+    let kill = std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
 }
 
 /// Whether process `pid` has a handler for SIGTERM (`SigCgt` in its /proc status).
@@ -1126,11 +1131,7 @@ fn a_signal_before_any_output_ends_the_command_at_once() {
             assert!(Instant::now() < deadline, "no SIGTERM handler in 60 s");
             std::thread::sleep(Duration::from_millis(1));
         }
-        let kill = std::process::Command::new("kill")
-            .args(["-TERM", &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(kill.success());
+        send_sigterm(&child);
         let output = child.wait_with_output().unwrap();
         std::fs::remove_dir_all(&bag).unwrap();
         if !output.stdout.is_empty() && output.status.signal() == Some(15) && mib < 256 {
@@ -1175,11 +1176,7 @@ fn terminated_once_written(
         }
         std::thread::sleep(Duration::from_millis(1));
     }
-    let kill = std::process::Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(kill.success());
+    send_sigterm(&child);
     child.wait_with_output().unwrap()
 }
 
