@@ -4,7 +4,7 @@
 use glam::{DVec2, DVec3};
 use lidar_har_sim::scene::NoiseSpec;
 use lidar_har_sim::shapes::{ray_capsule, ray_circle, ray_segment};
-use lidar_har_sim::{BeamLabel, Frame, Scene, Simulator};
+use lidar_har_sim::{BeamLabel, Frame, Scene, SceneError, Simulator};
 use proptest::prelude::*;
 
 /// A rectangular room `w` x `h` with a box and a table, the robot in one corner region and
@@ -45,14 +45,23 @@ fn scene_text(
     )
 }
 
-fn frames(text: &str, seed: u64) -> (Simulator, Vec<Frame>) {
+/// The scene's frames, or `None` when the simulator refuses a later step of the script: the
+/// generator puts the second step wherever the first ends, and a body sitting or crawling
+/// off there may have no room (near a wall, by the seed's draws). Such a case is not run.
+fn frames(text: &str, seed: u64) -> Option<(Simulator, Vec<Frame>)> {
     let scene = Scene::parse(text, "proptest").expect("generated scene is valid");
-    let mut sim = Simulator::new(scene, seed).expect("simulator starts");
+    let mut sim = match Simulator::new(scene, seed) {
+        Ok(sim) => sim,
+        Err(SceneError::Refused { key, .. }) if key.starts_with("person.script[") => {
+            return None;
+        }
+        Err(e) => panic!("simulator starts: {e}"),
+    };
     let mut out = Vec::new();
     while let Some(f) = sim.step() {
         out.push(f);
     }
-    (sim, out)
+    Some((sim, out))
 }
 
 /// Exact distance for one beam, brute force over every object (no broad phase).
@@ -87,7 +96,9 @@ proptest! {
                                     dist in 0.0f64..20.0, miss in 0.0f64..50.0, wrong in 0.0f64..50.0,
                                     angle in 0.0f64..1.0, lh in 0.05f64..0.6, seed in 0u64..1000) {
         let noise = format!("{{distance_pct: {dist}, missing_pct: {miss}, wrong_pct: {wrong}, angle_deg: {angle}}}");
-        let (sim, frames) = frames(&scene_text(w, h, a, b, &noise, lh, 360), seed);
+        let run = frames(&scene_text(w, h, a, b, &noise, lh, 360), seed);
+        prop_assume!(run.is_some(), "a later step with no room for the body");
+        let (sim, frames) = run.unwrap();
         let g = sim.scan_geometry();
         for f in &frames {
             prop_assert_eq!(f.ranges.len(), 360);
@@ -101,7 +112,9 @@ proptest! {
     fn person_points_lie_on_the_body(w in 4.0f64..9.0, h in 4.0f64..7.0, a in 0usize..9, b in 0usize..9,
                                      noisy in any::<bool>(), seed in 0u64..1000) {
         let noise = if noisy { "{}" } else { "{distance_pct: 0, missing_pct: 0, wrong_pct: 0, angle_deg: 0}" };
-        let (sim, frames) = frames(&scene_text(w, h, a, b, noise, 0.1, 720), seed);
+        let run = frames(&scene_text(w, h, a, b, noise, 0.1, 720), seed);
+        prop_assume!(run.is_some(), "a later step with no room for the body");
+        let (sim, frames) = run.unwrap();
         let g = sim.scan_geometry();
         let n = sim.scene().lidar.noise;
         let hgt = sim.world().lidar_height;
@@ -135,7 +148,9 @@ proptest! {
         let text = scene_text(w, h, a, b, noise, 0.1, 720);
         let scene = Scene::parse(&text, "proptest").unwrap();
         prop_assert_eq!(scene.lidar.noise, NoiseSpec { wrong_spread_deg: 30.0, ..NoiseSpec::NONE });
-        let (sim, frames) = frames(&text, seed);
+        let run = frames(&text, seed);
+        prop_assume!(run.is_some(), "a later step with no room for the body");
+        let (sim, frames) = run.unwrap();
         let g = sim.scan_geometry();
         for f in frames.iter().step_by(7) {
             for i in 0..f.ranges.len() {
@@ -145,4 +160,13 @@ proptest! {
             }
         }
     }
+}
+
+/// The case the property tests drew in session 48 (seeds are random): a 3 m room, walking
+/// unsteadily, then crawling off with the legs into a wall, which the simulator rightly
+/// refuses. Such a case is skipped, not failed.
+#[test]
+fn a_later_step_without_room_for_the_body_is_skipped() {
+    let noise = "{distance_pct: 0, missing_pct: 0, wrong_pct: 0, angle_deg: 0}";
+    assert!(frames(&scene_text(3.0, 3.0, 7, 0, noise, 0.1, 720), 0).is_none());
 }
