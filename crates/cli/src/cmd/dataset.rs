@@ -192,6 +192,23 @@ impl Generator {
         )
     }
 
+    /// What this run of `lidar-har dataset` (`args` over `scenes`) records of how it made
+    /// its episodes.
+    fn of(args: &DatasetArgs, scenes: &[(String, Scene)]) -> Self {
+        Self {
+            command: std::env::args().collect::<Vec<_>>().join(" "),
+            scenes: scenes.iter().map(|(_, s)| s.name.clone()).collect(),
+            held_out: args.held_out.clone(),
+            episodes: args.episodes,
+            seed: args.seed,
+            test_fraction: Some(args.test_fraction),
+            episode_seconds: args.episode_seconds,
+            person_points:
+                "localiser (map subtraction, clustering, tracker; lidar_har_core::localiser)"
+                    .to_string(),
+        }
+    }
+
     /// The (scene name, simulator seed) of every episode a dataset made so trained on: the
     /// training scenes' episodes outside its test split. `None` when its test fraction cannot
     /// be told.
@@ -445,18 +462,7 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
             .iter()
             .map(|a| a.label().to_string())
             .collect(),
-        generator: Generator {
-            command: std::env::args().collect::<Vec<_>>().join(" "),
-            scenes: scenes.iter().map(|(_, s)| s.name.clone()).collect(),
-            held_out: args.held_out.clone(),
-            episodes: args.episodes,
-            seed: args.seed,
-            test_fraction: Some(args.test_fraction),
-            episode_seconds: args.episode_seconds,
-            person_points:
-                "localiser (map subtraction, clustering, tracker; lidar_har_core::localiser)"
-                    .to_string(),
-        },
+        generator: Generator::of(&args, &scenes),
         splits: Default::default(),
         episodes,
         windows: Vec::new(),
@@ -1210,13 +1216,7 @@ mod tests {
         let plans = plan_episodes(&args, &scenes).unwrap();
         let generator = Generator {
             command: format!("lidar-har dataset {}", extra.join(" ")),
-            scenes: scenes.iter().map(|(_, s)| s.name.clone()).collect(),
-            held_out: args.held_out.clone(),
-            episodes: args.episodes,
-            seed: args.seed,
-            test_fraction: Some(args.test_fraction),
-            episode_seconds: args.episode_seconds,
-            person_points: String::new(),
+            ..Generator::of(&args, &scenes)
         };
         let plans = plans
             .into_iter()
