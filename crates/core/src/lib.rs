@@ -18,4 +18,5 @@ pub mod scan;
 pub mod stats;
 pub mod sweep;
 pub mod tracker;
+pub mod truth_match;
 pub mod visibility;

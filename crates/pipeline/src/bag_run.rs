@@ -10,7 +10,8 @@ use glam::DVec2;
 use lidar_har_bag::{BagError, BagMessage, BagReader, BagWriter, TopicHandle, WriterOptions};
 use lidar_har_core::localiser::{ConfigError, FrameConfig, LocaliserConfig};
 use lidar_har_core::map::OccupancyMap;
-use lidar_har_core::stats::Spread;
+use lidar_har_core::stats::{Spread, SpreadTally};
+use lidar_har_core::truth_match::{Around, TruthMatcher};
 use lidar_har_msgs::geometry_msgs::PoseStamped;
 use lidar_har_msgs::tf2_msgs::TFMessage;
 use lidar_har_msgs::topics::{self, TopicSpec};
@@ -396,19 +397,20 @@ impl Stages {
                 return Ok(());
             }
         };
+        let mut estimates = Vec::new();
         for scan in &step.scans {
             tally
                 .pipeline_times
-                .push(scan.pipeline_time.as_secs_f64() * 1e6);
+                .record(scan.pipeline_time.as_secs_f64() * 1e6);
             tally
                 .scan_times
-                .push(scan.localise_time.as_secs_f64() * 1e6);
+                .record(scan.localise_time.as_secs_f64() * 1e6);
             if let Some(output) = &scan.output {
                 tally.scans_localised += 1;
                 if let Some(person) = &output.person {
                     tally.tracked += 1;
                     tally.visible += u64::from(person.visible);
-                    tally.estimates.push((output.stamp_ns, person.position));
+                    estimates.push((output.stamp_ns, person.position));
                 }
             }
         }
@@ -419,6 +421,19 @@ impl Stages {
             self.outputs
                 .write(out, log_time_ns)
                 .map_err(output_error(out_dir))?;
+        }
+        // The pose head placed the pelvis while the classifier took this step's observations.
+        let pelvis = self
+            .classifier
+            .as_mut()
+            .map(ClassifierRun::take_pelvis)
+            .unwrap_or_default();
+        for (stamp_ns, position) in estimates {
+            let pelvis = pelvis
+                .iter()
+                .find(|&&(t, _)| t == stamp_ns)
+                .map(|&(_, p)| p);
+            tally.errors.add_estimate(stamp_ns, position, pelvis);
         }
         Ok(())
     }
@@ -460,21 +475,38 @@ fn replay(
 }
 
 /// What a run counts and collects over the messages for its summary.
-#[derive(Default)]
 struct Tally {
     scans: u64,
     scans_localised: u64,
     visible: u64,
     tracked: u64,
     decode_errors: u64,
-    scan_times: Vec<f64>,
-    pipeline_times: Vec<f64>,
-    estimates: Vec<(i64, DVec2)>,
-    ground_truth: Vec<(i64, DVec2)>,
-    /// The frame of the first ground-truth sample; samples in another are skipped.
-    ground_truth_frame: Option<String>,
+    scan_times: SpreadTally,
+    pipeline_times: SpreadTally,
+    errors: PositionErrors,
     read_error: Option<String>,
 }
+
+impl Default for Tally {
+    fn default() -> Self {
+        Self {
+            scans: 0,
+            scans_localised: 0,
+            visible: 0,
+            tracked: 0,
+            decode_errors: 0,
+            scan_times: SpreadTally::with_steps_per_unit(STEPS_PER_US),
+            pipeline_times: SpreadTally::with_steps_per_unit(STEPS_PER_US),
+            errors: PositionErrors::default(),
+            read_error: None,
+        }
+    }
+}
+
+/// Times per scan are resolved to a nanosecond.
+const STEPS_PER_US: f64 = 1e3;
+/// Position errors are resolved to a micrometre.
+const STEPS_PER_M: f64 = 1e6;
 
 /// Messages skipped that are logged one by one; the rest are only counted.
 const SKIPS_LOGGED: u64 = 10;
@@ -505,7 +537,8 @@ impl Tally {
         };
         let frame = gt.header.frame_id.trim_start_matches('/');
         let first = self
-            .ground_truth_frame
+            .errors
+            .truth_frame
             .get_or_insert_with(|| frame.to_string());
         if first != frame {
             let first = first.clone();
@@ -514,24 +547,90 @@ impl Tally {
                 message.topic, message.log_time_ns
             ));
         }
-        self.ground_truth.push((
-            gt.header.stamp.to_nanos(),
-            DVec2::new(gt.pose.position.x, gt.pose.position.y),
-        ));
+        let position = DVec2::new(gt.pose.position.x, gt.pose.position.y);
+        self.errors.add_truth(gt.header.stamp.to_nanos(), position);
+    }
+}
+
+/// The distance from the estimates (and from the pelvis, where the pose head placed it) to
+/// /ground_truth/human_pose at their stamps, gathered as the run goes.
+struct PositionErrors {
+    matcher: TruthMatcher<DVec2, Estimate>,
+    position: SpreadTally,
+    /// Each estimate with the pelvis in place of the position where it was placed.
+    pelvis: SpreadTally,
+    /// The frame of the first ground-truth sample; samples in another are skipped.
+    truth_frame: Option<String>,
+    truth_samples: u64,
+}
+
+/// A published position, and the pelvis on the same scan when the pose head placed it.
+struct Estimate {
+    position: DVec2,
+    pelvis: Option<DVec2>,
+}
+
+impl Default for PositionErrors {
+    fn default() -> Self {
+        Self {
+            matcher: TruthMatcher::new(MAX_TRUTH_GAP_NS),
+            position: SpreadTally::with_steps_per_unit(STEPS_PER_M),
+            pelvis: SpreadTally::with_steps_per_unit(STEPS_PER_M),
+            truth_frame: None,
+            truth_samples: 0,
+        }
+    }
+}
+
+impl PositionErrors {
+    fn add_truth(&mut self, stamp_ns: i64, position: DVec2) {
+        self.truth_samples += 1;
+        let (errors, pelvis) = (&mut self.position, &mut self.pelvis);
+        self.matcher.add_truth(stamp_ns, position, |t, e, around| {
+            score(t, e, around, errors, pelvis)
+        });
     }
 
-    /// The ground truth, when it is in the frame of the estimates (`frame`); a learned
-    /// background puts them in the Lidar's frame, which a map-frame truth cannot be compared to.
-    fn ground_truth_in(&self, frame: &str) -> Option<&[(i64, DVec2)]> {
-        let truth_frame = self.ground_truth_frame.as_deref()?;
-        if truth_frame == frame {
-            return Some(&self.ground_truth);
+    fn add_estimate(&mut self, stamp_ns: i64, position: DVec2, pelvis: Option<DVec2>) {
+        let estimate = Estimate { position, pelvis };
+        let (errors, pelvis) = (&mut self.position, &mut self.pelvis);
+        self.matcher.add_output(stamp_ns, estimate, |t, e, around| {
+            score(t, e, around, errors, pelvis)
+        });
+    }
+
+    /// The spreads of the position error and of the pelvis's (when `pelvis_placed`), if the
+    /// truth is in the frame of the estimates (`frame`): a learned background puts them in the
+    /// Lidar's frame, which a map-frame truth cannot be compared to.
+    fn finish(mut self, frame: &str, pelvis_placed: bool) -> (Option<Spread>, Option<Spread>) {
+        let (errors, pelvis) = (&mut self.position, &mut self.pelvis);
+        self.matcher
+            .finish(|t, e, around| score(t, e, around, errors, pelvis));
+        let truth_frame = self.truth_frame.as_deref();
+        if truth_frame.is_some_and(|truth_frame| truth_frame != frame) {
+            log::warn!(
+                "position error not computed: /ground_truth/human_pose is in frame `{}`, \
+                 the estimates in `{frame}`",
+                truth_frame.unwrap_or_default()
+            );
+            return (None, None);
         }
-        log::warn!(
-            "position error not computed: /ground_truth/human_pose is in frame `{truth_frame}`, \
-             the estimates in `{frame}`"
-        );
-        None
+        let pelvis = pelvis_placed.then(|| self.pelvis.spread()).flatten();
+        (self.position.spread(), pelvis)
+    }
+}
+
+/// Counts an estimate's distance from the truth at its stamp, when there is truth around it.
+fn score(
+    stamp_ns: i64,
+    estimate: Estimate,
+    around: Around<'_, DVec2>,
+    errors: &mut SpreadTally,
+    pelvis_errors: &mut SpreadTally,
+) {
+    if let Some(truth) = truth_at(stamp_ns, around) {
+        errors.record(estimate.position.distance(truth));
+        pelvis_errors.record(estimate.pelvis.unwrap_or(estimate.position).distance(truth));
     }
 }
 
@@ -544,16 +643,20 @@ fn summarise(
     localiser: &LocaliserStage,
     classifier: Option<ClassifierRun>,
 ) -> RunSummary {
-    let truth = tally.ground_truth_in(localiser.output_frame());
-    let errors_against_truth = |estimates: &[(i64, DVec2)]| {
-        truth.and_then(|t| Spread::of(position_errors(estimates, t.to_vec())))
-    };
+    let frame = localiser.output_frame();
+    let pelvis_placed = classifier
+        .as_ref()
+        .is_some_and(|c| c.pelvis_published() > 0);
+    let truth_samples = tally.errors.truth_samples;
+    let in_frame = tally
+        .errors
+        .truth_frame
+        .as_deref()
+        .is_none_or(|f| f == frame);
+    let (position_error_m, pelvis_error_m) = tally.errors.finish(frame, pelvis_placed);
     let mut warnings = localiser.warning_counts().clone();
-    if truth.is_none() && !tally.ground_truth.is_empty() {
-        warnings.insert(
-            "ground_truth_in_another_frame",
-            tally.ground_truth.len() as u64,
-        );
+    if !in_frame {
+        warnings.insert("ground_truth_in_another_frame", truth_samples);
     }
     let ratio = |n: u64| {
         if tally.scans == 0 {
@@ -573,13 +676,10 @@ fn summarise(
         visible_ratio: ratio(tally.visible),
         tracked_ratio: ratio(tally.tracked),
         tracks_confirmed: localiser.localiser().confirmed_tracks(),
-        pelvis_error_m: classifier
-            .as_ref()
-            .filter(|c| !c.pelvis().is_empty())
-            .and_then(|c| errors_against_truth(&with_pelvis(&tally.estimates, c.pelvis()))),
-        position_error_m: errors_against_truth(&tally.estimates),
-        scan_time_us: Spread::of(tally.scan_times),
-        pipeline_time_us: Spread::of(tally.pipeline_times),
+        pelvis_error_m,
+        position_error_m,
+        scan_time_us: tally.scan_times.spread(),
+        pipeline_time_us: tally.pipeline_times.spread(),
         warnings,
         decode_errors: tally.decode_errors,
         read_error: tally.read_error,
@@ -618,45 +718,24 @@ fn tf_carries_odometry(reader: &BagReader, frames: &FrameConfig) -> bool {
         })
 }
 
-/// `estimates` with the pelvis in place of the position on the scans (same stamp) that have one.
-fn with_pelvis(estimates: &[(i64, DVec2)], pelvis: &[(i64, DVec2)]) -> Vec<(i64, DVec2)> {
-    let placed: std::collections::HashMap<i64, DVec2> = pelvis.iter().copied().collect();
-    estimates
-        .iter()
-        .map(|&(stamp, position)| (stamp, placed.get(&stamp).copied().unwrap_or(position)))
-        .collect()
-}
-
 /// Ground truth samples farther apart than this are not interpolated between.
 const MAX_TRUTH_GAP_NS: i64 = 200_000_000;
 /// An estimate this close in time to a lone ground truth sample is compared with it.
 const MAX_TRUTH_OFFSET_NS: i64 = 30_000_000;
 
-/// The distance of each estimate from the ground truth at its stamp (interpolated), for the
-/// estimates that have ground truth around them.
-pub fn position_errors(estimates: &[(i64, DVec2)], mut truth: Vec<(i64, DVec2)>) -> Vec<f64> {
-    truth.sort_by_key(|&(t, _)| t);
-    estimates
-        .iter()
-        .filter_map(|&(stamp, estimate)| {
-            let i = truth.partition_point(|&(t, _)| t < stamp);
-            let after = truth.get(i);
-            let before = i.checked_sub(1).and_then(|j| truth.get(j));
-            let at = match (before, after) {
-                (_, Some(&(t, p))) if t == stamp => p,
-                (Some(&(ta, pa)), Some(&(tb, pb))) if tb - ta <= MAX_TRUTH_GAP_NS => {
-                    pa.lerp(pb, (stamp - ta) as f64 / (tb - ta) as f64)
-                }
-                (Some(&(t, p)), _) | (_, Some(&(t, p)))
-                    if (stamp - t).abs() <= MAX_TRUTH_OFFSET_NS =>
-                {
-                    p
-                }
-                _ => return None,
-            };
-            Some(estimate.distance(at))
-        })
-        .collect()
+/// The ground truth at `stamp_ns` from the samples around it: interpolated between two
+/// close enough, or a lone one close in time; `None` without either.
+fn truth_at(stamp_ns: i64, around: Around<'_, DVec2>) -> Option<DVec2> {
+    match (around.before, around.from) {
+        (_, Some((t, &p))) if t == stamp_ns => Some(p),
+        (Some((ta, &pa)), Some((tb, &pb))) if tb - ta <= MAX_TRUTH_GAP_NS => {
+            Some(pa.lerp(pb, (stamp_ns - ta) as f64 / (tb - ta) as f64))
+        }
+        (Some((t, &p)), _) | (_, Some((t, &p))) if (stamp_ns - t).abs() <= MAX_TRUTH_OFFSET_NS => {
+            Some(p)
+        }
+        _ => None,
+    }
 }
 
 #[cfg(test)]
@@ -665,17 +744,34 @@ mod tests {
 
     #[test]
     fn ground_truth_is_interpolated_at_the_estimate_stamp() {
-        let truth = vec![(100_000_000, DVec2::new(1.0, 0.0)), (0, DVec2::ZERO)];
-        let errors = position_errors(
-            &[
-                (50_000_000, DVec2::new(0.5, 0.0)),
-                (100_000_000, DVec2::new(1.0, 1.0)),
-                (900_000_000, DVec2::ZERO),
-            ],
-            truth,
+        let mut errors = PositionErrors {
+            truth_frame: Some("map".into()),
+            ..Default::default()
+        };
+        errors.add_truth(100_000_000, DVec2::new(1.0, 0.0));
+        errors.add_truth(0, DVec2::ZERO);
+        errors.add_estimate(50_000_000, DVec2::new(0.5, 0.0), None);
+        errors.add_estimate(
+            100_000_000,
+            DVec2::new(1.0, 1.0),
+            Some(DVec2::new(1.0, 0.5)),
         );
-        assert_eq!(errors.len(), 2);
-        assert!(errors[0].abs() < 1e-12);
-        assert!((errors[1] - 1.0).abs() < 1e-12);
+        errors.add_estimate(900_000_000, DVec2::ZERO, None);
+        let (position, pelvis) = errors.finish("map", true);
+        let (position, pelvis) = (position.unwrap(), pelvis.unwrap());
+        assert_eq!((position.count, pelvis.count), (2, 2));
+        assert_eq!((position.median, position.max), (0.0, 1.0));
+        assert_eq!((pelvis.median, pelvis.max), (0.0, 0.5));
+    }
+
+    #[test]
+    fn no_position_error_against_truth_in_another_frame() {
+        let mut errors = PositionErrors {
+            truth_frame: Some("laser".into()),
+            ..Default::default()
+        };
+        errors.add_truth(0, DVec2::ZERO);
+        errors.add_estimate(0, DVec2::ONE, None);
+        assert_eq!(errors.finish("map", false), (None, None));
     }
 }

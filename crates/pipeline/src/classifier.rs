@@ -26,7 +26,8 @@ use lidar_har_core::fall::{
 use lidar_har_core::geometry::MainAxisSpan;
 use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
 use lidar_har_core::pose_head::{NoPoseHead, PelvisPlacer, PersonAt, PoseHead};
-use lidar_har_core::stats::{Spread, upper_median};
+use lidar_har_core::stats::{Spread, SpreadTally, upper_median};
+use lidar_har_core::truth_match::{Around, TruthMatcher};
 use lidar_har_infer::{ActivityModel, InferError, PoseHeadModel};
 use lidar_har_msgs::CdrError;
 use lidar_har_msgs::builtin_interfaces::{Duration, Time};
@@ -909,14 +910,83 @@ pub fn activity_of(msg: &har::Activity) -> Option<Activity> {
 }
 
 /// The classifier's results over a run, with the ground truth when the input had it: the
-/// activity part of `summary.json` and the demo's timeline.
-#[derive(Debug, Clone, Default)]
+/// activity part of `summary.json` and the demo's timeline. Each prediction is scored and
+/// added to its segment once the truth around it is known, so a run of any length keeps
+/// only its segments and alerts.
+#[derive(Debug, Clone)]
 pub struct ActivityLog {
-    /// (stamp, true activity), in time order.
-    truth: Vec<(i64, Activity)>,
-    /// Published predictions: (stamp, activity, confidence).
-    predictions: Vec<(i64, Activity, f32)>,
+    /// Published predictions (activity, confidence) waiting for the truth at their stamp.
+    matcher: TruthMatcher<Activity, (Activity, f32)>,
+    confusion: ConfusionMatrix,
+    predictions: usize,
+    segments: Segments,
     alerts: Vec<FallAlert>,
+}
+
+impl Default for ActivityLog {
+    fn default() -> Self {
+        Self {
+            matcher: TruthMatcher::new(TRUTH_MAX_AGE_NS),
+            confusion: ConfusionMatrix::new(),
+            predictions: 0,
+            segments: Segments::default(),
+            alerts: Vec::new(),
+        }
+    }
+}
+
+/// Runs of the same recognised activity (a gap over 1 s also ends a run), built as the
+/// predictions are settled.
+#[derive(Debug, Clone, Default)]
+struct Segments {
+    done: Vec<Segment>,
+    /// The run under way, the true activities counted over it, and its last stamp.
+    open: Option<(Segment, [usize; Activity::COUNT], i64)>,
+}
+
+impl Segments {
+    fn add(&mut self, stamp_ns: i64, activity: Activity, confidence: f32, truth: Option<Activity>) {
+        let continues = self.open.as_ref().is_some_and(|(seg, _, last)| {
+            seg.activity == activity && stamp_ns - last < 1_000_000_000
+        });
+        let s = stamp_ns as f64 * 1e-9;
+        if !continues {
+            self.close();
+            let segment = Segment {
+                start_s: s,
+                end_s: s,
+                activity,
+                mean_confidence: 0.0,
+                truth: None,
+                scans: 0,
+            };
+            self.open = Some((segment, [0; Activity::COUNT], stamp_ns));
+        }
+        if let Some((seg, votes, last)) = &mut self.open {
+            seg.end_s = s;
+            seg.mean_confidence += confidence;
+            seg.scans += 1;
+            if let Some(truth) = truth {
+                votes[truth.index()] += 1;
+            }
+            *last = stamp_ns;
+        }
+    }
+
+    /// Ends the run under way: its mean confidence, and its most frequent true activity.
+    fn close(&mut self) {
+        let Some((mut seg, votes, _)) = self.open.take() else {
+            return;
+        };
+        seg.mean_confidence /= seg.scans.max(1) as f32;
+        let (best, &n) = votes
+            .iter()
+            .enumerate()
+            .max_by_key(|(_, n)| **n)
+            .unwrap_or((0, &0));
+        seg.truth = (n > 0).then(|| Activity::ALL[best]);
+        self.done.push(seg);
+    }
 }
 
 /// One stretch of the same recognised activity.
@@ -972,17 +1042,22 @@ const TRUTH_MAX_AGE_NS: i64 = 500_000_000;
 impl ActivityLog {
     pub fn add_truth(&mut self, stamp_ns: i64, msg: &har::Activity) {
         if let Some(activity) = activity_of(msg) {
-            self.truth.push((stamp_ns, activity));
+            let (confusion, segments) = (&mut self.confusion, &mut self.segments);
+            self.matcher.add_truth(stamp_ns, activity, |t, p, around| {
+                settle(t, p, around, confusion, segments)
+            });
         }
     }
 
     pub fn add_output(&mut self, out: &ClassifierOutput) {
         if out.publishable() {
-            self.predictions.push((
-                out.stamp_ns,
-                out.prediction.activity,
-                out.prediction.confidence,
-            ));
+            self.predictions += 1;
+            let prediction = (out.prediction.activity, out.prediction.confidence);
+            let (confusion, segments) = (&mut self.confusion, &mut self.segments);
+            self.matcher
+                .add_output(out.stamp_ns, prediction, |t, p, around| {
+                    settle(t, p, around, confusion, segments)
+                });
         }
         self.alerts.extend(out.alerts.iter().copied());
     }
@@ -991,78 +1066,15 @@ impl ActivityLog {
         &self.alerts
     }
 
-    /// The true activity at `stamp_ns`: the latest truth not after it, if recent.
-    pub fn truth_at(&self, stamp_ns: i64) -> Option<Activity> {
-        let i = self.truth.partition_point(|(t, _)| *t <= stamp_ns);
-        let (t, a) = *self.truth.get(i.checked_sub(1)?)?;
-        (stamp_ns - t <= TRUTH_MAX_AGE_NS).then_some(a)
-    }
-
-    fn sort(&mut self) {
-        self.truth.sort_by_key(|(t, _)| *t);
-        self.predictions.sort_by_key(|(t, _, _)| *t);
-    }
-
-    /// Runs of the same recognised activity (a gap over 1 s also ends a run).
-    pub fn segments(&mut self) -> Vec<Segment> {
-        self.sort();
-        let mut segments: Vec<(Segment, [usize; Activity::COUNT])> = Vec::new();
-        let mut last_stamp = None;
-        for &(t, activity, confidence) in &self.predictions {
-            let truth = self.truth_at(t);
-            let s = t as f64 * 1e-9;
-            let continues = segments
-                .last()
-                .is_some_and(|(seg, _)| seg.activity == activity)
-                && last_stamp.is_some_and(|l: i64| t - l < 1_000_000_000);
-            if !continues {
-                segments.push((
-                    Segment {
-                        start_s: s,
-                        end_s: s,
-                        activity,
-                        mean_confidence: 0.0,
-                        truth: None,
-                        scans: 0,
-                    },
-                    [0; Activity::COUNT],
-                ));
-            }
-            if let Some((seg, votes)) = segments.last_mut() {
-                seg.end_s = s;
-                seg.mean_confidence += confidence;
-                seg.scans += 1;
-                if let Some(truth) = truth {
-                    votes[truth.index()] += 1;
-                }
-            }
-            last_stamp = Some(t);
-        }
-        segments
-            .into_iter()
-            .map(|(mut seg, votes)| {
-                seg.mean_confidence /= seg.scans.max(1) as f32;
-                let (best, &n) = votes
-                    .iter()
-                    .enumerate()
-                    .max_by_key(|(_, n)| **n)
-                    .unwrap_or((0, &0));
-                seg.truth = (n > 0).then(|| Activity::ALL[best]);
-                seg
-            })
-            .collect()
-    }
-
-    pub fn summary(&mut self) -> ActivitySummary {
-        self.sort();
-        let pairs: Vec<(Activity, Activity)> = self
-            .predictions
-            .iter()
-            .filter_map(|&(t, predicted, _)| Some((self.truth_at(t)?, predicted)))
-            .collect();
-        let metrics = (!pairs.is_empty()).then(|| ConfusionMatrix::from_pairs(pairs).report());
+    /// The activity part of `summary.json`, once the run has ended.
+    pub fn finish(mut self) -> ActivitySummary {
+        let (confusion, segments) = (&mut self.confusion, &mut self.segments);
+        self.matcher
+            .finish(|t, p, around| settle(t, p, around, confusion, segments));
+        self.segments.close();
+        let metrics = (self.confusion.total() > 0).then(|| self.confusion.report());
         ActivitySummary {
-            scans_classified: self.predictions.len(),
+            scans_classified: self.predictions,
             accuracy: metrics.as_ref().map(|m| m.accuracy),
             macro_f1: metrics.as_ref().map(|m| m.macro_f1),
             metrics,
@@ -1080,7 +1092,7 @@ impl ActivityLog {
                     confidence: a.confidence,
                 })
                 .collect(),
-            segments: self.segments(),
+            segments: self.segments.done,
             classify_time_us: None,
             scan_rate_hz: None,
             model_scan_rate_hz: None,
@@ -1090,6 +1102,25 @@ impl ActivityLog {
     }
 }
 
+/// Scores a prediction against the true activity at its stamp (the latest truth not after
+/// it, if recent) and adds it to its segment.
+fn settle(
+    stamp_ns: i64,
+    (activity, confidence): (Activity, f32),
+    around: Around<'_, Activity>,
+    confusion: &mut ConfusionMatrix,
+    segments: &mut Segments,
+) {
+    let truth = around
+        .latest_not_after(stamp_ns)
+        .filter(|&(t, _)| stamp_ns - t <= TRUTH_MAX_AGE_NS)
+        .map(|(_, &a)| a);
+    if let Some(truth) = truth {
+        confusion.add(truth, activity);
+    }
+    segments.add(stamp_ns, activity, confidence, truth);
+}
+
 /// The classifier inside a bag run (`lidar-har run`, `lidar-har demo`): classifies every
 /// /human/observation the localiser produces, records /human/activity, /human/fall_alert,
 /// /human/pelvis and the text markers, and scores against /ground_truth/activity when the
@@ -1097,9 +1128,10 @@ impl ActivityLog {
 pub struct ClassifierRun {
     stage: ClassifierStage,
     log: ActivityLog,
-    times_us: Vec<f64>,
-    /// The pelvis placed by the pose head, by scan stamp.
+    times_us: SpreadTally,
+    /// The pelvis placed by the pose head since [`ClassifierRun::take_pelvis`], by scan stamp.
     pelvis: Vec<(i64, DVec2)>,
+    pelvis_published: usize,
 }
 
 impl ClassifierRun {
@@ -1108,8 +1140,10 @@ impl ClassifierRun {
         Ok(Self {
             stage: ClassifierStage::load(config, None)?,
             log: ActivityLog::default(),
-            times_us: Vec::new(),
+            // Resolved to a nanosecond.
+            times_us: SpreadTally::with_steps_per_unit(1e3),
             pelvis: Vec::new(),
+            pelvis_published: 0,
         })
     }
 
@@ -1137,10 +1171,11 @@ impl ClassifierRun {
         }
         let started = std::time::Instant::now();
         let (result, outgoing) = self.stage.handle_cdr(&out.cdr)?;
-        self.times_us.push(started.elapsed().as_secs_f64() * 1e6);
+        self.times_us.record(started.elapsed().as_secs_f64() * 1e6);
         self.log.add_output(&result);
         if let Some(pelvis) = result.pelvis {
             self.pelvis.push((result.stamp_ns, pelvis.position));
+            self.pelvis_published += 1;
         }
         for message in &outgoing {
             outputs.write(message, log_time_ns)?;
@@ -1148,19 +1183,25 @@ impl ClassifierRun {
         Ok(())
     }
 
-    /// The pelvis placed by the pose head so far, by scan stamp.
-    pub fn pelvis(&self) -> &[(i64, DVec2)] {
-        &self.pelvis
+    /// The pelvis placed by the pose head since the last call, by scan stamp: the run scores
+    /// it against the truth as it goes.
+    pub fn take_pelvis(&mut self) -> Vec<(i64, DVec2)> {
+        std::mem::take(&mut self.pelvis)
+    }
+
+    /// Scans the pose head placed the pelvis on (/human/pelvis).
+    pub fn pelvis_published(&self) -> usize {
+        self.pelvis_published
     }
 
     /// The activity part of `summary.json`, with the classification time per scan.
-    pub fn finish(mut self) -> ActivitySummary {
-        let mut summary = self.log.summary();
-        summary.classify_time_us = Spread::of(std::mem::take(&mut self.times_us));
+    pub fn finish(self) -> ActivitySummary {
+        let mut summary = self.log.finish();
+        summary.classify_time_us = self.times_us.spread();
         summary.scan_rate_hz = self.stage.measured_scan_rate_hz();
         summary.model_scan_rate_hz = Some(self.stage.classifier().spec().scan_rate_hz);
         summary.pose_head = self.stage.pose_head().clone();
-        summary.pelvis_published = self.pelvis.len();
+        summary.pelvis_published = self.pelvis_published;
         summary
     }
 }
@@ -1747,7 +1788,9 @@ mod tests {
             8.0,
         );
         let mut log = ActivityLog::default();
-        // Truth: walking to 3.0, falling to 4.2 (the model switches to lying 0.2 s early).
+        // Truth: walking to 3.0, falling to 4.2 (the model switches to lying 0.2 s early),
+        // each sample coming just before the scan of the same stamp, as in a bag.
+        let mut outputs_in_order = outputs.iter().map(|(out, _)| out).peekable();
         for k in 0..160 {
             let t = k as f64 * 0.05;
             let a = if t < 3.0 {
@@ -1761,12 +1804,14 @@ mod tests {
                 activity: a.index() as u8,
                 ..Default::default()
             };
-            log.add_truth((t * 1e9) as i64, &msg);
+            let stamp_ns = (t * 1e9) as i64;
+            log.add_truth(stamp_ns, &msg);
+            while let Some(out) = outputs_in_order.next_if(|out| out.stamp_ns <= stamp_ns) {
+                log.add_output(out);
+            }
         }
-        for (out, _) in &outputs {
-            log.add_output(out);
-        }
-        let summary = log.summary();
+        outputs_in_order.for_each(|out| log.add_output(out));
+        let summary = log.finish();
         assert_eq!(summary.scans_classified, 157);
         // 4 of 157 scans (4.0 .. 4.15) disagree.
         let accuracy = summary.accuracy.unwrap();
@@ -1795,7 +1840,7 @@ mod tests {
         for (out, _) in &outputs {
             bare.add_output(out);
         }
-        let summary = bare.summary();
+        let summary = bare.finish();
         assert!(summary.accuracy.is_none() && summary.metrics.is_none());
         assert!(summary.segments.iter().all(|s| s.truth.is_none()));
     }
