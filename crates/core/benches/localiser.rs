@@ -1,6 +1,9 @@
 //! Time per scan of the localiser (map mode, moving robot with odometry), and how it grows
 //! with the number of beams and the size of the map; plus the one-off distance-field time at
-//! map load; the same with each beam placed from its own pose (de-skew). Prints a table; run with `cargo bench -p lidar-har-core --bench localiser`.
+//! map load; the same with each beam placed from its own pose (de-skew); and without a map,
+//! against a learned background, with a fixed beam count and with one that changes every
+//! rotation (a driver without angle compensation). Prints a table; run with `cargo bench -p
+//! lidar-har-core --bench localiser`.
 //!
 //! Scans are ray-cast in a square room with walls, four furniture blocks and a walking
 //! person (a 0.2 m cylinder), seen from a robot driving at 0.2 m/s; with 2 % of the beams
@@ -238,6 +241,22 @@ fn main() {
             100.0 * r.tracked as f64 / SCANS as f64
         );
     }
+    println!("\nlearned background (fixed Lidar, 10 m x 10 m room, {SCANS} scans after learning)");
+    println!(
+        "{:>6} {:>14} {:>12} {:>10} {:>10}",
+        "beams", "beam count", "median us", "p99 us", "seen"
+    );
+    for varying in [false, true] {
+        let (median_us, p99_us, seen) = measure_background(720, varying);
+        println!(
+            "{:>6} {:>14} {:>12.1} {:>10.1} {:>9.0}%",
+            720,
+            if varying { "720 +- 3" } else { "fixed" },
+            median_us,
+            p99_us,
+            100.0 * seen
+        );
+    }
     println!("\nclustering alone, every point a stray return in a 20 m x 20 m square");
     println!("{:>8} {:>12}", "points", "ms");
     for n in [720, 2880, 20_000, 100_000] {
@@ -248,6 +267,65 @@ fn main() {
         "\nshadow search for a hidden person predicted in open view (720 beams, 10 m x 10 m, \
          {searches} predictions 1-4 m away): median {median_us:.1} us, max {max_us:.1} us"
     );
+}
+
+/// Time per scan against a learned background (median and p99 in microseconds, and the
+/// fraction of scans with the person seen): a fixed Lidar in the 10 m room, the person
+/// walking; with `varying`, each rotation has up to 3 beams more or fewer over the same turn.
+fn measure_background(beams: usize, varying: bool) -> (f64, f64, f64) {
+    let mut loc = Localiser::with_learned_background(LocaliserConfig::default()).expect("config");
+    let laser = Pose2::new(-1.0, -1.0, 0.3);
+    let person = |t: f64| DVec2::new(1.5 * (0.3 * t).cos(), 1.5 * (0.3 * t).sin());
+    let mut rng = 0x9e37_79b9_7f4a_7c15u64;
+    let count = |k: usize| if varying { beams + k % 7 - 3 } else { beams };
+    // 3 s of learning with nobody in the room (the person far outside it), then the scans.
+    let mut k = 0;
+    loop {
+        let scan = cast(
+            k as i64 * 50_000_000,
+            laser,
+            DVec2::splat(1e3),
+            count(k),
+            5.0,
+            &mut rng,
+        );
+        k += 1;
+        if !loc.process_scan(&scan).learning {
+            break;
+        }
+    }
+    let scans: Vec<Scan> = (k..k + SCANS)
+        .map(|k| {
+            let t = k as f64 * 0.05;
+            cast(
+                k as i64 * 50_000_000,
+                laser,
+                person(t),
+                count(k),
+                5.0,
+                &mut rng,
+            )
+        })
+        .collect();
+    let mut times = Vec::with_capacity(SCANS);
+    let mut seen = 0;
+    for scan in &scans {
+        let started = Instant::now();
+        let result = black_box(loc.process_scan(black_box(scan)));
+        times.push(started.elapsed().as_secs_f64() * 1e6);
+        seen += usize::from(
+            result
+                .output
+                .and_then(|o| o.person)
+                .is_some_and(|p| p.visible),
+        );
+    }
+    times.sort_by(f64::total_cmp);
+    (
+        times[times.len() / 2],
+        times[times.len() * 99 / 100],
+        seen as f64 / SCANS as f64,
+    )
 }
 
 /// Times `ScanView::nearest_hidden` for predictions on a grid around the robot that the scan

@@ -1,13 +1,22 @@
 //! A static background learned from the first seconds of scans, for a Lidar that does not
 //! move and has no map (a Lidar fixed in the room, or a recording without odometry).
 //!
-//! Per beam, the background range is the median of the returns seen while learning, which
-//! ignores a person who crosses the beam for less than half of that time. A beam that
+//! The background is kept per bearing, not per beam index: some drivers (`sllidar_ros2`
+//! with `angle_compensate` false) publish a few beams more or fewer each rotation, over the
+//! same turn, so beam `i` of one scan is not where beam `i` of the next points. The first
+//! learning scan with beams sets the bins: one per beam, centred on its angle and as wide as
+//! its `angle_increment`, wrapped around when its beams make a full turn. Every beam of
+//! every scan, learning or classified, goes to the bin nearest its angle.
+//!
+//! Per bin, the background range is the median of the returns seen while learning, which
+//! ignores a person who crosses the bearing for less than half of that time. A bin that
 //! returned in fewer than `min_return_fraction` of the learning scans looks into open space
 //! (beyond `range_max`): its background is infinite, and anything it returns later is
 //! foreground. A point is foreground when it is closer than `margin_m` in front of the
-//! background of its beam and of both neighbour beams (the neighbours absorb the angular
+//! background of its bin and of both neighbour bins (the neighbours absorb the angular
 //! jitter at depth edges, where a beam alternates between a near and a far surface).
+
+use std::f64::consts::TAU;
 
 use serde::{Deserialize, Serialize};
 
@@ -22,7 +31,7 @@ pub struct BackgroundConfig {
     pub learn_duration_s: f64,
     /// A point must be this much closer than the background to be foreground (metres).
     pub margin_m: f64,
-    /// Beams that returned in fewer learning scans than this fraction look into open space.
+    /// Bearings that returned in fewer learning scans than this fraction look into open space.
     pub min_return_fraction: f64,
 }
 
@@ -36,7 +45,7 @@ impl Default for BackgroundConfig {
     }
 }
 
-/// Learns per-beam background ranges, then classifies points.
+/// Learns per-bearing background ranges, then classifies points.
 #[derive(Debug, Clone)]
 pub struct LearnedBackground {
     config: BackgroundConfig,
@@ -47,20 +56,130 @@ pub struct LearnedBackground {
 /// forward (NTP at boot) or a stalled driver must not end learning on one or two scans.
 const MAX_LEARNING_GAP_NS: i64 = 500_000_000;
 
+/// The background's bins: those of the first learning scan's beams, `angle_min + i *
+/// angle_increment`, each centred on its beam and as wide as the increment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Bins {
+    /// The angle in the middle of the bins (radians, Lidar frame).
+    centre: f64,
+    /// The learning scan's `angle_increment` (radians, negative for a clockwise scan).
+    increment: f64,
+    count: usize,
+    /// The bins make a full turn: the last one neighbours the first.
+    wraps: bool,
+    /// Bins a turn: `2 pi / |increment|` (`count` when they wrap, give or take a fraction).
+    per_turn: f64,
+    /// Whole bins added to a position before it is rounded by truncation, so that it is
+    /// positive (a cast rounds a positive number down, at a fraction of `f64::round`'s
+    /// cost): more than any position's distance below bin 0.
+    bias: i64,
+}
+
+impl Bins {
+    /// The bins of `scan`'s beams (a validated scan with at least one beam).
+    fn of(scan: &Scan) -> Self {
+        let increment = f64::from(scan.angle_increment);
+        let beams = scan.ranges.len();
+        // Scan::validate bounds the increment to [MIN_ANGLE_INCREMENT, MAX_SPAN_RAD]: at
+        // least one bin a turn, at most MAX_BEAMS.
+        let per_turn = TAU / increment.abs();
+        let whole_turn = per_turn.round().max(1.0) as usize;
+        let wraps = beams >= whole_turn;
+        let count = if wraps { whole_turn } else { beams };
+        Self {
+            centre: f64::from(scan.angle_min) + increment * (count - 1) as f64 / 2.0,
+            increment,
+            count,
+            wraps,
+            per_turn,
+            // Positions are brought within half a turn of the centre.
+            bias: (count as f64 + per_turn) as i64 + 8,
+        }
+    }
+
+    /// Where `angle` (radians, Lidar frame, any turn) lies, in bins from bin 0's centre:
+    /// within half a turn of the bins' centre.
+    fn position(&self, angle: f64) -> f64 {
+        let mut from_centre = angle - self.centre;
+        from_centre -= TAU * (from_centre / TAU).round();
+        from_centre / self.increment + (self.count - 1) as f64 / 2.0
+    }
+
+    /// The bin nearest `position` (within a turn or two of the bins' centre): around the
+    /// turn when the bins wrap; otherwise `None` beyond a bin past either end of the learned
+    /// field of view (a beam within that bin takes the end's).
+    fn at(&self, mut position: f64) -> Option<usize> {
+        let count = self.count as i64;
+        let middle = (self.count - 1) as f64 / 2.0;
+        let half_turn = self.per_turn / 2.0;
+        while position - middle > half_turn {
+            position -= self.per_turn;
+        }
+        while position - middle < -half_turn {
+            position += self.per_turn;
+        }
+        let mut k = (position + 0.5 + self.bias as f64) as i64 - self.bias;
+        if self.wraps {
+            while k < 0 {
+                k += count;
+            }
+            while k >= count {
+                k -= count;
+            }
+            Some(k as usize)
+        } else {
+            (-1..=count)
+                .contains(&k)
+                .then(|| k.clamp(0, count - 1) as usize)
+        }
+    }
+
+    /// The bin nearest `angle`.
+    fn of_angle(&self, angle: f64) -> Option<usize> {
+        self.at(self.position(angle))
+    }
+
+    /// The bin of each beam of `scan` (validated), in beam order: stepped along from beam
+    /// 0's, as this runs on every beam of a scan whose geometry changed (a validated scan's
+    /// beams lie within little more than a turn of its first).
+    fn of_beams(&self, scan: &Scan) -> impl Iterator<Item = Option<usize>> + use<> {
+        let bins = *self;
+        let first = bins.position(f64::from(scan.angle_min));
+        let step = f64::from(scan.angle_increment) / bins.increment;
+        (0..scan.ranges.len()).map(move |beam| bins.at(first + beam as f64 * step))
+    }
+}
+
 #[derive(Debug, Clone, Default)]
 struct Learning {
     last_ns: Option<i64>,
     learned_ns: i64,
     scans: usize,
+    /// Set by the first learning scan with beams.
+    bins: Option<Bins>,
+    /// The returns of each bin.
     samples: Vec<Vec<f32>>,
+}
+
+/// The thresholds of one scan geometry's beams, kept while the geometry stays the same.
+#[derive(Debug, Clone, Default)]
+struct BeamThresholds {
+    /// `angle_min`, `angle_increment` (bits) and beam count of the scans they are for.
+    key: Option<(u32, u32, usize)>,
+    threshold: Vec<f32>,
 }
 
 #[derive(Debug, Clone)]
 enum State {
-    /// Collecting returns per beam.
+    /// Collecting returns per bin.
     Learning(Learning),
-    /// `threshold[i]`: a return on beam `i` closer than this is foreground.
-    Ready { threshold: Vec<f32> },
+    /// `threshold[b]`: a return in bin `b` closer than this is foreground (no bins when no
+    /// learning scan had beams: everything is open space).
+    Ready {
+        bins: Option<Bins>,
+        threshold: Vec<f32>,
+        beams: BeamThresholds,
+    },
 }
 
 /// What feeding a scan to the background did.
@@ -84,9 +203,10 @@ impl LearnedBackground {
         matches!(self.state, State::Ready { .. })
     }
 
-    /// Learns from `scan` while in the learning period; afterwards does nothing. The scan that
-    /// first falls after the period completes the background and is itself classifiable. A
-    /// stamp before the previous one (a restarted recording) starts learning again.
+    /// Learns from `scan` (validated: [`Scan::validate`]) while in the learning period;
+    /// afterwards does nothing. The scan that first falls after the period completes the
+    /// background and is itself classifiable. A stamp before the previous one (a restarted
+    /// recording) starts learning again.
     pub fn observe(&mut self, scan: &Scan) -> BackgroundStatus {
         let State::Learning(learning) = &mut self.state else {
             return BackgroundStatus::Ready;
@@ -95,7 +215,7 @@ impl LearnedBackground {
             Some(last) if scan.stamp_ns < last => *learning = Learning::default(),
             Some(last) => {
                 let gap_ns = scan.stamp_ns.saturating_sub(last).min(MAX_LEARNING_GAP_NS);
-                learning.learned_ns += gap_ns;
+                learning.learned_ns = learning.learned_ns.saturating_add(gap_ns);
             }
             None => {}
         }
@@ -103,16 +223,21 @@ impl LearnedBackground {
         let Learning {
             learned_ns,
             scans,
+            bins,
             samples,
             ..
         } = learning;
         if (*learned_ns as f64) * 1e-9 < self.config.learn_duration_s || *scans == 0 {
-            if samples.len() < scan.ranges.len() {
-                samples.resize_with(scan.ranges.len(), Vec::new);
+            if bins.is_none() && !scan.ranges.is_empty() {
+                let learned = Bins::of(scan);
+                samples.resize_with(learned.count, Vec::new);
+                *bins = Some(learned);
             }
-            for (beam, &r) in scan.ranges.iter().enumerate() {
-                if scan.is_return(r) {
-                    samples[beam].push(r);
+            if let Some(bins) = bins {
+                for (&r, bin) in scan.ranges.iter().zip(bins.of_beams(scan)) {
+                    if let Some(bin) = bin.filter(|_| scan.is_return(r)) {
+                        samples[bin].push(r);
+                    }
                 }
             }
             *scans += 1;
@@ -132,31 +257,78 @@ impl LearnedBackground {
                 *returns.select_nth_unstable_by(mid, f32::total_cmp).1
             })
             .collect();
-        let threshold = (0..background.len())
+        let n = background.len();
+        let wraps = bins.is_some_and(|b| b.wraps);
+        let threshold = (0..n)
             .map(|i| {
-                let lo = i.saturating_sub(1);
-                let hi = (i + 1).min(background.len() - 1);
-                background[lo..=hi]
-                    .iter()
-                    .copied()
-                    .fold(f32::INFINITY, f32::min)
-                    - margin
+                let (before, after) = if wraps {
+                    ((i + n - 1) % n, (i + 1) % n)
+                } else {
+                    (i.saturating_sub(1), (i + 1).min(n - 1))
+                };
+                background[before].min(background[i]).min(background[after]) - margin
             })
             .collect();
-        self.state = State::Ready { threshold };
+        self.state = State::Ready {
+            bins: *bins,
+            threshold,
+            beams: BeamThresholds::default(),
+        };
         BackgroundStatus::Ready
     }
 
-    /// Whether a return of `range` metres on `beam` is in front of the background. Beams the
-    /// learning never saw (a longer scan than before) count as open space.
-    pub fn is_foreground(&self, beam: usize, range: f32) -> bool {
+    /// Whether a return of `range` metres at `angle` radians (Lidar frame) is in front of
+    /// the background. Bearings the learning never saw (past the field of view of a Lidar
+    /// that scans less than a turn) count as open space; nothing is foreground while
+    /// learning.
+    pub fn is_foreground(&self, angle: f64, range: f32) -> bool {
         match &self.state {
-            State::Ready { threshold } => {
-                range < threshold.get(beam).copied().unwrap_or(f32::INFINITY)
-            }
+            State::Ready {
+                bins, threshold, ..
+            } => range < threshold_at(*bins, threshold, angle),
             State::Learning(_) => false,
         }
     }
+
+    /// For each beam of `scan` (validated), the range below which its return is foreground
+    /// ([`Self::is_foreground`] at its angle); empty while learning. Computed once per scan
+    /// geometry, so classifying a scan costs a comparison a beam, as long as the geometry
+    /// stays; a driver whose beam count changes every rotation pays an angle-to-bin step a
+    /// beam.
+    pub fn thresholds(&mut self, scan: &Scan) -> &[f32] {
+        let State::Ready {
+            bins,
+            threshold,
+            beams,
+        } = &mut self.state
+        else {
+            return &[];
+        };
+        let key = (
+            scan.angle_min.to_bits(),
+            scan.angle_increment.to_bits(),
+            scan.ranges.len(),
+        );
+        if beams.key != Some(key) {
+            beams.key = Some(key);
+            beams.threshold.clear();
+            match bins {
+                Some(bins) => beams.threshold.extend(bins.of_beams(scan).map(|bin| {
+                    bin.and_then(|b| threshold.get(b).copied())
+                        .unwrap_or(f32::INFINITY)
+                })),
+                None => beams.threshold.resize(scan.ranges.len(), f32::INFINITY),
+            }
+        }
+        &beams.threshold
+    }
+}
+
+/// The threshold of the bin at `angle`: infinite (open space) where no bin is.
+fn threshold_at(bins: Option<Bins>, threshold: &[f32], angle: f64) -> f32 {
+    bins.and_then(|b| b.of_angle(angle))
+        .and_then(|bin| threshold.get(bin).copied())
+        .unwrap_or(f32::INFINITY)
 }
 
 #[cfg(test)]
@@ -173,6 +345,11 @@ mod tests {
             range_max: 5.0,
             ranges,
         }
+    }
+
+    /// The angle of beam `beam` of [`scan`]'s scans.
+    fn at(beam: usize) -> f64 {
+        beam as f64 * f64::from(0.01f32)
     }
 
     fn learned(ranges_over_time: impl Fn(usize) -> Vec<f32>) -> LearnedBackground {
@@ -199,9 +376,12 @@ mod tests {
                 .map(|b| if b == 5 && k < 10 { 1.5 } else { 4.0 })
                 .collect()
         });
-        assert!(bg.is_foreground(5, 1.5));
-        assert!(!bg.is_foreground(5, 3.9), "within the margin of the wall");
-        assert!(!bg.is_foreground(2, 4.0));
+        assert!(bg.is_foreground(at(5), 1.5));
+        assert!(
+            !bg.is_foreground(at(5), 3.9),
+            "within the margin of the wall"
+        );
+        assert!(!bg.is_foreground(at(2), 4.0));
     }
 
     #[test]
@@ -218,15 +398,174 @@ mod tests {
                 })
                 .collect()
         });
-        assert!(bg.is_foreground(1, 4.5));
-        assert!(!bg.is_foreground(7, 3.0));
+        assert!(bg.is_foreground(at(1), 4.5));
+        assert!(!bg.is_foreground(at(7), 3.0));
         // Beam 4 borders the wall: its neighbour's background applies.
-        assert!(!bg.is_foreground(4, 2.9));
-        assert!(bg.is_foreground(4, 2.7));
+        assert!(!bg.is_foreground(at(4), 2.9));
+        assert!(bg.is_foreground(at(4), 2.7));
         assert!(
-            bg.is_foreground(42, 1.0),
-            "beams never learned are open space"
+            bg.is_foreground(at(42), 1.0),
+            "bearings never learned are open space"
         );
+    }
+
+    /// A room seen from a fixed Lidar, by bearing: walls 1.5-3 m away, a pole 0.3 m wide
+    /// at 2.5 rad, 1 m away; and a person 0.4 m wide at 1 rad, 1.2 m away, if `person`.
+    fn room_at(angle: f64, person: bool) -> f32 {
+        let d = glam::DVec2::from_angle(angle);
+        let wall = (2.5 / d.x.abs()).min(1.8 / d.y.abs()).min(3.0);
+        let pole = crate::geometry::normalize_angle(angle - 2.5).abs() < 0.15;
+        let body = person && crate::geometry::normalize_angle(angle - 1.0).abs() < 0.17;
+        (if body {
+            1.2
+        } else if pole {
+            1.0
+        } else {
+            wall
+        }) as f32
+    }
+
+    /// `beams` beams over `span` radians from `angle_min` of [`room_at`].
+    fn room_scan(stamp_s: f64, angle_min: f32, span: f64, beams: usize, person: bool) -> Scan {
+        let increment = (span / beams as f64) as f32;
+        let mut s = scan(stamp_s, Vec::new());
+        (s.angle_min, s.angle_increment) = (angle_min, increment);
+        s.ranges = (0..beams)
+            .map(|i| {
+                room_at(
+                    f64::from(angle_min) + i as f64 * f64::from(increment),
+                    person,
+                )
+            })
+            .collect();
+        s
+    }
+
+    /// The beams of `s` in front of the background.
+    fn foreground(bg: &mut LearnedBackground, s: &Scan) -> Vec<usize> {
+        let thresholds = bg.thresholds(s).to_vec();
+        assert_eq!(thresholds.len(), s.ranges.len());
+        (0..s.ranges.len())
+            .filter(|&i| s.is_return(s.ranges[i]) && s.ranges[i] < thresholds[i])
+            .inspect(|&i| assert!(bg.is_foreground(s.beam_angle(i), s.ranges[i])))
+            .collect()
+    }
+
+    #[test]
+    fn the_background_is_kept_by_bearing_whatever_the_beam_count() {
+        // A full turn in 1080 beams while learning, then 1078-1084 over the same turn
+        // (sllidar_ros2 without angle compensation): by beam index, the pole's edges had
+        // moved by up to four beams at the end of the turn and come out as foreground.
+        let tau = std::f64::consts::TAU;
+        let pi = -std::f32::consts::PI;
+        let mut bg = LearnedBackground::new(BackgroundConfig::default());
+        for k in 0..30 {
+            bg.observe(&room_scan(k as f64 * 0.1, pi, tau, 1080, false));
+        }
+        let first = room_scan(3.0, pi, tau, 1080, false);
+        assert_eq!(bg.observe(&first), BackgroundStatus::Ready);
+        for beams in [1080, 1078, 1084, 1081, 1079] {
+            let empty = room_scan(3.1, pi, tau, beams, false);
+            assert_eq!(
+                foreground(&mut bg, &empty),
+                [] as [usize; 0],
+                "{beams} beams"
+            );
+            // The person is foreground, at their bearing, on every beam that sees them.
+            let person = room_scan(3.1, pi, tau, beams, true);
+            let fg = foreground(&mut bg, &person);
+            let expected: Vec<usize> = (0..beams)
+                .filter(|&i| (person.beam_angle(i) - 1.0).abs() < 0.17)
+                .collect();
+            assert_eq!(fg, expected, "{beams} beams");
+        }
+        // The same turn from another angle_min, a turn further on: the same bearings.
+        let shifted = room_scan(3.2, 0.5 + std::f32::consts::TAU, tau, 1083, false);
+        assert_eq!(foreground(&mut bg, &shifted), [] as [usize; 0]);
+    }
+
+    #[test]
+    fn a_full_turn_wraps_its_first_bin_onto_its_last() {
+        // 360 beams from 0; the last one sees a post at 0.5 m, the others a wall at 3 m.
+        let ranges = |_| {
+            let mut r = vec![3.0; 360];
+            r[359] = 0.5;
+            r
+        };
+        let mut bg = LearnedBackground::new(BackgroundConfig::default());
+        let full_turn = |stamp_s: f64, ranges: Vec<f32>| {
+            let mut s = scan(stamp_s, ranges);
+            s.angle_increment = (std::f64::consts::TAU / 360.0) as f32;
+            s
+        };
+        for k in 0..=30 {
+            bg.observe(&full_turn(k as f64 * 0.1, ranges(k)));
+        }
+        assert!(bg.is_ready());
+        // Beam 0 neighbours beam 359 across the seam: the post's edge jitters onto it.
+        let mut post_on_first = ranges(0);
+        post_on_first[0] = 0.5;
+        let s = full_turn(3.1, post_on_first);
+        assert_eq!(foreground(&mut bg, &s), [] as [usize; 0]);
+        // The bearing just below 0 is the last bin's.
+        assert!(!bg.is_foreground(-0.001, 0.5));
+        assert!(bg.is_foreground(std::f64::consts::PI, 0.5));
+    }
+
+    #[test]
+    fn a_lidar_scanning_less_than_a_turn_keeps_its_field_of_view() {
+        // 270 degrees in 1081 beams while learning, 1083 over the same span later.
+        let span = 1.5 * std::f64::consts::PI;
+        let mut bg = LearnedBackground::new(BackgroundConfig::default());
+        for k in 0..=30 {
+            bg.observe(&room_scan(k as f64 * 0.1, -2.35, span, 1081, false));
+        }
+        assert!(bg.is_ready());
+        let s = room_scan(3.1, -2.35, span, 1083, false);
+        assert_eq!(foreground(&mut bg, &s), [] as [usize; 0]);
+        // Behind the Lidar, where the learning never looked, is open space.
+        assert!(bg.is_foreground(-2.35 - 0.5, 2.0));
+        assert!(bg.is_foreground(2.9, 2.0));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn stepping_along_the_beams_finds_the_bin_of_each_beams_angle(
+            learned in (-10.0..10.0f32, -3.0..0.0f32, 1usize..7000, proptest::bool::ANY),
+            later in (-10.0..10.0f32, -3.0..0.0f32, 1usize..7000, proptest::bool::ANY),
+        ) {
+            // Increments from 0.001 to 1 rad, as many of each decade.
+            let geometry = |(angle_min, log_increment, beams, clockwise): (f32, f32, usize, bool)| {
+                let increment = 10f32.powf(log_increment);
+                // Within a turn, as Scan::validate requires.
+                let beams = beams.min((crate::scan::MAX_SPAN_RAD / increment) as usize + 1);
+                let mut s = scan(0.0, vec![1.0; beams]);
+                s.angle_min = angle_min;
+                s.angle_increment = if clockwise { -increment } else { increment };
+                proptest::prop_assume!(s.validate().is_ok());
+                Ok(s)
+            };
+            let (learned, later) = (geometry(learned)?, geometry(later)?);
+            let bins = Bins::of(&learned);
+            for (beam, bin) in bins.of_beams(&later).enumerate() {
+                let angle = later.beam_angle(beam);
+                let position = bins.position(angle);
+                // Off by one only on a tie between two bins (rounding differs there).
+                let tie = (position - position.floor() - 0.5).abs() < 1e-6;
+                proptest::prop_assert!(
+                    bin == bins.of_angle(angle) || tie,
+                    "beam {beam}: {bin:?} against {:?} at {position}",
+                    bins.of_angle(angle)
+                );
+                if let Some(bin) = bin {
+                    proptest::prop_assert!(bin < bins.count);
+                }
+            }
+            // Every learning beam falls in its own bin, or wraps onto the first ones.
+            for (beam, bin) in bins.of_beams(&learned).enumerate() {
+                proptest::prop_assert_eq!(bin, Some(beam % bins.count));
+            }
+        }
     }
 
     #[test]
@@ -236,13 +575,13 @@ mod tests {
             bg.observe(&scan(0.0, vec![1.0; 4])),
             BackgroundStatus::Learning
         );
-        assert!(!bg.is_foreground(0, 0.1));
+        assert!(!bg.is_foreground(at(0), 0.1));
     }
 
     #[test]
     fn empty_learning_scans_give_an_all_open_background() {
         let bg = learned(|_| Vec::new());
-        assert!(bg.is_foreground(0, 1.0));
+        assert!(bg.is_foreground(at(0), 1.0));
     }
 
     #[test]
@@ -280,7 +619,7 @@ mod tests {
             BackgroundStatus::Ready
         );
         // Only the new timeline's wall (2 m) is background.
-        assert!(!bg.is_foreground(0, 1.9));
-        assert!(bg.is_foreground(0, 1.5));
+        assert!(!bg.is_foreground(at(0), 1.9));
+        assert!(bg.is_foreground(at(0), 1.5));
     }
 }

@@ -25,7 +25,7 @@ use crate::geometry::{Pose2, normalize_angle};
 use crate::map::OccupancyMap;
 use crate::scan::{BeamDirections, MAX_SWEEP_S, Scan, ScanError};
 use crate::sweep::BeamPoses;
-use crate::tracker::{PersonEstimate, Tracker, TrackerConfig};
+use crate::tracker::{PersonEstimate, Tracker, TrackerConfig, seconds_between};
 use crate::visibility::{ScanView, ShadowConfig};
 
 /// Every parameter of the localiser, with the paper's values as defaults
@@ -199,6 +199,43 @@ impl LocaliserConfig {
                     key,
                     value: value.to_string(),
                     why: "must be finite and > 0",
+                });
+            }
+        }
+        // Values used squared (variances, squared distances) must square to a finite number
+        // too: a finite and positive `tracker.initial_velocity_std_mps` of 1e200 passed the
+        // checks above, squared to inf, turned every track's filter into NaN, and nobody was
+        // tracked, silently. The margins are squared into f32.
+        let squared_f64 = [
+            ("tracker.accel_std_mps2", self.tracker.accel_std_mps2),
+            ("tracker.measurement_std_m", self.tracker.measurement_std_m),
+            (
+                "tracker.initial_velocity_std_mps",
+                self.tracker.initial_velocity_std_mps,
+            ),
+            ("cluster.tolerance_m", self.cluster.tolerance_m),
+        ];
+        let squared_f32 = [
+            ("obstacle_margin_m", self.obstacle_margin_m),
+            ("range_margin_fraction", self.range_margin_fraction),
+            ("near_person_margin_m", self.near_person_margin_m),
+        ];
+        let squares = squared_f64
+            .into_iter()
+            .map(|(key, value)| (key, value, value.powi(2).is_finite()))
+            .chain(
+                squared_f32
+                    .into_iter()
+                    .map(|(key, value)| (key, value, (value.powi(2) as f32).is_finite())),
+            );
+        for (key, value, finite) in squares {
+            if !finite {
+                // In exponent form: 1e200 in full is 201 digits.
+                return Err(ConfigError {
+                    key,
+                    value: format!("{value:e}"),
+                    why: "is too large: its square, used as a variance or squared distance, \
+                          is not finite",
                 });
             }
         }
@@ -509,7 +546,7 @@ impl OdometryBuffer {
             .back()
             .filter(|&&(latest_ns, _)| held_ns < latest_ns)
             .map(|&(latest_ns, _)| Warning::OdometryRestarted {
-                back_s: (latest_ns - held_ns) as f64 * 1e-9,
+                back_s: latest_ns.abs_diff(held_ns) as f64 * 1e-9,
             });
         if restarted.is_some() {
             self.samples.clear();
@@ -554,13 +591,13 @@ impl OdometryBuffer {
         };
         let max_extrapolation_ns = (config.max_extrapolation_s * 1e9) as i64;
         let (a, b) = if stamp_ns < first.0 {
-            if first.0 - stamp_ns > max_extrapolation_ns {
+            if first.0.abs_diff(stamp_ns) > max_extrapolation_ns.unsigned_abs() {
                 return Err(Warning::NoOdometry);
             }
             return Ok(first.1);
         } else if stamp_ns >= last.0 {
-            let age_ns = stamp_ns - last.0;
-            if age_ns > max_extrapolation_ns {
+            let age_ns = stamp_ns.abs_diff(last.0);
+            if age_ns > max_extrapolation_ns.unsigned_abs() {
                 return Err(Warning::OdometryStale {
                     age_s: age_ns as f64 * 1e-9,
                 });
@@ -573,7 +610,7 @@ impl OdometryBuffer {
             let i = self.samples.partition_point(|&(t, _)| t <= stamp_ns);
             (self.samples[i - 1], self.samples[i])
         };
-        let gap_s = (b.0 - a.0) as f64 * 1e-9;
+        let gap_s = seconds_between(a.0, b.0);
         if gap_s > config.max_interpolation_gap_s {
             return Err(Warning::OdometryGap { gap_s });
         }
@@ -585,7 +622,7 @@ impl OdometryBuffer {
                 turn_rate_radps,
             });
         }
-        let t = (stamp_ns - a.0) as f64 * 1e-9 / gap_s;
+        let t = seconds_between(a.0, stamp_ns) / gap_s;
         Ok(a.1.lerp(&b.1, t))
     }
 }
@@ -595,7 +632,7 @@ impl OdometryBuffer {
 fn stray(stray_ns: i64, latest_ns: i64) -> Warning {
     if stray_ns > latest_ns {
         Warning::OdometryAhead {
-            ahead_s: (stray_ns - latest_ns) as f64 * 1e-9,
+            ahead_s: stray_ns.abs_diff(latest_ns) as f64 * 1e-9,
         }
     } else {
         Warning::OdometryTooOld
@@ -748,7 +785,7 @@ impl Localiser {
         if let Some(previous_ns) = self.last_scan_ns
             && scan.stamp_ns <= previous_ns
         {
-            let back_s = (previous_ns - scan.stamp_ns) as f64 * 1e-9;
+            let back_s = previous_ns.abs_diff(scan.stamp_ns) as f64 * 1e-9;
             if back_s <= TIME_RESET_S {
                 result.warnings.push(Warning::ScanNotAfterPrevious {
                     stamp_ns: scan.stamp_ns,
@@ -797,7 +834,7 @@ impl Localiser {
         }
         self.foreground.clear();
         let directions = self.directions.for_scan(scan);
-        match &self.reference {
+        match &mut self.reference {
             Reference::AwaitingMap => {
                 result.warnings.push(Warning::NoMap);
                 return result;
@@ -830,9 +867,14 @@ impl Localiser {
                 }
             }
             Reference::Background(background) => {
-                let beams = scan.ranges.iter().zip(directions).zip(beam_poses);
-                for (beam, ((&r, &dir), to_map)) in beams.enumerate() {
-                    if scan.is_return(r) && background.is_foreground(beam, r) {
+                // Each beam's threshold by its angle, not its index: the beam count may
+                // change from one rotation to the next.
+                let thresholds = background.thresholds(scan);
+                let beams = scan.ranges.iter().zip(thresholds);
+                for ((&r, &threshold), (&dir, to_map)) in
+                    beams.zip(directions.iter().zip(beam_poses))
+                {
+                    if scan.is_return(r) && r < threshold {
                         self.foreground
                             .push(to_map.transform_point2(dir * f64::from(r)));
                     }
@@ -915,7 +957,7 @@ impl Localiser {
         let period_s = self
             .last_arrival_ns
             .replace(stamp_ns)
-            .map_or(0.0, |previous| (stamp_ns - previous) as f64 * 1e-9);
+            .map_or(0.0, |previous| seconds_between(previous, stamp_ns));
         let slow = period_s > max_coast_s;
         let slow_before = std::mem::replace(&mut self.slow_scan, slow);
         (slow && slow_before).then_some(Warning::ScanPeriodOverCoast {
@@ -1426,6 +1468,20 @@ mod tests {
                 [Warning::InvalidScan(ScanError::AngleIncrement(_))]
             ));
         }
+        // A huge one put the beams at pseudo-random bearings, which could seed false tracks.
+        for increment in [1e30, f32::MAX, -f32::MAX, 7.0] {
+            let mut broken = cast(PERIOD_NS, Pose2::IDENTITY, None);
+            broken.angle_increment = increment;
+            let result = loc.process_scan(&broken);
+            assert!(result.output.is_none());
+            assert!(matches!(
+                result.warnings[..],
+                [Warning::InvalidScan(ScanError::AngleSpan {
+                    beams: 720,
+                    ..
+                })]
+            ));
+        }
     }
 
     #[test]
@@ -1770,6 +1826,179 @@ mod tests {
         }
         let est = last.expect("found");
         assert!(est.position.distance(DVec2::new(2.0, -1.0)) < 0.25);
+    }
+
+    /// A fixed Lidar at the origin of an empty 4 m x 3 m room with two chair legs and a
+    /// cabinet, scanned with `n` beams over one full turn (`angle_increment` 2pi / n).
+    fn empty_room_scan(stamp_ns: i64, n: usize) -> Scan {
+        let inc = std::f64::consts::TAU / n as f64;
+        let ranges = (0..n)
+            .map(|i| {
+                let d = DVec2::from_angle(-std::f64::consts::PI + i as f64 * inc);
+                let tx = if d.x > 0.0 { 2.5 / d.x } else { -1.5 / d.x };
+                let ty = if d.y > 0.0 { 1.8 / d.y } else { -1.2 / d.y };
+                let mut r = tx.min(ty);
+                let furniture = [
+                    (DVec2::new(1.0, 0.8), 0.03),
+                    (DVec2::new(1.4, 0.8), 0.03),
+                    (DVec2::new(-0.8, -0.6), 0.25),
+                ];
+                for (c, radius) in furniture {
+                    let b = (-c).dot(d);
+                    let disc = b * b - (c.length_squared() - radius * radius);
+                    if disc >= 0.0 && -b - disc.sqrt() > 0.0 {
+                        r = r.min(-b - disc.sqrt());
+                    }
+                }
+                r as f32
+            })
+            .collect();
+        Scan {
+            stamp_ns,
+            angle_min: -std::f32::consts::PI,
+            angle_increment: inc as f32,
+            time_increment: 0.0,
+            range_min: 0.05,
+            range_max: 12.0,
+            ranges,
+        }
+    }
+
+    #[test]
+    fn a_learned_background_holds_when_the_beam_count_varies() {
+        // sllidar_ros2 with angle_compensate false publishes a few beams more or fewer each
+        // rotation. Kept by beam index, the background had shifted by up to half a degree
+        // per beam at the end of the turn: foreground, and phantom persons, in an empty room.
+        let mut loc = Localiser::with_learned_background(LocaliserConfig::default()).unwrap();
+        let mut k = 0;
+        while loc
+            .process_scan(&empty_room_scan(k * 100_000_000, 1080))
+            .learning
+        {
+            k += 1;
+        }
+        let mut seen = Vec::new();
+        for n in [
+            1082, 1079, 1083, 1081, 1084, 1078, 1082, 1083, 1080, 1084, 1083,
+        ] {
+            k += 1;
+            let out = loc
+                .process_scan(&empty_room_scan(k * 100_000_000, n))
+                .output
+                .unwrap();
+            seen.push((n, out.foreground_points, out.person.is_some()));
+        }
+        assert!(
+            seen.iter().all(|&(_, fg, person)| fg == 0 && !person),
+            "(beams, foreground, person): {seen:?}"
+        );
+    }
+
+    #[test]
+    fn extreme_stamps_are_warned_about_or_skipped_without_overflow() {
+        // Stamps 292+ years apart: `a - b` overflowed (a panic in debug, a wrapped
+        // difference taken at its word in release: the scan placed from odometry 1.7e18 ns
+        // away, with no warning).
+        let scan = |stamp_ns| empty_room_scan(stamp_ns, 720);
+        let mut loc = Localiser::new(
+            LocaliserConfig::default(),
+            Reference::AwaitingMap,
+            Motion::Odometry,
+        )
+        .unwrap();
+        loc.add_odometry(1_700_000_000_000_000_000, Pose2::IDENTITY);
+        let r = loc.process_scan(&scan(i64::MIN));
+        assert_eq!(r.warnings, [Warning::NoOdometry]);
+        // Odometry far behind the scan: stale, by the right age.
+        let r = loc.process_scan(&scan(i64::MAX));
+        let Some(Warning::OdometryStale { age_s }) = r.warnings.last() else {
+            panic!("{:?}", r.warnings)
+        };
+        assert!(
+            (age_s - (i64::MAX as f64 - 1.7e18) * 1e-9).abs() < 1.0,
+            "{age_s}"
+        );
+        // Odometry stamps as far apart: one far behind is held, then dropped as a stray...
+        let odometry = |loc: &mut Localiser, stamp_ns| loc.add_odometry(stamp_ns, Pose2::IDENTITY);
+        assert_eq!(odometry(&mut loc, i64::MIN), None);
+        let w = odometry(&mut loc, 1_700_000_000_000_000_001);
+        assert_eq!(w, Some(Warning::OdometryTooOld));
+        // ... or, the next sample near it, taken as a restart ...
+        assert_eq!(odometry(&mut loc, i64::MIN), None);
+        let w = odometry(&mut loc, i64::MIN + 1);
+        assert!(
+            matches!(w, Some(Warning::OdometryRestarted { back_s }) if back_s > 1e10),
+            "{w:?}"
+        );
+        // ... and one far ahead of those is a stray too.
+        assert_eq!(odometry(&mut loc, i64::MAX), None);
+        let w = odometry(&mut loc, i64::MIN + 2);
+        assert!(
+            matches!(w, Some(Warning::OdometryAhead { ahead_s }) if ahead_s > 1.8e10),
+            "{w:?}"
+        );
+        // Time going back from the far future to the far past: a reset, then the scans go on.
+        let mut loc = Localiser::with_learned_background(LocaliserConfig::default()).unwrap();
+        loc.process_scan(&scan(1_700_000_000_000_000_000));
+        let r = loc.process_scan(&scan(i64::MIN));
+        assert!(matches!(r.warnings[..], [Warning::TimeReset { back_s }] if back_s > 1e9));
+        // And forwards across the whole range.
+        let mut loc = Localiser::with_learned_background(LocaliserConfig::default()).unwrap();
+        loc.process_scan(&scan(-1_700_000_000_000_000_000));
+        let r = loc.process_scan(&scan(i64::MAX));
+        assert!(r.learning && r.warnings.is_empty(), "{r:?}");
+    }
+
+    #[test]
+    fn a_range_of_zero_is_no_return_even_with_range_min_zero() {
+        // Drivers that publish range_min 0 encode "no return" as 0: a cluster on the Lidar.
+        let mut loc = map_localiser(Motion::Stationary(Pose2::IDENTITY));
+        let mut scan = cast(0, Pose2::IDENTITY, None);
+        scan.range_min = 0.0;
+        scan.ranges[100..120].fill(0.0);
+        let out = loc.process_scan(&scan).output.unwrap();
+        assert_eq!((out.foreground_points, out.clusters), (0, 0));
+    }
+
+    #[test]
+    fn a_std_whose_square_is_not_finite_is_refused() {
+        let mut c = LocaliserConfig::default();
+        c.tracker.initial_velocity_std_mps = 1e200;
+        let err = c.validate().unwrap_err();
+        assert_eq!(err.key, "tracker.initial_velocity_std_mps");
+        let message = err.to_string();
+        assert!(message.contains("1e200"), "{message}");
+        // Accepted, it made every track's filter NaN: nobody tracked, and nothing said.
+        type Set = fn(&mut LocaliserConfig, f64);
+        let set: [(&str, Set); 7] = [
+            ("tracker.accel_std_mps2", |c, v| {
+                c.tracker.accel_std_mps2 = v
+            }),
+            ("tracker.measurement_std_m", |c, v| {
+                c.tracker.measurement_std_m = v
+            }),
+            ("tracker.initial_velocity_std_mps", |c, v| {
+                c.tracker.initial_velocity_std_mps = v
+            }),
+            ("cluster.tolerance_m", |c, v| c.cluster.tolerance_m = v),
+            ("obstacle_margin_m", |c, v| c.obstacle_margin_m = v),
+            ("range_margin_fraction", |c, v| c.range_margin_fraction = v),
+            ("near_person_margin_m", |c, v| c.near_person_margin_m = v),
+        ];
+        for (key, set) in set {
+            let mut c = LocaliserConfig::default();
+            set(&mut c, 1e200);
+            assert_eq!(c.validate().map_err(|e| e.key), Err(key));
+            // Large but squaring into range (f32 for the margins): accepted.
+            set(&mut c, 1e15);
+            assert_eq!(c.validate(), Ok(()), "{key}");
+        }
+        // The f32 margins: 1e20 squares to inf in f32.
+        let c = LocaliserConfig {
+            obstacle_margin_m: 1e20,
+            ..LocaliserConfig::default()
+        };
+        assert_eq!(c.validate().unwrap_err().key, "obstacle_margin_m");
     }
 
     #[test]

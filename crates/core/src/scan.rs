@@ -34,6 +34,11 @@ pub enum ScanError {
     )]
     AngleIncrement(f32),
     #[error(
+        "scan angle_increment {increment} rad spreads its {beams} beams over more than one turn \
+         (at most {MAX_SPAN_RAD} rad from the first beam to the last)"
+    )]
+    AngleSpan { increment: f32, beams: usize },
+    #[error(
         "scan range interval [{min}, {max}] is not a finite interval with min >= 0 and max > min"
     )]
     RangeInterval { min: f32, max: f32 },
@@ -48,6 +53,12 @@ pub const MAX_BEAMS: usize = 100_000;
 /// is garbage too, and walking the beams across an angle (the shadow search) would take
 /// billions of steps.
 pub const MIN_ANGLE_INCREMENT: f32 = std::f32::consts::TAU / MAX_BEAMS as f32;
+
+/// The widest angle from a scan's first beam to its last (radians): one turn, and a little
+/// more for drivers whose increment is rounded, or that repeat a beam or two past the seam.
+/// A scan spread wider has a garbled `angle_increment` (`1e30`, or 7 rad): its beams land at
+/// bearings that are pseudo-random once reduced to a turn, and would seed false tracks.
+pub const MAX_SPAN_RAD: f32 = std::f32::consts::TAU + 0.05;
 
 /// The longest rotation a 2D Lidar takes (the slowest spin at 1 Hz): a scan whose beams
 /// are spread over more time has a garbled `time_increment`.
@@ -71,6 +82,15 @@ impl Scan {
         {
             return Err(ScanError::AngleIncrement(self.angle_increment));
         }
+        // A single beam still needs an increment of at most a turn; in f64, so no product
+        // overflows.
+        let gaps = self.ranges.len().saturating_sub(1).max(1);
+        if f64::from(self.angle_increment.abs()) * gaps as f64 > f64::from(MAX_SPAN_RAD) {
+            return Err(ScanError::AngleSpan {
+                increment: self.angle_increment,
+                beams: self.ranges.len(),
+            });
+        }
         let (min, max) = (self.range_min, self.range_max);
         if !(min.is_finite() && max.is_finite() && min >= 0.0 && max > min) {
             return Err(ScanError::RangeInterval { min, max });
@@ -86,9 +106,11 @@ impl Scan {
         f64::from(self.angle_min) + beam as f64 * f64::from(self.angle_increment)
     }
 
-    /// Whether `range` is a return: finite and inside `[range_min, range_max]`.
+    /// Whether `range` is a return: finite, above 0 and inside `[range_min, range_max]`. A
+    /// range of exactly 0 is "no return" whatever `range_min` says: drivers that publish
+    /// `range_min` 0 encode a missing return as 0, which would put a cluster on the Lidar.
     pub fn is_return(&self, range: f32) -> bool {
-        range.is_finite() && range >= self.range_min && range <= self.range_max
+        range.is_finite() && range > 0.0 && range >= self.range_min && range <= self.range_max
     }
 
     /// Nanoseconds from beam 0's measurement to the last beam's (negative when beam 0 is
@@ -245,6 +267,52 @@ mod tests {
         let mut s = scan(vec![1.0]);
         s.angle_min = f32::NAN;
         assert!(matches!(s.validate(), Err(ScanError::AngleMin(_))));
+    }
+
+    #[test]
+    fn an_increment_spreading_the_beams_over_more_than_a_turn_is_rejected() {
+        let mut s = scan(vec![1.0; 720]);
+        for garbled in [1e30, f32::MAX, -f32::MAX, 3.0e38, 7.0, 0.01] {
+            s.angle_increment = garbled;
+            let err = s.validate().unwrap_err();
+            assert_eq!(
+                err,
+                ScanError::AngleSpan {
+                    increment: garbled,
+                    beams: 720
+                }
+            );
+            let message = err.to_string();
+            assert!(
+                message.contains("angle_increment") && message.contains(&garbled.to_string()),
+                "{message}"
+            );
+        }
+        // One beam: its increment may still not exceed a turn.
+        let mut one = scan(vec![1.0]);
+        one.angle_increment = 7.0;
+        assert!(matches!(one.validate(), Err(ScanError::AngleSpan { .. })));
+        // A full turn either way, with the last beam on the first's bearing or one short of
+        // it, and a 270-degree Lidar, pass.
+        for (beams, increment) in [
+            (720, std::f32::consts::TAU / 720.0),
+            (720, -std::f32::consts::TAU / 719.0),
+            (1081, 0.25f32.to_radians()),
+        ] {
+            let mut s = scan(vec![1.0; beams]);
+            s.angle_increment = increment;
+            assert_eq!(s.validate(), Ok(()), "{beams} beams of {increment}");
+        }
+    }
+
+    #[test]
+    fn a_range_of_zero_is_no_return_even_with_range_min_zero() {
+        // Drivers publishing range_min 0 encode "no return" as 0.
+        let mut s = scan(vec![0.0, 2.0, -0.0, 1e-3]);
+        s.range_min = 0.0;
+        assert!(!s.is_return(0.0) && !s.is_return(-0.0));
+        let beams: Vec<usize> = s.points().map(|p| p.beam).collect();
+        assert_eq!(beams, [1, 3]);
     }
 
     #[test]

@@ -201,7 +201,7 @@ impl Track {
     }
 
     fn unseen_s(&self, stamp_ns: i64) -> f64 {
-        (stamp_ns - self.last_seen_ns) as f64 * 1e-9
+        seconds_between(self.last_seen_ns, stamp_ns)
     }
 
     fn gate(&self, stamp_ns: i64, config: &TrackerConfig) -> f64 {
@@ -354,7 +354,7 @@ impl Tracker {
     fn predict(&mut self, stamp_ns: i64) {
         let accel_var = self.config.accel_std_mps2.powi(2);
         for track in &mut self.tracks {
-            let dt = (stamp_ns - track.stamp_ns) as f64 * 1e-9;
+            let dt = seconds_between(track.stamp_ns, stamp_ns);
             track.before_prediction = track.position();
             if dt > 0.0 {
                 track.x.predict(dt, accel_var);
@@ -525,7 +525,7 @@ impl Tracker {
                     }
                     track.hits += 1;
                     track.misses_in_a_row = 0;
-                    let seen_dt = (stamp_ns - track.last_seen_ns) as f64 * 1e-9;
+                    let seen_dt = seconds_between(track.last_seen_ns, stamp_ns);
                     let weight = 1.0 - (-seen_dt / self.config.still_window_s).exp();
                     let velocity = DVec2::new(track.x.vel, track.y.vel);
                     track.mean_velocity += (velocity - track.mean_velocity) * weight;
@@ -551,7 +551,7 @@ impl Tracker {
     /// the scan that crosses it, as when the figures of docs/localiser.md were measured.
     fn after_gap(&self, stamp_ns: i64) -> bool {
         self.previous_ns
-            .is_some_and(|previous| (stamp_ns - previous) as f64 * 1e-9 > self.config.max_coast_s)
+            .is_some_and(|previous| seconds_between(previous, stamp_ns) > self.config.max_coast_s)
     }
 
     /// Drops the confirmed tracks unseen for too long and the tentative ones missed too often.
@@ -638,7 +638,7 @@ impl Tracker {
             return None;
         }
         let track = self.person_track()?;
-        let dt = ((stamp_ns - track.stamp_ns) as f64 * 1e-9).max(0.0);
+        let dt = seconds_between(track.stamp_ns, stamp_ns).max(0.0);
         let velocity = DVec2::new(track.x.vel, track.y.vel);
         Some((
             track.position() + velocity * dt,
@@ -680,6 +680,14 @@ impl Tracker {
         self.person
             .and_then(|id| self.tracks.iter().find(|t| t.id == id))
     }
+}
+
+/// Seconds from `from_ns` to `to_ns`, negative when `to_ns` is earlier. `to_ns - from_ns`
+/// overflows for stamps more than 292 years apart (a garbled or zero stamp next to a real
+/// one): a panic in a debug build, a wrapped difference taken at its word in a release one.
+pub(crate) fn seconds_between(from_ns: i64, to_ns: i64) -> f64 {
+    let seconds = to_ns.abs_diff(from_ns) as f64 * 1e-9;
+    if to_ns >= from_ns { seconds } else { -seconds }
 }
 
 /// Where the person is, from their points and `centroid`, the (offset) centroid of the
@@ -1228,5 +1236,28 @@ mod tests {
             1,
             "no ghost track from the second part"
         );
+    }
+
+    #[test]
+    fn stamps_centuries_apart_do_not_overflow() {
+        // `a - b` of stamps 292+ years apart overflowed: a panic in debug, a wrapped (here
+        // negative) gap in release, and the track carried across it.
+        let config = TrackerConfig {
+            confirm_hits: 1,
+            ..TrackerConfig::default()
+        };
+        let mut t = Tracker::new(config);
+        let c = blob(DVec2::new(1.0, 1.0));
+        let first = t.update(i64::MIN + 1, std::slice::from_ref(&c), &[]);
+        assert!(first.is_some());
+        assert_eq!(t.person_prediction(i64::MAX), None, "lost across the gap");
+        let p = t.update(i64::MAX, std::slice::from_ref(&c), &[]).unwrap();
+        assert_ne!(
+            p.track_id,
+            first.unwrap().track_id,
+            "a new track after the gap"
+        );
+        assert!(p.position.is_finite() && p.velocity == DVec2::ZERO, "{p:?}");
+        assert_eq!(p.unseen_s, 0.0);
     }
 }
