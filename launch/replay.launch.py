@@ -31,7 +31,9 @@ def generate_launch_description():
                               description="parameters of all nodes (ROS 2 params-file layout)"),
         Node(package="lidar_har", executable="replay", name="replay", output="screen",
              parameters=[arg("params_file"), {
-                 "bag": arg("bag"),
+                 # A string as given: launch_ros reads an untyped value as YAML, and a bag
+                 # named 2024_01_01 became the integer 20240101 (the replay then refused it).
+                 "bag": ParameterValue(arg("bag"), value_type=str),
                  "rate": ParameterValue(arg("rate"), value_type=float),
                  "loop": ParameterValue(arg("loop"), value_type=bool),
                  # Topics the nodes below publish themselves are not replayed from the bag.

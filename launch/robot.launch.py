@@ -41,9 +41,10 @@ def generate_launch_description():
                               description="parameters of all nodes (ROS 2 params-file layout)"),
         Node(package="lidar_har", executable="rplidar_driver", name="rplidar_driver", output="screen",
              parameters=[arg("params_file"), {
-                 "port": arg("serial_port"),
+                 # Strings as given: a port, mode or frame name must not be read as YAML
+                 # (on, 1, 2024_01_01, ...).
+                 "port": ParameterValue(arg("serial_port"), value_type=str),
                  "baud": ParameterValue(arg("baud"), value_type=int),
-                 # Strings as given: a mode or frame name must not be read as YAML (on, 1, ...).
                  "scan_mode": ParameterValue(arg("scan_mode"), value_type=str),
                  "frame_id": ParameterValue(arg("frame_id"), value_type=str),
              }],

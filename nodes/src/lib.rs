@@ -19,7 +19,13 @@ const DEFAULT_LOG_FILTER: &str = "info,rustdds=warn,ros2_client=warn";
 /// module's others (failed sends, a send buffer smaller than asked for).
 const UDP_SENDER_TARGET: &str = "rustdds::network::udp_sender";
 
-/// env_logger without RustDDS's datagram size warnings.
+/// The module of RustDDS that warns about each write that found the reliable send window
+/// full (`Write timed out (reliable send window full): topic=...`): one per sample while a
+/// subscriber has stopped acknowledging. The transport drops such samples and warns itself,
+/// sparingly (`lidar_har_ros`), so [`NodeLogger`] drops these.
+const DATAWRITER_TARGET: &str = "rustdds::dds::with_key::datawriter";
+
+/// env_logger without RustDDS's datagram size and full send window warnings.
 struct NodeLogger(env_logger::Logger);
 
 fn is_datagram_size_warning(record: &log::Record) -> bool {
@@ -28,13 +34,22 @@ fn is_datagram_size_warning(record: &log::Record) -> bool {
         && record.args().to_string().contains(": Message size = ")
 }
 
+fn is_send_window_warning(record: &log::Record) -> bool {
+    record.level() == log::Level::Warn
+        && record.target() == DATAWRITER_TARGET
+        && record
+            .args()
+            .to_string()
+            .starts_with("Write timed out (reliable send window full)")
+}
+
 impl log::Log for NodeLogger {
     fn enabled(&self, metadata: &log::Metadata) -> bool {
         self.0.enabled(metadata)
     }
 
     fn log(&self, record: &log::Record) {
-        if !is_datagram_size_warning(record) {
+        if !is_datagram_size_warning(record) && !is_send_window_warning(record) {
             self.0.log(record);
         }
     }
@@ -156,7 +171,10 @@ pub fn run(node: &NodeInfo, body: impl FnOnce(&Shutdown) -> anyhow::Result<()>) 
 
 /// Set by SIGINT or SIGTERM; nodes poll it between messages and leave their loop cleanly.
 /// The signal also deletes the bag reader's temporary copies at once (see
-/// [`lidar_har_bag::remove_temporary_copies`]), which stops a decompression under way.
+/// [`lidar_har_bag::remove_temporary_copies`]), which stops a decompression under way. A
+/// second SIGINT or SIGTERM ends the process at once, by that signal (the shell sees 130 or
+/// 143), as the `lidar-har` tool does: a node whose clean stop is held up (a DDS stack that
+/// hangs) used to ignore every further signal but SIGKILL.
 #[derive(Clone)]
 pub struct Shutdown(Arc<AtomicBool>);
 
@@ -165,7 +183,19 @@ impl Shutdown {
         let flag = Arc::new(AtomicBool::new(false));
         let handled = [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM];
         for signal in handled {
-            signal_hook::flag::register(signal, flag.clone())?;
+            let requested = flag.clone();
+            // In the handler itself, not in a thread reading `Signals` (which may take two
+            // quick signals of one kind for one): the first signal sets the flag, any later
+            // one finds it set and takes the signal's default action. One atomic swap, so
+            // that of two signals handled at once on two threads, one is the second.
+            let action = move || {
+                if requested.swap(true, Ordering::SeqCst) {
+                    let _ = signal_hook::low_level::emulate_default_handler(signal);
+                }
+            };
+            // SAFETY: the action only swaps an atomic and emulates the default action, which
+            // is async-signal-safe (it is what `flag::register_conditional_default` runs).
+            unsafe { signal_hook::low_level::register(signal, action) }?;
         }
         let mut signals = signal_hook::iterator::Signals::new(handled)?;
         std::thread::spawn(move || {
@@ -373,6 +403,59 @@ mod tests {
             "rustdds::other",
             "try_send_to_locator: Message size = 3012"
         ));
+    }
+
+    #[test]
+    fn rustdds_full_send_window_warnings_are_dropped() {
+        use log::{Level, Record};
+        let dropped = |target: &str, message: &str| {
+            is_send_window_warning(
+                &Record::builder()
+                    .level(Level::Warn)
+                    .target(target)
+                    .args(format_args!("{message}"))
+                    .build(),
+            )
+        };
+        // One per sample while a subscriber has stopped acknowledging.
+        assert!(dropped(
+            DATAWRITER_TARGET,
+            "Write timed out (reliable send window full): topic=\"rt/odom\"  timeout=Some(0ns)"
+        ));
+        assert!(!dropped(DATAWRITER_TARGET, "write: some other trouble"));
+        assert!(!dropped(
+            "rustdds::other",
+            "Write timed out (reliable send window full): topic=\"rt/odom\""
+        ));
+    }
+
+    /// launch_ros reads a parameter value given as a bare launch argument as YAML:
+    /// `bag:=2024_01_01` reached the replay as the integer 20240101 (status 2). Every launch
+    /// argument passed as a parameter goes through `ParameterValue(..., value_type=...)`.
+    #[test]
+    fn the_launch_files_type_every_launch_argument_they_pass_as_a_parameter() {
+        let launch = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch");
+        let mut checked = 0;
+        for entry in std::fs::read_dir(&launch).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_none_or(|e| e != "py") {
+                continue;
+            }
+            let text = std::fs::read_to_string(&path).unwrap();
+            for (n, line) in text.lines().enumerate() {
+                // `"name": arg("x")` or `"name": LaunchConfiguration("x")` in a parameters map.
+                let untyped = line.split_once("\": ").is_some_and(|(_, value)| {
+                    value.starts_with("arg(") || value.starts_with("LaunchConfiguration(")
+                });
+                assert!(!untyped, "{}:{}: untyped: {line}", path.display(), n + 1);
+            }
+            checked += 1;
+        }
+        assert!(
+            checked >= 3,
+            "launch files not found in {}",
+            launch.display()
+        );
     }
 
     #[test]

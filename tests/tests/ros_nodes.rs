@@ -16,11 +16,12 @@ use lidar_har_e2e::{
     workspace_bin,
 };
 use lidar_har_msgs::builtin_interfaces::Time;
-use lidar_har_msgs::geometry_msgs::Point;
+use lidar_har_msgs::geometry_msgs::{Point, TransformStamped};
 use lidar_har_msgs::lidar_har_msgs::{Activity, FallAlert};
 use lidar_har_msgs::nav_msgs::{MapMetaData, OccupancyGrid};
 use lidar_har_msgs::sensor_msgs::LaserScan;
 use lidar_har_msgs::std_msgs::Header;
+use lidar_har_msgs::tf2_msgs::TFMessage;
 use lidar_har_msgs::topics;
 
 const NETNS_SETUP: &str =
@@ -1316,5 +1317,233 @@ fn assert_pose_head_none_publishes_the_activity_and_no_pelvis(
         "pose_head:=none: {} of {} activities received, no pelvis",
         got.len(),
         want_activities.len()
+    );
+}
+
+/// A sample whose encapsulation is not plain CDR (any peer can send one; here a RustDDS
+/// writer with XCDR2's id) is skipped with a warning: it used to end the localiser (and the
+/// classifier) with status 1 at once.
+#[test]
+fn ros_a_sample_that_cannot_be_read_is_skipped_and_the_node_goes_on() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let script = r#"
+"$LOC" 2> "$OUT/localiser.err" & L=$!
+# Reliable, like the localiser's /tf: the writer ends once its samples are acknowledged.
+"$BAD" rt/tf tf2_msgs::msg::dds_::TFMessage_ 3; echo "writer=$?"
+wait_until 10 grep -q "skipped a sample that cannot be read" "$OUT/localiser.err"
+kill -0 $L && echo "alive"
+kill -INT $L; wait $L; echo "localiser=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("LOC", &workspace_bin("localiser")),
+            (
+                "BAD",
+                Path::new(env!("CARGO_BIN_EXE_dds_bad_encapsulation")),
+            ),
+            ("OUT", dir.path()),
+        ],
+        Duration::from_secs(60),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let log = std::fs::read_to_string(dir.path().join("localiser.err")).unwrap();
+    for want in ["writer=0", "alive", "localiser=0"] {
+        assert!(stdout.contains(want), "expected {want}: {stdout}\n{log}");
+    }
+    assert!(log.contains("/tf: skipped a sample"), "{log}");
+}
+
+/// Activity `i` stamped `t_ns`.
+fn activity_at(i: usize, t_ns: i64) -> Activity {
+    let mut a = activity(i);
+    a.header.stamp = Time::from_nanos(t_ns);
+    a
+}
+
+/// A subscriber that stops acknowledging (here stopped with SIGSTOP) costs a keep-last
+/// writer the samples RustDDS cannot take any more (its reliable send window, 8192 samples,
+/// is full), as in other DDS implementations, where a keep-last writer never waits: the
+/// replay used to wait 100 ms at the first of them, then end with status 1.
+#[test]
+fn ros_a_subscriber_that_stops_acknowledging_costs_samples_not_the_publisher() {
+    if !netns_available() {
+        return;
+    }
+    const BURST: usize = 10_000;
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("burst");
+    let mut w = BagWriter::create(&bag, WriterOptions::default()).unwrap();
+    let topic = w
+        .add_topic_for::<Activity>(topics::HUMAN_ACTIVITY.name, topics::HUMAN_ACTIVITY.qos)
+        .unwrap();
+    w.write_message(topic, T0_NS, &activity_at(0, T0_NS))
+        .unwrap();
+    // 3 s later in bag time, more samples at once than the window holds.
+    let burst_ns = T0_NS + 3_000_000_000;
+    for i in 1..=BURST {
+        w.write_message(topic, burst_ns, &activity_at(i, burst_ns))
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let script = r#"
+"$LH" topic echo /human/activity --timeout 60 > "$OUT/activity.jsonl" & E=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/human/activity \
+  -p wait_for_all_acked:=0.5 2> "$OUT/replay.log" & R=$!
+# The subscriber stops acknowledging before the burst.
+wait_until 20 has_lines "$OUT/activity.jsonl" 1
+kill -STOP $E
+wait $R; echo "replay=$?"
+kill -CONT $E; kill -TERM $E; wait $E
+"#;
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(90));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let log = std::fs::read_to_string(dir.path().join("replay.log")).unwrap();
+    assert!(stdout.contains("replay=0"), "{stdout}\n{log}");
+    assert!(
+        log.contains("/human/activity: sample dropped"),
+        "the replay must say it dropped samples: {log}"
+    );
+    // RustDDS's own warning, one per sample, is left out of the nodes' log.
+    assert!(!log.contains("Write timed out"), "{log}");
+}
+
+/// A fall alert `i` of the latched-topic bag, stamped `t_ns`.
+fn numbered_alert(i: usize, t_ns: i64) -> FallAlert {
+    FallAlert {
+        header: Header::new(Time::from_nanos(t_ns), "map"),
+        kind: FallAlert::FALL_DETECTED,
+        position: Point {
+            x: i as f64,
+            y: 0.0,
+            z: 0.0,
+        },
+        confidence: 0.875,
+        event_time: Time::from_nanos(t_ns),
+        description: format!("alert {i}"),
+    }
+}
+
+/// A transient-local keep-last writer keeps its depth for subscribers that join late
+/// (/human/fall_alert: 10): RustDDS kept every sample while no reader was matched, so a late
+/// subscriber got all 25 alerts of a replay (and a /map replayed in a loop grew the process
+/// by a map a pass). Its cache cleaning, every 6 s, now trims to the depth (and one more).
+/// Subscribers that are there get everything, two /tf_static written at once included
+/// (depth 1: the second waits for the first's acknowledgement).
+#[test]
+fn ros_a_latched_topic_keeps_its_depth_for_late_subscribers() {
+    if !netns_available() {
+        return;
+    }
+    const ALERTS: usize = 25;
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("latched");
+    let mut w = BagWriter::create(&bag, WriterOptions::default()).unwrap();
+    let tf_static = w
+        .add_topic_for::<TFMessage>(topics::TF_STATIC.name, topics::TF_STATIC.qos)
+        .unwrap();
+    let alert_topic = w
+        .add_topic_for::<FallAlert>(topics::FALL_ALERT.name, topics::FALL_ALERT.qos)
+        .unwrap();
+    // A reliable topic nobody subscribes: the replay waits `wait_for_all_acked` for one.
+    let activity_topic = w
+        .add_topic_for::<Activity>(topics::HUMAN_ACTIVITY.name, topics::HUMAN_ACTIVITY.qos)
+        .unwrap();
+    for child in ["laser", "odom"] {
+        let tf = TFMessage {
+            transforms: vec![TransformStamped {
+                header: Header::new(Time::from_nanos(T0_NS), "base_link"),
+                child_frame_id: child.into(),
+                transform: Default::default(),
+            }],
+        };
+        w.write_message(tf_static, T0_NS, &tf).unwrap();
+    }
+    w.write_message(activity_topic, T0_NS, &activity_at(0, T0_NS))
+        .unwrap();
+    for i in 0..ALERTS {
+        let t = T0_NS + 500_000_000 + 20_000_000 * i as i64;
+        w.write_message(alert_topic, t, &numbered_alert(i, t))
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let script = r#"
+"$LH" topic echo /tf_static --count 2 --timeout 30 > "$OUT/live_tf.jsonl" & T=$!
+"$LH" topic echo /human/fall_alert --count 25 --timeout 30 > "$OUT/live_alerts.jsonl" & A=$!
+wait_until 20 topics_listed /tf_static /human/fall_alert
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/tf_static \
+  -p wait_for_all_acked:=40 2> "$OUT/replay.log" & R=$!
+wait $T; echo "live_tf=$?"
+wait $A; echo "live_alerts=$?"
+wait_until 20 grep -q "played" "$OUT/replay.log"
+# RustDDS cleans a writer's cache every 6 s: one cleaning after the last alert.
+sleep 8
+"$LH" topic echo /human/fall_alert --timeout 3 > "$OUT/late_alerts.jsonl"; echo "late=$?"
+kill -INT $R; wait $R; echo "replay=$?"
+"#;
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(90));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let log = std::fs::read_to_string(dir.path().join("replay.log")).unwrap();
+    for want in ["live_tf=0", "live_alerts=0", "late=0", "replay=0"] {
+        assert!(stdout.contains(want), "expected {want}: {stdout}\n{log}");
+    }
+    assert!(!log.contains("dropped"), "{log}");
+    let children: Vec<_> = json_lines(&dir.path().join("live_tf.jsonl"))
+        .iter()
+        .map(|l| l["msg"]["transforms"][0]["child_frame_id"].clone())
+        .collect();
+    assert_eq!(children, ["laser", "odom"]);
+    let alert_numbers = |file: &str| -> Vec<usize> {
+        json_lines(&dir.path().join(file))
+            .iter()
+            .map(|l| l["msg"]["position"]["x"].as_f64().unwrap() as usize)
+            .collect()
+    };
+    assert_eq!(
+        alert_numbers("live_alerts.jsonl"),
+        (0..ALERTS).collect::<Vec<_>>()
+    );
+    // The newest 10 (RustDDS's cleaning keeps one more than the limit); all 25 before.
+    let late = alert_numbers("late_alerts.jsonl");
+    assert!(
+        (10..=11).contains(&late.len()) && late.ends_with(&[ALERTS - 1]),
+        "a late subscriber got alerts {late:?} of a depth of 10"
+    );
+    assert!(late.windows(2).all(|w| w[1] == w[0] + 1), "{late:?}");
+}
+
+/// A second SIGINT or SIGTERM ends a node at once, by that signal, as with the `lidar-har`
+/// tool: the first asks for a clean stop, which a stuck DDS stack could hold up for ever,
+/// and every further signal used to be taken for the first. Two signals of one kind sent
+/// together may reach a process as one, so the test sends two kinds.
+#[test]
+fn ros_a_second_signal_ends_a_node_at_once() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let script = r#"
+"$LOC" 2> "$OUT/localiser.err" & L=$!
+# Up: it subscribes /tf (its signal handlers are installed before it joins the graph).
+wait_until 20 topics_listed /tf
+kill -INT $L; kill -TERM $L; wait $L; echo "localiser=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("LH", &workspace_bin("lidar-har")),
+            ("LOC", &workspace_bin("localiser")),
+            ("OUT", dir.path()),
+        ],
+        Duration::from_secs(60),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    // Ended by SIGTERM or by SIGINT, whichever of the two it took second; 0 was a clean stop.
+    assert!(
+        stdout.contains("localiser=143") || stdout.contains("localiser=130"),
+        "{stdout}"
     );
 }

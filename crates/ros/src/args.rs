@@ -111,13 +111,28 @@ impl RosArgs {
         let (lhs, to) = rule
             .split_once(":=")
             .ok_or_else(|| bad("must be `from:=to`"))?;
-        let (node, from) = split_node_prefix(lhs).map_err(|e| bad(&e))?;
+        let (node, from) = split_remap_node_prefix(lhs).map_err(|e| bad(&e))?;
+        // rcl's `rostopic://` and `rosservice://` restrict a rule to topics or to services;
+        // the rest of the match side is a name as in a rule without them.
+        let (kind, from) = match (from.strip_prefix(TOPIC_URL), from.strip_prefix(SERVICE_URL)) {
+            (Some(name), _) => (Some(RuleKind::Topic), name),
+            (_, Some(name)) => (Some(RuleKind::Service), name),
+            (None, None) => (None, from),
+        };
         if from.is_empty() || to.is_empty() {
             return Err(bad("both sides must be non-empty"));
         }
         let node = node.map(String::from);
         let to = to.to_string();
-        let topic_rule = !matches!(from, "__node" | "__name" | "__ns");
+        let special = matches!(from, "__node" | "__name" | "__ns");
+        if special && kind.is_some() {
+            // rcl expects a name after the URL scheme, and `__node` is none.
+            return Err(bad(&format!(
+                "`{from}` is not a topic or service name (`{from}:=...` takes no \
+                 rostopic:// or rosservice://)"
+            )));
+        }
+        let topic_rule = !special;
         if topic_rule {
             // rcl parses both sides of a topic rule when it parses the arguments: a name the
             // middleware would refuse fails here, as a bad argument, before any DDS traffic.
@@ -133,6 +148,9 @@ impl RosArgs {
                 validate_namespace(&to).map_err(|e| bad(&e))?;
                 self.namespaces.push(NodeRule { node, to });
             }
+            // Service names are not remapped: the nodes serve only ros2-client's parameter
+            // services, which it names itself. The rule is checked, as rcl does, and left.
+            _ if kind == Some(RuleKind::Service) => {}
             _ => self.remaps.push(Remap {
                 node,
                 from: from.to_string(),
@@ -219,6 +237,27 @@ fn split_node_prefix(lhs: &str) -> Result<(Option<&str>, &str), String> {
         }
         None => Ok((None, lhs)),
     }
+}
+
+/// The URL schemes rcl's lexer reads at the start of a rule's match side.
+const TOPIC_URL: &str = "rostopic://";
+const SERVICE_URL: &str = "rosservice://";
+
+/// What a `rostopic://` or `rosservice://` rule is restricted to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum RuleKind {
+    Topic,
+    Service,
+}
+
+/// [`split_node_prefix`] for a `-r` rule, whose match side may begin with `rostopic://` or
+/// `rosservice://` (after the node prefix, if any): rcl reads either as one lexeme, so their
+/// ':' is no node prefix's (`rostopic://scan:=/r1/scan`, `localiser:rostopic://scan:=x`).
+fn split_remap_node_prefix(lhs: &str) -> Result<(Option<&str>, &str), String> {
+    if lhs.starts_with(TOPIC_URL) || lhs.starts_with(SERVICE_URL) {
+        return Ok((None, lhs));
+    }
+    split_node_prefix(lhs)
 }
 
 /// rmw's longest node name (`RMW_NODE_NAME_MAX_NAME_LENGTH`).
@@ -552,6 +591,68 @@ mod tests {
         }
         for good in ["scan:=/r1/scan", "~/x:=/y", "n:/a/b_2:=c", "/scan:=~/s"] {
             RosArgs::parse(["--ros-args", "-r", good]).unwrap();
+        }
+    }
+
+    /// rcl's `rostopic://` and `rosservice://` rules: the ':' of the scheme used to be taken
+    /// for a node prefix's (`-r rostopic://scan:=/robot1/scan` exited with status 2).
+    #[test]
+    fn rostopic_and_rosservice_rules_are_read_as_rcl_reads_them() {
+        let a = RosArgs::parse([
+            "--ros-args",
+            "-r",
+            "rostopic://scan:=/robot1/scan",
+            "-r",
+            "localiser:rostopic:///odom:=odom2",
+            "-r",
+            "rosservice://~/get_parameters:=/x",
+            "-r",
+            "classifier:rosservice://reset:=reset2",
+        ])
+        .unwrap();
+        assert_eq!(
+            a.remaps,
+            vec![
+                Remap {
+                    node: None,
+                    from: "scan".into(),
+                    to: "/robot1/scan".into()
+                },
+                Remap {
+                    node: Some("localiser".into()),
+                    from: "/odom".into(),
+                    to: "odom2".into()
+                },
+            ]
+        );
+        assert_eq!(
+            resolve_topic("/scan", &a.remaps, "/", "localiser"),
+            "/robot1/scan"
+        );
+        assert_eq!(
+            resolve_topic("/odom", &a.remaps, "/", "localiser"),
+            "/odom2"
+        );
+        // A node named `rostopic`: only `://` makes the scheme.
+        let a = RosArgs::parse(["--ros-args", "-r", "rostopic:scan:=x"]).unwrap();
+        assert_eq!(a.remaps[0].node.as_deref(), Some("rostopic"));
+        // The names after the scheme are checked as in any rule; the scheme belongs to the
+        // match side only, and `__node`/`__ns` take none.
+        for (rule, needle) in [
+            ("rostopic://bad-name:=x", "'-'"),
+            ("rosservice://x:=/a//b", "//"),
+            ("rostopic://scan:=rostopic://x", "':'"),
+            ("rostopic://:=x", "non-empty"),
+            ("rostopic://__node:=x", "not a topic or service name"),
+            ("rosservice://__ns:=/x", "not a topic or service name"),
+            ("bad-node:rostopic://scan:=x", "node prefix"),
+        ] {
+            let err = RosArgs::parse(["--ros-args", "-r", rule]).unwrap_err();
+            let text = err.to_string();
+            assert!(
+                matches!(err, RosError::Args(_)) && text.contains(rule) && text.contains(needle),
+                "{rule}: {text}"
+            );
         }
     }
 

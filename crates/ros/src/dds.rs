@@ -7,7 +7,7 @@
 
 use std::collections::HashMap;
 use std::net::Ipv4Addr;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -150,12 +150,18 @@ fn read_only_validator(serving: Arc<AtomicBool>) -> ParameterValidator {
     })
 }
 
+/// The QoS of a topic and of our readers of it.
 fn qos_policies(qos: &QosProfile) -> QosPolicies {
+    QosPolicies::from(&ros2_profile(qos, ros2_client::qos::WhenFull::DEFAULT))
+}
+
+fn ros2_profile(
+    qos: &QosProfile,
+    when_full: ros2_client::qos::WhenFull,
+) -> ros2_client::QosProfile {
     use ros2_client::qos as r;
     let reliability = match qos.reliability {
-        Reliability::Reliable => r::Reliability::Reliable {
-            when_full: r::WhenFull::DEFAULT,
-        },
+        Reliability::Reliable => r::Reliability::Reliable { when_full },
         Reliability::BestEffort => r::Reliability::BestEffort,
     };
     let durability = match qos.durability {
@@ -168,11 +174,54 @@ fn qos_policies(qos: &QosProfile) -> QosPolicies {
         },
         History::KeepAll => r::History::KeepAll,
     };
-    let profile = r::QosProfile::publisher_default()
+    r::QosProfile::publisher_default()
         .reliability(reliability)
         .durability(durability)
-        .history(history);
-    QosPolicies::from(&profile)
+        .history(history)
+}
+
+/// The QoS of our writers: [`qos_policies`], and what a write does when RustDDS's reliable
+/// send window is full, which it is only when a matched reader has stopped acknowledging
+/// (a stopped process, a network that lets discovery through but not data).
+///
+/// - Keep-last, volatile: the write fails at once ([`DdsPublisher::publish`] drops the
+///   sample, with a warning). Keep-last writers of Cyclone DDS and Fast DDS never block: a
+///   reader that falls behind loses old samples. RustDDS 0.15 blocks instead, for the
+///   reliability's `max_blocking_time` (100 ms by default), once 8192 samples are
+///   unacknowledged (its window, sized by ResourceLimits, not by the history), then fails:
+///   that used to end the node. The window stays at 8192: one the size of the history
+///   would hold up every reader of the topic as soon as one of them fell a few samples
+///   behind.
+/// - Keep-last, transient-local: ResourceLimits of the history's depth, so that RustDDS's
+///   cache cleaning (every 6 s) keeps about `depth` samples for late joiners while no reader
+///   is matched; it kept every sample, so a late joiner got them all and a replayed /map in
+///   a loop grew the process by a map a pass. The window is then `depth` samples too, so a
+///   write waits up to 100 ms (the default) for a matched reader's acknowledgement, which
+///   on a working network comes within a millisecond or two: several latched messages
+///   written at once (two /tf_static of a bag) all go; a reader that stopped acknowledging
+///   costs each such write 100 ms, and the sample is dropped.
+/// - Keep-all: as before (100 ms, then the sample is dropped with a warning).
+fn writer_qos_policies(qos: &QosProfile) -> QosPolicies {
+    use ros2_client::qos::WhenFull;
+    let when_full = match (qos.history, qos.durability) {
+        (History::KeepLast(_), Durability::Volatile) => WhenFull::Fail,
+        _ => WhenFull::DEFAULT,
+    };
+    let policies = QosPolicies::from(&ros2_profile(qos, when_full));
+    match (qos.history, qos.durability) {
+        (History::KeepLast(depth), Durability::TransientLocal) => {
+            let depth = i32::try_from(depth.max(1)).unwrap_or(i32::MAX);
+            let limits = rustdds::QosPolicyBuilder::new()
+                .resource_limits(rustdds::policy::ResourceLimits {
+                    max_samples: depth,
+                    max_instances: 1,
+                    max_samples_per_instance: depth,
+                })
+                .build();
+            policies.modify_by(&limits)
+        }
+        _ => policies,
+    }
 }
 
 /// A participant on `ROS_DOMAIN_ID`, announcing itself and listening for multicast only on
@@ -359,6 +408,7 @@ impl DdsNode {
         Ok(DdsSubscriber {
             topic: topic.to_string(),
             reader,
+            skipped: AtomicU64::new(0),
         })
     }
 
@@ -393,11 +443,10 @@ impl NodeBackend for DdsNode {
         type_name: &str,
         qos: &QosProfile,
     ) -> Result<Box<dyn PublisherBackend>, RosError> {
-        let policies = qos_policies(qos);
-        let t = self.topic(topic, type_name, &policies)?;
+        let t = self.topic(topic, type_name, &qos_policies(qos))?;
         let writer = self
             .publisher
-            .create_datawriter_no_key::<RawCdr, RawAdapter>(&t, Some(policies))
+            .create_datawriter_no_key::<RawCdr, RawAdapter>(&t, Some(writer_qos_policies(qos)))
             .map_err(|e| RosError::Topic {
                 topic: topic.into(),
                 reason: e.to_string(),
@@ -407,6 +456,7 @@ impl NodeBackend for DdsNode {
             writer,
             matched: AtomicUsize::new(0),
             matched_ever: AtomicUsize::new(0),
+            dropped: AtomicU64::new(0),
         }))
     }
 
@@ -503,6 +553,9 @@ struct DdsPublisher {
     matched: AtomicUsize,
     /// Readers matched at any time, also from the status events.
     matched_ever: AtomicUsize,
+    /// Samples dropped because the reliable send window was full (see
+    /// [`writer_qos_policies`]).
+    dropped: AtomicU64,
 }
 
 impl DdsPublisher {
@@ -534,15 +587,30 @@ impl PublisherBackend for DdsPublisher {
         };
         let representation =
             RepresentationIdentifier::from_bytes(&header[..2]).map_err(|e| bad(e.to_string()))?;
-        self.writer
-            .write(
-                RawCdr {
-                    representation,
-                    body: body.to_vec(),
-                },
-                Some(Timestamp::now()),
-            )
-            .map_err(|e| bad(format!("write failed: {e}")))
+        let written = self.writer.write(
+            RawCdr {
+                representation,
+                body: body.to_vec(),
+            },
+            Some(Timestamp::now()),
+        );
+        match written {
+            Ok(()) => Ok(()),
+            // A matched reader has stopped acknowledging: the sample is lost for every reader,
+            // as a keep-last writer of another DDS loses old samples for a slow reader.
+            Err(rustdds::dds::WriteError::WouldBlock { .. }) => {
+                let dropped = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+                if dropped.is_power_of_two() {
+                    log::warn!(
+                        "{}: sample dropped: a subscriber has not acknowledged the samples \
+                         before it ({dropped} dropped so far)",
+                        self.topic
+                    );
+                }
+                Ok(())
+            }
+            Err(e) => Err(bad(format!("write failed: {e}"))),
+        }
     }
 
     fn subscription_count(&self) -> usize {
@@ -568,6 +636,8 @@ impl PublisherBackend for DdsPublisher {
 struct DdsSubscriber {
     topic: String,
     reader: no_key::SimpleDataReader<RawCdr, RawAdapter>,
+    /// Samples that could not be read (see [`take_readable`]).
+    skipped: AtomicU64,
 }
 
 /// RTPS time (seconds and 2^-32 fractions since the epoch) in nanoseconds.
@@ -578,13 +648,41 @@ fn timestamp_ns(t: Timestamp) -> i64 {
     seconds * 1_000_000_000 + nanos as i64
 }
 
+/// The next sample that `take` gives, passing over those it cannot read: a sample whose
+/// encapsulation is not plain CDR (any peer can send one, `00 11` or XCDR2) is logged, at
+/// the 1st, 2nd, 4th, 8th... of `topic`, counted in `skipped`, and the next one taken. It
+/// used to be an error, which ended the node. Other errors (the DDS stack's threads gone)
+/// are errors.
+fn take_readable<T>(
+    topic: &str,
+    skipped: &AtomicU64,
+    mut take: impl FnMut() -> rustdds::dds::ReadResult<Option<T>>,
+) -> Result<Option<T>, RosError> {
+    loop {
+        match take() {
+            Ok(taken) => return Ok(taken),
+            Err(rustdds::dds::ReadError::Deserialization { reason }) => {
+                let n = skipped.fetch_add(1, Ordering::Relaxed) + 1;
+                if n.is_power_of_two() {
+                    log::warn!(
+                        "{topic}: skipped a sample that cannot be read: {reason} ({n} so far)"
+                    );
+                }
+            }
+            Err(e) => {
+                return Err(RosError::Topic {
+                    topic: topic.to_string(),
+                    reason: e.to_string(),
+                });
+            }
+        }
+    }
+}
+
 impl SubscriberBackend for DdsSubscriber {
     fn try_take(&self) -> Result<Option<Sample>, RosError> {
         self.reader.drain_read_notifications();
-        let taken = self.reader.try_take_one().map_err(|e| RosError::Topic {
-            topic: self.topic.clone(),
-            reason: e.to_string(),
-        })?;
+        let taken = take_readable(&self.topic, &self.skipped, || self.reader.try_take_one())?;
         Ok(taken.map(|change| {
             let source_time_ns = change.source_timestamp().map(timestamp_ns);
             let raw = change.into_value();
@@ -641,6 +739,89 @@ mod tests {
         assert_eq!(
             qos(Some(reliable), Some(D::Persistent)),
             (Reliability::Reliable, Durability::TransientLocal)
+        );
+    }
+
+    /// A sample whose encapsulation is not plain CDR (any peer can send one) is skipped and
+    /// the next one taken: it used to be an error that ended the localiser and the
+    /// classifier. Other errors stay errors.
+    #[test]
+    fn an_unreadable_sample_is_skipped_and_the_next_one_taken() {
+        use rustdds::dds::ReadError;
+        let unreadable = || ReadError::Deserialization {
+            reason: "Unknown representation id [0, 17]".into(),
+        };
+        let mut queue = vec![Ok(Some(3)), Err(unreadable()), Err(unreadable())];
+        let skipped = AtomicU64::new(0);
+        let taken = take_readable("/scan", &skipped, || queue.pop().unwrap());
+        assert_eq!(taken.unwrap(), Some(3));
+        assert_eq!(skipped.load(Ordering::Relaxed), 2);
+        let mut queue = vec![Ok(None::<u8>), Err(unreadable())];
+        let taken = take_readable("/scan", &skipped, || queue.pop().unwrap());
+        assert_eq!(taken.unwrap(), None);
+        assert_eq!(skipped.load(Ordering::Relaxed), 3);
+        let broken = take_readable::<u8>("/scan", &skipped, || {
+            Err(ReadError::Poisoned {
+                reason: "gone".into(),
+            })
+        });
+        let err = broken.unwrap_err().to_string();
+        assert!(err.contains("/scan") && err.contains("gone"), "{err}");
+    }
+
+    /// Keep-last writers do not wait for a full send window (a reader that stopped
+    /// acknowledging used to end the node 100 ms into the first write it held up), but for
+    /// transient-local ones, whose window is their depth (below).
+    #[test]
+    fn keep_last_writers_do_not_wait_for_a_stalled_reader() {
+        use rustdds::policy::Reliability as R;
+        let blocking = |qos: QosProfile| match writer_qos_policies(&qos).reliability() {
+            Some(R::Reliable { max_blocking_time }) => Some(max_blocking_time),
+            _ => None,
+        };
+        let zero = Some(rustdds::Duration::ZERO);
+        assert_eq!(blocking(QosProfile::reliable(10)), zero);
+        assert_eq!(blocking(topics::HUMAN_ACTIVITY.qos), zero);
+        assert_eq!(blocking(QosProfile::sensor_data()), None);
+        let waits = Some(rustdds::Duration::from_millis(100));
+        assert_eq!(blocking(QosProfile::latched(1)), waits);
+        let keep_all = QosProfile {
+            history: History::KeepAll,
+            ..QosProfile::reliable(1)
+        };
+        assert_eq!(blocking(keep_all), waits);
+        // Readers and topics as before.
+        assert_eq!(
+            qos_policies(&QosProfile::reliable(10)).reliable_max_blocking_time(),
+            waits
+        );
+    }
+
+    /// A transient-local keep-last writer keeps its depth for late joiners: RustDDS kept
+    /// every sample while no reader was matched (a late subscriber got 25 fall alerts of a
+    /// depth of 10), unless ResourceLimits bound it. Other writers and readers get none.
+    #[test]
+    fn transient_local_writers_are_bounded_by_their_depth() {
+        let limits = |qos: QosProfile| writer_qos_policies(&qos).resource_limits();
+        let bound = |d| {
+            Some(rustdds::policy::ResourceLimits {
+                max_samples: d,
+                max_instances: 1,
+                max_samples_per_instance: d,
+            })
+        };
+        assert_eq!(limits(topics::FALL_ALERT.qos), bound(10));
+        assert_eq!(limits(topics::MAP.qos), bound(1));
+        assert_eq!(limits(QosProfile::reliable(10)), None);
+        assert_eq!(limits(QosProfile::sensor_data()), None);
+        assert_eq!(
+            qos_policies(&topics::FALL_ALERT.qos).resource_limits(),
+            None
+        );
+        let history = writer_qos_policies(&topics::FALL_ALERT.qos).history();
+        assert_eq!(
+            history,
+            Some(rustdds::policy::History::KeepLast { depth: 10 })
         );
     }
 

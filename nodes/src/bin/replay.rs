@@ -4,8 +4,8 @@
 //!
 //! Parameters: `bag` (required), `rate` (1.0; 0 = as fast as possible), `loop`,
 //! `start_offset` (s into the bag, up to its length), `topics` (only these; empty = all;
-//! those the bag lacks are skipped with a warning, none present is an error), `publish_clock`,
-//! `wait_for_subscriber` (a topic to wait on before playing, up to `wait_timeout` s),
+//! those the bag lacks are skipped with a warning, none present is an error), `publish_clock`
+//! (then the bag's own /clock is not played), `wait_for_subscriber` (a topic to wait on before playing, up to `wait_timeout` s),
 //! `wait_for_all_acked` (s to wait at the end for reliable subscribers to acknowledge
 //! everything, so the last messages are not lost when the process exits, and, while the
 //! replay has run for less than that, for a subscriber to match each reliable topic first;
@@ -73,7 +73,7 @@ fn decls() -> Vec<ParamDecl> {
         ParamDecl::new(
             "publish_clock",
             V::Bool(true),
-            "publish /clock with the bag's time",
+            "publish /clock with the bag's time (instead of the bag's own /clock)",
         ),
         ParamDecl::new(
             "wait_for_subscriber",
@@ -181,6 +181,26 @@ fn select_topics(
     Ok(Selection { play, missing })
 }
 
+/// With `publish_clock`, the bag's own /clock (a bag recorded with one) is not played: two
+/// clocks on /clock made the simulated time of `use_sim_time` nodes jump between the bag's
+/// and the other's at every message. True when it was left out; an error when it was the
+/// only topic to play.
+fn leave_out_bag_clock(selection: &mut Selection, publish_clock: bool) -> Result<bool, RosError> {
+    let clock = topics::CLOCK.name;
+    if !publish_clock || !selection.play.iter().any(|t| t == clock) {
+        return Ok(false);
+    }
+    selection.play.retain(|t| t != clock);
+    if selection.play.is_empty() {
+        return Err(bad_parameter(
+            "publish_clock",
+            "true replaces the bag's /clock, the only topic to play: set publish_clock:=false \
+             to play it",
+        ));
+    }
+    Ok(true)
+}
+
 /// A `start_offset` past the bag's last message would play nothing (with `loop`, nothing
 /// again and again) and exit 0 as if all went well: refused like any other bad parameter.
 fn check_start_offset(offset_ns: i64, bag_length_ns: i64, bag: &str) -> Result<(), RosError> {
@@ -220,13 +240,19 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     let info = reader.metadata();
     check_start_offset(settings.start_offset_ns, info.duration_ns(), &settings.bag)?;
     let in_bag: Vec<String> = reader.topics().iter().map(|t| t.name.clone()).collect();
-    let selection = select_topics(&settings.topics, &in_bag, &settings.bag)?;
+    let mut selection = select_topics(&settings.topics, &in_bag, &settings.bag)?;
     if !selection.missing.is_empty() {
         log::warn!(
             "replay: skipping {} (not in the bag {}, which has {})",
             selection.missing.join(", "),
             settings.bag,
             in_bag.join(", ")
+        );
+    }
+    if leave_out_bag_clock(&mut selection, settings.publish_clock)? {
+        log::info!(
+            "replay: not playing the bag's /clock: publish_clock:=true publishes /clock from the \
+             bag's time line instead (publish_clock:=false plays the bag's own)"
         );
     }
     if !settings.wait_for.is_empty() && !selection.play.contains(&settings.wait_for) {
@@ -499,6 +525,28 @@ mod tests {
         check_start_offset(0, 5_000_000_000, "b").unwrap();
         check_start_offset(5_000_000_000, 5_000_000_000, "b").unwrap();
         check_start_offset(0, 0, "empty").unwrap();
+    }
+
+    /// The bag's /clock and the replay's own used to be published together: simulated time
+    /// flipped between 1.7e9 s and 0.2 s.
+    #[test]
+    fn the_bags_clock_is_not_played_when_the_replay_publishes_its_own() {
+        let bag = names(&["/scan", "/clock", "/map"]);
+        let mut s = select_topics(&[], &bag, "b").unwrap();
+        assert!(leave_out_bag_clock(&mut s, true).unwrap());
+        assert_eq!(s.play, names(&["/scan", "/map"]));
+        let mut s = select_topics(&[], &bag, "b").unwrap();
+        assert!(!leave_out_bag_clock(&mut s, false).unwrap());
+        assert_eq!(s.play, bag);
+        let mut s = select_topics(&names(&["/scan"]), &bag, "b").unwrap();
+        assert!(!leave_out_bag_clock(&mut s, true).unwrap());
+        assert_eq!(s.play, names(&["/scan"]));
+        let mut s = select_topics(&names(&["/clock"]), &bag, "b").unwrap();
+        let err = leave_out_bag_clock(&mut s, true).unwrap_err().to_string();
+        assert!(
+            err.contains("`publish_clock`") && err.contains("publish_clock:=false"),
+            "{err}"
+        );
     }
 
     #[test]
