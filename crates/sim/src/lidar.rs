@@ -333,7 +333,9 @@ impl Lidar {
         // distribution) instead of a uniform number for every beam.
         let missing = self.noise.missing_pct / 100.0;
         let event = (missing + self.noise.wrong_pct / 100.0).min(1.0);
-        let ln_keep = (1.0 - event).ln();
+        // ln(1 - event) without rounding 1 - event: for event under about 1e-16 that is 1,
+        // whose logarithm 0 made every beam an event.
+        let ln_keep = (-event).ln_1p();
         let gap = |rng: &mut ChaCha8Rng| -> usize {
             if event <= 0.0 {
                 return usize::MAX;
@@ -637,6 +639,29 @@ mod tests {
                         "missing share {m}/{n}"
                     );
                 }
+            }
+        }
+    }
+
+    /// ln(1 - event) rounded 1 - event to 1 for event under about 1e-16, and a log of 0
+    /// made every beam an event: `missing_pct: 1e-15` dropped every return.
+    #[test]
+    fn tiny_missing_and_wrong_rates_drop_almost_nothing() {
+        let (s, w) = world("");
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let (mut r, mut l) = (Vec::new(), Vec::new());
+        for (missing, wrong) in [(1e-12, 0.0), (1e-15, 0.0), (1e-20, 0.0), (0.0, 1e-300)] {
+            let mut spec = s.lidar.clone();
+            spec.noise.missing_pct = missing;
+            spec.noise.wrong_pct = wrong;
+            let mut lidar = Lidar::new(&spec);
+            for _ in 0..10 {
+                lidar.scan(&w, Pose2::IDENTITY, None, Some(&mut rng), &mut r, &mut l);
+                let events = l
+                    .iter()
+                    .filter(|x| matches!(x, BeamLabel::Missing | BeamLabel::Wrong))
+                    .count();
+                assert_eq!(events, 0, "missing {missing} %, wrong {wrong} %");
             }
         }
     }

@@ -617,6 +617,8 @@ impl Person {
         // fall takes the same care; there the pelvis stays where it was and the feet go
         // where the re-anchoring below puts them.
         let mut heading = heading;
+        // How far the body turns from the previous step's heading to find room.
+        let mut twist = 0.0;
         if (a == Activity::FallingDown || lies_down_unchecked)
             && let Some(world) = &self.world_check
         {
@@ -635,9 +637,10 @@ impl Person {
                 _ => root,
             };
             let height = self.traits.dims.height;
-            let (lying, twist) = fall_direction(world, feet, heading, height, plan.lying, verb)
+            let (lying, turn) = fall_direction(world, feet, heading, height, plan.lying, verb)
                 .map_err(|message| SceneError::Refused { key, message })?;
             plan.lying = lying;
+            twist = turn;
             heading += twist;
             plan.heading0 = heading;
         }
@@ -698,7 +701,18 @@ impl Person {
             }
         }
         if let Some((_, mut prev_pose)) = prev {
-            prev_pose.pelvis = nominal_pelvis;
+            // The blend starts from the previous heading, about the re-anchored root: seen from
+            // there, the pelvis is where the previous step left it. Without a twist that is
+            // `nominal_pelvis`; with one, the root moved by the pelvis offset turned by the
+            // twist, and taking `nominal_pelvis` jumped the body a quarter to half a metre in
+            // 1 ms when lying down (or getting up) from standing. A fall starts standing, its pelvis
+            // within 5 mm of `nominal_pelvis`: a twisted one keeps it, as the datasets were
+            // made (it moves no body point faster than an untwisted fall does).
+            prev_pose.pelvis = if twist == 0.0 || a == Activity::FallingDown {
+                nominal_pelvis
+            } else {
+                prev_pose.pelvis - rotate(prev_pose.pelvis - nominal_pelvis, twist)
+            };
             plan.from = prev_pose;
         } else {
             plan.from = plan.raw_pose(&self.traits, start);
@@ -1127,6 +1141,39 @@ mod tests {
             err.contains("person.script[1]: no room to lie here: the body would hit a wall"),
             "{err}"
         );
+    }
+
+    /// Lying down from standing where the drawn side has no room twists the body: the root
+    /// was re-anchored with the new heading while the blend set off from the old one with
+    /// the lying pelvis, and the whole body jumped a quarter to half a metre in 1 ms. Getting
+    /// up from standing twists the same way; a twisted fall (left as it was) does not jump.
+    #[test]
+    fn a_body_turned_to_find_room_joins_without_jumps() {
+        // Three thin posts around the spot leave room to lie only some ways.
+        let posts = "furniture:\n  - {kind: cylinder, center: [2.3, 2.5], radius: 0.05, height: 0.5}\n  - {kind: cylinder, center: [3, 3.2], radius: 0.05, height: 0.5}\n  - {kind: cylinder, center: [3, 1.8], radius: 0.05, height: 0.5}\n";
+        let mut twisted = 0;
+        for (then, fall) in [
+            ("lying_down", ""),
+            ("getting_up", ""),
+            ("falling_down", ", fall: backward"),
+            ("falling_down", ""),
+        ] {
+            let text = format!(
+                "duration: 8\nroom: {{outline: [[0,0],[6,0],[6,5],[0,5]]}}\n{posts}robot: {{start: {{x: 0.5, y: 0.5}}}}\nperson:\n  start: {{x: 3, y: 2.5}}\n  script:\n    - {{activity: standing, duration: 2}}\n    - {{activity: {then}, duration: 4{fall}}}\n"
+            );
+            let s = Scene::parse(&text, "test").unwrap();
+            let world = World::new(&s);
+            for seed in 0..8 {
+                let mut p = Person::new(s.person.as_ref().unwrap(), &world, seed).unwrap();
+                let jump = max_jump(&mut p, 1.9, 3.5, 0.001);
+                assert!(jump < 0.02, "{then}, seed {seed}: {jump} m in 1 ms");
+                let step = &p.plans[1];
+                if normalize_angle(step.heading0 - step.from_heading).abs() > 0.1 {
+                    twisted += 1;
+                }
+            }
+        }
+        assert!(twisted >= 8, "only {twisted} bodies twisted");
     }
 
     #[test]

@@ -280,13 +280,30 @@ pub fn render_png(path: &Path, map: &OccupancyMap, trace: &Trace) -> Result<(), 
         .map_err(render_error(path))
 }
 
+/// The shortest time between an animation's frames: browsers play shorter GIF delays
+/// (10 ms, 0) as 100 ms.
+pub const MIN_FRAME_DELAY_MS: f64 = 20.0;
+
+/// Every how many scans an animation keeps one, for `scans` scans `scan_time` seconds apart
+/// played `speed_up` times faster than real time: at most `frames` frames, and at least
+/// [`MIN_FRAME_DELAY_MS`] between them (a short run gets fewer frames, not a slower play).
+pub fn animation_scan_every(scans: u64, scan_time: f64, frames: u64, speed_up: f64) -> u64 {
+    let by_count = scans.div_ceil(frames.max(1));
+    // A hair below the ratio, so that a whole number (80 ms of 20 ms scans) stays whole.
+    let by_delay = (MIN_FRAME_DELAY_MS * speed_up / (scan_time * 1000.0) - 1e-9).ceil();
+    by_count.max(by_delay as u64).max(1)
+}
+
 /// Draws an animated GIF at `path`, one frame per kept scan: that scan's points, the paths
-/// so far, where robot and person are. `frame_delay_ms` is rounded to GIF's 10 ms steps.
+/// so far, where robot and person are, `frame_delay_ms` apart (at least
+/// [`MIN_FRAME_DELAY_MS`]). GIF delays are whole centiseconds: each frame's is rounded so
+/// that the time played up to its end is within 5 ms of the exact one (a delay of 162.5 ms
+/// became 160 on every frame).
 pub fn render_gif(
     path: &Path,
     map: &OccupancyMap,
     trace: &Trace,
-    frame_delay_ms: u32,
+    frame_delay_ms: f64,
 ) -> Result<(), RenderError> {
     use image::codecs::gif::{GifEncoder, Repeat};
 
@@ -308,8 +325,11 @@ pub fn render_gif(
     encoder
         .set_repeat(Repeat::Infinite)
         .map_err(|e| err(e.to_string()))?;
-    let delay = image::Delay::from_numer_denom_ms(frame_delay_ms.max(20), 1);
-    for scan in &trace.scans {
+    let delay_cs = frame_delay_ms.max(MIN_FRAME_DELAY_MS) / 10.0;
+    // Centiseconds played by the end of frame `k`.
+    let played = |k: usize| (k as f64 * delay_cs).round() as u32;
+    for (k, scan) in trace.scans.iter().enumerate() {
+        let delay = image::Delay::from_numer_denom_ms(10 * (played(k + 1) - played(k)), 1);
         let mut pixels = background.clone();
         {
             let root = BitMapBackend::with_buffer(&mut pixels, (w, h)).into_drawing_area();
@@ -382,7 +402,7 @@ mod tests {
         assert_eq!(trace.animation_frames(), 4);
         let dir = tempfile::tempdir().unwrap();
         let gif = dir.path().join("top.gif");
-        render_gif(&gif, &map, &trace, 100).unwrap();
+        render_gif(&gif, &map, &trace, 100.0).unwrap();
         let file = std::io::BufReader::new(std::fs::File::open(&gif).unwrap());
         let frames = image::codecs::gif::GifDecoder::new(file)
             .unwrap()
@@ -400,10 +420,44 @@ mod tests {
         );
     }
 
+    /// A GIF promised at 4x real time with 100 frames: a run of 150 scans kept every scan
+    /// (150 frames, 12.5 ms apart, played at the 20 ms floor: 2.5x), and delays off GIF's
+    /// 10 ms steps were cut to them on every frame (162.5 ms played as 160).
+    #[test]
+    fn an_animation_keeps_its_speed_and_at_most_its_frames() {
+        for (scans, every) in [(150, 2), (40, 2), (800, 8), (1050, 11), (1300, 13), (1, 2)] {
+            let got = animation_scan_every(scans, 0.05, 100, 4.0);
+            assert_eq!(got, every, "{scans} scans");
+            assert!(scans.div_ceil(got) <= 100);
+            assert!(got as f64 * 50.0 / 4.0 >= MIN_FRAME_DELAY_MS);
+        }
+        // A 1000 Hz Lidar: 80 scans a frame at least.
+        assert_eq!(animation_scan_every(1000, 0.001, 100, 4.0), 80);
+        let (map, trace) = living_room_trace(2.0, 5);
+        let dir = tempfile::tempdir().unwrap();
+        let gif = dir.path().join("top.gif");
+        render_gif(&gif, &map, &trace, 162.5).unwrap();
+        let file = std::io::BufReader::new(std::fs::File::open(&gif).unwrap());
+        let delays: Vec<u32> = image::codecs::gif::GifDecoder::new(file)
+            .unwrap()
+            .into_frames()
+            .collect_frames()
+            .unwrap()
+            .iter()
+            .map(|f| f.delay().numer_denom_ms().0)
+            .collect();
+        assert_eq!(delays.len(), 8);
+        let mut played = 0.0;
+        for (k, d) in delays.iter().enumerate() {
+            played += *d as f64;
+            assert!((played - 162.5 * (k + 1) as f64).abs() <= 5.0, "{delays:?}");
+        }
+    }
+
     #[test]
     fn an_empty_trace_is_an_error_naming_the_file() {
         let (map, _) = living_room_trace(0.1, 1);
-        let e = render_gif(Path::new("/tmp/empty.gif"), &map, &Trace::new(1), 100).unwrap_err();
+        let e = render_gif(Path::new("/tmp/empty.gif"), &map, &Trace::new(1), 100.0).unwrap_err();
         assert!(e.to_string().contains("/tmp/empty.gif"), "{e}");
         let e = render_png(Path::new("/nonexistent/dir/x.png"), &map, &Trace::new(1)).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/dir/x.png"), "{e}");

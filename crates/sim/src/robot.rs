@@ -22,6 +22,13 @@ const GRID_RESOLUTION: f64 = 0.05;
 const POCKET_FRACTION: f64 = 0.25;
 /// The shortest straight run a `bounce` motion drives; shorter ones end the bouncing.
 const MIN_BOUNCE_RUN: f64 = 0.05;
+/// How far a straight move between a point inside the planning margin (a start or waypoint)
+/// and its nearest free cell may come within the robot's radius: what the grid's own runs
+/// allow (a free cell's centre keeps radius + 3 cm, its corners 3.5 cm from it), plus
+/// sampling.
+const ENTRY_TOLERANCE: f64 = 0.01;
+/// Step at which a straight move into the free space is checked, metres.
+const ENTRY_STEP: f64 = 0.01;
 
 /// The robot's velocity in its own frame (base_link): forward speed and turn rate.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -69,15 +76,51 @@ struct Grid {
     width: usize,
     height: usize,
     free: Vec<bool>,
+    /// Cells whose centre leaves the robot its radius (without the planning margin): where
+    /// the search for the free cell nearest a start or waypoint inside the margin may go.
+    fits: Vec<bool>,
+}
+
+/// Why a point inside the planning margin (a start or a waypoint) cannot join the free
+/// space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Stuck {
+    /// No free cell is reached through cells that leave the robot its radius.
+    NoFreeCell,
+    /// The straight move between the point and its nearest free cell (centre `cell`) runs
+    /// the robot into `what` (a wall: `None`).
+    Touches { cell: DVec2, what: Option<usize> },
+}
+
+/// Why [`Grid::plan`] found no way.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum NoWay {
+    Start(Stuck),
+    Goal(Stuck),
+    /// No way on the grid between the two.
+    Between,
+}
+
+/// The first obstacle the straight move `a`-`b` runs the robot of `radius` into (within
+/// [`ENTRY_TOLERANCE`]): `Some(None)` a wall, `Some(Some(i))` furniture `i`.
+fn move_touches(world: &World, radius: f64, a: DVec2, b: DVec2) -> Option<Option<usize>> {
+    let n = ((b - a).length() / ENTRY_STEP).ceil().max(1.0) as usize;
+    (0..=n).find_map(|k| {
+        let (clear, what) = world.robot_clearance(a.lerp(b, k as f64 / n as f64));
+        (clear < radius - ENTRY_TOLERANCE).then_some(what)
+    })
 }
 
 impl Grid {
-    fn new(world: &World, clearance: f64) -> Self {
+    /// The grid for a robot of `radius`: free cells keep radius + [`PLANNING_MARGIN`].
+    fn new(world: &World, radius: f64) -> Self {
+        let clearance = radius + PLANNING_MARGIN;
         let (lo, hi) = world.bounds();
         let origin = lo;
         let width = (((hi.x - lo.x) / GRID_RESOLUTION).ceil() as usize).max(1);
         let height = (((hi.y - lo.y) / GRID_RESOLUTION).ceil() as usize).max(1);
         let mut free = vec![false; width * height];
+        let mut fits = vec![false; width * height];
         for j in 0..height {
             for i in 0..width {
                 let c = origin
@@ -85,7 +128,9 @@ impl Grid {
                         (i as f64 + 0.5) * GRID_RESOLUTION,
                         (j as f64 + 0.5) * GRID_RESOLUTION,
                     );
-                free[j * width + i] = world.robot_clearance(c).0 >= clearance;
+                let clear = world.robot_clearance(c).0;
+                free[j * width + i] = clear >= clearance;
+                fits[j * width + i] = clear >= radius;
             }
         }
         Self {
@@ -93,6 +138,7 @@ impl Grid {
             width,
             height,
             free,
+            fits,
         }
     }
 
@@ -126,7 +172,8 @@ impl Grid {
         (0..=n).all(|k| self.is_free(a.lerp(b, k as f64 / n as f64)))
     }
 
-    /// Free cell nearest to `p` (breadth-first over the grid).
+    /// Free cell nearest to `p`, breadth-first over the cells that leave the robot its
+    /// radius (a search through blocked cells found free cells beyond thin furniture).
     fn nearest_free(&self, p: DVec2) -> Option<(usize, usize)> {
         let start = self.cell(p)?;
         let mut seen = vec![false; self.free.len()];
@@ -140,7 +187,7 @@ impl Grid {
                 let (ni, nj) = (i as i64 + di, j as i64 + dj);
                 if ni >= 0 && nj >= 0 && (ni as usize) < self.width && (nj as usize) < self.height {
                     let k = nj as usize * self.width + ni as usize;
-                    if !seen[k] {
+                    if !seen[k] && self.fits[k] {
                         seen[k] = true;
                         queue.push_back((ni as usize, nj as usize));
                     }
@@ -150,13 +197,26 @@ impl Grid {
         None
     }
 
-    /// A* (8-connected) from `a` to `b`, then shortened by line of sight. `None`: unreachable.
-    fn plan(&self, a: DVec2, b: DVec2) -> Option<Vec<DVec2>> {
-        if self.line_free(a, b) {
-            return Some(vec![a, b]);
+    /// Where the robot at `p` joins the free space: `p`'s own cell when it is free, else the
+    /// nearest free cell, which the robot drives to (or from) in a straight line, so that
+    /// move must not run it into a wall or furniture.
+    fn entry(&self, p: DVec2, world: &World, radius: f64) -> Result<(usize, usize), Stuck> {
+        let cell = self.nearest_free(p).ok_or(Stuck::NoFreeCell)?;
+        let c = self.center(cell);
+        match move_touches(world, radius, p, c) {
+            None => Ok(cell),
+            Some(what) => Err(Stuck::Touches { cell: c, what }),
         }
-        let s = self.nearest_free(a)?;
-        let g = self.nearest_free(b)?;
+    }
+
+    /// A* (8-connected) from `a` to `b`, then shortened by line of sight. Ends inside the
+    /// planning margin join the grid at their [`Grid::entry`].
+    fn plan(&self, a: DVec2, b: DVec2, world: &World, radius: f64) -> Result<Vec<DVec2>, NoWay> {
+        if self.line_free(a, b) {
+            return Ok(vec![a, b]);
+        }
+        let s = self.entry(a, world, radius).map_err(NoWay::Start)?;
+        let g = self.entry(b, world, radius).map_err(NoWay::Goal)?;
         let idx = |(i, j): (usize, usize)| j * self.width + i;
         let h = |(i, j): (usize, usize)| {
             let (dx, dy) = ((i as f64 - g.0 as f64).abs(), (j as f64 - g.1 as f64).abs());
@@ -184,7 +244,7 @@ impl Grid {
             }
         }
         if !cost[idx(g)].is_finite() {
-            return None;
+            return Err(NoWay::Between);
         }
         let mut cells = vec![g];
         let mut k = idx(g);
@@ -207,7 +267,7 @@ impl Grid {
             out.push(raw[j]);
             i = j;
         }
-        Some(out)
+        Ok(out)
     }
 
     /// The free cells one planner step from `cell`, with the step's length in cells: the
@@ -260,7 +320,11 @@ impl Grid {
                 }
             }
         }
-        Grid { free, ..*self }
+        Grid {
+            free,
+            fits: self.fits.clone(),
+            ..*self
+        }
     }
 
     /// The longest of up to 32 runs from `p` in random directions, stopping at the first
@@ -312,6 +376,28 @@ impl PartialOrd for Node {
     }
 }
 
+/// Why the robot cannot set off from, or arrive at, `p` (`what`: "the start", "the point")
+/// inside the planning margin.
+fn stuck_message(world: &World, radius: f64, what: &str, p: DVec2, stuck: Stuck) -> String {
+    let describe = |i| crate::validate::describe(world, i);
+    let near = describe(world.robot_clearance(p).1);
+    let why = match stuck {
+        Stuck::NoFreeCell => "no free space can be reached from it".to_string(),
+        Stuck::Touches { cell, what } => format!(
+            "the straight move between it and the nearest free space, at ({:.3}, {:.3}), \
+             runs the robot into {}",
+            cell.x,
+            cell.y,
+            describe(what)
+        ),
+    };
+    format!(
+        "{what} ({}, {}) lies within the planner's margin (the robot's radius, {radius} m, \
+         plus {PLANNING_MARGIN} m) of {near}, and {why}",
+        p.x, p.y
+    )
+}
+
 fn motion_error(key: &str, message: String) -> SceneError {
     SceneError::Refused {
         key: key.to_string(),
@@ -334,8 +420,16 @@ impl RobotMotion {
         if matches!(spec.motion, Motion::Static) {
             return Ok(motion);
         }
-        let grid = Grid::new(world, spec.radius + PLANNING_MARGIN);
+        let grid = Grid::new(world, spec.radius);
         let s = start.position();
+        // A start inside the planning margin drives straight to the nearest free cell first
+        // (every plan from it does): that move must keep the robot clear too.
+        if let Err(stuck) = grid.entry(s, world, spec.radius) {
+            return Err(motion_error(
+                "robot.start",
+                stuck_message(world, spec.radius, "the start", s, stuck),
+            ));
+        }
         let mut stops: Vec<DVec2> = Vec::new();
         let mut repeat = true;
         match &spec.motion {
@@ -448,7 +542,7 @@ impl RobotMotion {
                     // keep their plan.
                     if run == 0
                         && best.is_none_or(|(d, _)| d <= MIN_BOUNCE_RUN)
-                        && let Some(cell) = grid.nearest_free(s)
+                        && let Ok(cell) = grid.entry(s, world, spec.radius)
                     {
                         p = grid.center(cell);
                         best = grid.longest_free_run(p, &mut rng);
@@ -469,20 +563,32 @@ impl RobotMotion {
         let mut at = s;
         let mut path = vec![s];
         for (k, stop) in stops.iter().enumerate() {
-            let Some(leg) = grid.plan(at, *stop) else {
-                let key = match spec.motion {
-                    Motion::Waypoints { .. } if k < stops.len() - usize::from(repeat) => {
-                        format!("robot.motion.points[{k}]")
-                    }
-                    _ => "robot.motion".to_string(),
-                };
-                return Err(motion_error(
-                    &key,
-                    format!(
-                        "no collision-free way for the robot to ({:.2}, {:.2})",
-                        stop.x, stop.y
-                    ),
-                ));
+            let leg = match grid.plan(at, *stop, world, spec.radius) {
+                Ok(leg) => leg,
+                Err(why) => {
+                    let key = match spec.motion {
+                        Motion::Waypoints { .. } if k < stops.len() - usize::from(repeat) => {
+                            format!("robot.motion.points[{k}]")
+                        }
+                        _ => "robot.motion".to_string(),
+                    };
+                    let message = match why {
+                        NoWay::Start(stuck) | NoWay::Goal(stuck) => {
+                            let p = if matches!(why, NoWay::Start(_)) {
+                                at
+                            } else {
+                                *stop
+                            };
+                            let what = if p == s { "the start" } else { "the point" };
+                            stuck_message(world, spec.radius, what, p, stuck)
+                        }
+                        NoWay::Between => format!(
+                            "no collision-free way for the robot to ({:.2}, {:.2})",
+                            stop.x, stop.y
+                        ),
+                    };
+                    return Err(motion_error(&key, message));
+                }
             };
             path.extend(leg.into_iter().skip(1));
             at = *stop;
@@ -746,6 +852,106 @@ mod tests {
             );
             check_clear(&s, &m);
         }
+    }
+
+    /// A start 0.18 m from a wall, in a 0.36 m corridor beside a 5 cm partition: inside the
+    /// planning margin, and the nearest free cell lies across the partition. The planner
+    /// found that cell through blocked ones and the robot drove through the partition. Now
+    /// the search keeps to the corridor, and the straight move to the free space at its end
+    /// would cut the partition's corner: refused.
+    #[test]
+    fn a_start_inside_the_margin_does_not_cross_thin_furniture() {
+        let room = "duration: 60\nroom: {outline: [[0,0],[6,0],[6,4],[0,4]]}\nfurniture: [{kind: box, name: partition, center: [3, 0.385], size: [4, 0.05], height: 1}]\n";
+        for motion in [
+            "{kind: waypoints, points: [[3, 2.5]]}",
+            "{kind: coverage}",
+            "{kind: bounce, runs: 10}",
+        ] {
+            let text = format!("{room}robot: {{start: {{x: 3, y: 0.18}}, motion: {motion}}}\n");
+            let s = Scene::parse(&text, "t").unwrap();
+            let err = RobotMotion::new(&s.robot, &World::new(&s), 0)
+                .map(|m| m.path)
+                .unwrap_err()
+                .to_string();
+            assert_eq!(
+                err,
+                "robot.start: the start (3, 0.18) lies within the planner's margin (the \
+                 robot's radius, 0.17 m, plus 0.03 m) of a wall, and the straight move between \
+                 it and the nearest free space, at (5.175, 0.225), runs the robot into \
+                 furniture[0] 'partition'",
+                "{motion}"
+            );
+        }
+        // The same spot as a waypoint.
+        let text = format!(
+            "{room}robot: {{start: {{x: 3, y: 2.5}}, motion: {{kind: waypoints, points: [[3, 0.18]]}}}}\n"
+        );
+        let s = Scene::parse(&text, "t").unwrap();
+        let err = RobotMotion::new(&s.robot, &World::new(&s), 0)
+            .map(|m| m.path)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("robot.motion.points[0]: the point (3, 0.18) lies within")
+                && err.ends_with("runs the robot into furniture[0] 'partition'"),
+            "{err}"
+        );
+        // Beyond the partition's end the corridor opens: a start there sets off clear.
+        let text = format!(
+            "{room}robot: {{start: {{x: 0.9, y: 0.18}}, motion: {{kind: waypoints, points: [[3, 2.5]]}}}}\n"
+        );
+        let s = Scene::parse(&text, "t").unwrap();
+        check_clear(&s, &RobotMotion::new(&s.robot, &World::new(&s), 0).unwrap());
+    }
+
+    /// A table whose top is no higher than the Lidar is no table to drive under: the robot
+    /// drove straight under a 0.35 m top with its Lidar at 0.45 m.
+    #[test]
+    fn a_table_lower_than_the_lidar_is_driven_round() {
+        let scene = |lidar_height: f64| {
+            let text = format!(
+                "duration: 40\nroom: {{outline: [[0,0],[6,0],[6,4],[0,4]]}}\nfurniture: [{{kind: table, name: low table, center: [3, 2], size: [1.2, 3.0], height: 0.35}}]\nrobot: {{lidar_height: {lidar_height}, start: {{x: 1, y: 2}}, motion: {{kind: waypoints, points: [[5, 2]]}}}}\n"
+            );
+            Scene::parse(&text, "t").unwrap()
+        };
+        let s = scene(0.45);
+        let world = World::new(&s);
+        let m = RobotMotion::new(&s.robot, &world, 0).unwrap();
+        let top = &world.furniture[0].person_blocks[0];
+        let mut t = 0.0;
+        while t < m.period() {
+            let p = m.at(t).0.position();
+            assert!(
+                top.signed_distance(p) >= s.robot.radius - 1e-9,
+                "t = {t}: the robot at {p} is under the top (path {:?})",
+                m.path
+            );
+            t += 0.05;
+        }
+        check_clear(&s, &m);
+        // A top as high as the Lidar is as low; one above it is driven under, legs avoided.
+        assert!(
+            World::new(&scene(0.35))
+                .robot_clearance(DVec2::new(3.0, 2.0))
+                .0
+                < 0.0
+        );
+        let s = scene(0.3);
+        let m = RobotMotion::new(&s.robot, &World::new(&s), 0).unwrap();
+        assert_eq!(
+            m.path,
+            [
+                DVec2::new(1.0, 2.0),
+                DVec2::new(5.0, 2.0),
+                DVec2::new(1.0, 2.0)
+            ]
+        );
+        // Starting under the low top is refused like starting inside any other furniture.
+        let text = "duration: 40\nroom: {outline: [[0,0],[6,0],[6,4],[0,4]]}\nfurniture: [{kind: table, name: low table, center: [3, 2], size: [1.2, 3.0], height: 0.35}]\nrobot: {lidar_height: 0.45, start: {x: 3, y: 2}}\n";
+        assert_eq!(
+            Scene::parse(text, "t").unwrap_err().to_string(),
+            "t: robot.start: the robot (radius 0.17 m) starts inside furniture[0] 'low table'"
+        );
     }
 
     #[test]

@@ -123,9 +123,10 @@ const LAST_ROS_SECOND: u64 = i32::MAX as u64;
 /// needs the room built from the values checked before it.
 pub fn validate(scene: &Scene) -> Check {
     check_times(scene)?;
-    check_room(&scene.room)?;
+    let (room_lo, room_hi) = check_room(&scene.room)?;
     for (i, f) in scene.furniture.iter().enumerate() {
         check_furniture(&format!("furniture[{i}]"), f)?;
+        check_furniture_reach(&format!("furniture[{i}]"), f, room_lo, room_hi)?;
     }
     check_robot(&scene.robot)?;
     check_lidar(&scene.lidar)?;
@@ -154,7 +155,8 @@ fn check_times(scene: &Scene) -> Check {
     Ok(())
 }
 
-fn check_room(room: &Room) -> Check {
+/// The room's outline; its bounds when it passes.
+fn check_room(room: &Room) -> Result<(DVec2, DVec2), (String, String)> {
     polygon("room.outline", &room.outline)?;
     let (lo, hi) = room
         .outline
@@ -164,12 +166,92 @@ fn check_room(room: &Room) -> Check {
         });
     let span = hi - lo;
     if span.max_element() > MAX_ROOM_SIDE_M {
-        return fail(
-            "room.outline",
+        return Err((
+            "room.outline".to_string(),
             format!(
                 "spans {:.1} m x {:.1} m; at most {MAX_ROOM_SIDE_M} m a side (coordinates are \
                  metres)",
                 span.x, span.y
+            ),
+        ));
+    }
+    Ok((lo, hi))
+}
+
+/// A piece may reach at most [`MAX_ROOM_SIDE_M`] beyond the room's bounds, like the room's
+/// own size a limit on typing errors: sizes and coordinates were unbounded, and a box
+/// 1e150 m wide was accepted and, at such coordinates, invisible to the Lidar. The key names
+/// the point beyond the limit, or else the size (or radius) that takes the piece there.
+fn check_furniture_reach(k: &str, f: &Furniture, room_lo: DVec2, room_hi: DVec2) -> Check {
+    // Millimetres, or powers of ten for what no room holds.
+    let m = |v: f64| {
+        if v.abs() < 1e6 {
+            format!("{}", (v * 1000.0).round() / 1000.0)
+        } else {
+            format!("{v:e}")
+        }
+    };
+    let margin = DVec2::splat(MAX_ROOM_SIDE_M);
+    let (lo, hi) = (room_lo - margin, room_hi + margin);
+    let within = |p: DVec2| p.cmpge(lo).all() && p.cmple(hi).all();
+    let piece = if f.name().is_empty() {
+        "the piece".to_string()
+    } else {
+        format!("'{}'", f.name())
+    };
+    let limit = format!(
+        "more than {MAX_ROOM_SIDE_M} m beyond the room, which spans x {} .. {} m, y {} .. {} m \
+         (coordinates are metres)",
+        m(room_lo.x),
+        m(room_hi.x),
+        m(room_lo.y),
+        m(room_hi.y)
+    );
+    let (anchors, size_key): (Vec<(String, [f64; 2])>, String) = match f {
+        Furniture::Box { center, .. } => {
+            (vec![(format!("{k}.center"), *center)], format!("{k}.size"))
+        }
+        Furniture::Table(l) | Furniture::Chair(l) => {
+            (vec![(format!("{k}.center"), l.center)], format!("{k}.size"))
+        }
+        Furniture::Cylinder { center, .. } => (
+            vec![(format!("{k}.center"), *center)],
+            format!("{k}.radius"),
+        ),
+        Furniture::Polygon { points, .. } => (
+            points
+                .iter()
+                .enumerate()
+                .map(|(j, p)| (format!("{k}.points[{j}]"), *p))
+                .collect(),
+            format!("{k}.points"),
+        ),
+    };
+    for (key, p) in anchors {
+        if !within(DVec2::from(p)) {
+            return fail(
+                key,
+                format!("{piece} lies at ({}, {}), {limit}", m(p[0]), m(p[1])),
+            );
+        }
+    }
+    let (reach_lo, reach_hi) = crate::world::FurnitureShapes::new(f)
+        .person_blocks
+        .iter()
+        .map(|s| s.bounds())
+        .fold(
+            (DVec2::INFINITY, DVec2::NEG_INFINITY),
+            |(lo, hi), (l, h)| (lo.min(l), hi.max(h)),
+        );
+    if !(within(reach_lo) && within(reach_hi)) {
+        return fail(
+            size_key,
+            format!(
+                "{piece} reaches x {} .. {} m, y {} .. {} m, {limit}",
+                m(reach_lo.x),
+                m(reach_hi.x),
+                m(reach_lo.y),
+                m(reach_hi.y)
             ),
         );
     }
@@ -942,5 +1024,57 @@ mod tests {
         );
         assert!(error("").contains("bad.yaml"), "{}", error(""));
         assert!(error("duration: [1").contains("bad.yaml"));
+    }
+
+    /// Furniture sizes and coordinates were unbounded: a box 1e150 m wide was accepted, and
+    /// the Lidar saw straight through it.
+    #[test]
+    fn furniture_reaching_far_beyond_the_room_is_refused() {
+        let scene = |piece: &str| {
+            format!(
+                "duration: 5\nroom: {{outline: [[0,0],[6,0],[6,4],[0,4]]}}\nfurniture: [{piece}]\nrobot: {{start: {{x: 3, y: 1.5}}}}\n"
+            )
+        };
+        let room = "more than 200 m beyond the room, which spans x 0 .. 6 m, y 0 .. 4 m \
+                    (coordinates are metres)";
+        for (piece, want) in [
+            (
+                "{kind: box, name: wall unit, center: [3, 3.4], size: [1e150, 0.8], height: 0.8}",
+                format!(
+                    "furniture[0].size: 'wall unit' reaches x -5e149 .. 5e149 m, y 3 .. 3.8 m, \
+                     {room}"
+                ),
+            ),
+            (
+                "{kind: table, center: [3, 3.4], size: [0.8, 1e4], yaw_deg: 90, height: 0.8}",
+                format!(
+                    "furniture[0].size: the piece reaches x -4997 .. 5003 m, y 3 .. 3.8 m, \
+                     {room}"
+                ),
+            ),
+            (
+                "{kind: cylinder, center: [3, 3.4], radius: 300, height: 1}",
+                format!(
+                    "furniture[0].radius: the piece reaches x -297 .. 303 m, y -296.6 .. 303.4 m, {room}"
+                ),
+            ),
+            (
+                "{kind: box, center: [3, 1e200], size: [1, 1], height: 0.8}",
+                format!("furniture[0].center: the piece lies at (3, 1e200), {room}"),
+            ),
+            (
+                "{kind: polygon, points: [[5, 3], [6, 3], [5, -300]], height: 1}",
+                format!("furniture[0].points[2]: the piece lies at (5, -300), {room}"),
+            ),
+        ] {
+            let got = error(&scene(piece));
+            assert!(got.ends_with(&want), "{piece}:\n{got}\nwant: {want}");
+        }
+        // Up to 200 m beyond the room is a piece like any other.
+        Scene::parse(
+            &scene("{kind: box, center: [105.5, 3.6], size: [200, 0.4], height: 0.8}"),
+            "t",
+        )
+        .unwrap();
     }
 }

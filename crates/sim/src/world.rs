@@ -42,7 +42,8 @@ pub struct FurnitureShapes {
     pub name: String,
     /// What blocks a person (the whole top for tables and chairs).
     pub person_blocks: Vec<Shape>,
-    /// What blocks the robot, which drives under tables and chairs (their legs only).
+    /// What blocks the robot, which drives under tables and chairs (their legs only) whose
+    /// top is above its Lidar ([`World::from_parts`] makes a lower top block it whole).
     pub robot_blocks: Vec<Shape>,
     /// Top height; only parts reaching above the Lidar plane are seen.
     pub height: f64,
@@ -161,11 +162,19 @@ impl World {
         Self::from_parts(outline, furniture, scene.robot.lidar_height)
     }
 
+    /// The room from its outline and footprints, cut at `lidar_height`. A piece no higher
+    /// than the Lidar blocks the robot with its whole footprint: a table or chair top that
+    /// low is no top to drive under (the Lidar turret would go through it).
     pub fn from_parts(
         outline: Vec<DVec2>,
-        furniture: Vec<FurnitureShapes>,
+        mut furniture: Vec<FurnitureShapes>,
         lidar_height: f64,
     ) -> Self {
+        for f in &mut furniture {
+            if f.height <= lidar_height {
+                f.robot_blocks.clone_from(&f.person_blocks);
+            }
+        }
         let n = outline.len();
         let mut segments: Vec<Segment> = (0..n)
             .map(|i| Segment {

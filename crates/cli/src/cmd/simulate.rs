@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use lidar_har_sim::map::OccupancyMap;
 use lidar_har_sim::record::record;
-use lidar_har_sim::render::{Trace, render_gif, render_png};
+use lidar_har_sim::render::{Trace, animation_scan_every, render_gif, render_png};
 use lidar_har_sim::{Scene, Simulator};
 
 #[derive(clap::Args)]
@@ -24,7 +24,7 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub duration: Option<f64>,
     /// Also draw a top view of the map, paths and scan points: a picture (.png) or an
-    /// animation played at 4x real time (.gif).
+    /// animation played at 4x real time (.gif; at most 100 frames, at least 20 ms apart).
     #[arg(long, value_name = "FILE.png|FILE.gif")]
     pub render: Option<PathBuf>,
     /// Cell size of the recorded map, metres.
@@ -39,7 +39,7 @@ enum RenderKind {
     Animation,
 }
 
-/// Playback speed of `--render FILE.gif`, and how many scans it shows.
+/// Playback speed of `--render FILE.gif`, and how many scans it shows at most.
 const GIF_SPEED_UP: f64 = 4.0;
 const GIF_FRAMES: u64 = 100;
 /// Scans drawn on a `--render FILE.png`, whatever the duration.
@@ -91,7 +91,9 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let scan_every = match render {
-        Some(RenderKind::Animation) => (total / GIF_FRAMES).max(1),
+        Some(RenderKind::Animation) => {
+            animation_scan_every(total, geometry.scan_time, GIF_FRAMES, GIF_SPEED_UP)
+        }
         _ => (total / PNG_SCANS).max(1),
     };
     let mut trace = render.map(|_| Trace::new(scan_every));
@@ -121,7 +123,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         let map = OccupancyMap::from_world(sim.world(), args.map_resolution);
         if render == Some(RenderKind::Animation) {
             let delay_ms = scan_every as f64 * geometry.scan_time * 1000.0 / GIF_SPEED_UP;
-            render_gif(path, &map, trace, delay_ms.round() as u32)
+            render_gif(path, &map, trace, delay_ms)
         } else {
             render_png(path, &map, trace)
         }
