@@ -46,8 +46,9 @@ pub fn upper_median(values: &mut [f64]) -> Option<f64> {
     Some(upper)
 }
 
-/// Median and tail of a distribution, all nearest-rank quantiles (so the median of an even
-/// count is the lower of the middle two: a value that occurred).
+/// Median and tail of a distribution, all nearest-rank quantiles: exact from [`Spread::of`]
+/// (so the median of an even count is the lower of the middle two, a value that occurred),
+/// to three significant digits from a [`SpreadTally`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Spread {
     pub median: f64,

@@ -1,13 +1,16 @@
 //! Matching a run's outputs to the ground truth as both stream in, in fixed memory: each
 //! output waits only until the truth has reached its stamp (or [`TruthMatcher::LAG_NS`] has
-//! passed), and the truth is kept only as far back as a waiting output may need it.
+//! passed), and the truth is kept only as far back as a waiting output may need it. Truth
+//! that comes more than the lag after the outputs of its time is not matched to them.
 
 use std::collections::VecDeque;
 
 /// Outputs (`Q`, by stamp) waiting for the truth samples (`T`, by stamp) around them.
 ///
 /// Both streams are expected in about stamp order, as a bag's log order gives them; a truth
-/// sample out of order is put in its place, as long as it is not older than what was dropped.
+/// sample out of order is put in its place for the outputs still waiting. A stamp more than
+/// the lag before the newest seen starts the matching afresh (a bag played again from its
+/// start): what waits is settled with the truth there is, and the old truth is dropped.
 #[derive(Debug, Clone)]
 pub struct TruthMatcher<T, Q> {
     /// Truth samples in stamp order.
@@ -62,8 +65,9 @@ impl<T, Q> TruthMatcher<T, Q> {
         &mut self,
         stamp_ns: i64,
         value: T,
-        settle: impl FnMut(i64, Q, Around<'_, T>),
+        mut settle: impl FnMut(i64, Q, Around<'_, T>),
     ) {
+        self.restart_if_back(stamp_ns, &mut settle);
         let at = self.truth.partition_point(|&(t, _)| t <= stamp_ns);
         self.truth.insert(at, (stamp_ns, value));
         self.saw(stamp_ns);
@@ -75,8 +79,9 @@ impl<T, Q> TruthMatcher<T, Q> {
         &mut self,
         stamp_ns: i64,
         output: Q,
-        settle: impl FnMut(i64, Q, Around<'_, T>),
+        mut settle: impl FnMut(i64, Q, Around<'_, T>),
     ) {
+        self.restart_if_back(stamp_ns, &mut settle);
         self.waiting.push_back((stamp_ns, output));
         self.saw(stamp_ns);
         self.settle_ready(settle);
@@ -92,6 +97,20 @@ impl<T, Q> TruthMatcher<T, Q> {
     /// Truth samples held: bounded by the lag and the lookback, whatever the run's length.
     pub fn truth_held(&self) -> usize {
         self.truth.len()
+    }
+
+    /// Starts afresh when `stamp_ns` is more than the lag before the newest stamp seen: the
+    /// truth held is of another stretch of time, and would be dropped as too old anyway.
+    fn restart_if_back(&mut self, stamp_ns: i64, settle: impl FnMut(i64, Q, Around<'_, T>)) {
+        let back = self
+            .newest_ns
+            .is_some_and(|newest| stamp_ns < newest.saturating_sub(Self::LAG_NS));
+        if back {
+            self.finish(settle);
+            self.truth.clear();
+            self.newest_ns = None;
+            self.settled_up_to_ns = None;
+        }
     }
 
     fn saw(&mut self, stamp_ns: i64) {
@@ -206,6 +225,26 @@ mod tests {
         assert_eq!(settled, vec![(50 * MS, 'a', Some(4), Some(6))]);
         matcher.add_output(55 * MS, 'b', record(&mut settled));
         assert_eq!(settled[1], (55 * MS, 'b', Some(5), Some(6)));
+    }
+
+    #[test]
+    fn a_bag_played_again_from_its_start_is_matched_afresh() {
+        let mut matcher = TruthMatcher::new(200 * MS);
+        let mut settled = Settled::new();
+        for pass in 0..2 {
+            for k in 0..1000_i64 {
+                matcher.add_truth(k * 10 * MS, k, record(&mut settled));
+                matcher.add_output(k * 10 * MS + 5 * MS, 'a', record(&mut settled));
+            }
+            assert_eq!(settled.len(), 999 * (pass + 1) + pass, "pass {pass}");
+        }
+        matcher.finish(record(&mut settled));
+        assert_eq!(settled.len(), 2000);
+        // Each output of either pass between the truth of its own pass.
+        assert!(settled.iter().all(
+            |&(stamp, _, before, from)| before == Some(stamp / (10 * MS))
+                && from.is_none_or(|f| f == stamp / (10 * MS) + 1)
+        ));
     }
 
     #[test]

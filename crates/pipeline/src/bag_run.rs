@@ -556,9 +556,7 @@ impl Tally {
 /// /ground_truth/human_pose at their stamps, gathered as the run goes.
 struct PositionErrors {
     matcher: TruthMatcher<DVec2, Estimate>,
-    position: SpreadTally,
-    /// Each estimate with the pelvis in place of the position where it was placed.
-    pelvis: SpreadTally,
+    spreads: ErrorSpreads,
     /// The frame of the first ground-truth sample; samples in another are skipped.
     truth_frame: Option<String>,
     truth_samples: u64,
@@ -570,12 +568,32 @@ struct Estimate {
     pelvis: Option<DVec2>,
 }
 
+struct ErrorSpreads {
+    position: SpreadTally,
+    /// Each estimate with the pelvis in place of the position where it was placed.
+    pelvis: SpreadTally,
+}
+
+impl ErrorSpreads {
+    /// Counts an estimate's distance from the truth at its stamp, when there is truth
+    /// around it.
+    fn score(&mut self, stamp_ns: i64, estimate: Estimate, around: Around<'_, DVec2>) {
+        if let Some(truth) = truth_at(stamp_ns, around) {
+            let pelvis = estimate.pelvis.unwrap_or(estimate.position);
+            self.position.record(estimate.position.distance(truth));
+            self.pelvis.record(pelvis.distance(truth));
+        }
+    }
+}
+
 impl Default for PositionErrors {
     fn default() -> Self {
         Self {
             matcher: TruthMatcher::new(MAX_TRUTH_GAP_NS),
-            position: SpreadTally::with_steps_per_unit(STEPS_PER_M),
-            pelvis: SpreadTally::with_steps_per_unit(STEPS_PER_M),
+            spreads: ErrorSpreads {
+                position: SpreadTally::with_steps_per_unit(STEPS_PER_M),
+                pelvis: SpreadTally::with_steps_per_unit(STEPS_PER_M),
+            },
             truth_frame: None,
             truth_samples: 0,
         }
@@ -585,27 +603,27 @@ impl Default for PositionErrors {
 impl PositionErrors {
     fn add_truth(&mut self, stamp_ns: i64, position: DVec2) {
         self.truth_samples += 1;
-        let (errors, pelvis) = (&mut self.position, &mut self.pelvis);
+        let spreads = &mut self.spreads;
         self.matcher.add_truth(stamp_ns, position, |t, e, around| {
-            score(t, e, around, errors, pelvis)
+            spreads.score(t, e, around)
         });
     }
 
     fn add_estimate(&mut self, stamp_ns: i64, position: DVec2, pelvis: Option<DVec2>) {
-        let estimate = Estimate { position, pelvis };
-        let (errors, pelvis) = (&mut self.position, &mut self.pelvis);
-        self.matcher.add_output(stamp_ns, estimate, |t, e, around| {
-            score(t, e, around, errors, pelvis)
-        });
+        let spreads = &mut self.spreads;
+        self.matcher
+            .add_output(stamp_ns, Estimate { position, pelvis }, |t, e, around| {
+                spreads.score(t, e, around)
+            });
     }
 
     /// The spreads of the position error and of the pelvis's (when `pelvis_placed`), if the
     /// truth is in the frame of the estimates (`frame`): a learned background puts them in the
     /// Lidar's frame, which a map-frame truth cannot be compared to.
     fn finish(mut self, frame: &str, pelvis_placed: bool) -> (Option<Spread>, Option<Spread>) {
-        let (errors, pelvis) = (&mut self.position, &mut self.pelvis);
+        let spreads = &mut self.spreads;
         self.matcher
-            .finish(|t, e, around| score(t, e, around, errors, pelvis));
+            .finish(|t, e, around| spreads.score(t, e, around));
         let truth_frame = self.truth_frame.as_deref();
         if truth_frame.is_some_and(|truth_frame| truth_frame != frame) {
             log::warn!(
@@ -615,22 +633,10 @@ impl PositionErrors {
             );
             return (None, None);
         }
-        let pelvis = pelvis_placed.then(|| self.pelvis.spread()).flatten();
-        (self.position.spread(), pelvis)
-    }
-}
-
-/// Counts an estimate's distance from the truth at its stamp, when there is truth around it.
-fn score(
-    stamp_ns: i64,
-    estimate: Estimate,
-    around: Around<'_, DVec2>,
-    errors: &mut SpreadTally,
-    pelvis_errors: &mut SpreadTally,
-) {
-    if let Some(truth) = truth_at(stamp_ns, around) {
-        errors.record(estimate.position.distance(truth));
-        pelvis_errors.record(estimate.pelvis.unwrap_or(estimate.position).distance(truth));
+        let pelvis = pelvis_placed
+            .then(|| self.spreads.pelvis.spread())
+            .flatten();
+        (self.spreads.position.spread(), pelvis)
     }
 }
 

@@ -917,19 +917,44 @@ pub fn activity_of(msg: &har::Activity) -> Option<Activity> {
 pub struct ActivityLog {
     /// Published predictions (activity, confidence) waiting for the truth at their stamp.
     matcher: TruthMatcher<Activity, (Activity, f32)>,
-    confusion: ConfusionMatrix,
+    scores: ActivityScores,
     predictions: usize,
-    segments: Segments,
     alerts: Vec<FallAlert>,
+}
+
+/// What the settled predictions add up to.
+#[derive(Debug, Clone, Default)]
+struct ActivityScores {
+    confusion: ConfusionMatrix,
+    segments: Segments,
+}
+
+impl ActivityScores {
+    /// Scores a prediction against the true activity at its stamp (the latest truth not
+    /// after it, if recent) and adds it to its segment.
+    fn settle(
+        &mut self,
+        stamp_ns: i64,
+        (activity, confidence): (Activity, f32),
+        around: Around<'_, Activity>,
+    ) {
+        let truth = around
+            .latest_not_after(stamp_ns)
+            .filter(|&(t, _)| stamp_ns - t <= TRUTH_MAX_AGE_NS)
+            .map(|(_, &a)| a);
+        if let Some(truth) = truth {
+            self.confusion.add(truth, activity);
+        }
+        self.segments.add(stamp_ns, activity, confidence, truth);
+    }
 }
 
 impl Default for ActivityLog {
     fn default() -> Self {
         Self {
             matcher: TruthMatcher::new(TRUTH_MAX_AGE_NS),
-            confusion: ConfusionMatrix::new(),
+            scores: ActivityScores::default(),
             predictions: 0,
-            segments: Segments::default(),
             alerts: Vec::new(),
         }
     }
@@ -1042,9 +1067,9 @@ const TRUTH_MAX_AGE_NS: i64 = 500_000_000;
 impl ActivityLog {
     pub fn add_truth(&mut self, stamp_ns: i64, msg: &har::Activity) {
         if let Some(activity) = activity_of(msg) {
-            let (confusion, segments) = (&mut self.confusion, &mut self.segments);
+            let scores = &mut self.scores;
             self.matcher.add_truth(stamp_ns, activity, |t, p, around| {
-                settle(t, p, around, confusion, segments)
+                scores.settle(t, p, around)
             });
         }
     }
@@ -1053,10 +1078,10 @@ impl ActivityLog {
         if out.publishable() {
             self.predictions += 1;
             let prediction = (out.prediction.activity, out.prediction.confidence);
-            let (confusion, segments) = (&mut self.confusion, &mut self.segments);
+            let scores = &mut self.scores;
             self.matcher
                 .add_output(out.stamp_ns, prediction, |t, p, around| {
-                    settle(t, p, around, confusion, segments)
+                    scores.settle(t, p, around)
                 });
         }
         self.alerts.extend(out.alerts.iter().copied());
@@ -1068,11 +1093,11 @@ impl ActivityLog {
 
     /// The activity part of `summary.json`, once the run has ended.
     pub fn finish(mut self) -> ActivitySummary {
-        let (confusion, segments) = (&mut self.confusion, &mut self.segments);
+        let scores = &mut self.scores;
         self.matcher
-            .finish(|t, p, around| settle(t, p, around, confusion, segments));
-        self.segments.close();
-        let metrics = (self.confusion.total() > 0).then(|| self.confusion.report());
+            .finish(|t, p, around| scores.settle(t, p, around));
+        self.scores.segments.close();
+        let metrics = (self.scores.confusion.total() > 0).then(|| self.scores.confusion.report());
         ActivitySummary {
             scans_classified: self.predictions,
             accuracy: metrics.as_ref().map(|m| m.accuracy),
@@ -1092,7 +1117,7 @@ impl ActivityLog {
                     confidence: a.confidence,
                 })
                 .collect(),
-            segments: self.segments.done,
+            segments: self.scores.segments.done,
             classify_time_us: None,
             scan_rate_hz: None,
             model_scan_rate_hz: None,
@@ -1100,25 +1125,6 @@ impl ActivityLog {
             pelvis_published: 0,
         }
     }
-}
-
-/// Scores a prediction against the true activity at its stamp (the latest truth not after
-/// it, if recent) and adds it to its segment.
-fn settle(
-    stamp_ns: i64,
-    (activity, confidence): (Activity, f32),
-    around: Around<'_, Activity>,
-    confusion: &mut ConfusionMatrix,
-    segments: &mut Segments,
-) {
-    let truth = around
-        .latest_not_after(stamp_ns)
-        .filter(|&(t, _)| stamp_ns - t <= TRUTH_MAX_AGE_NS)
-        .map(|(_, &a)| a);
-    if let Some(truth) = truth {
-        confusion.add(truth, activity);
-    }
-    segments.add(stamp_ns, activity, confidence, truth);
 }
 
 /// The classifier inside a bag run (`lidar-har run`, `lidar-har demo`): classifies every
