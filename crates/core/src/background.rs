@@ -4,9 +4,12 @@
 //! The background is kept per bearing, not per beam index: some drivers (`sllidar_ros2`
 //! with `angle_compensate` false) publish a few beams more or fewer each rotation, over the
 //! same turn, so beam `i` of one scan is not where beam `i` of the next points. The first
-//! learning scan with beams sets the bins: one per beam, centred on its angle and as wide as
-//! its `angle_increment`, wrapped around when its beams make a full turn. Every beam of
-//! every scan, learning or classified, goes to the bin nearest its angle.
+//! learning scan with beams sets the bins: a full turn of them, as wide as its
+//! `angle_increment`, from one centred on its `angle_min`, whatever part of the turn that
+//! scan covers (a driver's first rotation may be cut short: bins sized to it had left the
+//! rest of the turn open space, and every later return there foreground). Every beam of
+//! every scan, learning or classified, goes to the bin nearest its angle; bins that no
+//! learning beam fell in look into open space.
 //!
 //! Per bin, the background range is the median of the returns seen while learning, which
 //! ignores a person who crosses the bearing for less than half of that time. A bin that
@@ -56,18 +59,22 @@ pub struct LearnedBackground {
 /// forward (NTP at boot) or a stalled driver must not end learning on one or two scans.
 const MAX_LEARNING_GAP_NS: i64 = 500_000_000;
 
-/// The background's bins: those of the first learning scan's beams, `angle_min + i *
-/// angle_increment`, each centred on its beam and as wide as the increment.
+/// The background's bins: a full turn of them at the first learning scan's `angle_increment`,
+/// bin `i` centred on `angle_min + i * angle_increment` and as wide as the increment; the
+/// last one neighbours the first.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Bins {
-    /// The angle in the middle of the bins (radians, Lidar frame).
+    /// The angle in the middle of the first learning scan's beams (radians, Lidar frame):
+    /// the seam, where the turn's bins may fall a fraction of a bin short of a turn, is half
+    /// a turn from it (behind a Lidar that scans less than a turn).
     centre: f64,
+    /// Where `centre` lies, in bins from bin 0's centre.
+    middle: f64,
     /// The learning scan's `angle_increment` (radians, negative for a clockwise scan).
     increment: f64,
+    /// Bins a turn, rounded: `per_turn`, give or take a fraction.
     count: usize,
-    /// The bins make a full turn: the last one neighbours the first.
-    wraps: bool,
-    /// Bins a turn: `2 pi / |increment|` (`count` when they wrap, give or take a fraction).
+    /// Bins a turn: `2 pi / |increment|`.
     per_turn: f64,
     /// Whole bins added to a position before it is rounded by truncation, so that it is
     /// positive (a cast rounds a positive number down, at a fraction of `f64::round`'s
@@ -83,17 +90,15 @@ impl Bins {
         // Scan::validate bounds the increment to [MIN_ANGLE_INCREMENT, MAX_SPAN_RAD]: at
         // least one bin a turn, at most MAX_BEAMS.
         let per_turn = TAU / increment.abs();
-        let whole_turn = per_turn.round().max(1.0) as usize;
-        let wraps = beams >= whole_turn;
-        let count = if wraps { whole_turn } else { beams };
+        let middle = (beams - 1) as f64 / 2.0;
         Self {
-            centre: f64::from(scan.angle_min) + increment * (count - 1) as f64 / 2.0,
+            centre: f64::from(scan.angle_min) + increment * middle,
+            middle,
             increment,
-            count,
-            wraps,
+            count: per_turn.round().max(1.0) as usize,
             per_turn,
-            // Positions are brought within half a turn of the centre.
-            bias: (count as f64 + per_turn) as i64 + 8,
+            // Positions are brought within half a turn of the middle.
+            bias: (middle + per_turn) as i64 + 8,
         }
     }
 
@@ -102,15 +107,14 @@ impl Bins {
     fn position(&self, angle: f64) -> f64 {
         let mut from_centre = angle - self.centre;
         from_centre -= TAU * (from_centre / TAU).round();
-        from_centre / self.increment + (self.count - 1) as f64 / 2.0
+        from_centre / self.increment + self.middle
     }
 
-    /// The bin nearest `position` (within a turn or two of the bins' centre): around the
-    /// turn when the bins wrap; otherwise `None` beyond a bin past either end of the learned
-    /// field of view (a beam within that bin takes the end's).
-    fn at(&self, mut position: f64) -> Option<usize> {
+    /// The bin nearest `position` (within a turn or two of the bins' centre), around the
+    /// turn.
+    fn at(&self, mut position: f64) -> usize {
         let count = self.count as i64;
-        let middle = (self.count - 1) as f64 / 2.0;
+        let middle = self.middle;
         let half_turn = self.per_turn / 2.0;
         while position - middle > half_turn {
             position -= self.per_turn;
@@ -119,30 +123,25 @@ impl Bins {
             position += self.per_turn;
         }
         let mut k = (position + 0.5 + self.bias as f64) as i64 - self.bias;
-        if self.wraps {
-            while k < 0 {
-                k += count;
-            }
-            while k >= count {
-                k -= count;
-            }
-            Some(k as usize)
-        } else {
-            (-1..=count)
-                .contains(&k)
-                .then(|| k.clamp(0, count - 1) as usize)
+        while k < 0 {
+            k += count;
         }
+        while k >= count {
+            k -= count;
+        }
+        k as usize
     }
 
     /// The bin nearest `angle`.
-    fn of_angle(&self, angle: f64) -> Option<usize> {
+    #[cfg(test)]
+    fn of_angle(&self, angle: f64) -> usize {
         self.at(self.position(angle))
     }
 
     /// The bin of each beam of `scan` (validated), in beam order: stepped along from beam
     /// 0's, as this runs on every beam of a scan whose geometry changed (a validated scan's
     /// beams lie within little more than a turn of its first).
-    fn of_beams(&self, scan: &Scan) -> impl Iterator<Item = Option<usize>> + use<> {
+    fn of_beams(&self, scan: &Scan) -> impl Iterator<Item = usize> + use<> {
         let bins = *self;
         let first = bins.position(f64::from(scan.angle_min));
         let step = f64::from(scan.angle_increment) / bins.increment;
@@ -235,7 +234,7 @@ impl LearnedBackground {
             }
             if let Some(bins) = bins {
                 for (&r, bin) in scan.ranges.iter().zip(bins.of_beams(scan)) {
-                    if let Some(bin) = bin.filter(|_| scan.is_return(r)) {
+                    if scan.is_return(r) {
                         samples[bin].push(r);
                     }
                 }
@@ -257,15 +256,13 @@ impl LearnedBackground {
                 *returns.select_nth_unstable_by(mid, f32::total_cmp).1
             })
             .collect();
+        // Around the turn: the last bin neighbours the first. A bin past the end of a
+        // Lidar's field of view takes the end's background, as a beam there may be the
+        // end's beam a fraction of a bin further on; the next one is open space.
         let n = background.len();
-        let wraps = bins.is_some_and(|b| b.wraps);
         let threshold = (0..n)
             .map(|i| {
-                let (before, after) = if wraps {
-                    ((i + n - 1) % n, (i + 1) % n)
-                } else {
-                    (i.saturating_sub(1), (i + 1).min(n - 1))
-                };
+                let (before, after) = ((i + n - 1) % n, (i + 1) % n);
                 background[before].min(background[i]).min(background[after]) - margin
             })
             .collect();
@@ -277,21 +274,10 @@ impl LearnedBackground {
         BackgroundStatus::Ready
     }
 
-    /// Whether a return of `range` metres at `angle` radians (Lidar frame) is in front of
-    /// the background. Bearings the learning never saw (past the field of view of a Lidar
-    /// that scans less than a turn) count as open space; nothing is foreground while
-    /// learning.
-    pub fn is_foreground(&self, angle: f64, range: f32) -> bool {
-        match &self.state {
-            State::Ready {
-                bins, threshold, ..
-            } => range < threshold_at(*bins, threshold, angle),
-            State::Learning(_) => false,
-        }
-    }
-
     /// For each beam of `scan` (validated), the range below which its return is foreground
-    /// ([`Self::is_foreground`] at its angle); empty while learning. Computed once per scan
+    /// (in front of the background of its bearing; infinite at bearings the learning never
+    /// saw, past the field of view of a Lidar that scans less than a turn: open space);
+    /// empty while learning, when nothing is foreground. Computed once per scan
     /// geometry, so classifying a scan costs a comparison a beam, as long as the geometry
     /// stays; a driver whose beam count changes every rotation pays an angle-to-bin step a
     /// beam.
@@ -313,22 +299,14 @@ impl LearnedBackground {
             beams.key = Some(key);
             beams.threshold.clear();
             match bins {
-                Some(bins) => beams.threshold.extend(bins.of_beams(scan).map(|bin| {
-                    bin.and_then(|b| threshold.get(b).copied())
-                        .unwrap_or(f32::INFINITY)
-                })),
+                Some(bins) => beams
+                    .threshold
+                    .extend(bins.of_beams(scan).map(|bin| threshold[bin])),
                 None => beams.threshold.resize(scan.ranges.len(), f32::INFINITY),
             }
         }
         &beams.threshold
     }
-}
-
-/// The threshold of the bin at `angle`: infinite (open space) where no bin is.
-fn threshold_at(bins: Option<Bins>, threshold: &[f32], angle: f64) -> f32 {
-    bins.and_then(|b| b.of_angle(angle))
-        .and_then(|bin| threshold.get(bin).copied())
-        .unwrap_or(f32::INFINITY)
 }
 
 #[cfg(test)]
@@ -371,23 +349,23 @@ mod tests {
     #[test]
     fn a_person_crossing_during_learning_is_not_background() {
         // Wall at 4 m on all 10 beams; a person at 1.5 m on beam 5 for 10 of the 30 scans.
-        let bg = learned(|k| {
+        let mut bg = learned(|k| {
             (0..10)
                 .map(|b| if b == 5 && k < 10 { 1.5 } else { 4.0 })
                 .collect()
         });
-        assert!(bg.is_foreground(at(5), 1.5));
+        assert!(is_foreground(&mut bg, at(5), 1.5));
         assert!(
-            !bg.is_foreground(at(5), 3.9),
+            !is_foreground(&mut bg, at(5), 3.9),
             "within the margin of the wall"
         );
-        assert!(!bg.is_foreground(at(2), 4.0));
+        assert!(!is_foreground(&mut bg, at(2), 4.0));
     }
 
     #[test]
     fn open_space_beams_make_any_return_foreground() {
         // Beams 0..5 never return (inf or NaN), beams 5..10 see a wall at 3 m.
-        let bg = learned(|k| {
+        let mut bg = learned(|k| {
             (0..10)
                 .map(|b| {
                     if b < 5 {
@@ -398,13 +376,13 @@ mod tests {
                 })
                 .collect()
         });
-        assert!(bg.is_foreground(at(1), 4.5));
-        assert!(!bg.is_foreground(at(7), 3.0));
+        assert!(is_foreground(&mut bg, at(1), 4.5));
+        assert!(!is_foreground(&mut bg, at(7), 3.0));
         // Beam 4 borders the wall: its neighbour's background applies.
-        assert!(!bg.is_foreground(at(4), 2.9));
-        assert!(bg.is_foreground(at(4), 2.7));
+        assert!(!is_foreground(&mut bg, at(4), 2.9));
+        assert!(is_foreground(&mut bg, at(4), 2.7));
         assert!(
-            bg.is_foreground(at(42), 1.0),
+            is_foreground(&mut bg, at(42), 1.0),
             "bearings never learned are open space"
         );
     }
@@ -441,13 +419,23 @@ mod tests {
         s
     }
 
+    /// Whether a return of `range` metres at `angle` radians is in front of the background:
+    /// by [`LearnedBackground::thresholds`] for a scan of that one beam.
+    fn is_foreground(bg: &mut LearnedBackground, angle: f64, range: f32) -> bool {
+        let mut s = scan(0.0, vec![range]);
+        s.angle_min = angle as f32;
+        s.validate().expect("a valid scan");
+        bg.thresholds(&s)
+            .first()
+            .is_some_and(|&threshold| s.is_return(range) && range < threshold)
+    }
+
     /// The beams of `s` in front of the background.
     fn foreground(bg: &mut LearnedBackground, s: &Scan) -> Vec<usize> {
         let thresholds = bg.thresholds(s).to_vec();
         assert_eq!(thresholds.len(), s.ranges.len());
         (0..s.ranges.len())
             .filter(|&i| s.is_return(s.ranges[i]) && s.ranges[i] < thresholds[i])
-            .inspect(|&i| assert!(bg.is_foreground(s.beam_angle(i), s.ranges[i])))
             .collect()
     }
 
@@ -508,8 +496,8 @@ mod tests {
         let s = full_turn(3.1, post_on_first);
         assert_eq!(foreground(&mut bg, &s), [] as [usize; 0]);
         // The bearing just below 0 is the last bin's.
-        assert!(!bg.is_foreground(-0.001, 0.5));
-        assert!(bg.is_foreground(std::f64::consts::PI, 0.5));
+        assert!(!is_foreground(&mut bg, -0.001, 0.5));
+        assert!(is_foreground(&mut bg, std::f64::consts::PI, 0.5));
     }
 
     #[test]
@@ -524,8 +512,34 @@ mod tests {
         let s = room_scan(3.1, -2.35, span, 1083, false);
         assert_eq!(foreground(&mut bg, &s), [] as [usize; 0]);
         // Behind the Lidar, where the learning never looked, is open space.
-        assert!(bg.is_foreground(-2.35 - 0.5, 2.0));
-        assert!(bg.is_foreground(2.9, 2.0));
+        assert!(is_foreground(&mut bg, -2.35 - 0.5, 2.0));
+        assert!(is_foreground(&mut bg, 2.9, 2.0));
+    }
+
+    #[test]
+    fn a_first_learning_scan_of_part_of_a_turn_still_learns_the_whole_turn() {
+        // The driver's first rotation is cut short (540 of 1080 beams, half a turn); the
+        // rest are full turns. Bins sized to the first scan had made the other half open
+        // space: 538 beams of an empty full-turn scan came out foreground.
+        let tau = std::f64::consts::TAU;
+        let pi = -std::f32::consts::PI;
+        let mut bg = LearnedBackground::new(BackgroundConfig::default());
+        bg.observe(&room_scan(0.0, pi, tau / 2.0, 540, false));
+        for k in 1..=30 {
+            bg.observe(&room_scan(k as f64 * 0.1, pi, tau, 1080, false));
+        }
+        assert!(bg.is_ready());
+        for beams in [1080, 1083] {
+            let empty = room_scan(3.1, pi, tau, beams, false);
+            assert_eq!(foreground(&mut bg, &empty), [] as [usize; 0], "{beams}");
+        }
+        // The person, in the half the first scan did not cover, is foreground.
+        let person = room_scan(3.1, pi, tau, 1080, true);
+        let expected: Vec<usize> = (0..1080)
+            .filter(|&i| (person.beam_angle(i) - 1.0).abs() < 0.17)
+            .collect();
+        assert!(!expected.is_empty());
+        assert_eq!(foreground(&mut bg, &person), expected);
     }
 
     proptest::proptest! {
@@ -554,16 +568,14 @@ mod tests {
                 let tie = (position - position.floor() - 0.5).abs() < 1e-6;
                 proptest::prop_assert!(
                     bin == bins.of_angle(angle) || tie,
-                    "beam {beam}: {bin:?} against {:?} at {position}",
+                    "beam {beam}: {bin} against {} at {position}",
                     bins.of_angle(angle)
                 );
-                if let Some(bin) = bin {
-                    proptest::prop_assert!(bin < bins.count);
-                }
+                proptest::prop_assert!(bin < bins.count);
             }
             // Every learning beam falls in its own bin, or wraps onto the first ones.
             for (beam, bin) in bins.of_beams(&learned).enumerate() {
-                proptest::prop_assert_eq!(bin, Some(beam % bins.count));
+                proptest::prop_assert_eq!(bin, beam % bins.count);
             }
         }
     }
@@ -575,13 +587,13 @@ mod tests {
             bg.observe(&scan(0.0, vec![1.0; 4])),
             BackgroundStatus::Learning
         );
-        assert!(!bg.is_foreground(at(0), 0.1));
+        assert!(!is_foreground(&mut bg, at(0), 0.1));
     }
 
     #[test]
     fn empty_learning_scans_give_an_all_open_background() {
-        let bg = learned(|_| Vec::new());
-        assert!(bg.is_foreground(at(0), 1.0));
+        let mut bg = learned(|_| Vec::new());
+        assert!(is_foreground(&mut bg, at(0), 1.0));
     }
 
     #[test]
@@ -619,7 +631,7 @@ mod tests {
             BackgroundStatus::Ready
         );
         // Only the new timeline's wall (2 m) is background.
-        assert!(!bg.is_foreground(at(0), 1.9));
-        assert!(bg.is_foreground(at(0), 1.5));
+        assert!(!is_foreground(&mut bg, at(0), 1.9));
+        assert!(is_foreground(&mut bg, at(0), 1.5));
     }
 }

@@ -4,9 +4,14 @@
 //! in two cheap steps that exploit the scan order: consecutive foreground points closer than
 //! the tolerance form segments in one pass, then segments are joined when any of their points
 //! are closer than the tolerance (checked only for segments whose boxes overlap, found by a
-//! sweep along the axis the segments spread over most, so a scan of scattered returns costs
-//! n log n, not n², whichever way it lies: a sweep along x alone had paired every segment of
-//! returns strung out along y). The second step joins
+//! sweep along the axis the segments spread over most). The sweep sorts the n segments
+//! (n log n), then visits every pair whose extents along its axis come within the tolerance,
+//! which is what can grow as n²: returns strung out along one straight line take n log n
+//! whichever way the line lies (a sweep along x alone had paired every segment of a line
+//! along y), but segments that share a stretch of the sweep's axis are all visited in pairs:
+//! returns along two axes at once (an L of 10,000 returns along x and 10,000 along y: 1.46 s
+//! against 0.012 s for a line of 20,000, unoptimised), or many returns scattered over a
+//! fixed area (100,000 in a 20 m square: 1.2 s, optimised). The second step joins
 //! the two legs of a person that a background surface splits in beam order, and the first and
 //! last beams of a 360-degree scan.
 

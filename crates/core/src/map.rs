@@ -97,7 +97,7 @@ impl OccupancyMap {
                 got: occupied.len(),
             });
         }
-        let distance_m = distance_field(&occupied, width, height, resolution);
+        let distance_m = distance_field(&occupied, width, height, resolution, STRIP_BLOCK_CELLS);
         let map_to_grid = DAffine2::from_scale(DVec2::splat(1.0 / resolution))
             * DAffine2::from_angle_translation(origin.theta, origin.position()).inverse();
         Ok(Self {
@@ -220,7 +220,16 @@ impl OccupancyMap {
 /// sides are at least two cells, so their squares stay under 2^53; with one side of one
 /// cell, the envelope of a single cell is its own square, whose `sqrt` rounds back to the
 /// integer distance (under 2^27).
-fn distance_field(occupied: &[bool], width: usize, height: usize, resolution: f64) -> Vec<f32> {
+///
+/// A strip's columns go through the envelope `block_cells / height` at a time (at least one):
+/// [`STRIP_BLOCK_CELLS`] but in tests, which set it small to take many blocks.
+fn distance_field(
+    occupied: &[bool],
+    width: usize,
+    height: usize,
+    resolution: f64,
+    block_cells: usize,
+) -> Vec<f32> {
     // No real distance gets near it: a line has at most MAX_CELLS cells.
     const NONE: u32 = u32::MAX;
     let n = occupied.len();
@@ -286,10 +295,9 @@ fn distance_field(occupied: &[bool], width: usize, height: usize, resolution: f6
             }
         }
     } else {
-        // The columns, a block of about `BLOCK_CELLS` cells at a time, gathered and scattered
+        // The columns, a block of about `block_cells` cells at a time, gathered and scattered
         // a row at a time: row by row, each block's columns are one run of memory.
-        const BLOCK_CELLS: usize = 1 << 16;
-        let block = (BLOCK_CELLS / len).max(1);
+        let block = (block_cells / len).max(1);
         let mut lines = vec![0.0; block * len];
         let mut fields = vec![0.0f32; block * len];
         for first in (0..width).step_by(block) {
@@ -321,6 +329,10 @@ fn distance_field(occupied: &[bool], width: usize, height: usize, resolution: f6
 /// columns of a map thousands of rows tall, every cell misses the cache (a 20000 x 5000 map
 /// loaded in 2.5 s instead of 1.4 s).
 const STRIP_ROWS: usize = 256;
+
+/// A strip's columns go through the envelope in blocks of about this many cells (512 KB of
+/// `f64` lines), gathered from and scattered to the rows a block at a time.
+const STRIP_BLOCK_CELLS: usize = 1 << 16;
 
 /// Buffers of the lower envelope of parabolas, reused across lines.
 struct EnvelopeScratch {
@@ -491,9 +503,11 @@ mod tests {
     proptest! {
         #[test]
         fn distance_transform_is_exact(
-            // Wider than 16 too: the columns go through the envelope 16 at a time.
+            // Wider than tall makes a strip, whose columns go through the envelope in blocks
+            // of `block_cells / height` (the production blocks never split a map this small).
             width in 1usize..40,
             height in 1usize..14,
+            block_cells in 1usize..64,
             seed in proptest::collection::vec(any::<bool>(), 40 * 14),
             density in 1u8..8,
             resolution in 0.01f64..1.0,
@@ -501,12 +515,39 @@ mod tests {
             let occupied: Vec<bool> = (0..width * height)
                 .map(|i| seed[i] && (i as u8).is_multiple_of(density))
                 .collect();
-            let fast = distance_field(&occupied, width, height, resolution);
+            let fast = distance_field(&occupied, width, height, resolution, block_cells);
             let slow: Vec<f32> = brute_force(&occupied, width, height)
                 .iter()
                 .map(|&d2| (d2.sqrt() * resolution) as f32)
                 .collect();
             prop_assert_eq!(fast, slow);
+        }
+    }
+
+    #[test]
+    fn a_strip_in_many_blocks_matches_the_plain_path() {
+        // The strip path, in blocks of a few columns (the last one short), against the plain
+        // path (rows, then columns) on the transposed map: the same distances to the bit.
+        for (width, height, block_cells) in [
+            (70_000, 2, 999),
+            (5_000, 255, 255 * 7),
+            (3_000, 30, 30 * 11 + 29),
+        ] {
+            let occupied: Vec<bool> = (0..width * height).map(|i| (i * 7919) % 1009 < 3).collect();
+            let strip = distance_field(&occupied, width, height, 0.05, block_cells);
+            let transposed: Vec<bool> = (0..width * height)
+                .map(|i| occupied[(i % height) * width + i / height])
+                .collect();
+            let plain = distance_field(&transposed, height, width, 0.05, block_cells);
+            for (i, &d) in strip.iter().enumerate() {
+                let (c, r) = (i % width, i / width);
+                assert_eq!(
+                    d.to_bits(),
+                    plain[c * height + r].to_bits(),
+                    "{width} x {height}: cell {c}, {r}"
+                );
+            }
+            assert!(strip.iter().any(|d| d.is_finite() && *d > 0.0));
         }
     }
 
@@ -525,8 +566,9 @@ mod tests {
         ];
         for (width, height) in shapes {
             let occupied: Vec<bool> = (0..width * height).map(|i| i % 997 == 0).collect();
-            let (field, peak) =
-                super::peak_memory::peak_during(|| distance_field(&occupied, width, height, 0.05));
+            let (field, peak) = super::peak_memory::peak_during(|| {
+                distance_field(&occupied, width, height, 0.05, STRIP_BLOCK_CELLS)
+            });
             assert_eq!(field.len(), width * height);
             let bound = 8 * width * height + width * height / 8 + 1_000_000;
             assert!(
