@@ -1432,7 +1432,9 @@ fn numbered_alert(i: usize, t_ns: i64) -> FallAlert {
 /// subscriber got all 25 alerts of a replay (and a /map replayed in a loop grew the process
 /// by a map a pass). Its cache cleaning, every 6 s, now trims to the depth (and one more).
 /// Subscribers that are there get everything, two /tf_static written at once included
-/// (depth 1: the second waits for the first's acknowledgement).
+/// (depth 1, so a send window of 1: the second waits, up to 2 s, for the first's
+/// acknowledgement, which a subscriber that has just matched may send only at RustDDS's next
+/// heartbeat, up to 1 s later; with the 100 ms wait of before, the second was dropped).
 #[test]
 fn ros_a_latched_topic_keeps_its_depth_for_late_subscribers() {
     if !netns_available() {
@@ -1518,7 +1520,8 @@ kill -INT $R; wait $R; echo "replay=$?"
 /// A second SIGINT or SIGTERM ends a node at once, by that signal, as with the `lidar-har`
 /// tool: the first asks for a clean stop, which a stuck DDS stack could hold up for ever,
 /// and every further signal used to be taken for the first. Two signals of one kind sent
-/// together may reach a process as one, so the test sends two kinds.
+/// together may reach a process as one, so the test sends two kinds, to a stopped process,
+/// which takes both once continued.
 #[test]
 fn ros_a_second_signal_ends_a_node_at_once() {
     if !netns_available() {
@@ -1529,7 +1532,10 @@ fn ros_a_second_signal_ends_a_node_at_once() {
 "$LOC" 2> "$OUT/localiser.err" & L=$!
 # Up: it subscribes /tf (its signal handlers are installed before it joins the graph).
 wait_until 20 topics_listed /tf
-kill -INT $L; kill -TERM $L; wait $L; echo "localiser=$?"
+# Both signals pending at once: sent one after the other, the second could come after the
+# clean stop the first asked for had ended the process (status 0).
+kill -STOP $L; kill -INT $L; kill -TERM $L; kill -CONT $L
+wait $L; echo "localiser=$?"
 "#;
     let out = in_netns(
         script,

@@ -180,9 +180,15 @@ fn ros2_profile(
         .history(history)
 }
 
+/// How long a write to a transient-local keep-last topic waits for its send window (see
+/// [`writer_qos_policies`]): longer than RustDDS's slow heartbeat (1 s), after which a reader
+/// that is there acknowledges.
+const LATCHED_WRITE_WAIT: Duration = Duration::from_secs(2);
+
 /// The QoS of our writers: [`qos_policies`], and what a write does when RustDDS's reliable
-/// send window is full, which it is only when a matched reader has stopped acknowledging
-/// (a stopped process, a network that lets discovery through but not data).
+/// send window is full, which it is, but for the small windows of transient-local writers
+/// (below), only when a matched reader has stopped acknowledging (a stopped process, a
+/// network that lets discovery through but not data).
 ///
 /// - Keep-last, volatile: the write fails at once ([`DdsPublisher::publish`] drops the
 ///   sample, with a warning). Keep-last writers of Cyclone DDS and Fast DDS never block: a
@@ -195,17 +201,24 @@ fn ros2_profile(
 /// - Keep-last, transient-local: ResourceLimits of the history's depth, so that RustDDS's
 ///   cache cleaning (every 6 s) keeps about `depth` samples for late joiners while no reader
 ///   is matched; it kept every sample, so a late joiner got them all and a replayed /map in
-///   a loop grew the process by a map a pass. The window is then `depth` samples too, so a
-///   write waits up to 100 ms (the default) for a matched reader's acknowledgement, which
-///   on a working network comes within a millisecond or two: several latched messages
-///   written at once (two /tf_static of a bag) all go; a reader that stopped acknowledging
-///   costs each such write 100 ms, and the sample is dropped.
+///   a loop grew the process by a map a pass. RustDDS 0.15 takes the send window from
+///   ResourceLimits too, so the window is then `depth` samples (1 for /tf_static and /map:
+///   stop-and-wait), and a write waits for a matched reader's acknowledgement of the sample
+///   `depth` before it. That acknowledgement does not always come at once: a reader that has
+///   just matched (the discovery race), or a loaded machine, may answer only after RustDDS's
+///   next heartbeat, up to about 1 s later. A write that gave up after 100 ms never reached
+///   the writer cache, so a second /tf_static written beside a starting subscriber was lost
+///   for that subscriber and for every late joiner. Such writes wait up to
+///   [`LATCHED_WRITE_WAIT`] (2 s); latched writes are rare, so a reader that stopped
+///   acknowledging costs 2 s a latched sample, and the sample is then dropped with a warning
+///   every time ([`DdsPublisher::publish`]).
 /// - Keep-all: as before (100 ms, then the sample is dropped with a warning).
 fn writer_qos_policies(qos: &QosProfile) -> QosPolicies {
     use ros2_client::qos::WhenFull;
     let when_full = match (qos.history, qos.durability) {
         (History::KeepLast(_), Durability::Volatile) => WhenFull::Fail,
-        _ => WhenFull::DEFAULT,
+        (History::KeepLast(_), Durability::TransientLocal) => WhenFull::Wait(LATCHED_WRITE_WAIT),
+        (History::KeepAll, _) => WhenFull::DEFAULT,
     };
     let policies = QosPolicies::from(&ros2_profile(qos, when_full));
     match (qos.history, qos.durability) {
@@ -457,6 +470,7 @@ impl NodeBackend for DdsNode {
             matched: AtomicUsize::new(0),
             matched_ever: AtomicUsize::new(0),
             dropped: AtomicU64::new(0),
+            latched: qos.durability == Durability::TransientLocal,
         }))
     }
 
@@ -556,6 +570,8 @@ struct DdsPublisher {
     /// Samples dropped because the reliable send window was full (see
     /// [`writer_qos_policies`]).
     dropped: AtomicU64,
+    /// Transient-local: a dropped sample is lost for late joiners too, so each is reported.
+    latched: bool,
 }
 
 impl DdsPublisher {
@@ -598,9 +614,21 @@ impl PublisherBackend for DdsPublisher {
             Ok(()) => Ok(()),
             // A matched reader has stopped acknowledging: the sample is lost for every reader,
             // as a keep-last writer of another DDS loses old samples for a slow reader.
+            // A latched sample (after a 2 s wait, if keep-last) is reported every time: it
+            // never reached the writer cache, so late joiners will not get it either. It is
+            // not an error: that would end the node (a replay, a map publisher) for every
+            // other subscriber because one of them is stopped, and would not bring the
+            // sample back.
             Err(rustdds::dds::WriteError::WouldBlock { .. }) => {
                 let dropped = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
-                if dropped.is_power_of_two() {
+                if self.latched {
+                    log::warn!(
+                        "{}: latched sample dropped: a subscriber has not acknowledged the \
+                         samples before it; late subscribers will not get it either \
+                         ({dropped} dropped so far)",
+                        self.topic
+                    );
+                } else if dropped.is_power_of_two() {
                     log::warn!(
                         "{}: sample dropped: a subscriber has not acknowledged the samples \
                          before it ({dropped} dropped so far)",
@@ -771,7 +799,7 @@ mod tests {
 
     /// Keep-last writers do not wait for a full send window (a reader that stopped
     /// acknowledging used to end the node 100 ms into the first write it held up), but for
-    /// transient-local ones, whose window is their depth (below).
+    /// transient-local ones, whose window is their depth (below): they wait 2 s.
     #[test]
     fn keep_last_writers_do_not_wait_for_a_stalled_reader() {
         use rustdds::policy::Reliability as R;
@@ -784,7 +812,12 @@ mod tests {
         assert_eq!(blocking(topics::HUMAN_ACTIVITY.qos), zero);
         assert_eq!(blocking(QosProfile::sensor_data()), None);
         let waits = Some(rustdds::Duration::from_millis(100));
-        assert_eq!(blocking(QosProfile::latched(1)), waits);
+        // Longer than RustDDS's slow heartbeat: a window of 1 waits for the previous
+        // sample's acknowledgement, which a reader that has just matched may send only then.
+        let latched = Some(rustdds::Duration::from_secs(2));
+        assert_eq!(blocking(QosProfile::latched(1)), latched);
+        assert_eq!(blocking(topics::TF_STATIC.qos), latched);
+        assert_eq!(blocking(topics::FALL_ALERT.qos), latched);
         let keep_all = QosProfile {
             history: History::KeepAll,
             ..QosProfile::reliable(1)
