@@ -374,18 +374,20 @@ mod tests {
         );
     }
 
+    /// Whether `filter` picks a warning from `target` saying `message`.
+    fn picks_warning(filter: fn(&log::Record) -> bool, target: &str, message: &str) -> bool {
+        filter(
+            &log::Record::builder()
+                .level(log::Level::Warn)
+                .target(target)
+                .args(format_args!("{message}"))
+                .build(),
+        )
+    }
+
     #[test]
     fn rustdds_datagram_size_warnings_are_dropped_and_its_other_warnings_kept() {
-        use log::{Level, Record};
-        let dropped = |target: &str, message: &str| {
-            is_datagram_size_warning(
-                &Record::builder()
-                    .level(Level::Warn)
-                    .target(target)
-                    .args(format_args!("{message}"))
-                    .build(),
-            )
-        };
+        let dropped = |target, message| picks_warning(is_datagram_size_warning, target, message);
         // One per full-size scan, from the driver and the replay.
         assert!(dropped(
             UDP_SENDER_TARGET,
@@ -407,16 +409,7 @@ mod tests {
 
     #[test]
     fn rustdds_full_send_window_warnings_are_dropped() {
-        use log::{Level, Record};
-        let dropped = |target: &str, message: &str| {
-            is_send_window_warning(
-                &Record::builder()
-                    .level(Level::Warn)
-                    .target(target)
-                    .args(format_args!("{message}"))
-                    .build(),
-            )
-        };
+        let dropped = |target, message| picks_warning(is_send_window_warning, target, message);
         // One per sample while a subscriber has stopped acknowledging.
         assert!(dropped(
             DATAWRITER_TARGET,
