@@ -1086,16 +1086,8 @@ mod tests {
                     (-4.95 - o.y) / d.y
                 };
                 let mut r = tx.min(ty);
-                if let Some(c) = person {
-                    let oc = o - c;
-                    let b = oc.dot(d);
-                    let disc = b * b - (oc.length_squared() - radius * radius);
-                    if disc >= 0.0 {
-                        let t = -b - disc.sqrt();
-                        if t > 0.0 {
-                            r = r.min(t);
-                        }
-                    }
+                if let Some(t) = person.and_then(|c| ray_to_disc(o, d, c, radius)) {
+                    r = r.min(t);
                 }
                 r as f32
             })
@@ -1828,6 +1820,15 @@ mod tests {
         assert!(est.position.distance(DVec2::new(2.0, -1.0)) < 0.25);
     }
 
+    /// How far along the unit direction `d` from `o` the ray enters the disc at `c`, if ahead.
+    fn ray_to_disc(o: DVec2, d: DVec2, c: DVec2, radius: f64) -> Option<f64> {
+        let oc = o - c;
+        let b = oc.dot(d);
+        let disc = b * b - (oc.length_squared() - radius * radius);
+        let t = -b - disc.sqrt();
+        (disc >= 0.0 && t > 0.0).then_some(t)
+    }
+
     /// A fixed Lidar at the origin of an empty 4 m x 3 m room with two chair legs and a
     /// cabinet, scanned with `n` beams over one full turn (`angle_increment` 2pi / n).
     fn empty_room_scan(stamp_ns: i64, n: usize) -> Scan {
@@ -1844,10 +1845,8 @@ mod tests {
                     (DVec2::new(-0.8, -0.6), 0.25),
                 ];
                 for (c, radius) in furniture {
-                    let b = (-c).dot(d);
-                    let disc = b * b - (c.length_squared() - radius * radius);
-                    if disc >= 0.0 && -b - disc.sqrt() > 0.0 {
-                        r = r.min(-b - disc.sqrt());
+                    if let Some(t) = ray_to_disc(DVec2::ZERO, d, c, radius) {
+                        r = r.min(t);
                     }
                 }
                 r as f32

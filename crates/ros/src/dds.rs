@@ -212,7 +212,7 @@ const LATCHED_WRITE_WAIT: Duration = Duration::from_secs(2);
 ///   [`LATCHED_WRITE_WAIT`] (2 s); latched writes are rare, so a reader that stopped
 ///   acknowledging costs 2 s a latched sample, and the sample is then dropped with a warning
 ///   every time ([`DdsPublisher::publish`]).
-/// - Keep-all: as before (100 ms, then the sample is dropped with a warning).
+/// - Keep-all: RustDDS's default wait (100 ms), then the sample is dropped with a warning.
 fn writer_qos_policies(qos: &QosProfile) -> QosPolicies {
     use ros2_client::qos::WhenFull;
     let when_full = match (qos.history, qos.durability) {
