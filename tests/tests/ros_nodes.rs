@@ -1411,6 +1411,53 @@ kill -CONT $E; kill -TERM $E; wait $E
     assert!(!log.contains("Write timed out"), "{log}");
 }
 
+/// A latched write that a stopped subscriber holds up (its send window, the topic's depth,
+/// is full of samples that subscriber has not acknowledged) waits 2 s, then the sample is
+/// dropped with a warning naming the topic, each time, and the publisher goes on.
+#[test]
+fn ros_a_latched_write_held_up_by_a_stopped_subscriber_is_dropped_after_its_wait() {
+    if !netns_available() {
+        return;
+    }
+    // /human/fall_alert keeps 10: 12 alerts after the stop fill the window and drop 2 (3 if
+    // the subscriber stopped before acknowledging the first alert).
+    const BURST: usize = 12;
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("latched_burst");
+    let mut w = BagWriter::create(&bag, WriterOptions::default()).unwrap();
+    let topic = w
+        .add_topic_for::<FallAlert>(topics::FALL_ALERT.name, topics::FALL_ALERT.qos)
+        .unwrap();
+    w.write_message(topic, T0_NS, &numbered_alert(0, T0_NS))
+        .unwrap();
+    let burst_ns = T0_NS + 3_000_000_000;
+    for i in 1..=BURST {
+        w.write_message(topic, burst_ns, &numbered_alert(i, burst_ns))
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let script = r#"
+"$LH" topic echo /human/fall_alert --timeout 60 > "$OUT/alerts.jsonl" & E=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/human/fall_alert \
+  -p wait_for_all_acked:=0.5 2> "$OUT/replay.log" & R=$!
+wait_until 20 has_lines "$OUT/alerts.jsonl" 1
+kill -STOP $E
+wait $R; echo "replay=$?"
+kill -CONT $E; kill -TERM $E; wait $E
+"#;
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(90));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let log = std::fs::read_to_string(dir.path().join("replay.log")).unwrap();
+    assert!(stdout.contains("replay=0"), "{stdout}\n{log}");
+    let dropped = log
+        .matches("/human/fall_alert: latched sample dropped")
+        .count();
+    assert!(
+        (2..=3).contains(&dropped),
+        "{dropped} latched samples dropped, expected those past the window: {log}"
+    );
+}
+
 /// A fall alert `i` of the latched-topic bag, stamped `t_ns`.
 fn numbered_alert(i: usize, t_ns: i64) -> FallAlert {
     FallAlert {
