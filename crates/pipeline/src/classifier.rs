@@ -602,6 +602,7 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             _ => None,
         };
         let body_length_m = MainAxisSpan::of(&self.points).map(|span| span.length());
+        let was_down = self.fall.down_since_s().is_some();
         let alerts = self.fall.update(&fall_input(
             stamp_s,
             visible,
@@ -611,6 +612,11 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             body_length_m,
         ));
         self.alerts_raised += alerts.len();
+        // The marker shows an alert for the spell on the floor it belongs to: a later spell
+        // (sitting down to play, hours on) used to show the old alert in red.
+        if was_down && self.fall.down_since_s().is_none() {
+            self.last_alert = None;
+        }
         if let Some(last) = alerts.last() {
             self.last_alert = Some(*last);
         }
@@ -1400,6 +1406,29 @@ mod tests {
             early.markers.markers[0].text.starts_with("walking"),
             "{}",
             early.markers.markers[0].text
+        );
+    }
+
+    #[test]
+    fn the_marker_shows_an_alert_only_during_its_own_spell_on_the_floor() {
+        let outputs = run(
+            vec![
+                (0.0, Activity::Standing),
+                (3.0, Activity::FallingDown),
+                (3.5, Activity::LyingDown),
+                (10.0, Activity::Standing),
+                (20.0, Activity::SittingOnFloor),
+            ],
+            23.0,
+        );
+        let alerts = outputs.iter().flat_map(|(_, m)| &m.alerts).count();
+        assert_eq!(alerts, 2, "the fall's FALL_DETECTED and PERSON_DOWN only");
+        let text_at = |t: f64| &outputs[(t * 20.0).round() as usize].1.markers.markers[0].text;
+        assert!(text_at(9.0).contains("PERSON_DOWN"), "{}", text_at(9.0));
+        assert!(
+            text_at(22.0).starts_with("sitting_on_floor"),
+            "sitting down long after getting up raised nothing: {}",
+            text_at(22.0)
         );
     }
 

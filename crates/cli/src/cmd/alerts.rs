@@ -1188,10 +1188,10 @@ fn held_for(
 }
 
 fn print_report(r: &AlertsReport) {
-    let recall = |a: Activity| 100.0 * r.scans.per_class[a.index()].recall;
+    let recall = |a: Activity| recall_text(&r.scans.per_class[a.index()]);
     outln!(
         "streaming classification: {} scans published, {:.1} % right, macro F1 {:.1} %; \
-         recall falling_down {:.1} %, running {:.1} %",
+         recall falling_down {}, running {}",
         r.scans.samples,
         100.0 * r.scans.accuracy,
         100.0 * r.scans.macro_f1,
@@ -1277,6 +1277,16 @@ fn print_report(r: &AlertsReport) {
     }
 }
 
+/// A class's recall in percent, or "-" when no scan truly was of it: 0 % would read as a
+/// class the model always missed.
+fn recall_text(class: &lidar_har_core::metrics::ClassMetrics) -> String {
+    if class.support == 0 {
+        "-".to_string()
+    } else {
+        format!("{:.1} %", 100.0 * class.recall)
+    }
+}
+
 fn percent(part: usize, whole: usize) -> f64 {
     if whole == 0 {
         0.0
@@ -1299,6 +1309,21 @@ mod tests {
             position: DVec2::ZERO,
             confidence: 0.9,
         }
+    }
+
+    #[test]
+    fn a_class_no_scan_truly_was_has_no_recall_to_print() {
+        let class = |support, recall| lidar_har_core::metrics::ClassMetrics {
+            activity: Activity::FallingDown,
+            precision: 0.0,
+            recall,
+            f1: 0.0,
+            support,
+            predicted: 0,
+        };
+        assert_eq!(recall_text(&class(0, 0.0)), "-");
+        assert_eq!(recall_text(&class(8, 0.0)), "0.0 %");
+        assert_eq!(recall_text(&class(8, 0.875)), "87.5 %");
     }
 
     #[test]

@@ -3,8 +3,9 @@
 //!
 //! Each window is stepped scan by scan from a zero state, exactly as one streaming lane
 //! does. The headline figures use the prediction at the window's last scan (history `T`);
-//! the accuracy at step `T/2` (the shortest history streaming ever answers with, contract
-//! in docs/model_contract.md) is reported beside it.
+//! the accuracy at step index `T/2` (`T/2 + 1` frames of history, the shortest that training
+//! scores; streaming answers from one frame less, docs/model_contract.md) is reported beside
+//! it.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
