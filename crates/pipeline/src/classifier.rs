@@ -347,6 +347,8 @@ pub struct ClassifierStage<M: StepModel = ActivityModel, H = PoseHeadModel> {
     alerts_raised: usize,
     /// The latest alert, shown in the text marker.
     last_alert: Option<FallAlert>,
+    /// The last observation's stamp: one before it starts the stream afresh.
+    last_stamp_ns: Option<i64>,
 }
 
 impl ClassifierStage<ActivityModel, PoseHeadModel> {
@@ -462,6 +464,7 @@ impl<M: StepModel> ClassifierStage<M, NoPoseHead> {
             track_id: None,
             alerts_raised: 0,
             last_alert: None,
+            last_stamp_ns: None,
         })
     }
 
@@ -483,6 +486,7 @@ impl<M: StepModel> ClassifierStage<M, NoPoseHead> {
             track_id: self.track_id,
             alerts_raised: self.alerts_raised,
             last_alert: self.last_alert,
+            last_stamp_ns: self.last_stamp_ns,
         }
     }
 }
@@ -520,6 +524,13 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
     ) -> Result<ClassifierOutput, ClassifierError> {
         let stamp_ns = obs.header.stamp.to_nanos();
         let stamp_s = stamp_ns as f64 * 1e-9;
+        // Time going back (a bag played again, a simulation restarted) is another stream for
+        // every part of the stage: the model and the alerts restarted on their own, but the
+        // pose head's pelvis on the floor went on combining the old pass with the new one.
+        if self.last_stamp_ns.is_some_and(|last| stamp_ns < last) {
+            self.reset();
+        }
+        self.last_stamp_ns = Some(stamp_ns);
         let model_hz = self.classifier.spec().scan_rate_hz;
         if let Some(hz) = self.scan_rate.observe(stamp_ns)
             && (hz / model_hz - 1.0).abs() > SCAN_RATE_TOLERANCE
@@ -1653,6 +1664,44 @@ mod tests {
                 assert_eq!((c[1], c[6]), (0.002, 0.002));
             }
         }
+    }
+
+    #[test]
+    fn time_going_back_starts_the_pelvis_on_the_floor_afresh() {
+        let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
+        let model = TimelineModel {
+            timeline: vec![(0.0, Activity::LyingDown)],
+            now: now.clone(),
+        };
+        let spec = PoseHeadSpec {
+            min_history: 1,
+            activities: vec![Activity::LyingDown],
+            max_sigma_m: f64::INFINITY,
+        };
+        let placer = PelvisPlacer::new(spec, ShiftHead).fusing_on_floor_within(1.0, 1.0);
+        let status = PoseHeadStatus::Used {
+            path: "head.onnx".into(),
+        };
+        let mut stage = ClassifierStage::new(model, stream(), FallAlertConfig::default())
+            .unwrap()
+            .with_pose_head(Some(placer), status);
+        let mut pelvis_x = |t: f64, x: f64| {
+            now.set(t);
+            let mut obs = observation(t, true);
+            obs.position.x = x;
+            stage
+                .on_observation(&obs)
+                .unwrap()
+                .pelvis
+                .unwrap()
+                .position
+                .x
+        };
+        for k in 0..40 {
+            pelvis_x(k as f64 * 0.05, 2.0);
+        }
+        // Played again from the start, lying 0.4 m further along: nothing of the first pass.
+        assert!((pelvis_x(0.0, 2.4) - 2.7).abs() < 1e-12);
     }
 
     #[test]
