@@ -66,6 +66,17 @@ pub enum BagError {
     },
     #[error("{path}: topic `{topic}` has no schema (message definition); every channel needs one")]
     MissingSchema { path: PathBuf, topic: String },
+    /// rosbag2 records a topic with one type, and a message carries only its topic's name:
+    /// the messages of the two types could not be told apart.
+    #[error(
+        "{path}: topic `{topic}` has two types, `{first_type}` and `{second_type}` (rosbag2 records one type per topic; their messages cannot be told apart)"
+    )]
+    TopicWithTwoTypes {
+        path: PathBuf,
+        topic: String,
+        first_type: String,
+        second_type: String,
+    },
     #[error("{path}: message refers to unknown channel/topic id {id}")]
     UnknownTopicId { path: PathBuf, id: i64 },
     #[error("{path}: message on `{topic}` at {log_time} ns has log time out of range")]

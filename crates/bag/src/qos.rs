@@ -88,21 +88,37 @@ impl OfferedQos {
             2 => History::KeepAll,
             _ => return None,
         };
-        let reliability = match self.reliability {
-            1 => Reliability::Reliable,
-            2 => Reliability::BestEffort,
-            _ => return None,
-        };
-        let durability = match self.durability {
-            1 => Durability::TransientLocal,
-            2 => Durability::Volatile,
-            _ => return None,
-        };
         Some(QosProfile {
-            reliability,
-            durability,
+            reliability: self.concrete_reliability()?,
+            durability: self.concrete_durability()?,
             history,
         })
+    }
+
+    fn concrete_reliability(&self) -> Option<Reliability> {
+        match self.reliability {
+            1 => Some(Reliability::Reliable),
+            2 => Some(Reliability::BestEffort),
+            _ => None,
+        }
+    }
+
+    fn concrete_durability(&self) -> Option<Durability> {
+        match self.durability {
+            1 => Some(Durability::TransientLocal),
+            2 => Some(Durability::Volatile),
+            _ => None,
+        }
+    }
+
+    /// The history as a publisher could be created with it. rosbag2 records offers from DDS
+    /// discovery, which does not carry the history: its recordings say `unknown` with depth 0.
+    fn concrete_history(&self) -> Option<History> {
+        match (self.history, self.depth) {
+            (1, depth) if depth > 0 => Some(History::KeepLast(depth)),
+            (2, _) => Some(History::KeepAll),
+            _ => None,
+        }
     }
 
     /// Short human-readable form, as `ros2 bag info` shows it.
@@ -217,6 +233,67 @@ impl OfferedQos {
     }
 }
 
+/// The history rosbag2's player gives a topic whose recorded offers do not say one
+/// (`rmw_qos_profile_default.depth`).
+const PLAYBACK_DEFAULT_DEPTH: u32 = 10;
+
+/// What a replay offers on a topic in place of the publishers recorded on it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PlaybackQos {
+    pub profile: QosProfile,
+    /// The recorded offers differ in reliability or durability, so `profile` is the default
+    /// offer, which a subscriber that matched only some of the recorded publishers may not
+    /// match: worth telling the user, as rosbag2 does.
+    pub offers_disagree: bool,
+}
+
+/// The profile to replay a topic with, chosen as rosbag2's player does
+/// (`Rosbag2QoS::adapt_offer_to_recorded_offers`): one publisher stands in for all the recorded
+/// ones, so it keeps their reliability and durability, which decide which subscribers match
+/// (a transient-local topic stays latched), when they all agree on them. Otherwise, or when the
+/// recording does not say them, it is reliable, volatile, keep last 10, rosbag2's default.
+/// The history does not affect matching: the deepest one recorded is kept (what any recorded
+/// publisher kept for a late subscriber), else keep last 10.
+pub fn playback_qos(offers: &[OfferedQos]) -> PlaybackQos {
+    let default = PlaybackQos {
+        profile: QosProfile::reliable(PLAYBACK_DEFAULT_DEPTH),
+        offers_disagree: false,
+    };
+    let Some(first) = offers.first() else {
+        return default;
+    };
+    if offers
+        .iter()
+        .any(|offer| (offer.reliability, offer.durability) != (first.reliability, first.durability))
+    {
+        return PlaybackQos {
+            offers_disagree: true,
+            ..default
+        };
+    }
+    let (Some(reliability), Some(durability)) =
+        (first.concrete_reliability(), first.concrete_durability())
+    else {
+        return default;
+    };
+    let history = offers
+        .iter()
+        .filter_map(OfferedQos::concrete_history)
+        .max_by_key(|history| match history {
+            History::KeepAll => u64::MAX,
+            History::KeepLast(depth) => u64::from(*depth),
+        })
+        .unwrap_or(History::KeepLast(PLAYBACK_DEFAULT_DEPTH));
+    PlaybackQos {
+        profile: QosProfile {
+            reliability,
+            durability,
+            history,
+        },
+        offers_disagree: false,
+    }
+}
+
 /// The version-9 form: a YAML list with string enums (metadata.yaml `offered_qos_profiles`).
 pub fn to_v9_list(profiles: &[OfferedQos]) -> Value {
     Value::Sequence(profiles.iter().map(|p| p.to_value(true)).collect())
@@ -281,6 +358,81 @@ mod tests {
         assert_eq!(parse(&to_v9_list(&profiles)).unwrap(), profiles);
         assert_eq!(profiles[0].to_profile(), Some(QosProfile::sensor_data()));
         assert_eq!(profiles[1].to_profile(), Some(QosProfile::latched(1)));
+    }
+
+    /// What `ros2 bag record` on Humble writes (integer enums; 3 is "unknown"): discovery
+    /// does not tell the history.
+    const HUMBLE_LATCHED: &str = "- history: 3\n  depth: 0\n  reliability: 1\n  durability: 1\n  deadline:\n    sec: 9223372036\n    nsec: 854775807\n  lifespan:\n    sec: 9223372036\n    nsec: 854775807\n  liveliness: 1\n  liveliness_lease_duration:\n    sec: 9223372036\n    nsec: 854775807\n  avoid_ros_namespace_conventions: false";
+
+    /// The same from Jazzy (string enums), for a best-effort sensor topic.
+    const JAZZY_SENSOR: &str = "- history: unknown\n  depth: 0\n  reliability: best_effort\n  durability: volatile\n  deadline:\n    sec: 9223372036\n    nsec: 854775807\n  lifespan:\n    sec: 9223372036\n    nsec: 854775807\n  liveliness: automatic\n  liveliness_lease_duration:\n    sec: 9223372036\n    nsec: 854775807\n  avoid_ros_namespace_conventions: false";
+
+    fn playback(text: &str) -> PlaybackQos {
+        playback_qos(&parse_str(text).unwrap())
+    }
+
+    /// A latched topic recorded by rosbag2 was replayed volatile, so transient-local
+    /// subscribers (RViz's RobotModel on /robot_description) got nothing.
+    #[test]
+    fn a_rosbag2_recording_is_replayed_with_its_reliability_and_durability() {
+        let agreed = |profile| PlaybackQos {
+            profile,
+            offers_disagree: false,
+        };
+        assert_eq!(playback(HUMBLE_LATCHED), agreed(QosProfile::latched(10)));
+        let two_publishers = format!("{HUMBLE_LATCHED}\n{HUMBLE_LATCHED}");
+        assert_eq!(playback(&two_publishers), agreed(QosProfile::latched(10)));
+        let best_effort_10 = QosProfile {
+            history: History::KeepLast(10),
+            ..QosProfile::sensor_data()
+        };
+        assert_eq!(playback(JAZZY_SENSOR), agreed(best_effort_10));
+    }
+
+    /// Bags written by this crate record the history; the deepest of those recorded is kept.
+    #[test]
+    fn a_recorded_history_is_kept() {
+        let agreed = |offers: &[QosProfile]| {
+            let offers: Vec<OfferedQos> = offers.iter().copied().map(OfferedQos::from).collect();
+            playback_qos(&offers)
+        };
+        let latched_1 = QosProfile::latched(1);
+        assert_eq!(agreed(&[latched_1]).profile, latched_1);
+        let latched_3 = QosProfile::latched(3);
+        assert_eq!(agreed(&[latched_1, latched_3]).profile, latched_3);
+        let keep_all = QosProfile {
+            history: History::KeepAll,
+            ..latched_1
+        };
+        assert_eq!(agreed(&[latched_3, keep_all]).profile, keep_all);
+        let unknown_history = parse_str(HUMBLE_LATCHED).unwrap()[0];
+        let offers = [unknown_history, OfferedQos::from(latched_3)];
+        assert_eq!(playback_qos(&offers).profile, latched_3);
+    }
+
+    /// As rosbag2: no single offer suits subscribers of every recorded publisher, so the
+    /// default is offered, and the caller is told.
+    #[test]
+    fn disagreeing_or_unknown_offers_are_replayed_reliable_volatile_keep_last_10() {
+        let mixed = format!("{HUMBLE_LATCHED}\n{JAZZY_SENSOR}");
+        let expected = PlaybackQos {
+            profile: QosProfile::reliable(10),
+            offers_disagree: true,
+        };
+        assert_eq!(playback(&mixed), expected);
+        let volatile = HUMBLE_LATCHED.replace("durability: 1", "durability: 2");
+        let mixed_durability = format!("{HUMBLE_LATCHED}\n{volatile}");
+        assert_eq!(playback(&mixed_durability), expected);
+
+        let default = PlaybackQos {
+            profile: QosProfile::reliable(10),
+            offers_disagree: false,
+        };
+        let unknown = JAZZY_SENSOR.replace("best_effort", "unknown");
+        assert_eq!(playback(&unknown), default);
+        let system_default = HUMBLE_LATCHED.replace("durability: 1", "durability: 0");
+        assert_eq!(playback(&system_default), default);
+        assert_eq!(playback_qos(&[]), default);
     }
 
     #[test]

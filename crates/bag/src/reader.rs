@@ -170,13 +170,13 @@ impl BagReader {
             return Err(error);
         }
         let files = vec![(path.clone(), file)];
-        Ok(Self::new(
+        Self::new(
             path,
             StorageId::Mcap,
             files,
             None,
             MessageCompression::ByMagic,
-        ))
+        )
     }
 
     /// Opens the storage files of a bag. A file that cannot be opened ends that file only (see
@@ -207,13 +207,7 @@ impl BagReader {
         {
             return Err(error);
         }
-        Ok(Self::new(
-            path,
-            storage,
-            files,
-            metadata,
-            message_compression,
-        ))
+        Self::new(path, storage, files, metadata, message_compression)
     }
 
     fn new(
@@ -222,7 +216,7 @@ impl BagReader {
         files: Vec<(PathBuf, StorageFile)>,
         metadata: Option<BagMetadata>,
         message_compression: MessageCompression,
-    ) -> Self {
+    ) -> Result<Self> {
         let mut reader = Self {
             path,
             storage,
@@ -231,12 +225,14 @@ impl BagReader {
             metadata,
             message_compression,
         };
-        reader.topics = reader.merge_topics();
-        reader
+        reader.topics = reader.merge_topics()?;
+        Ok(reader)
     }
 
     /// Topics of all storage files, counts summed; QoS and hashes completed from metadata.yaml.
-    fn merge_topics(&self) -> Vec<TopicInfo> {
+    /// A topic that comes with two types (two MCAP channels or sqlite `topics` rows, in one
+    /// file or in two) is refused: its messages would all be taken for the first type's.
+    fn merge_topics(&self) -> Result<Vec<TopicInfo>> {
         let mut topics: Vec<TopicInfo> = Vec::new();
         for (_, file) in &self.files {
             let file_topics: &[TopicInfo] = match file {
@@ -246,6 +242,14 @@ impl BagReader {
             };
             for topic in file_topics {
                 match topics.iter_mut().find(|t| t.name == topic.name) {
+                    Some(existing) if existing.type_name != topic.type_name => {
+                        return Err(BagError::TopicWithTwoTypes {
+                            path: self.path.clone(),
+                            topic: topic.name.clone(),
+                            first_type: existing.type_name.clone(),
+                            second_type: topic.type_name.clone(),
+                        });
+                    }
                     Some(existing) => existing.message_count += topic.message_count,
                     None => topics.push(topic.clone()),
                 }
@@ -264,7 +268,7 @@ impl BagReader {
                 }
             }
         }
-        topics
+        Ok(topics)
     }
 
     pub fn path(&self) -> &Path {
@@ -858,6 +862,111 @@ pub(crate) mod tests {
         metadata.write(&bag).unwrap();
         let error = BagReader::open(&bag).err().unwrap();
         assert!(matches!(error, BagError::Sqlite { .. }), "{error}");
+    }
+
+    /// Checks that `error` refuses the bag at `path` because `topic` has the types
+    /// `std_msgs/msg/String` and `std_msgs/msg/Int32`, in that order.
+    fn assert_refused_for_two_types(error: Option<BagError>, path: &Path, topic: &str) {
+        let error = error.expect("refused");
+        let text = error.to_string();
+        assert!(
+            matches!(error, BagError::TopicWithTwoTypes { .. })
+                && text.starts_with(&format!("{}: ", path.display()))
+                && text.contains(&format!("topic `{topic}`"))
+                && text.contains("`std_msgs/msg/String` and `std_msgs/msg/Int32`"),
+            "{text}"
+        );
+    }
+
+    /// An MCAP with two channels on `/x`, of `std_msgs/String` then `std_msgs/Int32`, a message
+    /// on each; returns its bytes.
+    fn write_mcap_with_two_types(path: &Path) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        {
+            let mut writer = mcap::WriteOptions::new()
+                .profile("ros2")
+                .create(std::io::Cursor::new(&mut bytes))
+                .unwrap();
+            let types = [
+                ("std_msgs/msg/String", "string data", payload(0)),
+                (
+                    "std_msgs/msg/Int32",
+                    "int32 data",
+                    vec![0, 1, 0, 0, 7, 0, 0, 0],
+                ),
+            ];
+            for (sequence, (type_name, definition, data)) in (0..).zip(types) {
+                let schema = writer
+                    .add_schema(type_name, "ros2msg", definition.as_bytes())
+                    .unwrap();
+                let channel_id = writer
+                    .add_channel(schema, "/x", "cdr", &Default::default())
+                    .unwrap();
+                let header = mcap::records::MessageHeader {
+                    channel_id,
+                    sequence,
+                    log_time: 1000 + u64::from(sequence),
+                    publish_time: 1000 + u64::from(sequence),
+                };
+                writer.write_to_known_channel(&header, &data).unwrap();
+            }
+            writer.finish().unwrap();
+        }
+        std::fs::write(path, &bytes).unwrap();
+        bytes
+    }
+
+    /// MCAP allows channels of one topic name with different schemas, but messages carry only
+    /// the name: the Int32 messages were read as Strings (`bag convert` wrote them under the
+    /// String schema, `replay` published them on a String publisher).
+    #[test]
+    fn an_mcap_topic_with_two_types_is_refused_naming_both() {
+        let tmp = tempfile::tempdir().unwrap();
+        let file = tmp.path().join("dup.mcap");
+        let bytes = write_mcap_with_two_types(&file);
+        assert_refused_for_two_types(BagReader::open(&file).err(), &file, "/x");
+        let in_memory = BagReader::from_mcap_bytes(bytes).err();
+        assert_refused_for_two_types(in_memory, Path::new("<memory>"), "/x");
+    }
+
+    /// A sqlite3 `topics` table does not keep names unique; split files may come from two
+    /// recordings. Split files that repeat a topic with its type are one topic, as before.
+    #[test]
+    fn a_sqlite3_topic_with_two_types_is_refused_naming_both() {
+        let tmp = tempfile::tempdir().unwrap();
+        let bag = tmp.path().join("bag");
+        let first = write_bag(&bag, StorageId::Sqlite3, 1000, &[payload(0)]);
+        let second = bag.join("bag_1.db3");
+        let other = write_bag(
+            &tmp.path().join("o"),
+            StorageId::Sqlite3,
+            2000,
+            &[payload(1)],
+        );
+        std::fs::rename(other, &second).unwrap();
+        let mut metadata = BagMetadata::read(&bag).unwrap();
+        metadata.relative_file_paths.push("bag_1.db3".into());
+        metadata.write(&bag).unwrap();
+        let reader = BagReader::open(&bag).unwrap_or_else(|e| panic!("open: {e}"));
+        assert_eq!(reader.topics().len(), 1);
+        assert_eq!(reader.metadata().message_count, 2);
+
+        let db = rusqlite::Connection::open(&second).unwrap();
+        db.execute("UPDATE topics SET type = 'std_msgs/msg/Int32'", [])
+            .unwrap();
+        drop(db);
+        assert_refused_for_two_types(BagReader::open(&bag).err(), &bag, "/raw");
+        std::fs::remove_file(&second).unwrap();
+
+        let db = rusqlite::Connection::open(&first).unwrap();
+        db.execute(
+            "INSERT INTO topics(name, type, serialization_format, offered_qos_profiles, \
+             type_description_hash) VALUES ('/raw', 'std_msgs/msg/Int32', 'cdr', '', '')",
+            [],
+        )
+        .unwrap();
+        drop(db);
+        assert_refused_for_two_types(BagReader::open(&first).err(), &first, "/raw");
     }
 
     /// Without metadata.yaml nothing says whether `.mcap` or `.db3` files make up the bag.

@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
-use lidar_har_bag::{BagReader, PROCESS_ENDING};
+use lidar_har_bag::{BagReader, OfferedQos, PROCESS_ENDING, qos};
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::qos::{QosProfile, Reliability};
 use lidar_har_msgs::rosgraph_msgs::Clock;
@@ -217,12 +217,24 @@ fn check_start_offset(offset_ns: i64, bag_length_ns: i64, bag: &str) -> Result<(
     ))
 }
 
-/// The contract's QoS for a known topic, else what the bag says was offered, else reliable.
+/// The contract's QoS for a known topic, else the one rosbag2's player would offer for what
+/// the bag says its publishers offered.
 fn qos_for(topic: &lidar_har_bag::TopicInfo) -> QosProfile {
-    topics::find(&topic.name)
-        .map(|spec| spec.qos)
-        .or_else(|| topic.offered_qos.first().and_then(|q| q.to_profile()))
-        .unwrap_or(QosProfile::reliable(10))
+    if let Some(spec) = topics::find(&topic.name) {
+        return spec.qos;
+    }
+    let playback = qos::playback_qos(&topic.offered_qos);
+    if playback.offers_disagree {
+        let recorded: Vec<String> = topic.offered_qos.iter().map(|q| q.describe()).collect();
+        log::warn!(
+            "replay: the publishers recorded on {} offered different QoS ({}); offering {}, \
+             rosbag2's default for this case",
+            topic.name,
+            recorded.join("; "),
+            OfferedQos::from(playback.profile).describe()
+        );
+    }
+    playback.profile
 }
 
 fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
