@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
 # Installs what cargo does not: the ONNX Runtime shared library (from the `onnxruntime`
 # wheel on PyPI) and a Python virtual environment with the external checkers.
-# Idempotent: rerunning it only re-checks what is already there.
+# Idempotent: rerunning it re-checks what is there and repairs what an interrupted run left
+# (a truncated library, a missing link, a virtual environment without pip).
 #
-#   scripts/setup.sh            everything
-#   scripts/setup.sh --no-python   only the ONNX Runtime library
+#   scripts/setup.sh               everything
+#   scripts/setup.sh --no-python   without the Python checkers (a bare .venv still gives the
+#                                  pip that fetches the wheel; cargo-fuzz is still installed)
 #
-# Everything lands inside the repository, in `.deps/` and `.venv/` (both git-ignored).
+# LIDAR_HAR_ORT_WHEEL=/path/to/onnxruntime-*.whl takes the library from that wheel instead of
+# PyPI (an offline machine). Everything lands inside the repository, in `.deps/` and `.venv/`
+# (both git-ignored).
 set -euo pipefail
 
 ORT_VERSION="1.31.1"
@@ -14,6 +18,9 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 DEPS="$ROOT/.deps"
 ORT_DIR="$DEPS/onnxruntime"
 ORT_LIB="$ORT_DIR/libonnxruntime.so.$ORT_VERSION"
+# The library's checksum, written once it is in place and linked: without it (or when the
+# library no longer matches it) an earlier run was interrupted, and the library is fetched again.
+ORT_CHECKSUM="$ORT_DIR/installed.sha256"
 VENV="$ROOT/.venv"
 PY_REQUIREMENTS="$ROOT/scripts/requirements-checkers.txt"
 WITH_PYTHON=1
@@ -40,6 +47,18 @@ need() {
 need cargo "install Rust with rustup (https://rustup.rs), then rerun scripts/setup.sh"
 need python3 "apt-get install python3 python3-venv python3-pip"
 
+# rustup brings no linker or C compiler; the build needs both (bundled SQLite and zstd, build
+# scripts, cargo-fuzz).
+if ! command -v cc >/dev/null || ! command -v c++ >/dev/null; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        say "installing build-essential from Debian (a C and C++ compiler and linker)"
+        apt-get update -qq && apt-get install -y -qq build-essential >/dev/null \
+            || fail "apt-get could not install build-essential" "run 'apt-get install build-essential' as root"
+    else
+        fail "no C compiler and linker ('cc', 'c++')" "run 'sudo apt-get install build-essential'"
+    fi
+fi
+
 # Debian installs venv and pip separately; install them when we are root and they are missing.
 if ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
@@ -62,26 +81,42 @@ if ! command -v unshare >/dev/null || ! command -v ip >/dev/null; then
     fi
 fi
 
-# --- Python virtual environment (checkers; also the pip used to fetch the ONNX Runtime wheel)
-if [ ! -x "$VENV/bin/python" ]; then
+# --- Python virtual environment (checkers; also the pip used to fetch the ONNX Runtime wheel).
+# `python3 -m venv` makes bin/python first and pip last: one interrupted in between has no pip.
+if ! "$VENV/bin/python" -m pip --version >/dev/null 2>&1; then
     say "creating the virtual environment $VENV"
-    python3 -m venv "$VENV" || fail "python3 -m venv $VENV failed" "apt-get install python3-venv, then rerun"
+    python3 -m venv --clear "$VENV" || fail "python3 -m venv $VENV failed" "apt-get install python3-venv, then rerun"
 fi
 PIP=("$VENV/bin/python" -m pip --disable-pip-version-check -q)
 
 # --- ONNX Runtime shared library, taken out of the PyPI wheel
-if [ -f "$ORT_LIB" ]; then
+ort_installed() {
+    [ "$(readlink "$ORT_DIR/libonnxruntime.so" 2>/dev/null)" = "libonnxruntime.so.$ORT_VERSION" ] \
+        && [ -f "$ORT_CHECKSUM" ] \
+        && (cd "$ORT_DIR" && sha256sum --check --status "$ORT_CHECKSUM")
+}
+if ort_installed; then
     say "ONNX Runtime $ORT_VERSION already at $ORT_LIB"
 else
-    say "fetching the onnxruntime==$ORT_VERSION wheel from PyPI for its shared library"
+    rm -f "$ORT_CHECKSUM"
     tmp="$(mktemp -d)"
     trap 'rm -rf "$tmp"' EXIT
-    "${PIP[@]}" download "onnxruntime==$ORT_VERSION" --no-deps --only-binary=:all: -d "$tmp" \
-        || fail "pip could not download onnxruntime==$ORT_VERSION from PyPI" \
-            "check that PyPI is reachable (pip config, proxy) and that a wheel exists for $(uname -m)"
-    wheel="$(ls "$tmp"/onnxruntime-*.whl | head -n1)"
+    if [ -n "${LIDAR_HAR_ORT_WHEEL:-}" ]; then
+        wheel="$LIDAR_HAR_ORT_WHEEL"
+        [ -f "$wheel" ] || fail "LIDAR_HAR_ORT_WHEEL=$wheel is not a file" \
+            "point it at an onnxruntime-$ORT_VERSION wheel, or unset it to fetch one from PyPI"
+        say "taking the ONNX Runtime library from $wheel"
+    else
+        say "fetching the onnxruntime==$ORT_VERSION wheel from PyPI for its shared library"
+        "${PIP[@]}" download "onnxruntime==$ORT_VERSION" --no-deps --only-binary=:all: -d "$tmp" \
+            || fail "pip could not download onnxruntime==$ORT_VERSION from PyPI" \
+                "check that PyPI is reachable (pip config, proxy) and that a wheel exists for $(uname -m)"
+        wheel="$(ls "$tmp"/onnxruntime-*.whl | head -n1)"
+    fi
     mkdir -p "$ORT_DIR"
-    "$VENV/bin/python" - "$wheel" "$ORT_DIR" <<'PY' || fail "could not extract libonnxruntime from the wheel" "delete .deps/ and rerun scripts/setup.sh"
+    # Each library is written beside its final name and renamed once complete (zipfile checks
+    # its CRC as it reads), so a run stopped half-way never leaves a truncated library there.
+    "$VENV/bin/python" - "$wheel" "$ORT_DIR" <<'PY' || fail "could not extract libonnxruntime from $wheel" "free some disk space (about 30 MB) and rerun scripts/setup.sh"
 import sys, zipfile, os, shutil
 wheel, dest = sys.argv[1], sys.argv[2]
 with zipfile.ZipFile(wheel) as z:
@@ -89,17 +124,28 @@ with zipfile.ZipFile(wheel) as z:
     if not libs:
         sys.exit("no libonnxruntime.so in " + wheel)
     for name in libs:
-        with z.open(name) as src, open(os.path.join(dest, os.path.basename(name)), "wb") as dst:
+        final = os.path.join(dest, os.path.basename(name))
+        partial = final + ".partial"
+        with z.open(name) as src, open(partial, "wb") as dst:
             shutil.copyfileobj(src, dst)
+            dst.flush()
+            os.fsync(dst.fileno())
+        os.replace(partial, final)
 PY
     [ -f "$ORT_LIB" ] || fail "the wheel did not contain libonnxruntime.so.$ORT_VERSION" \
         "update ORT_VERSION in scripts/setup.sh to the version in the wheel"
-    ln -sf "libonnxruntime.so.$ORT_VERSION" "$ORT_DIR/libonnxruntime.so"
+    ln -sfn "libonnxruntime.so.$ORT_VERSION" "$ORT_DIR/libonnxruntime.so"
+    (cd "$ORT_DIR" && sha256sum "libonnxruntime.so.$ORT_VERSION" > "$ORT_CHECKSUM.partial") \
+        && mv "$ORT_CHECKSUM.partial" "$ORT_CHECKSUM" \
+        || fail "could not write $ORT_CHECKSUM" "free some disk space and rerun scripts/setup.sh"
     say "ONNX Runtime installed at $ORT_LIB"
 fi
 
 # --- External checkers (rosbags, mcap, mcap-ros2-support, cyclonedds); pip skips what is there.
 if [ "$WITH_PYTHON" = 1 ]; then
+    if [ "$(uname -m)" != x86_64 ]; then
+        say "warning: PyPI has cyclonedds wheels for x86_64 only; on $(uname -m) it is left out, and the Cyclone DDS interoperability test fails under scripts/test.sh"
+    fi
     say "installing Python checkers into $VENV from $PY_REQUIREMENTS"
     "${PIP[@]}" install -r "$PY_REQUIREMENTS" || fail "pip install -r $PY_REQUIREMENTS failed" \
         "check that PyPI is reachable; the failing package is named above"

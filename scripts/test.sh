@@ -9,7 +9,13 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 QUICK=0
-[ "${1:-}" = "--quick" ] && QUICK=1
+for arg in "$@"; do
+    case "$arg" in
+        --quick) QUICK=1 ;;
+        -h | --help) sed -n '2,7p' "$0"; exit 0 ;;
+        *) echo "test: unknown option '$arg' (try --help)" >&2; exit 2 ;;
+    esac
+done
 
 say() { printf '\033[1mtest:\033[0m %s\n' "$*"; }
 
