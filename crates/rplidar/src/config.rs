@@ -10,6 +10,32 @@ use crate::scan::ScanGeometry;
 /// driver would only reconnect for ever.
 pub const MIN_BAUD: u32 = 115_200;
 
+/// A field of [`Config`], as [`Error::Config`] names the one it refuses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ConfigField {
+    Port,
+    Baud,
+    FrameId,
+    Beams,
+    RangeMin,
+    RangeMax,
+    ScanMode,
+    MotorPwm,
+    RequestTimeout,
+    DataTimeout,
+    ReconnectMin,
+    ReconnectMax,
+    DiagnosticsPeriod,
+}
+
+/// An [`Error::Config`] refusing `field`.
+pub(crate) fn invalid(field: ConfigField, reason: impl Into<String>) -> Error {
+    Error::Config {
+        field,
+        reason: reason.into(),
+    }
+}
+
 /// Which measurement mode to start.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ScanModeChoice {
@@ -30,8 +56,9 @@ impl FromStr for ScanModeChoice {
     fn from_str(s: &str) -> Result<Self> {
         let t = s.trim();
         match t.to_ascii_lowercase().as_str() {
-            "" => Err(Error::Config(
-                "scan_mode is empty; use standard, express, auto or a device mode name".into(),
+            "" => Err(invalid(
+                ConfigField::ScanMode,
+                "scan_mode is empty; use standard, express, auto or a device mode name",
             )),
             "standard" => Ok(Self::Standard),
             "express" => Ok(Self::Express),
@@ -98,58 +125,85 @@ impl Config {
     /// Checks every field; the error names the field and what is wrong with it.
     pub fn validate(&self) -> Result<()> {
         if self.port.trim().is_empty() {
-            return Err(Error::Config(
-                "port is empty; give the serial device path, e.g. /dev/ttyUSB0".into(),
+            return Err(invalid(
+                ConfigField::Port,
+                "port is empty; give the serial device path, e.g. /dev/ttyUSB0",
             ));
         }
         if self.baud < MIN_BAUD {
-            return Err(Error::Config(format!(
-                "baud = {} is below {MIN_BAUD}, the slowest RPLIDAR rate: use 115200 \
+            return Err(invalid(
+                ConfigField::Baud,
+                format!(
+                    "baud = {} is below {MIN_BAUD}, the slowest RPLIDAR rate: use 115200 \
                  (A1/A2M8), 256000 (A2M12/A3/S1), 460800 (C1), 1000000 (S2/S3) or another rate >= \
                  {MIN_BAUD}",
-                self.baud
-            )));
+                    self.baud
+                ),
+            ));
         }
         if self.frame_id.trim().is_empty() {
-            return Err(Error::Config("frame_id is empty".into()));
+            return Err(invalid(ConfigField::FrameId, "frame_id is empty"));
         }
         // tf2 refuses such frame ids, so rviz and every transform lookup would drop the scans.
         if self.frame_id.starts_with('/') || self.frame_id.trim() != self.frame_id {
-            return Err(Error::Config(format!(
-                "frame_id = {:?}: a tf2 frame id has no leading '/' (a ROS 1 habit) and no \
+            return Err(invalid(
+                ConfigField::FrameId,
+                format!(
+                    "frame_id = {:?}: a tf2 frame id has no leading '/' (a ROS 1 habit) and no \
                  surrounding spaces, e.g. \"laser\"",
-                self.frame_id
-            )));
+                    self.frame_id
+                ),
+            ));
         }
         self.geometry.validate()?;
         if let Some(pwm) = self.motor_pwm
             && pwm > 1023
         {
-            return Err(Error::Config(format!(
-                "motor_pwm = {pwm} must be in 0..=1023"
-            )));
+            return Err(invalid(
+                ConfigField::MotorPwm,
+                format!("motor_pwm = {pwm} must be in 0..=1023"),
+            ));
         }
         if let ScanModeChoice::Named(name) = &self.scan_mode
             && name.trim().is_empty()
         {
-            return Err(Error::Config("scan_mode name is empty".into()));
+            return Err(invalid(ConfigField::ScanMode, "scan_mode name is empty"));
         }
-        for (name, value) in [
-            ("request_timeout", self.request_timeout),
-            ("data_timeout", self.data_timeout),
-            ("reconnect_min", self.reconnect_min),
-            ("reconnect_max", self.reconnect_max),
-            ("diagnostics_period", self.diagnostics_period),
+        for (field, name, value) in [
+            (
+                ConfigField::RequestTimeout,
+                "request_timeout",
+                self.request_timeout,
+            ),
+            (ConfigField::DataTimeout, "data_timeout", self.data_timeout),
+            (
+                ConfigField::ReconnectMin,
+                "reconnect_min",
+                self.reconnect_min,
+            ),
+            (
+                ConfigField::ReconnectMax,
+                "reconnect_max",
+                self.reconnect_max,
+            ),
+            (
+                ConfigField::DiagnosticsPeriod,
+                "diagnostics_period",
+                self.diagnostics_period,
+            ),
         ] {
             if value.is_zero() {
-                return Err(Error::Config(format!("{name} must be longer than zero")));
+                return Err(invalid(field, format!("{name} must be longer than zero")));
             }
         }
         if self.reconnect_max < self.reconnect_min {
-            return Err(Error::Config(format!(
-                "reconnect_max ({:?}) is shorter than reconnect_min ({:?})",
-                self.reconnect_max, self.reconnect_min
-            )));
+            return Err(invalid(
+                ConfigField::ReconnectMax,
+                format!(
+                    "reconnect_max ({:?}) is shorter than reconnect_min ({:?})",
+                    self.reconnect_max, self.reconnect_min
+                ),
+            ));
         }
         Ok(())
     }
@@ -240,6 +294,28 @@ mod tests {
             let e = config.validate().unwrap_err().to_string();
             assert!(e.contains(field), "{field}: {e}");
         }
+    }
+
+    #[test]
+    fn the_error_carries_the_field_refused_even_when_its_text_names_others() {
+        let base = Config::new("/dev/ttyUSB0");
+        let field = |config: Config| match config.validate() {
+            Err(Error::Config { field, .. }) => field,
+            other => panic!("{other:?}"),
+        };
+        let mut short_max = base.clone();
+        short_max.geometry.range_max_m = 0.1;
+        assert_eq!(field(short_max), ConfigField::RangeMax);
+        let port_frame = Config {
+            frame_id: "/laser_port".into(),
+            ..base.clone()
+        };
+        assert_eq!(field(port_frame), ConfigField::FrameId);
+        let zero_period = Config {
+            diagnostics_period: Duration::ZERO,
+            ..base
+        };
+        assert_eq!(field(zero_period), ConfigField::DiagnosticsPeriod);
     }
 
     #[test]

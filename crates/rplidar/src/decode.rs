@@ -37,6 +37,23 @@ pub struct Sample {
 /// down to about -20° for returns at 5 cm (see [`ultra_compensation_deg`]).
 pub(crate) const COMPENSATION_SPREAD_DEG: f32 = 30.0;
 
+/// How far ahead of its predecessor a sample can lie: the compensation spread plus a few
+/// lost samples.
+pub(crate) const MAX_STEP_AHEAD_DEG: f32 = COMPENSATION_SPREAD_DEG + 15.0;
+
+/// Whether a sample at `next` degrees can follow one at `angle`: a step forward (across 360
+/// included) of at most [`MAX_STEP_AHEAD_DEG`], or a step back within the compensation
+/// spread, as at the near and far edges of an object.
+pub(crate) fn angle_continues(angle: f32, next: f32) -> bool {
+    // Both angles lie in [0, 360).
+    let delta = if next >= angle {
+        next - angle
+    } else {
+        next - angle + 360.0
+    };
+    delta <= MAX_STEP_AHEAD_DEG || delta >= 360.0 - COMPENSATION_SPREAD_DEG
+}
+
 /// Quality reported for valid samples of formats that carry no quality.
 pub const CAPSULE_QUALITY: u8 = 188;
 
@@ -135,12 +152,21 @@ pub struct StreamDecoder {
     typical_step_deg: Option<f32>,
     /// The last step taken for a gap and how many gaps in a row agreed with it.
     gap_run: Option<(f32, u32)>,
+    /// Angle (q6) of the last standard node taken, which the next one must continue.
+    last_node_angle: Option<u16>,
     stats: DecodeStats,
 }
 
 /// Gaps in a row of about the same size that replace the usual step: lost capsules give
 /// gaps of varying size, a wrong usual step gives the same "gap" every capsule.
 const RESEED_AFTER_GAPS: u32 = 3;
+
+/// Valid nodes that must follow a standard node which does not continue the last one taken.
+/// After a lost byte, misaligned windows of a node stream pass the check bits far more often
+/// than random bytes (the angle's low bits and the distance bytes change slowly) and, with
+/// one node of look-ahead, carry arbitrary angles into the scan; a real jump of the angle (a
+/// stall, lost data) is followed by a long run of nodes that continue each other.
+const RESYNC_CHAIN_NODES: usize = 3;
 
 enum Check {
     /// Not the start of a packet: skip one byte.
@@ -160,6 +186,7 @@ impl StreamDecoder {
             prev_capsule: None,
             typical_step_deg: None,
             gap_run: None,
+            last_node_angle: None,
             stats: DecodeStats::default(),
         }
     }
@@ -178,6 +205,16 @@ impl StreamDecoder {
         self.prev_capsule = None;
         self.typical_step_deg = None;
         self.gap_run = None;
+        self.last_node_angle = None;
+    }
+
+    /// Samples of packets already received that [`StreamDecoder::push`] has not returned:
+    /// a capsule waiting for the next start angle, nodes waiting for their look-ahead. They
+    /// were measured after every sample returned so far, which dating needs to know.
+    pub fn held_back_samples(&self) -> usize {
+        let waiting_packets = self.buf.len() / self.format.packet_len();
+        let waiting_capsule = usize::from(self.prev_capsule.is_some());
+        (waiting_packets + waiting_capsule) * self.format.samples_per_packet()
     }
 
     /// Decodes `bytes` (appended to what is buffered) and appends the samples to `out`.
@@ -233,8 +270,9 @@ impl StreamDecoder {
         match self.format {
             ScanFormat::Standard => {
                 // Check bits pass for a quarter of random bytes, so a node is only taken
-                // when the node after it also passes and continues its angle: after
-                // garbage or a lost byte this finds the real node boundary again.
+                // when the node after it also passes and continues its angle, and one that
+                // does not continue the last node taken only at the head of a longer chain:
+                // after garbage or a lost byte this finds the real node boundary again.
                 let Some(angle) = standard_angle_q6(p) else {
                     return if (p[0] ^ (p[0] >> 1)) & 1 == 1 {
                         Check::Corrupt
@@ -242,13 +280,23 @@ impl StreamDecoder {
                         Check::NoSync
                     };
                 };
-                let Some(next) = following.get(..5) else {
+                let continues = self
+                    .last_node_angle
+                    .is_none_or(|last| angle_follows(last, angle));
+                let chain = if continues { 1 } else { RESYNC_CHAIN_NODES };
+                let Some(chained) = following.get(..5 * chain) else {
                     return Check::NeedMore;
                 };
-                match standard_angle_q6(next) {
-                    Some(next_angle) if angle_follows(angle, next_angle) => Check::Valid,
-                    _ => Check::Corrupt,
+                let mut previous = angle;
+                for next in chained.chunks_exact(5) {
+                    match standard_angle_q6(next) {
+                        Some(next_angle) if angle_follows(previous, next_angle) => {
+                            previous = next_angle;
+                        }
+                        _ => return Check::Corrupt,
+                    }
                 }
+                Check::Valid
             }
             ScanFormat::Express | ScanFormat::Ultra | ScanFormat::Dense => {
                 if p[0] >> 4 != 0xA || p[1] >> 4 != 0x5 {
@@ -281,7 +329,11 @@ impl StreamDecoder {
 
     fn decode_packet(&mut self, p: &[u8], out: &mut Vec<Sample>) {
         match self.format {
-            ScanFormat::Standard => out.push(decode_standard(p)),
+            ScanFormat::Standard => {
+                let sample = decode_standard(p);
+                self.last_node_angle = standard_angle_q6(p);
+                out.push(sample);
+            }
             ScanFormat::Hq => decode_hq(p, out),
             capsule => {
                 debug_assert!(capsule.is_capsule());
@@ -411,11 +463,10 @@ fn standard_angle_q6(p: &[u8]) -> Option<u16> {
     (sync_ok && angle_word & 1 == 1 && angle_word >> 1 < FULL_CIRCLE_Q6).then_some(angle_word >> 1)
 }
 
-/// Whether `next` can be the angle of the node after one at `angle` (q6): a step forward
-/// (across 360 included) of at most the compensation spread plus a few lost nodes, or a step
-/// back within the compensation spread, as at the near and far edges of an object.
+/// [`angle_continues`] in the q6 degrees of standard nodes, without floating point in the
+/// byte-by-byte search.
 fn angle_follows(angle: u16, next: u16) -> bool {
-    const MAX_STEP_Q6: i32 = (COMPENSATION_SPREAD_DEG as i32 + 15) * 64;
+    const MAX_STEP_Q6: i32 = MAX_STEP_AHEAD_DEG as i32 * 64;
     const MAX_BACK_Q6: i32 = COMPENSATION_SPREAD_DEG as i32 * 64;
     let delta = (i32::from(next) - i32::from(angle)).rem_euclid(i32::from(FULL_CIRCLE_Q6));
     delta <= MAX_STEP_Q6 || delta >= i32::from(FULL_CIRCLE_Q6) - MAX_BACK_Q6

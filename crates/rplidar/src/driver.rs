@@ -934,9 +934,12 @@ impl Driver {
             if !session.samples.is_empty() {
                 session.last_data = arrival;
             }
-            session
-                .assembler
-                .push(&session.samples, arrival, &mut session.rotations);
+            session.assembler.push_with_held_back(
+                &session.samples,
+                session.decoder.held_back_samples(),
+                arrival,
+                &mut session.rotations,
+            );
         }
         let silent_for = arrival.saturating_duration_since(session.last_data);
         if !session.rotations.is_empty() {

@@ -27,9 +27,13 @@ pub enum Error {
         parameter: &'static str,
         reason: String,
     },
-    /// A configuration value is invalid.
-    #[error("invalid configuration: {0}")]
-    Config(String),
+    /// A configuration value is invalid; `field` is the one refused, so that a caller can
+    /// name its own parameter for it.
+    #[error("invalid configuration: {reason}")]
+    Config {
+        field: crate::config::ConfigField,
+        reason: String,
+    },
 }
 
 pub type Result<T> = std::result::Result<T, Error>;

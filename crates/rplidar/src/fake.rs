@@ -177,6 +177,10 @@ pub struct FakeConfig {
     /// Answer `GET_ACC_BOARD_FLAG` with the motor-control bit: an A2/A3 whose motor runs
     /// only on `SET_MOTOR_PWM`.
     pub accessory_board_motor: bool,
+    /// Device angle (degrees) of the sample whose packet takes the injected faults
+    /// ([`FakeLidar::inject_garbage`], [`FakeLidar::drop_bytes`]): 0 is a rotation's first
+    /// sample, where a lost byte and the wrap coincide; elsewhere the fault lands mid-turn.
+    pub fault_angle_deg: f32,
 }
 
 impl Default for FakeConfig {
@@ -200,6 +204,7 @@ impl Default for FakeConfig {
             express_lead_deg: 2.0,
             boot_banner: true,
             accessory_board_motor: false,
+            fault_angle_deg: 0.0,
         }
     }
 }
@@ -327,14 +332,15 @@ impl FakeLidar {
         &self.link
     }
 
-    /// Inserts these bytes into the measurement stream, three bytes into the packet holding
-    /// the next rotation's first sample: always the same place, however busy the machine.
+    /// Inserts these bytes into the measurement stream, three bytes into the next packet
+    /// holding the sample at [`FakeConfig::fault_angle_deg`] (by default a rotation's first):
+    /// always the same place, however busy the machine.
     pub fn inject_garbage(&self, bytes: &[u8]) {
         lock(&self.shared.control).garbage.extend_from_slice(bytes);
     }
 
-    /// Drops `n` bytes of the measurement stream, from the start of the packet holding the
-    /// next rotation's first sample.
+    /// Drops `n` bytes of the measurement stream, from the start of the next packet holding
+    /// the sample at [`FakeConfig::fault_angle_deg`].
     pub fn drop_bytes(&self, n: usize) {
         lock(&self.shared.control).drop_bytes += n;
     }
@@ -695,10 +701,15 @@ impl Device {
                 (j % n as u64) as f32 * 360.0 / n as f32
             }
         };
+        let fault_sample = (self.config.fault_angle_deg.rem_euclid(360.0) / 360.0 * n as f32)
+            .round() as u64
+            % n as u64;
+        // Samples since the one at the fault angle, within a rotation.
+        let past_fault = |j: u64| (j + n as u64 - fault_sample) % n as u64;
         let mut out = Vec::new();
-        // Where the packet holding a rotation's first sample starts in `out`: faults go there,
-        // a place that does not depend on when the fake runs.
-        let mut rotation_start = None;
+        // Where the packet holding the sample at the fault angle starts in `out`: faults go
+        // there, a place that does not depend on when the fake runs.
+        let mut fault_packet = None;
         let mut served = 0;
         while stream.next_sample < due {
             let j = stream.next_sample;
@@ -721,8 +732,8 @@ impl Device {
             match stream.mode {
                 FakeMode::Standard => {
                     let quality = if dist_mm > 0.0 { 47 << 2 } else { 0 };
-                    if j % n as u64 == 0 {
-                        rotation_start.get_or_insert(out.len());
+                    if past_fault(j) == 0 {
+                        fault_packet.get_or_insert(out.len());
                     }
                     out.extend_from_slice(&encode::standard_node(
                         angle(j),
@@ -756,9 +767,9 @@ impl Device {
                                 .collect();
                             encode::dense_capsule(first, &d, stream.first_capsule)
                         };
-                        // Samples j + 1 - size ..= j hold a multiple of n.
-                        if j % (n as u64) < size as u64 {
-                            rotation_start.get_or_insert(out.len());
+                        // Samples j + 1 - size ..= j hold the one at the fault angle.
+                        if past_fault(j) < size as u64 {
+                            fault_packet.get_or_insert(out.len());
                         }
                         out.extend_from_slice(&capsule);
                         stream.first_capsule = false;
@@ -774,7 +785,7 @@ impl Device {
         if out.is_empty() {
             return;
         }
-        if let Some(at) = rotation_start {
+        if let Some(at) = fault_packet {
             let mut c = lock(&self.shared.control);
             let dropped = c.drop_bytes.min(out.len() - at);
             c.drop_bytes -= dropped;

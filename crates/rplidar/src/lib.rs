@@ -18,7 +18,7 @@ pub mod protocol;
 pub mod rotation;
 pub mod scan;
 
-pub use config::{Config, ScanModeChoice};
+pub use config::{Config, ConfigField, ScanModeChoice};
 pub use decode::{DecodeStats, Sample, ScanFormat, StreamDecoder};
 pub use driver::{DEFAULT_MOTOR_PWM, Driver, Event};
 pub use error::{Error, Result};

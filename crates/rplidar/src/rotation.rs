@@ -7,22 +7,36 @@
 //! make a one-sample rotation. The angle swept counts forward jumps over lost samples, so a
 //! gap does not hide the next wrap; a "jump" of nearly a turn is a step back across the zero
 //! mark instead (a close return compensated past it, see `MAX_STEP_BACK_DEG`), so such a
-//! return moves the start of its turn by a few samples but never splits the turn. Samples before the first start are dropped: a scan starts
-//! mid-rotation.
+//! return moves the start of its turn by a few samples but never splits the turn. Samples
+//! before the first start are dropped: a scan starts mid-rotation.
+//!
+//! Outliers: a standard node falsely accepted after a lost byte carries an arbitrary angle;
+//! taken as it is, one more than half a turn behind its predecessor would close the rotation
+//! there and split the turn in two. So a sample that does not continue the last one kept
+//! (more than `MAX_STEP_AHEAD_DEG` ahead or the compensation spread behind) waits: when one
+//! of the next `MAX_OUTLIER_RUN` samples continues the last one kept, the samples before it
+//! are dropped as outliers; when none does, the angle really jumped (samples were lost) and
+//! they are all kept. A wrap therefore counts only once a sample after it confirms it.
 //!
 //! Arrival times: one read from the port can hold many samples (after a stall of the host,
 //! several turns), all arriving at once, yet the device measured them one sample interval
 //! apart. Each sample is therefore dated back from the read's arrival by the samples after
 //! it times the device's sample interval, and never before the sample preceding it, so that
 //! rotations read together keep their own periods and every rotation lasts a positive time.
-//! Dating back from the read is exact when one read takes the whole backlog: the driver
-//! reads a backlog that the kernel hands over in pieces (at most 4095 bytes at a time) to its
-//! end before passing it here, up to 256 KiB. Past that, the next piece cannot be told from
-//! fresh data, and its rotations crowd together in time.
+//! The samples after it include those the decoder has received but still holds back (see
+//! [`RotationAssembler::push_with_held_back`]): a capsule's samples are only released when
+//! the next capsule arrives, so the last sample released was measured a whole capsule before
+//! the read's arrival. Dating back from the read is exact when one read takes the whole
+//! backlog and the packets take no time on the wire: the driver reads a backlog that the
+//! kernel hands over in pieces (at most 4095 bytes at a time) to its end before passing it
+//! here, up to 256 KiB. Past that, the next piece cannot be told from fresh data, and its
+//! rotations crowd together in time. On a real serial line every stamp is also late by the
+//! transfer of the packet that completed the read (an 84-byte capsule takes 7.3 ms at
+//! 115200 baud, a 5-byte node 0.4 ms), which is not taken off.
 
 use std::time::{Duration, Instant};
 
-use crate::decode::Sample;
+use crate::decode::{Sample, angle_continues};
 
 /// One sample of a rotation, in the device's frame (clockwise degrees, millimetres).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -58,7 +72,14 @@ impl Rotation {
 pub struct RotationAssembler {
     current: Vec<RotationSample>,
     started: Option<Instant>,
+    /// Angle of the last sample kept.
     last_angle: Option<f32>,
+    /// Samples in a row (with their dates) that do not continue the last one kept: outliers
+    /// or the start of a jump, which the samples after them tell apart.
+    suspects: Vec<(Sample, Instant)>,
+    /// A kept sample more than half a turn behind the one before it, waiting for the next
+    /// sample to confirm the wrap.
+    unconfirmed_wrap: Option<(Sample, Instant)>,
     swept_deg: f32,
     /// Arrival given to the last sample pushed.
     last_time: Option<Instant>,
@@ -80,6 +101,19 @@ const MAX_STEP_BACK_DEG: f32 = crate::decode::COMPENSATION_SPREAD_DEG;
 /// How far from the zero mark a start flag may lie (the first sample of a turn).
 const START_FLAG_WINDOW_DEG: f32 = 10.0;
 
+/// A wrap that lands more than this far ahead of the last sample waits for the next sample
+/// to confirm it. Consecutive samples of a turn lie at most a few degrees apart, so a wrap
+/// landing far ahead is a close return compensated past the zero mark or a false sample
+/// that still continued the last one; either way the samples after it fall back before
+/// the zero mark. A plain wrap closes its rotation at once.
+const UNCONFIRMED_WRAP_STEP_DEG: f32 = 5.0;
+
+/// Longest run of samples dropped as outliers. The standard decoder takes a node that does
+/// not continue its predecessor only at the head of a chain of four, so false nodes come in
+/// short runs; a real jump of the angle is followed by samples that continue each other for
+/// the rest of the turn.
+const MAX_OUTLIER_RUN: usize = 8;
+
 impl Default for RotationAssembler {
     fn default() -> Self {
         Self::new()
@@ -100,6 +134,8 @@ impl RotationAssembler {
             current: Vec::with_capacity(2048),
             started: None,
             last_angle: None,
+            suspects: Vec::with_capacity(MAX_OUTLIER_RUN),
+            unconfirmed_wrap: None,
             swept_deg: 0.0,
             last_time: None,
             sample_interval: interval,
@@ -108,75 +144,149 @@ impl RotationAssembler {
         }
     }
 
-    /// Samples dropped because they came before the first start or made a "rotation" that
-    /// never wrapped.
+    /// Samples dropped because they came before the first start, made a "rotation" that
+    /// never wrapped, or were outliers.
     pub fn discarded(&self) -> u64 {
         self.discarded
     }
 
     /// Forgets the rotation in progress (after a restart of the scan).
     pub fn reset(&mut self) {
-        self.discarded += self.current.len() as u64;
+        self.discarded += (self.current.len() + self.suspects.len()) as u64;
+        self.discarded += u64::from(self.unconfirmed_wrap.take().is_some());
         self.current.clear();
+        self.suspects.clear();
         self.started = None;
         self.last_angle = None;
         self.swept_deg = 0.0;
     }
 
-    /// Adds the samples of one read that arrived at `arrival`; completed rotations are
-    /// appended to `out`.
+    /// Adds the samples of one read that arrived at `arrival`, the last of them measured
+    /// just before it; completed rotations are appended to `out`.
     pub fn push(&mut self, samples: &[Sample], arrival: Instant, out: &mut Vec<Rotation>) {
+        self.push_with_held_back(samples, 0, arrival, out);
+    }
+
+    /// Adds the samples of one read that arrived at `arrival` while `held_back` more samples
+    /// measured after them came with it but are not decoded yet
+    /// ([`crate::StreamDecoder::held_back_samples`]); completed rotations are appended to
+    /// `out`.
+    pub fn push_with_held_back(
+        &mut self,
+        samples: &[Sample],
+        held_back: usize,
+        arrival: Instant,
+        out: &mut Vec<Rotation>,
+    ) {
         for (i, s) in samples.iter().enumerate() {
-            let time = self.date(arrival, samples.len() - 1 - i);
-            let (progress, wrapped) = match self.last_angle {
-                None => (0.0, false),
-                Some(last) => {
-                    let step = s.angle_deg - last;
-                    if step < -180.0 {
-                        (step + 360.0, true)
-                    } else if (0.0..=360.0 - MAX_STEP_BACK_DEG).contains(&step) {
-                        // The motor only turns forward: a jump is samples lost in between.
-                        (step, false)
-                    } else {
-                        // A step back, across the zero mark or not: jitter or corruption.
-                        (0.0, false)
-                    }
-                }
-            };
-            self.swept_deg += progress;
-            self.last_angle = Some(s.angle_deg);
-            let flagged = s.start_of_rotation
-                && (s.angle_deg <= START_FLAG_WINDOW_DEG
-                    || s.angle_deg >= 360.0 - START_FLAG_WINDOW_DEG);
-            if (flagged || wrapped) && (self.started.is_none() || self.swept_deg >= 180.0) {
-                if let Some(started) = self.started {
-                    let capacity = self.current.capacity();
-                    let samples =
-                        std::mem::replace(&mut self.current, Vec::with_capacity(capacity));
-                    out.push(Rotation {
-                        samples,
-                        started,
-                        ended: time,
-                    });
-                }
-                self.started = Some(time);
-                self.swept_deg = 0.0;
+            let time = self.date(arrival, samples.len() - 1 - i + held_back);
+            self.screen(*s, time, out);
+        }
+    }
+
+    /// Keeps samples that continue the last one kept; holds the others until the samples
+    /// after them show whether they are outliers (see the module documentation).
+    fn screen(&mut self, s: Sample, time: Instant, out: &mut Vec<Rotation>) {
+        if self
+            .last_angle
+            .is_none_or(|last| angle_continues(last, s.angle_deg))
+        {
+            self.discarded += self.suspects.len() as u64;
+            self.suspects.clear();
+            self.assemble(&s, time, out);
+        } else if self.suspects.len() < MAX_OUTLIER_RUN {
+            self.suspects.push((s, time));
+        } else {
+            let mut jump = std::mem::take(&mut self.suspects);
+            for (suspect, suspect_time) in jump.drain(..) {
+                self.assemble(&suspect, suspect_time, out);
             }
-            if self.started.is_none() {
-                self.discarded += 1;
-                continue;
+            self.suspects = jump;
+            self.assemble(&s, time, out);
+        }
+    }
+
+    /// Adds a kept sample, holding one that wraps far ahead until the next sample confirms
+    /// the wrap.
+    fn assemble(&mut self, s: &Sample, time: Instant, out: &mut Vec<Rotation>) {
+        let step = self.last_angle.map_or(0.0, |last| s.angle_deg - last);
+        if let Some((wrap, wrap_time)) = self.unconfirmed_wrap.take() {
+            if step < -180.0 {
+                self.add(&wrap, wrap_time, out);
+            } else {
+                // Back before the zero mark: a close return compensated past it, or a false
+                // sample. It stays in its turn and moves nothing.
+                self.keep_in_place(&wrap);
             }
-            if self.current.len() >= self.max_samples {
-                // The angle never wrapped: no motor, or nonsense angles. Start over.
-                self.reset();
-                continue;
-            }
+        } else if (-360.0 + UNCONFIRMED_WRAP_STEP_DEG..-180.0).contains(&step) {
+            self.unconfirmed_wrap = Some((*s, time));
+            return;
+        }
+        self.add(s, time, out);
+    }
+
+    /// Adds a sample to the rotation in progress without taking its angle as progress.
+    fn keep_in_place(&mut self, s: &Sample) {
+        if self.started.is_none() || self.current.len() >= self.max_samples {
+            self.discarded += 1;
+        } else {
             self.current.push(RotationSample {
                 angle_deg: s.angle_deg,
                 distance_mm: s.distance_mm,
                 quality: s.quality,
             });
         }
+    }
+
+    /// Adds a sample to the rotation in progress, closing it at a start.
+    fn add(&mut self, s: &Sample, time: Instant, out: &mut Vec<Rotation>) {
+        let (progress, wrapped) = match self.last_angle {
+            None => (0.0, false),
+            Some(last) => {
+                let step = s.angle_deg - last;
+                if step < -180.0 {
+                    (step + 360.0, true)
+                } else if (0.0..=360.0 - MAX_STEP_BACK_DEG).contains(&step) {
+                    // The motor only turns forward: a jump is samples lost in between.
+                    (step, false)
+                } else {
+                    // A step back, across the zero mark or not: jitter or corruption.
+                    (0.0, false)
+                }
+            }
+        };
+        self.swept_deg += progress;
+        self.last_angle = Some(s.angle_deg);
+        let flagged = s.start_of_rotation
+            && (s.angle_deg <= START_FLAG_WINDOW_DEG
+                || s.angle_deg >= 360.0 - START_FLAG_WINDOW_DEG);
+        if (flagged || wrapped) && (self.started.is_none() || self.swept_deg >= 180.0) {
+            if let Some(started) = self.started {
+                let capacity = self.current.capacity();
+                let samples = std::mem::replace(&mut self.current, Vec::with_capacity(capacity));
+                out.push(Rotation {
+                    samples,
+                    started,
+                    ended: time,
+                });
+            }
+            self.started = Some(time);
+            self.swept_deg = 0.0;
+        }
+        if self.started.is_none() {
+            self.discarded += 1;
+            return;
+        }
+        if self.current.len() >= self.max_samples {
+            // The angle never wrapped: no motor, or nonsense angles. Start over.
+            self.reset();
+            return;
+        }
+        self.current.push(RotationSample {
+            angle_deg: s.angle_deg,
+            distance_mm: s.distance_mm,
+            quality: s.quality,
+        });
     }
 
     /// Arrival of a sample with `after` more samples behind it in a read that arrived at

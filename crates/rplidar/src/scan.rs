@@ -22,7 +22,8 @@ use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::sensor_msgs::LaserScan;
 use lidar_har_msgs::std_msgs::Header;
 
-use crate::error::{Error, Result};
+use crate::config::{ConfigField, invalid};
+use crate::error::Result;
 use crate::rotation::Rotation;
 
 /// Fixed geometry of the scans produced.
@@ -36,22 +37,25 @@ pub struct ScanGeometry {
 impl ScanGeometry {
     pub fn validate(&self) -> Result<()> {
         if !(2..=100_000).contains(&self.beams) {
-            return Err(Error::Config(format!(
-                "beams = {} must be in 2..=100000",
-                self.beams
-            )));
+            return Err(invalid(
+                ConfigField::Beams,
+                format!("beams = {} must be in 2..=100000", self.beams),
+            ));
         }
         if !(self.range_min_m.is_finite() && self.range_min_m >= 0.0) {
-            return Err(Error::Config(format!(
-                "range_min = {} m must be finite and >= 0",
-                self.range_min_m
-            )));
+            return Err(invalid(
+                ConfigField::RangeMin,
+                format!("range_min = {} m must be finite and >= 0", self.range_min_m),
+            ));
         }
         if !(self.range_max_m.is_finite() && self.range_max_m > self.range_min_m) {
-            return Err(Error::Config(format!(
-                "range_max = {} m must be finite and above range_min = {} m",
-                self.range_max_m, self.range_min_m
-            )));
+            return Err(invalid(
+                ConfigField::RangeMax,
+                format!(
+                    "range_max = {} m must be finite and above range_min = {} m",
+                    self.range_max_m, self.range_min_m
+                ),
+            ));
         }
         Ok(())
     }

@@ -569,6 +569,59 @@ fn express_scan_resyncs_after_garbage_with_bounded_loss() {
 }
 
 #[test]
+fn a_byte_lost_mid_turn_neither_splits_the_scan_nor_publishes_false_ranges() {
+    // A byte lost at the start of the node at 290° (the quality byte): the windows after it
+    // pass the check bits and used to take an angle more than half a turn back for a wrap,
+    // publishing the turn as two scans of 580 and 139 samples.
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(
+        dir.path(),
+        FakeConfig {
+            fault_angle_deg: 290.0,
+            ..FakeConfig::default()
+        },
+    );
+    let cfg = config(fake.path(), ScanModeChoice::Standard);
+    let expected = expected_ranges(&cfg.geometry);
+    let valid = expected.iter().filter(|r| r.is_finite()).count();
+    let mut driver = Driver::new(cfg).unwrap();
+    run_until(&mut driver, LIMIT, scans(2));
+    let mut faulty = Vec::new();
+    for round in 0..4 {
+        let before = driver.status().decode;
+        fake.drop_bytes(1);
+        let deadline = Instant::now() + LIMIT;
+        while driver.status().decode == before {
+            assert!(
+                Instant::now() < deadline,
+                "fault {round} never reached the decoder"
+            );
+            faulty.extend(run_until(&mut driver, LIMIT, scans(1)).0);
+        }
+        faulty.extend(run_until(&mut driver, LIMIT, scans(2)).0);
+    }
+    let beams: Vec<usize> = faulty
+        .iter()
+        .map(|s| s.ranges.iter().filter(|r| r.is_finite()).count())
+        .collect();
+    let wrong: Vec<usize> = faulty
+        .iter()
+        .map(|s| mismatches(s, &expected, 0.0006))
+        .collect();
+    eprintln!("valid beams per scan: {beams:?}; wrong beams: {wrong:?}");
+    // The node hit and its neighbour at most: one beam each.
+    assert!(
+        beams.iter().all(|&b| b + 2 >= valid),
+        "partial scans (of {valid}): {beams:?}"
+    );
+    assert!(
+        wrong.iter().all(|&w| w <= 2),
+        "wrong beams per scan: {wrong:?}"
+    );
+    assert_eq!(driver.status().resets, 0);
+}
+
+#[test]
 fn unplug_and_replug_reconnects_with_backoff() {
     let dir = tempfile::tempdir().unwrap();
     let fake = spawn(dir.path(), FakeConfig::default());

@@ -16,7 +16,7 @@ use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
 use lidar_har_msgs::topics;
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, Parameters, RosError};
 use lidar_har_rplidar::config::MIN_BAUD;
-use lidar_har_rplidar::{Config, Driver, Error, Event, ScanModeChoice};
+use lidar_har_rplidar::{Config, ConfigField, Driver, Error, Event, ScanModeChoice};
 
 /// Allowed `diagnostics_period`: the node sees a shutdown signal only between events, which
 /// come at least once a period, and `ros2 launch` escalates SIGINT to SIGTERM after 5 s.
@@ -122,18 +122,33 @@ fn config(p: &Parameters) -> Result<Config, RosError> {
     c.motor_pwm = optional_u16(p, "motor_pwm")?;
     c.motor_rpm = optional_u16(p, "motor_rpm")?;
     c.diagnostics_period = seconds(p, "diagnostics_period", DIAGNOSTICS_PERIOD_S)?;
-    // The library's own checks; its messages start with the field, which is the parameter's
-    // name except for the geometry fields.
-    c.validate().map_err(|e| {
-        let text = e.to_string();
-        let name = decls()
-            .into_iter()
-            .map(|d| d.name)
-            .find(|n| text.contains(n.as_str()))
-            .unwrap_or("beams".into());
-        bad_parameter(&name, text)
+    // The library's own checks, blamed on the parameter of the field they refuse.
+    c.validate().map_err(|e| match &e {
+        Error::Config { field, .. } => bad_parameter(parameter_of(*field), &e),
+        // `validate` refuses nothing else.
+        _ => bad_parameter("port", &e),
     })?;
     Ok(c)
+}
+
+/// The parameter that sets a configuration field. Timeouts and back-off are not parameters
+/// and keep their defaults, so they name the field.
+fn parameter_of(field: ConfigField) -> &'static str {
+    match field {
+        ConfigField::Port => "port",
+        ConfigField::Baud => "baud",
+        ConfigField::FrameId => "frame_id",
+        ConfigField::Beams => "beams",
+        ConfigField::RangeMin => "range_min",
+        ConfigField::RangeMax => "range_max",
+        ConfigField::ScanMode => "scan_mode",
+        ConfigField::MotorPwm => "motor_pwm",
+        ConfigField::DiagnosticsPeriod => "diagnostics_period",
+        ConfigField::RequestTimeout => "request_timeout",
+        ConfigField::DataTimeout => "data_timeout",
+        ConfigField::ReconnectMin => "reconnect_min",
+        ConfigField::ReconnectMax => "reconnect_max",
+    }
 }
 
 fn drive(shutdown: &Shutdown) -> anyhow::Result<()> {
@@ -223,6 +238,28 @@ mod tests {
                     && text.contains(&bad.to_string())
                     && text.contains("115200"),
                 "{bad}: {text}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_refused_value_names_its_own_parameter_not_one_its_message_mentions() {
+        // The range_max message quotes range_min; a frame id may contain "port".
+        for (overrides, parameter) in [
+            (vec![("range_max", ParamValue::Double(0.1))], "range_max"),
+            (
+                vec![("frame_id", ParamValue::String("/laser_port".into()))],
+                "frame_id",
+            ),
+            (
+                vec![("frame_id", ParamValue::String(" baud beams".into()))],
+                "frame_id",
+            ),
+        ] {
+            let err = config(&params(&overrides)).unwrap_err();
+            assert!(
+                matches!(&err, RosError::Parameter { name, .. } if name == parameter),
+                "{parameter}: {err}"
             );
         }
     }
