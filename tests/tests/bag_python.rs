@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use lidar_har_bag::{BagReader, BagWriter, StorageId, WriterOptions};
-use lidar_har_e2e::checker_python;
+use lidar_har_e2e::{checker_python, workspace_bin};
 use lidar_har_msgs::RosMessage;
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::geometry_msgs::{Point, Quaternion, TransformStamped, Vector3};
@@ -306,6 +306,48 @@ fn rosbags_and_mcap_ros2_decode_the_project_bag_field_by_field() {
             decoded["topics"]["/human/activity"]["type"],
             "lidar_har_msgs/msg/Activity"
         );
+    }
+}
+
+/// Sqlite3 bags of Foxy and Humble store no message definitions; `bag convert` gives their
+/// topics lidar-har's, which are Humble's. Foxy's Marker lacks fields Humble's has: its
+/// messages were written under Humble's definition, and no reader could decode the new bag.
+#[test]
+fn bag_convert_refuses_a_type_whose_layout_is_not_its_definitions() {
+    let tmp = tempfile::tempdir().unwrap();
+    if run_python("bag_write_sqlite_markers.py", tmp.path()).is_none() {
+        return;
+    }
+    let convert = |name: &str| {
+        let out = tmp.path().join(format!("{name}_out"));
+        let run = std::process::Command::new(workspace_bin("lidar-har"))
+            .args(["bag", "convert"])
+            .arg(tmp.path().join(name))
+            .arg(&out)
+            .output()
+            .unwrap();
+        (run, out)
+    };
+    let (run, out) = convert("foxy");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("topic `/human/markers` (visualization_msgs/msg/MarkerArray)")
+            && stderr.contains("Foxy"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "a refusal leaves nothing behind");
+
+    let (run, out) = convert("humble");
+    assert!(run.status.success(), "{run:?}");
+    let reader = BagReader::open(&out).unwrap();
+    for message in reader.messages().unwrap() {
+        let message = message.unwrap();
+        if message.topic.as_ref() == "/human/markers" {
+            let markers: MarkerArray = reader.decode(&message).unwrap();
+            assert_eq!(markers.markers.len(), 2);
+            assert_eq!(markers.markers[1].text, "hi");
+        }
     }
 }
 

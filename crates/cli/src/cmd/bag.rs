@@ -140,6 +140,7 @@ fn convert(
     }
     // Every topic checked before the new bag is created: a refusal leaves nothing behind.
     let mut topics = Vec::new();
+    let mut substituted = std::collections::HashSet::new();
     for topic in reader.topics() {
         let mut topic = topic.clone();
         if topic.schema_text.is_none() {
@@ -153,9 +154,11 @@ fn convert(
                 );
             };
             topic.schema_text = Some(definition.schema_text());
+            substituted.insert(topic.name.clone());
         }
         topics.push(topic);
     }
+    check_messages_decode(&reader, &substituted, src)?;
     // From here a stop is honoured at the first message, the new bag finished.
     stop.arm();
     let mut writer = BagWriter::create(dst, options)
@@ -222,6 +225,39 @@ fn convert(
         reader.storage(),
         summary.dir.display()
     );
+    Ok(())
+}
+
+/// Checks that every message of `topics`, given lidar-har's definition of their type for want
+/// of a stored one, decodes with it: ours are Humble's and later, and a type whose layout has
+/// changed since (Foxy's and Galactic's Marker lacks the texture and mesh fields) would be
+/// written under a definition no reader could decode it with. A read error ends the check:
+/// the copy itself reports it.
+fn check_messages_decode(
+    reader: &BagReader,
+    topics: &std::collections::HashSet<String>,
+    src: &Path,
+) -> anyhow::Result<()> {
+    if topics.is_empty() {
+        return Ok(());
+    }
+    for message in reader.messages()? {
+        let Ok(message) = message else { break };
+        if !topics.contains(&*message.topic) {
+            continue;
+        }
+        let type_name = reader.topic(&message.topic).map_or("", |t| &t.type_name);
+        if let Some(Err(e)) = lidar_har_ros::json::decode_to_json(type_name, &message.data) {
+            bail!(
+                "{}: topic `{}` ({type_name}) has no stored message definition, and its messages \
+                 do not decode with lidar-har's, which is ROS 2 Humble's and later's ({e}): a \
+                 bag of an older distribution (Foxy, Galactic) whose type has changed since \
+                 cannot be converted",
+                src.display(),
+                message.topic,
+            );
+        }
+    }
     Ok(())
 }
 
