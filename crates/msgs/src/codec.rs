@@ -128,9 +128,10 @@ impl Visitor<'_> for TerminatedString {
                 bytes.len()
             )));
         };
-        std::str::from_utf8(text)
-            .map(str::to_owned)
-            .map_err(|e| E::custom(format!("string is not UTF-8: {e}")))
+        // A peer's bytes that are not UTF-8 (a driver's Latin-1 frame_id) cost those
+        // characters, replaced by U+FFFD as rclpy replaces them, not the whole message: every
+        // scan of such a driver used to be dropped.
+        Ok(String::from_utf8_lossy(text).into_owned())
     }
 }
 

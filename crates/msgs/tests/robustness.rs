@@ -93,7 +93,7 @@ fn up_to_three_padding_bytes_are_accepted_more_are_refused() {
 }
 
 #[test]
-fn invalid_bool_and_invalid_utf8_are_errors() {
+fn an_invalid_bool_is_an_error_and_invalid_utf8_is_replaced() {
     use lidar_har_msgs::lidar_har_msgs::HumanObservation;
     let observation = sample::<HumanObservation>();
     let bytes = encode(&observation).unwrap();
@@ -106,8 +106,9 @@ fn invalid_bool_and_invalid_utf8_are_errors() {
     assert!(err.to_string().contains("Boolean"), "{err}");
     let mut bad = bytes.clone();
     bad[4 + 8 + 4] = 0xff; // first byte of "map"
-    let err = decode::<HumanObservation>(&bad).unwrap_err();
-    assert!(err.to_string().contains("UTF-8"), "{err}");
+    let decoded = decode::<HumanObservation>(&bad).unwrap();
+    assert_eq!(decoded.header.frame_id, "\u{FFFD}ap");
+    assert_eq!(decoded.track_id, observation.track_id);
 }
 
 /// The text of every string in `value`, in order.
