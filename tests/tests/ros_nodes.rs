@@ -1540,11 +1540,19 @@ kill -INT $R; wait $R; echo "replay=$?"
         assert!(stdout.contains(want), "expected {want}: {stdout}\n{log}");
     }
     assert!(!log.contains("dropped"), "{log}");
-    let children: Vec<_> = json_lines(&dir.path().join("live_tf.jsonl"))
+    // The replay publishes the static transforms played so far, merged by child frame
+    // (`ros_a_late_tf_static_subscriber_gets_every_static_transform_of_a_replay`).
+    let children: Vec<Vec<_>> = json_lines(&dir.path().join("live_tf.jsonl"))
         .iter()
-        .map(|l| l["msg"]["transforms"][0]["child_frame_id"].clone())
+        .map(|l| {
+            let transforms = l["msg"]["transforms"].as_array().unwrap();
+            transforms
+                .iter()
+                .map(|t| t["child_frame_id"].clone())
+                .collect()
+        })
         .collect();
-    assert_eq!(children, ["laser", "odom"]);
+    assert_eq!(children, [vec!["laser"], vec!["laser", "odom"]]);
     let alert_numbers = |file: &str| -> Vec<usize> {
         json_lines(&dir.path().join(file))
             .iter()
@@ -1562,6 +1570,79 @@ kill -INT $R; wait $R; echo "replay=$?"
         "a late subscriber got alerts {late:?} of a depth of 10"
     );
     assert!(late.windows(2).all(|w| w[1] == w[0] + 1), "{late:?}");
+}
+
+/// A subscriber that joins a replay's /tf_static late (rviz2 opened later, a restarted
+/// localiser, `tf2_echo`) gets every static transform of the bag. On a robot each static
+/// broadcaster is a latched writer of its own; the replay plays all of them through one of
+/// depth 1, and after RustDDS's cache cleaning (every 6 s) a late subscriber got only the two
+/// newest messages: base_link -> laser was lost. The replay now publishes the merged set each
+/// time, as tf2's StaticTransformBroadcaster does.
+#[test]
+fn ros_a_late_tf_static_subscriber_gets_every_static_transform_of_a_replay() {
+    if !netns_available() {
+        return;
+    }
+    let frames = [
+        ("base_link", "laser"),
+        ("base_link", "imu"),
+        ("map", "odom"),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("tf_static");
+    let mut w = BagWriter::create(&bag, WriterOptions::default()).unwrap();
+    let tf_static = w
+        .add_topic_for::<TFMessage>(topics::TF_STATIC.name, topics::TF_STATIC.qos)
+        .unwrap();
+    // A reliable topic nobody subscribes: the replay waits `wait_for_all_acked` for one.
+    let activity_topic = w
+        .add_topic_for::<Activity>(topics::HUMAN_ACTIVITY.name, topics::HUMAN_ACTIVITY.qos)
+        .unwrap();
+    for (i, (parent, child)) in frames.into_iter().enumerate() {
+        let t = T0_NS + 10_000_000 * i as i64;
+        let tf = TFMessage {
+            transforms: vec![TransformStamped {
+                header: Header::new(Time::from_nanos(t), parent),
+                child_frame_id: child.into(),
+                transform: Default::default(),
+            }],
+        };
+        w.write_message(tf_static, t, &tf).unwrap();
+    }
+    w.write_message(activity_topic, T0_NS, &activity_at(0, T0_NS))
+        .unwrap();
+    w.finish().unwrap();
+    let script = r#"
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_all_acked:=40 2> "$OUT/replay.log" & R=$!
+wait_until 20 grep -q "played" "$OUT/replay.log"
+# RustDDS cleans a writer's cache every 6 s: one cleaning after the last message.
+sleep 8
+"$LH" topic echo /tf_static --timeout 3 > "$OUT/late_tf.jsonl"; echo "late=$?"
+kill -INT $R; wait $R; echo "replay=$?"
+"#;
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(60));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let log = std::fs::read_to_string(dir.path().join("replay.log")).unwrap();
+    for want in ["late=0", "replay=0"] {
+        assert!(stdout.contains(want), "expected {want}: {stdout}\n{log}");
+    }
+    let late = json_lines(&dir.path().join("late_tf.jsonl"));
+    let last = late.last().expect("the late subscriber got no /tf_static");
+    let got: Vec<(&str, &str)> = last["msg"]["transforms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            let parent = t["header"]["frame_id"].as_str().unwrap();
+            (parent, t["child_frame_id"].as_str().unwrap())
+        })
+        .collect();
+    assert_eq!(
+        got,
+        frames,
+        "the last of {} late /tf_static messages",
+        late.len()
+    );
 }
 
 /// A second SIGINT or SIGTERM ends a node at once, by that signal, as with the `lidar-har`

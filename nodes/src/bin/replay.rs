@@ -14,6 +14,11 @@
 //! With `loop`, each pass lasts the whole bag (from `start_offset` to its last message, of any
 //! topic) and at least a second of bag time, both over the rate: a selection of topics that
 //! spans no bag time (`topics:=[/map]`) used to be published again and again without a pause.
+//!
+//! /tf_static is played as tf2's StaticTransformBroadcaster publishes it: each recorded
+//! message is merged into the static transforms played so far (one per child frame), and the
+//! whole set is published, so that its depth of 1 still gives a late subscriber every static
+//! transform of the bag ([`StaticTransforms`]).
 
 use std::collections::HashMap;
 use std::process::ExitCode;
@@ -25,7 +30,8 @@ use lidar_har_bag::{BagReader, OfferedQos, PROCESS_ENDING, qos};
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::qos::{QosProfile, Reliability};
 use lidar_har_msgs::rosgraph_msgs::Clock;
-use lidar_har_msgs::topics;
+use lidar_har_msgs::tf2_msgs::TFMessage;
+use lidar_har_msgs::{RosMessage, topics};
 use lidar_har_ros::{NodeSetup, ParamDecl, ParamValue, Parameters, Publisher, RosError};
 
 fn main() -> ExitCode {
@@ -274,8 +280,12 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = setup.join()?;
     let mut publishers: HashMap<String, Publisher> = HashMap::new();
     let mut reliable = Vec::new();
+    let mut static_transforms = None;
     for topic in reader.topics() {
         if selection.play.contains(&topic.name) {
+            if topic.name == topics::TF_STATIC.name && topic.type_name == TFMessage::TYPE_NAME {
+                static_transforms = Some(StaticTransforms::default());
+            }
             let qos = qos_for(topic);
             let publisher = node.publisher(&topic.name, &topic.type_name, qos)?;
             publishers.insert(topic.name.clone(), publisher);
@@ -332,7 +342,13 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
                     clock: Time::from_nanos(message.log_time_ns),
                 })?;
             }
-            publisher.publish(&message.data)?;
+            let data = match &mut static_transforms {
+                Some(merged) if *message.topic == *topics::TF_STATIC.name => {
+                    merged.merge_recorded(message.data)
+                }
+                _ => message.data,
+            };
+            publisher.publish(&data)?;
             played += 1;
         }
         if !settings.looping || shutdown.requested() {
@@ -348,6 +364,57 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
         wait_for_all_acked(reliable, writers_created, settings.acked_timeout, shutdown);
     }
     Ok(())
+}
+
+/// The static transforms played so far, one per child frame, in the order the child frames
+/// were first played: what the replay publishes on /tf_static, as tf2's
+/// StaticTransformBroadcaster publishes its own. On a robot each static broadcaster is a
+/// latched writer of its own, and a late subscriber gets every one's last message; the replay
+/// plays them all through one writer of depth 1, so publishing each recorded message alone
+/// left a subscriber that joined after RustDDS's cache cleaning (every 6 s) with only the
+/// newest one or two: rviz2 opened later, or a restarted localiser, lost base_link -> laser.
+/// The set persists across `loop` passes; which messages are played is unchanged (one before
+/// `start_offset` is not, as with rosbag2's player).
+#[derive(Debug, Default)]
+struct StaticTransforms {
+    merged: TFMessage,
+}
+
+impl StaticTransforms {
+    /// Adds `message`'s transforms to the set, each replacing the one of its child frame
+    /// (a later transform of a child frame wins), and returns the whole set.
+    fn merge(&mut self, message: TFMessage) -> &TFMessage {
+        for transform in message.transforms {
+            let known = self
+                .merged
+                .transforms
+                .iter_mut()
+                .find(|t| t.child_frame_id == transform.child_frame_id);
+            match known {
+                Some(known) => *known = transform,
+                None => self.merged.transforms.push(transform),
+            }
+        }
+        &self.merged
+    }
+
+    /// [`Self::merge`] on a recorded /tf_static payload, returning the CDR of the whole set;
+    /// one that cannot be read as a TFMessage is played as it was recorded, with a warning.
+    fn merge_recorded(&mut self, cdr: Vec<u8>) -> Vec<u8> {
+        let encoded = lidar_har_msgs::decode::<TFMessage>(&cdr)
+            .and_then(|message| lidar_har_msgs::encode(self.merge(message)));
+        match encoded {
+            Ok(merged) => merged,
+            Err(e) => {
+                log::warn!(
+                    "replay: {}: {e}; playing this message as recorded, not merged with the \
+                     static transforms played before",
+                    topics::TF_STATIC.name
+                );
+                cdr
+            }
+        }
+    }
 }
 
 /// Bag time between two messages beyond which the replay plays on at once instead of
@@ -465,6 +532,9 @@ const ACK_WAIT_SLICE: Duration = Duration::from_millis(100);
 
 #[cfg(test)]
 mod tests {
+    use lidar_har_msgs::geometry_msgs::TransformStamped;
+    use lidar_har_msgs::std_msgs::Header;
+
     use super::*;
 
     fn names(list: &[&str]) -> Vec<String> {
@@ -559,6 +629,83 @@ mod tests {
             err.contains("`publish_clock`") && err.contains("publish_clock:=false"),
             "{err}"
         );
+    }
+
+    fn transform(parent: &str, child: &str, x: f64) -> TransformStamped {
+        let mut t = TransformStamped {
+            header: Header::new(Time::from_nanos(0), parent),
+            child_frame_id: child.into(),
+            transform: Default::default(),
+        };
+        t.transform.translation.x = x;
+        t
+    }
+
+    fn children(message: &TFMessage) -> Vec<(&str, &str, f64)> {
+        let frames = message.transforms.iter().map(|t| {
+            let x = t.transform.translation.x;
+            (&*t.header.frame_id, &*t.child_frame_id, x)
+        });
+        frames.collect()
+    }
+
+    /// Each recorded /tf_static message used to be published alone through one writer of
+    /// depth 1: a late subscriber lost the transforms of all but the newest.
+    #[test]
+    fn static_transforms_are_merged_by_child_frame_in_first_seen_order() {
+        let mut merged = StaticTransforms::default();
+        let one = |t| TFMessage {
+            transforms: vec![t],
+        };
+        let set = merged.merge(one(transform("base_link", "laser", 1.0)));
+        assert_eq!(children(set), [("base_link", "laser", 1.0)]);
+        // A message of several transforms, one of them twice: the later one wins.
+        let several = TFMessage {
+            transforms: vec![
+                transform("base_link", "imu", 2.0),
+                transform("map", "odom", 3.0),
+                transform("base_link", "imu", 4.0),
+            ],
+        };
+        let set = merged.merge(several);
+        let want = [
+            ("base_link", "laser", 1.0),
+            ("base_link", "imu", 4.0),
+            ("map", "odom", 3.0),
+        ];
+        assert_eq!(children(set), want);
+        // A later transform of a child frame replaces it where it was first seen, even under
+        // another parent.
+        let set = merged.merge(one(transform("base_footprint", "laser", 5.0)));
+        let want = [
+            ("base_footprint", "laser", 5.0),
+            ("base_link", "imu", 4.0),
+            ("map", "odom", 3.0),
+        ];
+        assert_eq!(children(set), want);
+        // An empty message publishes the set again, unchanged.
+        assert_eq!(children(merged.merge(TFMessage::default())), want);
+    }
+
+    #[test]
+    fn a_recorded_static_transform_payload_is_merged_and_a_bad_one_played_as_recorded() {
+        let mut merged = StaticTransforms::default();
+        let laser = TFMessage {
+            transforms: vec![transform("base_link", "laser", 1.0)],
+        };
+        let imu = TFMessage {
+            transforms: vec![transform("base_link", "imu", 2.0)],
+        };
+        merged.merge_recorded(lidar_har_msgs::encode(&laser).unwrap());
+        let cdr = merged.merge_recorded(lidar_har_msgs::encode(&imu).unwrap());
+        let set: TFMessage = lidar_har_msgs::decode(&cdr).unwrap();
+        assert_eq!(
+            children(&set),
+            [("base_link", "laser", 1.0), ("base_link", "imu", 2.0)]
+        );
+        let bad = vec![0, 1, 0, 0, 9];
+        assert_eq!(merged.merge_recorded(bad.clone()), bad);
+        assert_eq!(merged.merged, set, "a bad payload changes nothing");
     }
 
     #[test]
