@@ -5,7 +5,7 @@
     ros2 launch lidar_har robot.launch.py scan_mode:=Sensitivity frame_id:=base_laser
     ros2 launch lidar_har robot.launch.py use_classifier:=false   # tracking only
 
-baud by model: 115200 for A1 and A2M8, 256000 for A2M12, A3 and S1, 1000000 for S2 and S3.
+baud by model: 115200 for A1 and A2M8, 256000 for A2M12, A3 and S1, 460800 for C1, 1000000 for S2 and S3.
 """
 
 import os
@@ -32,7 +32,7 @@ def generate_launch_description():
                               description="RPLIDAR serial device (driver parameter port)"),
         DeclareLaunchArgument("baud", default_value="115200",
                               description="RPLIDAR baud rate: 115200 A1, A2M8; 256000 A2M12, A3, S1; "
-                                          "1000000 S2, S3"),
+                                          "460800 C1; 1000000 S2, S3"),
         DeclareLaunchArgument("scan_mode", default_value="auto",
                               description="auto (the device's typical mode), standard, express or a mode "
                                           "name the device lists (Sensitivity, Boost, DenseBoost, ...)"),
