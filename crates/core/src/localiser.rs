@@ -732,13 +732,21 @@ impl Localiser {
         self.odometry.insert(stamp_ns, pose, &self.config.odometry)
     }
 
+    /// Forgets every odometry sample: the host takes its odometry from another source from
+    /// now on, and two sources (raw wheel odometry, a filter's fused pose) need not agree,
+    /// so interpolating between their samples would place scans where neither puts the base.
+    pub fn restart_odometry(&mut self) {
+        self.odometry = OdometryBuffer::default();
+    }
+
     /// The stamp of the newest odometry sample in use, if any: a scan stamped after it would
     /// be placed by extrapolation.
     pub fn latest_odometry_ns(&self) -> Option<i64> {
         self.odometry.samples.back().map(|&(stamp_ns, _)| stamp_ns)
     }
 
-    /// The latest `map -> odom` correction (from AMCL or SLAM on /tf).
+    /// The latest `map -> odom` correction (from AMCL or SLAM on /tf, or a known start pose
+    /// on /tf_static).
     pub fn set_map_to_odom(&mut self, pose: Pose2) -> Option<Warning> {
         if !pose.is_finite() {
             return Some(Warning::NonFinite {

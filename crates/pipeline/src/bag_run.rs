@@ -21,7 +21,7 @@ use crate::classifier::{
     ActivitySummary, ClassifierConfig, ClassifierError, ClassifierRun, ClassifierRunError,
     ClassifierStage,
 };
-use crate::localiser_stage::{MountSource, carries_odometry};
+use crate::localiser_stage::{MountSource, carries_transform};
 use crate::{LocaliserStage, Outgoing, PipelineError, RoomSource, Step};
 
 /// What to run with.
@@ -192,7 +192,8 @@ impl OutputBag {
 /// `out_dir` (created; it must not hold a bag) and `out_dir/summary.json`.
 pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunSummary, RunError> {
     let reader = open_input(input)?;
-    let (room, moving) = choose_room(&reader, input, options.map, &options.config.frames);
+    let transforms = BagTransforms::find(&reader, &options.config.frames);
+    let (room, moving) = choose_room(&reader, input, options.map, transforms);
     let learned = matches!(room, RoomSource::LearnedBackground);
     // From here a stop is honoured at the first message, outputs finished, even one that
     // comes while they are being made.
@@ -202,6 +203,7 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         options.config,
         room,
         moving,
+        transforms,
         options.classifier.as_ref(),
     )?;
     let tally = replay(&reader, input, out_dir, &mut stages, &options.stop)?;
@@ -261,10 +263,9 @@ fn choose_room(
     reader: &BagReader,
     input: &Path,
     map: Option<OccupancyMap>,
-    frames: &FrameConfig,
+    transforms: BagTransforms,
 ) -> (RoomSource, bool) {
-    let has_odometry =
-        has_messages(reader, topics::ODOM.name) || tf_carries_odometry(reader, frames);
+    let has_odometry = has_messages(reader, topics::ODOM.name) || transforms.tf_odometry;
     let room = match map {
         Some(map) => RoomSource::Map(map),
         None if has_messages(reader, topics::MAP.name) => RoomSource::MapTopic,
@@ -301,9 +302,15 @@ impl Stages {
         config: LocaliserConfig,
         room: RoomSource,
         moving: bool,
+        transforms: BagTransforms,
         classifier: Option<&ClassifierConfig>,
     ) -> Result<Self, RunError> {
-        let localiser = LocaliserStage::new(config, room, moving)?;
+        let mut localiser = LocaliserStage::new(config, room, moving)?;
+        // As tf2 would: the bag says ahead which transforms will come.
+        if transforms.tf_odometry {
+            localiser.take_odometry_from_tf();
+        }
+        localiser.set_wait_for_map_to_odom(transforms.map_to_odom);
         let classifier = classifier.map(ClassifierRun::load).transpose()?;
         let mut outputs = OutputBag::create(out_dir).map_err(output_error(out_dir))?;
         outputs
@@ -705,23 +712,62 @@ fn write_summary(out_dir: &Path, summary: &RunSummary) -> Result<(), RunError> {
 /// need not be read to its end twice.
 const TF_ODOMETRY_SEARCH_NS: i64 = 60_000_000_000;
 
-/// Whether the bag's /tf carries the odometry transform (a base that publishes no /odom)
-/// within its first [`TF_ODOMETRY_SEARCH_NS`].
-fn tf_carries_odometry(reader: &BagReader, frames: &FrameConfig) -> bool {
-    let Ok(messages) = reader.messages_on(&[topics::TF.name]) else {
-        return false;
-    };
-    let mut first_ns = None;
-    messages
-        .map_while(Result::ok)
-        .take_while(|m| {
-            let first_ns = *first_ns.get_or_insert(m.log_time_ns);
-            m.log_time_ns.saturating_sub(first_ns) <= TF_ODOMETRY_SEARCH_NS
-        })
-        .any(|m| {
-            lidar_har_msgs::decode::<TFMessage>(&m.data)
-                .is_ok_and(|tf| carries_odometry(&tf, frames))
-        })
+/// What the bag's transforms carry, found before the run: the stage, which sees them only
+/// as they come, is told what a tf2 buffer filled from the whole bag would know.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct BagTransforms {
+    /// /tf carries the odometry transform (`odom -> base_link`) within its first
+    /// [`TF_ODOMETRY_SEARCH_NS`]: it is the odometry, /odom is ignored (REP 105), and a base
+    /// that publishes no /odom moves.
+    tf_odometry: bool,
+    /// /tf or /tf_static carries `map -> odom` somewhere: a moving robot's scans before it
+    /// are skipped rather than placed as if `map` were `odom`.
+    map_to_odom: bool,
+}
+
+impl BagTransforms {
+    /// Reads /tf and /tf_static up to what decides both: the odometry's search window, and
+    /// for a robot that moves, the first `map -> odom` (a fixed Lidar's long bag is not read
+    /// to its end twice).
+    fn find(reader: &BagReader, frames: &FrameConfig) -> Self {
+        let mut found = Self::default();
+        let present: Vec<&str> = [topics::TF.name, topics::TF_STATIC.name]
+            .into_iter()
+            .filter(|name| reader.topic(name).is_some())
+            .collect();
+        if present.is_empty() {
+            return found;
+        }
+        let Ok(messages) = reader.messages_on(&present) else {
+            return found;
+        };
+        let odom_topic = has_messages(reader, topics::ODOM.name);
+        let mut first_tf_ns = None;
+        let mut odometry_search_over = false;
+        for m in messages.map_while(Result::ok) {
+            let on_tf = *m.topic == *topics::TF.name;
+            if on_tf {
+                let first_ns = *first_tf_ns.get_or_insert(m.log_time_ns);
+                odometry_search_over |=
+                    m.log_time_ns.saturating_sub(first_ns) > TF_ODOMETRY_SEARCH_NS;
+            }
+            let moving = odom_topic || found.tf_odometry;
+            if odometry_search_over && (found.map_to_odom || !moving) {
+                break;
+            }
+            let Ok(tf) = lidar_har_msgs::decode::<TFMessage>(&m.data) else {
+                continue;
+            };
+            found.tf_odometry |= on_tf
+                && !odometry_search_over
+                && carries_transform(&tf, &frames.odom, &frames.base);
+            found.map_to_odom |= carries_transform(&tf, &frames.map, &frames.odom);
+            if found.tf_odometry && found.map_to_odom {
+                break;
+            }
+        }
+        found
+    }
 }
 
 /// Ground truth samples farther apart than this are not interpolated between.
@@ -747,6 +793,206 @@ fn truth_at(stamp_ns: i64, around: Around<'_, DVec2>) -> Option<DVec2> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lidar_har_bag::WriterOptions;
+    use lidar_har_msgs::builtin_interfaces::Time;
+    use lidar_har_msgs::geometry_msgs::{Pose, Quaternion, Transform, TransformStamped, Vector3};
+    use lidar_har_msgs::nav_msgs::{OccupancyGrid, Odometry};
+    use lidar_har_msgs::sensor_msgs::LaserScan;
+    use lidar_har_msgs::std_msgs::Header;
+
+    /// Where the robot's transforms put `map -> odom`, and how its /odom disagrees with /tf.
+    #[derive(Default)]
+    struct Robot {
+        /// `map -> odom` (x, y).
+        map_to_odom: (f64, f64),
+        /// On /tf_static; else on /tf from scan [`Self::map_to_odom_from_scan`] on.
+        on_tf_static: bool,
+        map_to_odom_from_scan: i64,
+        /// /odom's x against /tf's `odom -> base_link` at 0 (raw wheel odometry, drifted).
+        odom_drift_m: f64,
+    }
+
+    const SCANS: i64 = 40;
+    const SCAN_PERIOD_NS: i64 = 50_000_000;
+
+    /// A bag of a robot standing at its odom origin in an empty 10 m room (/map), seeing a
+    /// person 1.5 m ahead and 1 m to the left of its Lidar, with the ground truth where its
+    /// transforms put them; its /tf carries `odom -> base_link`, its /odom the same but for
+    /// `odom_drift_m`.
+    fn robot_bag(dir: &Path, robot: &Robot) {
+        let mut bag = BagWriter::create(dir, WriterOptions::default()).unwrap();
+        let [map_t, tf_static_t, tf_t, odom_t, scan_t, truth_t] = [
+            topics::MAP,
+            topics::TF_STATIC,
+            topics::TF,
+            topics::ODOM,
+            topics::SCAN,
+            topics::GROUND_TRUTH_POSE,
+        ]
+        .map(|spec| bag.add_contract_topic(&spec).unwrap());
+        let transform =
+            |parent: &str, child: &str, (x, y): (f64, f64), stamp_ns: i64| TransformStamped {
+                header: Header::new(Time::from_nanos(stamp_ns), parent),
+                child_frame_id: child.into(),
+                transform: Transform {
+                    translation: Vector3::new(x, y, 0.0),
+                    rotation: Quaternion::IDENTITY,
+                },
+            };
+        let mut grid = OccupancyGrid::default();
+        grid.header.frame_id = "map".into();
+        grid.info.resolution = 0.1;
+        (grid.info.width, grid.info.height) = (100, 100);
+        grid.info.origin = Pose::from_xy_yaw(-5.0, -5.0, 0.0);
+        grid.data = vec![0; 10_000];
+        bag.write_message(map_t, 0, &grid).unwrap();
+        let mut statics = vec![transform("base_link", "laser", (0.0, 0.0), 0)];
+        if robot.on_tf_static {
+            statics.push(transform("map", "odom", robot.map_to_odom, 0));
+        }
+        let msg = TFMessage {
+            transforms: statics,
+        };
+        bag.write_message(tf_static_t, 0, &msg).unwrap();
+        let increment = std::f64::consts::TAU / 720.0;
+        let person = DVec2::new(1.5, 1.0);
+        let ranges: Vec<f32> = (0..720)
+            .map(|i| {
+                let d = DVec2::from_angle((i as f64 - 359.5) * increment);
+                let along = person.dot(d);
+                let off = (person - along * d).length();
+                if along > 0.0 && off < 0.2 {
+                    (along - (0.04 - off * off).sqrt()) as f32
+                } else {
+                    f32::INFINITY
+                }
+            })
+            .collect();
+        for k in 0..SCANS {
+            let t = 1_000_000_000 + k * SCAN_PERIOD_NS;
+            let stamp = Time::from_nanos(t);
+            let mut transforms = vec![transform("odom", "base_link", (0.0, 0.0), t)];
+            if !robot.on_tf_static && k >= robot.map_to_odom_from_scan {
+                transforms.push(transform("map", "odom", robot.map_to_odom, t));
+            }
+            bag.write_message(tf_t, t, &TFMessage { transforms })
+                .unwrap();
+            let mut odom = Odometry {
+                header: Header::new(stamp, "odom"),
+                child_frame_id: "base_link".into(),
+                ..Odometry::default()
+            };
+            odom.pose.pose.position.x = robot.odom_drift_m;
+            bag.write_message(odom_t, t, &odom).unwrap();
+            let scan = LaserScan {
+                header: Header::new(stamp, "laser"),
+                angle_min: (-359.5 * increment) as f32,
+                angle_max: (359.5 * increment) as f32,
+                angle_increment: increment as f32,
+                range_min: 0.1,
+                range_max: 10.0,
+                ranges: ranges.clone(),
+                ..LaserScan::default()
+            };
+            bag.write_message(scan_t, t, &scan).unwrap();
+            let (x, y) = robot.map_to_odom;
+            let truth = PoseStamped {
+                header: Header::new(stamp, "map"),
+                pose: Pose::from_xy_yaw(person.x + x, person.y + y, 0.0),
+            };
+            bag.write_message(truth_t, t, &truth).unwrap();
+        }
+        bag.finish().unwrap();
+    }
+
+    /// `lidar-har run --no-classifier` over `robot`'s bag.
+    fn run_robot(robot: &Robot) -> RunSummary {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("in");
+        robot_bag(&input, robot);
+        run_bag(&input, &dir.path().join("out"), RunOptions::default()).unwrap()
+    }
+
+    fn median_error(summary: &RunSummary) -> f64 {
+        summary
+            .position_error_m
+            .as_ref()
+            .unwrap_or_else(|| panic!("no position error: {summary:?}"))
+            .median
+    }
+
+    /// REP 105: /tf's `odom -> base_link` (an EKF's fused pose) is the odometry, not raw
+    /// /odom beside it. /odom had won: wheel drift moved the person with it.
+    #[test]
+    fn a_bag_whose_tf_carries_odometry_ignores_a_disagreeing_odom_topic() {
+        let summary = run_robot(&Robot {
+            odom_drift_m: 1.0,
+            ..Robot::default()
+        });
+        assert!(median_error(&summary) < 0.25, "{summary:?}");
+        assert!(summary.warnings.is_empty(), "{:?}", summary.warnings);
+    }
+
+    /// A known start pose as static_transform_publisher gives it had been ignored for a
+    /// moving robot: the person 2.2 m off.
+    #[test]
+    fn a_bag_with_map_to_odom_on_tf_static_is_corrected_by_it() {
+        let summary = run_robot(&Robot {
+            map_to_odom: (2.0, 1.0),
+            on_tf_static: true,
+            ..Robot::default()
+        });
+        assert!(median_error(&summary) < 0.25, "{summary:?}");
+        assert_eq!(summary.scans_localised, SCANS as u64);
+        assert!(summary.warnings.is_empty(), "{:?}", summary.warnings);
+    }
+
+    /// A bag that carries `map -> odom` has its scans before the first one skipped and
+    /// counted, not placed as if `map` were `odom`.
+    #[test]
+    fn a_bag_with_a_late_map_to_odom_skips_the_scans_before_it() {
+        let summary = run_robot(&Robot {
+            map_to_odom: (2.0, 1.0),
+            map_to_odom_from_scan: 10,
+            ..Robot::default()
+        });
+        assert_eq!(summary.warnings.get("waiting_for_map_to_odom"), Some(&10));
+        assert_eq!(summary.scans_localised, (SCANS - 10) as u64);
+        assert!(summary.position_error_m.unwrap().max < 0.25);
+    }
+
+    /// `map -> odom` is looked for over the whole bag for a robot that moves; a fixed Lidar's
+    /// /tf is not read past the odometry's search window.
+    #[test]
+    fn map_to_odom_is_found_anywhere_in_a_moving_robots_bag() {
+        let find = |odom: bool| {
+            let dir = tempfile::tempdir().unwrap();
+            let mut bag = BagWriter::create(dir.path(), WriterOptions::default()).unwrap();
+            let tf_t = bag.add_contract_topic(&topics::TF).unwrap();
+            if odom {
+                let odom_t = bag.add_contract_topic(&topics::ODOM).unwrap();
+                bag.write_message(odom_t, 0, &Odometry::default()).unwrap();
+            }
+            for (t, parent, child) in [(0, "map", "other"), (70_000_000_000, "map", "odom")] {
+                let mut transform = TransformStamped::default();
+                transform.header.frame_id = parent.into();
+                transform.child_frame_id = child.into();
+                let msg = TFMessage {
+                    transforms: vec![transform],
+                };
+                bag.write_message(tf_t, t, &msg).unwrap();
+            }
+            bag.finish().unwrap();
+            let reader = BagReader::open(dir.path()).unwrap();
+            BagTransforms::find(&reader, &FrameConfig::default())
+        };
+        let moving = BagTransforms {
+            tf_odometry: false,
+            map_to_odom: true,
+        };
+        assert_eq!(find(true), moving);
+        assert_eq!(find(false), BagTransforms::default());
+    }
 
     #[test]
     fn ground_truth_is_interpolated_at_the_estimate_stamp() {

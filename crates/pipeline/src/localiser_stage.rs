@@ -101,8 +101,14 @@ impl WarningLog {
     /// Counts one more warning of `kind` (the stage's own kinds are logged where they arise),
     /// and says how many there have been.
     pub fn tally(&mut self, kind: &'static str) -> u64 {
+        self.add(kind, 1)
+    }
+
+    /// Counts `n` more warnings of `kind` (known only once they are over), and says how many
+    /// there have been.
+    pub fn add(&mut self, kind: &'static str, n: u64) -> u64 {
         let count = self.counts.entry(kind).or_default();
-        *count += 1;
+        *count += n;
         *count
     }
 
@@ -120,15 +126,31 @@ pub struct LocaliserStage {
     learned_background: bool,
     /// A Lidar that does not move, in a map: its transforms place its base there.
     fixed_in_map: bool,
+    /// Odometry moves the robot in a map: `map -> odom` and the odometry place its scans.
+    moving: bool,
     /// Whether transforms have placed the fixed Lidar's base in the map (until they do, it
     /// is at the map origin).
     base_placed: bool,
     /// A map file was given, so /map is not used (and that is logged once).
     map_given: bool,
     map_topic_ignored: bool,
-    /// Whether /odom has spoken: until it does, `odom -> base_link` on /tf is the odometry
-    /// (bases that publish only the transform).
-    odom_topic_seen: bool,
+    /// Which of /odom and /tf's `odom -> base_link` the odometry comes from.
+    odometry_source: OdometrySource,
+    /// Whether /odom's frames were found not to be the configured ones (warned about once).
+    odom_frames_warned: bool,
+    /// Scans of a moving robot are skipped until the first `map -> odom` comes, as tf2 would
+    /// refuse to place them, instead of being placed as if `map` were `odom`.
+    wait_for_map_to_odom: bool,
+    /// Whether a `map -> odom` has been taken, from /tf or /tf_static.
+    map_to_odom_received: bool,
+    /// Scans of a moving robot localised before the first `map -> odom`, as if `map` were
+    /// `odom`: a robot that never publishes one means it, but one whose first comes late
+    /// (AMCL waiting for its initial pose) has had those scans misplaced.
+    scans_before_map_to_odom: u64,
+    /// The `map -> odom` /tf_static resolves, as last applied: applied again only when it
+    /// changes, so that a static publisher's latched message coming again (a late joiner's)
+    /// does not undo a newer correction from /tf.
+    static_map_to_odom: Option<Pose2>,
     /// The scan's frame (from its header), where the mount ends.
     laser_frame: Option<String>,
     /// child frame -> (parent frame, transform from parent), the latest from /tf_static, and
@@ -160,6 +182,19 @@ pub struct LocaliserStage {
     scans_without_tf_mount: u32,
 }
 
+/// Where the odometry comes from. REP 105 makes `odom -> base_link` on /tf the robot's
+/// odometry, the one AMCL or SLAM computes `map -> odom` against: with robot_localization its
+/// fused pose is there while the base still publishes raw wheel odometry on /odom.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum OdometrySource {
+    /// Nothing yet.
+    Undecided,
+    /// /odom, while /tf has brought no `odom -> base_link`.
+    OdomTopic,
+    /// /tf's `odom -> base_link`: /odom is ignored once it is seen.
+    Tf,
+}
+
 /// Where the Lidar's mount on the base comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -180,6 +215,21 @@ const SCANS_BEFORE_TF_WARNING: u32 = 40;
 /// Summary warning key: scans of a fixed Lidar placed at the map origin, since no transform
 /// placed its base in the map.
 const LIDAR_AT_MAP_ORIGIN: &str = "lidar_at_map_origin";
+
+/// Summary warning key: scans of a moving robot skipped because no `map -> odom` had come
+/// yet, with `wait_for_map_to_odom`.
+const WAITING_FOR_MAP_TO_ODOM: &str = "waiting_for_map_to_odom";
+
+/// Summary warning key: scans of a moving robot localised as if `map` were `odom` before a
+/// `map -> odom` came late (counted when it comes).
+const LOCALISED_BEFORE_MAP_TO_ODOM: &str = "localised_before_map_to_odom";
+
+/// Summary warning key: /map messages refused as unusable (their grid does not fit its size).
+const MAP_REFUSED: &str = "map_refused";
+
+/// Summary warning key: /odom gives the pose of other frames than the configured base in the
+/// configured odom frame (warned about once; used all the same).
+const ODOM_FRAMES_UNEXPECTED: &str = "odom_frames_unexpected";
 
 /// Summary warning key: the input ended before the background was learned.
 const BACKGROUND_NOT_LEARNED: &str = "background_not_learned";
@@ -225,10 +275,16 @@ impl LocaliserStage {
             frames,
             learned_background,
             fixed_in_map: !moving && !learned_background,
+            moving: moving && !learned_background,
             base_placed: false,
             map_given,
             map_topic_ignored: false,
-            odom_topic_seen: false,
+            odometry_source: OdometrySource::Undecided,
+            odom_frames_warned: false,
+            wait_for_map_to_odom: false,
+            map_to_odom_received: false,
+            scans_before_map_to_odom: 0,
+            static_map_to_odom: None,
             laser_frame: None,
             static_tf: HashMap::new(),
             warnings: WarningLog::default(),
@@ -253,6 +309,19 @@ impl LocaliserStage {
 
     pub fn localiser(&self) -> &Localiser {
         &self.localiser
+    }
+
+    /// Whether a moving robot's scans wait for the first `map -> odom` (skipped until it
+    /// comes) rather than being placed as if `map` were `odom`, the default for robots that
+    /// publish none: for a host that knows one will come.
+    pub fn set_wait_for_map_to_odom(&mut self, wait: bool) {
+        self.wait_for_map_to_odom = wait;
+    }
+
+    /// The input's /tf carries `odom -> base_link`, as a host that can look ahead (a bag)
+    /// knows: /odom is ignored from the start, not only once the transform comes.
+    pub fn take_odometry_from_tf(&mut self) {
+        self.choose_tf_odometry();
     }
 
     /// Where the Lidar's mount comes from.
@@ -510,6 +579,17 @@ impl LocaliserStage {
             scan = convert::mirrored_scan(scan);
         }
         self.last_stamp_ns = scan.stamp_ns;
+        if self.moving && !self.map_to_odom_received && self.wait_for_map_to_odom {
+            if self.warnings.tally(WAITING_FOR_MAP_TO_ODOM) == 1 {
+                log::warn!(
+                    "localiser: no `{} -> {}` yet on /tf or /tf_static: scans are skipped until \
+                     the first one comes (wait_for_map_to_odom)",
+                    self.frames.map,
+                    self.frames.odom
+                );
+            }
+            return (None, Duration::ZERO);
+        }
         let learning = self.learning();
         let started = Instant::now();
         let result = self.localiser.process_scan(&scan);
@@ -521,6 +601,9 @@ impl LocaliserStage {
                 self.scans_learning,
                 self.localiser.config().background.learn_duration_s
             );
+        }
+        if self.moving && !self.map_to_odom_received && result.output.is_some() {
+            self.scans_before_map_to_odom += 1;
         }
         if self.fixed_in_map && !self.base_placed && result.output.is_some() {
             let scans = self.warnings.tally(LIDAR_AT_MAP_ORIGIN);
@@ -559,14 +642,99 @@ impl LocaliserStage {
         (result.output, localise_time)
     }
 
-    /// Odometry: the pose of the base in the odom frame.
+    /// Odometry: the pose of the base in the odom frame, unless /tf gives it.
     fn on_odom(&mut self, msg: &Odometry) {
-        self.odom_topic_seen = true;
+        if !self.moving {
+            return;
+        }
+        match self.odometry_source {
+            OdometrySource::Tf => return,
+            OdometrySource::Undecided => {
+                self.odometry_source = OdometrySource::OdomTopic;
+                log::info!(
+                    "localiser: odometry from /odom (no `{} -> {}` on /tf so far)",
+                    self.frames.odom,
+                    self.frames.base
+                );
+            }
+            OdometrySource::OdomTopic => {}
+        }
+        self.check_odom_frames(msg);
         let stamp_ns = msg.header.stamp.to_nanos();
         self.last_stamp_ns = stamp_ns;
         let w = self
             .localiser
             .add_odometry(stamp_ns, convert::pose2_from_pose(&msg.pose.pose));
+        self.warn(w);
+    }
+
+    /// Warns once when /odom is not the pose of the configured base in the configured odom
+    /// frame: it is still used (a driver naming its frames otherwise, `base_footprint`, is
+    /// common), but `map -> odom` and the mount may then not be about the same frames.
+    fn check_odom_frames(&mut self, msg: &Odometry) {
+        let parent = msg.header.frame_id.trim_start_matches('/');
+        let child = msg.child_frame_id.trim_start_matches('/');
+        if self.odom_frames_warned || (parent == self.frames.odom && child == self.frames.base) {
+            return;
+        }
+        self.odom_frames_warned = true;
+        self.warnings.tally(ODOM_FRAMES_UNEXPECTED);
+        log::warn!(
+            "localiser: /odom is the pose of `{child}` in `{parent}`, not of `{}` in `{}` as \
+             configured (frames.base, frames.odom): it is used as that all the same",
+            self.frames.base,
+            self.frames.odom
+        );
+    }
+
+    /// From now on the odometry is /tf's `odom -> base_link`. Samples /odom gave are
+    /// forgotten: the two need not agree, and the buffer must not mix them.
+    fn choose_tf_odometry(&mut self) {
+        let previous = std::mem::replace(&mut self.odometry_source, OdometrySource::Tf);
+        if previous == OdometrySource::OdomTopic {
+            self.localiser.restart_odometry();
+            log::warn!(
+                "localiser: `{} -> {}` came on /tf: it is the odometry from now on, and /odom, \
+                 used until now, is ignored (REP 105: the transform is the robot's odometry, \
+                 e.g. a filter's fused pose beside raw wheel odometry)",
+                self.frames.odom,
+                self.frames.base
+            );
+        } else if previous == OdometrySource::Undecided {
+            log::info!(
+                "localiser: odometry from `{} -> {}` on /tf; /odom is ignored",
+                self.frames.odom,
+                self.frames.base
+            );
+        }
+    }
+
+    /// Takes a `map -> odom` correction; the first one says how many scans were placed
+    /// without it, or skipped waiting for it.
+    fn take_map_to_odom(&mut self, pose: Pose2) {
+        let w = self.localiser.set_map_to_odom(pose);
+        if w.is_none() && !std::mem::replace(&mut self.map_to_odom_received, true) {
+            let scans = self.scans_before_map_to_odom;
+            if scans > 0 {
+                self.warnings.add(LOCALISED_BEFORE_MAP_TO_ODOM, scans);
+                log::warn!(
+                    "localiser: the first `{} -> {}` came after {scans} scans had been placed as \
+                     if `{}` were `{}` (set wait_for_map_to_odom to skip them)",
+                    self.frames.map,
+                    self.frames.odom,
+                    self.frames.map,
+                    self.frames.odom
+                );
+            }
+            if let Some(skipped) = self.warnings.counts().get(WAITING_FOR_MAP_TO_ODOM) {
+                log::info!(
+                    "localiser: the first `{} -> {}` came; {skipped} scans were skipped waiting \
+                     for it",
+                    self.frames.map,
+                    self.frames.odom
+                );
+            }
+        }
         self.warn(w);
     }
 
@@ -584,13 +752,16 @@ impl LocaliserStage {
         }
         match convert::map_from_grid(msg, self.occupied_thresh) {
             Ok(map) => self.localiser.set_map(map),
-            Err(e) => log::warn!("localiser: /map ignored: {e}"),
+            Err(e) => {
+                self.warnings.tally(MAP_REFUSED);
+                log::warn!("localiser: /map ignored: {e}");
+            }
         }
     }
 
-    /// Dynamic transforms: the `map -> odom` correction, and `odom -> base_link` as the
-    /// odometry while no /odom message has come. A fixed Lidar's do not change: they place
-    /// it as static ones do.
+    /// Dynamic transforms: the `map -> odom` correction, and `odom -> base_link`, which once
+    /// seen is the odometry (not /odom). A fixed Lidar's do not change: they place it as
+    /// static ones do.
     fn on_tf(&mut self, msg: &TFMessage) {
         if self.fixed_in_map {
             return self.on_tf_static(msg);
@@ -600,12 +771,11 @@ impl LocaliserStage {
             let child = t.child_frame_id.trim_start_matches('/');
             let pose = convert::pose2_from_transform(&t.transform);
             if parent == self.frames.map && child == self.frames.odom {
-                let w = self.localiser.set_map_to_odom(pose);
-                self.warn(w);
-            } else if parent == self.frames.odom
-                && child == self.frames.base
-                && !self.odom_topic_seen
-            {
+                self.take_map_to_odom(pose);
+            } else if parent == self.frames.odom && child == self.frames.base && self.moving {
+                if self.odometry_source != OdometrySource::Tf {
+                    self.choose_tf_odometry();
+                }
                 let stamp_ns = t.header.stamp.to_nanos();
                 self.last_stamp_ns = stamp_ns;
                 let w = self.localiser.add_odometry(stamp_ns, pose);
@@ -614,14 +784,24 @@ impl LocaliserStage {
         }
     }
 
-    /// Static transforms: the mount of the Lidar on the base, possibly through a chain, and
-    /// where a fixed Lidar's base is in the map.
+    /// Static transforms: the mount of the Lidar on the base, possibly through a chain,
+    /// where a fixed Lidar's base is in the map, and a moving robot's `map -> odom` (tf2
+    /// takes it from /tf_static as from /tf: static_transform_publisher for a known start
+    /// pose).
     fn on_tf_static(&mut self, msg: &TFMessage) {
         for t in &msg.transforms {
             let parent = t.header.frame_id.trim_start_matches('/').to_string();
             let child = t.child_frame_id.trim_start_matches('/').to_string();
             self.static_tf
                 .insert(child, (parent, SpatialTransform::from_msg(&t.transform)));
+        }
+        if self.moving
+            && let Some(map_to_odom) = self.static_pose(&self.frames.odom, &self.frames.map)
+        {
+            let pose = map_to_odom.in_scan_plane().pose;
+            if self.static_map_to_odom.replace(pose) != Some(pose) {
+                self.take_map_to_odom(pose);
+            }
         }
         self.update_placement();
     }
@@ -752,11 +932,11 @@ impl LocaliserStage {
     }
 }
 
-/// Whether a /tf message carries the odometry transform (`odom -> base_link` in `frames`).
-pub fn carries_odometry(msg: &TFMessage, frames: &FrameConfig) -> bool {
+/// Whether a /tf or /tf_static message carries the transform `parent -> child`.
+pub fn carries_transform(msg: &TFMessage, parent: &str, child: &str) -> bool {
     msg.transforms.iter().any(|t| {
-        t.header.frame_id.trim_start_matches('/') == frames.odom
-            && t.child_frame_id.trim_start_matches('/') == frames.base
+        t.header.frame_id.trim_start_matches('/') == parent
+            && t.child_frame_id.trim_start_matches('/') == child
     })
 }
 
@@ -808,10 +988,29 @@ mod tests {
     }
 
     fn odometry(stamp_ns: i64, x: f64) -> LocaliserInput {
-        let mut odom = Odometry::default();
-        odom.header.stamp = Time::from_nanos(stamp_ns);
+        let mut odom = Odometry {
+            header: Header::new(Time::from_nanos(stamp_ns), "odom"),
+            child_frame_id: "base_link".into(),
+            ..Odometry::default()
+        };
         odom.pose.pose.position.x = x;
         LocaliserInput::Odometry(Box::new(odom))
+    }
+
+    /// `tf(parent, child, x, 0.0)` stamped `stamp_ns`, on /tf.
+    fn tf_at(parent: &str, child: &str, x: f64, stamp_ns: i64) -> LocaliserInput {
+        let mut t = tf(parent, child, x, 0.0);
+        t.header.stamp = Time::from_nanos(stamp_ns);
+        LocaliserInput::Tf(TFMessage {
+            transforms: vec![t],
+        })
+    }
+
+    /// The Lidar pose of a moving robot's scan stamped `stamp_ns`, given odometry at x = 0
+    /// there (`None`: skipped).
+    fn placed_with_odometry(stage: &mut LocaliserStage, stamp_ns: i64) -> Option<Pose2> {
+        stage.receive(odometry(stamp_ns, 0.0), stamp_ns).unwrap();
+        scan_output(stage, scan(stamp_ns)).map(|out| out.laser_pose)
     }
 
     fn empty_room() -> OccupancyMap {
@@ -1356,6 +1555,204 @@ mod tests {
             .unwrap();
         assert_eq!(placed_x(&stage.finish().unwrap()), [Some(0.0)]);
         assert_eq!(stage.wait_deadline_ns(), None);
+    }
+
+    /// static_transform_publisher's `map -> odom` (a known start pose, no AMCL) had been kept
+    /// for the mount's chains only: a moving robot's scans were placed as if `map` were
+    /// `odom`, the person 1-2 m off.
+    #[test]
+    fn a_static_map_to_odom_corrects_a_moving_robots_odometry() {
+        let mut stage = moving_stage();
+        let map_to_odom = tf("map", "odom", 1.0, 0.5);
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![map_to_odom.clone()],
+        });
+        let mount = LocaliserConfig::default().mount;
+        let start = Pose2::new(1.0, 0.0, 0.5);
+        let out = placed_with_odometry(&mut stage, 0).expect("localised");
+        assert_near(out, start.compose(&mount));
+        // /tf corrects it as before; the static one coming again (a late joiner's latched
+        // message) does not undo that.
+        stage.receive(tf_at("map", "odom", -1.0, MS), MS).unwrap();
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![map_to_odom, tf("base_link", "laser", 0.0, 0.0)],
+        });
+        let out = placed_with_odometry(&mut stage, MS).expect("localised");
+        assert_near(out, Pose2::new(-1.0, 0.0, 0.0));
+        assert!(
+            stage.warning_counts().is_empty(),
+            "{:?}",
+            stage.warning_counts()
+        );
+    }
+
+    /// A `map -> odom` reached through a chain of static frames counts too, as tf2 resolves it.
+    #[test]
+    fn a_static_chain_from_map_to_odom_corrects_a_moving_robots_odometry() {
+        let mut stage = moving_stage();
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![tf("world", "odom", 0.5, 0.0)],
+        });
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![tf("map", "world", 1.0, 0.0)],
+        });
+        let out = placed_with_odometry(&mut stage, 0).expect("localised");
+        assert_near(
+            out,
+            Pose2::new(1.5, 0.0, 0.0).compose(&LocaliserConfig::default().mount),
+        );
+    }
+
+    /// AMCL publishes `map -> odom` only once it has an initial pose; with
+    /// `wait_for_map_to_odom` the scans before it are skipped, as tf2 would refuse to place
+    /// them, and counted.
+    #[test]
+    fn scans_before_the_first_map_to_odom_are_skipped_when_waiting_for_it() {
+        let mut stage = moving_stage();
+        stage.set_wait_for_map_to_odom(true);
+        for k in 0..3 {
+            assert_eq!(placed_with_odometry(&mut stage, k * MS), None, "scan {k}");
+        }
+        assert_eq!(
+            stage.warning_counts().get(WAITING_FOR_MAP_TO_ODOM),
+            Some(&3)
+        );
+        stage
+            .receive(tf_at("map", "odom", 2.0, 3 * MS), 3 * MS)
+            .unwrap();
+        let out = placed_with_odometry(&mut stage, 3 * MS).expect("localised");
+        assert!((out.x - 2.0).abs() < 1e-12, "{out:?}");
+        assert_eq!(
+            stage.warning_counts().get(WAITING_FOR_MAP_TO_ODOM),
+            Some(&3)
+        );
+        assert_eq!(
+            stage.warning_counts().get(LOCALISED_BEFORE_MAP_TO_ODOM),
+            None
+        );
+        // From /tf_static as well.
+        let mut stage = moving_stage();
+        stage.set_wait_for_map_to_odom(true);
+        assert_eq!(placed_with_odometry(&mut stage, 0), None);
+        stage.on_tf_static(&TFMessage {
+            transforms: vec![tf("map", "odom", 2.0, 0.0)],
+        });
+        assert!(placed_with_odometry(&mut stage, MS).is_some());
+        assert_eq!(
+            stage.warning_counts().get(WAITING_FOR_MAP_TO_ODOM),
+            Some(&1)
+        );
+    }
+
+    /// Not waiting, the scans before a late first `map -> odom` are placed as if `map` were
+    /// `odom` (right for a robot that never publishes one), but once one comes that is said,
+    /// with how many scans: they had been misplaced without a word.
+    #[test]
+    fn scans_placed_before_a_late_first_map_to_odom_are_counted_when_it_comes() {
+        let mut stage = moving_stage();
+        for k in 0..3 {
+            let out = placed_with_odometry(&mut stage, k * MS).expect("localised");
+            assert!(out.x.abs() < 1e-12, "{out:?}");
+        }
+        assert!(
+            stage.warning_counts().is_empty(),
+            "{:?}",
+            stage.warning_counts()
+        );
+        stage
+            .receive(tf_at("map", "odom", 2.0, 3 * MS), 3 * MS)
+            .unwrap();
+        assert_eq!(
+            stage.warning_counts().get(LOCALISED_BEFORE_MAP_TO_ODOM),
+            Some(&3)
+        );
+        placed_with_odometry(&mut stage, 3 * MS).expect("localised");
+        stage
+            .receive(tf_at("map", "odom", 2.5, 4 * MS), 4 * MS)
+            .unwrap();
+        assert_eq!(
+            stage.warning_counts().get(LOCALISED_BEFORE_MAP_TO_ODOM),
+            Some(&3)
+        );
+        // One there from the start says nothing.
+        let mut stage = moving_stage();
+        stage.receive(tf_at("map", "odom", 2.0, 0), 0).unwrap();
+        placed_with_odometry(&mut stage, 0).expect("localised");
+        assert!(
+            stage.warning_counts().is_empty(),
+            "{:?}",
+            stage.warning_counts()
+        );
+    }
+
+    /// REP 105: `odom -> base_link` on /tf is the odometry (robot_localization's fused pose)
+    /// while the base may publish raw wheel odometry on /odom. /odom had won: 0.4 m of wheel
+    /// drift put the person 2.2 m off. Whichever comes first, /tf wins once seen, and the
+    /// samples /odom gave before are forgotten, not mixed with its.
+    #[test]
+    fn odom_to_base_link_on_tf_wins_over_a_disagreeing_odom_topic() {
+        for odom_first in [true, false] {
+            let mut stage = moving_stage();
+            for k in 0..3 {
+                let (odom, tf) = (
+                    odometry(k * MS, 0.4),
+                    tf_at("odom", "base_link", 0.0, k * MS),
+                );
+                let (first, second) = if odom_first { (odom, tf) } else { (tf, odom) };
+                stage.receive(first, k * MS).unwrap();
+                stage.receive(second, k * MS).unwrap();
+            }
+            let out = scan_output(&mut stage, scan(2 * MS)).expect("localised");
+            assert!(out.laser_pose.x.abs() < 1e-12, "{:?}", out.laser_pose);
+            assert!(
+                stage.warning_counts().is_empty(),
+                "{:?}",
+                stage.warning_counts()
+            );
+        }
+        // A host that knows /tf will carry it ignores /odom from the start.
+        let mut stage = moving_stage();
+        stage.take_odometry_from_tf();
+        stage.receive(odometry(0, 0.4), 0).unwrap();
+        assert_eq!(stage.localiser().latest_odometry_ns(), None);
+    }
+
+    /// A base that publishes no `odom -> base_link` keeps /odom as its odometry, whatever
+    /// else /tf carries; /odom naming other frames than the configured ones is warned about
+    /// once, and still used.
+    #[test]
+    fn the_odom_topic_is_the_odometry_when_tf_has_none() {
+        let mut stage = moving_stage();
+        stage.receive(tf_at("map", "odom", 1.0, 0), 0).unwrap();
+        stage.receive(tf_at("odom", "other", 9.0, 0), 0).unwrap();
+        let mut footprint = odometry(0, 0.4);
+        if let LocaliserInput::Odometry(odom) = &mut footprint {
+            odom.child_frame_id = "base_footprint".into();
+        }
+        stage.receive(footprint, 0).unwrap();
+        stage.receive(odometry(MS, 0.4), MS).unwrap();
+        let out = scan_output(&mut stage, scan(MS)).expect("localised");
+        assert!(
+            (out.laser_pose.x - 1.4).abs() < 1e-12,
+            "{:?}",
+            out.laser_pose
+        );
+        assert_eq!(stage.warning_counts().get(ODOM_FRAMES_UNEXPECTED), Some(&1));
+    }
+
+    /// A /map whose grid does not fit its size is refused; that had been only logged, and
+    /// summary.json said `no_map` as if none had come.
+    #[test]
+    fn a_refused_map_is_counted() {
+        let mut stage =
+            LocaliserStage::new(LocaliserConfig::default(), RoomSource::MapTopic, true).unwrap();
+        let mut grid = OccupancyGrid::default();
+        grid.info.resolution = 0.1;
+        grid.info.width = 10;
+        grid.info.height = 10;
+        grid.data = vec![0; 95];
+        stage.receive(LocaliserInput::Map(grid), 0).unwrap();
+        assert_eq!(stage.warning_counts().get(MAP_REFUSED), Some(&1));
     }
 
     #[test]

@@ -6,7 +6,9 @@
 //! `map_file` (a map_server YAML; empty = wait for /map), `learned_background` (no map: learn
 //! the room from the first scans of a fixed Lidar), `moving` (odometry moves the robot;
 //! false: a fixed Lidar, which its transforms place in the map, `map -> odom -> base_link`
-//! on /tf_static or /tf, else the map origin, warned about). A background still not
+//! on /tf_static or /tf, else the map origin, warned about), `wait_for_map_to_odom` (a moving
+//! robot's scans are skipped until the first `map -> odom` on /tf or /tf_static, instead of
+//! placed as if `map` were `odom`; a late first one is warned about). A background still not
 //! learned twice `background.learn_duration_s` after the first scan is warned about.
 //! A scan stamped after the newest odometry waits for it up to the configuration's
 //! `odometry.max_wait_s` on this node's clock; scans still waiting at shutdown are published.
@@ -54,6 +56,11 @@ fn decls() -> Vec<ParamDecl> {
             V::Bool(true),
             "the Lidar moves with the robot (needs /odom or /tf)",
         ),
+        ParamDecl::new(
+            "wait_for_map_to_odom",
+            V::Bool(false),
+            "skip scans until the first map -> odom (AMCL, SLAM) instead of taking map = odom",
+        ),
     ]
 }
 
@@ -79,7 +86,10 @@ fn stage(node: &Node) -> Result<LocaliserStage, RosError> {
         (None, true) => RoomSource::LearnedBackground,
         (None, false) => RoomSource::MapTopic,
     };
-    LocaliserStage::new(config, room, p.bool("moving")?).map_err(|e| bad_parameter("config", e))
+    let mut stage = LocaliserStage::new(config, room, p.bool("moving")?)
+        .map_err(|e| bad_parameter("config", e))?;
+    stage.set_wait_for_map_to_odom(p.bool("wait_for_map_to_odom")?);
+    Ok(stage)
 }
 
 /// The QoS the localiser asks for on an input. The contract gives what a topic is offered
