@@ -1364,6 +1364,40 @@ fn activity_at(i: usize, t_ns: i64) -> Activity {
     a
 }
 
+/// Replays `message(0)` on `topic`, then 3 s later (bag time) `message(1..=burst)` at once,
+/// to a `topic echo` stopped (SIGSTOP) once it has the first: the replay's stdout and log.
+fn replay_a_burst_to_a_stopped_subscriber<M: lidar_har_msgs::RosMessage>(
+    topic: &topics::TopicSpec,
+    burst: usize,
+    message: impl Fn(usize, i64) -> M,
+) -> (String, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("burst");
+    let mut w = BagWriter::create(&bag, WriterOptions::default()).unwrap();
+    let handle = w.add_topic_for::<M>(topic.name, topic.qos).unwrap();
+    w.write_message(handle, T0_NS, &message(0, T0_NS)).unwrap();
+    let burst_ns = T0_NS + 3_000_000_000;
+    for i in 1..=burst {
+        w.write_message(handle, burst_ns, &message(i, burst_ns))
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let script = r#"
+"$LH" topic echo "$TOPIC" --timeout 60 > "$OUT/echo.jsonl" & E=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:="$TOPIC" \
+  -p wait_for_all_acked:=0.5 2> "$OUT/replay.log" & R=$!
+# The subscriber stops acknowledging before the burst.
+wait_until 20 has_lines "$OUT/echo.jsonl" 1
+kill -STOP $E
+wait $R; echo "replay=$?"
+kill -CONT $E; kill -TERM $E; wait $E
+"#
+    .replace("$TOPIC", topic.name);
+    let out = replay_in_netns(&script, &bag, dir.path(), Duration::from_secs(90));
+    let log = std::fs::read_to_string(dir.path().join("replay.log")).unwrap();
+    (String::from_utf8_lossy(&out.stdout).into_owned(), log)
+}
+
 /// A subscriber that stops acknowledging (here stopped with SIGSTOP) costs a keep-last
 /// writer the samples RustDDS cannot take any more (its reliable send window, 8192 samples,
 /// is full), as in other DDS implementations, where a keep-last writer never waits: the
@@ -1373,35 +1407,9 @@ fn ros_a_subscriber_that_stops_acknowledging_costs_samples_not_the_publisher() {
     if !netns_available() {
         return;
     }
-    const BURST: usize = 10_000;
-    let dir = tempfile::tempdir().unwrap();
-    let bag = dir.path().join("burst");
-    let mut w = BagWriter::create(&bag, WriterOptions::default()).unwrap();
-    let topic = w
-        .add_topic_for::<Activity>(topics::HUMAN_ACTIVITY.name, topics::HUMAN_ACTIVITY.qos)
-        .unwrap();
-    w.write_message(topic, T0_NS, &activity_at(0, T0_NS))
-        .unwrap();
-    // 3 s later in bag time, more samples at once than the window holds.
-    let burst_ns = T0_NS + 3_000_000_000;
-    for i in 1..=BURST {
-        w.write_message(topic, burst_ns, &activity_at(i, burst_ns))
-            .unwrap();
-    }
-    w.finish().unwrap();
-    let script = r#"
-"$LH" topic echo /human/activity --timeout 60 > "$OUT/activity.jsonl" & E=$!
-"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/human/activity \
-  -p wait_for_all_acked:=0.5 2> "$OUT/replay.log" & R=$!
-# The subscriber stops acknowledging before the burst.
-wait_until 20 has_lines "$OUT/activity.jsonl" 1
-kill -STOP $E
-wait $R; echo "replay=$?"
-kill -CONT $E; kill -TERM $E; wait $E
-"#;
-    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(90));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let log = std::fs::read_to_string(dir.path().join("replay.log")).unwrap();
+    // More samples at once than the window holds.
+    let (stdout, log) =
+        replay_a_burst_to_a_stopped_subscriber(&topics::HUMAN_ACTIVITY, 10_000, activity_at);
     assert!(stdout.contains("replay=0"), "{stdout}\n{log}");
     assert!(
         log.contains("/human/activity: sample dropped"),
@@ -1421,33 +1429,8 @@ fn ros_a_latched_write_held_up_by_a_stopped_subscriber_is_dropped_after_its_wait
     }
     // /human/fall_alert keeps 10: 12 alerts after the stop fill the window and drop 2 (3 if
     // the subscriber stopped before acknowledging the first alert).
-    const BURST: usize = 12;
-    let dir = tempfile::tempdir().unwrap();
-    let bag = dir.path().join("latched_burst");
-    let mut w = BagWriter::create(&bag, WriterOptions::default()).unwrap();
-    let topic = w
-        .add_topic_for::<FallAlert>(topics::FALL_ALERT.name, topics::FALL_ALERT.qos)
-        .unwrap();
-    w.write_message(topic, T0_NS, &numbered_alert(0, T0_NS))
-        .unwrap();
-    let burst_ns = T0_NS + 3_000_000_000;
-    for i in 1..=BURST {
-        w.write_message(topic, burst_ns, &numbered_alert(i, burst_ns))
-            .unwrap();
-    }
-    w.finish().unwrap();
-    let script = r#"
-"$LH" topic echo /human/fall_alert --timeout 60 > "$OUT/alerts.jsonl" & E=$!
-"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/human/fall_alert \
-  -p wait_for_all_acked:=0.5 2> "$OUT/replay.log" & R=$!
-wait_until 20 has_lines "$OUT/alerts.jsonl" 1
-kill -STOP $E
-wait $R; echo "replay=$?"
-kill -CONT $E; kill -TERM $E; wait $E
-"#;
-    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(90));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let log = std::fs::read_to_string(dir.path().join("replay.log")).unwrap();
+    let (stdout, log) =
+        replay_a_burst_to_a_stopped_subscriber(&topics::FALL_ALERT, 12, numbered_alert);
     assert!(stdout.contains("replay=0"), "{stdout}\n{log}");
     let dropped = log
         .matches("/human/fall_alert: latched sample dropped")
