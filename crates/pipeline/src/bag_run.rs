@@ -854,20 +854,9 @@ mod tests {
             transforms: statics,
         };
         bag.write_message(tf_static_t, 0, &msg).unwrap();
-        let increment = std::f64::consts::TAU / 720.0;
+        use crate::localiser_stage::tests::{TURN_OF_720 as increment, ranges_to_a_person_at};
         let person = DVec2::new(1.5, 1.0);
-        let ranges: Vec<f32> = (0..720)
-            .map(|i| {
-                let d = DVec2::from_angle((i as f64 - 359.5) * increment);
-                let along = person.dot(d);
-                let off = (person - along * d).length();
-                if along > 0.0 && off < 0.2 {
-                    (along - (0.04 - off * off).sqrt()) as f32
-                } else {
-                    f32::INFINITY
-                }
-            })
-            .collect();
+        let ranges = ranges_to_a_person_at(person);
         for k in 0..SCANS {
             let t = 1_000_000_000 + k * SCAN_PERIOD_NS;
             let stamp = Time::from_nanos(t);

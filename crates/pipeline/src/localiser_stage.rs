@@ -949,7 +949,7 @@ fn motion(moving: bool) -> Motion {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::convert::tests::quaternion;
     use lidar_har_msgs::builtin_interfaces::Time;
@@ -1115,6 +1115,27 @@ mod tests {
         t
     }
 
+    /// The beam spacing of [`ranges_to_a_person_at`].
+    pub(crate) const TURN_OF_720: f64 = std::f64::consts::TAU / 720.0;
+
+    /// A full turn of 720 beams from the laser, beam `i` at angle `(i - 359.5)` increments
+    /// (symmetric about 0: beam i and beam 719 - i point at opposite angles), seeing only a
+    /// person of radius 0.2 m at `person`.
+    pub(crate) fn ranges_to_a_person_at(person: glam::DVec2) -> Vec<f32> {
+        (0..720)
+            .map(|i| {
+                let d = glam::DVec2::from_angle((i as f64 - 359.5) * TURN_OF_720);
+                let along = person.dot(d);
+                let off = (person - along * d).length();
+                if along > 0.0 && off < 0.2 {
+                    (along - (0.04 - off * off).sqrt()) as f32
+                } else {
+                    f32::INFINITY
+                }
+            })
+            .collect()
+    }
+
     /// The person positions a Lidar fixed in an empty room gives over 20 scans of a person
     /// standing 1.8 m off, the Lidar placed by the static `transforms`, each scan's beams in
     /// reverse order when `reversed`.
@@ -1124,29 +1145,15 @@ mod tests {
     ) -> Vec<Option<glam::DVec2>> {
         let mut stage = fixed_stage();
         stage.on_tf_static(&TFMessage { transforms });
-        let increment = std::f64::consts::TAU / 720.0;
-        let person = glam::DVec2::new(1.5, 1.0);
-        let mut ranges: Vec<f32> = (0..720)
-            .map(|i| {
-                // Symmetric about 0: beam i and beam 719 - i point at opposite angles.
-                let d = glam::DVec2::from_angle((i as f64 - 359.5) * increment);
-                let along = person.dot(d);
-                let off = (person - along * d).length();
-                if along > 0.0 && off < 0.2 {
-                    (along - (0.04 - off * off).sqrt()) as f32
-                } else {
-                    f32::INFINITY
-                }
-            })
-            .collect();
+        let mut ranges = ranges_to_a_person_at(glam::DVec2::new(1.5, 1.0));
         if reversed {
             ranges.reverse();
         }
         (0..20)
             .map(|k| {
                 let mut msg = scan(k * 50 * MS);
-                msg.angle_min = (-359.5 * increment) as f32;
-                msg.angle_increment = increment as f32;
+                msg.angle_min = (-359.5 * TURN_OF_720) as f32;
+                msg.angle_increment = TURN_OF_720 as f32;
                 msg.ranges = ranges.clone();
                 let out = scan_output(&mut stage, msg).expect("localised");
                 out.person.map(|p| p.position)
