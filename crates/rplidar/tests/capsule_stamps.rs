@@ -140,9 +140,13 @@ fn express_scans_are_stamped_at_beam_0_not_one_capsule_later() {
         })
         .collect();
     offsets_ms.sort_by(f64::total_cmp);
-    let median = offsets_ms[offsets_ms.len() / 2];
     eprintln!("stamp - end of turn (ms), sorted: {offsets_ms:?}");
-    // Beam 0 lies 0.1 ms after the turn's last sample; a late read of a busy machine adds
-    // to single stamps, not to the median. One capsule late is 8 ms.
-    assert!(median.abs() < 2.5, "median {median:.2} ms");
+    // Beam 0 lies 0.1 ms after the turn's last sample. A read the machine wakes late stamps
+    // late: on a loaded machine most may be, so the test takes the promptest of the turns,
+    // which one capsule late (8 ms) would still leave late.
+    let promptest = offsets_ms[0];
+    assert!(
+        (-1.0..2.5).contains(&promptest),
+        "promptest {promptest:.2} ms"
+    );
 }
