@@ -4,7 +4,8 @@ Usage: bag_write_sqlite_markers.py OUT_DIR
 
 Makes OUT_DIR/{foxy,humble}, each with 3 /human/markers MarkerArrays (two markers each, in
 that distribution's layout: Foxy's Marker has no texture and mesh fields) and 3 /scan
-LaserScans, log time 1e9 + i*1e8 ns.
+LaserScans, log time 1e9 + i*1e8 ns; humble also has, at 1.3e9 ns, one more of each cut
+to half its length (damaged rows).
 """
 import sqlite3
 import sys
@@ -22,26 +23,26 @@ METADATA = """rosbag2_bagfile_information:
     nanoseconds: 200000000
   starting_time:
     nanoseconds_since_epoch: 1000000000
-  message_count: 6
+  message_count: {total}
   topics_with_message_count:
     - topic_metadata:
         name: /human/markers
         type: visualization_msgs/msg/MarkerArray
         serialization_format: cdr
         offered_qos_profiles: ""
-      message_count: 3
+      message_count: {per_topic}
     - topic_metadata:
         name: /scan
         type: sensor_msgs/msg/LaserScan
         serialization_format: cdr
         offered_qos_profiles: ""
-      message_count: 3
+      message_count: {per_topic}
   compression_format: ""
   compression_mode: ""
 """
 
 
-def write(out: Path, name: str, store, version: int):
+def write(out: Path, name: str, store, version: int, damaged: bool):
     ts = get_typestore(store)
     t = ts.types
     header = t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=1, nanosec=2), frame_id="map")
@@ -79,11 +80,17 @@ def write(out: Path, name: str, store, version: int):
         t_ns = 1_000_000_000 + i * 100_000_000
         db.execute("INSERT INTO messages(topic_id, timestamp, data) VALUES (2, ?, ?)", (t_ns, scan))
         db.execute("INSERT INTO messages(topic_id, timestamp, data) VALUES (1, ?, ?)", (t_ns, markers))
+    if damaged:
+        for topic_id, data in ((2, scan), (1, markers)):
+            db.execute("INSERT INTO messages(topic_id, timestamp, data) VALUES (?, ?, ?)",
+                       (topic_id, 1_300_000_000, data[: len(data) // 2]))
     db.commit()
     db.close()
-    (bag / "metadata.yaml").write_text(METADATA.format(version=version, name=name))
+    per_topic = 4 if damaged else 3
+    (bag / "metadata.yaml").write_text(
+        METADATA.format(version=version, name=name, total=2 * per_topic, per_topic=per_topic))
 
 
 out = Path(sys.argv[1])
-write(out, "foxy", Stores.ROS2_FOXY, 4)
-write(out, "humble", Stores.ROS2_HUMBLE, 5)
+write(out, "foxy", Stores.ROS2_FOXY, 4, damaged=False)
+write(out, "humble", Stores.ROS2_HUMBLE, 5, damaged=True)

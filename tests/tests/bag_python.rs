@@ -312,6 +312,7 @@ fn rosbags_and_mcap_ros2_decode_the_project_bag_field_by_field() {
 /// Sqlite3 bags of Foxy and Humble store no message definitions; `bag convert` gives their
 /// topics lidar-har's, which are Humble's. Foxy's Marker lacks fields Humble's has: its
 /// messages were written under Humble's definition, and no reader could decode the new bag.
+/// A damaged message of a Humble bag is copied as it is, as in a bag with definitions.
 #[test]
 fn bag_convert_refuses_a_type_whose_layout_is_not_its_definitions() {
     let tmp = tempfile::tempdir().unwrap();
@@ -333,6 +334,7 @@ fn bag_convert_refuses_a_type_whose_layout_is_not_its_definitions() {
     assert_eq!(run.status.code(), Some(1), "{stderr}");
     assert!(
         stderr.contains("topic `/human/markers` (visualization_msgs/msg/MarkerArray)")
+            && stderr.contains("3 of its 3 messages do not decode")
             && stderr.contains("Foxy"),
         "{stderr}"
     );
@@ -341,14 +343,22 @@ fn bag_convert_refuses_a_type_whose_layout_is_not_its_definitions() {
     let (run, out) = convert("humble");
     assert!(run.status.success(), "{run:?}");
     let reader = BagReader::open(&out).unwrap();
+    let mut decoded_markers = 0;
     for message in reader.messages().unwrap() {
         let message = message.unwrap();
-        if message.topic.as_ref() == "/human/markers" {
+        if message.topic.as_ref() == "/human/markers" && message.log_time_ns < 1_300_000_000 {
             let markers: MarkerArray = reader.decode(&message).unwrap();
             assert_eq!(markers.markers.len(), 2);
             assert_eq!(markers.markers[1].text, "hi");
+            decoded_markers += 1;
         }
     }
+    assert_eq!(decoded_markers, 3);
+    assert_eq!(
+        reader.metadata().message_count,
+        8,
+        "the damaged rows copied too"
+    );
 }
 
 #[test]

@@ -228,33 +228,60 @@ fn convert(
     Ok(())
 }
 
-/// Checks that every message of `topics`, given lidar-har's definition of their type for want
-/// of a stored one, decodes with it: ours are Humble's and later, and a type whose layout has
-/// changed since (Foxy's and Galactic's Marker lacks the texture and mesh fields) would be
-/// written under a definition no reader could decode it with. A read error ends the check:
-/// the copy itself reports it.
+/// The mirrored types whose layout has changed since Foxy and Galactic: their Marker lacks
+/// the texture and mesh fields (docs/msgs.md); every other type is the same in all of them.
+const TYPES_CHANGED_SINCE_FOXY: [&str; 2] = [
+    "visualization_msgs/msg/Marker",
+    "visualization_msgs/msg/MarkerArray",
+];
+
+/// Checks that the messages of `topics`, given lidar-har's definition of their type for want
+/// of a stored one, are of that layout, where the type has had another: written under a
+/// definition they are not of, no reader could decode them. A topic most of whose messages
+/// do not decode is of the other layout; a few that do not are damaged, which the copy keeps
+/// as they are, as it keeps those of every other type.
 fn check_messages_decode(
     reader: &BagReader,
     topics: &std::collections::HashSet<String>,
     src: &Path,
 ) -> anyhow::Result<()> {
-    if topics.is_empty() {
+    let changed: Vec<&str> = reader
+        .topics()
+        .iter()
+        .filter(|t| topics.contains(&t.name) && TYPES_CHANGED_SINCE_FOXY.contains(&&*t.type_name))
+        .map(|t| t.name.as_str())
+        .collect();
+    if changed.is_empty() {
         return Ok(());
     }
-    for message in reader.messages()? {
+    // Per topic: messages that decode, messages that do not, and the first error.
+    let mut tally: std::collections::HashMap<&str, (u64, u64, Option<String>)> =
+        std::collections::HashMap::new();
+    for message in reader.messages_on(&changed)? {
         let Ok(message) = message else { break };
-        if !topics.contains(&*message.topic) {
+        let Some(topic) = reader.topic(&message.topic) else {
             continue;
+        };
+        let entry = tally.entry(topic.name.as_str()).or_default();
+        match lidar_har_ros::json::decode_to_json(&topic.type_name, &message.data) {
+            Some(Err(e)) => {
+                entry.1 += 1;
+                entry.2.get_or_insert_with(|| e.to_string());
+            }
+            _ => entry.0 += 1,
         }
-        let type_name = reader.topic(&message.topic).map_or("", |t| &t.type_name);
-        if let Some(Err(e)) = lidar_har_ros::json::decode_to_json(type_name, &message.data) {
+    }
+    for (topic, (decoded, failed, error)) in tally {
+        if failed > decoded {
+            let type_name = reader.topic(topic).map_or("", |t| t.type_name.as_str());
             bail!(
-                "{}: topic `{}` ({type_name}) has no stored message definition, and its messages \
-                 do not decode with lidar-har's, which is ROS 2 Humble's and later's ({e}): a \
-                 bag of an older distribution (Foxy, Galactic) whose type has changed since \
-                 cannot be converted",
+                "{}: topic `{topic}` ({type_name}) has no stored message definition, and {failed} \
+                 of its {} messages do not decode with lidar-har's, which is ROS 2 Humble's and \
+                 later's ({}): Foxy's and Galactic's lack fields Humble's has, and cannot be \
+                 converted",
                 src.display(),
-                message.topic,
+                decoded + failed,
+                error.unwrap_or_default(),
             );
         }
     }
