@@ -95,28 +95,52 @@ ort_installed() {
         && [ -f "$ORT_CHECKSUM" ] \
         && (cd "$ORT_DIR" && sha256sum --check --status "$ORT_CHECKSUM")
 }
+# A library and its link without a checksum come from a set-up before checksums, complete or
+# not: fetched again, but kept, with a warning, where no wheel can be had (an offline robot).
+unverified_install() {
+    [ "$(readlink "$ORT_DIR/libonnxruntime.so" 2>/dev/null)" = "libonnxruntime.so.$ORT_VERSION" ] \
+        && [ -f "$ORT_LIB" ] && [ ! -f "$ORT_CHECKSUM" ]
+}
+# Keeps an unverified library when there is one, else fails: `$1` says why no wheel can be
+# had, `$2` the fix.
+no_wheel() {
+    if [ "$UNVERIFIED" = 1 ]; then
+        say "warning: $1; keeping the ONNX Runtime library already at $ORT_LIB, unverified (if model commands end with 'Bus error', delete .deps/ and rerun scripts/setup.sh)"
+    else
+        fail "$1" "$2"
+    fi
+}
 if ort_installed; then
     say "ONNX Runtime $ORT_VERSION already at $ORT_LIB"
 else
-    rm -f "$ORT_CHECKSUM"
-    tmp="$(mktemp -d)"
-    trap 'rm -rf "$tmp"' EXIT
+    UNVERIFIED=0
+    unverified_install && UNVERIFIED=1
+    WHEEL_DIR="$DEPS/.wheel"
+    trap 'rm -rf "$WHEEL_DIR"' EXIT
+    wheel=""
     if [ -n "${LIDAR_HAR_ORT_WHEEL:-}" ]; then
-        wheel="$LIDAR_HAR_ORT_WHEEL"
-        [ -f "$wheel" ] || fail "LIDAR_HAR_ORT_WHEEL=$wheel is not a file" \
-            "point it at an onnxruntime-$ORT_VERSION wheel, or unset it to fetch one from PyPI"
-        say "taking the ONNX Runtime library from $wheel"
+        if [ -f "$LIDAR_HAR_ORT_WHEEL" ]; then
+            wheel="$LIDAR_HAR_ORT_WHEEL"
+            say "taking the ONNX Runtime library from $wheel"
+        else
+            no_wheel "LIDAR_HAR_ORT_WHEEL=$LIDAR_HAR_ORT_WHEEL is not a file" \
+                "point it at an onnxruntime-$ORT_VERSION wheel, or unset it to fetch one from PyPI"
+        fi
     else
         say "fetching the onnxruntime==$ORT_VERSION wheel from PyPI for its shared library"
-        "${PIP[@]}" download "onnxruntime==$ORT_VERSION" --no-deps --only-binary=:all: -d "$tmp" \
-            || fail "pip could not download onnxruntime==$ORT_VERSION from PyPI" \
-                "check that PyPI is reachable (pip config, proxy) and that a wheel exists for $(uname -m)"
-        wheel="$(ls "$tmp"/onnxruntime-*.whl | head -n1)"
+        if "${PIP[@]}" download "onnxruntime==$ORT_VERSION" --no-deps --only-binary=:all: -d "$WHEEL_DIR"; then
+            wheel="$(ls "$WHEEL_DIR"/onnxruntime-*.whl | head -n1)"
+        else
+            no_wheel "pip could not download onnxruntime==$ORT_VERSION from PyPI" \
+                "check that PyPI is reachable (pip config, proxy) and that a wheel exists for $(uname -m), or set LIDAR_HAR_ORT_WHEEL to a wheel at hand"
+        fi
     fi
-    mkdir -p "$ORT_DIR"
-    # Each library is written beside its final name and renamed once complete (zipfile checks
-    # its CRC as it reads), so a run stopped half-way never leaves a truncated library there.
-    "$VENV/bin/python" - "$wheel" "$ORT_DIR" <<'PY' || fail "could not extract libonnxruntime from $wheel" "free some disk space (about 30 MB) and rerun scripts/setup.sh"
+    if [ -n "$wheel" ]; then
+        mkdir -p "$ORT_DIR"
+        # Each library is written beside its final name and renamed once complete (zipfile
+        # checks its CRC as it reads), so a run stopped half-way never leaves a truncated
+        # library there.
+        "$VENV/bin/python" - "$wheel" "$ORT_DIR" <<'PY' || fail "could not extract libonnxruntime from $wheel" "free some disk space (about 30 MB) and rerun scripts/setup.sh"
 import sys, zipfile, os, shutil
 wheel, dest = sys.argv[1], sys.argv[2]
 with zipfile.ZipFile(wheel) as z:
@@ -132,13 +156,14 @@ with zipfile.ZipFile(wheel) as z:
             os.fsync(dst.fileno())
         os.replace(partial, final)
 PY
-    [ -f "$ORT_LIB" ] || fail "the wheel did not contain libonnxruntime.so.$ORT_VERSION" \
-        "update ORT_VERSION in scripts/setup.sh to the version in the wheel"
-    ln -sfn "libonnxruntime.so.$ORT_VERSION" "$ORT_DIR/libonnxruntime.so"
-    (cd "$ORT_DIR" && sha256sum "libonnxruntime.so.$ORT_VERSION" > "$ORT_CHECKSUM.partial") \
-        && mv "$ORT_CHECKSUM.partial" "$ORT_CHECKSUM" \
-        || fail "could not write $ORT_CHECKSUM" "free some disk space and rerun scripts/setup.sh"
-    say "ONNX Runtime installed at $ORT_LIB"
+        [ -f "$ORT_LIB" ] || fail "the wheel did not contain libonnxruntime.so.$ORT_VERSION" \
+            "update ORT_VERSION in scripts/setup.sh to the version in the wheel"
+        ln -sfn "libonnxruntime.so.$ORT_VERSION" "$ORT_DIR/libonnxruntime.so"
+        (cd "$ORT_DIR" && sha256sum "libonnxruntime.so.$ORT_VERSION" > "$ORT_CHECKSUM.partial") \
+            && mv "$ORT_CHECKSUM.partial" "$ORT_CHECKSUM" \
+            || fail "could not write $ORT_CHECKSUM" "free some disk space and rerun scripts/setup.sh"
+        say "ONNX Runtime installed at $ORT_LIB"
+    fi
 fi
 
 # --- External checkers (rosbags, mcap, mcap-ros2-support, cyclonedds); pip skips what is there.

@@ -166,4 +166,17 @@ fn setup_repairs_what_an_interrupted_run_left_behind() {
         Some(1),
         "a failed repair was taken as done: {text}"
     );
+
+    // Installed by a set-up before checksums: fetched again where a wheel can be had, kept
+    // with a warning where none can (an offline robot), never refused.
+    std::fs::write(checkout.library(), &library).unwrap();
+    std::fs::remove_file(checkout.path(".deps/onnxruntime/installed.sha256")).unwrap();
+    let (out, text) = checkout.setup(&missing);
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("unverified"), "{text}");
+    assert_eq!(std::fs::read(checkout.library()).unwrap(), library);
+    let text = checkout.setup_succeeds();
+    assert!(text.contains("taking the ONNX Runtime library"), "{text}");
+    let text = checkout.setup_succeeds();
+    assert!(text.contains("already at"), "verified now: {text}");
 }
