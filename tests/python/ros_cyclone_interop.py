@@ -7,24 +7,64 @@ namespace by tests/tests/ros_nodes.rs).
                                    every reader made first; {"topic", "msg"} JSON lines
     ros_cyclone_interop.py publish-scan COUNT RATE_HZ    LaserScans with ranges [i, i, ...],
                                    once a reader has matched
+    ros_cyclone_interop.py publish-map DURABILITY SECONDS
+                                   a 4 x 3 OccupancyGrid on /map, reliable, keep-last 1,
+                                   DURABILITY volatile (cartographer's occupancy_grid_node)
+                                   or transient_local (map_server), twice a second for
+                                   SECONDS; "matched" on stdout once a reader has;
+                                   fails if none did
 
-Topics use ROS 2 naming (`rt/` prefix) and the QoS of the topic contract (`lidar_har_msgs::topics`).
+Topics use ROS 2 naming (`rt/` prefix) and the QoS of the topic contract (`lidar_har_msgs::topics`),
+but for publish-map's DURABILITY.
 """
 
 import json
 import signal
 import sys
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass, field
 
 from cyclonedds.core import Policy, Qos
 from cyclonedds.domain import DomainParticipant
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl.types import float32, float64, int8, sequence, uint32
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
-from ros_idl import Activity, FallAlert, Header, LaserScan, Time
+from ros_idl import Activity, FallAlert, Header, LaserScan, Point, Time
+
+
+@dataclass
+class Quaternion(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
+    x: float64 = 0.0
+    y: float64 = 0.0
+    z: float64 = 0.0
+    w: float64 = 1.0
+
+
+@dataclass
+class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
+    position: Point = field(default_factory=Point)
+    orientation: Quaternion = field(default_factory=Quaternion)
+
+
+@dataclass
+class MapMetaData(IdlStruct, typename="nav_msgs::msg::dds_::MapMetaData_"):
+    map_load_time: Time = field(default_factory=Time)
+    resolution: float32 = 0.0
+    width: uint32 = 0
+    height: uint32 = 0
+    origin: Pose = field(default_factory=Pose)
+
+
+@dataclass
+class OccupancyGrid(IdlStruct, typename="nav_msgs::msg::dds_::OccupancyGrid_"):
+    header: Header = field(default_factory=Header)
+    info: MapMetaData = field(default_factory=MapMetaData)
+    data: sequence[int8] = field(default_factory=list)
+
 
 TYPES = {
     "/scan": (LaserScan, Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(5))),
@@ -131,6 +171,35 @@ def publish_scans(participant, count, rate_hz):
     return 0
 
 
+MAP_DURABILITY = {"volatile": Policy.Durability.Volatile,
+                  "transient_local": Policy.Durability.TransientLocal}
+
+
+def publish_map(participant, durability, seconds):
+    """Publishes a small map on /map twice a second for `seconds`, with the durability
+    given (a volatile map reaches only the readers matched when it is written, so it is
+    written again, as cartographer's occupancy_grid_node does). Succeeds if a reader matched
+    (a transient-local reader does not match a volatile writer)."""
+    qos = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), MAP_DURABILITY[durability],
+              Policy.History.KeepLast(1))
+    writer = DataWriter(participant, Topic(participant, "rt/map", OccupancyGrid), qos=qos)
+    grid = OccupancyGrid(
+        header=Header(stamp=Time(sec=1_700_000_000), frame_id="map"),
+        info=MapMetaData(resolution=0.05, width=4, height=3),
+        data=[0, 100, -1, 0, 0, 0, 100, 100, 0, 0, -1, 0])
+    matched = 0
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        now_matched = len(writer.get_matched_subscriptions())
+        if now_matched and not matched:
+            print("matched", flush=True)
+        matched = max(matched, now_matched)
+        writer.write(grid)
+        time.sleep(0.5)
+    print(f"publish-map: {durability} /map matched {matched} reader(s)", file=sys.stderr)
+    return 0 if matched else 1
+
+
 def main(argv):
     participant = DomainParticipant(0)
     if argv[1] == "receive":
@@ -141,6 +210,8 @@ def main(argv):
         return receive_topics(participant, float(argv[2]), wanted)
     if argv[1] == "publish-scan":
         return publish_scans(participant, int(argv[2]), float(argv[3]))
+    if argv[1] == "publish-map":
+        return publish_map(participant, argv[2], float(argv[3]))
     print(f"unknown mode {argv[1]!r}", file=sys.stderr)
     return 2
 

@@ -1031,6 +1031,91 @@ wait $E; echo "echo=$?"
     }
 }
 
+/// A /map publisher that does not latch it (cartographer's occupancy_grid_node: volatile,
+/// reliable), here Cyclone DDS: a transient-local subscription, the localiser's default, never
+/// matches it (DDS QoS matching), so the localiser skips every scan for want of a map;
+/// `map_transient_local:=false` subscribes volatile and uses it. A volatile subscription
+/// still gets our replay's latched /map when it is running before the replay starts.
+#[test]
+fn ros_localiser_takes_a_volatile_cyclone_map_with_map_transient_local_false() {
+    if !netns_available() {
+        return;
+    }
+    let Some(python) = checker_python() else {
+        return;
+    };
+    let python = PathBuf::from(python.get_program());
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 40);
+    let script = r#"
+cd "$PYDIR"
+# A fixed Lidar: no odometry needed; each scan localised against a map gives /human/markers.
+"$LOC" --ros-args -p moving:=false -r __node:=localiser_latched \
+  -r /human/markers:=/latched/markers 2> "$OUT/latched.err" & A=$!
+"$LOC" --ros-args -p moving:=false -p map_transient_local:=false 2> "$OUT/volatile.err" & B=$!
+"$LH" topic echo /human/markers --count 10 --timeout 10 > "$OUT/markers.jsonl" & E=$!
+"$LH" topic echo /latched/markers --type visualization_msgs/msg/MarkerArray --timeout 10 \
+  > "$OUT/latched_markers.jsonl" & EA=$!
+"$PY" ros_cyclone_interop.py publish-map volatile 4 > "$OUT/map.out" 2> "$OUT/map.err" & M=$!
+# The map is written twice a second: the scans go once a reader has matched it.
+wait_until 10 has_lines "$OUT/map.out" 1
+"$PY" ros_cyclone_interop.py publish-scan 40 20; echo "cyclone_scan=$?"
+wait $E; echo "echo=$?"
+wait $M; echo "cyclone_map=$?"
+kill -TERM $EA $A $B; wait $EA; wait $A; echo "latched=$?"; wait $B; echo "volatile=$?"
+# Our replay's transient-local /map reaches a volatile subscription running before it.
+"$LOC" --ros-args -p moving:=false -p map_transient_local:=false 2> "$OUT/replayed.err" & L=$!
+"$LH" topic echo /human/markers --count 30 --timeout 10 > "$OUT/replay_markers.jsonl" & E=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/map; echo "replay=$?"
+wait $E; echo "replay_echo=$?"
+kill -TERM $L; wait $L; echo "replayed=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("LH", &workspace_bin("lidar-har")),
+            ("LOC", &workspace_bin("localiser")),
+            ("REPLAY", &workspace_bin("replay")),
+            ("BAG", &bag),
+            ("OUT", dir.path()),
+            ("PY", &python),
+            ("PYDIR", &repo_root().join("tests/python")),
+        ],
+        Duration::from_secs(40),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let read = |name: &str| std::fs::read_to_string(dir.path().join(name)).unwrap_or_default();
+    for name in ["map.err", "latched.err", "volatile.err", "replayed.err"] {
+        eprintln!("--- {name}\n{}", read(name));
+    }
+    for want in [
+        "cyclone_scan=0",
+        "echo=0",
+        "cyclone_map=0",
+        "replay=0",
+        "replay_echo=0",
+    ] {
+        assert!(stdout.contains(want), "expected {want}");
+    }
+    // Only the volatile subscription matched Cyclone's volatile /map, and used it.
+    assert!(
+        read("map.err").contains("matched 1 reader(s)"),
+        "Cyclone's volatile /map must match the volatile subscription alone"
+    );
+    assert!(json_lines(&dir.path().join("markers.jsonl")).len() >= 10);
+    // The default transient-local one never got it: its scans were all skipped.
+    assert!(
+        read("latched.err").contains("no map received yet"),
+        "the transient-local subscription had scans"
+    );
+    assert_eq!(
+        json_lines(&dir.path().join("latched_markers.jsonl")).len(),
+        0,
+        "a transient-local /map subscription matched a volatile publisher"
+    );
+    assert!(json_lines(&dir.path().join("replay_markers.jsonl")).len() >= 30);
+}
+
 /// Equal JSON, numbers equal to within 1e-9 (relative): the nodes receive /scan and /odom
 /// on separate DDS topics, so the last bit of a covariance may differ from the bag run.
 fn json_close(a: &serde_json::Value, b: &serde_json::Value) -> bool {

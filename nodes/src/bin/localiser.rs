@@ -8,7 +8,11 @@
 //! false: a fixed Lidar, which its transforms place in the map, `map -> odom -> base_link`
 //! on /tf_static or /tf, else the map origin, warned about), `wait_for_map_to_odom` (a moving
 //! robot's scans are skipped until the first `map -> odom` on /tf or /tf_static, instead of
-//! placed as if `map` were `odom`; a late first one is warned about). A background still not
+//! placed as if `map` were `odom`; a late first one is warned about), `map_transient_local`
+//! (/map is asked transient local, as map_server and our replay latch it; false: reliable
+//! volatile, for a publisher that does not latch it, such as cartographer's
+//! occupancy_grid_node, which a transient-local subscription never matches; nav2's
+//! `map_subscribe_transient_local`). A background still not
 //! learned twice `background.learn_duration_s` after the first scan is warned about.
 //! A scan stamped after the newest odometry waits for it up to the configuration's
 //! `odometry.max_wait_s` on this node's clock; scans still waiting at shutdown are published.
@@ -17,7 +21,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use lidar_har::{NodeInfo, Outputs, Shutdown, bad_parameter, optional_path};
-use lidar_har_msgs::qos::{History, QosProfile, Reliability};
+use lidar_har_msgs::qos::{Durability, History, QosProfile, Reliability};
 use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_pipeline::{LocaliserStage, PipelineError, RoomSource, Step, files};
 use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, RosError};
@@ -61,6 +65,12 @@ fn decls() -> Vec<ParamDecl> {
             V::Bool(false),
             "skip scans until the first map -> odom (AMCL, SLAM) instead of taking map = odom",
         ),
+        ParamDecl::new(
+            "map_transient_local",
+            V::Bool(true),
+            "subscribe /map transient local (latched, map_server); false: volatile, for a /map \
+             publisher that does not latch it (cartographer's occupancy_grid_node)",
+        ),
     ]
 }
 
@@ -100,8 +110,16 @@ fn stage(node: &Node) -> Result<LocaliserStage, RosError> {
 /// static listener keeps it: joining late, the node gets every static publisher's latched
 /// message at once (robot_state_publisher's and a static_transform_publisher's), and a
 /// depth of 1 would keep only the last, perhaps not the one with the Lidar's mount.
-fn subscription_qos(spec: &TopicSpec) -> QosProfile {
-    if spec.name == topics::ODOM.name {
+/// /map is asked volatile unless `map_transient_local`: a transient-local subscription does
+/// not match a volatile publisher (DDS QoS matching), and a volatile one matches both, but
+/// gets no map published before it joined.
+fn subscription_qos(spec: &TopicSpec, map_transient_local: bool) -> QosProfile {
+    if spec.name == topics::MAP.name && !map_transient_local {
+        QosProfile {
+            durability: Durability::Volatile,
+            ..spec.qos
+        }
+    } else if spec.name == topics::ODOM.name {
         QosProfile {
             reliability: Reliability::BestEffort,
             ..spec.qos
@@ -122,10 +140,15 @@ const TF_STATIC_DEPTH: u32 = 100;
 fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = Node::new(NodeSetup::new("localiser").parameters(decls()))?;
     let mut stage = stage(&node)?;
+    let map_transient_local = node.params().bool("map_transient_local")?;
     let inputs = LocaliserStage::INPUTS
         .into_iter()
         .map(|spec| {
-            let sub = node.subscriber(spec.name, spec.type_name, subscription_qos(&spec))?;
+            let sub = node.subscriber(
+                spec.name,
+                spec.type_name,
+                subscription_qos(&spec, map_transient_local),
+            )?;
             Ok((spec.name, sub))
         })
         .collect::<Result<Vec<_>, RosError>>()?;
@@ -211,7 +234,6 @@ impl UnusableMessages {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lidar_har_msgs::qos::Durability;
 
     #[test]
     fn the_idle_wait_ends_when_a_scan_stops_waiting_for_odometry() {
@@ -226,17 +248,35 @@ mod tests {
 
     #[test]
     fn odom_is_asked_best_effort_tf_static_deep_and_the_rest_as_offered() {
-        let odom = subscription_qos(&topics::ODOM);
+        let odom = subscription_qos(&topics::ODOM, true);
         assert_eq!(odom.reliability, Reliability::BestEffort);
         assert_eq!(odom.history, topics::ODOM.qos.history);
-        let tf_static = subscription_qos(&topics::TF_STATIC);
+        let tf_static = subscription_qos(&topics::TF_STATIC, true);
         assert_eq!(tf_static.history, History::KeepLast(100));
         assert_eq!(
             (tf_static.reliability, tf_static.durability),
             (Reliability::Reliable, Durability::TransientLocal)
         );
         for spec in [topics::SCAN, topics::MAP, topics::TF] {
-            assert_eq!(subscription_qos(&spec), spec.qos, "{}", spec.name);
+            assert_eq!(subscription_qos(&spec, true), spec.qos, "{}", spec.name);
+        }
+    }
+
+    #[test]
+    fn map_transient_local_false_asks_map_volatile_and_nothing_else_changes() {
+        let map = subscription_qos(&topics::MAP, false);
+        assert_eq!(map.durability, Durability::Volatile);
+        assert_eq!(
+            (map.reliability, map.history),
+            (Reliability::Reliable, History::KeepLast(1))
+        );
+        for spec in [topics::SCAN, topics::ODOM, topics::TF, topics::TF_STATIC] {
+            assert_eq!(
+                subscription_qos(&spec, false),
+                subscription_qos(&spec, true),
+                "{}",
+                spec.name
+            );
         }
     }
 }
