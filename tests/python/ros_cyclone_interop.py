@@ -22,48 +22,16 @@ import json
 import signal
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 
 from cyclonedds.core import Policy, Qos
 from cyclonedds.domain import DomainParticipant
-from cyclonedds.idl import IdlStruct
-from cyclonedds.idl.types import float32, float64, int8, sequence, uint32
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
-from ros_idl import Activity, FallAlert, Header, LaserScan, Point, Time
-
-
-@dataclass
-class Quaternion(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
-    x: float64 = 0.0
-    y: float64 = 0.0
-    z: float64 = 0.0
-    w: float64 = 1.0
-
-
-@dataclass
-class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
-    position: Point = field(default_factory=Point)
-    orientation: Quaternion = field(default_factory=Quaternion)
-
-
-@dataclass
-class MapMetaData(IdlStruct, typename="nav_msgs::msg::dds_::MapMetaData_"):
-    map_load_time: Time = field(default_factory=Time)
-    resolution: float32 = 0.0
-    width: uint32 = 0
-    height: uint32 = 0
-    origin: Pose = field(default_factory=Pose)
-
-
-@dataclass
-class OccupancyGrid(IdlStruct, typename="nav_msgs::msg::dds_::OccupancyGrid_"):
-    header: Header = field(default_factory=Header)
-    info: MapMetaData = field(default_factory=MapMetaData)
-    data: sequence[int8] = field(default_factory=list)
+from ros_idl import Activity, FallAlert, Header, LaserScan, MapMetaData, OccupancyGrid, Time
 
 
 TYPES = {

@@ -912,15 +912,20 @@ fn write_alert_bag(dir: &Path) -> PathBuf {
     path
 }
 
+/// The checker venv's Python, which has Cyclone DDS, where a private network namespace can
+/// be made for it; `None` (the test skips or fails, as the missing piece requires) elsewhere.
+fn cyclone_python() -> Option<PathBuf> {
+    if !netns_available() {
+        return None;
+    }
+    Some(PathBuf::from(checker_python()?.get_program()))
+}
+
 #[test]
 fn ros_cyclone_dds_interoperates_with_replay_and_topic_echo() {
-    if !netns_available() {
-        return;
-    }
-    let Some(python) = checker_python() else {
+    let Some(python) = cyclone_python() else {
         return;
     };
-    let python = PathBuf::from(python.get_program());
     let dir = tempfile::tempdir().unwrap();
     let bag = write_bag(dir.path(), 40);
     let alert_bag = write_alert_bag(dir.path());
@@ -1038,13 +1043,9 @@ wait $E; echo "echo=$?"
 /// still gets our replay's latched /map when it is running before the replay starts.
 #[test]
 fn ros_localiser_takes_a_volatile_cyclone_map_with_map_transient_local_false() {
-    if !netns_available() {
-        return;
-    }
-    let Some(python) = checker_python() else {
+    let Some(python) = cyclone_python() else {
         return;
     };
-    let python = PathBuf::from(python.get_program());
     let dir = tempfile::tempdir().unwrap();
     let bag = write_bag(dir.path(), 40);
     let script = r#"
