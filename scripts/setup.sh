@@ -90,16 +90,17 @@ fi
 PIP=("$VENV/bin/python" -m pip --disable-pip-version-check -q)
 
 # --- ONNX Runtime shared library, taken out of the PyPI wheel
+ort_linked() {
+    [ "$(readlink "$ORT_DIR/libonnxruntime.so" 2>/dev/null)" = "libonnxruntime.so.$ORT_VERSION" ]
+}
 ort_installed() {
-    [ "$(readlink "$ORT_DIR/libonnxruntime.so" 2>/dev/null)" = "libonnxruntime.so.$ORT_VERSION" ] \
-        && [ -f "$ORT_CHECKSUM" ] \
+    ort_linked && [ -f "$ORT_CHECKSUM" ] \
         && (cd "$ORT_DIR" && sha256sum --check --status "$ORT_CHECKSUM")
 }
 # A library and its link without a checksum come from a set-up before checksums, complete or
 # not: fetched again, but kept, with a warning, where no wheel can be had (an offline robot).
 unverified_install() {
-    [ "$(readlink "$ORT_DIR/libonnxruntime.so" 2>/dev/null)" = "libonnxruntime.so.$ORT_VERSION" ] \
-        && [ -f "$ORT_LIB" ] && [ ! -f "$ORT_CHECKSUM" ]
+    ort_linked && [ -f "$ORT_LIB" ] && [ ! -f "$ORT_CHECKSUM" ]
 }
 # Keeps an unverified library when there is one, else fails: `$1` says why no wheel can be
 # had, `$2` the fix.

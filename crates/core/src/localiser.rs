@@ -1100,10 +1100,15 @@ mod tests {
                 r as f32
             })
             .collect();
+        full_turn_scan(stamp_ns, ranges, time_increment)
+    }
+
+    /// A scan of `ranges` over one full turn from -pi, beams `time_increment` seconds apart.
+    fn full_turn_scan(stamp_ns: i64, ranges: Vec<f32>, time_increment: f64) -> Scan {
         Scan {
             stamp_ns,
             angle_min: -std::f32::consts::PI,
-            angle_increment: inc as f32,
+            angle_increment: (std::f64::consts::TAU / ranges.len() as f64) as f32,
             time_increment: time_increment as f32,
             range_min: 0.05,
             range_max: 12.0,
@@ -1860,15 +1865,7 @@ mod tests {
                 r as f32
             })
             .collect();
-        Scan {
-            stamp_ns,
-            angle_min: -std::f32::consts::PI,
-            angle_increment: inc as f32,
-            time_increment: 0.0,
-            range_min: 0.05,
-            range_max: 12.0,
-            ranges,
-        }
+        full_turn_scan(stamp_ns, ranges, 0.0)
     }
 
     #[test]

@@ -126,8 +126,6 @@ pub struct LocaliserStage {
     learned_background: bool,
     /// A Lidar that does not move, in a map: its transforms place its base there.
     fixed_in_map: bool,
-    /// Odometry moves the robot in a map: `map -> odom` and the odometry place its scans.
-    moving: bool,
     /// Whether transforms have placed the fixed Lidar's base in the map (until they do, it
     /// is at the map origin).
     base_placed: bool,
@@ -275,7 +273,6 @@ impl LocaliserStage {
             frames,
             learned_background,
             fixed_in_map: !moving && !learned_background,
-            moving: moving && !learned_background,
             base_placed: false,
             map_given,
             map_topic_ignored: false,
@@ -322,6 +319,11 @@ impl LocaliserStage {
     /// knows: /odom is ignored from the start, not only once the transform comes.
     pub fn take_odometry_from_tf(&mut self) {
         self.choose_tf_odometry();
+    }
+
+    /// Odometry moves the robot in a map: `map -> odom` and the odometry place its scans.
+    fn moving(&self) -> bool {
+        !self.fixed_in_map && !self.learned_background
     }
 
     /// Where the Lidar's mount comes from.
@@ -579,7 +581,7 @@ impl LocaliserStage {
             scan = convert::mirrored_scan(scan);
         }
         self.last_stamp_ns = scan.stamp_ns;
-        if self.moving && !self.map_to_odom_received && self.wait_for_map_to_odom {
+        if self.moving() && !self.map_to_odom_received && self.wait_for_map_to_odom {
             if self.warnings.tally(WAITING_FOR_MAP_TO_ODOM) == 1 {
                 log::warn!(
                     "localiser: no `{} -> {}` yet on /tf or /tf_static: scans are skipped until \
@@ -602,7 +604,7 @@ impl LocaliserStage {
                 self.localiser.config().background.learn_duration_s
             );
         }
-        if self.moving && !self.map_to_odom_received && result.output.is_some() {
+        if self.moving() && !self.map_to_odom_received && result.output.is_some() {
             self.scans_before_map_to_odom += 1;
         }
         if self.fixed_in_map && !self.base_placed && result.output.is_some() {
@@ -644,7 +646,7 @@ impl LocaliserStage {
 
     /// Odometry: the pose of the base in the odom frame, unless /tf gives it.
     fn on_odom(&mut self, msg: &Odometry) {
-        if !self.moving {
+        if !self.moving() {
             return;
         }
         match self.odometry_source {
@@ -772,7 +774,7 @@ impl LocaliserStage {
             let pose = convert::pose2_from_transform(&t.transform);
             if parent == self.frames.map && child == self.frames.odom {
                 self.take_map_to_odom(pose);
-            } else if parent == self.frames.odom && child == self.frames.base && self.moving {
+            } else if parent == self.frames.odom && child == self.frames.base && self.moving() {
                 if self.odometry_source != OdometrySource::Tf {
                     self.choose_tf_odometry();
                 }
@@ -795,7 +797,7 @@ impl LocaliserStage {
             self.static_tf
                 .insert(child, (parent, SpatialTransform::from_msg(&t.transform)));
         }
-        if self.moving
+        if self.moving()
             && let Some(map_to_odom) = self.static_pose(&self.frames.odom, &self.frames.map)
         {
             let pose = map_to_odom.in_scan_plane().pose;

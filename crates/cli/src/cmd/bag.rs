@@ -4,6 +4,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use lidar_har_bag::{BagReader, BagWriter, Compression, StorageId, WriterOptions};
+use lidar_har_msgs::RosMessage;
+use lidar_har_msgs::visualization_msgs::{Marker, MarkerArray};
 use lidar_har_pipeline::bag_run::StopRequest;
 
 #[derive(clap::Subcommand)]
@@ -230,10 +232,16 @@ fn convert(
 
 /// The mirrored types whose layout has changed since Foxy and Galactic: their Marker lacks
 /// the texture and mesh fields (docs/msgs.md); every other type is the same in all of them.
-const TYPES_CHANGED_SINCE_FOXY: [&str; 2] = [
-    "visualization_msgs/msg/Marker",
-    "visualization_msgs/msg/MarkerArray",
-];
+const TYPES_CHANGED_SINCE_FOXY: [&str; 2] = [Marker::TYPE_NAME, MarkerArray::TYPE_NAME];
+
+/// Decodes `data` as one of [`TYPES_CHANGED_SINCE_FOXY`], `type_name`.
+fn decode_changed_type(type_name: &str, data: &[u8]) -> Result<(), lidar_har_msgs::CdrError> {
+    if type_name == Marker::TYPE_NAME {
+        lidar_har_msgs::decode::<Marker>(data).map(drop)
+    } else {
+        lidar_har_msgs::decode::<MarkerArray>(data).map(drop)
+    }
+}
 
 /// Checks that the messages of `topics`, given lidar-har's definition of their type for want
 /// of a stored one, are of that layout, where the type has had another: written under a
@@ -263,12 +271,12 @@ fn check_messages_decode(
             continue;
         };
         let entry = tally.entry(topic.name.as_str()).or_default();
-        match lidar_har_ros::json::decode_to_json(&topic.type_name, &message.data) {
-            Some(Err(e)) => {
+        match decode_changed_type(&topic.type_name, &message.data) {
+            Err(e) => {
                 entry.1 += 1;
                 entry.2.get_or_insert_with(|| e.to_string());
             }
-            _ => entry.0 += 1,
+            Ok(()) => entry.0 += 1,
         }
     }
     for (topic, (decoded, failed, error)) in tally {
