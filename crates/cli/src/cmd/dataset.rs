@@ -389,63 +389,75 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let results: Mutex<Vec<Option<anyhow::Result<EpisodeWindows>>>> =
-        Mutex::new((0..plans.len()).map(|_| None).collect());
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    std::thread::scope(|scope| {
-        for _ in 0..args.threads {
-            scope.spawn(|| {
-                loop {
-                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    let Some(plan) = plans.get(i) else { break };
-                    let result = run_episode(plan, &args, &renderer);
-                    if let Ok(mut r) = results.lock() {
-                        r[i] = Some(result);
-                    }
-                    bar.inc(1);
-                }
-            });
-        }
-    });
-    bar.finish_and_clear();
-    let results = results
-        .into_inner()
-        .map_err(|_| anyhow::anyhow!("a worker thread panicked"))?;
-
+    let shape = WindowShape {
+        window: args.window,
+        size: args.size,
+    };
+    let mut writers = SPLITS
+        .iter()
+        .map(|split| SplitWriter::create(&args.out, split, shape))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let mut episodes = Vec::new();
-    let mut per_split: Vec<(Vec<EpisodeWindows>, Vec<usize>)> =
-        SPLITS.iter().map(|_| (Vec::new(), Vec::new())).collect();
-    for (plan, result) in plans.iter().zip(results) {
-        let windows = match result {
-            Some(Ok(windows)) => windows,
-            // A scene too small for a random script (e.g. no room to run) loses that episode only.
-            Some(Err(err)) => {
-                errln!(
-                    "dataset: skipping episode {} (scene '{}', seed {}): {err:#}",
-                    plan.id,
-                    plan.scene.name,
-                    plan.seed
-                );
-                continue;
-            }
-            None => bail!("episode {} did not run", plan.id),
-        };
-        episodes.push(EpisodeEntry {
-            id: plan.id,
-            scene: plan.scene.name.clone(),
-            scene_file: plan.scene_file.clone(),
-            seed: plan.seed,
-            split: plan.split.to_string(),
-            scans: windows.scans,
-            person_visible_scans: windows.visible,
-            windows: windows.windows.starts.len(),
-            fixed_lidar_at: windows.fixed_lidar_at,
-        });
-        let k = SPLITS.iter().position(|s| *s == plan.split).unwrap_or(0);
-        per_split[k].0.push(windows);
-        per_split[k].1.push(plan.id);
-    }
+    let period_s = 1.0 / rate_hz;
+    run_in_order(
+        &plans,
+        args.threads,
+        |plan| {
+            let result = run_episode(plan, &args, &renderer);
+            bar.inc(1);
+            result
+        },
+        |plan, result| {
+            let windows = match result {
+                Ok(windows) => windows,
+                // A scene too small for a random script (e.g. no room to run) loses that
+                // episode only.
+                Err(err) => {
+                    bar.suspend(|| {
+                        errln!(
+                            "dataset: skipping episode {} (scene '{}', seed {}): {err:#}",
+                            plan.id,
+                            plan.scene.name,
+                            plan.seed
+                        )
+                    });
+                    return Ok(());
+                }
+            };
+            episodes.push(EpisodeEntry {
+                id: plan.id,
+                scene: plan.scene.name.clone(),
+                scene_file: plan.scene_file.clone(),
+                seed: plan.seed,
+                split: plan.split.to_string(),
+                scans: windows.scans,
+                person_visible_scans: windows.visible,
+                windows: windows.windows.starts.len(),
+                fixed_lidar_at: windows.fixed_lidar_at,
+            });
+            let k = SPLITS.iter().position(|s| *s == plan.split).unwrap_or(0);
+            writers[k].push(plan.id, &windows.windows, period_s)
+        },
+    )?;
+    bar.finish_and_clear();
 
+    // Before anything is renamed: a failed run leaves a dataset already in `--out` whole (the
+    // writers remove their files when dropped).
+    if episodes.is_empty() {
+        bail!(
+            "no episode could be run (each skipped above); nothing was written to {}",
+            args.out.display()
+        );
+    }
+    if episodes.iter().all(|e| e.windows == 0) {
+        let longest = episodes.iter().map(|e| e.scans).max().unwrap_or(0);
+        bail!(
+            "no episode gave a window: the longest has {longest} scans, fewer than --window {} \
+             (raise --episode-seconds or lower --window); nothing was written to {}",
+            args.window,
+            args.out.display()
+        );
+    }
     let mut index = DatasetIndex {
         format_version: FORMAT_VERSION,
         spec: DatasetSpec {
@@ -467,72 +479,12 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         episodes,
         windows: Vec::new(),
     };
-    // Before anything is written: a failed run leaves a dataset already in `--out` whole.
-    if index.episodes.is_empty() {
-        bail!(
-            "no episode could be run (each skipped above); nothing was written to {}",
-            args.out.display()
-        );
-    }
-    if index.episodes.iter().all(|e| e.windows == 0) {
-        let longest = index.episodes.iter().map(|e| e.scans).max().unwrap_or(0);
-        bail!(
-            "no episode gave a window: the longest has {longest} scans, fewer than --window {} \
-             (raise --episode-seconds or lower --window); nothing was written to {}",
-            args.window,
-            args.out.display()
-        );
-    }
-    let period_s = 1.0 / rate_hz;
-    // Arrays go to temporary names, renamed once all are written, so an interrupted run
-    // does not leave new arrays beside an old index.
     let mut written = Vec::new();
-    for (split, (parts, ids)) in SPLITS.iter().zip(per_split) {
-        let total: usize = parts.iter().map(|p| p.windows.starts.len()).sum();
-        let mut counts = vec![0usize; Activity::COUNT];
-        let mut row = 0;
-        for (part, episode) in parts.iter().map(|p| &p.windows).zip(ids) {
-            let n = part.starts.len();
-            for (k, &start) in part.starts.iter().enumerate() {
-                let last = part.labels[[k, args.window - 1]] as usize;
-                counts[last] += 1;
-                index.windows.push(WindowEntry {
-                    split: split.to_string(),
-                    row: row + k,
-                    episode,
-                    start_scan: start,
-                    start_s: start as f64 * period_s,
-                    label: Activity::from_index(last).unwrap_or(Activity::Standing),
-                });
-            }
-            row += n;
-        }
-        let entry = SplitEntry {
-            windows: total,
-            images: format!("{split}_images.npy"),
-            labels: format!("{split}_labels.npy"),
-            positions: Some(format!("{split}_positions.npy")),
-            class_counts: counts,
-        };
-        let windows = || parts.iter().map(|p| &p.windows);
-        written.push(write_rows_partial(
-            &args.out.join(&entry.images),
-            [total, args.window, args.size, args.size],
-            windows().map(|w| w.images.view().into_dyn()),
-        )?);
-        written.push(write_rows_partial(
-            &args.out.join(&entry.labels),
-            [total, args.window],
-            windows().map(|w| w.labels.view().into_dyn()),
-        )?);
-        if let Some(file) = &entry.positions {
-            written.push(write_rows_partial(
-                &args.out.join(file),
-                [total, args.window, 4],
-                windows().map(|w| w.positions.view().into_dyn()),
-            )?);
-        }
-        index.splits.insert(split.to_string(), entry);
+    for writer in writers {
+        let split = writer.finish()?;
+        index.splits.insert(split.name.to_string(), split.entry);
+        index.windows.extend(split.windows);
+        written.extend(split.files);
     }
     for (partial, path) in written {
         std::fs::rename(&partial, &path).with_context(|| {
@@ -551,50 +503,265 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Writes the rows of `parts` one part after the other, as one `.npy` array of `shape` (the
-/// parts' rows, first axis, add up to its first) beside `path` under a temporary name;
-/// returns (temporary, final) paths. The parts are not first gathered into one array: that
-/// held a second copy of the split in memory, the command's peak (642 MB for a 380 MB
-/// dataset). The file is the one `ndarray_npy::write_npy` writes for the gathered array.
-fn write_rows_partial<'a, A, const N: usize>(
-    path: &Path,
-    shape: [usize; N],
-    parts: impl Iterator<Item = ndarray::ArrayViewD<'a, A>>,
-) -> anyhow::Result<(PathBuf, PathBuf)>
-where
-    A: ndarray_npy::WritableElement + Clone + 'a,
-{
-    use std::io::Write;
-    let partial = path.with_extension("npy.partial");
-    let write = || -> anyhow::Result<()> {
-        let file = std::fs::File::create(&partial)?;
-        // The header, then the data's length in zeros; the cursor stays where the data begins.
-        ndarray_npy::write_zeroed_npy::<A, _>(&file, ndarray::IxDyn(&shape))?;
-        let mut out = std::io::BufWriter::new(&file);
-        let mut rows = 0;
-        for part in parts {
-            if part.shape()[1..] != shape[1..] {
-                bail!(
-                    "rows of shape {:?}, not {:?}",
-                    &part.shape()[1..],
-                    &shape[1..]
-                );
-            }
-            rows += part.shape()[0];
-            let standard = part.as_standard_layout();
-            let Some(elements) = standard.as_slice() else {
-                bail!("an array in standard layout is not contiguous");
-            };
-            A::write_slice(elements, &mut out)?;
+/// The shape of a window's arrays.
+#[derive(Debug, Clone, Copy)]
+struct WindowShape {
+    window: usize,
+    size: usize,
+}
+
+/// One split's arrays and index entries, taken an episode at a time as the episodes finish.
+struct SplitWriter {
+    name: &'static str,
+    images: NpyRows<u8>,
+    labels: NpyRows<u8>,
+    positions: NpyRows<f32>,
+    windows: Vec<WindowEntry>,
+    counts: Vec<usize>,
+}
+
+/// A split written: its entry in the index, its windows', and its arrays as (temporary,
+/// final) paths.
+struct FinishedSplit {
+    name: &'static str,
+    entry: SplitEntry,
+    windows: Vec<WindowEntry>,
+    files: Vec<(PathBuf, PathBuf)>,
+}
+
+impl SplitWriter {
+    fn create(out: &Path, name: &'static str, shape: WindowShape) -> anyhow::Result<Self> {
+        let WindowShape { window, size } = shape;
+        let file = |array: &str| out.join(format!("{name}_{array}.npy"));
+        Ok(Self {
+            name,
+            images: NpyRows::create(&file("images"), &[window, size, size])?,
+            labels: NpyRows::create(&file("labels"), &[window])?,
+            positions: NpyRows::create(&file("positions"), &[window, 4])?,
+            windows: Vec::new(),
+            counts: vec![0; Activity::COUNT],
+        })
+    }
+
+    fn push(
+        &mut self,
+        episode: usize,
+        part: &RenderedWindows,
+        period_s: f64,
+    ) -> anyhow::Result<()> {
+        let row = self.images.rows;
+        for (k, &start) in part.starts.iter().enumerate() {
+            let last = part.labels[[k, part.labels.ncols() - 1]] as usize;
+            self.counts[last] += 1;
+            self.windows.push(WindowEntry {
+                split: self.name.to_string(),
+                row: row + k,
+                episode,
+                start_scan: start,
+                start_s: start as f64 * period_s,
+                label: Activity::from_index(last).unwrap_or(Activity::Standing),
+            });
         }
-        if rows != shape[0] {
-            bail!("{rows} rows written, {} declared", shape[0]);
+        self.images.push(part.images.view().into_dyn())?;
+        self.labels.push(part.labels.view().into_dyn())?;
+        self.positions.push(part.positions.view().into_dyn())
+    }
+
+    fn finish(self) -> anyhow::Result<FinishedSplit> {
+        let entry = SplitEntry {
+            windows: self.windows.len(),
+            images: self.images.file_name(),
+            labels: self.labels.file_name(),
+            positions: Some(self.positions.file_name()),
+            class_counts: self.counts,
+        };
+        Ok(FinishedSplit {
+            name: self.name,
+            entry,
+            windows: self.windows,
+            files: vec![
+                self.images.finish()?,
+                self.labels.finish()?,
+                self.positions.finish()?,
+            ],
+        })
+    }
+}
+
+/// A `.npy` array written a part at a time without holding the parts: their rows go to a
+/// data file beside `path` as they come (`.npy.rows`, removed when done or dropped), and
+/// `finish` writes the array, its header declaring the rows pushed, under a temporary name.
+/// The file is the one `ndarray_npy::write_npy` writes for the gathered array.
+struct NpyRows<A> {
+    path: PathBuf,
+    rows_path: PathBuf,
+    out: std::io::BufWriter<std::fs::File>,
+    row_shape: Vec<usize>,
+    rows: usize,
+    element: std::marker::PhantomData<A>,
+}
+
+impl<A: ndarray_npy::WritableElement + Clone> NpyRows<A> {
+    fn create(path: &Path, row_shape: &[usize]) -> anyhow::Result<Self> {
+        let rows_path = path.with_extension("npy.rows");
+        let file = std::fs::File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&rows_path)
+            .with_context(|| format!("cannot create {}", rows_path.display()))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            rows_path,
+            out: std::io::BufWriter::new(file),
+            row_shape: row_shape.to_vec(),
+            rows: 0,
+            element: std::marker::PhantomData,
+        })
+    }
+
+    fn file_name(&self) -> String {
+        self.path
+            .file_name()
+            .map(|name| name.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    }
+
+    /// Appends `part`'s rows (its first axis).
+    fn push(&mut self, part: ndarray::ArrayViewD<'_, A>) -> anyhow::Result<()> {
+        if part.shape()[1..] != self.row_shape[..] {
+            bail!(
+                "{}: rows of shape {:?}, not {:?}",
+                self.path.display(),
+                &part.shape()[1..],
+                self.row_shape
+            );
         }
-        out.flush()?;
+        let standard = part.as_standard_layout();
+        let Some(elements) = standard.as_slice() else {
+            bail!("an array in standard layout is not contiguous");
+        };
+        A::write_slice(elements, &mut self.out)
+            .with_context(|| format!("cannot write {}", self.rows_path.display()))?;
+        self.rows += part.shape()[0];
         Ok(())
+    }
+
+    /// Writes the array under a temporary name; returns (temporary, final) paths.
+    fn finish(mut self) -> anyhow::Result<(PathBuf, PathBuf)> {
+        use std::io::{Seek, Write};
+        let partial = self.path.with_extension("npy.partial");
+        let shape: Vec<usize> = std::iter::once(self.rows)
+            .chain(self.row_shape.iter().copied())
+            .collect();
+        let mut write = || -> anyhow::Result<()> {
+            self.out.flush()?;
+            let rows = self.out.get_mut();
+            let data_len = rows.stream_position()?;
+            rows.rewind()?;
+            let file = std::fs::File::create(&partial)?;
+            // The header, then the data's length in zeros; the cursor stays where the data
+            // begins.
+            ndarray_npy::write_zeroed_npy::<A, _>(&file, ndarray::IxDyn(&shape))?;
+            let copied = std::io::copy(rows, &mut &file)?;
+            if copied != data_len {
+                bail!("{copied} of {data_len} bytes of the rows copied");
+            }
+            Ok(())
+        };
+        write().with_context(|| format!("cannot write {}", partial.display()))?;
+        Ok((partial, self.path.clone()))
+    }
+}
+
+impl<A> Drop for NpyRows<A> {
+    fn drop(&mut self) {
+        // The rows are in the finished array, or the run failed: spent either way.
+        let _ = std::fs::remove_file(&self.rows_path);
+    }
+}
+
+/// Runs `work` on each item on `threads` threads and hands the results to `take`, on the
+/// calling thread, in the items' order. A worker does not start an item more than
+/// `2 * threads` ahead of the first one not yet taken, so few results wait at once. The
+/// first error from `take` stops the workers (after their current item) and is returned.
+fn run_in_order<T: Sync, R: Send>(
+    items: &[T],
+    threads: usize,
+    work: impl Fn(&T) -> R + Sync,
+    mut take: impl FnMut(&T, R) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    struct Progress {
+        next: usize,
+        taken: usize,
+        stop: bool,
+    }
+    let ahead = 2 * threads.max(1);
+    let progress = Mutex::new(Progress {
+        next: 0,
+        taken: 0,
+        stop: false,
+    });
+    let wake = std::sync::Condvar::new();
+    let lock = || {
+        progress
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
     };
-    write().with_context(|| format!("cannot write {}", partial.display()))?;
-    Ok((partial, path.to_path_buf()))
+    let (results, received) = std::sync::mpsc::channel::<(usize, R)>();
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            let results = results.clone();
+            let (work, wake, lock) = (&work, &wake, &lock);
+            scope.spawn(move || {
+                loop {
+                    let i = {
+                        let mut p = lock();
+                        while !p.stop && p.next < items.len() && p.next >= p.taken + ahead {
+                            p = wake
+                                .wait(p)
+                                .unwrap_or_else(|poisoned| poisoned.into_inner());
+                        }
+                        if p.stop || p.next >= items.len() {
+                            break;
+                        }
+                        p.next += 1;
+                        p.next - 1
+                    };
+                    if results.send((i, work(&items[i]))).is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+        drop(results);
+        let mut waiting = std::collections::BTreeMap::new();
+        let mut taken = 0;
+        let mut outcome = Ok(());
+        'received: for (i, result) in received.iter() {
+            waiting.insert(i, result);
+            while let Some(result) = waiting.remove(&taken) {
+                outcome = take(&items[taken], result);
+                if outcome.is_err() {
+                    break 'received;
+                }
+                taken += 1;
+                lock().taken = taken;
+                wake.notify_all();
+            }
+        }
+        if outcome.is_ok() && taken < items.len() {
+            outcome = Err(anyhow::anyhow!(
+                "item {taken} did not run (a worker stopped)"
+            ));
+        }
+        if outcome.is_err() {
+            lock().stop = true;
+            wake.notify_all();
+        }
+        outcome
+    })
 }
 
 fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
@@ -1049,12 +1216,22 @@ mod tests {
     use super::*;
 
     #[test]
-    fn rows_written_part_by_part_make_the_file_of_the_gathered_array() {
+    fn rows_pushed_part_by_part_make_the_file_of_the_gathered_array() {
         let dir = tempfile::tempdir().unwrap();
-        let written = |name: &str, write: &dyn Fn(&Path) -> anyhow::Result<(PathBuf, PathBuf)>| {
-            let (partial, _) = write(&dir.path().join(name)).unwrap();
+        fn written<A: ndarray_npy::WritableElement + Clone>(
+            path: &Path,
+            row_shape: &[usize],
+            parts: &[ndarray::ArrayViewD<'_, A>],
+        ) -> Vec<u8> {
+            let mut rows = NpyRows::<A>::create(path, row_shape).unwrap();
+            for part in parts {
+                rows.push(part.clone()).unwrap();
+            }
+            let rows_path = rows.rows_path.clone();
+            let (partial, _) = rows.finish().unwrap();
+            assert!(!rows_path.exists(), "the rows file is removed once written");
             std::fs::read(partial).unwrap()
-        };
+        }
         let gathered = |name: &str, write: &dyn Fn(&Path)| {
             let path = dir.path().join(name);
             write(&path);
@@ -1066,11 +1243,11 @@ mod tests {
         let b = Array4::from_shape_fn((1, 3, 4, 4), |(_, t, y, x)| (200 + t * 16 + y + x) as u8);
         let both = ndarray::concatenate(Axis(0), &[a.view(), b.view()]).unwrap();
         assert_eq!(
-            written("images", &|path| write_rows_partial(
-                path,
-                [3, 3, 4, 4],
-                [a.view().into_dyn(), b.view().into_dyn()].into_iter()
-            )),
+            written(
+                &dir.path().join("images.npy"),
+                &[3, 4, 4],
+                &[a.view().into_dyn(), b.view().into_dyn()]
+            ),
             gathered("images_gathered.npy", &|path| ndarray_npy::write_npy(
                 path, &both
             )
@@ -1082,13 +1259,12 @@ mod tests {
         });
         let mut transposed = Array3::<f32>::zeros((4, 3, 2));
         transposed.assign(&p.view().reversed_axes());
-        let p_view = transposed.view().reversed_axes().into_dyn();
         assert_eq!(
-            written("positions", &|path| write_rows_partial(
-                path,
-                [2, 3, 4],
-                [p_view.clone()].into_iter()
-            )),
+            written(
+                &dir.path().join("positions.npy"),
+                &[3, 4],
+                &[transposed.view().reversed_axes().into_dyn()]
+            ),
             gathered("positions_gathered.npy", &|path| ndarray_npy::write_npy(
                 path, &p
             )
@@ -1096,22 +1272,67 @@ mod tests {
         );
         // A split without episodes.
         assert_eq!(
-            written("empty", &|path| write_rows_partial::<u8, 2>(
-                path,
-                [0, 3],
-                std::iter::empty()
-            )),
+            written::<u8>(&dir.path().join("empty.npy"), &[3], &[]),
             gathered("empty_gathered.npy", &|path| {
                 ndarray_npy::write_npy(path, &Array2::<u8>::zeros((0, 3))).unwrap()
             })
         );
-        // Parts that do not add up to the shape declared are an error, not a bad file.
-        let short = write_rows_partial(
-            &dir.path().join("short"),
-            [4, 3, 4, 4],
-            [a.view().into_dyn()].into_iter(),
+        // Rows of another shape are an error naming the array, not a bad file.
+        let mut rows = NpyRows::<u8>::create(&dir.path().join("bad.npy"), &[3, 5, 5]).unwrap();
+        let err = rows.push(a.view().into_dyn()).unwrap_err();
+        assert!(
+            format!("{err:#}").contains("bad.npy: rows of shape [3, 4, 4], not [3, 5, 5]"),
+            "{err:#}"
         );
-        assert!(format!("{:#}", short.unwrap_err()).contains("2 rows written, 4 declared"));
+        // A run that fails before finishing leaves no rows file behind.
+        let rows_path = rows.rows_path.clone();
+        assert!(rows_path.exists());
+        drop(rows);
+        assert!(!rows_path.exists());
+    }
+
+    #[test]
+    fn results_are_taken_in_order_and_the_first_error_stops_the_run() {
+        let items: Vec<usize> = (0..40).collect();
+        for threads in [1, 3] {
+            let mut order = Vec::new();
+            // Later items finish first: the results still come in the items' order.
+            run_in_order(
+                &items,
+                threads,
+                |&i| {
+                    std::thread::sleep(std::time::Duration::from_micros(((40 - i) * 50) as u64));
+                    i * 2
+                },
+                |&i, doubled| {
+                    assert_eq!(doubled, i * 2);
+                    order.push(i);
+                    Ok(())
+                },
+            )
+            .unwrap();
+            assert_eq!(order, items);
+        }
+        let ran = std::sync::atomic::AtomicUsize::new(0);
+        let err = run_in_order(
+            &items,
+            2,
+            |&i| {
+                ran.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                i
+            },
+            |&i, _| {
+                if i == 5 {
+                    bail!("disk full at item {i}")
+                }
+                Ok(())
+            },
+        )
+        .unwrap_err();
+        assert_eq!(err.to_string(), "disk full at item 5");
+        // Workers never run more than 2 x threads items past the one that failed.
+        let ran = ran.into_inner();
+        assert!(ran <= 5 + 1 + 4, "{ran} items ran");
     }
 
     #[test]
