@@ -154,7 +154,7 @@ struct Learning {
     last_ns: Option<i64>,
     learned_ns: i64,
     scans: usize,
-    /// Set by the first learning scan with beams.
+    /// Set by the first learning scan (one with a return).
     bins: Option<Bins>,
     /// The returns of each bin.
     samples: Vec<Vec<f32>>,
@@ -172,10 +172,9 @@ struct BeamThresholds {
 enum State {
     /// Collecting returns per bin.
     Learning(Learning),
-    /// `threshold[b]`: a return in bin `b` closer than this is foreground (no bins when no
-    /// learning scan had beams: everything is open space).
+    /// `threshold[b]`: a return in bin `b` closer than this is foreground.
     Ready {
-        bins: Option<Bins>,
+        bins: Bins,
         threshold: Vec<f32>,
         beams: BeamThresholds,
     },
@@ -210,15 +209,23 @@ impl LearnedBackground {
         let State::Learning(learning) = &mut self.state else {
             return BackgroundStatus::Ready;
         };
+        // A scan without a single return (a motor spinning up, a covered window, a driver's
+        // empty rotation) shows nothing of the room: learning from it made every bearing
+        // open space, and all furniture foreground for good. It counts neither as a
+        // learning scan nor as learning time.
+        let has_returns = scan.ranges.iter().any(|&r| scan.is_return(r));
         match learning.last_ns {
             Some(last) if scan.stamp_ns < last => *learning = Learning::default(),
-            Some(last) => {
+            Some(last) if has_returns => {
                 let gap_ns = scan.stamp_ns.saturating_sub(last).min(MAX_LEARNING_GAP_NS);
                 learning.learned_ns = learning.learned_ns.saturating_add(gap_ns);
             }
-            None => {}
+            _ => {}
         }
         learning.last_ns = Some(scan.stamp_ns);
+        if !has_returns {
+            return BackgroundStatus::Learning;
+        }
         let Learning {
             learned_ns,
             scans,
@@ -227,7 +234,7 @@ impl LearnedBackground {
             ..
         } = learning;
         if (*learned_ns as f64) * 1e-9 < self.config.learn_duration_s || *scans == 0 {
-            if bins.is_none() && !scan.ranges.is_empty() {
+            if bins.is_none() {
                 let learned = Bins::of(scan);
                 samples.resize_with(learned.count, Vec::new);
                 *bins = Some(learned);
@@ -242,6 +249,10 @@ impl LearnedBackground {
             *scans += 1;
             return BackgroundStatus::Learning;
         }
+        // Set by the learning scans, of which there was one at least.
+        let Some(bins) = *bins else {
+            return BackgroundStatus::Learning;
+        };
         let min_returns = (self.config.min_return_fraction * *scans as f64)
             .ceil()
             .max(1.0) as usize;
@@ -267,7 +278,7 @@ impl LearnedBackground {
             })
             .collect();
         self.state = State::Ready {
-            bins: *bins,
+            bins,
             threshold,
             beams: BeamThresholds::default(),
         };
@@ -298,12 +309,9 @@ impl LearnedBackground {
         if beams.key != Some(key) {
             beams.key = Some(key);
             beams.threshold.clear();
-            match bins {
-                Some(bins) => beams
-                    .threshold
-                    .extend(bins.of_beams(scan).map(|bin| threshold[bin])),
-                None => beams.threshold.resize(scan.ranges.len(), f32::INFINITY),
-            }
+            beams
+                .threshold
+                .extend(bins.of_beams(scan).map(|bin| threshold[bin]));
         }
         &beams.threshold
     }
@@ -591,9 +599,33 @@ mod tests {
     }
 
     #[test]
-    fn empty_learning_scans_give_an_all_open_background() {
-        let mut bg = learned(|_| Vec::new());
-        assert!(is_foreground(&mut bg, at(0), 1.0));
+    fn scans_without_returns_are_not_learned_from() {
+        let mut bg = LearnedBackground::new(BackgroundConfig::default());
+        // 3.1 s of rotations without a return (no beams, or none in range), then the room.
+        for k in 0..31 {
+            let ranges = if k % 2 == 0 {
+                Vec::new()
+            } else {
+                vec![f32::INFINITY; 4]
+            };
+            assert_eq!(
+                bg.observe(&scan(k as f64 * 0.1, ranges)),
+                BackgroundStatus::Learning,
+                "scan {k}"
+            );
+        }
+        // Before, these scans had made every bearing open space, so the wall at 1 m became
+        // foreground for good. Now the room's own 3 s are learned, the wall with them.
+        for k in 31..60 {
+            let status = bg.observe(&scan(k as f64 * 0.1, vec![1.0; 4]));
+            assert_eq!(status, BackgroundStatus::Learning, "scan {k}");
+        }
+        assert_eq!(
+            bg.observe(&scan(6.0, vec![1.0; 4])),
+            BackgroundStatus::Ready
+        );
+        assert!(!is_foreground(&mut bg, at(0), 1.0));
+        assert!(is_foreground(&mut bg, at(0), 0.5));
     }
 
     #[test]

@@ -461,8 +461,9 @@ impl LocaliserStage {
     }
 
     /// Warns once when the background is still not learned twice its learning time after the
-    /// first scan came (the Lidar sends broken scans, its stamps keep going back): nothing
-    /// is localised until it is, and nothing else would say so while the input lasts.
+    /// first scan came (the Lidar sends broken scans, or none with a return; its stamps keep
+    /// going back): nothing is localised until it is, and nothing else would say so while the
+    /// input lasts.
     fn check_learning_time(&mut self, received_ns: i64) {
         let first_ns = *self.first_scan_received_ns.get_or_insert(received_ns);
         if self.learning_overdue_warned || !self.learning() {
