@@ -57,14 +57,25 @@ def load_index(data_dir: Path) -> dict:
     return index
 
 
+def load_array(path: Path, mapped: bool = False) -> np.ndarray:
+    """One `.npy` array (`mapped`: left on disk); a missing, unreadable or cut-short file is a
+    DatasetError naming it, not a traceback."""
+    try:
+        return np.load(path, mmap_mode="r" if mapped else None)
+    except OSError as err:
+        raise DatasetError(f"{path}: cannot read the array: {err.strerror or err}") from err
+    except (ValueError, EOFError) as err:
+        raise DatasetError(f"{path}: not a whole .npy array ({err})") from err
+
+
 def load_split(data_dir: Path, index: dict, name: str, mapped: bool = False) -> Split | None:
     """One split's windows; `mapped` leaves the images on disk (memory-mapped), for readers that
     go through them once in order."""
     info = index.get("splits", {}).get(name)
     if info is None or info.get("windows", 0) == 0:
         return None
-    images = np.load(data_dir / info["images"], mmap_mode="r" if mapped else None)
-    labels = np.load(data_dir / info["labels"])
+    images = load_array(data_dir / info["images"], mapped)
+    labels = load_array(data_dir / info["labels"])
     spec = index["spec"]
     expected = (info["windows"], spec["window"], spec["size"], spec["size"])
     if images.shape != expected or images.dtype != np.uint8:
@@ -86,7 +97,7 @@ def seen_steps(data_dir: Path, info: dict, expected: tuple, images: np.ndarray) 
     if "positions" not in info:
         return visible_steps(images)
     path = data_dir / info["positions"]
-    positions = np.load(path)
+    positions = load_array(path)
     if positions.shape != (*expected[:2], 4) or positions.dtype != np.float32:
         raise DatasetError(f"{path}: shape {positions.shape} {positions.dtype}, expected {(*expected[:2], 4)} float32")
     return np.isfinite(positions[:, :, 2:]).all(axis=2)

@@ -7,7 +7,8 @@ as large as ONNX Runtime's) and through ONNX Runtime, which at every step is giv
 frame and the reference's state; the largest difference of logits and states must be at most
 1e-5 absolute for values up to 1 in magnitude, and 1e-5 of the largest magnitude above that
 (float32 keeps about seven digits: a cell state of magnitude 20 is a few ulps from the exact
-value at 1e-5 absolute); else the export fails and the file is removed. Against float32
+value at 1e-5 absolute); else the export fails, leaving what was at `--out` as it was (the
+refused export is kept as `<out>.rejected.onnx`). Against float32
 PyTorch, free-running, one retraining of the sweep's reference failed at 1.1e-5 on h: the
 check measured two runtimes' rounding, not the export. How far ONNX Runtime drifts when it
 carries its own state through a whole window is reported too, not checked. The report keeps
@@ -34,6 +35,7 @@ from google.protobuf.message import DecodeError
 from onnx import numpy_helper
 
 from .model import ActivityConvLSTM, StepModel
+from .outputs import replaced_when_done, set_aside
 
 PARITY_TOLERANCE = 1e-5
 SCAN_RATE_HZ_DEFAULT = 20.0
@@ -45,43 +47,42 @@ class ExportError(Exception):
 
 def export_step_model(model: ActivityConvLSTM, spec: dict, out: Path, windows_u8: np.ndarray) -> dict:
     """Writes `out`; returns the parity figures over `windows_u8`, per output: the largest
-    absolute difference and the largest magnitude PyTorch produced."""
+    absolute difference and the largest magnitude PyTorch produced. The model is written and
+    checked under a temporary name and renamed to `out` only once it passed: when it fails,
+    what was at `out` stays, and the refused export is kept beside it (`set_aside`)."""
     model.eval()
-    out.parent.mkdir(parents=True, exist_ok=True)
     size, hidden, hs = model.size, model.hidden, model.state_size
     frame = torch.rand(1, 1, size, size)
     # Separate, different example tensors for h and c: one shared zeros tensor makes the
     # exporter merge the two inputs (FINDINGS.md).
     h = torch.rand(1, hidden, hs, hs) * 0.1
     c = torch.rand(1, hidden, hs, hs) * 0.2
-    torch.onnx.export(
-        StepModel(model),
-        (frame, h, c),
-        str(out),
-        input_names=["frame", "h", "c"],
-        output_names=["logits", "h_next", "c_next"],
-        opset_version=18,
-        dynamo=False,
-    )
-    proto = onnx.load(str(out))
-    meta = {
-        **image_metadata(spec),
-        "lidar_har.window": str(spec["window"]),
-        "lidar_har.hidden": str(hidden),
-    }
-    set_metadata(proto, meta, "lidar_har activity ConvLSTM step model (docs/model_contract.md)")
-    onnx.checker.check_model(proto)
-    check_io(proto, size, hidden, hs)
-    onnx.save(proto, str(out))
-    try:
-        figures = parity(model, out, windows_u8)
-    except Exception:
-        out.unlink(missing_ok=True)
-        raise
-    failed = outside_tolerance(figures["step"])
-    if failed:
-        out.unlink(missing_ok=True)
-        raise ExportError(f"parity check failed (limit {PARITY_TOLERANCE:.0e} x max(1, largest magnitude)): {failed}")
+    with replaced_when_done(out) as temp:
+        torch.onnx.export(
+            StepModel(model),
+            (frame, h, c),
+            str(temp),
+            input_names=["frame", "h", "c"],
+            output_names=["logits", "h_next", "c_next"],
+            opset_version=18,
+            dynamo=False,
+        )
+        proto = onnx.load(str(temp))
+        meta = {
+            **image_metadata(spec),
+            "lidar_har.window": str(spec["window"]),
+            "lidar_har.hidden": str(hidden),
+        }
+        set_metadata(proto, meta, "lidar_har activity ConvLSTM step model (docs/model_contract.md)")
+        onnx.checker.check_model(proto)
+        check_io(proto, size, hidden, hs)
+        onnx.save(proto, str(temp))
+        figures = parity(model, temp, windows_u8)
+        failed = outside_tolerance(figures["step"])
+        if failed:
+            rejected = set_aside(temp, out)
+            raise ExportError(f"parity check failed (limit {PARITY_TOLERANCE:.0e} x max(1, largest magnitude)): "
+                              f"{failed}; {out} is not written, the refused export is {rejected}")
     return figures
 
 

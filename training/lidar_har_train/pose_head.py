@@ -22,6 +22,7 @@ figure to quote.
 import argparse
 import hashlib
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -32,9 +33,10 @@ import torch
 from onnx import numpy_helper
 from torch import nn
 
-from .data import CLASSES, load_index, load_split
+from .data import CLASSES, DatasetError, load_array, load_index, load_split
 from .export import PARITY_TOLERANCE, ExportError, model_from_onnx, set_metadata
-from .train import choose_device
+from .outputs import OutputError, prepare_output, replaced_when_done, set_aside
+from .train import DeviceError, choose_device
 
 KEY_ACTIVITY_SHA256 = "lidar_har.pose_head.activity_sha256"
 KEY_MIN_HISTORY = "lidar_har.pose_head.min_history"
@@ -230,28 +232,33 @@ def scores(before, after, sigma, data, used, max_sigma):
 def export(head, out: Path, hidden: int, side: int, metadata: dict, sample: dict):
     """Writes the head as ONNX (`h` [1, hidden, side, side], `located` [1, 2] -> `offset`
     [1, 2], `sigma` [1, 1]) with `metadata`, checked against PyTorch on `sample`; the head
-    is moved to the CPU."""
+    is moved to the CPU. Written under a temporary name, renamed to `out` once it passed: a
+    failed check leaves what was at `out` (the refused head is kept beside it)."""
     head.cpu().eval()
-    torch.onnx.export(head, (torch.rand(1, hidden, side, side), torch.rand(1, 2)), str(out),
-                      input_names=["h", "located"], output_names=["offset", "sigma"], opset_version=18, dynamo=False)
-    proto = onnx.load(str(out))
-    set_metadata(proto, metadata, "lidar_har pose head: pelvis offset from the activity model's state (docs/model_contract.md)")
-    onnx.checker.check_model(proto)
-    onnx.save(proto, str(out))
-    session = ort.InferenceSession(str(out), providers=["CPUExecutionProvider"])
-    worst = 0.0
-    with torch.no_grad():
-        for i in range(len(sample["states"])):
-            h = sample["states"][i : i + 1].float().cpu().numpy()
-            located = sample["located"][i : i + 1]
-            reference = head.double()(torch.from_numpy(h).double(), torch.from_numpy(located).double())
-            got = session.run(["offset", "sigma"], {"h": h, "located": located})
-            for r, g in zip(reference, got):
-                worst = max(worst, float(np.abs(r.numpy() - g).max()))
-    head.float()
-    if not worst <= PARITY_TOLERANCE:
-        out.unlink(missing_ok=True)
-        raise ExportError(f"pose head parity check failed: {worst:.2e} > {PARITY_TOLERANCE:.0e}")
+    with replaced_when_done(out) as temp:
+        torch.onnx.export(head, (torch.rand(1, hidden, side, side), torch.rand(1, 2)), str(temp),
+                          input_names=["h", "located"], output_names=["offset", "sigma"], opset_version=18,
+                          dynamo=False)
+        proto = onnx.load(str(temp))
+        set_metadata(proto, metadata,
+                     "lidar_har pose head: pelvis offset from the activity model's state (docs/model_contract.md)")
+        onnx.checker.check_model(proto)
+        onnx.save(proto, str(temp))
+        session = ort.InferenceSession(str(temp), providers=["CPUExecutionProvider"])
+        worst = 0.0
+        with torch.no_grad():
+            for i in range(len(sample["states"])):
+                h = sample["states"][i : i + 1].float().cpu().numpy()
+                located = sample["located"][i : i + 1]
+                reference = head.double()(torch.from_numpy(h).double(), torch.from_numpy(located).double())
+                got = session.run(["offset", "sigma"], {"h": h, "located": located})
+                for r, g in zip(reference, got):
+                    worst = max(worst, float(np.abs(r.numpy() - g).max()))
+        head.float()
+        if not worst <= PARITY_TOLERANCE:
+            rejected = set_aside(temp, out)
+            raise ExportError(f"pose head parity check failed: {worst:.2e} > {PARITY_TOLERANCE:.0e}; "
+                              f"{out} is not written, the refused head is {rejected}")
     return worst
 
 
@@ -269,7 +276,7 @@ def load_head(path: Path, hidden: int, side: int) -> PoseHead:
     return head
 
 
-def main() -> None:
+def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("model", type=Path, help="the activity step model (ONNX) whose state the head reads")
     parser.add_argument("data", type=Path, help="a dataset with *_positions.npy")
@@ -294,8 +301,20 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--json", type=Path, help="write the scores here")
-    args = parser.parse_args()
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        return run(args)
+    except (DatasetError, DeviceError, ExportError, OutputError) as err:
+        print(f"pose_head: error: {err}", file=sys.stderr)
+        return 1
+
+
+def run(args) -> int:
     device = choose_device(args.device)
+    # Checked before the minutes of state extraction and fitting, not after them.
+    for path in (args.out, args.json):
+        if path:
+            prepare_output(path)
     torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
     index = load_index(args.data)
@@ -308,13 +327,13 @@ def main() -> None:
     for name in splits:
         info = index["splits"].get(name, {})
         if info.get("windows", 0) == 0:
-            raise SystemExit(f"{args.data}: split {name} has no windows")
+            raise DatasetError(f"{args.data}: split {name} has no windows")
         if "positions" not in info:
-            raise SystemExit(f"{args.data}: no positions in split {name}; remake it with today's `lidar-har dataset`")
+            raise DatasetError(f"{args.data}: no positions in split {name}; remake it with today's `lidar-har dataset`")
     for name in splits:
         split = load_split(args.data, index, name, mapped=True)
         info = index["splits"][name]
-        positions = np.load(args.data / info["positions"])
+        positions = load_array(args.data / info["positions"])
         rows = np.arange(len(split))
         limit = args.train_windows if name == "train" else args.test_windows
         if 0 < limit < len(rows):
@@ -360,6 +379,8 @@ def main() -> None:
             print(f"    {c:20s} {r['localiser']['per_activity'][c]} -> {r['head']['per_activity'][c]}"
                   f" -> {r['published']['per_activity'][c]}")
     print(f"head used for: {', '.join(used)}; where it expects an error of at most {max_sigma:.3f} m per axis")
+    # The scores first: a failed export must not lose them.
+    write_report(args.json, report)
     if args.out:
         metadata = {
             KEY_ACTIVITY_SHA256: hashlib.sha256(args.model.read_bytes()).hexdigest(),
@@ -371,9 +392,14 @@ def main() -> None:
         worst = export(head, args.out, model.hidden, model.state_size, metadata, sample)
         report["parity_max_abs_diff"] = worst
         print(f"wrote {args.out} (parity with PyTorch: max abs difference {worst:.1e})")
-    if args.json:
-        args.json.write_text(json.dumps(report, indent=1) + "\n")
+        write_report(args.json, report)
+    return 0
+
+
+def write_report(path: Path | None, report: dict) -> None:
+    if path:
+        path.write_text(json.dumps(report, indent=1) + "\n")
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -29,6 +29,7 @@ from torch import nn
 from .data import CLASSES, DatasetError, Split, load_index, load_split
 from .export import ExportError, export_step_model, model_from_onnx
 from .model import ActivityConvLSTM
+from .outputs import OutputError, prepare_output
 
 
 def parse_args(argv):
@@ -199,30 +200,37 @@ def summarise(logits: np.ndarray, split: Split, only_visible_last: bool = False)
     }
 
 
-def set_learning_rate(optimiser, args, epochs_done: int, step: int, elapsed_s: float) -> None:
+# The time counts for the learning rate only once it is this share of the budget ahead of
+# the steps: the first steps' own wall time (a GPU's warm-up too) must not change the rate of
+# a run whose epochs bind, or a fixed seed would not repeat it.
+TIME_SLACK = 0.02
+
+
+def learning_rate(args, epochs_done: int, step: int, elapsed_s: float) -> float:
     """Cosine decay over the training's progress: by steps, or by time when the budget binds.
 
     A fixed rate left the validation accuracy jumping by several points between epochs at the
     end; decaying it settles the weights into the best of the last basin.
     """
     by_steps = (epochs_done * args.steps_per_epoch + step) / (args.max_epochs * args.steps_per_epoch)
-    by_time = elapsed_s / (60 * args.time_budget_min)
+    by_time = (elapsed_s / (60 * args.time_budget_min) - TIME_SLACK) / (1 - TIME_SLACK)
     progress = min(1.0, max(by_steps, by_time))
-    lr = args.lr_final + 0.5 * (args.lr - args.lr_final) * (1 + math.cos(math.pi * progress))
-    for group in optimiser.param_groups:
-        group["lr"] = lr
+    return args.lr_final + 0.5 * (args.lr - args.lr_final) * (1 + math.cos(math.pi * progress))
 
 
 def train(args) -> int:
     device = choose_device(args.device)
     seed_everything(args.seed, args.threads, device)
     rng = np.random.default_rng(args.seed)
+    prepare_output(args.out)
     index = load_index(args.data)
     spec = index["spec"]
     train_all = load_split(args.data, index, "train")
     if train_all is None:
         raise DatasetError(f"{args.data}: the train split is empty")
     train_split, val_split = split_validation(train_all, args.val_fraction, rng)
+    # The two splits are copies: holding the whole split too would double the images' memory.
+    del train_all
     print(f"train {len(train_split)} windows, validation {len(val_split)} windows "
           f"({len(np.unique(val_split.episodes))} episodes)", flush=True)
 
@@ -254,7 +262,9 @@ def train(args) -> int:
                 logits = model(to_tensor(np.ascontiguousarray(images), device))
             labels = torch.from_numpy(train_split.labels[rows]).to(device)
             loss = loss_on_second_half(logits.float(), labels, mask)
-            set_learning_rate(optimiser, args, epoch - 1, step, time.monotonic() - started)
+            lr = learning_rate(args, epoch - 1, step, time.monotonic() - started)
+            for group in optimiser.param_groups:
+                group["lr"] = lr
             optimiser.zero_grad()
             loss.backward()
             nn.utils.clip_grad_norm_(model.parameters(), 5.0)
@@ -326,7 +336,7 @@ def main(argv=None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     try:
         return train(args)
-    except (DatasetError, DeviceError, ExportError) as err:
+    except (DatasetError, DeviceError, ExportError, OutputError) as err:
         print(f"train: error: {err}", file=sys.stderr)
         return 1
 

@@ -1,0 +1,47 @@
+"""Writing a command's output file so that a failed run leaves what was there whole, as
+`lidar-har dataset` does (temporary names, renamed at the end). Needs no PyTorch."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+
+class OutputError(Exception):
+    pass
+
+
+def prepare_output(path: Path) -> None:
+    """Makes `path`'s folder and checks that it takes files: before the minutes of work whose
+    result goes there, not after them."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(f"{path}: cannot make its folder {path.parent}: {err.strerror or err}") from err
+    if not os.access(path.parent, os.W_OK | os.X_OK):
+        raise OutputError(f"{path}: its folder {path.parent} is not writable")
+
+
+@contextmanager
+def replaced_when_done(out: Path) -> Iterator[Path]:
+    """Yields a temporary path beside `out` to write to; moves it to `out` when the block ends
+    and removes it when the block raises, so a failed or interrupted export never deletes or
+    half-writes the model already at `out` (`--init-from M --out M` names one)."""
+    prepare_output(out)
+    temp = out.with_name(out.name + ".tmp")
+    try:
+        yield temp
+    except BaseException:
+        temp.unlink(missing_ok=True)
+        raise
+    os.replace(temp, out)
+
+
+def set_aside(temp: Path, out: Path) -> Path:
+    """Moves a written but refused `temp` to `<out's stem>.rejected<suffix>` and returns that
+    path: it holds the run's weights, to inspect or to start from."""
+    rejected = out.with_name(f"{out.stem}.rejected{out.suffix}")
+    os.replace(temp, rejected)
+    return rejected
