@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use crate::RosError;
-use crate::params::{ParamSource, ParamValue, section_applies};
+use crate::params::{CLI_SECTION, ParamSource, ParamValue, section_applies};
 
 /// What `--ros-args` sections of a command line say.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -15,8 +15,8 @@ pub struct RosArgs {
     pub node_names: Vec<NodeRule>,
     /// `-r [node:]__ns:=/namespace`, in order; see [`RosArgs::namespace`].
     pub namespaces: Vec<NodeRule>,
-    /// `-p [node:]name:=value` and `--params-file FILE`, in command-line order: rcl applies
-    /// them in that order, a later one winning; see [`RosArgs::params_for`].
+    /// `-p [node:]name:=value` and `--params-file FILE`, in command-line order, the order rcl
+    /// merges them in; see [`RosArgs::params_for`].
     pub params: Vec<ParamArg>,
     /// Arguments outside `--ros-args` sections (the program's own).
     pub rest: Vec<String>,
@@ -89,8 +89,10 @@ impl RosArgs {
                     "--params-file" => out
                         .params
                         .push(ParamArg::File(PathBuf::from(value("a file")?))),
-                    // Accepted and ignored: logging and security settings of rcl.
-                    "--log-level" | "--log-config-file" | "-e" | "--enclave" => {
+                    // Accepted and ignored: logging and security settings of rcl. The nodes
+                    // log to stderr only, so Jazzy's `--log-file-name` names nothing here.
+                    "--log-level" | "--log-config-file" | "--log-file-name" | "-e"
+                    | "--enclave" => {
                         value("a value")?;
                     }
                     "--enable-rosout-logs"
@@ -183,11 +185,14 @@ impl RosArgs {
             .iter()
             .filter_map(|arg| match arg {
                 ParamArg::File(path) => Some(ParamSource::File(path.clone())),
-                ParamArg::Override(p) => p
-                    .node
-                    .as_deref()
-                    .is_none_or(|node| section_applies(node, node_fqn))
-                    .then(|| ParamSource::Value(p.name.clone(), p.value.clone())),
+                ParamArg::Override(p) => {
+                    let section = p.node.as_deref().unwrap_or(CLI_SECTION);
+                    section_applies(section, node_fqn).then(|| ParamSource::Value {
+                        section: section.to_string(),
+                        name: p.name.clone(),
+                        value: p.value.clone(),
+                    })
+                }
             })
             .collect()
     }
@@ -264,7 +269,8 @@ fn split_remap_node_prefix(lhs: &str) -> Result<(Option<&str>, &str), String> {
 const NODE_NAME_MAX_LEN: usize = 255;
 
 /// Checks a node name by rmw's rules (`rmw_validate_node_name`): letters, digits and '_',
-/// not starting with a digit, at most 255 characters. The middleware refuses any other name
+/// not starting with a digit, at most 255 characters; and without `__` (see
+/// [`validate_token`]). The middleware refuses any other name
 /// only once the node is being created; checking it with the arguments refuses it as a bad
 /// argument, before any DDS traffic.
 pub fn validate_node_name(name: &str) -> Result<(), String> {
@@ -281,8 +287,8 @@ pub fn validate_node_name(name: &str) -> Result<(), String> {
 }
 
 /// Checks a namespace by rmw's rules (`rmw_validate_namespace`): absolute, tokens as node
-/// names (letters, digits and '_', not starting with a digit) between single '/', and no
-/// trailing '/' except for the root namespace `/`.
+/// names (letters, digits and '_', not starting with a digit, no `__`) between single '/',
+/// and no trailing '/' except for the root namespace `/`.
 pub fn validate_namespace(namespace: &str) -> Result<(), String> {
     let bad = |e: &str| Err(format!("namespace `{namespace}` {e}"));
     let Some(tokens) = namespace.strip_prefix('/') else {
@@ -327,8 +333,22 @@ fn validate_tokens(tokens: &str) -> Result<(), String> {
     Ok(())
 }
 
-/// A name token of rmw: only letters, digits and '_', not starting with a digit.
-pub(crate) fn validate_token(token: &str) -> Result<(), String> {
+/// A name token of a node name, namespace or topic: rmw's rules (see [`validate_rmw_token`])
+/// and no `__`. rcl's remapping rules cannot hold one (its lexer reads no name token with
+/// `__` in it), and ros2-client refuses such names: its parameter services, named after the
+/// node, panicked on a node name with `__` once DDS had started.
+fn validate_token(token: &str) -> Result<(), String> {
+    validate_rmw_token(token)?;
+    if token.contains("__") {
+        return Err("contains `__`, which rcl's remapping rules and ros2-client refuse".into());
+    }
+    Ok(())
+}
+
+/// A name token of rmw: only letters, digits and '_', not starting with a digit. Parameter
+/// file sections are checked by this alone, as rcl checks them: a section with `__` is valid
+/// there (for nodes of other client libraries), it just matches none of ours.
+pub(crate) fn validate_rmw_token(token: &str) -> Result<(), String> {
     if let Some(c) = token
         .chars()
         .find(|c| !(c.is_ascii_alphanumeric() || *c == '_'))
@@ -447,6 +467,8 @@ mod tests {
             "p.yaml",
             "--log-level",
             "debug",
+            "--log-file-name",
+            "replay_log",
             "--",
             "tail",
         ])
@@ -465,7 +487,7 @@ mod tests {
         assert_eq!(
             a.params_for("/r1/loc2"),
             vec![
-                ParamSource::Value("rate".into(), ParamValue::Double(2.5)),
+                ParamSource::value("rate", ParamValue::Double(2.5)),
                 ParamSource::File("p.yaml".into())
             ]
         );
@@ -490,7 +512,7 @@ mod tests {
             a.params_for("/replay"),
             vec![
                 ParamSource::File("a.yaml".into()),
-                ParamSource::Value("rate".into(), ParamValue::Integer(2)),
+                ParamSource::value("rate", ParamValue::Integer(2)),
                 ParamSource::File("b.yaml".into()),
             ]
         );
@@ -527,12 +549,23 @@ mod tests {
         assert_eq!(a.namespace("loc2", "/"), "/r1");
         assert_eq!(a.namespace("first", "/"), "/");
         assert_eq!(a.namespace("classifier", "/x"), "/c");
-        let rate = |v| ParamSource::Value("rate".into(), ParamValue::Integer(v));
-        let moving = ParamSource::Value("moving".into(), ParamValue::Bool(false));
-        assert_eq!(a.params_for("/localiser"), vec![moving, rate(2)]);
+        let rate = |section: &str, v| ParamSource::Value {
+            section: section.into(),
+            name: "rate".into(),
+            value: ParamValue::Integer(v),
+        };
+        let moving = ParamSource::Value {
+            section: "localiser".into(),
+            name: "moving".into(),
+            value: ParamValue::Bool(false),
+        };
+        assert_eq!(a.params_for("/localiser"), vec![moving, rate("/**", 2)]);
         // A `node:` prefix is matched with the whole name, as a parameter file's section.
-        assert_eq!(a.params_for("/r1/localiser"), vec![rate(2)]);
-        assert_eq!(a.params_for("/replay"), vec![rate(2), rate(3)]);
+        assert_eq!(a.params_for("/r1/localiser"), vec![rate("/**", 2)]);
+        assert_eq!(
+            a.params_for("/replay"),
+            vec![rate("/**", 2), rate("replay", 3)]
+        );
     }
 
     #[test]
@@ -547,6 +580,11 @@ mod tests {
             ("__ns:=/1robot", "digit"),
             ("__ns:=/a//b", "//"),
             ("bad-node:scan:=x", "node prefix"),
+            // ros2-client refused these only once DDS had started: a panic, status 101.
+            ("__node:=a__b", "`__`"),
+            ("__ns:=/a__b", "`__`"),
+            ("__ns:=/r1/__x", "`__`"),
+            ("a__b:scan:=x", "`__`"),
         ] {
             let err = RosArgs::parse(["--ros-args", "-r", rule]).unwrap_err();
             let text = err.to_string();
@@ -555,7 +593,7 @@ mod tests {
                 "{rule}: {text}"
             );
         }
-        for rule in ["bad-node:rate:=1", "a:b:rate:=1"] {
+        for rule in ["bad-node:rate:=1", "a:b:rate:=1", "a__b:rate:=1"] {
             let err = RosArgs::parse(["--ros-args", "-p", rule]).unwrap_err();
             assert!(matches!(err, RosError::Args(_)), "{rule}: {err}");
             assert!(err.to_string().contains(rule), "{rule}: {err}");
@@ -581,6 +619,8 @@ mod tests {
             ("~x:=/y", "'~'"),
             ("/1scan:=/x", "digit"),
             ("/:=/x", "no name token"),
+            ("/scan:=/a__b/scan", "`__`"),
+            ("/a/b__:=/x", "`__`"),
         ] {
             let err = RosArgs::parse(["--ros-args", "-r", rule]).unwrap_err();
             let text = err.to_string();
@@ -664,6 +704,7 @@ mod tests {
             (vec!["--ros-args", "-r", "__ns:=relative"], "absolute"),
             (vec!["--ros-args", "-p", "rate"], "name:=value"),
             (vec!["--ros-args", "--frobnicate"], "--frobnicate"),
+            (vec!["--ros-args", "--log-file-name"], "--log-file-name"),
             (vec!["--ros-args", "-p", "rate:=[1, x]"], "rate"),
         ] {
             let err = RosArgs::parse(args.clone()).unwrap_err().to_string();

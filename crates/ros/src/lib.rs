@@ -117,7 +117,8 @@ impl NodeSetup {
     }
 
     /// Parses the command line and resolves the parameters (defaults, then parameter files
-    /// and `-p` in command-line order). Bad arguments or parameters are errors naming them.
+    /// and `-p` as rclcpp combines them, see [`Parameters::resolve_sources`]). Bad arguments
+    /// or parameters are errors naming them.
     pub fn prepare(self) -> Result<PreparedNode, RosError> {
         let ros_args = RosArgs::parse(self.args.clone())?;
         let name = ros_args.node_name(&self.name).to_string();
@@ -130,6 +131,11 @@ impl NodeSetup {
         };
         args::validate_node_name(&name).map_err(bad_name)?;
         args::validate_namespace(&namespace).map_err(bad_name)?;
+        // ros2-client names the parameter services after the node's full name and unwraps
+        // the result once DDS has started: a name it refuses must be refused here, by its
+        // own rules, or it panics (`__` in a token did, before `validate_token` refused it).
+        ros2_client::Name::new(&fqn, "get_parameters")
+            .map_err(|e| bad_name(format!("ros2-client refuses it: {e}")))?;
         let decls = params::node_parameters(self.parameters.clone());
         let params = Parameters::resolve_sources(&decls, &fqn, &ros_args.params_for(&fqn))?;
         Ok(PreparedNode {
@@ -540,5 +546,29 @@ mod tests {
                 Ok(_) => panic!("{namespace} {name}: accepted"),
             }
         }
+    }
+
+    /// Names with `__` passed rmw's rules and then panicked in ros2-client's spinner (status
+    /// 101, after DDS had started), from the code as from `-r __node:=` / `-r __ns:=`.
+    #[test]
+    fn a_name_ros2_client_refuses_is_refused_before_dds() {
+        for (name, namespace, args) in [
+            ("loc__2", "/", vec![]),
+            ("node", "/robot__1", vec![]),
+            ("node", "/", vec!["--ros-args", "-r", "__node:=loc__2"]),
+            ("node", "/", vec!["--ros-args", "-r", "__ns:=/robot__1"]),
+        ] {
+            let mut setup = NodeSetup::new(name).args(args.clone());
+            setup.namespace = namespace.into();
+            match setup.prepare() {
+                Err(e @ (RosError::Name { .. } | RosError::Args(_))) => {
+                    assert!(e.to_string().contains("`__`"), "{e}")
+                }
+                Err(other) => panic!("{namespace} {name} {args:?}: {other}"),
+                Ok(_) => panic!("{namespace} {name} {args:?}: accepted"),
+            }
+        }
+        let setup = NodeSetup::new("_loc_2").args(["--ros-args", "-r", "__ns:=/_r1_/a_b"]);
+        assert!(setup.prepare().is_ok());
     }
 }

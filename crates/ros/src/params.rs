@@ -42,9 +42,13 @@ impl ParamValue {
 
     /// Parses the right-hand side of `-p name:=value` as a YAML scalar or flow sequence.
     pub fn parse_cli(text: &str) -> Result<Self, String> {
+        if text.trim().is_empty() {
+            // rcl refuses it too (`rcl_parse_yaml_value`: no value), and the node with it.
+            return Err("no value after `:=` (for an empty string write `:=''`)".into());
+        }
         let value = yaml::parse(text).map_err(|e| format!("`{text}` is not a YAML value: {e}"))?;
         match value {
-            // `-p name:=` (empty) and `~` are strings in rcl, not null.
+            // rcl types `~` and `null` by their text, as the strings "~" and "null".
             Yaml::Null => Ok(Self::String(text.to_string())),
             other => Self::from_yaml(&other),
         }
@@ -196,14 +200,43 @@ pub fn node_parameters(mut decls: Vec<ParamDecl>) -> Vec<ParamDecl> {
     decls
 }
 
-/// Where a node's start-up values come from. Applied in order, a later one winning: rcl
-/// applies `--params-file` and `-p` in command-line order (see [`crate::RosArgs::params_for`]).
+/// Where a node's start-up values come from, in command-line order (see
+/// [`crate::RosArgs::params_for`] and [`Parameters::resolve_sources`] for how they combine).
 #[derive(Debug, Clone, PartialEq)]
 pub enum ParamSource {
     /// A parameter file: its sections for the node.
     File(PathBuf),
-    /// A `-p name:=value` for the node.
-    Value(String, ParamValue),
+    /// A `-p [node:]name:=value` for the node: `section` is the rule's node prefix as
+    /// written, or [`CLI_SECTION`] without one, the section rcl files it under.
+    Value {
+        section: String,
+        name: String,
+        value: ParamValue,
+    },
+}
+
+impl ParamSource {
+    /// A `-p name:=value` without a node prefix.
+    pub fn value(name: &str, value: ParamValue) -> Self {
+        Self::Value {
+            section: CLI_SECTION.to_string(),
+            name: name.to_string(),
+            value,
+        }
+    }
+}
+
+/// The section rcl gives a `-p name:=value` without a node prefix: the same as a parameter
+/// file's `/**:`, so the two overwrite each other's values.
+pub const CLI_SECTION: &str = "/**";
+
+/// One parameter of a merged section: its value and where the value came from.
+struct MergedParam {
+    name: String,
+    value: ParamValue,
+    source: String,
+    /// Whether a name the node does not declare is an error (see [`Section::is_wildcard`]).
+    strict: bool,
 }
 
 /// The resolved start-up parameters of a node.
@@ -227,61 +260,61 @@ impl Parameters {
             .chain(
                 overrides
                     .iter()
-                    .map(|(name, value)| ParamSource::Value(name.clone(), value.clone())),
+                    .map(|(name, value)| ParamSource::value(name, value.clone())),
             )
             .collect();
         Self::resolve_sources(decls, node_fqn, &sources)
     }
 
-    /// Defaults of `decls`, overridden by each of `sources` in turn.
+    /// Defaults of `decls`, overridden by `sources` as rcl and rclcpp (Humble on) combine
+    /// them: rcl merges every source, in order, into one table of sections keyed by the
+    /// section's name as written (a `-p` without a node prefix is in `/**`), a later value
+    /// replacing an earlier one of its section in place; rclcpp then applies the sections that
+    /// match the node in the order each name first appeared, a later section winning. So
+    /// `--params-file a.yaml -p x:=1 --params-file b.yaml`, both files with a `localiser:`
+    /// section setting x, gives 1: the section `localiser` (b's value) comes before `/**`.
     pub fn resolve_sources(
         decls: &[ParamDecl],
         node_fqn: &str,
         sources: &[ParamSource],
     ) -> Result<Self, RosError> {
-        let mut values: BTreeMap<String, ParamValue> = decls
-            .iter()
-            .map(|d| (d.name.clone(), d.default.clone()))
-            .collect();
-        let mut set =
-            |name: &str, value: ParamValue, source: &str, strict: bool| -> Result<(), RosError> {
-                let Some(declared) = values.get(name) else {
-                    if strict {
-                        return Err(RosError::Parameter {
-                            name: name.to_string(),
-                            reason: format!(
-                                "unknown parameter (from {source}); this node declares: {}",
-                                decl_names(decls)
-                            ),
-                        });
-                    }
-                    return Ok(());
-                };
-                let given_type = value.type_name();
-                let coerced = declared
-                    .coerce_like(value)
-                    .ok_or_else(|| RosError::Parameter {
-                        name: name.to_string(),
-                        reason: format!(
-                            "expected {} but {source} gives {given_type}",
-                            declared.type_name()
-                        ),
-                    })?;
-                values.insert(name.to_string(), coerced);
-                Ok(())
+        let mut sections: Vec<(String, Vec<MergedParam>)> = Vec::new();
+        let mut merge = |section: &str, param: MergedParam| {
+            let index = match sections.iter().position(|(name, _)| name == section) {
+                Some(index) => index,
+                None => {
+                    sections.push((section.to_string(), Vec::new()));
+                    sections.len() - 1
+                }
             };
+            let params = &mut sections[index].1;
+            match params.iter_mut().find(|p| p.name == param.name) {
+                Some(old) => *old = param,
+                None => params.push(param),
+            }
+        };
         for source in sources {
             let path = match source {
                 ParamSource::File(path) => path,
-                ParamSource::Value(name, value) => {
-                    set(name, value.clone(), "-p on the command line", true)?;
+                ParamSource::Value {
+                    section,
+                    name,
+                    value,
+                } => {
+                    let param = MergedParam {
+                        name: name.clone(),
+                        value: value.clone(),
+                        source: "-p on the command line".into(),
+                        strict: true,
+                    };
+                    merge(section, param);
                     continue;
                 }
             };
             let file = ParamsFile::read(path)?;
             let source = format!("parameter file {}", path.display());
-            let sections = file.sections_for(node_fqn);
-            if sections.is_empty() {
+            let matching = file.sections_for(node_fqn);
+            if matching.is_empty() {
                 // rclcpp ignores such a file without a word: a classic trap (a section named
                 // `localiser` is for /localiser, not /robot1/localiser).
                 log::warn!(
@@ -290,11 +323,52 @@ impl Parameters {
                     file.section_names()
                 );
             }
-            for section in sections {
+            for section in matching {
                 for (name, value) in &section.params {
-                    set(name, value.clone(), &source, !section.is_wildcard())?;
+                    let param = MergedParam {
+                        name: name.clone(),
+                        value: value.clone(),
+                        source: source.clone(),
+                        strict: !section.is_wildcard(),
+                    };
+                    merge(&section.name, param);
                 }
             }
+        }
+        let mut values: BTreeMap<String, ParamValue> = decls
+            .iter()
+            .map(|d| (d.name.clone(), d.default.clone()))
+            .collect();
+        for param in sections.into_iter().flat_map(|(_, params)| params) {
+            let MergedParam {
+                name,
+                value,
+                source,
+                strict,
+            } = param;
+            let Some(declared) = values.get(&name) else {
+                if strict {
+                    return Err(RosError::Parameter {
+                        reason: format!(
+                            "unknown parameter (from {source}); this node declares: {}",
+                            decl_names(decls)
+                        ),
+                        name,
+                    });
+                }
+                continue;
+            };
+            let given_type = value.type_name();
+            let coerced = declared
+                .coerce_like(value)
+                .ok_or_else(|| RosError::Parameter {
+                    name: name.clone(),
+                    reason: format!(
+                        "expected {} but {source} gives {given_type}",
+                        declared.type_name()
+                    ),
+                })?;
+            values.insert(name, coerced);
         }
         Ok(Self { values })
     }
@@ -401,6 +475,9 @@ impl Section {
 /// The key under a node's name that holds its parameters.
 const PARAMS_KEY: &str = "ros__parameters";
 
+/// A namespace key that names no node itself: the nodes below it are in `/`.
+const ROOT_NAMESPACE: &str = "/";
+
 impl ParamsFile {
     /// Reads and parses the file at `path`; errors name it.
     pub fn read(path: &Path) -> Result<Self, RosError> {
@@ -476,7 +553,7 @@ fn collect_sections(
     for (key, value) in entries {
         let key = key_text(key)?;
         if key == PARAMS_KEY {
-            if prefix.is_empty() {
+            if prefix.is_empty() || prefix == ROOT_NAMESPACE {
                 return Err(format!("`{PARAMS_KEY}` must be under a node name"));
             }
             let mut params = Vec::new();
@@ -497,12 +574,15 @@ fn collect_sections(
                 )
             });
         };
-        let name = if prefix.is_empty() {
-            key
-        } else {
-            format!("{prefix}/{key}")
+        let name = match prefix {
+            "" => key,
+            // The root namespace as a key of its own (`/: {talker: ...}`), as rcl reads it.
+            "/" => format!("/{key}"),
+            _ => format!("{prefix}/{key}"),
         };
-        validate_section_name(&name)?;
+        if name != ROOT_NAMESPACE {
+            validate_section_name(&name)?;
+        }
         collect_sections(&name, children, out)?;
     }
     Ok(())
@@ -517,7 +597,7 @@ fn validate_section_name(name: &str) -> Result<(), String> {
             return Err(format!("section `{name}` has an empty name token"));
         }
         if !matches!(token, "*" | "**") {
-            crate::args::validate_token(token).map_err(|e| {
+            crate::args::validate_rmw_token(token).map_err(|e| {
                 format!("section `{name}` is no node name: its token `{token}` {e}")
             })?;
         }
@@ -614,9 +694,25 @@ mod tests {
         assert!(ParamValue::parse_cli("[1, abc]").is_err());
         assert!(ParamValue::parse_cli("[]").is_err());
         assert_eq!(
-            ParamValue::parse_cli("").unwrap(),
+            ParamValue::parse_cli("~").unwrap(),
+            ParamValue::String("~".into())
+        );
+        assert_eq!(
+            ParamValue::parse_cli("''").unwrap(),
             ParamValue::String(String::new())
         );
+    }
+
+    /// rcl refuses `-p name:=` (no value), and so the node; it used to be the empty string.
+    #[test]
+    fn an_empty_cli_value_is_refused_as_rcl_refuses_it() {
+        for text in ["", " "] {
+            let err = ParamValue::parse_cli(text).unwrap_err();
+            assert!(
+                err.contains("no value") && err.contains(":=''"),
+                "{text:?}: {err}"
+            );
+        }
     }
 
     #[test]
@@ -771,11 +867,37 @@ robot1:
             ("robot-1: {n: {ros__parameters: {a: 1}}}", "'-'"),
             ("/ns/: {n: {ros__parameters: {a: 1}}}", "empty name token"),
             ("ns: {1n: {ros__parameters: {a: 1}}}", "digit"),
+            ("/: {ros__parameters: {a: 1}}", "under a node name"),
+            // rcl's own test files: a partial wildcard, a node key starting with '/'.
+            ("/f*oo: {ros__parameters: {a: 1}}", "'*'"),
+            ("/**/node*: {ros__parameters: {a: 1}}", "'*'"),
+            ("/foo: {/*: {ros__parameters: {a: 1}}}", "empty name token"),
         ] {
             let err = ParamsFile::parse(yaml).unwrap_err();
             assert!(err.contains(needle), "{yaml}: {err}");
         }
         assert!(ParamsFile::parse(":\n  - [").is_err());
+    }
+
+    /// Section names rcl accepts (its test files root_ns.yaml and wildcards.yaml): `*` and
+    /// `**` as any whole token. `/:` above a node used to be refused (an empty name token).
+    #[test]
+    fn section_names_rcl_accepts_are_accepted() {
+        let file = ParamsFile::parse("/:\n  my_node:\n    ros__parameters:\n      a: 1\n").unwrap();
+        assert_eq!(file.sections[0].name, "/my_node");
+        assert_eq!(file.sections_for("/my_node").len(), 1);
+        for name in [
+            "/*",
+            "/**/some_node1",
+            "/*/some_node2",
+            "/foo1/**",
+            "/foo2/*",
+            "/foo7/*/some_node7",
+            "/foo10/**/bar/bar1/bar2/**",
+        ] {
+            ParamsFile::parse(&format!("{name}: {{ros__parameters: {{a: 1}}}}"))
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
     }
 
     /// Keeps the warnings logged while the tests run (the crate's only logger in tests).
@@ -882,7 +1004,7 @@ robot1:
             "/**:\n  ros__parameters:\n    rate: 2.0\n",
         )
         .unwrap();
-        let cli = ParamSource::Value("rate".into(), ParamValue::Double(5.0));
+        let cli = ParamSource::value("rate", ParamValue::Double(5.0));
         let rate = |sources: &[ParamSource]| {
             Parameters::resolve_sources(&decls(), "/replay", sources)
                 .unwrap()
@@ -891,6 +1013,86 @@ robot1:
         };
         assert_eq!(rate(&[cli.clone(), file.clone()]), 2.0);
         assert_eq!(rate(&[file, cli]), 5.0);
+    }
+
+    /// rclcpp applies the merged sections in the order of each name's first appearance: a
+    /// `localiser:` section set again by a later file still comes before the `-p` between
+    /// them (`/**`). Sources used to be applied in command-line order (`moving` true).
+    #[test]
+    fn sections_merge_by_name_and_apply_in_order_of_first_appearance() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = |name: &str, text: &str| {
+            let path = dir.path().join(name);
+            std::fs::write(&path, text).unwrap();
+            ParamSource::File(path)
+        };
+        let robot = file(
+            "robot.yaml",
+            "localiser:\n  ros__parameters:\n    moving: true\n",
+        );
+        let overrides = file(
+            "override.yaml",
+            "localiser:\n  ros__parameters:\n    moving: true\n    rate: 3.0\n",
+        );
+        let all_nodes = file("all.yaml", "/**:\n  ros__parameters:\n    moving: true\n");
+        let decls = vec![
+            ParamDecl::new("moving", ParamValue::Bool(false), ""),
+            ParamDecl::new("rate", ParamValue::Double(1.0), ""),
+        ];
+        let cli = |name: &str, value| ParamSource::value(name, value);
+        let prefixed = |section: &str, value| ParamSource::Value {
+            section: section.into(),
+            name: "moving".into(),
+            value,
+        };
+        let resolve = |sources: &[ParamSource]| {
+            Parameters::resolve_sources(&decls, "/localiser", sources).unwrap()
+        };
+        let moving = |sources: &[ParamSource]| resolve(sources).bool("moving").unwrap();
+        let no = ParamValue::Bool(false);
+        assert!(!moving(&[
+            robot.clone(),
+            cli("moving", no.clone()),
+            overrides.clone()
+        ]));
+        // The later file's other values still apply.
+        let p = resolve(&[robot.clone(), cli("moving", no.clone()), overrides.clone()]);
+        assert_eq!(p.f64("rate").unwrap(), 3.0);
+        // A `-p localiser:` is the section `localiser`: the later file replaces its value.
+        assert!(moving(&[
+            prefixed("localiser", no.clone()),
+            overrides.clone()
+        ]));
+        assert!(!moving(&[
+            overrides.clone(),
+            prefixed("localiser", no.clone())
+        ]));
+        // `/localiser` is another section than `localiser`, as rcl keys them as written: the
+        // one that appeared first applies first, however late its last value came.
+        assert!(moving(&[
+            prefixed("/localiser", no.clone()),
+            robot.clone(),
+            prefixed("/localiser", no.clone())
+        ]));
+        assert!(!moving(&[
+            robot.clone(),
+            prefixed("/localiser", no.clone()),
+            robot.clone()
+        ]));
+        // A file's `/**` and a `-p` without prefix share the section `/**`: a last `-p` loses
+        // to a `localiser:` section when a file opened `/**` before it.
+        assert!(moving(&[
+            all_nodes.clone(),
+            robot.clone(),
+            cli("moving", no.clone())
+        ]));
+        assert!(!moving(&[robot, all_nodes, cli("moving", no.clone())]));
+        // Only the value that is applied is checked: one replaced in its section is not.
+        let p = resolve(&[
+            cli("rate", ParamValue::String("fast".into())),
+            cli("rate", ParamValue::Double(2.0)),
+        ]);
+        assert_eq!(p.f64("rate").unwrap(), 2.0);
     }
 
     #[test]
