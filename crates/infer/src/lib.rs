@@ -4,7 +4,8 @@
 //! state ([`PoseHeadModel`]).
 //!
 //! ONNX Runtime is loaded at run time (`ort`'s `load-dynamic`): from `$ORT_DYLIB_PATH`, else
-//! from `<repo>/.deps/onnxruntime/libonnxruntime.so`, where `scripts/setup.sh` installs it.
+//! from `<repo>/.deps/onnxruntime/libonnxruntime.so`, where `scripts/setup.sh` installs it;
+//! a library file that is cut short is refused before it is opened.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -18,6 +19,7 @@ use ort::session::{Session, SessionOutputs};
 use ort::value::{Outlet, TensorElementType, TensorRef};
 
 mod pose_head;
+mod runtime_library;
 
 pub use pose_head::{KEY_ACTIVITY_SHA256, PoseHeadModel};
 
@@ -35,6 +37,15 @@ pub enum InferError {
         "could not load ONNX Runtime from {path}: {message}; run scripts/setup.sh to reinstall it"
     )]
     RuntimeLoad { path: PathBuf, message: String },
+    #[error(
+        "ONNX Runtime library {} ({origin}) is a directory: name the .so file in it, e.g. \
+         ORT_DYLIB_PATH={}",
+        path.display(),
+        path.join("libonnxruntime.so").display()
+    )]
+    RuntimeIsDirectory { path: PathBuf, origin: &'static str },
+    #[error("cannot use ONNX Runtime library {path}: {problem}")]
+    RuntimeUnusable { path: PathBuf, problem: String },
     #[error(
         "model file {}{} not found: the committed models are in models/ of the source tree and \
          share/lidar_har/models/ of an installed package; or train one (docs/training.md)",
@@ -104,11 +115,20 @@ impl InferError {
     /// Whether ONNX Runtime itself is missing or unusable (the installation), rather than
     /// the model.
     pub fn is_runtime(&self) -> bool {
-        matches!(self, Self::RuntimeMissing { .. } | Self::RuntimeLoad { .. })
+        matches!(
+            self,
+            Self::RuntimeMissing { .. }
+                | Self::RuntimeLoad { .. }
+                | Self::RuntimeIsDirectory { .. }
+                | Self::RuntimeUnusable { .. }
+        )
     }
 }
 
-/// The library path to load and where that choice came from.
+/// The library path to load and where that choice came from. A relative path is found as
+/// `ort` finds it: next to the executable, else as `dlopen` takes it (a bare file name is
+/// searched for by the system loader, a path with a slash is relative to the working
+/// directory).
 pub fn runtime_library_path() -> (PathBuf, &'static str) {
     match std::env::var_os("ORT_DYLIB_PATH") {
         Some(p) if !p.is_empty() => (PathBuf::from(p), "from ORT_DYLIB_PATH"),
@@ -125,11 +145,9 @@ pub fn runtime_library_path() -> (PathBuf, &'static str) {
 fn environment() -> Result<&'static Environment, InferError> {
     static ENV: OnceLock<Result<Environment, InferError>> = OnceLock::new();
     let result = ENV.get_or_init(|| {
-        let (path, origin) = runtime_library_path();
-        if !path.is_file() {
-            return Err(InferError::RuntimeMissing { path, origin });
-        }
-        ort::init_from(&path)
+        let (configured, origin) = runtime_library_path();
+        let library = runtime_library::locate(&configured, origin)?;
+        ort::init_from(library.path())
             .map_err(|e| e.to_string())
             .and_then(|builder| {
                 builder
@@ -137,7 +155,17 @@ fn environment() -> Result<&'static Environment, InferError> {
                     .build()
                     .map_err(|e| e.to_string())
             })
-            .map_err(|message| InferError::RuntimeLoad { path, message })
+            .map_err(|message| InferError::RuntimeLoad {
+                path: library.path().to_path_buf(),
+                message: match library {
+                    runtime_library::Library::ByLoader(_) => format!(
+                        "{message} (a bare file name {origin}, not next to the executable: \
+                         the system loader searched LD_LIBRARY_PATH and the system's library \
+                         directories)"
+                    ),
+                    runtime_library::Library::File(_) => message,
+                },
+            })
     });
     result.as_ref().map_err(Clone::clone)
 }

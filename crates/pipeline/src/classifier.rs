@@ -126,6 +126,20 @@ pub enum ClassifierError {
     Model(#[from] InferError),
     #[error(transparent)]
     Stream(#[from] StreamSpecError),
+    /// The configuration's `lanes` / `lane_period_windows` against the model's window: which
+    /// model it was is known only here.
+    #[error(
+        "lanes = {lanes} and lane_period_windows = {lane_period_windows} do not fit model {} \
+         (a window of {window} scans): {cause}",
+        model.display()
+    )]
+    LanesDoNotFit {
+        model: PathBuf,
+        window: usize,
+        lanes: usize,
+        lane_period_windows: f64,
+        cause: StreamSpecError,
+    },
     #[error(transparent)]
     FallConfig(#[from] FallConfigError),
     #[error(transparent)]
@@ -409,8 +423,33 @@ impl ClassifierStage<ActivityModel, PoseHeadModel> {
             },
         };
         let schedule = config.lane_schedule(stream.window, pelvis.is_some());
-        let stage = ClassifierStage::with_schedule(model, stream, schedule, config.fall_alert)?;
+        let stage = ClassifierStage::with_schedule(model, stream, schedule, config.fall_alert)
+            .map_err(|e| lanes_do_not_fit(e, config, path, stream.window))?;
         Ok(stage.with_pose_head(pelvis, status))
+    }
+}
+
+/// A lane schedule refused for `model` (of `window` scans) as [`ClassifierError::LanesDoNotFit`],
+/// naming the model and the settings; other errors as they are.
+fn lanes_do_not_fit(
+    e: ClassifierError,
+    config: &ClassifierConfig,
+    model: &Path,
+    window: usize,
+) -> ClassifierError {
+    match e {
+        ClassifierError::Stream(
+            cause @ (StreamSpecError::LanePeriod { .. }
+            | StreamSpecError::LaneCount { .. }
+            | StreamSpecError::LanesBetween { .. }),
+        ) => ClassifierError::LanesDoNotFit {
+            model: model.to_path_buf(),
+            window,
+            lanes: config.lanes,
+            lane_period_windows: config.lane_period_windows,
+            cause,
+        },
+        other => other,
     }
 }
 
@@ -1791,6 +1830,50 @@ mod tests {
         };
         assert_eq!(c.lane_schedule(20, false), schedule(0));
         assert_eq!(c.lane_schedule(20, true), schedule(1));
+    }
+
+    /// The reviewer's case: `lanes: 8` with a model of window 4 (lane period 5) was reported
+    /// without the settings or the model. The model: the infer crate's step-model fixture
+    /// with its `lidar_har.window` metadata "8" made "4".
+    #[test]
+    fn lanes_that_do_not_fit_the_model_name_the_settings_and_the_model() {
+        let (runtime, _) = lidar_har_infer::runtime_library_path();
+        if !runtime.is_file() {
+            assert!(
+                std::env::var_os("LIDAR_HAR_REQUIRE_CHECKERS").is_none(),
+                "{} missing: run scripts/setup.sh",
+                runtime.display()
+            );
+            eprintln!("SKIP: {} missing (run scripts/setup.sh)", runtime.display());
+            return;
+        }
+        let fixture =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../infer/tests/fixtures/step_model.onnx");
+        let mut bytes = std::fs::read(fixture).unwrap();
+        let window_value = b"lidar_har.window\x12\x018";
+        let at = bytes
+            .windows(window_value.len())
+            .position(|w| w == window_value)
+            .unwrap();
+        bytes[at + window_value.len() - 1] = b'4';
+        let dir = tempfile::tempdir().unwrap();
+        let model = dir.path().join("window4.onnx");
+        std::fs::write(&model, bytes).unwrap();
+
+        let config = parse_classifier_config("lanes: 8\npose_head: null\n").unwrap();
+        let e = ClassifierStage::load(&config, Some(&model))
+            .map(|_| ())
+            .unwrap_err();
+        assert!(matches!(e, ClassifierError::LanesDoNotFit { .. }), "{e}");
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "lanes = 8 and lane_period_windows = 1.2 do not fit model {} (a window of 4 \
+                 scans): 8 lanes: need at least 2 (a restarting lane has no history) and at \
+                 most the lane period (5 scans)",
+                model.display()
+            )
+        );
     }
 
     #[test]

@@ -9,6 +9,7 @@
 //! to the working directory, so launch files pass the installed ones; `pose_head:=none`
 //! turns the head off).
 
+use std::path::Path;
 use std::process::ExitCode;
 use std::time::Duration;
 
@@ -53,8 +54,9 @@ fn decls() -> Vec<ParamDecl> {
 fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
     let node = Node::new(NodeSetup::new("classifier").parameters(decls()))?;
     let p = node.params();
-    let mut config = match optional_path(p, "config")? {
-        Some(path) => load_classifier_config(&path).map_err(|e| bad_parameter("config", e))?,
+    let config_path = optional_path(p, "config")?;
+    let mut config = match &config_path {
+        Some(path) => load_classifier_config(path).map_err(|e| bad_parameter("config", e))?,
         None => ClassifierConfig::default(),
     };
     match optional_path(p, "pose_head")? {
@@ -64,11 +66,8 @@ fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
     }
     let model = optional_path(p, "model")?;
     let model_path = model.as_deref().unwrap_or(&config.model);
-    let mut stage = ClassifierStage::load(&config, Some(model_path)).map_err(|e| match e {
-        // The installation, not a parameter, is at fault: status 1, the message says the fix.
-        ClassifierError::Model(e) if e.is_runtime() => anyhow::Error::new(e),
-        e => bad_parameter("model", e).into(),
-    })?;
+    let mut stage = ClassifierStage::load(&config, Some(model_path))
+        .map_err(|e| load_error(e, config_path.as_deref()))?;
     // Which files the node runs on: a launch file or a working directory can change them.
     log::info!(
         "classifier: model {}; pose head {}",
@@ -95,4 +94,59 @@ fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
     }
     log::info!("classifier: stopped; {errors} unusable observations");
     Ok(())
+}
+
+/// A failed [`ClassifierStage::load`], blamed on what is at fault: the installation (status
+/// 1, the message says the fix), the `config` file (`config_path`) when its lanes do not fit
+/// the model, else `model`.
+fn load_error(e: ClassifierError, config_path: Option<&Path>) -> anyhow::Error {
+    match (e, config_path) {
+        (ClassifierError::Model(e), _) if e.is_runtime() => anyhow::Error::new(e),
+        (e @ ClassifierError::LanesDoNotFit { .. }, Some(path)) => bad_parameter(
+            "config",
+            format!("classifier configuration {}: {e}", path.display()),
+        )
+        .into(),
+        (e @ ClassifierError::LanesDoNotFit { .. }, None) => bad_parameter(
+            "model",
+            format!("{e} (the default classifier configuration; `config` is empty)"),
+        )
+        .into(),
+        (e, _) => bad_parameter("model", e).into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lidar_har_core::classifier::StreamSpecError;
+
+    /// The reviewer's case: `lanes: 8` in the config file against a model of window 4 was
+    /// reported as "parameter `model`" without naming the file.
+    #[test]
+    fn lanes_that_do_not_fit_the_model_blame_the_config_file_and_name_the_model() {
+        let lanes8 = || ClassifierError::LanesDoNotFit {
+            model: "/m/window4.onnx".into(),
+            window: 4,
+            lanes: 8,
+            lane_period_windows: 1.2,
+            cause: StreamSpecError::LaneCount {
+                lanes: 8,
+                period: 5,
+            },
+        };
+        let text = load_error(lanes8(), Some(Path::new("/c/lanes8.yaml"))).to_string();
+        assert!(
+            text.starts_with(
+                "parameter `config`: classifier configuration /c/lanes8.yaml: lanes = 8"
+            ) && text.contains("do not fit model /m/window4.onnx (a window of 4 scans)"),
+            "{text}"
+        );
+        let text = load_error(lanes8(), None).to_string();
+        assert!(
+            text.starts_with("parameter `model`: lanes = 8")
+                && text.contains("the default classifier configuration"),
+            "{text}"
+        );
+    }
 }
