@@ -7,7 +7,9 @@ use std::path::Path;
 
 use lidar_har_core::activity::Activity;
 use lidar_har_core::geometry::Pose2;
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize};
+
+mod tagged;
 
 /// The Lidar height used when a scene does not give one: the top of a typical cleaning
 /// robot's Lidar turret (about 10 cm), where a lying person is seen whole and a standing
@@ -71,11 +73,44 @@ impl PoseSpec {
     }
 }
 
-/// A piece of furniture. Everything stands on the floor; `height` is its top.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+/// A piece of furniture. Everything stands on the floor; `height` is its top. Read by
+/// `FurnitureKeys`, with `kind` first (see `tagged`).
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Furniture {
     /// A solid box (sofa, bed, cupboard, fridge).
+    Box {
+        name: String,
+        center: [f64; 2],
+        size: [f64; 2],
+        yaw_deg: f64,
+        height: f64,
+    },
+    /// A solid upright cylinder (plant pot, bin, round pillar).
+    Cylinder {
+        name: String,
+        center: [f64; 2],
+        radius: f64,
+        height: f64,
+    },
+    /// A solid prism over a simple polygon (kitchen counter, L-shaped sofa).
+    Polygon {
+        name: String,
+        points: Vec<[f64; 2]>,
+        height: f64,
+    },
+    /// A table: a top on four legs; only the legs reach the Lidar plane.
+    Table(Legged),
+    /// A chair: a seat on four legs; only the legs reach the Lidar plane.
+    Chair(Legged),
+}
+
+/// How a furniture piece is read: `Furniture` in serde's externally tagged form, which
+/// `tagged` feeds with `kind` read first. serde's `remote` keeps its variants and fields
+/// those of `Furniture`; the defaults are here.
+#[derive(Deserialize)]
+#[serde(remote = "Furniture", rename_all = "snake_case", deny_unknown_fields)]
+enum FurnitureKeys {
     Box {
         #[serde(default)]
         name: String,
@@ -85,7 +120,6 @@ pub enum Furniture {
         yaw_deg: f64,
         height: f64,
     },
-    /// A solid upright cylinder (plant pot, bin, round pillar).
     Cylinder {
         #[serde(default)]
         name: String,
@@ -93,17 +127,26 @@ pub enum Furniture {
         radius: f64,
         height: f64,
     },
-    /// A solid prism over a simple polygon (kitchen counter, L-shaped sofa).
     Polygon {
         #[serde(default)]
         name: String,
         points: Vec<[f64; 2]>,
         height: f64,
     },
-    /// A table: a top on four legs; only the legs reach the Lidar plane.
     Table(Legged),
-    /// A chair: a seat on four legs; only the legs reach the Lidar plane.
     Chair(Legged),
+}
+
+impl<'de> Deserialize<'de> for Furniture {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        tagged::deserialize(deserializer, "a furniture piece: a map with `kind`")
+    }
+}
+
+impl<'de> tagged::ExternallyTagged<'de> for Furniture {
+    fn deserialize_external<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        FurnitureKeys::deserialize(deserializer)
+    }
 }
 
 /// A top on four round legs set in from its corners.
@@ -180,42 +223,61 @@ fn default_turn_rate() -> f64 {
 }
 
 /// How the robot moves. Every motion is planned around furniture on the robot's footprint.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+/// Read by `MotionKeys`, with `kind` first (see `tagged`).
+#[derive(Debug, Clone, Default, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Motion {
-    /// The robot stays at its start pose. Serde lets a unit variant of an internally tagged
-    /// enum ignore every other key, so `no_keys` rejects them as the other kinds do.
+    /// The robot stays at its start pose.
     #[default]
-    #[serde(deserialize_with = "no_keys")]
     Static,
     /// Visit these points in order (then return to the start and repeat, if `repeat`).
-    Waypoints {
-        points: Vec<[f64; 2]>,
-        #[serde(default = "default_true")]
-        repeat: bool,
-    },
+    Waypoints { points: Vec<[f64; 2]>, repeat: bool },
     /// Cleaning lanes over the whole room (boustrophedon), `spacing` apart.
     Coverage {
-        #[serde(default = "default_lane_spacing")]
         spacing: f64,
         /// Lanes run along x (`false`) or along y (`true`).
-        #[serde(default)]
         along_y: bool,
     },
     /// Straight runs until an obstacle is near, then a turn to a random free heading.
     Bounce {
         /// Number of straight runs planned (the plan repeats after them).
+        runs: u32,
+    },
+}
+
+/// How `robot.motion` is read: `Motion` in serde's externally tagged form, as
+/// `FurnitureKeys` is `Furniture`'s. `static` takes no other key.
+#[derive(Deserialize)]
+#[serde(remote = "Motion", rename_all = "snake_case", deny_unknown_fields)]
+enum MotionKeys {
+    Static,
+    Waypoints {
+        points: Vec<[f64; 2]>,
+        #[serde(default = "default_true")]
+        repeat: bool,
+    },
+    Coverage {
+        #[serde(default = "default_lane_spacing")]
+        spacing: f64,
+        #[serde(default)]
+        along_y: bool,
+    },
+    Bounce {
         #[serde(default = "default_bounce_runs")]
         runs: u32,
     },
 }
 
-/// Accepts only an empty map: the keys left beside `kind: static`.
-fn no_keys<'de, D: serde::Deserializer<'de>>(deserializer: D) -> Result<(), D::Error> {
-    #[derive(Deserialize)]
-    #[serde(deny_unknown_fields)]
-    struct NoKeys {}
-    NoKeys::deserialize(deserializer).map(|NoKeys {}| ())
+impl<'de> Deserialize<'de> for Motion {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        tagged::deserialize(deserializer, "a robot motion: a map with `kind`")
+    }
+}
+
+impl<'de> tagged::ExternallyTagged<'de> for Motion {
+    fn deserialize_external<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        MotionKeys::deserialize(deserializer)
+    }
 }
 
 fn default_true() -> bool {
@@ -534,12 +596,141 @@ mod tests {
             .expect_err("a key static does not have")
             .to_string();
         assert!(
-            e.starts_with("s.yaml: robot.motion: unknown field `runs`"),
+            e.starts_with("s.yaml: robot.motion.runs: unknown field `runs`"),
             "{e}"
         );
         for motion in ["", ", motion: {kind: static}"] {
             let scene = robot(motion).expect("a static robot");
             assert!(matches!(scene.robot.motion, Motion::Static), "{motion}");
         }
+    }
+
+    fn furniture(piece: &str) -> Result<Scene, SceneError> {
+        let text = format!(
+            "duration: 1\nroom: {{outline: [[0,0],[5,0],[5,4],[0,4]]}}\nfurniture:\n  - {piece}\n\
+             robot: {{start: {{x: 0.5, y: 0.5}}}}\n"
+        );
+        Scene::parse(&text, "s.yaml")
+    }
+
+    /// serde read these enums into a buffer first: a wrong type anywhere in a piece was
+    /// named `furniture[0]`, at the line and column of the piece's `{`.
+    #[test]
+    fn a_wrong_type_in_a_tagged_map_names_its_key_and_position() {
+        let cases = [
+            (
+                "{kind: box, name: sofa, center: [2.5, 2], size: [1, \"0.8m\"], height: 0.8}",
+                "furniture[0].size[1]: invalid type: string \"0.8m\", expected f64 at line 4 \
+                 column 57",
+            ),
+            (
+                "{kind: table, center: [2, 2], size: [1, 0.8], height: tall}",
+                "furniture[0].height: invalid type: string \"tall\", expected f64 at line 4 \
+                 column 59",
+            ),
+            // Keys before `kind` are read the same way as those after it.
+            (
+                "{name: sofa, center: [2.5, 2], kind: box, size: [1, 0.8], height: [1]}",
+                "furniture[0].height: invalid type: sequence, expected f64 at line 4 column 71",
+            ),
+        ];
+        for (piece, expected) in cases {
+            let e = furniture(piece).expect_err(piece).to_string();
+            assert_eq!(e, format!("s.yaml: {expected}"), "{piece}");
+        }
+        let e = robot(", motion: {kind: coverage, spacing: \"35cm\"}")
+            .expect_err("a spacing that is not a number")
+            .to_string();
+        assert_eq!(
+            e,
+            "s.yaml: robot.motion.spacing: invalid type: string \"35cm\", expected f64 at line \
+             3 column 64"
+        );
+    }
+
+    #[test]
+    fn a_tagged_map_names_a_bad_kind_and_missing_or_unknown_keys() {
+        let cases = [
+            (
+                "{kind: sofa, center: [2, 2], size: [1, 1], height: 1}",
+                "furniture[0].kind: unknown variant `sofa`, expected one of `box`, `cylinder`, \
+                 `polygon`, `table`, `chair`",
+            ),
+            (
+                "{center: [2, 2], size: [1, 1], height: 1}",
+                "furniture[0]: missing field `kind`",
+            ),
+            (
+                "{kind: box, center: [2, 2], height: 1}",
+                "furniture[0]: missing field `size`",
+            ),
+            (
+                "{kind: cylinder, center: [2, 2], size: [1, 1], height: 1}",
+                "furniture[0].size: unknown field `size`, expected one of",
+            ),
+            (
+                "{size: [1, 1], kind: cylinder, center: [2, 2], height: 1}",
+                "furniture[0]: unknown field `size`, expected one of",
+            ),
+            (
+                "{kind: chair, center: [2, 2], size: [1, 1], height: 1, radius: 1}",
+                "furniture[0].radius: unknown field `radius`, expected one of",
+            ),
+            (
+                "7",
+                "furniture[0]: invalid type: integer `7`, expected a furniture piece",
+            ),
+            // A key held until `kind` is known is named after the piece.
+            (
+                "{name: [1], kind: box, center: [2, 2], size: [1, 1], height: 1}",
+                "furniture[0]: name: invalid type: sequence, expected a string",
+            ),
+            (
+                "{points: [[1, 1], [2, \"x\"]], kind: polygon, height: 1}",
+                "furniture[0]: points[1][1]: invalid type: string \"x\", expected f64",
+            ),
+        ];
+        for (piece, expected) in cases {
+            let e = furniture(piece).expect_err(piece).to_string();
+            assert!(
+                e.starts_with(&format!("s.yaml: {expected}")),
+                "{piece}: {e}"
+            );
+        }
+        let e = robot(", motion: {kind: orbit}")
+            .expect_err("no such motion")
+            .to_string();
+        assert!(
+            e.starts_with("s.yaml: robot.motion.kind: unknown variant `orbit`"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_tagged_map_reads_its_defaults_in_any_key_order() {
+        let scene =
+            furniture("{name: stool, center: [2, 2], kind: chair, size: [0.4, 0.4], height: 0.5}")
+                .expect("a chair");
+        let Furniture::Chair(chair) = &scene.furniture[0] else {
+            panic!("{:?}", scene.furniture[0]);
+        };
+        assert_eq!(chair.name, "stool");
+        assert_eq!((chair.leg_radius, chair.leg_inset), (0.02, 0.05));
+        let scene = robot(", motion: {along_y: true, kind: coverage}").expect("coverage");
+        assert!(
+            matches!(
+                scene.robot.motion,
+                Motion::Coverage {
+                    spacing: 0.35,
+                    along_y: true
+                }
+            ),
+            "{:?}",
+            scene.robot.motion
+        );
+        // Written back, a scene reads the same.
+        let text = serde_yaml_ng::to_string(&scene).unwrap();
+        let again = Scene::parse(&text, "again.yaml").unwrap();
+        assert_eq!(serde_yaml_ng::to_string(&again).unwrap(), text);
     }
 }

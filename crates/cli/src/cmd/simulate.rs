@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use lidar_har_sim::map::OccupancyMap;
-use lidar_har_sim::record::record;
+use lidar_har_sim::record::{RecordSummary, record};
 use lidar_har_sim::render::{Trace, animation_scan_every, render_gif, render_png};
 use lidar_har_sim::{Scene, Simulator};
 
@@ -81,6 +81,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
             .validate()
             .map_err(|(key, message)| anyhow::anyhow!("--duration {d}: {key}: {message}"))?;
     }
+    let simulated_s = scene.duration;
     let mut sim = Simulator::new(scene, args.seed)
         .with_context(|| format!("scene {}", args.scene.display()))?;
     let geometry = sim.scan_geometry();
@@ -107,13 +108,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     })
     .with_context(|| format!("recording {}", args.out.display()))?;
     progress.finish_and_clear();
-    outln!(
-        "recorded {} scans ({:.1} s simulated), {} messages into {}",
-        summary.frames,
-        (summary.last_stamp_ns - summary.first_stamp_ns) as f64 * 1e-9 + geometry.scan_time,
-        summary.messages,
-        summary.bag_dir.display()
-    );
+    outln!("{}", recorded_line(&summary, simulated_s));
     outln!(
         "map: {} and {}",
         args.out.join("map.pgm").display(),
@@ -131,4 +126,47 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         outln!("render: {}", path.display());
     }
     Ok(())
+}
+
+/// The summary of a recording. The time is the scene's duration: the stamps span whole
+/// scan periods (one scan of 0.05 s for `--duration 0.001`), which is not what was asked.
+fn recorded_line(summary: &RecordSummary, simulated_s: f64) -> String {
+    format!(
+        "recorded {} scans ({simulated_s} s simulated), {} messages into {}",
+        summary.frames,
+        summary.messages,
+        summary.bag_dir.display()
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The line said `(0.1 s simulated)` for `--duration 0.001`: one 20 Hz scan period,
+    /// rounded.
+    #[test]
+    fn the_recorded_line_gives_the_scenes_duration() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut scene = Scene::parse(
+            "duration: 0.001\nroom: {outline: [[0,0],[4,0],[4,3],[0,3]]}\n\
+             robot: {start: {x: 1, y: 1}}\nlidar: {beams: 90}\n",
+            "s.yaml",
+        )
+        .unwrap();
+        for (duration, scans, shown) in
+            [(0.001, 1, "0.001 s"), (2.0, 40, "2 s"), (0.26, 6, "0.26 s")]
+        {
+            scene.duration = duration;
+            let out = dir.path().join(format!("bag_{duration}"));
+            let mut sim = Simulator::new(scene.clone(), 0).unwrap();
+            let summary = record(&mut sim, &out, 0.05, |_| {}).unwrap();
+            assert_eq!(summary.frames, scans, "{duration}");
+            let line = recorded_line(&summary, duration);
+            assert!(
+                line.starts_with(&format!("recorded {scans} scans ({shown} simulated)")),
+                "{line}"
+            );
+        }
+    }
 }
