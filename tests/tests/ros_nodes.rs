@@ -259,8 +259,8 @@ wait $E; echo "scan_echo=$?"
 
     let scans = json_lines(&dir.path().join("scan.jsonl"));
     let indices: Vec<usize> = scans.iter().map(|l| scan_index(&l["msg"])).collect();
-    // Best-effort /scan (sensor-data QoS): in order, no duplicates; on loopback at 20 Hz all
-    // arrive once the subscriber is matched.
+    // /scan (offered reliable, the echo following it): in order, no duplicates; on loopback
+    // at 20 Hz all arrive once the subscriber is matched.
     assert!(
         indices.windows(2).all(|w| w[0] < w[1]),
         "out of order or duplicated: {indices:?}"
@@ -269,6 +269,120 @@ wait $E; echo "scan_echo=$?"
         indices.len() >= 55,
         "only {} of 60 scans arrived: {indices:?}",
         indices.len()
+    );
+}
+
+/// [`write_bag`]'s bag as a killed recorder leaves it: small chunks, the file cut at 60 %
+/// (inside a chunk, before its summary), no metadata.yaml (rosbag2 writes it at the end).
+/// Returns the bag, its storage file and how many complete scans that file still holds.
+fn write_cut_bag(dir: &Path, scans: usize) -> (PathBuf, PathBuf, usize) {
+    let path = dir.join("cut_bag");
+    let options = WriterOptions {
+        chunk_size: 512,
+        ..WriterOptions::default()
+    };
+    let mut w = BagWriter::create(&path, options).unwrap();
+    let scan_topic = w
+        .add_topic_for::<LaserScan>(topics::SCAN.name, topics::SCAN.qos)
+        .unwrap();
+    for i in 0..scans {
+        w.write_message(scan_topic, T0_NS + 50_000_000 * (i as i64 + 1), &scan(i))
+            .unwrap();
+    }
+    w.finish().unwrap();
+    std::fs::remove_file(path.join("metadata.yaml")).unwrap();
+    let file = std::fs::read_dir(&path)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "mcap"))
+        .unwrap();
+    let bytes = std::fs::read(&file).unwrap();
+    std::fs::write(&file, &bytes[..bytes.len() * 6 / 10]).unwrap();
+    let reader = lidar_har_bag::BagReader::open(&path).unwrap();
+    let complete = reader.messages().unwrap().take_while(Result::is_ok).count();
+    assert!(
+        (5..scans).contains(&complete),
+        "{complete} of {scans} scans before the cut"
+    );
+    (path, file, complete)
+}
+
+/// A bag cut short (a killed recorder) is played up to the cut with a warning naming the file
+/// and its complete messages; without `loop` the replay then waits for acknowledgements and
+/// exits with status 1 and the error, with `loop` it plays the bag again until a signal
+/// (status 0). It used to exit with status 1 at the cut, without the "played" line or the
+/// wait, and `loop:=true` never looped.
+#[test]
+fn ros_replay_plays_a_bag_cut_short_to_the_cut_and_loops_it() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (bag, file, complete) = write_cut_bag(dir.path(), 40);
+    let script = format!(
+        r#"
+"$LH" topic echo /scan --timeout 60 > "$OUT/once.jsonl" & E=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p wait_for_subscriber:=/scan 2> "$OUT/once_err.txt"
+echo "replay=$?"
+poll 2 has_lines "$OUT/once.jsonl" {complete}; kill -TERM $E; wait $E
+"$LH" topic echo /scan --timeout 60 > "$OUT/loop.jsonl" & E=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p loop:=true -p rate:=4.0 -p wait_for_subscriber:=/scan 2> "$OUT/loop_err.txt" &
+R=$!
+# A second pass comes.
+wait_until 30 has_lines "$OUT/loop.jsonl" {second_pass}
+kill -TERM $R; wait $R; echo "loop_replay=$?"
+kill -TERM $E; wait $E
+"#,
+        second_pass = complete + 3
+    );
+    let out = replay_in_netns(&script, &bag, dir.path(), Duration::from_secs(90));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["replay=1", "loop_replay=0"] {
+        assert!(stdout.contains(want), "expected {want}: {stdout}");
+    }
+    let warning = format!(
+        "{}: MCAP file is truncated (e.g. the recorder was killed) after {complete} complete \
+         messages",
+        file.display()
+    );
+    let once_err = std::fs::read_to_string(dir.path().join("once_err.txt")).unwrap();
+    let lines: Vec<&str> = once_err.lines().collect();
+    let warned = lines
+        .iter()
+        .position(|l| l.contains("WARN") && l.contains(&warning))
+        .unwrap_or_else(|| panic!("no warning naming the cut: {once_err}"));
+    let played = lines
+        .iter()
+        .position(|l| l.contains(&format!("played {complete} messages")))
+        .unwrap_or_else(|| panic!("the pass must finish: {once_err}"));
+    let last = lines.last().unwrap();
+    assert!(
+        warned < played && last.contains("replay: error") && last.contains(&warning),
+        "the error comes last, after the pass: {once_err}"
+    );
+    let once: Vec<usize> = json_lines(&dir.path().join("once.jsonl"))
+        .iter()
+        .map(|l| scan_index(&l["msg"]))
+        .collect();
+    assert!(
+        once.len() + 2 >= complete && once.iter().all(|i| *i < complete),
+        "{} of the {complete} scans before the cut arrived: {once:?}",
+        once.len()
+    );
+    let loop_err = std::fs::read_to_string(dir.path().join("loop_err.txt")).unwrap();
+    assert_eq!(
+        loop_err.matches(&warning).count(),
+        1,
+        "warned once, not every pass: {loop_err}"
+    );
+    assert!(!loop_err.contains("replay: error"), "{loop_err}");
+    let looped: Vec<usize> = json_lines(&dir.path().join("loop.jsonl"))
+        .iter()
+        .map(|l| scan_index(&l["msg"]))
+        .collect();
+    assert!(
+        looped.windows(2).any(|w| w[1] < w[0]),
+        "the bag was not played again: {looped:?}"
     );
 }
 
@@ -459,6 +573,43 @@ echo "domain_exit=$?"
     assert!(
         err.contains("`bag`") && !err.contains("ROS_DOMAIN_ID"),
         "the bag must be checked before the node joins the graph: {err}"
+    );
+}
+
+/// The driver checks its parameters before it joins the graph, as the replay does: a bad one
+/// used to be found with the participant up, and runs printed the DDS stack's discovery
+/// warnings before the one-line error. A bad `ROS_DOMAIN_ID`, which only joining the graph
+/// reads, shows the order: the parameter's error comes first.
+#[test]
+fn ros_rplidar_driver_checks_its_parameters_before_joining_the_graph() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let script = r#"
+for i in 1 2 3 4 5; do
+  "$DRIVER" --ros-args -p port:=/nonexistent/tty -p baud:=12 2>> "$OUT/err.txt"; echo "exit=$?"
+done
+ROS_DOMAIN_ID=999 "$DRIVER" --ros-args -p range_max:=0.1 2> "$OUT/domain_err.txt"
+echo "domain_exit=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("DRIVER", &workspace_bin("rplidar_driver")),
+            ("OUT", dir.path()),
+        ],
+        Duration::from_secs(60),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(stdout.matches("exit=2").count(), 6, "{stdout}");
+    let err = std::fs::read_to_string(dir.path().join("err.txt")).unwrap();
+    assert_eq!(err.lines().count(), 5, "one line per run: {err}");
+    assert!(err.lines().all(|l| l.contains("`baud`")), "{err}");
+    let err = std::fs::read_to_string(dir.path().join("domain_err.txt")).unwrap();
+    assert!(
+        err.contains("`range_max`") && !err.contains("ROS_DOMAIN_ID"),
+        "the parameters must be checked before the node joins the graph: {err}"
     );
 }
 
@@ -1034,6 +1185,71 @@ wait $E; echo "echo=$?"
             echoed.len()
         );
     }
+}
+
+/// A reliable /scan subscriber, rclcpp's default `QoS(10)` (here Cyclone DDS's), gets the
+/// replay's scans: /scan was offered best effort, which a reliable subscriber never matches
+/// (RustDDS logged `QoS mismatch Reliability`), so it got none while a best-effort one beside
+/// it got them all. The replay offers /scan as `rplidar_driver` does.
+#[test]
+fn ros_a_reliable_cyclone_scan_subscriber_gets_the_replays_scans() {
+    let Some(python) = cyclone_python() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 40);
+    let reader = r#"
+import sys, time
+from cyclonedds.core import Policy, Qos
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+from ros_idl import LaserScan
+p = DomainParticipant(0)
+topic = Topic(p, "rt/scan", LaserScan)
+# rclcpp's QoS(10): reliable, volatile, keep last 10.
+qos = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(10))
+reader = DataReader(p, topic, qos=qos)
+print("ready", flush=True)
+want, got, end = int(sys.argv[1]), 0, time.monotonic() + float(sys.argv[2])
+while got < want and time.monotonic() < end:
+    for s in reader.take(N=16):
+        if getattr(s, "sample_info", None) is None or s.sample_info.valid_data:
+            got += 1
+            print(s.ranges[0], flush=True)
+    time.sleep(0.01)
+sys.exit(0 if got == want else 1)
+"#;
+    let reader_path = dir.path().join("reliable_scan.py");
+    std::fs::write(&reader_path, reader).unwrap();
+    let script = r#"
+PYTHONPATH="$PYDIR" "$PY" "$READER" 40 20 > "$OUT/reliable.txt" & C=$!
+wait_until 10 has_lines "$OUT/reliable.txt" 1
+"$REPLAY" --ros-args -p bag:="$BAG" -p topics:="[/scan]" -p wait_for_subscriber:=/scan
+echo "replay=$?"
+wait $C; echo "reliable_reader=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("REPLAY", &workspace_bin("replay")),
+            ("BAG", &bag),
+            ("OUT", dir.path()),
+            ("READER", &reader_path),
+            ("PY", &python),
+            ("PYDIR", &repo_root().join("tests/python")),
+        ],
+        Duration::from_secs(60),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["replay=0", "reliable_reader=0"] {
+        assert!(stdout.contains(want), "expected {want}: {stdout}");
+    }
+    let text = std::fs::read_to_string(dir.path().join("reliable.txt")).unwrap();
+    let firsts: Vec<f32> = text.lines().skip(1).map(|l| l.parse().unwrap()).collect();
+    let want: Vec<f32> = (0..40).map(|i| scan(i).ranges[0]).collect();
+    assert_eq!(firsts, want, "every scan, in order (reliable)");
 }
 
 /// A /map publisher that does not latch it (cartographer's occupancy_grid_node: volatile,

@@ -1,6 +1,6 @@
 //! The topic contract in one place: names, types and QoS.
 
-use crate::qos::QosProfile;
+use crate::qos::{QosProfile, Reliability};
 use crate::{
     MessageDefinition, RosMessage, diagnostic_msgs, geometry_msgs, lidar_har_msgs, nav_msgs,
     rosgraph_msgs, sensor_msgs, tf2_msgs, visualization_msgs,
@@ -49,6 +49,16 @@ topics! {
     GROUND_TRUTH_ACTIVITY = "/ground_truth/activity", lidar_har_msgs::Activity, QosProfile::reliable(10);
 }
 
+/// What the publishers of /scan (`rplidar_driver`, `replay`) offer: [`SCAN`]'s QoS made
+/// reliable, as REP-2003 asks of sensor drivers and Slamtec's drivers do, so that a reliable
+/// subscriber (rclcpp's default `QoS(10)`) matches as well as a best-effort one ([`SCAN`]'s,
+/// the localiser's). Offered best effort, a reliable subscriber got nothing. A subscriber
+/// that stops acknowledging does not hold up the scans (docs/ros.md, "/scan QoS").
+pub const SCAN_OFFERED_QOS: QosProfile = QosProfile {
+    reliability: Reliability::Reliable,
+    ..SCAN.qos
+};
+
 /// The topic of the contract with this name, if any.
 pub fn find(name: &str) -> Option<&'static TopicSpec> {
     ALL.iter().find(|spec| spec.name == name)
@@ -57,6 +67,15 @@ pub fn find(name: &str) -> Option<&'static TopicSpec> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn scan_is_offered_reliable_with_the_contracts_depth() {
+        assert_eq!(SCAN_OFFERED_QOS.reliability, Reliability::Reliable);
+        assert_eq!(
+            (SCAN_OFFERED_QOS.durability, SCAN_OFFERED_QOS.history),
+            (SCAN.qos.durability, SCAN.qos.history)
+        );
+    }
 
     /// The type names the contract's tables give, so a topic cannot change type unnoticed.
     #[test]

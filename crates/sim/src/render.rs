@@ -200,7 +200,9 @@ fn draw_points(root: &Area, view: &View, points: &[(DVec2, BeamLabel)]) -> DrawR
 }
 
 /// The robot's path (blue) and the person's path coloured by activity, with a dot where each
-/// activity starts.
+/// activity starts. Dots go over lines, and within each the fall ([`drawn_last`]) over the
+/// rest: getting up goes back along the line of the fall, and drawn in time order it hid the
+/// fall's segments and dots under its own.
 fn draw_paths(
     root: &Area,
     view: &View,
@@ -209,26 +211,34 @@ fn draw_paths(
 ) -> DrawResult {
     let path: Vec<(i32, i32)> = robot.iter().map(|p| view.px(*p)).collect();
     drawn(root.draw(&PathElement::new(path, RGBColor(0, 0, 255).stroke_width(2))))?;
-    for w in person.windows(2) {
-        let c = ACTIVITY_COLOURS[w[1].1.index()];
-        drawn(root.draw(&PathElement::new(
-            vec![view.px(w[0].0), view.px(w[1].0)],
-            c.stroke_width(3),
-        )))?;
-    }
-    let mut last: Option<Activity> = None;
-    for (p, a) in person {
-        if last != Some(*a) {
-            drawn(root.draw(&Circle::new(
-                view.px(*p),
-                6,
-                ACTIVITY_COLOURS[a.index()].filled(),
+    let starts: Vec<&(DVec2, Activity)> = person
+        .iter()
+        .enumerate()
+        .filter(|(i, (_, a))| *i == 0 || person[i - 1].1 != *a)
+        .map(|(_, start)| start)
+        .collect();
+    for fall in [false, true] {
+        for w in person.windows(2).filter(|w| drawn_last(w[1].1) == fall) {
+            let c = ACTIVITY_COLOURS[w[1].1.index()];
+            drawn(root.draw(&PathElement::new(
+                vec![view.px(w[0].0), view.px(w[1].0)],
+                c.stroke_width(3),
             )))?;
+        }
+    }
+    for fall in [false, true] {
+        for (p, a) in starts.iter().filter(|(_, a)| drawn_last(*a) == fall) {
+            let colour = ACTIVITY_COLOURS[a.index()];
+            drawn(root.draw(&Circle::new(view.px(*p), 6, colour.filled())))?;
             drawn(root.draw(&Circle::new(view.px(*p), 6, BLACK.stroke_width(1))))?;
-            last = Some(*a);
         }
     }
     Ok(())
+}
+
+/// The fall: falling down and lying down, drawn over the rest of the person's path.
+fn drawn_last(activity: Activity) -> bool {
+    matches!(activity, Activity::FallingDown | Activity::LyingDown)
 }
 
 /// Where robot and person are now: a blue ring, and a ring in the current activity's colour
@@ -393,6 +403,42 @@ mod tests {
         assert!(has_colour(pixels(), RGBColor(220, 0, 0)), "person hits");
         for c in ACTIVITY_COLOURS {
             assert!(has_colour(pixels(), c), "legend swatch {c:?}");
+        }
+    }
+
+    /// Getting up went back along the line of the fall and, drawn after it, hid the falling
+    /// and lying colours (segments and dots) under its own: the demo's picture showed no fall.
+    #[test]
+    fn the_fall_stays_visible_under_a_getting_up_path_that_goes_back_over_it() {
+        let (map, _) = living_room_trace(0.1, 1);
+        let start = map.origin + DVec2::new(1.0, 1.0);
+        let step = |k: usize| start + DVec2::new(0.05 * k as f64, 0.0);
+        let mut trace = Trace::new(1);
+        trace.person.push((start, Activity::Standing));
+        trace
+            .person
+            .extend((0..=20).map(|k| (step(k), Activity::FallingDown)));
+        trace
+            .person
+            .extend((0..10).map(|_| (step(20), Activity::LyingDown)));
+        trace
+            .person
+            .extend((0..=20).rev().map(|k| (step(k), Activity::GettingUp)));
+        trace.person.push((start, Activity::Standing));
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("fall.png");
+        render_png(&png, &map, &trace).unwrap();
+        let img = image::open(&png).unwrap().to_rgb8();
+        // The map only: the legend strip below it has every colour.
+        let map_height = View::new(&map, 2000.0).height;
+        let pixels = || {
+            img.enumerate_pixels()
+                .filter(|(_, y, _)| *y < map_height)
+                .map(|(_, _, p)| p.0)
+        };
+        for fall in [Activity::FallingDown, Activity::LyingDown] {
+            let colour = ACTIVITY_COLOURS[fall.index()];
+            assert!(has_colour(pixels(), colour), "{} hidden", fall.label());
         }
     }
 

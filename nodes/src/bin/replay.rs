@@ -1,6 +1,7 @@
 //! `replay`: plays a rosbag2 directory (MCAP or sqlite3) onto ROS 2 topics, like
 //! `ros2 bag play`, with each topic's contract QoS (transient-local topics such as /map stay
-//! available to late subscribers), and /clock from the bag's time line for `use_sim_time`.
+//! available to late subscribers; /scan reliable, as the driver offers it), and /clock from
+//! the bag's time line for `use_sim_time`.
 //!
 //! Parameters: `bag` (required), `rate` (1.0; 0 = as fast as possible), `loop`,
 //! `start_offset` (s into the bag, up to its length), `topics` (only these; empty = all;
@@ -15,6 +16,12 @@
 //! topic) and at least a second of bag time, both over the rate: a selection of topics that
 //! spans no bag time (`topics:=[/map]`) used to be published again and again without a pause.
 //!
+//! A bag cut short (a killed recorder) is played up to its last complete message, with a
+//! warning naming the file and how many complete messages it holds; each `loop` pass ends
+//! there. Without `loop` the replay then waits for acknowledgements as usual and exits with
+//! status 1 and that error, as `lidar-har run` does on such a bag; it used to exit at the
+//! cut, without the wait, and never looped.
+//!
 //! /tf_static is played as tf2's StaticTransformBroadcaster publishes it: each recorded
 //! message is merged into the static transforms played so far (one per child frame), and the
 //! whole set is published, so that its depth of 1 still gives a late subscriber every static
@@ -24,9 +31,9 @@ use std::collections::HashMap;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
-use lidar_har_bag::{BagReader, OfferedQos, PROCESS_ENDING, qos};
+use lidar_har_bag::{BagError, BagReader, OfferedQos, PROCESS_ENDING, qos};
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::qos::{QosProfile, Reliability};
 use lidar_har_msgs::rosgraph_msgs::Clock;
@@ -223,19 +230,23 @@ fn check_start_offset(offset_ns: i64, bag_length_ns: i64, bag: &str) -> Result<(
     ))
 }
 
-/// The contract's QoS for a known topic, else the one rosbag2's player would offer for what
-/// the bag says its publishers offered.
-fn qos_for(topic: &lidar_har_bag::TopicInfo) -> QosProfile {
-    if let Some(spec) = topics::find(&topic.name) {
+/// The contract's QoS for a known topic (/scan as its driver offers it, whatever the bag
+/// recorded: [`topics::SCAN_OFFERED_QOS`]), else the one rosbag2's player would offer for
+/// what the bag says its publishers offered.
+fn qos_for(topic: &str, offered: &[OfferedQos]) -> QosProfile {
+    if topic == topics::SCAN.name {
+        return topics::SCAN_OFFERED_QOS;
+    }
+    if let Some(spec) = topics::find(topic) {
         return spec.qos;
     }
-    let playback = qos::playback_qos(&topic.offered_qos);
+    let playback = qos::playback_qos(offered);
     if playback.offers_disagree {
-        let recorded: Vec<String> = topic.offered_qos.iter().map(|q| q.describe()).collect();
+        let recorded: Vec<String> = offered.iter().map(|q| q.describe()).collect();
         log::warn!(
             "replay: the publishers recorded on {} offered different QoS ({}); offering {}, \
              rosbag2's default for this case",
-            topic.name,
+            topic,
             recorded.join("; "),
             OfferedQos::from(playback.profile).describe()
         );
@@ -286,7 +297,7 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
             if topic.name == topics::TF_STATIC.name && topic.type_name == TFMessage::TYPE_NAME {
                 static_transforms = Some(StaticTransforms::default());
             }
-            let qos = qos_for(topic);
+            let qos = qos_for(&topic.name, &topic.offered_qos);
             let publisher = node.publisher(&topic.name, &topic.type_name, qos)?;
             publishers.insert(topic.name.clone(), publisher);
             if qos.reliability == Reliability::Reliable {
@@ -317,11 +328,24 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     }
     let (bag_start, bag_end) = (info.start_ns, info.end_ns);
     let mut played = 0u64;
+    let mut cut_short = None;
     loop {
         let begin = bag_start.saturating_add(settings.start_offset_ns);
         let mut pacing = Pacing::new(begin, Instant::now(), settings.rate);
         for message in reader.messages()? {
-            let message = message.context("reading the bag")?;
+            let message = match message {
+                Ok(message) => message,
+                // A killed recorder (a power cut) leaves a file cut short: the reader gives
+                // every complete message first, so the pass ends here, warned about once.
+                Err(e @ BagError::Truncated { .. }) => {
+                    if cut_short.is_none() {
+                        log::warn!("replay: {e}; playing the bag up to there");
+                    }
+                    cut_short.get_or_insert(e);
+                    continue;
+                }
+                Err(e) => return Err(anyhow::Error::new(e).context("reading the bag")),
+            };
             if message.log_time_ns < begin {
                 continue;
             }
@@ -363,7 +387,13 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
         let reliable = reliable.iter().filter_map(|topic| publishers.get(topic));
         wait_for_all_acked(reliable, writers_created, settings.acked_timeout, shutdown);
     }
-    Ok(())
+    match cut_short {
+        // Played to its end, a bag cut short fails the replay, as it fails `lidar-har run`,
+        // but only once what there was has been played and acknowledged. A `loop` ends only
+        // by a signal, with status 0 as always.
+        Some(e) if !settings.looping => Err(anyhow::Error::new(e).context("reading the bag")),
+        _ => Ok(()),
+    }
 }
 
 /// The static transforms played so far, one per child frame, in the order the child frames
@@ -706,6 +736,23 @@ mod tests {
         let bad = vec![0, 1, 0, 0, 9];
         assert_eq!(merged.merge_recorded(bad.clone()), bad);
         assert_eq!(merged.merged, set, "a bad payload changes nothing");
+    }
+
+    /// /scan used to be offered best effort, the contract's subscription QoS: a reliable
+    /// subscriber (rclcpp's default) got nothing. Other contract topics keep their QoS.
+    #[test]
+    fn scan_is_offered_reliable_like_the_driver_and_other_topics_as_the_contract() {
+        // Recorded best effort, as the simulator records it.
+        let recorded = [OfferedQos::from(topics::SCAN.qos)];
+        let scan = qos_for(topics::SCAN.name, &recorded);
+        assert_eq!(scan.reliability, Reliability::Reliable);
+        assert_eq!(
+            (scan.durability, scan.history),
+            (topics::SCAN.qos.durability, topics::SCAN.qos.history)
+        );
+        for spec in [topics::MAP, topics::ODOM, topics::TF_STATIC] {
+            assert_eq!(qos_for(spec.name, &[]), spec.qos, "{}", spec.name);
+        }
     }
 
     #[test]

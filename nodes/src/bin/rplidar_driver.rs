@@ -14,7 +14,7 @@ use std::process::ExitCode;
 
 use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
 use lidar_har_msgs::topics;
-use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, Parameters, RosError};
+use lidar_har_ros::{NodeSetup, ParamDecl, ParamValue, Parameters, RosError};
 use lidar_har_rplidar::config::MIN_BAUD;
 use lidar_har_rplidar::{Config, ConfigField, Driver, Error, Event, ScanModeChoice};
 
@@ -152,15 +152,24 @@ fn parameter_of(field: ConfigField) -> &'static str {
 }
 
 fn drive(shutdown: &Shutdown) -> anyhow::Result<()> {
-    let node = Node::new(NodeSetup::new("rplidar_driver").parameters(decls()))?;
-    let mut driver = Driver::new(config(node.params())?).map_err(|e| bad_parameter("port", e))?;
+    let setup = NodeSetup::new("rplidar_driver")
+        .parameters(decls())
+        .prepare()?;
+    // The parameters are checked before the node joins the graph: a bad one used to be
+    // found with the participant up, and its discovery warnings came before the error.
+    let mut driver = Driver::new(config(setup.params())?).map_err(|e| bad_parameter("port", e))?;
+    let node = setup.join()?;
     if node.params().bool("use_sim_time")? {
         log::warn!(
             "rplidar_driver: use_sim_time is true, but the scans of a live device are stamped by \
              the wall clock"
         );
     }
-    let scans = node.publisher_for(&topics::SCAN)?;
+    let scans = node.publisher(
+        topics::SCAN.name,
+        topics::SCAN.type_name,
+        topics::SCAN_OFFERED_QOS,
+    )?;
     let diagnostics = node.publisher_for(&topics::DIAGNOSTICS)?;
     // next_event returns at least once per diagnostics period, so a signal is seen promptly.
     while !shutdown.requested() {
