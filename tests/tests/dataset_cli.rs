@@ -332,6 +332,13 @@ fn a_run_that_gives_no_window_leaves_the_dataset_already_there_whole() {
             "{file} changed"
         );
     }
+    // Nor are the failed run's rows left beside it.
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .expect("read_dir")
+        .filter_map(|entry| entry.ok()?.file_name().into_string().ok())
+        .filter(|name| name.ends_with(".rows") || name.ends_with(".partial"))
+        .collect();
+    assert!(leftovers.is_empty(), "left behind: {leftovers:?}");
 }
 
 /// `lidar-har random-scenes` with `--seed` and `--count`, into `out`.
@@ -429,12 +436,14 @@ fn random_scenes_rejects_a_count_of_zero() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--count 0"));
 }
 
-/// A dataset of short episodes in the committed model's image (room-fixed, 32 px at 8 cm),
-/// with a test split (kitchen) and a `test_unseen` one (office).
+/// A dataset of short episodes in the committed model's image (room-fixed, 32 px at 8 cm)
+/// and window (20 scans), with a test split (kitchen) and a `test_unseen` one (office).
 fn dataset_for_the_committed_model(out: &Path) {
     let made = make_dataset(
         out,
         &[
+            "--window",
+            "20",
             "--size",
             "32",
             "--resolution",
