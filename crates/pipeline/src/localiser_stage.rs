@@ -983,6 +983,14 @@ pub(crate) mod tests {
         }
     }
 
+    /// A scan with a return on each of its four beams, 2 m off.
+    fn returning_scan(stamp_ns: i64) -> LaserScan {
+        LaserScan {
+            ranges: vec![2.0; 4],
+            ..scan(stamp_ns)
+        }
+    }
+
     /// Feeds `msg` (received at 0) and gives the output of the one scan that goes through.
     fn scan_output(stage: &mut LocaliserStage, msg: LaserScan) -> Option<LocaliserOutput> {
         let mut step = stage.receive(LocaliserInput::Scan(msg), 0).unwrap();
@@ -1414,7 +1422,10 @@ pub(crate) mod tests {
             // 4 s of scans, every 0.5 s.
             for k in 0..=8 {
                 stage
-                    .receive(LocaliserInput::Scan(scan(k * 500 * MS)), k * 500 * MS)
+                    .receive(
+                        LocaliserInput::Scan(returning_scan(k * 500 * MS)),
+                        k * 500 * MS,
+                    )
                     .unwrap();
             }
             stage.finish().unwrap();
@@ -1439,10 +1450,21 @@ pub(crate) mod tests {
         for k in 0..=7 {
             assert!(!stage.learning_overdue_warned, "at {k}");
             stage
-                .receive(LocaliserInput::Scan(scan(0)), k * 500 * MS)
+                .receive(LocaliserInput::Scan(returning_scan(0)), k * 500 * MS)
                 .unwrap();
         }
         assert!(stage.learning_overdue_warned);
+        // Nor do scans without a return, however long they come: a background is learned
+        // only from scans that see something of the room.
+        let mut stage =
+            LocaliserStage::new(config(1.5), RoomSource::LearnedBackground, false).unwrap();
+        for k in 0..=7 {
+            stage
+                .receive(LocaliserInput::Scan(scan(k * 500 * MS)), k * 500 * MS)
+                .unwrap();
+        }
+        assert!(stage.learning_overdue_warned);
+        assert_eq!(stage.scans_learning(), 8);
     }
 
     #[test]
