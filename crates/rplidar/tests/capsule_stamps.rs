@@ -142,9 +142,11 @@ fn express_scans_are_stamped_at_beam_0_not_one_capsule_later() {
     offsets_ms.sort_by(f64::total_cmp);
     eprintln!("stamp - end of turn (ms), sorted: {offsets_ms:?}");
     // Beam 0 lies 0.1 ms after the turn's last sample. A read the machine wakes late stamps
-    // late: on a loaded machine most may be, so the test takes the promptest of the turns,
-    // which one capsule late (8 ms) would still leave late.
-    let promptest = offsets_ms[0];
+    // late: on a loaded machine most may be, so the test takes one of the promptest turns,
+    // which one capsule late (8 ms) would still leave late. Not the promptest itself: when
+    // this thread wrote the turn's capsule late but the next one on time, the driver rightly
+    // dates the turn by the next, ahead of the late write (-3 ms under a parallel build).
+    let promptest = offsets_ms[offsets_ms.len() / 10];
     assert!(
         (-1.0..2.5).contains(&promptest),
         "promptest {promptest:.2} ms"
