@@ -33,6 +33,7 @@ import torch
 from onnx import numpy_helper
 from torch import nn
 
+from .arguments import at_least, number
 from .data import CLASSES, DatasetError, load_array, load_index, load_split
 from .export import PARITY_TOLERANCE, ExportError, model_from_onnx, set_metadata
 from .outputs import OutputError, prepare_output, replaced_when_done, set_aside
@@ -283,23 +284,26 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, help="where to write the head (ONNX)")
     parser.add_argument("--head", type=Path, help="score (and gate, with --out) this exported head instead of fitting one")
     parser.add_argument("--init-from", type=Path, help="start the fit from this exported head's weights (its size)")
-    parser.add_argument("--train-windows", type=int, default=0, help="fit on this many training windows (0: all)")
-    parser.add_argument("--test-windows", type=int, default=0, help="score on this many windows per test split (0: all)")
-    parser.add_argument("--first-step", type=int, default=11,
+    parser.add_argument("--train-windows", type=at_least(0), default=0,
+                        help="fit on this many training windows (0: all)")
+    parser.add_argument("--test-windows", type=at_least(0), default=0,
+                        help="score on this many windows per test split (0: all)")
+    parser.add_argument("--first-step", type=at_least(0), default=11,
                         help="first step (0-based) of each window fitted on: history first_step + 1")
-    parser.add_argument("--minutes", type=float, default=25.0)
-    parser.add_argument("--batch", type=int, default=256)
-    parser.add_argument("--lr", type=float, default=1e-3, help="Adam's first rate; decays to 1 %% of it along a cosine")
-    parser.add_argument("--beta", type=float, default=0.05,
+    parser.add_argument("--minutes", type=number(above=0), default=25.0)
+    parser.add_argument("--batch", type=at_least(1), default=256)
+    parser.add_argument("--lr", type=number(above=0), default=1e-3,
+                        help="Adam's first rate; decays to 1 %% of it along a cosine")
+    parser.add_argument("--beta", type=number(minimum=0), default=0.05,
                         help="smooth L1's beta (m) for the offset: quadratic below it, linear above")
-    parser.add_argument("--validation-fraction", type=float, default=0.02,
+    parser.add_argument("--validation-fraction", type=number(minimum=0, below=1), default=0.02,
                         help="training scans held out to keep the best epoch's weights (0: keep the last)")
-    parser.add_argument("--channels", type=int, default=32, help="the head's convolution channels")
-    parser.add_argument("--units", type=int, default=64, help="the head's hidden units")
+    parser.add_argument("--channels", type=at_least(1), default=32, help="the head's convolution channels")
+    parser.add_argument("--units", type=at_least(1), default=64, help="the head's hidden units")
     parser.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto",
                         help="where the states are kept and the head fitted (auto: a CUDA GPU when PyTorch sees one)")
-    parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--threads", type=at_least(1), default=2)
+    parser.add_argument("--seed", type=at_least(0), default=1)
     parser.add_argument("--json", type=Path, help="write the scores here")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
     try:
@@ -318,6 +322,10 @@ def run(args) -> int:
     torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
     index = load_index(args.data)
+    window = index["spec"]["window"]
+    if args.first_step >= window:
+        raise DatasetError(f"--first-step {args.first_step}: the windows of {args.data} have {window} scans "
+                           f"(steps 0..{window - 1})")
     model = model_from_onnx(args.model, index["spec"]).to(device)
     data = {}
     # Every split checked before any is read: extracting the states takes minutes per split.
@@ -359,7 +367,7 @@ def run(args) -> int:
     errors = {name: (b, a, s * scale) for name, (b, a, s) in errors.items()}
     before, after, sigma = errors["test"]
     max_sigma = doubt_threshold(before, after, sigma, placed(data["test"], sigma, used, np.inf))
-    report = {"activities": used, "max_sigma_m": round(max_sigma, 4) if np.isfinite(max_sigma) else None,
+    report = {"activities": used, "max_sigma_m": max_sigma if np.isfinite(max_sigma) else None,
               "sigma_scale": round(scale, 3),
               "first_step": args.first_step,
               "head": {"channels": head.conv[0].out_channels, "units": head.mlp[0].out_features},
@@ -382,18 +390,26 @@ def run(args) -> int:
     # The scores first: a failed export must not lose them.
     write_report(args.json, report)
     if args.out:
-        metadata = {
-            KEY_ACTIVITY_SHA256: hashlib.sha256(args.model.read_bytes()).hexdigest(),
-            KEY_MIN_HISTORY: str(args.first_step + 1),
-            KEY_ACTIVITIES: ",".join(used),
-            KEY_MAX_SIGMA: f"{max_sigma:.4f}",
-        }
+        metadata = head_metadata(args.model, args.first_step, used, max_sigma)
         sample = {k: v[:200] for k, v in data["test"].items()}
         worst = export(head, args.out, model.hidden, model.state_size, metadata, sample)
         report["parity_max_abs_diff"] = worst
         print(f"wrote {args.out} (parity with PyTorch: max abs difference {worst:.1e})")
         write_report(args.json, report)
     return 0
+
+
+def head_metadata(model: Path, first_step: int, used: list[str], max_sigma: float) -> dict:
+    """The rules of the head's use, for the runtime (docs/model_contract.md, "Pose head").
+    `max_sigma` at full precision (`repr`, "inf" without a limit): rounded, the runtime's
+    gate would differ from the one the head was scored with, for the expected errors between
+    the two."""
+    return {
+        KEY_ACTIVITY_SHA256: hashlib.sha256(model.read_bytes()).hexdigest(),
+        KEY_MIN_HISTORY: str(first_step + 1),
+        KEY_ACTIVITIES: ",".join(used),
+        KEY_MAX_SIGMA: repr(max_sigma),
+    }
 
 
 def write_report(path: Path | None, report: dict) -> None:

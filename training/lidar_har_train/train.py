@@ -26,6 +26,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from .arguments import at_least, number
 from .data import CLASSES, DatasetError, Split, load_index, load_split
 from .export import ExportError, export_step_model, model_from_onnx
 from .model import ActivityConvLSTM
@@ -36,25 +37,27 @@ def parse_args(argv):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", type=Path, required=True, help="dataset directory (index.json + .npy)")
     p.add_argument("--out", type=Path, required=True, help="ONNX file to write")
-    p.add_argument("--hidden", type=int, default=16, help="ConvLSTM hidden channels")
-    p.add_argument("--encoder-channels", type=int, default=8)
-    p.add_argument("--batch", type=int, default=64)
-    p.add_argument("--lr", type=float, default=3e-3, help="learning rate at the start")
-    p.add_argument("--lr-final", type=float, default=1e-4,
+    p.add_argument("--hidden", type=at_least(1), default=16, help="ConvLSTM hidden channels")
+    p.add_argument("--encoder-channels", type=at_least(1), default=8)
+    p.add_argument("--batch", type=at_least(1), default=64)
+    p.add_argument("--lr", type=number(above=0), default=3e-3, help="learning rate at the start")
+    p.add_argument("--lr-final", type=number(minimum=0), default=1e-4,
                    help="learning rate at the end: a cosine from --lr reaches it when --max-epochs or "
                         "--time-budget-min runs out, whichever comes first (equal to --lr: constant)")
-    p.add_argument("--max-epochs", type=int, default=40)
-    p.add_argument("--patience", type=int, default=5, help="epochs without validation gain before stopping")
-    p.add_argument("--steps-per-epoch", type=int, default=150, help="balanced batches drawn per epoch")
-    p.add_argument("--time-budget-min", type=float, default=45.0, help="stop training after this many minutes")
-    p.add_argument("--val-fraction", type=float, default=0.15, help="share of training episodes held for validation")
-    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--max-epochs", type=at_least(1), default=40)
+    p.add_argument("--patience", type=at_least(1), default=5, help="epochs without validation gain before stopping")
+    p.add_argument("--steps-per-epoch", type=at_least(1), default=150, help="balanced batches drawn per epoch")
+    p.add_argument("--time-budget-min", type=number(above=0), default=45.0,
+                   help="stop training after this many minutes")
+    p.add_argument("--val-fraction", type=number(above=0, below=1), default=0.15,
+                   help="share of training episodes held for validation")
+    p.add_argument("--threads", type=at_least(1), default=2)
     p.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto",
                    help="where to train: auto takes a CUDA GPU when PyTorch sees one (the export and its "
                         "parity check always run on the CPU)")
-    p.add_argument("--seed", type=int, default=7)
+    p.add_argument("--seed", type=at_least(0), default=7)
     p.add_argument("--no-augment", action="store_true")
-    p.add_argument("--shift-px", type=int, default=2,
+    p.add_argument("--shift-px", type=at_least(0), default=2,
                    help="augmentation: random shift of each window by up to this many pixels")
     p.add_argument("--bf16", action="store_true",
                    help="bfloat16 autocast for the forward pass (GPUs, and CPUs with AVX-512 BF16 or AMX): 1.25x "
@@ -68,12 +71,7 @@ def parse_args(argv):
                         "sizes replace --hidden and --encoder-channels")
     p.add_argument("--skip-test-eval", action="store_true",
                    help="skip PyTorch metrics on the test splits (`lidar-har evaluate` gives them through ONNX Runtime)")
-    args = p.parse_args(argv)
-    if args.max_epochs < 1:
-        p.error(f"--max-epochs must be at least 1, got {args.max_epochs}")
-    if not 0.0 < args.val_fraction < 1.0:
-        p.error(f"--val-fraction must be between 0 and 1, got {args.val_fraction}")
-    return args
+    return p.parse_args(argv)
 
 
 class DeviceError(Exception):

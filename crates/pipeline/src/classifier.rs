@@ -25,7 +25,7 @@ use lidar_har_core::fall::{
 };
 use lidar_har_core::geometry::MainAxisSpan;
 use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
-use lidar_har_core::pose_head::{NoPoseHead, PelvisPlacer, PersonAt, PoseHead};
+use lidar_har_core::pose_head::{NoPoseHead, PelvisPlacer, PersonAt, PoseHead, PoseHeadSpec};
 use lidar_har_core::stats::{Spread, SpreadTally, upper_median};
 use lidar_har_core::truth_match::{Around, TruthMatcher};
 use lidar_har_infer::{ActivityModel, InferError, PoseHeadModel};
@@ -397,6 +397,21 @@ impl ClassifierStage<ActivityModel, PoseHeadModel> {
                 )
             }
             Some(head_path) => match PoseHeadModel::load(head_path, &model, config.threads) {
+                // A head that asks for more history than any state reaches would never place
+                // a pelvis, and nothing would say why.
+                Ok(head)
+                    if let Some(reason) =
+                        history_out_of_reach(&head, config, path, stream.window) =>
+                {
+                    log::warn!("classifier: no /human/pelvis: {reason}");
+                    (
+                        None,
+                        PoseHeadStatus::NotUsed {
+                            path: head_path.clone(),
+                            reason,
+                        },
+                    )
+                }
                 Ok(head) => (
                     Some(
                         PelvisPlacer::new(head.spec().clone(), head)
@@ -466,6 +481,31 @@ fn no_room_for_the_head(config: &ClassifierConfig, window: usize) -> Option<Stri
             schedule.lanes_between,
             schedule.states(),
             schedule.period
+        )
+    })
+}
+
+/// Why `head` would never place a pelvis under `config`'s lanes with `model` (of `window`
+/// scans), if so: it reads only states with `min_history` frames behind them, and every state
+/// restarts after the lane period.
+fn history_out_of_reach(
+    head: &PoseHeadModel,
+    config: &ClassifierConfig,
+    model: &Path,
+    window: usize,
+) -> Option<String> {
+    let min_history = head.spec().min_history;
+    let period = config.lane_schedule(window, true).period;
+    (min_history > period).then(|| {
+        format!(
+            "pose head {} reads states with at least {min_history} scans behind them \
+             ({}), more than the lane period's {period} scans (lane_period_windows = {} x \
+             the window of {window} scans of model {}), after which every state restarts: \
+             raise lane_period_windows, or use a head fitted from an earlier step",
+            head.path().display(),
+            PoseHeadSpec::KEY_MIN_HISTORY,
+            config.lane_period_windows,
+            model.display()
         )
     })
 }
@@ -1874,6 +1914,66 @@ mod tests {
                 model.display()
             )
         );
+    }
+
+    /// A head asking for more history than the lane period gives any state never placed a
+    /// pelvis, and the run said nothing of it. The head: the infer crate's fixture, fitted on
+    /// its step model (window 8), with its min_history "3" made "9".
+    #[test]
+    fn a_head_asking_for_more_history_than_the_lanes_give_is_not_used_and_says_why() {
+        let (runtime, _) = lidar_har_infer::runtime_library_path();
+        if !runtime.is_file() {
+            assert!(
+                std::env::var_os("LIDAR_HAR_REQUIRE_CHECKERS").is_none(),
+                "{} missing: run scripts/setup.sh",
+                runtime.display()
+            );
+            eprintln!("SKIP: {} missing (run scripts/setup.sh)", runtime.display());
+            return;
+        }
+        let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../infer/tests/fixtures");
+        let model = fixtures.join("step_model.onnx");
+        let mut bytes = std::fs::read(fixtures.join("pose_head.onnx")).unwrap();
+        let min_history = b"lidar_har.pose_head.min_history\x12\x013";
+        let at = bytes
+            .windows(min_history.len())
+            .position(|w| w == min_history)
+            .unwrap();
+        bytes[at + min_history.len() - 1] = b'9';
+        let dir = tempfile::tempdir().unwrap();
+        let head = dir.path().join("pose_head_9.onnx");
+        std::fs::write(&head, bytes).unwrap();
+
+        // Lane period 8 scans (1.0 x the window of 8): no state ever has 9 behind it.
+        let config = ClassifierConfig {
+            pose_head: Some(head.clone()),
+            lane_period_windows: 1.0,
+            ..ClassifierConfig::default()
+        };
+        let stage = ClassifierStage::load(&config, Some(&model)).unwrap();
+        let PoseHeadStatus::NotUsed { path, reason } = stage.pose_head() else {
+            panic!("{}", stage.pose_head());
+        };
+        assert_eq!(path, &head);
+        assert_eq!(
+            reason,
+            &format!(
+                "pose head {} reads states with at least 9 scans behind them \
+                 (lidar_har.pose_head.min_history), more than the lane period's 8 scans \
+                 (lane_period_windows = 1 x the window of 8 scans of model {}), after which \
+                 every state restarts: raise lane_period_windows, or use a head fitted from an \
+                 earlier step",
+                head.display(),
+                model.display()
+            )
+        );
+        // A period of 10 scans (1.2 x 8) reaches it.
+        let config = ClassifierConfig {
+            lane_period_windows: 1.2,
+            ..config
+        };
+        let stage = ClassifierStage::load(&config, Some(&model)).unwrap();
+        assert_eq!(stage.pose_head(), &PoseHeadStatus::Used { path: head });
     }
 
     #[test]

@@ -18,7 +18,7 @@ if not all(importlib.util.find_spec(m) for m in ("torch", "onnx", "onnxruntime")
 
 from lidar_har_train import export, pose_head, train  # noqa: E402
 
-from .synthetic import write_dataset  # noqa: E402
+from .synthetic import WINDOW, write_dataset  # noqa: E402
 
 TINY = ["--hidden", "4", "--encoder-channels", "2", "--batch", "4", "--max-epochs", "2", "--steps-per-epoch", "3",
         "--threads", "1", "--seed", "3", "--skip-test-eval"]
@@ -146,6 +146,13 @@ class PoseHead(unittest.TestCase):
             self.assertEqual(code, 1, stderr)
             self.assertIn(f"pose_head: error: {blocker / 'pose.onnx'}: cannot make its folder", stderr)
             self.assertNotIn("seen scans", stdout)
+
+    def test_a_first_step_past_the_window_is_named_before_any_split_is_read(self):
+        code, stdout, stderr = self.pose_head("--first-step", str(WINDOW))
+        self.assertEqual(code, 1, stderr)
+        self.assertIn(f"pose_head: error: --first-step {WINDOW}: the windows of {self.data} have {WINDOW} scans",
+                      stderr)
+        self.assertNotIn("seen scans", stdout)
 
     def test_dataset_errors_are_named_not_tracebacks(self):
         code, _, stderr = self.pose_head(data=self.root / "nowhere")

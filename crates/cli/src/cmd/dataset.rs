@@ -389,13 +389,9 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let shape = WindowShape {
-        window: args.window,
-        size: args.size,
-    };
     let mut writers = SPLITS
         .iter()
-        .map(|split| SplitWriter::create(&args.out, split, shape))
+        .map(|split| SplitWriter::create(&args.out, split, args.window, args.size))
         .collect::<anyhow::Result<Vec<_>>>()?;
     let mut episodes = Vec::new();
     let period_s = 1.0 / rate_hz;
@@ -503,13 +499,6 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The shape of a window's arrays.
-#[derive(Debug, Clone, Copy)]
-struct WindowShape {
-    window: usize,
-    size: usize,
-}
-
 /// One split's arrays and index entries, taken an episode at a time as the episodes finish.
 struct SplitWriter {
     name: &'static str,
@@ -530,8 +519,8 @@ struct FinishedSplit {
 }
 
 impl SplitWriter {
-    fn create(out: &Path, name: &'static str, shape: WindowShape) -> anyhow::Result<Self> {
-        let WindowShape { window, size } = shape;
+    /// `window` scans of `size` x `size` images per row.
+    fn create(out: &Path, name: &'static str, window: usize, size: usize) -> anyhow::Result<Self> {
         let file = |array: &str| out.join(format!("{name}_{array}.npy"));
         Ok(Self {
             name,
