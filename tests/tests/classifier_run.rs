@@ -102,6 +102,26 @@ fn run_without_the_model_says_how_to_proceed() {
         err.contains(path(&missing)) && err.contains("--no-classifier"),
         "{err}"
     );
+
+    // A model named by a classifier configuration is blamed on it, not on --model.
+    let config = tmp.path().join("classifier.yaml");
+    std::fs::write(&config, format!("model: {}\n", path(&missing))).unwrap();
+    let out = lidar_har(&[
+        "run",
+        "--bag",
+        path(tmp.path()),
+        "--out",
+        path(&tmp.path().join("out")),
+        "--classifier-config",
+        path(&config),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(path(&missing))
+            && err.contains(&format!("`model` of --classifier-config {}", path(&config))),
+        "{err}"
+    );
 }
 
 #[test]

@@ -282,7 +282,7 @@ fn run_tracks_the_person_in_a_robot_bag_and_writes_outputs_and_summary() {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     eprintln!("{summary:#}");
     assert_eq!(summary["scans"], 199);
-    assert_eq!(summary["room"], "map");
+    assert_eq!(summary["room"], "map_topic");
     assert_eq!(summary["motion"], "odometry");
     assert_eq!(summary["mount"], "tf_static");
     assert!(summary["visible_ratio"].as_f64().unwrap() > 0.95);
@@ -470,7 +470,7 @@ fn a_fixed_lidar_is_placed_in_the_map_by_its_static_transforms() {
     let summary = run_localiser(&input, &tmp.path().join("out"), None);
     assert_eq!(
         (summary.room, summary.motion, summary.mount),
-        ("map", "stationary", MountSource::TfStatic)
+        ("map_topic", "stationary", MountSource::TfStatic)
     );
     assert!(summary.warnings.is_empty(), "{summary:?}");
     assert!(summary.visible_ratio > 0.95, "{summary:?}");
@@ -507,6 +507,7 @@ fn a_map_file_given_wins_over_the_bags_map() {
         summary.visible_ratio, 0.0,
         "the bag's /map was used instead"
     );
+    assert_eq!(summary.room, "map_file");
 }
 
 #[test]

@@ -99,7 +99,8 @@ pub enum RunError {
 #[derive(Debug, Clone, Serialize)]
 pub struct RunSummary {
     pub input: PathBuf,
-    /// `map` (a given map or /map) or `learned_background`.
+    /// `map_file` (a map given with the run), `map_topic` (the bag's /map) or
+    /// `learned_background`.
     pub room: &'static str,
     /// `odometry` (a moving robot) or `stationary`.
     pub motion: &'static str,
@@ -194,7 +195,7 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
     let reader = open_input(input)?;
     let transforms = BagTransforms::find(&reader, &options.config.frames);
     let (room, moving) = choose_room(&reader, input, options.map, transforms);
-    let learned = matches!(room, RoomSource::LearnedBackground);
+    let room_name = room.name();
     // From here a stop is honoured at the first message, outputs finished, even one that
     // comes while they are being made.
     options.stop.arm();
@@ -213,7 +214,7 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
         outputs,
     } = stages;
     outputs.finish().map_err(output_error(out_dir))?;
-    let summary = summarise(input, learned, moving, tally, &localiser, classifier);
+    let summary = summarise(input, room_name, moving, tally, &localiser, classifier);
     write_summary(out_dir, &summary)?;
     Ok(summary)
 }
@@ -650,7 +651,7 @@ impl PositionErrors {
 /// `summary.json`: what the run tallied, and what the stages counted themselves.
 fn summarise(
     input: &Path,
-    learned: bool,
+    room: &'static str,
     moving: bool,
     tally: Tally,
     localiser: &LocaliserStage,
@@ -680,7 +681,7 @@ fn summarise(
     };
     RunSummary {
         input: input.to_path_buf(),
-        room: if learned { "learned_background" } else { "map" },
+        room,
         motion: if moving { "odometry" } else { "stationary" },
         scans: tally.scans,
         scans_localised: tally.scans_localised,
@@ -908,6 +909,25 @@ mod tests {
             .as_ref()
             .unwrap_or_else(|| panic!("no position error: {summary:?}"))
             .median
+    }
+
+    /// `room` says which map was used: a map given with the run replaces the bag's /map,
+    /// and both had read `map`.
+    #[test]
+    fn the_summary_says_whether_the_map_was_given_or_the_bags() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("in");
+        robot_bag(&input, &Robot::default());
+        let run = |map, out| {
+            let options = RunOptions {
+                map,
+                ..RunOptions::default()
+            };
+            run_bag(&input, &dir.path().join(out), options).unwrap()
+        };
+        assert_eq!(run(None, "topic").room, "map_topic");
+        let given = Some(crate::localiser_stage::tests::empty_room());
+        assert_eq!(run(given, "file").room, "map_file");
     }
 
     /// REP 105: /tf's `odom -> base_link` (an EKF's fused pose) is the odometry, not raw

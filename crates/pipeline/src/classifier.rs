@@ -60,6 +60,7 @@ pub struct ClassifierConfig {
     /// The pose head for /human/pelvis (docs/model_contract.md, "Pose head"); `None`: none.
     /// When it cannot be used (missing, or fitted on another activity model) the classifier
     /// runs without it and says why: a pelvis is never worth losing the fall alerts for.
+    #[serde(deserialize_with = "deserialize_pose_head")]
     pub pose_head: Option<PathBuf>,
     /// While the person is hidden, /human/pelvis stays at the last seen offset from the
     /// track's prediction for this long, s (0: only on seen scans).
@@ -92,6 +93,19 @@ impl Default for ClassifierConfig {
             fall_alert: FallAlertConfig::default(),
         }
     }
+}
+
+/// A `pose_head` setting as a file or YAML `null` gives it, or as the classifier node's
+/// `pose_head` parameter does: `none` is no head, in both, rather than a file of that name.
+pub fn pose_head_setting(value: Option<PathBuf>) -> Option<PathBuf> {
+    value.filter(|path| path.as_os_str() != "none")
+}
+
+fn deserialize_pose_head<'de, D>(deserializer: D) -> Result<Option<PathBuf>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+{
+    Option::<PathBuf>::deserialize(deserializer).map(pose_head_setting)
 }
 
 impl ClassifierConfig {
@@ -1802,6 +1816,22 @@ mod tests {
         assert_eq!(last.last().unwrap().topic.name, "/human/markers");
         let e = stage.handle_cdr(&[0, 1, 0, 0, 7]).unwrap_err().to_string();
         assert!(e.contains("/human/observation"), "{e}");
+    }
+
+    /// `pose_head: none` in a file had been a head file named `none` (a warning that it is
+    /// missing) for `lidar-har run`, while the node's `pose_head:=none` is no head.
+    #[test]
+    fn pose_head_none_is_no_head_in_a_file_as_in_the_nodes_parameter() {
+        let head = |text: &str| parse_classifier_config(text).unwrap().pose_head;
+        assert_eq!(head("pose_head: none\n"), None);
+        assert_eq!(head("pose_head: null\n"), None);
+        assert_eq!(
+            head("pose_head: heads/none.onnx\n"),
+            Some(PathBuf::from("heads/none.onnx"))
+        );
+        assert_eq!(pose_head_setting(Some(PathBuf::from("none"))), None);
+        let given = Some(PathBuf::from("h.onnx"));
+        assert_eq!(pose_head_setting(given.clone()), given);
     }
 
     #[test]

@@ -36,6 +36,18 @@ pub enum RoomSource {
     LearnedBackground,
 }
 
+impl RoomSource {
+    /// As `summary.json`'s `room` says it: which map was used matters, since a given map
+    /// replaces the bag's.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Map(_) => "map_file",
+            Self::MapTopic => "map_topic",
+            Self::LearnedBackground => "learned_background",
+        }
+    }
+}
+
 /// A decoded input message of the stage (one of [`LocaliserStage::INPUTS`]).
 #[derive(Debug, Clone)]
 pub enum LocaliserInput {
@@ -1024,7 +1036,8 @@ pub(crate) mod tests {
         scan_output(stage, scan(stamp_ns)).map(|out| out.laser_pose)
     }
 
-    fn empty_room() -> OccupancyMap {
+    /// A 10 m square map without an obstacle, centred on the origin.
+    pub(crate) fn empty_room() -> OccupancyMap {
         let geometry = lidar_har_core::map::MapGeometry {
             resolution: 0.1,
             origin: Pose2::new(-5.0, -5.0, 0.0),

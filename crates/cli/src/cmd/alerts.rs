@@ -95,9 +95,9 @@ pub struct AlertsArgs {
     pub save_readings: Option<PathBuf>,
     /// Score the alerts over readings saved by `--save-readings` instead of simulating and
     /// running the model: seconds instead of minutes, and the same report a full run with
-    /// `--classifier-config`'s `fall_alert` settings gives. Episodes, seed, model and lanes
-    /// are the recording's: the configuration's `model` is not used (nor can `--model` be
-    /// given), and its lanes must be the recording's. A file cut short (a recording stopped
+    /// `--classifier-config`'s `fall_alert` settings gives. Episodes, seed, latency target,
+    /// model and lanes are the recording's: the configuration's `model` is not used (nor can
+    /// `--model` or `--latency-target-s` be given), and its lanes must be the recording's. A file cut short (a recording stopped
     /// half-way) is scored over its complete episodes, the report marked `cut_short`, and
     /// the command fails; a file without a complete episode is refused.
     #[arg(long, value_name = "FILE", conflicts_with_all = [

@@ -37,12 +37,12 @@ pub struct DatasetArgs {
     /// Scene files, as globs or paths (e.g. 'config/scenes/*.yaml' out/rooms/*.yaml).
     #[arg(long, required = true, num_args = 1..)]
     pub scenes: Vec<String>,
-    /// Episodes over the training scenes (train + test); the held-out scenes get
-    /// `test_fraction` of this many more. Which episodes are test depends on it (and on
-    /// `--test-fraction`) while each episode depends only on `--seed` and its number: the same
-    /// `--seed` with another count gives the same episodes split otherwise, so a model trained
-    /// on one would be tested on its own training episodes (`evaluate` refuses that when the
-    /// model's training report lies beside it). Test with another `--seed`.
+    /// Episodes over the training scenes (train + test); the held-out scenes get as many more
+    /// as the test split has, and at least one each. Which episodes are test depends on it
+    /// (and on `--test-fraction`) while each episode depends only on `--seed` and its number:
+    /// the same `--seed` with another count gives the same episodes split otherwise, so a
+    /// model trained on one would be tested on its own training episodes (`evaluate` refuses
+    /// that when the model's training report lies beside it). Test with another `--seed`.
     #[arg(long, default_value_t = 40)]
     pub episodes: usize,
     #[arg(long, default_value_t = 1)]
@@ -73,7 +73,8 @@ pub struct DatasetArgs {
     /// episodes; neither split may end up empty, unless 0 is given for no test split).
     #[arg(long, default_value_t = DEFAULT_TEST_FRACTION)]
     pub test_fraction: f64,
-    /// Scene names (their `name:` field) kept out of training: the `test_unseen` split.
+    /// Scene names (their `name:` field; comma-separated or repeated) kept out of training:
+    /// the `test_unseen` split.
     #[arg(long, value_delimiter = ',')]
     pub held_out: Vec<String>,
     /// Seconds simulated per episode.
@@ -1574,6 +1575,35 @@ mod tests {
         // Another seed: other episodes.
         let (other, _) = planned(&["--seed", "12", "--held-out", "office", "--episodes", "80"]);
         assert!(of(&other, true).is_disjoint(&trained));
+    }
+
+    #[test]
+    fn held_out_scenes_get_as_many_episodes_as_the_test_split_and_one_each_at_least() {
+        let unseen = |extra: &[&str]| -> Vec<String> {
+            planned(extra)
+                .0
+                .into_iter()
+                .filter(|(_, _, split)| *split == "test_unseen")
+                .map(|(scene, _, _)| scene)
+                .collect()
+        };
+        let test = planned(&["--episodes", "40"])
+            .0
+            .iter()
+            .filter(|(_, _, split)| *split == "test")
+            .count();
+        assert_eq!(test, 8);
+        assert_eq!(
+            unseen(&["--held-out", "office", "--episodes", "40"]),
+            vec!["office"; 8]
+        );
+        let none_tested = ["--test-fraction", "0", "--episodes", "6"];
+        let mut one = vec!["--held-out", "office"];
+        one.extend(none_tested);
+        assert_eq!(unseen(&one), vec!["office"]);
+        let mut two = vec!["--held-out", "office,hall"];
+        two.extend(none_tested);
+        assert_eq!(unseen(&two), vec!["hall", "office"]);
     }
 
     #[test]

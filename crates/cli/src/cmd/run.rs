@@ -62,10 +62,19 @@ pub fn run(args: RunArgs, stop: StopRequest) -> anyhow::Result<()> {
         if classifier.model.is_file() {
             Some(classifier)
         } else {
+            // The configuration's `model` (named there or its default) is fixed there.
+            let source = match (&args.model, &args.classifier_config) {
+                (None, Some(config)) => format!(
+                    ", the `model` of --classifier-config {}: fix it there,",
+                    config.display()
+                ),
+                _ => ":".into(),
+            };
             anyhow::ensure!(
                 !explicit,
-                "no activity model at {}: pass an existing --model FILE, train one (training/, see \
-                 docs/classifier.md), or run the localiser alone with --no-classifier",
+                "no activity model at {}{source} pass an existing --model FILE, train one \
+                 (training/, see docs/classifier.md), or run the localiser alone with \
+                 --no-classifier",
                 super::shown_path(&classifier.model)
             );
             errln!(

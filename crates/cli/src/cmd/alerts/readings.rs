@@ -170,7 +170,10 @@ impl ReadingsWriter {
             path: path.to_owned(),
             out,
         };
+        // On disk at once: a run stopped during its first episode leaves a file `--readings`
+        // knows as a recording with no episode, not an empty one it cannot tell from any other.
         writer.line(header)?;
+        writer.flush()?;
         Ok(writer)
     }
 
@@ -178,6 +181,10 @@ impl ReadingsWriter {
     /// `--readings` scores those episodes (and says the file is cut short).
     pub fn write(&mut self, episode: &EpisodeLog) -> anyhow::Result<()> {
         self.line(episode)?;
+        self.flush()
+    }
+
+    fn flush(&mut self) -> anyhow::Result<()> {
         self.out
             .flush()
             .with_context(|| format!("--save-readings {}: writing", self.path.display()))
@@ -344,6 +351,24 @@ mod tests {
         assert_eq!(reader.header(), &header());
         let episodes: Vec<EpisodeLog> = reader.map(Result::unwrap).collect();
         assert_eq!(episodes, vec![episode(0), episode(1)]);
+    }
+
+    #[test]
+    fn a_recording_stopped_in_its_first_episode_reads_as_one_without_episodes() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.zst");
+        // What is on disk while the first episode runs: a process killed now leaves this.
+        let writer = ReadingsWriter::create(&path, &header()).unwrap();
+        let on_disk = dir.path().join("killed.zst");
+        std::fs::copy(&path, &on_disk).unwrap();
+        drop(writer);
+
+        let mut read = ReadingsReader::open(&on_disk).unwrap();
+        assert_eq!(read.header(), &header());
+        assert!(
+            read.next().is_none_or(|episode| episode.is_err()),
+            "no episode was written"
+        );
     }
 
     #[test]
