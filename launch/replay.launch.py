@@ -30,16 +30,19 @@ def generate_launch_description():
         DeclareLaunchArgument("params_file", default_value=os.path.join(config, "replay.yaml"),
                               description="parameters of all nodes (ROS 2 params-file layout)"),
         Node(package="lidar_har", executable="replay", name="replay", output="screen",
-             parameters=[arg("params_file"), {
+             # The topics first, so that a `topics` key in the params file wins over them
+             # (it used to be overridden); the launch arguments last, winning over the file.
+             parameters=[{
+                 # Topics the nodes below publish themselves are not replayed from the bag.
+                 # Those the bag lacks (a fixed Lidar has no /odom or /map) are skipped with a
+                 # warning; replay fails only when the bag has none of them.
+                 "topics": ["/scan", "/odom", "/map", "/tf", "/tf_static"],
+             }, arg("params_file"), {
                  # A string as given: launch_ros reads an untyped value as YAML, and a bag
                  # named 2024_01_01 became the integer 20240101 (the replay then refused it).
                  "bag": ParameterValue(arg("bag"), value_type=str),
                  "rate": ParameterValue(arg("rate"), value_type=float),
                  "loop": ParameterValue(arg("loop"), value_type=bool),
-                 # Topics the nodes below publish themselves are not replayed from the bag.
-                 # Those the bag lacks (a fixed Lidar has no /odom or /map) are skipped with a
-                 # warning; replay fails only when the bag has none of them.
-                 "topics": ["/scan", "/odom", "/map", "/tf", "/tf_static"],
              }]),
         Node(package="lidar_har", executable="localiser", name="localiser", output="screen",
              parameters=[{"config": os.path.join(config, "localiser.yaml")}, arg("params_file"), sim_time],

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use lidar_har_ros::{ParamDecl, RosArgs, RosError};
+use lidar_har_ros::{Backend, Node, ParamDecl, PreparedNode, RosArgs, RosError};
 
 /// What the nodes log without `RUST_LOG`: their own info, only warnings from the DDS stack
 /// (whose info level describes every discovery packet).
@@ -25,7 +25,18 @@ const UDP_SENDER_TARGET: &str = "rustdds::network::udp_sender";
 /// sparingly (`lidar_har_ros`), so [`NodeLogger`] drops these.
 const DATAWRITER_TARGET: &str = "rustdds::dds::with_key::datawriter";
 
-/// env_logger without RustDDS's datagram size and full send window warnings.
+/// The module of ros2-client that compares `ROS_DISTRO` with the distribution it was built
+/// for, at every start: a warning when `ROS_DISTRO` is unset (the documented case of no ROS 2
+/// installation), an ERROR advising `--features humble` under Humble, a feature this
+/// workspace does not have. [`NodeLogger`] drops its records; [`join`] says what another
+/// distribution means for the node instead ([`ros_distro_note`]).
+const DISTRO_CHECK_TARGET: &str = "ros2_client::distributions";
+
+/// The distribution ros2-client is built for (its default feature).
+const TRANSPORT_DISTRO: &str = "jazzy";
+
+/// env_logger without RustDDS's datagram size and full send window warnings, and without
+/// ros2-client's `ROS_DISTRO` check.
 struct NodeLogger(env_logger::Logger);
 
 fn is_datagram_size_warning(record: &log::Record) -> bool {
@@ -43,13 +54,20 @@ fn is_send_window_warning(record: &log::Record) -> bool {
             .starts_with("Write timed out (reliable send window full)")
 }
 
+fn is_ros_distro_check(record: &log::Record) -> bool {
+    record.target() == DISTRO_CHECK_TARGET
+}
+
 impl log::Log for NodeLogger {
     fn enabled(&self, metadata: &log::Metadata) -> bool {
         self.0.enabled(metadata)
     }
 
     fn log(&self, record: &log::Record) {
-        if !is_datagram_size_warning(record) && !is_send_window_warning(record) {
+        if !is_datagram_size_warning(record)
+            && !is_send_window_warning(record)
+            && !is_ros_distro_check(record)
+        {
             self.0.log(record);
         }
     }
@@ -69,6 +87,28 @@ fn init_logging() {
     if log::set_boxed_logger(Box::new(NodeLogger(logger))).is_ok() {
         log::set_max_level(max_level);
     }
+}
+
+/// What the pure-Rust transport means under `ros_distro` (`ROS_DISTRO`), where it informs:
+/// a distribution other than Jazzy (docs/ros.md, "ROS 2 distributions").
+fn ros_distro_note(ros_distro: Option<&str>) -> Option<String> {
+    let distro = ros_distro.filter(|d| !d.is_empty() && *d != TRANSPORT_DISTRO)?;
+    Some(format!(
+        "ROS_DISTRO is {distro}, and this node's transport (ros2-client) speaks Jazzy's graph \
+         information: its topics work with {distro}'s nodes and `ros2 topic`, but `ros2 node \
+         list` and `ros2 param` may not see it (docs/ros.md, \"ROS 2 distributions\")"
+    ))
+}
+
+/// Joins the ROS graph, first saying what `ROS_DISTRO` means for the pure-Rust transport
+/// where it informs ([`ros_distro_note`]); the rcl backend is the installation's own.
+pub fn join(setup: PreparedNode) -> Result<Node, RosError> {
+    if Backend::default() == Backend::Dds
+        && let Some(note) = ros_distro_note(std::env::var("ROS_DISTRO").ok().as_deref())
+    {
+        log::warn!("{note}");
+    }
+    setup.join()
 }
 
 /// What a node is, for its `--help`: its name, one line on what it does, its parameters.
@@ -422,6 +462,84 @@ mod tests {
         ));
     }
 
+    /// What a [`NodeLogger`] that lets every level through writes of `records` (level,
+    /// target, message).
+    fn node_logger_output(records: &[(log::Level, &str, &str)]) -> String {
+        #[derive(Clone, Default)]
+        struct Buffer(Arc<std::sync::Mutex<Vec<u8>>>);
+        impl std::io::Write for Buffer {
+            fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+                self.0.lock().unwrap().extend_from_slice(bytes);
+                Ok(bytes.len())
+            }
+            fn flush(&mut self) -> std::io::Result<()> {
+                Ok(())
+            }
+        }
+        let buffer = Buffer::default();
+        let logger = NodeLogger(
+            env_logger::Builder::new()
+                .filter_level(log::LevelFilter::Trace)
+                .target(env_logger::Target::Pipe(Box::new(buffer.clone())))
+                .build(),
+        );
+        for (level, target, message) in records {
+            log::Log::log(
+                &logger,
+                &log::Record::builder()
+                    .level(*level)
+                    .target(target)
+                    .args(format_args!("{message}"))
+                    .build(),
+            );
+        }
+        String::from_utf8(buffer.0.lock().unwrap().clone()).unwrap()
+    }
+
+    /// ros2-client's check logged a warning at every start without ROS 2, and under Humble an
+    /// ERROR advising a feature this workspace does not have.
+    #[test]
+    fn ros2_clients_ros_distro_check_is_dropped_at_every_level() {
+        let written = node_logger_output(&[
+            (
+                log::Level::Warn,
+                DISTRO_CHECK_TARGET,
+                "ROS_DISTRO is not set; ros2-client was built for 'jazzy'.",
+            ),
+            (
+                log::Level::Error,
+                DISTRO_CHECK_TARGET,
+                "ROS_DISTRO='humble' but ros2-client was built for 'jazzy'. rebuild with \
+                 --features humble.",
+            ),
+            (
+                log::Level::Info,
+                DISTRO_CHECK_TARGET,
+                "ROS_DISTRO='jazzy' matches the ros2-client build.",
+            ),
+            (log::Level::Warn, "ros2_client::context", "kept"),
+        ]);
+        assert!(
+            !written.contains("ROS_DISTRO") && written.contains("kept"),
+            "{written}"
+        );
+    }
+
+    #[test]
+    fn ros_distro_is_noted_only_when_it_is_not_jazzy() {
+        for quiet in [None, Some(""), Some("jazzy")] {
+            assert_eq!(ros_distro_note(quiet), None, "{quiet:?}");
+        }
+        let note = ros_distro_note(Some("humble")).unwrap();
+        assert!(
+            note.starts_with("ROS_DISTRO is humble")
+                && note.contains("topics work")
+                && note.contains("`ros2 node list` and `ros2 param` may not see it")
+                && !note.contains("--features"),
+            "{note}"
+        );
+    }
+
     /// launch_ros reads a parameter value given as a bare launch argument as YAML:
     /// `bag:=2024_01_01` reached the replay as the integer 20240101 (status 2). Every launch
     /// argument passed as a parameter goes through `ParameterValue(..., value_type=...)`.
@@ -441,6 +559,53 @@ mod tests {
                     value.starts_with("arg(") || value.starts_with("LaunchConfiguration(")
                 });
                 assert!(!untyped, "{}:{}: untyped: {line}", path.display(), n + 1);
+            }
+            checked += 1;
+        }
+        assert!(
+            checked >= 3,
+            "launch files not found in {}",
+            launch.display()
+        );
+    }
+
+    /// launch_ros applies a node's `parameters` in order, the last value winning: a launch
+    /// file's own values go before `params_file`, so that the file's keys win over them, and
+    /// only launch arguments after it. `replay.launch.py` passed its `topics` after the file,
+    /// and a `topics` key there was silently overridden.
+    #[test]
+    fn the_launch_files_pass_only_launch_arguments_after_the_params_file() {
+        let launch = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch");
+        let params_file = "arg(\"params_file\")";
+        let mut checked = 0;
+        for entry in std::fs::read_dir(&launch).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_none_or(|e| e != "py") {
+                continue;
+            }
+            let text = std::fs::read_to_string(&path).unwrap();
+            let mut after_params_file = false;
+            for (n, line) in text.lines().enumerate() {
+                if line.contains("Node(") {
+                    after_params_file = false;
+                }
+                let rest = match line.split_once(params_file) {
+                    Some((_, rest)) => {
+                        after_params_file = true;
+                        rest
+                    }
+                    None if after_params_file && !line.trim_start().starts_with('#') => line,
+                    None => continue,
+                };
+                // `"name": value` after the params file: a value of its own would win over it.
+                for value in rest.split("\": ").skip(1) {
+                    assert!(
+                        value.starts_with("ParameterValue(arg("),
+                        "{}:{}: a value of the launch file's own after params_file: {line}",
+                        path.display(),
+                        n + 1
+                    );
+                }
             }
             checked += 1;
         }

@@ -510,15 +510,43 @@ fn ros_nodes_reject_bad_parameters_naming_them() {
             r#"ROS_AUTOMATIC_DISCOVERY_RANGE=nearby "$REPLAY" --ros-args -p bag:="$BAG""#,
             &["ROS_AUTOMATIC_DISCOVERY_RANGE `nearby`", "LOCALHOST"],
         ),
+        // The localiser and the classifier check their files before they join the graph:
+        // they used to join first, and the DDS stack's warnings came before the error. A bad
+        // `ROS_DOMAIN_ID`, which only joining reads, shows the order.
+        (
+            r#""$LOCALISER" --ros-args -p config:=/nonexistent.yaml"#,
+            &["`config`", "/nonexistent.yaml"],
+        ),
+        (
+            r#"ROS_DOMAIN_ID=999 "$LOCALISER" --ros-args -p map_file:="$ROBOT_YAML""#,
+            &["`map_file`", "robot.yaml", "not a valid map_server map"],
+        ),
+        (
+            r#""$LOCALISER" --ros-args -p map_file:="$ROBOT_YAML" -p learned_background:=true"#,
+            &["`map_file`", "learned_background"],
+        ),
+        (
+            r#""$CLASSIFIER" --ros-args -p config:="$LOCALISER_YAML""#,
+            &["`config`", "localiser.yaml", "unknown field"],
+        ),
+        (
+            r#"ROS_DOMAIN_ID=999 "$CLASSIFIER" --ros-args -p config:=/nonexistent.yaml"#,
+            &["`config`", "/nonexistent.yaml"],
+        ),
     ];
+    let config = repo_root().join("config");
     for (command, needles) in cases {
         let script = format!("{command} 2> \"$OUT/err.txt\"; echo \"exit=$?\"");
         let out = in_netns(
             &script,
             &[
                 ("REPLAY", &workspace_bin("replay")),
+                ("LOCALISER", &workspace_bin("localiser")),
+                ("CLASSIFIER", &workspace_bin("classifier")),
                 ("BAG", &bag),
                 ("PF", &params_file),
+                ("ROBOT_YAML", &config.join("robot.yaml")),
+                ("LOCALISER_YAML", &config.join("localiser.yaml")),
                 ("OUT", dir.path()),
             ],
             Duration::from_secs(20),
@@ -528,6 +556,11 @@ fn ros_nodes_reject_bad_parameters_naming_them() {
         assert!(
             stdout.contains("exit=2"),
             "{command}: must fail with status 2 (bad argument or parameter): {stdout}"
+        );
+        assert_eq!(
+            stderr.lines().count(),
+            1,
+            "{command}: one line, the error, before any DDS traffic: {stderr}"
         );
         for needle in *needles {
             assert!(
@@ -669,6 +702,12 @@ fn the_classifier_tells_a_missing_runtime_from_a_bad_model() {
             "exit=2",
             &["`model`", "/nonexistent/model.onnx"],
         ),
+        // Loaded before the node joins the graph, which alone reads `ROS_DOMAIN_ID`.
+        (
+            r#"ROS_DOMAIN_ID=999 ORT_DYLIB_PATH=/nonexistent/libonnxruntime.so "$CLASSIFIER""#,
+            "exit=1",
+            &["/nonexistent/libonnxruntime.so"],
+        ),
     ];
     for (command, status, needles) in cases {
         let script = format!("{command} 2> \"$OUT/err.txt\"; echo \"exit=$?\"");
@@ -685,6 +724,12 @@ fn the_classifier_tells_a_missing_runtime_from_a_bad_model() {
         assert!(
             stdout.contains(status),
             "{command}: want {status}: {stdout}"
+        );
+        // ONNX Runtime and the model are loaded before the node joins the graph.
+        assert_eq!(
+            stderr.lines().count(),
+            1,
+            "{command}: one line, the error, before any DDS traffic: {stderr}"
         );
         for needle in *needles {
             assert!(

@@ -194,7 +194,8 @@ pub fn node_parameters(mut decls: Vec<ParamDecl>) -> Vec<ParamDecl> {
         decls.push(ParamDecl::new(
             "use_sim_time",
             ParamValue::Bool(false),
-            "stamp with /clock instead of the system clock",
+            "the node clock (Node::now) follows /clock; outputs keep their inputs' stamps \
+             either way; true: no ros2 param services (pure-Rust transport)",
         ));
     }
     decls
@@ -659,6 +660,13 @@ mod tests {
         assert_eq!(
             names(&all),
             ["rate", "loop", "bag", "topics", "use_sim_time"]
+        );
+        // No node stamps its outputs with the node clock: `--help` used to say "stamp with
+        // /clock instead of the system clock".
+        let sim_time = &all[4].description;
+        assert!(
+            sim_time.contains("follows /clock") && sim_time.contains("keep their inputs' stamps"),
+            "{sim_time}"
         );
         let own = ParamDecl::new("use_sim_time", ParamValue::Bool(false), "mine");
         let all = node_parameters(vec![own]);

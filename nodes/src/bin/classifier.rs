@@ -17,7 +17,7 @@ use lidar_har::{NodeInfo, Outputs, Shutdown, bad_parameter, optional_path};
 use lidar_har_pipeline::classifier::{
     ClassifierConfig, ClassifierError, ClassifierStage, load_classifier_config,
 };
-use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue};
+use lidar_har_ros::{NodeSetup, ParamDecl, ParamValue};
 
 fn main() -> ExitCode {
     lidar_har::run(
@@ -52,8 +52,11 @@ fn decls() -> Vec<ParamDecl> {
 }
 
 fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
-    let node = Node::new(NodeSetup::new("classifier").parameters(decls()))?;
-    let p = node.params();
+    let setup = NodeSetup::new("classifier").parameters(decls()).prepare()?;
+    // The configuration, the model and ONNX Runtime are loaded before the node joins the
+    // graph: a bad one used to be found with the participant up, after the DDS stack's
+    // discovery warnings.
+    let p = setup.params();
     let config_path = optional_path(p, "config")?;
     let mut config = match &config_path {
         Some(path) => load_classifier_config(path).map_err(|e| bad_parameter("config", e))?,
@@ -74,6 +77,7 @@ fn classify(shutdown: &Shutdown) -> anyhow::Result<()> {
         model_path.display(),
         stage.pose_head()
     );
+    let node = lidar_har::join(setup)?;
     let [input] = ClassifierStage::INPUTS;
     let input = node.subscriber_for(&input)?;
     let outputs = Outputs::new(&node, &ClassifierStage::OUTPUTS)?;

@@ -15,7 +15,8 @@
 //! `map_subscribe_transient_local`). A background still not
 //! learned twice `background.learn_duration_s` after the first scan is warned about.
 //! A scan stamped after the newest odometry waits for it up to the configuration's
-//! `odometry.max_wait_s` on this node's clock; scans still waiting at shutdown are published.
+//! `odometry.max_wait_s` on this node's monotonic wall clock (also with `use_sim_time`, which
+//! changes no stamp: outputs keep their scan's); scans still waiting at shutdown are published.
 
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -24,7 +25,7 @@ use lidar_har::{NodeInfo, Outputs, Shutdown, bad_parameter, optional_path};
 use lidar_har_msgs::qos::{Durability, History, QosProfile, Reliability};
 use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_pipeline::{LocaliserStage, PipelineError, RoomSource, Step, files};
-use lidar_har_ros::{Node, NodeSetup, ParamDecl, ParamValue, RosError};
+use lidar_har_ros::{NodeSetup, ParamDecl, ParamValue, Parameters, RosError};
 
 fn main() -> ExitCode {
     lidar_har::run(
@@ -74,8 +75,7 @@ fn decls() -> Vec<ParamDecl> {
     ]
 }
 
-fn stage(node: &Node) -> Result<LocaliserStage, RosError> {
-    let p = node.params();
+fn stage(p: &Parameters) -> Result<LocaliserStage, RosError> {
     let config = match optional_path(p, "config")? {
         Some(path) => {
             files::load_localiser_config(&path).map_err(|e| bad_parameter("config", e))?
@@ -138,9 +138,12 @@ fn subscription_qos(spec: &TopicSpec, map_transient_local: bool) -> QosProfile {
 const TF_STATIC_DEPTH: u32 = 100;
 
 fn localise(shutdown: &Shutdown) -> anyhow::Result<()> {
-    let node = Node::new(NodeSetup::new("localiser").parameters(decls()))?;
-    let mut stage = stage(&node)?;
-    let map_transient_local = node.params().bool("map_transient_local")?;
+    let setup = NodeSetup::new("localiser").parameters(decls()).prepare()?;
+    // The configuration and the map are checked before the node joins the graph: a bad one
+    // used to be found with the participant up, after the DDS stack's discovery warnings.
+    let mut stage = stage(setup.params())?;
+    let map_transient_local = setup.params().bool("map_transient_local")?;
+    let node = lidar_har::join(setup)?;
     let inputs = LocaliserStage::INPUTS
         .into_iter()
         .map(|spec| {

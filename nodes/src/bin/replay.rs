@@ -288,7 +288,7 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
         let reason = format!("{} is not a played topic", settings.wait_for);
         return Err(bad_parameter("wait_for_subscriber", reason).into());
     }
-    let node = setup.join()?;
+    let node = lidar_har::join(setup)?;
     let mut publishers: HashMap<String, Publisher> = HashMap::new();
     let mut reliable = Vec::new();
     let mut static_transforms = None;

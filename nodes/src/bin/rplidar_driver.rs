@@ -59,12 +59,12 @@ fn decls() -> Vec<ParamDecl> {
         ),
         ParamDecl::new(
             "range_min",
-            V::Double(f64::from(d.geometry.range_min_m)),
+            V::Double(as_written(d.geometry.range_min_m)),
             "shortest valid range, m",
         ),
         ParamDecl::new(
             "range_max",
-            V::Double(f64::from(d.geometry.range_max_m)),
+            V::Double(as_written(d.geometry.range_max_m)),
             "longest valid range, m",
         ),
         ParamDecl::new(
@@ -94,6 +94,13 @@ fn decls() -> Vec<ParamDecl> {
             "read /clock; scans are stamped by the wall clock all the same (a live device)",
         ),
     ]
+}
+
+/// An f32 setting as the double one writes for it: 0.15, where `f64::from` gives
+/// 0.15000000596046448 (in `--help` and `ros2 param get`). Narrowed back to f32, both are
+/// the same value.
+fn as_written(value: f32) -> f64 {
+    value.to_string().parse().unwrap_or(f64::from(value))
 }
 
 fn integer<T: TryFrom<i64>>(p: &Parameters, name: &str, rule: &str) -> Result<T, RosError> {
@@ -158,7 +165,7 @@ fn drive(shutdown: &Shutdown) -> anyhow::Result<()> {
     // The parameters are checked before the node joins the graph: a bad one used to be
     // found with the participant up, and its discovery warnings came before the error.
     let mut driver = Driver::new(config(setup.params())?).map_err(|e| bad_parameter("port", e))?;
-    let node = setup.join()?;
+    let node = lidar_har::join(setup)?;
     if node.params().bool("use_sim_time")? {
         log::warn!(
             "rplidar_driver: use_sim_time is true, but the scans of a live device are stamped by \
@@ -215,6 +222,21 @@ mod tests {
         let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/robot.yaml");
         let p = Parameters::resolve(&decls(), "/rplidar_driver", &[file], &[]).unwrap();
         assert_eq!(config(&p).unwrap(), config(&params(&[])).unwrap());
+        // As declared, not only once narrowed to the driver's f32: `--help` and `ros2 param
+        // get` showed range_min 0.15000000596046448 where the file and the docs say 0.15.
+        let defaults = params(&[]);
+        for (name, value) in p.iter() {
+            assert_eq!(Some(value), defaults.get(name), "{name}");
+        }
+    }
+
+    #[test]
+    fn f32_settings_are_declared_as_their_shortest_decimal() {
+        assert_eq!(as_written(0.15), 0.15);
+        assert_eq!(as_written(12.0), 12.0);
+        for value in [0.15, 0.1 + 0.2, f32::MAX, f32::MIN_POSITIVE] {
+            assert_eq!(as_written(value) as f32, value, "{value}");
+        }
     }
 
     #[test]
