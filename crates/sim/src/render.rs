@@ -1,21 +1,45 @@
 //! Top view of a simulation, as a picture (PNG) or an animation (GIF): the map, the robot's
 //! path, the person's path coloured by activity (a dot where each activity starts), and scan
 //! points coloured by what they hit. Drawn with plotters' bitmap backend; GIF frames encoded
-//! by `image`. The workspace builds plotters without font support,
-//! so the picture has no text: colours are fixed (see [`ACTIVITY_COLOURS`] and
-//! docs/simulator.md) and a strip of nine swatches along the bottom, in class order, is the
-//! legend.
+//! by `image`. Colours are fixed (see [`ACTIVITY_COLOURS`] and docs/simulator.md); the legend
+//! below the map names each activity's swatch and gives a scale bar. Text is drawn in one
+//! embedded font ([`font`]), also used by the CLI's charts.
 
 use std::path::Path;
+use std::sync::OnceLock;
 
 use glam::DVec2;
 use lidar_har_core::activity::Activity;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::lidar::ScanGeometry;
 use crate::map::{FREE, OCCUPIED, OccupancyMap};
 use crate::simulator::Frame;
 use crate::world::BeamLabel;
+
+/// The family name the embedded font is registered under with plotters.
+const FONT_FAMILY: &str = "lidar-har-hack";
+
+/// The pictures' font at `size` pixels: Hack (from `epaint_default_fonts`, MIT + Bitstream
+/// Vera licence), embedded so that pictures need no system fonts and look the same
+/// everywhere. Registered with plotters' global font table on first use, once.
+pub fn font(size: f64) -> Result<FontDesc<'static>, String> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let registered = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font(
+            FONT_FAMILY,
+            FontStyle::Normal,
+            epaint_default_fonts::HACK_REGULAR,
+        )
+        .is_ok()
+    });
+    if registered {
+        Ok((FONT_FAMILY, size).into_font())
+    } else {
+        Err("the embedded font (Hack, epaint_default_fonts) cannot be read".into())
+    }
+}
 
 /// One colour per activity, in class order (crawling .. walking_unsteadily).
 pub const ACTIVITY_COLOURS: [RGBColor; Activity::COUNT] = [
@@ -113,7 +137,24 @@ pub struct RenderError {
 
 /// Pixels per metre of the picture (smaller for rooms over 20 m).
 const SCALE: f64 = 100.0;
-const LEGEND: u32 = 30;
+/// The legend's items (each activity's swatch and name, the robot's path, each kind of scan
+/// point, then the scale bar) lie in rows below the map, as many to a row as the width holds
+/// at this width each.
+const LEGEND_ITEM_WIDTH: u32 = 170;
+const LEGEND_ROW: u32 = 20;
+const LEGEND_ITEMS: u32 = (Activity::COUNT + 1 + SCAN_POINT_KINDS.len() + 1) as u32;
+/// The scan points' kinds as the legend names them.
+const SCAN_POINT_KINDS: [(BeamLabel, &str); 4] = [
+    (BeamLabel::Wall, "scan: wall"),
+    (BeamLabel::Furniture, "scan: furniture"),
+    (BeamLabel::Person, "scan: person"),
+    (BeamLabel::Wrong, "scan: multipath"),
+];
+/// The robot's path and rings.
+const ROBOT_COLOUR: RGBColor = RGBColor(0, 0, 255);
+const LEGEND_FONT: f64 = 13.0;
+/// A legend swatch's width and height.
+const SWATCH: (i32, i32) = (18, 12);
 
 /// Map coordinates to pixels.
 struct View {
@@ -140,7 +181,25 @@ impl View {
     }
 
     fn size(&self) -> (u32, u32) {
-        (self.width, self.height + LEGEND)
+        (self.width, self.height + self.legend_height())
+    }
+
+    fn legend_columns(&self) -> u32 {
+        (self.width / LEGEND_ITEM_WIDTH).clamp(1, LEGEND_ITEMS)
+    }
+
+    fn legend_height(&self) -> u32 {
+        LEGEND_ITEMS.div_ceil(self.legend_columns()) * LEGEND_ROW + 8
+    }
+
+    /// The box of legend item `k` (activities in class order, then the scale bar):
+    /// top left corner and width.
+    fn legend_item(&self, k: u32) -> ((i32, i32), i32) {
+        let columns = self.legend_columns();
+        let width = self.width / columns;
+        let x = (k % columns) * width;
+        let y = self.height + 4 + (k / columns) * LEGEND_ROW;
+        ((x as i32, y as i32), width as i32)
     }
 
     fn px(&self, p: DVec2) -> (i32, i32) {
@@ -159,7 +218,82 @@ fn drawn<E: std::error::Error>(r: Result<(), E>) -> DrawResult {
     r.map_err(|e| e.to_string())
 }
 
-/// White page, the map's cells, and the legend: nine activity colours in class order.
+/// The scale bar's length in metres: the first of 1, 2, 5, 10, 20, 50 .. m that is at least
+/// 40 px long at `scale` pixels per metre.
+fn scale_bar_m(scale: f64) -> f64 {
+    (0..8)
+        .flat_map(|decade| [1.0, 2.0, 5.0].map(|f| f * 10f64.powi(decade)))
+        .find(|m| m * scale >= 40.0)
+        .unwrap_or(1e8)
+}
+
+/// The legend below the map: each activity's swatch and name in class order, the robot's
+/// path, the scan points' kinds, then a scale bar.
+fn draw_legend(root: &Area, view: &View) -> DrawResult {
+    let text = font(LEGEND_FONT)?
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    let middle = LEGEND_ROW as i32 / 2 - 2;
+    let mut item = 0;
+    let mut next_item = || {
+        item += 1;
+        view.legend_item(item - 1).0
+    };
+    let name = |label: &str, (x, y): (i32, i32)| {
+        drawn(root.draw(&Text::new(
+            label.to_string(),
+            (x + 8 + SWATCH.0, y + middle),
+            &text,
+        )))
+    };
+    for (a, c) in Activity::ALL.iter().zip(ACTIVITY_COLOURS) {
+        let (x, y) = next_item();
+        let top = y + middle - SWATCH.1 / 2;
+        drawn(root.draw(&Rectangle::new(
+            [(x + 4, top), (x + 4 + SWATCH.0, top + SWATCH.1)],
+            c.filled(),
+        )))?;
+        name(a.label(), (x, y))?;
+    }
+    let (x, y) = next_item();
+    drawn(root.draw(&PathElement::new(
+        vec![(x + 4, y + middle), (x + 4 + SWATCH.0, y + middle)],
+        ROBOT_COLOUR.stroke_width(2),
+    )))?;
+    name("robot", (x, y))?;
+    for (label, label_name) in SCAN_POINT_KINDS {
+        let (x, y) = next_item();
+        if let Some(c) = label_colour(label) {
+            for dx in [4, 10, 16] {
+                drawn(root.draw(&Circle::new(
+                    (x + 2 + dx, y + middle + dx % 3 - 1),
+                    2,
+                    c.filled(),
+                )))?;
+            }
+        }
+        name(label_name, (x, y))?;
+    }
+    let (x, y) = next_item();
+    let metres = scale_bar_m(view.scale);
+    let end = x + 4 + (metres * view.scale).round() as i32;
+    let (bar, tick) = (y + middle, SWATCH.1 / 2);
+    drawn(root.draw(&PathElement::new(
+        vec![(x + 4, bar - tick), (x + 4, bar + tick)],
+        BLACK,
+    )))?;
+    drawn(root.draw(&PathElement::new(
+        vec![(end, bar - tick), (end, bar + tick)],
+        BLACK,
+    )))?;
+    drawn(root.draw(&PathElement::new(
+        vec![(x + 4, bar), (end, bar)],
+        BLACK.stroke_width(2),
+    )))?;
+    drawn(root.draw(&Text::new(format!("{metres} m"), (end + 4, bar), &text)))
+}
+
+/// White page, the map's cells, and the legend.
 fn draw_background(root: &Area, view: &View, map: &OccupancyMap) -> DrawResult {
     drawn(root.fill(&WHITE))?;
     let cell = (map.resolution * view.scale).ceil() as i32;
@@ -178,22 +312,16 @@ fn draw_background(root: &Area, view: &View, map: &OccupancyMap) -> DrawResult {
             )))?;
         }
     }
-    let (w, h) = (view.width, view.height);
-    let sw = (w / Activity::COUNT as u32).max(1) as i32;
-    for (k, c) in ACTIVITY_COLOURS.iter().enumerate() {
-        let x = k as i32 * sw;
-        drawn(root.draw(&Rectangle::new(
-            [(x + 2, h as i32 + 4), (x + sw - 2, (h + LEGEND) as i32 - 4)],
-            c.filled(),
-        )))?;
-    }
-    Ok(())
+    draw_legend(root, view)
 }
 
+/// Scan points on the map; none below it, where wrong returns beyond the walls fell on the
+/// legend's names.
 fn draw_points(root: &Area, view: &View, points: &[(DVec2, BeamLabel)]) -> DrawResult {
     for (p, l) in points {
-        if let Some(c) = label_colour(*l) {
-            drawn(root.draw(&Circle::new(view.px(*p), 1, c.filled())))?;
+        let (x, y) = view.px(*p);
+        if let Some(c) = label_colour(*l).filter(|_| y + 1 < view.height as i32) {
+            drawn(root.draw(&Circle::new((x, y), 1, c.filled())))?;
         }
     }
     Ok(())
@@ -210,7 +338,7 @@ fn draw_paths(
     person: &[(DVec2, Activity)],
 ) -> DrawResult {
     let path: Vec<(i32, i32)> = robot.iter().map(|p| view.px(*p)).collect();
-    drawn(root.draw(&PathElement::new(path, RGBColor(0, 0, 255).stroke_width(2))))?;
+    drawn(root.draw(&PathElement::new(path, ROBOT_COLOUR.stroke_width(2))))?;
     let starts: Vec<&(DVec2, Activity)> = person
         .iter()
         .enumerate()
@@ -250,11 +378,7 @@ fn draw_now(
     person: Option<&(DVec2, Activity)>,
 ) -> DrawResult {
     if let Some(r) = robot {
-        drawn(root.draw(&Circle::new(
-            view.px(*r),
-            9,
-            RGBColor(0, 0, 255).stroke_width(3),
-        )))?;
+        drawn(root.draw(&Circle::new(view.px(*r), 9, ROBOT_COLOUR.stroke_width(3))))?;
     }
     if let Some((p, a)) = person {
         drawn(root.draw(&Circle::new(view.px(*p), 16, BLACK.stroke_width(1))))?;
@@ -404,6 +528,103 @@ mod tests {
         for c in ACTIVITY_COLOURS {
             assert!(has_colour(pixels(), c), "legend swatch {c:?}");
         }
+    }
+
+    /// Pixels darker than mid grey (text and outlines) in a box of the picture.
+    fn dark_pixels(img: &image::RgbImage, (x0, y0): (i32, i32), (w, h): (i32, i32)) -> Vec<u32> {
+        (y0..y0 + h)
+            .flat_map(|y| (x0..x0 + w).map(move |x| (x as u32, y as u32)))
+            .map(|(x, y)| img.get_pixel(x, y).0)
+            .map(|p| u32::from(p.iter().all(|v| *v < 128)))
+            .collect()
+    }
+
+    /// The legend was a strip of bare swatches: a reader needed docs/simulator.md to know
+    /// which colour was which activity. Each swatch now has its name beside it (text where
+    /// the name goes, a different shape for each name), and a scale bar ends the legend.
+    #[test]
+    fn each_legend_swatch_is_named_and_the_legend_has_a_scale() {
+        let (map, mut trace) = living_room_trace(0.5, 10);
+        // Wrong returns beyond the map's bottom edge, where the legend is.
+        let view = View::new(&map, 2000.0);
+        let below = (0..view.width)
+            .map(|x| {
+                (
+                    map.origin + DVec2::new(f64::from(x) / view.scale, -0.15),
+                    BeamLabel::Wrong,
+                )
+            })
+            .collect();
+        trace.scans.push(KeptScan {
+            robot_len: 0,
+            person_len: 0,
+            points: below,
+        });
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("top.png");
+        render_png(&png, &map, &trace).unwrap();
+        let img = image::open(&png).unwrap().to_rgb8();
+        let wrong = label_colour(BeamLabel::Wrong).unwrap();
+        // The multipath item's own marker (the legend's last kind of scan point) aside.
+        let ((mx, my), _) = view.legend_item(LEGEND_ITEMS - 2);
+        let marker = |x: u32, y: u32| {
+            (mx..mx + 6 + SWATCH.0).contains(&(x as i32))
+                && (my..my + LEGEND_ROW as i32).contains(&(y as i32))
+        };
+        let on_legend = img
+            .enumerate_pixels()
+            .filter(|(x, y, p)| {
+                *y >= view.height && !marker(*x, *y) && p.0 == [wrong.0, wrong.1, wrong.2]
+            })
+            .count();
+        assert_eq!(on_legend, 0, "scan points drawn over the legend");
+        let mut names = Vec::new();
+        for (k, a) in Activity::ALL.iter().enumerate() {
+            let ((x, y), width) = view.legend_item(k as u32);
+            let swatch = ACTIVITY_COLOURS[a.index()];
+            let at = img
+                .get_pixel((x + 4 + SWATCH.0 / 2) as u32, (y + 8) as u32)
+                .0;
+            assert_eq!(at, [swatch.0, swatch.1, swatch.2], "{} swatch", a.label());
+            let name = dark_pixels(
+                &img,
+                (x + 6 + SWATCH.0, y),
+                (width - 8 - SWATCH.0, LEGEND_ROW as i32),
+            );
+            let count: u32 = name.iter().sum();
+            assert!(count > 20, "{}: {count} text pixels", a.label());
+            assert!(!names.contains(&name), "{} drawn as another", a.label());
+            names.push(name);
+        }
+        // The robot's path and the scan points' kinds: each marker in its colour, then a name.
+        let markers = std::iter::once(ROBOT_COLOUR)
+            .chain(SCAN_POINT_KINDS.map(|(label, _)| label_colour(label).unwrap()));
+        for (k, colour) in (Activity::COUNT as u32..).zip(markers) {
+            let ((x, y), width) = view.legend_item(k);
+            let img = &img;
+            let marker = (x..x + 6 + SWATCH.0).flat_map(|px| {
+                (y..y + LEGEND_ROW as i32).map(move |py| img.get_pixel(px as u32, py as u32).0)
+            });
+            assert!(has_colour(marker, colour), "legend item {k}: its marker");
+            let name = dark_pixels(
+                img,
+                (x + 6 + SWATCH.0, y),
+                (width - 8 - SWATCH.0, LEGEND_ROW as i32),
+            );
+            assert!(name.iter().sum::<u32>() > 20, "legend item {k}: its name");
+            assert!(!names.contains(&name), "legend item {k} drawn as another");
+            names.push(name);
+        }
+        let ((x, y), width) = view.legend_item(LEGEND_ITEMS - 1);
+        let bar = dark_pixels(&img, (x, y), (width, LEGEND_ROW as i32));
+        let bar_px = (scale_bar_m(view.scale) * view.scale) as u32;
+        assert!(
+            bar.iter().sum::<u32>() > 2 * bar_px,
+            "scale bar and its length"
+        );
+        assert_eq!(scale_bar_m(100.0), 1.0);
+        assert_eq!(scale_bar_m(30.0), 2.0);
+        assert_eq!(scale_bar_m(4.0), 10.0);
     }
 
     /// Getting up went back along the line of the fall and, drawn after it, hid the falling

@@ -9,12 +9,13 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use lidar_har_core::activity::Activity;
 use lidar_har_pipeline::bag_run::{RunOptions, RunSummary, run_bag};
-use lidar_har_pipeline::classifier::{ActivitySummary, ClassifierRun};
+use lidar_har_pipeline::classifier::{ActivitySummary, AlertRecord, ClassifierRun, Segment};
 use lidar_har_sim::map::OccupancyMap;
 use lidar_har_sim::record::record;
-use lidar_har_sim::render::{ACTIVITY_COLOURS, Trace, render_png};
+use lidar_har_sim::render::{ACTIVITY_COLOURS, Trace, font, render_png};
 use lidar_har_sim::{Scene, Simulator};
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 #[derive(clap::Args)]
 pub struct DemoArgs {
@@ -213,8 +214,14 @@ pub fn run(args: DemoArgs) -> anyhow::Result<()> {
     mark_alerts(&scene_png, &map, activity)
         .with_context(|| format!("marking alerts on {}", scene_png.display()))?;
     let timeline_png = args.out.join(TIMELINE_PNG);
-    draw_timeline(&timeline_png, activity, &truth, start_s)
-        .with_context(|| format!("drawing {}", timeline_png.display()))?;
+    draw_timeline(
+        &timeline_png,
+        &activity.segments,
+        &activity.alerts,
+        &truth,
+        start_s,
+    )
+    .with_context(|| format!("drawing {}", timeline_png.display()))?;
     outln!();
     outln!("simulated bag:  {}", sim_dir.display());
     outln!("pipeline bag:   {} (summary.json in it)", run_dir.display());
@@ -321,90 +328,171 @@ fn mark_alerts(png: &Path, map: &OccupancyMap, activity: &ActivitySummary) -> an
     Ok(())
 }
 
-/// A time chart without text (the workspace's plotters has no fonts): one row per class in
-/// class order from the top (crawling .. walking_unsteadily), recognised segments as bars in
-/// the activity colours of docs/simulator.md, the ground truth as a black line through its
-/// row, alerts as red vertical lines (a thin dark-red line where the event began).
+/// The timeline picture's layout: a key line, a band for the alerts' names, one row per class
+/// (its name in the column on the left), and the time axis below.
+const TIMELINE_WIDTH: u32 = 1400;
+const TIMELINE_ROW: i32 = 30;
+/// The column of class names, left of the rows.
+const TIMELINE_NAMES: i32 = 160;
+const TIMELINE_RIGHT: i32 = 30;
+const TIMELINE_KEY: i32 = 24;
+const TIMELINE_ALERTS: i32 = 36;
+const TIMELINE_ROWS_TOP: i32 = TIMELINE_KEY + TIMELINE_ALERTS;
+const TIMELINE_ROWS_BOTTOM: i32 = TIMELINE_ROWS_TOP + TIMELINE_ROW * Activity::COUNT as i32;
+const TIMELINE_AXIS: i32 = 44;
+const TIMELINE_FONT: f64 = 13.0;
+const TIMELINE_KEY_TEXT: &str = "bars: recognised (pipeline)    black line: ground truth \
+     (simulator)    red line: alert raised    thin dark red line: when its event began";
+
+/// Seconds to pixels across the rows of a timeline `end_s` seconds long.
+struct TimeAxis {
+    end_s: f64,
+}
+
+impl TimeAxis {
+    fn x(&self, t: f64) -> i32 {
+        let span = f64::from(TIMELINE_WIDTH) - f64::from(TIMELINE_NAMES + TIMELINE_RIGHT);
+        TIMELINE_NAMES + (t / self.end_s * span).round() as i32
+    }
+
+    /// Seconds between labelled ticks: the first of 1, 2, 5, 10 .. s that gives at most 15.
+    fn label_step_s(&self) -> f64 {
+        [
+            1.0, 2.0, 5.0, 10.0, 20.0, 30.0, 60.0, 120.0, 300.0, 600.0, 1200.0, 1800.0,
+        ]
+        .into_iter()
+        .find(|step| self.end_s / step <= 15.0)
+        .unwrap_or(3600.0 * (self.end_s / 3600.0 / 15.0).ceil())
+    }
+}
+
+fn timeline_row_y(a: Activity) -> i32 {
+    TIMELINE_ROWS_TOP + a.index() as i32 * TIMELINE_ROW
+}
+
+/// A time chart: one row per class in class order from the top (crawling ..
+/// walking_unsteadily), named on the left; recognised segments as bars in the activity
+/// colours of docs/simulator.md, the ground truth as a black line through its row, alerts as
+/// red vertical lines named above the rows (a thin dark-red line where the event began); a
+/// key line on top and the time in seconds from the start of the recording below.
 fn draw_timeline(
     path: &Path,
-    activity: &ActivitySummary,
+    segments: &[Segment],
+    alerts: &[AlertRecord],
     truth: &[(f64, Activity)],
     start_s: f64,
 ) -> anyhow::Result<()> {
-    const ROW: i32 = 30;
-    const LEFT: i32 = 10;
-    const WIDTH: u32 = 1400;
     let end_s = truth
         .last()
         .map(|t| t.0)
         .unwrap_or(0.0)
-        .max(
-            activity
-                .segments
-                .last()
-                .map(|s| s.end_s - start_s)
-                .unwrap_or(0.0),
-        )
+        .max(segments.last().map(|s| s.end_s - start_s).unwrap_or(0.0))
         .max(1.0);
-    let height = (ROW * Activity::COUNT as i32 + 20) as u32;
-    let root = BitMapBackend::new(path, (WIDTH, height)).into_drawing_area();
+    let axis = TimeAxis { end_s };
+    let x = |t: f64| axis.x(t);
+    let height = (TIMELINE_ROWS_BOTTOM + TIMELINE_AXIS) as u32;
+    let root = BitMapBackend::new(path, (TIMELINE_WIDTH, height)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_error)?;
-    let x = |t: f64| LEFT + ((t / end_s) * f64::from(WIDTH - 2 * LEFT as u32)).round() as i32;
-    let row_y = |a: Activity| 10 + a.index() as i32 * ROW;
+    let font = || font(TIMELINE_FONT).map_err(plot_error);
+    let left = font()?
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    root.draw(&Text::new(TIMELINE_KEY_TEXT, (10, TIMELINE_KEY / 2), &left))
+        .map_err(plot_error)?;
+    let step = axis.label_step_s();
+    let ticks = |every: f64| (0..=(end_s / every + 1e-9) as i64).map(move |k| k as f64 * every);
+    let name = font()?
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Right, VPos::Center));
     for a in Activity::ALL {
-        let y = row_y(a);
+        let y = timeline_row_y(a);
+        root.draw(&Text::new(
+            a.label(),
+            (TIMELINE_NAMES - 8, y + TIMELINE_ROW / 2 - 1),
+            &name,
+        ))
+        .map_err(plot_error)?;
         root.draw(&Rectangle::new(
-            [(LEFT, y), (x(end_s), y + ROW - 2)],
+            [(x(0.0), y), (x(end_s), y + TIMELINE_ROW - 2)],
             RGBColor(240, 240, 240).filled(),
         ))
         .map_err(plot_error)?;
-        // Whole seconds as faint ticks.
-        for sec in 0..=end_s as i32 {
-            let tx = x(f64::from(sec));
-            let c = if sec % 10 == 0 {
-                RGBColor(170, 170, 170)
-            } else {
-                RGBColor(220, 220, 220)
-            };
-            root.draw(&PathElement::new(vec![(tx, y), (tx, y + ROW - 2)], c))
+        // Faint ticks five to a label, darker at each label.
+        for (every, c) in [
+            (step / 5.0, RGBColor(220, 220, 220)),
+            (step, RGBColor(170, 170, 170)),
+        ] {
+            for t in ticks(every) {
+                root.draw(&PathElement::new(
+                    vec![(x(t), y), (x(t), y + TIMELINE_ROW - 2)],
+                    c,
+                ))
                 .map_err(plot_error)?;
+            }
         }
     }
-    for seg in &activity.segments {
-        let y = row_y(seg.activity);
+    let below = font()?.color(&BLACK).pos(Pos::new(HPos::Center, VPos::Top));
+    for t in ticks(step) {
+        root.draw(&PathElement::new(
+            vec![
+                (x(t), TIMELINE_ROWS_BOTTOM),
+                (x(t), TIMELINE_ROWS_BOTTOM + 5),
+            ],
+            BLACK,
+        ))
+        .map_err(plot_error)?;
+        root.draw(&Text::new(
+            format!("{t}"),
+            (x(t), TIMELINE_ROWS_BOTTOM + 8),
+            &below,
+        ))
+        .map_err(plot_error)?;
+    }
+    root.draw(&Text::new(
+        "time since the start of the recording (s)",
+        (x(end_s / 2.0), TIMELINE_ROWS_BOTTOM + 26),
+        &below,
+    ))
+    .map_err(plot_error)?;
+    for seg in segments {
+        let y = timeline_row_y(seg.activity);
         let (x0, x1) = (
             x(seg.start_s - start_s),
             x(seg.end_s - start_s + 0.05).max(x(seg.start_s - start_s) + 1),
         );
         root.draw(&Rectangle::new(
-            [(x0, y + 3), (x1, y + ROW - 5)],
+            [(x0, y + 3), (x1, y + TIMELINE_ROW - 5)],
             ACTIVITY_COLOURS[seg.activity.index()].filled(),
         ))
         .map_err(plot_error)?;
     }
     for pair in truth.windows(2) {
         let (t, a) = pair[0];
-        let y = row_y(a) + ROW / 2 - 1;
+        let y = timeline_row_y(a) + TIMELINE_ROW / 2 - 1;
         root.draw(&PathElement::new(
             vec![(x(t), y), (x(pair[1].0), y)],
             BLACK.stroke_width(2),
         ))
         .map_err(plot_error)?;
     }
-    for alert in &activity.alerts {
-        let bottom = 10 + ROW * Activity::COUNT as i32;
+    let alert_name = font()?.color(&RED).pos(Pos::new(HPos::Left, VPos::Center));
+    for (k, alert) in alerts.iter().enumerate() {
         let xe = x(alert.event_time_s - start_s);
         root.draw(&PathElement::new(
-            vec![(xe, 5), (xe, bottom)],
+            vec![(xe, TIMELINE_KEY + 4), (xe, TIMELINE_ROWS_BOTTOM)],
             RGBColor(120, 0, 0).stroke_width(1),
         ))
         .map_err(plot_error)?;
         let xa = x(alert.time_s - start_s);
         root.draw(&PathElement::new(
-            vec![(xa, 5), (xa, bottom)],
+            vec![(xa, TIMELINE_KEY + 4), (xa, TIMELINE_ROWS_BOTTOM)],
             RED.stroke_width(3),
         ))
         .map_err(plot_error)?;
+        // Alternate lines of the band, so that two close alerts' names do not overlap.
+        let y = TIMELINE_KEY + 10 + (k % 2) as i32 * 16;
+        root.draw(&Text::new(alert.kind, (xa + 5, y), &alert_name))
+            .map_err(plot_error)?;
     }
     root.present().map_err(plot_error)?;
     Ok(())
@@ -418,6 +506,115 @@ fn plot_error(e: impl std::fmt::Display) -> anyhow::Error {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Whether each pixel of a box is dark (text, outlines), row by row.
+    fn dark_pixels(img: &image::RgbImage, (x0, y0): (i32, i32), (w, h): (i32, i32)) -> Vec<bool> {
+        (y0..y0 + h)
+            .flat_map(|y| (x0..x0 + w).map(move |x| img.get_pixel(x as u32, y as u32).0))
+            .map(|p| p.iter().all(|v| *v < 128))
+            .collect()
+    }
+
+    fn count(pixels: &[bool]) -> usize {
+        pixels.iter().filter(|p| **p).count()
+    }
+
+    /// The timeline had no text: which row was which class, what the bars and lines were,
+    /// when things happened and which alert a red line was could be read only in the docs.
+    #[test]
+    fn the_timeline_names_its_rows_alerts_and_times() {
+        use Activity::*;
+        let segment = |start_s, end_s, activity| Segment {
+            start_s,
+            end_s,
+            activity,
+            mean_confidence: 0.9,
+            truth: Some(activity),
+            scans: 10,
+        };
+        let segments = [
+            segment(100.0, 110.0, Walking),
+            segment(110.0, 112.0, FallingDown),
+            segment(112.0, 130.0, LyingDown),
+        ];
+        let alert = |kind, time_s, event_time_s| AlertRecord {
+            kind,
+            time_s,
+            event_time_s,
+            position: [1.0, 2.0],
+            confidence: 0.9,
+        };
+        let alerts = [
+            alert("FALL_DETECTED", 113.0, 111.0),
+            alert("PERSON_DOWN", 125.0, 112.0),
+        ];
+        let truth: Vec<(f64, Activity)> = (0..=600)
+            .map(|k| f64::from(k) * 0.05)
+            .map(|t| {
+                (
+                    t,
+                    [Walking, FallingDown, LyingDown][(t >= 10.0) as usize + (t >= 12.0) as usize],
+                )
+            })
+            .collect();
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join(TIMELINE_PNG);
+        draw_timeline(&png, &segments, &alerts, &truth, 100.0).unwrap();
+        let img = image::open(&png).unwrap().to_rgb8();
+        assert_eq!(
+            img.dimensions(),
+            (
+                TIMELINE_WIDTH,
+                (TIMELINE_ROWS_BOTTOM + TIMELINE_AXIS) as u32
+            )
+        );
+
+        let key = dark_pixels(&img, (0, 0), (TIMELINE_WIDTH as i32, TIMELINE_KEY));
+        assert!(count(&key) > 500, "the key line: {}", count(&key));
+        let mut names = Vec::new();
+        for a in Activity::ALL {
+            let name = dark_pixels(
+                &img,
+                (0, timeline_row_y(a)),
+                (TIMELINE_NAMES - 4, TIMELINE_ROW),
+            );
+            assert!(
+                count(&name) > 20,
+                "{}: {} text pixels",
+                a.label(),
+                count(&name)
+            );
+            assert!(!names.contains(&name), "{} named as another row", a.label());
+            names.push(name);
+        }
+
+        // 30 s: a label every 2 s, under its tick and not between.
+        let axis = TimeAxis { end_s: 30.0 };
+        assert_eq!(axis.label_step_s(), 2.0);
+        let under = |t: f64, half: i32| {
+            count(&dark_pixels(
+                &img,
+                (axis.x(t) - half, TIMELINE_ROWS_BOTTOM + 7),
+                (2 * half, 16),
+            ))
+        };
+        for t in [0.0, 10.0, 20.0, 30.0] {
+            assert!(under(t, 10) > 10, "no time under {t} s");
+        }
+        assert_eq!(under(11.0, 4), 0, "a label between the ticks");
+        assert_eq!(TimeAxis { end_s: 600.0 }.label_step_s(), 60.0);
+
+        // Each alert's name is written in red beside its line.
+        for a in &alerts {
+            let xa = axis.x(a.time_s - 100.0);
+            let red = (xa + 4..xa + 90)
+                .flat_map(|x| (TIMELINE_KEY..TIMELINE_ROWS_TOP).map(move |y| (x, y)))
+                .map(|(x, y)| img.get_pixel(x as u32, y as u32).0)
+                .filter(|p| p[0] > 150 && p[1] < 120 && p[2] < 120)
+                .count();
+            assert!(red > 30, "{}: {red} red text pixels", a.kind);
+        }
+    }
 
     #[test]
     fn only_an_earlier_demos_own_output_is_to_be_replaced() {

@@ -16,8 +16,10 @@ use lidar_har_core::classifier::{StepModel, StreamSpec};
 use lidar_har_core::metrics::ConfusionMatrix;
 use lidar_har_core::stats::{median, nearest_rank};
 use lidar_har_infer::ActivityModel;
+use lidar_har_sim::render::font;
 use ndarray::{Array2, s};
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use serde::Serialize;
 
 use super::dataset::{DatasetIndex, DatasetSpec, Generator, SplitData};
@@ -247,7 +249,11 @@ pub fn run(args: EvaluateArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     for (split, confusion) in &confusions {
-        draw_confusion(confusion, &args.out.join(format!("confusion_{split}.png")))?;
+        draw_confusion(
+            confusion,
+            split,
+            &args.out.join(format!("confusion_{split}.png")),
+        )?;
     }
     // An earlier run's picture of a split this dataset lacks would pass for this one's.
     for split in SCORED_SPLITS {
@@ -648,22 +654,94 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
         out += " |\n";
     }
     out += &format!(
-        "\nInference: {:.3} ms per model step (mean), {:.3} ms p99, {} ONNX Runtime thread(s); streaming runs \
-         two steps per scan.\n\nThe PNGs `confusion_<split>.png` draw the same matrices (row-normalised, \
-         darker = more; no text: plotters is built without fonts).\n",
+        "\nInference: {:.3} ms per model step (mean), {:.3} ms p99, {} ONNX Runtime thread(s); \
+         streaming runs one step per state and scan: `lanes` of them (2 in \
+         config/classifier.yaml), and with a pose head `pose_head_lanes_between` more between \
+         each two (4 states in all as shipped).\n\nThe PNGs `confusion_<split>.png` draw the \
+         same matrices, each cell with its count and share of the row (shade: the share; blue \
+         diagonal, red errors).\n",
         m.step_ms_mean, m.step_ms_p99, m.threads
     );
     out
 }
 
-/// A row-normalised confusion matrix as coloured cells (truth down, prediction across).
-fn draw_confusion(confusion: &ConfusionMatrix, path: &Path) -> anyhow::Result<()> {
-    const CELL: i32 = 40;
+/// The confusion picture's layout: a title line, the columns' title and (upright) class names
+/// above the cells, the rows' title and class names on their left.
+const CONFUSION_CELL: i32 = 56;
+const CONFUSION_NAMES: i32 = 150;
+const CONFUSION_TITLE: i32 = 28;
+const CONFUSION_LEFT: i32 = 24 + CONFUSION_NAMES;
+const CONFUSION_TOP: i32 = CONFUSION_TITLE + 20 + CONFUSION_NAMES;
+const CONFUSION_MARGIN: i32 = 12;
+const CONFUSION_FONT: f64 = 13.0;
+
+/// The top left corner of the cell of true class `row`, predicted `column`.
+fn confusion_cell(row: usize, column: usize) -> (i32, i32) {
+    (
+        CONFUSION_LEFT + column as i32 * CONFUSION_CELL,
+        CONFUSION_TOP + row as i32 * CONFUSION_CELL,
+    )
+}
+
+/// A row-normalised confusion matrix as coloured cells (truth down, prediction across), each
+/// with its count and its share of the row, under a title naming `split`.
+fn draw_confusion(confusion: &ConfusionMatrix, split: &str, path: &Path) -> anyhow::Result<()> {
     let n = Activity::COUNT as i32;
-    let side = (n * CELL + 2 * CELL) as u32;
-    let root = BitMapBackend::new(path, (side, side)).into_drawing_area();
+    let size = (
+        (CONFUSION_LEFT + n * CONFUSION_CELL + CONFUSION_MARGIN) as u32,
+        (CONFUSION_TOP + n * CONFUSION_CELL + CONFUSION_MARGIN) as u32,
+    );
+    let root = BitMapBackend::new(path, size).into_drawing_area();
     let draw = |e: &dyn std::fmt::Display| anyhow::anyhow!("cannot draw {}: {e}", path.display());
+    let text = |size: f64, colour: &RGBColor, h: HPos, v: VPos| {
+        font(size)
+            .map(|f| f.color(colour).pos(Pos::new(h, v)))
+            .map_err(|e| draw(&e))
+    };
     root.fill(&WHITE).map_err(|e| draw(&e))?;
+    let centre = text(CONFUSION_FONT, &BLACK, HPos::Center, VPos::Center)?;
+    let matrix_middle = (
+        CONFUSION_LEFT + n * CONFUSION_CELL / 2,
+        CONFUSION_TOP + n * CONFUSION_CELL / 2,
+    );
+    root.draw(&Text::new(
+        format!("{split} split: count and share of the row in each cell"),
+        (size.0 as i32 / 2, CONFUSION_TITLE / 2),
+        &centre,
+    ))
+    .map_err(|e| draw(&e))?;
+    root.draw(&Text::new(
+        "predicted class",
+        (matrix_middle.0, CONFUSION_TITLE + 10),
+        &centre,
+    ))
+    .map_err(|e| draw(&e))?;
+    root.draw(&Text::new(
+        "true class",
+        (10, matrix_middle.1),
+        centre.transform(FontTransform::Rotate270),
+    ))
+    .map_err(|e| draw(&e))?;
+    let row_name = text(CONFUSION_FONT, &BLACK, HPos::Right, VPos::Center)?;
+    // Turned a quarter, read upwards from the cells.
+    let column_name =
+        text(CONFUSION_FONT, &BLACK, HPos::Left, VPos::Center)?.transform(FontTransform::Rotate270);
+    for (k, a) in Activity::ALL.iter().enumerate() {
+        let (x, y) = confusion_cell(k, k);
+        let half = CONFUSION_CELL / 2;
+        root.draw(&Text::new(
+            a.label(),
+            (CONFUSION_LEFT - 6, y + half),
+            &row_name,
+        ))
+        .map_err(|e| draw(&e))?;
+        root.draw(&Text::new(
+            a.label(),
+            (x + half, CONFUSION_TOP - 6),
+            &column_name,
+        ))
+        .map_err(|e| draw(&e))?;
+    }
     let counts = confusion.counts();
     for (r, row) in counts.iter().enumerate() {
         let total: u64 = row.iter().sum();
@@ -680,17 +758,30 @@ fn draw_confusion(confusion: &ConfusionMatrix, path: &Path) -> anyhow::Result<()
             } else {
                 RGBColor(255, shade, shade)
             };
-            let (x, y) = (CELL + c as i32 * CELL, CELL + r as i32 * CELL);
-            root.draw(&Rectangle::new(
-                [(x, y), (x + CELL - 1, y + CELL - 1)],
-                colour.filled(),
-            ))
-            .map_err(|e| draw(&e))?;
-            root.draw(&Rectangle::new(
-                [(x, y), (x + CELL - 1, y + CELL - 1)],
-                BLACK.stroke_width(1),
-            ))
-            .map_err(|e| draw(&e))?;
+            let (x, y) = confusion_cell(r, c);
+            let corners = [(x, y), (x + CONFUSION_CELL - 1, y + CONFUSION_CELL - 1)];
+            root.draw(&Rectangle::new(corners, colour.filled()))
+                .map_err(|e| draw(&e))?;
+            root.draw(&Rectangle::new(corners, BLACK.stroke_width(1)))
+                .map_err(|e| draw(&e))?;
+            // Dark cells get white text; empty ones a grey 0.
+            let ink = match (v, share > 0.55) {
+                (0, _) => RGBColor(150, 150, 150),
+                (_, true) => WHITE,
+                (_, false) => BLACK,
+            };
+            let half = CONFUSION_CELL / 2;
+            let value = text(CONFUSION_FONT, &ink, HPos::Center, VPos::Center)?;
+            // The count, above the share when there is one.
+            let count_y = if v == 0 { y + half } else { y + half - 7 };
+            root.draw(&Text::new(v.to_string(), (x + half, count_y), &value))
+                .map_err(|e| draw(&e))?;
+            if v > 0 {
+                let percent = text(11.0, &ink, HPos::Center, VPos::Center)?;
+                let share = format!("{:.0} %", share * 100.0);
+                root.draw(&Text::new(share, (x + half, y + half + 9), &percent))
+                    .map_err(|e| draw(&e))?;
+            }
         }
     }
     root.present().map_err(|e| draw(&e))?;
@@ -700,6 +791,84 @@ fn draw_confusion(confusion: &ConfusionMatrix, path: &Path) -> anyhow::Result<()
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The pixels of a box of the picture, row by row.
+    fn pixels(img: &image::RgbImage, (x0, y0): (i32, i32), (w, h): (i32, i32)) -> Vec<[u8; 3]> {
+        (y0..y0 + h)
+            .flat_map(|y| (x0..x0 + w).map(move |x| img.get_pixel(x as u32, y as u32).0))
+            .collect()
+    }
+
+    fn dark(pixels: &[[u8; 3]]) -> usize {
+        pixels.iter().filter(|p| p.iter().all(|v| *v < 128)).count()
+    }
+
+    /// The confusion picture had no text: neither which row or column was which class, nor
+    /// which axis was the truth, nor any count. Class names on both axes, the axes' titles
+    /// and each cell's count (cells of equal count alike, of different counts not).
+    #[test]
+    fn the_confusion_picture_names_classes_axes_and_counts() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("confusion_test.png");
+        draw_confusion(&confusion(), "test", &png).unwrap();
+        let img = image::open(&png).unwrap().to_rgb8();
+        let n = Activity::COUNT as i32;
+        let (matrix_w, matrix_h) = (n * CONFUSION_CELL, n * CONFUSION_CELL);
+        let title = pixels(&img, (0, 0), (img.width() as i32, CONFUSION_TITLE));
+        assert!(dark(&title) > 200, "the title");
+        let columns_title = pixels(&img, (CONFUSION_LEFT, CONFUSION_TITLE), (matrix_w, 20));
+        assert!(dark(&columns_title) > 50, "predicted class");
+        let rows_title = pixels(&img, (0, CONFUSION_TOP), (20, matrix_h));
+        assert!(dark(&rows_title) > 50, "true class");
+        let (mut rows, mut columns) = (Vec::new(), Vec::new());
+        for a in Activity::ALL {
+            let (x, y) = confusion_cell(a.index(), a.index());
+            let row = pixels(&img, (24, y), (CONFUSION_NAMES - 2, CONFUSION_CELL));
+            let column = pixels(
+                &img,
+                (x, CONFUSION_TOP - CONFUSION_NAMES),
+                (CONFUSION_CELL, CONFUSION_NAMES - 2),
+            );
+            assert!(
+                dark(&row) > 20 && dark(&column) > 20,
+                "{} unnamed",
+                a.label()
+            );
+            assert!(
+                !rows.contains(&row) && !columns.contains(&column),
+                "{} named as another",
+                a.label()
+            );
+            rows.push(row);
+            columns.push(column);
+        }
+        let cell = |truth: Activity, predicted: Activity| {
+            let corner = confusion_cell(truth.index(), predicted.index());
+            pixels(
+                &img,
+                (corner.0 + 2, corner.1 + 2),
+                (CONFUSION_CELL - 4, CONFUSION_CELL - 4),
+            )
+        };
+        use Activity::*;
+        // Walking: 3 right (75 %, white on dark blue), 1 taken for running (25 %).
+        let three = cell(Walking, Walking);
+        let light = three.iter().filter(|p| p.iter().all(|v| *v > 200)).count();
+        assert!(
+            light > 10,
+            "a white count on dark blue: {light} light pixels"
+        );
+        let one = cell(Walking, Running);
+        assert!(dark(&one) > 10, "count 1");
+        let zero = cell(Walking, Standing);
+        assert_ne!(zero, one);
+        assert_eq!(zero, cell(Walking, Crawling), "two empty cells alike");
+        assert_ne!(
+            zero,
+            pixels(&img, (0, 0), (CONFUSION_CELL - 4, CONFUSION_CELL - 4)),
+            "a 0 is written"
+        );
+    }
     use crate::cmd::dataset::FORMAT_VERSION;
     use lidar_har_core::representation::{Framing, RepresentationKind, RepresentationSpec};
 
