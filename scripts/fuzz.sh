@@ -1,10 +1,14 @@
 #!/usr/bin/env bash
-# Runs every cargo-fuzz target in fuzz/ for a fixed number of runs with a fixed seed (short
-# and reproducible, for CI), or longer when asked. A new target in fuzz/Cargo.toml is picked
-# up by itself (`cargo fuzz list`); inputs in fuzz/seeds/<target>/ seed its corpus.
+# Runs every cargo-fuzz target in fuzz/ for a fixed number of runs with a fixed seed (short,
+# for CI), or longer when asked. A new target in fuzz/Cargo.toml is picked up by itself
+# (`cargo fuzz list`); inputs in fuzz/seeds/<target>/ seed its corpus. A run repeats exactly
+# only from the same corpus: libFuzzer keeps what it finds in fuzz/corpus/<target>/ (ignored
+# by git) and starts the next run from it, so a fresh checkout (CI) is reproducible, and a
+# local run is once fuzz/corpus/ is deleted.
 #
 #   scripts/fuzz.sh                     every target, FUZZ_RUNS (20000) runs each
 #   scripts/fuzz.sh cdr_decode          only the named targets
+#   scripts/fuzz.sh --help              this text
 #   FUZZ_RUNS=2000000 FUZZ_SEED=7 scripts/fuzz.sh cdr_decode    a longer session
 #   FUZZ_SANITIZER=none scripts/fuzz.sh  without AddressSanitizer (faster; default: address)
 #
@@ -12,6 +16,12 @@
 # RUSTC_BOOTSTRAP=1 lets it accept the -Z flags cargo-fuzz passes (sanitizer, coverage).
 # A crash stops the script with the failing input under fuzz/artifacts/<target>/.
 set -euo pipefail
+for arg in "$@"; do
+    case "$arg" in
+        -h | --help) sed -n '2,/^[^#]/{/^#/p}' "$0"; exit 0 ;;
+        -*) echo "fuzz: unknown option '$arg' (try --help)" >&2; exit 2 ;;
+    esac
+done
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 RUNS="${FUZZ_RUNS:-20000}"
 SEED="${FUZZ_SEED:-1}"
@@ -28,12 +38,17 @@ fi
 export RUSTC_BOOTSTRAP=1
 
 cd "$ROOT/fuzz"
+mapfile -t known < <(cargo fuzz list)
+[ "${#known[@]}" -gt 0 ] || { echo "fuzz: no targets in fuzz/Cargo.toml" >&2; exit 1; }
 if [ "$#" -gt 0 ]; then
     targets=("$@")
+    for target in "${targets[@]}"; do
+        printf '%s\n' "${known[@]}" | grep -qxF -- "$target" \
+            || { echo "fuzz: no target '$target' in fuzz/Cargo.toml (targets: ${known[*]})" >&2; exit 2; }
+    done
 else
-    mapfile -t targets < <(cargo fuzz list)
+    targets=("${known[@]}")
 fi
-[ "${#targets[@]}" -gt 0 ] || { echo "fuzz: no targets in fuzz/Cargo.toml" >&2; exit 1; }
 
 # One cargo build for all targets: shared dependencies compile once, in parallel.
 say "building ${targets[*]} (sanitizer: $SANITIZER)"

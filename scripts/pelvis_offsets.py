@@ -23,6 +23,13 @@ def main() -> None:
             rows = [json.loads(line) for line in points]
     except (OSError, json.JSONDecodeError) as e:
         sys.exit(f"{sys.argv[1]}: {e}")
+    if not rows:
+        sys.exit(f"{sys.argv[1]}: no seen scans")
+    fields = {"activity", "pelvis", "reported", "velocity", "points"}
+    missing = [r for r in rows if not isinstance(r, dict) or not fields <= r.keys()]
+    if missing:
+        sys.exit(f"{sys.argv[1]}: {len(missing)} of {len(rows)} lines lack one of {', '.join(sorted(fields))}; "
+                 "dump them with localiser_accuracy --dump-points")
     activity = np.array([r["activity"] for r in rows])
     pelvis = np.array([r["pelvis"] for r in rows])  # x, y, heading
     reported = np.array([r["reported"] for r in rows])

@@ -48,6 +48,15 @@ impl Checkout {
         Self { dir, wheel, bin }
     }
 
+    /// Replaces the stand-in `cargo` with one that has no cargo-fuzz and whose
+    /// `cargo install` runs `install` (a shell command).
+    fn without_cargo_fuzz(&self, install: &str) {
+        let script = format!(
+            "#!/bin/sh\ncase \"$1\" in\n  install) {install} ;;\n  *) echo \"error: no such command: $1\" >&2; exit 101 ;;\nesac\n"
+        );
+        std::fs::write(self.bin.join("cargo"), script).unwrap();
+    }
+
     fn path(&self, relative: &str) -> PathBuf {
         self.dir.path().join(relative)
     }
@@ -179,4 +188,46 @@ fn setup_repairs_what_an_interrupted_run_left_behind() {
     assert!(text.contains("taking the ONNX Runtime library"), "{text}");
     let text = checkout.setup_succeeds();
     assert!(text.contains("already at"), "verified now: {text}");
+}
+
+/// cargo-fuzz only serves scripts/fuzz.sh: an offline machine (no crates.io) is warned, with
+/// what will not work and how to get it, and the set-up goes on. Before, it failed there on
+/// every run, after the library was in place. Where crates.io answers, it is installed (CI).
+#[test]
+fn setup_without_crates_io_warns_that_fuzzing_needs_cargo_fuzz_and_goes_on() {
+    if !python_can_make_environments() {
+        return;
+    }
+    let checkout = Checkout::new(b"library");
+    checkout.without_cargo_fuzz("echo 'error: failed to query crates.io (offline)' >&2; exit 101");
+    let text = checkout.setup_succeeds();
+    assert!(
+        text.contains("warning: cargo install cargo-fuzz failed"),
+        "{text}"
+    );
+    assert!(text.contains("scripts/fuzz.sh"), "{text}");
+    assert!(text.contains("cargo install cargo-fuzz --locked"), "{text}");
+    assert!(text.contains("without cargo-fuzz"), "{text}");
+    assert_eq!(std::fs::read(checkout.library()).unwrap(), b"library");
+
+    let installed = checkout.path("cargo-fuzz-installed");
+    checkout.without_cargo_fuzz(&format!("touch '{}'", installed.display()));
+    let text = checkout.setup_succeeds();
+    assert!(installed.exists(), "cargo install was not run: {text}");
+    assert!(!text.contains("cargo-fuzz failed"), "{text}");
+}
+
+/// `--help` prints the whole usage, down to the offline wheel (it stopped before it).
+#[test]
+fn setup_help_names_the_offline_wheel() {
+    let out = Command::new("bash")
+        .arg(repo_root().join("scripts/setup.sh"))
+        .arg("--help")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{out:?}");
+    assert!(text.contains("--no-python"), "{text}");
+    assert!(text.contains("LIDAR_HAR_ORT_WHEEL"), "{text}");
+    assert!(!text.contains("set -euo"), "{text}");
 }
