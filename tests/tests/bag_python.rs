@@ -412,3 +412,76 @@ fn the_project_reads_bags_written_by_rosbags() {
         assert_eq!((scans, odoms), (20, 20), "{name}");
     }
 }
+
+/// rosbag2 Humble reads metadata.yaml's `offered_qos_profiles` as a string and each QoS enum
+/// as an integer, in metadata.yaml and in the storage file: a version-9 bag stops its
+/// `ros2 bag info` and `play` (ros2/rosbag2#2013). `bag convert --rosbag2-version 8` writes
+/// that form in both (MCAP channel metadata, sqlite `topics` rows), which `rosbags` and the
+/// project read back with `/map` still transient local.
+#[test]
+fn bag_convert_to_version_8_writes_qos_as_humble_reads_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = tmp.path().join("jazzy");
+    let mut writer = BagWriter::create(&src, WriterOptions::default()).unwrap();
+    let map = writer
+        .add_topic_for::<Activity>("/map", QosProfile::latched(1))
+        .unwrap();
+    let scan_topic = writer
+        .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
+        .unwrap();
+    for i in 0..3 {
+        let time = 1_000_000_000 + i64::from(i);
+        writer.write_message(map, time, &activity(i)).unwrap();
+        writer.write_message(scan_topic, time, &scan(i)).unwrap();
+    }
+    writer.finish().unwrap();
+    for storage in [StorageId::Mcap, StorageId::Sqlite3] {
+        let dst = tmp.path().join(format!("humble_{storage}"));
+        let run = std::process::Command::new(workspace_bin("lidar-har"))
+            .args(["bag", "convert"])
+            .arg(&src)
+            .arg(&dst)
+            .args(["--storage", storage.as_str(), "--rosbag2-version", "8"])
+            .output()
+            .unwrap();
+        assert!(run.status.success(), "{run:?}");
+        assert!(
+            String::from_utf8_lossy(&run.stdout).contains("metadata version 8"),
+            "{run:?}"
+        );
+        let Some(out) = run_python("bag_qos_humble.py", &dst) else {
+            return;
+        };
+        let seen: Json = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(seen["version"], 8, "{storage}: {seen}");
+        assert_eq!(seen["messages"], 6, "{storage}: {seen}");
+        for (topic, reliability, durability) in [("/map", 1, 1), ("/scan", 2, 2)] {
+            for place in ["metadata", "storage"] {
+                let profile = &seen["topics"][topic][place][0];
+                assert!(
+                    profile["reliability"] == reliability && profile["durability"] == durability,
+                    "{storage} {topic} {place}: Humble would read {}",
+                    seen["topics"][topic][place]
+                );
+            }
+            let by_rosbags = &seen["topics"][topic]["rosbags"][0];
+            assert_eq!(by_rosbags["durability"], durability, "{storage}: {seen}");
+        }
+        let reader = BagReader::open(&dst).unwrap();
+        assert_eq!(reader.metadata().metadata_version, Some(8));
+        assert_eq!(
+            reader.topic("/map").unwrap().offered_qos[0].to_profile(),
+            Some(QosProfile::latched(1))
+        );
+    }
+    let Some(out) = run_python("bag_qos_humble.py", &src) else {
+        return;
+    };
+    let seen: Json = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(
+        seen["topics"]["/map"]["metadata"]
+            .as_str()
+            .is_some_and(|why| why.contains("not a string")),
+        "version 9 is what Humble cannot read: {seen}"
+    );
+}

@@ -16,7 +16,7 @@ use mcap::{McapError, Summary};
 
 use crate::error::{BagError, Result, io_error, mcap_error};
 use crate::mcap_records::{ChunkRecords, check_summary_section, decompress_chunk, parse_checked};
-use crate::metadata::{BagMetadata, METADATA_VERSION};
+use crate::metadata::BagMetadata;
 use crate::qos;
 use crate::reader::{BagMessage, TopicInfo};
 use crate::source::StorageSource;
@@ -32,14 +32,42 @@ pub(crate) const MESSAGE_ENCODING: &str = "cdr";
 const RECORD_LENGTH_LIMIT: usize = 256 << 20;
 const READ_BUFFER: usize = 256 << 10;
 
+/// The largest message the writer takes, so that the reader can read back every file it
+/// writes: a larger message is written in a chunk of its own, and the chunk record (its
+/// header, the message record's, and compression's worst-case growth, which is under
+/// 1/255 of the data for zstd and lz4) must stay within [`RECORD_LENGTH_LIMIT`].
+const MESSAGE_LENGTH_LIMIT: usize = RECORD_LENGTH_LIMIT - RECORD_LENGTH_LIMIT / 128;
+/// The largest chunk size the writer takes: a chunk holds up to twice it (it is closed at the
+/// first message after it is full), which must stay within [`RECORD_LENGTH_LIMIT`].
+const CHUNK_SIZE_LIMIT: u64 = (RECORD_LENGTH_LIMIT / 4) as u64;
+
 pub(crate) struct McapSink {
     path: PathBuf,
     writer: Option<mcap::Writer<BufWriter<File>>>,
     sequences: HashMap<u16, u32>,
+    chunk_size: u64,
+    /// The metadata version, which decides the form of the QoS in channel metadata.
+    metadata_version: u32,
+    /// [`MESSAGE_LENGTH_LIMIT`]; smaller in tests.
+    max_message_len: usize,
 }
 
 impl McapSink {
-    pub(crate) fn create(path: &Path, compression: Compression, chunk_size: u64) -> Result<Self> {
+    pub(crate) fn create(
+        path: &Path,
+        compression: Compression,
+        chunk_size: u64,
+        metadata_version: u32,
+    ) -> Result<Self> {
+        if chunk_size > CHUNK_SIZE_LIMIT {
+            return Err(BagError::Write {
+                path: path.to_path_buf(),
+                message: format!(
+                    "chunk size {chunk_size} bytes is over the {CHUNK_SIZE_LIMIT} bytes a chunk \
+                     may be for the reader to read it back"
+                ),
+            });
+        }
         let file = File::create_new(path).map_err(io_error(path, "cannot create"))?;
         let options = mcap::WriteOptions::new()
             .profile(PROFILE)
@@ -58,6 +86,9 @@ impl McapSink {
             path: path.to_path_buf(),
             writer: Some(writer),
             sequences: HashMap::new(),
+            chunk_size,
+            metadata_version,
+            max_message_len: MESSAGE_LENGTH_LIMIT,
         })
     }
 
@@ -72,6 +103,7 @@ impl McapSink {
 impl StorageSink for McapSink {
     fn add_topic(&mut self, topic: &WriterTopic) -> Result<i64> {
         let path = self.path.clone();
+        let qos = qos::to_yaml_string(&topic.qos, self.metadata_version);
         let writer = self.writer()?;
         let schema_id = writer
             .add_schema(
@@ -81,10 +113,7 @@ impl StorageSink for McapSink {
             )
             .map_err(mcap_error(&path))?;
         let mut metadata = BTreeMap::new();
-        metadata.insert(
-            "offered_qos_profiles".to_string(),
-            qos::to_yaml_string(&topic.qos, METADATA_VERSION),
-        );
+        metadata.insert("offered_qos_profiles".to_string(), qos);
         if !topic.type_description_hash.is_empty() {
             metadata.insert(
                 "topic_type_hash".to_string(),
@@ -102,12 +131,28 @@ impl StorageSink for McapSink {
         Ok(i64::from(channel))
     }
 
-    fn write(&mut self, storage_id: i64, log_time_ns: i64, data: &[u8]) -> Result<()> {
+    fn write(&mut self, topic: &WriterTopic, log_time_ns: i64, data: &[u8]) -> Result<()> {
         let path = self.path.clone();
-        let channel_id = u16::try_from(storage_id).map_err(|_| BagError::UnknownTopicId {
+        if data.len() > self.max_message_len {
+            return Err(BagError::Write {
+                path,
+                message: format!(
+                    "`{}`: a message of {} bytes at {log_time_ns} ns is over the {} bytes an \
+                     MCAP message may be for lidar-har to read it back (sqlite3 storage takes it)",
+                    topic.name,
+                    data.len(),
+                    self.max_message_len
+                ),
+            });
+        }
+        let channel_id = u16::try_from(topic.storage_id).map_err(|_| BagError::UnknownTopicId {
             path: path.clone(),
-            id: storage_id,
+            id: topic.storage_id,
         })?;
+        if data.len() as u64 > self.chunk_size {
+            // In a chunk of its own: with the messages before it the chunk could pass the limit.
+            self.writer()?.flush().map_err(mcap_error(&path))?;
+        }
         let time = u64::try_from(log_time_ns).map_err(|_| BagError::Write {
             path: path.clone(),
             message: format!("negative log time {log_time_ns} ns"),
@@ -930,6 +975,66 @@ mod tests {
         }
         std::fs::write(path, &out).unwrap();
         out
+    }
+
+    /// A message over the reader's record limit used to be written, and the file then read
+    /// as "invalid MCAP" from that chunk on, by `bag convert` too. The writer refuses it
+    /// (limit 4 KiB here), naming the topic and size; a message larger than a chunk is written
+    /// in a chunk of its own, so the messages before it cannot take that chunk over the limit.
+    #[test]
+    fn a_message_the_reader_could_not_read_back_is_refused() {
+        use crate::writer::{Compression, StorageSink, WriterTopic};
+
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("big_0.mcap");
+        assert!(
+            super::McapSink::create(&path, Compression::None, super::CHUNK_SIZE_LIMIT + 1, 9)
+                .err()
+                .is_some_and(|e| e.to_string().contains("chunk size"))
+        );
+        let mut sink = super::McapSink::create(&path, Compression::None, 256, 9).unwrap();
+        sink.max_message_len = 4096;
+        let mut topic = WriterTopic {
+            name: "/map".into(),
+            type_name: "std_msgs/msg/String".into(),
+            serialization_format: "cdr".into(),
+            schema_text: "string data\n".into(),
+            qos: Vec::new(),
+            type_description_hash: String::new(),
+            storage_id: 0,
+            message_count: 0,
+        };
+        topic.storage_id = sink.add_topic(&topic).unwrap();
+        let err = sink.write(&topic, 7, &[0; 4097]).unwrap_err().to_string();
+        assert!(
+            err.contains("`/map`") && err.contains("4097 bytes") && err.contains("4096 bytes"),
+            "{err}"
+        );
+        // The first chunk closes after the schema, channel and first message; the second
+        // still has room when the large message comes.
+        sink.write(&topic, 0, &[1; 200]).unwrap();
+        sink.write(&topic, 1, &[1; 100]).unwrap();
+        sink.write(&topic, 2, &[2; 4096]).unwrap();
+        sink.write(&topic, 3, &[3; 10]).unwrap();
+        sink.finish(
+            &crate::metadata::BagMetadata::parse(
+                "rosbag2_bagfile_information: {version: 9, storage_identifier: mcap}",
+                &path,
+            )
+            .unwrap(),
+        )
+        .unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+        let big = summary
+            .chunk_indexes
+            .iter()
+            .find(|c| c.message_start_time <= 2 && 2 <= c.message_end_time)
+            .unwrap();
+        assert_eq!((big.message_start_time, big.message_end_time), (2, 2));
+        assert!(big.uncompressed_size < 4096 + 64, "{big:?}");
+        let reader = BagReader::open(&path).unwrap();
+        assert_eq!(reader.messages().unwrap().count(), 4);
     }
 
     /// rosbag2 split bags where a topic first appears after the first split: the earlier

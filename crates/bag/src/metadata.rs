@@ -10,7 +10,8 @@ use serde_yaml_ng::Value;
 use crate::error::{BagError, Result, io_error};
 use crate::qos::{self, OfferedQos};
 
-/// The newest metadata version this crate reads, and the one it writes (rosbag2 Jazzy).
+/// The newest metadata version this crate reads, and the one it writes by default (rosbag2
+/// Jazzy; see [`crate::MetadataVersion`]).
 pub const METADATA_VERSION: u32 = 9;
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]

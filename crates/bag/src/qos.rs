@@ -299,6 +299,16 @@ pub fn to_v9_list(profiles: &[OfferedQos]) -> Value {
     Value::Sequence(profiles.iter().map(|p| p.to_value(true)).collect())
 }
 
+/// metadata.yaml's `offered_qos_profiles` for metadata `version`: the list of version 9, or
+/// the string of [`to_yaml_string`] for older versions.
+pub fn to_metadata_value(profiles: &[OfferedQos], version: u32) -> Value {
+    if version >= 9 {
+        to_v9_list(profiles)
+    } else {
+        Value::String(to_yaml_string(profiles, version))
+    }
+}
+
 /// The YAML string rosbag2 stores in MCAP channel metadata and sqlite `topics` rows:
 /// string enums for version 9, integer enums for version 8 and older. Empty for no profiles.
 pub fn to_yaml_string(profiles: &[OfferedQos], version: u32) -> String {

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use rusqlite::{Connection, OpenFlags, OptionalExtension, ffi, params};
 
 use crate::error::{BagError, Result, sqlite_error};
-use crate::metadata::{BagMetadata, METADATA_VERSION};
+use crate::metadata::BagMetadata;
 use crate::qos;
 use crate::reader::{BagMessage, TopicInfo};
 use crate::source::{StorageSource, copy_for_temporary};
@@ -49,10 +49,12 @@ pub(crate) struct SqliteSink {
     pending: u64,
     /// [`TRANSACTION_LIMIT`]; smaller in tests.
     commit_after: u64,
+    /// The metadata version, which decides the form of the QoS in `topics` rows.
+    metadata_version: u32,
 }
 
 impl SqliteSink {
-    pub(crate) fn create(path: &Path, ros_distro: &str) -> Result<Self> {
+    pub(crate) fn create(path: &Path, ros_distro: &str, metadata_version: u32) -> Result<Self> {
         if path.exists() {
             return Err(BagError::Write {
                 path: path.to_path_buf(),
@@ -77,6 +79,7 @@ impl SqliteSink {
             defined_types: BTreeSet::new(),
             pending: 0,
             commit_after: TRANSACTION_LIMIT,
+            metadata_version,
         })
     }
 
@@ -99,7 +102,7 @@ impl StorageSink for SqliteSink {
                 topic.name,
                 topic.type_name,
                 topic.serialization_format,
-                qos::to_yaml_string(&topic.qos, METADATA_VERSION),
+                qos::to_yaml_string(&topic.qos, self.metadata_version),
                 topic.type_description_hash
             ],
         )
@@ -117,14 +120,14 @@ impl StorageSink for SqliteSink {
         Ok(id)
     }
 
-    fn write(&mut self, storage_id: i64, log_time_ns: i64, data: &[u8]) -> Result<()> {
+    fn write(&mut self, topic: &WriterTopic, log_time_ns: i64, data: &[u8]) -> Result<()> {
         let path = self.path.clone();
         let conn = self.conn()?;
         let mut insert = conn
             .prepare_cached("INSERT INTO messages(topic_id, timestamp, data) VALUES (?1, ?2, ?3)")
             .map_err(sqlite_error(&path))?;
         insert
-            .execute(params![storage_id, log_time_ns, data])
+            .execute(params![topic.storage_id, log_time_ns, data])
             .map_err(sqlite_error(&path))?;
         drop(insert);
         self.pending += data.len() as u64;
@@ -473,9 +476,9 @@ mod tests {
     fn the_open_transaction_is_committed_once_it_holds_the_limit() {
         let tmp = tempfile::tempdir().unwrap();
         let path = tmp.path().join("rec_0.db3");
-        let mut sink = SqliteSink::create(&path, "jazzy").unwrap();
+        let mut sink = SqliteSink::create(&path, "jazzy", 9).unwrap();
         sink.commit_after = 64 << 10;
-        let topic = WriterTopic {
+        let mut topic = WriterTopic {
             name: "/raw".into(),
             type_name: "std_msgs/msg/String".into(),
             serialization_format: "cdr".into(),
@@ -485,9 +488,10 @@ mod tests {
             storage_id: 0,
             message_count: 0,
         };
-        let id = sink.add_topic(&topic).unwrap();
+        topic.storage_id = sink.add_topic(&topic).unwrap();
         for i in 0..100 {
-            sink.write(id, 1000 + i64::from(i), &payload(i)).unwrap();
+            sink.write(&topic, 1000 + i64::from(i), &payload(i))
+                .unwrap();
         }
         let file = SqliteFile::open(StorageSource::file(&path)).unwrap();
         let on_disk: Vec<Vec<u8>> = file

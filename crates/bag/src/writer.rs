@@ -14,8 +14,7 @@ use lidar_har_msgs::topics::TopicSpec;
 use crate::error::{BagError, Result, io_error};
 use crate::mcap_storage::McapSink;
 use crate::metadata::{
-    BagMetadata, FileInformation, METADATA_VERSION, Nanoseconds, NanosecondsSinceEpoch,
-    TopicMetadata, TopicWithCount,
+    BagMetadata, FileInformation, Nanoseconds, NanosecondsSinceEpoch, TopicMetadata, TopicWithCount,
 };
 use crate::qos::{self, OfferedQos};
 use crate::reader::TopicInfo;
@@ -87,6 +86,45 @@ impl std::str::FromStr for Compression {
     }
 }
 
+/// The rosbag2 metadata version a bag is written in. It decides the form of the offered QoS
+/// profiles, in `metadata.yaml` and in the storage file's own copy (MCAP channel metadata,
+/// sqlite `topics` rows), and that form decides which ROS 2 distributions read the bag:
+/// rosbag2 before Jazzy reads `offered_qos_profiles` as a string of integer enums only, and
+/// stops at a list (`Exception on parsing info file: ... bad conversion`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MetadataVersion {
+    /// Version 8, rosbag2 Iron's: QoS as a YAML string with integer enums. Humble (which
+    /// writes version 5) reads it too: its reader takes the keys of the versions it knows and
+    /// ignores the others. Jazzy and later read it.
+    V8,
+    /// Version 9, rosbag2 Jazzy's and later: QoS as a YAML list with string enums.
+    #[default]
+    V9,
+}
+
+impl MetadataVersion {
+    pub fn number(self) -> u32 {
+        match self {
+            MetadataVersion::V8 => 8,
+            MetadataVersion::V9 => 9,
+        }
+    }
+}
+
+impl std::str::FromStr for MetadataVersion {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "8" => Ok(MetadataVersion::V8),
+            "9" => Ok(MetadataVersion::V9),
+            other => Err(format!(
+                "unsupported rosbag2 metadata version `{other}` (expected 8, read by Humble, Iron \
+                 and later, or 9, read by Jazzy and later)"
+            )),
+        }
+    }
+}
+
 /// How a bag is written.
 #[derive(Debug, Clone)]
 pub struct WriterOptions {
@@ -98,9 +136,12 @@ pub struct WriterOptions {
     /// transaction) is written out and `metadata.yaml` rewritten: bounds what a kill loses
     /// while messages keep coming. Only writes check it; during a pause call `flush()`.
     pub flush_interval: Duration,
-    /// `ros_distro` recorded in the metadata (the format written is rosbag2 Jazzy's).
+    /// `ros_distro` recorded in the metadata (informative only: `metadata_version` decides
+    /// the format).
     pub ros_distro: String,
     pub custom_data: BTreeMap<String, String>,
+    /// Version 9 by default; version 8 for a bag that ROS 2 Humble or Iron must read.
+    pub metadata_version: MetadataVersion,
 }
 
 impl Default for WriterOptions {
@@ -112,6 +153,7 @@ impl Default for WriterOptions {
             flush_interval: Duration::from_millis(500),
             ros_distro: "jazzy".to_string(),
             custom_data: BTreeMap::new(),
+            metadata_version: MetadataVersion::default(),
         }
     }
 }
@@ -136,7 +178,7 @@ pub(crate) struct WriterTopic {
 /// What a storage back-end does; the writer keeps topics, counts and metadata.
 pub(crate) trait StorageSink {
     fn add_topic(&mut self, topic: &WriterTopic) -> Result<i64>;
-    fn write(&mut self, storage_id: i64, log_time_ns: i64, data: &[u8]) -> Result<()>;
+    fn write(&mut self, topic: &WriterTopic, log_time_ns: i64, data: &[u8]) -> Result<()>;
     fn flush(&mut self) -> Result<()>;
     fn finish(&mut self, metadata: &BagMetadata) -> Result<()>;
 }
@@ -199,8 +241,13 @@ impl BagWriter {
                 &file_path,
                 options.compression,
                 options.chunk_size,
+                options.metadata_version.number(),
             )?),
-            StorageId::Sqlite3 => Box::new(SqliteSink::create(&file_path, &options.ros_distro)?),
+            StorageId::Sqlite3 => Box::new(SqliteSink::create(
+                &file_path,
+                &options.ros_distro,
+                options.metadata_version.number(),
+            )?),
         };
         let writer = Self {
             dir,
@@ -334,7 +381,7 @@ impl BagWriter {
                 message: format!("`{}`: negative log time {log_time_ns} ns", entry.name),
             });
         }
-        self.sink.write(entry.storage_id, log_time_ns, cdr)?;
+        self.sink.write(entry, log_time_ns, cdr)?;
         entry.message_count += 1;
         self.time_bounds = Some(match self.time_bounds {
             None => (log_time_ns, log_time_ns),
@@ -437,8 +484,9 @@ impl BagWriter {
     fn metadata(&self) -> BagMetadata {
         let (start, end) = self.time_bounds.unwrap_or((0, 0));
         let message_count = self.topics.iter().map(|t| t.message_count).sum();
+        let version = self.options.metadata_version.number();
         BagMetadata {
-            version: METADATA_VERSION,
+            version,
             storage_identifier: self.options.storage.as_str().to_string(),
             duration: Nanoseconds {
                 nanoseconds: end - start,
@@ -455,7 +503,7 @@ impl BagWriter {
                         name: t.name.clone(),
                         type_name: t.type_name.clone(),
                         serialization_format: t.serialization_format.clone(),
-                        offered_qos_profiles: qos::to_v9_list(&t.qos),
+                        offered_qos_profiles: qos::to_metadata_value(&t.qos, version),
                         type_description_hash: t.type_description_hash.clone(),
                     },
                     message_count: t.message_count,
@@ -483,5 +531,120 @@ impl BagWriter {
 impl Drop for BagWriter {
     fn drop(&mut self) {
         let _ = self.finish();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use lidar_har_msgs::qos::QosProfile;
+    use serde_yaml_ng::Value;
+
+    use super::*;
+    use crate::BagReader;
+
+    /// Writes `/map` (latched) and `/scan` (sensor data) in `storage` at `version`.
+    fn write_map_and_scan(dir: &Path, storage: StorageId, version: MetadataVersion) {
+        let options = WriterOptions {
+            storage,
+            metadata_version: version,
+            ..WriterOptions::default()
+        };
+        let mut writer = BagWriter::create(dir, options).unwrap();
+        let map = writer
+            .add_topic(
+                "/map",
+                "std_msgs/msg/String",
+                "string data\n",
+                QosProfile::latched(1),
+            )
+            .unwrap();
+        writer
+            .add_topic(
+                "/scan",
+                "std_msgs/msg/String",
+                "string data\n",
+                QosProfile::sensor_data(),
+            )
+            .unwrap();
+        writer.write(map, 5, &[0, 1, 0, 0, 1, 0, 0, 0, 0]).unwrap();
+        writer.finish().unwrap();
+    }
+
+    /// The QoS text each storage file keeps for `topic`, as rosbag2 reads it there.
+    fn storage_qos(file: &Path, storage: StorageId, topic: &str) -> String {
+        match storage {
+            StorageId::Mcap => {
+                let bytes = std::fs::read(file).unwrap();
+                let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+                let channel = summary
+                    .channels
+                    .values()
+                    .find(|c| c.topic == topic)
+                    .unwrap();
+                channel.metadata["offered_qos_profiles"].clone()
+            }
+            StorageId::Sqlite3 => rusqlite::Connection::open(file)
+                .unwrap()
+                .query_row(
+                    "SELECT offered_qos_profiles FROM topics WHERE name = ?1",
+                    [topic],
+                    |row| row.get(0),
+                )
+                .unwrap(),
+        }
+    }
+
+    /// rosbag2 before Jazzy reads `offered_qos_profiles` with yaml-cpp's `as<std::string>()`
+    /// and each enum with `as<int>()`: a version-9 list (or string enums in the storage file)
+    /// stops `ros2 bag info` and `play` on Humble. Version 8 keeps that form everywhere, and
+    /// `/map` stays transient local.
+    #[test]
+    fn version_8_writes_qos_as_humble_reads_it_in_metadata_and_storage() {
+        let tmp = tempfile::tempdir().unwrap();
+        for storage in [StorageId::Mcap, StorageId::Sqlite3] {
+            let dir = tmp.path().join(format!("v8_{storage}"));
+            write_map_and_scan(&dir, storage, MetadataVersion::V8);
+            let yaml: Value = serde_yaml_ng::from_str(
+                &std::fs::read_to_string(dir.join("metadata.yaml")).unwrap(),
+            )
+            .unwrap();
+            let info = &yaml["rosbag2_bagfile_information"];
+            assert_eq!(info["version"], Value::from(8), "{storage}");
+            let file = dir.join(format!("v8_{storage}_0.{}", storage.extension()));
+            for (i, topic) in ["/map", "/scan"].into_iter().enumerate() {
+                let in_metadata =
+                    info["topics_with_message_count"][i]["topic_metadata"]["offered_qos_profiles"]
+                        .as_str()
+                        .unwrap_or_else(|| panic!("{storage} {topic}: not a string"))
+                        .to_string();
+                for text in [in_metadata, storage_qos(&file, storage, topic)] {
+                    let profiles: Value = serde_yaml_ng::from_str(&text).unwrap();
+                    for key in ["history", "reliability", "durability", "liveliness"] {
+                        assert!(
+                            profiles[0][key].is_u64(),
+                            "{storage} {topic}: `{key}` is not an integer in {text}"
+                        );
+                    }
+                    let (reliability, durability) = if topic == "/map" { (1, 1) } else { (2, 2) };
+                    assert_eq!(profiles[0]["reliability"], Value::from(reliability));
+                    assert_eq!(profiles[0]["durability"], Value::from(durability), "{text}");
+                }
+            }
+            let reader = BagReader::open(&dir).unwrap();
+            assert_eq!(reader.metadata().metadata_version, Some(8));
+            assert_eq!(
+                reader.topic("/map").unwrap().offered_qos[0].to_profile(),
+                Some(QosProfile::latched(1))
+            );
+            assert_eq!(reader.messages().unwrap().count(), 1);
+        }
+        let dir = tmp.path().join("v9");
+        write_map_and_scan(&dir, StorageId::Mcap, MetadataVersion::V9);
+        let text = std::fs::read_to_string(dir.join("metadata.yaml")).unwrap();
+        assert!(text.contains("version: 9") && text.contains("durability: transient_local"));
+        assert!(
+            storage_qos(&dir.join("v9_0.mcap"), StorageId::Mcap, "/map")
+                .contains("transient_local")
+        );
     }
 }

@@ -3,7 +3,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
-use lidar_har_bag::{BagReader, BagWriter, Compression, StorageId, WriterOptions};
+use lidar_har_bag::{
+    BagInfo, BagReader, BagWriter, Compression, MetadataVersion, StorageId, WriterOptions,
+};
 use lidar_har_msgs::RosMessage;
 use lidar_har_msgs::visualization_msgs::{Marker, MarkerArray};
 use lidar_har_pipeline::bag_run::StopRequest;
@@ -29,6 +31,11 @@ pub enum BagCommand {
         /// Chunk compression of the new bag (MCAP only).
         #[arg(long, default_value = "none", value_parser = parse_compression)]
         compression: Compression,
+        /// rosbag2 metadata version of the new bag: 9 (read by Jazzy and later) or 8 (read by
+        /// Humble, Iron and later; use it for a Humble robot). Default: 8 when the source's
+        /// metadata.yaml is version 8 or older (Humble writes 5, Iron 8), else 9.
+        #[arg(long, value_parser = parse_metadata_version)]
+        rosbag2_version: Option<MetadataVersion>,
     },
 }
 
@@ -40,6 +47,19 @@ fn parse_compression(s: &str) -> Result<Compression, String> {
     s.parse()
 }
 
+fn parse_metadata_version(s: &str) -> Result<MetadataVersion, String> {
+    s.parse()
+}
+
+/// The metadata version `convert` writes without `--rosbag2-version`: a source that the
+/// distributions before Jazzy read (version 8 or older) stays readable by them.
+fn default_metadata_version(source_version: Option<u32>) -> MetadataVersion {
+    match source_version {
+        Some(version) if version < 9 => MetadataVersion::V8,
+        _ => MetadataVersion::default(),
+    }
+}
+
 /// Runs a bag command; `stop` (a signal) ends a conversion early, its new bag finished.
 pub fn run(command: BagCommand, stop: &StopRequest) -> anyhow::Result<()> {
     match command {
@@ -49,7 +69,8 @@ pub fn run(command: BagCommand, stop: &StopRequest) -> anyhow::Result<()> {
             dst,
             storage,
             compression,
-        } => convert(&src, &dst, storage, compression, stop),
+            rosbag2_version,
+        } => convert(&src, &dst, storage, compression, rosbag2_version, stop),
     }
 }
 
@@ -91,6 +112,9 @@ fn info(path: &Path) -> anyhow::Result<()> {
             "Warning:           a storage file cannot be read to its end (cut short by a killed recorder, or damaged); counts cover the part before"
         );
     }
+    if let Some(note) = missing_metadata_note(path, &info) {
+        outln!("Metadata:          {note}");
+    }
     let width = reader
         .topics()
         .iter()
@@ -120,11 +144,25 @@ fn info(path: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// What `info` says of a bag directory without metadata.yaml (a killed recorder leaves
+/// none): this reader does without it, but `ros2 bag play` does not.
+fn missing_metadata_note(path: &Path, info: &BagInfo) -> Option<String> {
+    (path.is_dir() && info.metadata_version.is_none()).then(|| {
+        format!(
+            "none (metadata.yaml missing; a killed recorder leaves none): `ros2 bag play` needs \
+             it; `lidar-har bag convert {0} NEW_DIR` writes a copy with one (or `ros2 bag reindex \
+             {0}` writes it in place)",
+            path.display()
+        )
+    })
+}
+
 fn convert(
     src: &Path,
     dst: &Path,
     storage: StorageId,
     compression: Compression,
+    metadata_version: Option<MetadataVersion>,
     stop: &StopRequest,
 ) -> anyhow::Result<()> {
     let reader =
@@ -132,6 +170,8 @@ fn convert(
     let mut options = WriterOptions {
         storage,
         compression,
+        metadata_version: metadata_version
+            .unwrap_or_else(|| default_metadata_version(reader.bag_metadata().map(|m| m.version))),
         ..WriterOptions::default()
     };
     if let Some(metadata) = reader.bag_metadata() {
@@ -221,11 +261,12 @@ fn convert(
         );
     }
     outln!(
-        "Converted {count} messages on {} topics: {} ({}) -> {} ({storage})",
+        "Converted {count} messages on {} topics: {} ({}) -> {} ({storage}, metadata version {})",
         handles.len(),
         src.display(),
         reader.storage(),
-        summary.dir.display()
+        summary.dir.display(),
+        summary.metadata.version
     );
     Ok(())
 }
@@ -356,5 +397,47 @@ mod tests {
         assert!(timestamp(1_403_201_183_687_882_605).starts_with("2014-06-19 18:06:23.687882605"));
         assert_eq!(seconds(125_989_004_529), "125.989004529s");
         assert_eq!(human_size(2048), "2.0 KiB");
+    }
+
+    /// A Humble (5) or Iron (8) source converted without `--rosbag2-version` stays readable
+    /// by them: it used to become version 9, which their `ros2 bag info` cannot parse.
+    #[test]
+    fn converting_a_bag_older_than_jazzy_keeps_a_version_they_read() {
+        assert_eq!(default_metadata_version(Some(5)), MetadataVersion::V8);
+        assert_eq!(default_metadata_version(Some(8)), MetadataVersion::V8);
+        assert_eq!(default_metadata_version(Some(9)), MetadataVersion::V9);
+        assert_eq!(default_metadata_version(None), MetadataVersion::V9);
+        assert!(
+            parse_metadata_version("5")
+                .unwrap_err()
+                .contains("expected 8, read by Humble")
+        );
+    }
+
+    /// `info` on a directory without metadata.yaml said nothing of it, and `ros2 bag play`
+    /// then refused the bag that looked fine.
+    #[test]
+    fn info_says_a_directory_without_metadata_yaml_needs_one_to_play() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("rec");
+        let mut writer = BagWriter::create(&dir, WriterOptions::default()).unwrap();
+        writer
+            .add_topic_for::<Marker>("/m", lidar_har_msgs::qos::QosProfile::reliable(1))
+            .unwrap();
+        writer.finish().unwrap();
+        let with = BagReader::open(&dir).unwrap();
+        assert_eq!(missing_metadata_note(&dir, &with.metadata()), None);
+        std::fs::remove_file(dir.join("metadata.yaml")).unwrap();
+        let without = BagReader::open(&dir).unwrap();
+        let note = missing_metadata_note(&dir, &without.metadata()).unwrap();
+        assert!(
+            note.contains("`ros2 bag play` needs it")
+                && note.contains(&format!("lidar-har bag convert {}", dir.display()))
+                && note.contains("ros2 bag reindex"),
+            "{note}"
+        );
+        let bare_file = dir.join("rec_0.mcap");
+        let bare = BagReader::open(&bare_file).unwrap();
+        assert_eq!(missing_metadata_note(&bare_file, &bare.metadata()), None);
     }
 }
