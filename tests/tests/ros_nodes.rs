@@ -446,6 +446,86 @@ kill -TERM $E; wait $E; echo "echo=$?"
     assert!(maps <= 6, "{maps} /map in 3 s: the loop does not pause");
 }
 
+/// Bag time (ns since [`T0_NS`]) of a /clock JSON line.
+fn clock_ns(line: &serde_json::Value) -> i64 {
+    let clock = &line["msg"]["clock"];
+    clock["sec"].as_i64().unwrap() * 1_000_000_000 + clock["nanosec"].as_i64().unwrap() - T0_NS
+}
+
+/// /clock ticks at `clock_frequency` (40 Hz, as `ros2 bag play --clock`) with the bag time of
+/// the moment: it used to be published once per message, with its stamp, and never in a gap
+/// between messages. With `start_offset` the first scans keep their recorded spacing: the
+/// pace used to start before the part of the bag before the offset had been read through.
+#[test]
+fn ros_replay_clock_ticks_through_gaps_and_an_offset_keeps_the_pace() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    // Scans 0..20 and 40..60 at 20 Hz: a gap of a second between 1.0 s and 2.05 s.
+    let path = dir.path().join("bag");
+    let mut w = BagWriter::create(&path, WriterOptions::default()).unwrap();
+    let scan_topic = w
+        .add_topic_for::<LaserScan>(topics::SCAN.name, topics::SCAN.qos)
+        .unwrap();
+    for i in (0..20).chain(40..60) {
+        w.write_message(scan_topic, T0_NS + 50_000_000 * (i as i64 + 1), &scan(i))
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let script = r#"
+"$LH" topic echo /clock --timeout 60 > "$OUT/clock.jsonl" & C=$!
+"$LH" topic echo /scan --timeout 60 > "$OUT/scan.jsonl" & E=$!
+# From 0.5 s after the first scan (scan 10) to the last (scan 59): 2.45 s at rate 1.
+"$REPLAY" --ros-args -p bag:="$BAG" -p start_offset:=0.5 -p wait_for_subscriber:=/scan \
+  -p wait_for_all_acked:=0.0; echo "replay=$?"
+sleep 0.5
+kill -TERM $C; wait $C; echo "clock_echo=$?"
+kill -TERM $E; wait $E; echo "scan_echo=$?"
+"#;
+    let out = replay_in_netns(script, &path, dir.path(), Duration::from_secs(60));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["replay=0", "clock_echo=0", "scan_echo=0"] {
+        assert!(stdout.contains(want), "expected {want}");
+    }
+    let clock: Vec<i64> = json_lines(&dir.path().join("clock.jsonl"))
+        .iter()
+        .map(clock_ns)
+        .collect();
+    // It holds at the offset (0.5 s after the first scan) while waiting for the subscriber,
+    // then moves on at every tick.
+    let begin = 50_000_000 * 11;
+    let playing: Vec<i64> = clock.iter().copied().filter(|&ns| ns > begin).collect();
+    assert!(
+        playing.windows(2).all(|w| w[0] < w[1]),
+        "/clock repeated or went back: {clock:?}"
+    );
+    assert!(clock.iter().all(|&ns| ns >= begin), "{clock:?}");
+    // About 100 in the 2.45 s of play (40 Hz); one per message (30) before.
+    assert!(
+        (60..=160).contains(&playing.len()),
+        "{} /clock while playing: {clock:?}",
+        playing.len()
+    );
+    let in_gap = playing
+        .iter()
+        .filter(|&&ns| ns > 1_000_000_000 && ns < 2_050_000_000);
+    assert!(in_gap.count() >= 20, "/clock stopped in the gap: {clock:?}");
+    // The first scan played is the first after the offset, and the next ones follow it at
+    // their recorded 50 ms (loosely: a loaded machine delays some).
+    let scans = json_lines(&dir.path().join("scan.jsonl"));
+    assert_eq!(scan_index(&scans[0]["msg"]), 10);
+    let sent: Vec<i64> = scans[..6]
+        .iter()
+        .map(|s| s["source_time_ns"].as_i64().unwrap())
+        .collect();
+    let spread_ms = (sent[5] - sent[0]) / 1_000_000;
+    assert!(
+        spread_ms >= 200,
+        "6 scans sent within {spread_ms} ms: {sent:?}"
+    );
+}
+
 #[test]
 fn ros_nodes_reject_bad_parameters_naming_them() {
     if !netns_available() {
@@ -1523,7 +1603,8 @@ L=$!
   -r /human/activity:=/no_head/activity -r /human/pelvis:=/no_head/pelvis \
   -r /human/fall_alert:=/no_head/fall_alert -r /human/markers:=/no_head/markers \
   2> "$OUT/classifier_no_head.err" & N=$!
-"$LH" topic echo /human/pose --count {np} --timeout 40 > "$OUT/pose.jsonl" &
+# Whole (a cluster may have more than 128 points), as `bag_topic_json` decodes it.
+"$LH" topic echo /human/pose --full-length --count {np} --timeout 40 > "$OUT/pose.jsonl" &
 P=$!
 "$LH" topic echo /human/activity --count {na} --timeout 40 > "$OUT/activity.jsonl" & A=$!
 "$LH" topic echo /human/pelvis --count {nv} --timeout 40 > "$OUT/pelvis.jsonl" & V=$!

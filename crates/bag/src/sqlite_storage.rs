@@ -2,7 +2,7 @@
 //! `schema`, `metadata`, `topics` (with `offered_qos_profiles` and `type_description_hash`),
 //! `message_definitions` and `messages`. Older files (Foxy/Humble, fewer tables/columns) read too.
 
-use std::collections::{BTreeSet, HashMap};
+use std::collections::{BTreeSet, HashMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -16,8 +16,12 @@ use crate::source::{StorageSource, copy_for_temporary};
 use crate::writer::{StorageSink, WriterTopic};
 
 const SCHEMA_VERSION: i64 = 4;
-/// Rows fetched per query while streaming; bounds reader memory.
+/// Rows fetched per query while streaming.
 const BATCH: i64 = 512;
+/// Message bytes a fetched batch may hold: a batch ends at the first row that brings it to
+/// this (a single larger message is a batch of its own), so 512 large messages (images, point
+/// clouds, maps) are never held at once.
+const BATCH_BYTES: usize = 8 << 20;
 
 const CREATE_TABLES: &str = "
 CREATE TABLE schema(schema_version INTEGER PRIMARY KEY, ros_distro TEXT NOT NULL);
@@ -355,22 +359,40 @@ impl SqliteFile {
     }
 
     /// Streams messages in timestamp order, a batch of rows at a time (keyset pagination on
-    /// the `timestamp_idx` index), so memory stays constant whatever the file's size.
+    /// the `timestamp_idx` index), each batch bounded by [`BATCH`] rows and [`BATCH_BYTES`]
+    /// message bytes, so memory stays bounded whatever the file's size. A topic filter that
+    /// leaves some topic out is applied in the query, so the other topics' rows are not read.
     pub(crate) fn messages(&self, topics: Option<&BTreeSet<String>>) -> Result<SqliteMessages> {
         let conn = open_read_only(&self.source.bytes).map_err(sqlite_error(&self.source.path))?;
-        let wanted = self
+        let wanted: HashMap<i64, Arc<str>> = self
             .topics
             .iter()
             .filter(|t| topics.is_none_or(|f| f.contains(&t.name)))
             .map(|t| (t.storage_id, Arc::from(t.name.as_str())))
             .collect();
+        // Without a filter, a row of a topic id that `topics` lacks is reported, not skipped.
+        let topic_filter = if wanted.len() < self.topics.len() {
+            let ids: Vec<String> = wanted.keys().map(i64::to_string).collect();
+            format!("topic_id IN ({})", ids.join(", "))
+        } else {
+            "1".to_string()
+        };
         Ok(SqliteMessages {
             path: self.source.path.clone(),
             conn,
             topics: wanted,
-            all_topics: self.topics.iter().map(|t| t.storage_id).collect(),
+            select_first: format!(
+                "SELECT id, topic_id, timestamp, data FROM messages WHERE {topic_filter}
+                 ORDER BY timestamp, id LIMIT ?1"
+            ),
+            select_after: format!(
+                "SELECT id, topic_id, timestamp, data FROM messages
+                 WHERE (timestamp > ?1 OR (timestamp = ?1 AND id > ?2)) AND {topic_filter}
+                 ORDER BY timestamp, id LIMIT ?3"
+            ),
             after: None,
-            batch: std::collections::VecDeque::new(),
+            batch: VecDeque::new(),
+            batch_bytes: BATCH_BYTES,
             done: false,
             _source: self.source.clone(),
         })
@@ -380,36 +402,47 @@ impl SqliteFile {
 pub(crate) struct SqliteMessages {
     path: PathBuf,
     conn: Connection,
+    /// The topics read, by storage id; the query returns no other (known) topic's rows.
     topics: HashMap<i64, Arc<str>>,
-    all_topics: BTreeSet<i64>,
+    /// The first batch's query, with the topic filter.
+    select_first: String,
+    /// The query of the batches after the first: rows after [`Self::after`].
+    select_after: String,
     /// (timestamp, id) of the last row fetched.
     after: Option<(i64, i64)>,
-    batch: std::collections::VecDeque<(i64, i64, i64, Vec<u8>)>,
+    /// (topic_id, timestamp, data) of the rows fetched and not yet returned.
+    batch: VecDeque<(i64, i64, Vec<u8>)>,
+    /// [`BATCH_BYTES`]; smaller in tests.
+    batch_bytes: usize,
     done: bool,
     /// Keeps a rolled-back copy alive while its messages are read (last: dropped after `conn`).
     _source: StorageSource,
 }
 
 impl SqliteMessages {
+    /// Fetches the next batch. SQLite reads a row's blob only when it is asked for, so the rows
+    /// after the one that fills the byte budget are not read.
     fn fetch(&mut self) -> rusqlite::Result<()> {
-        let (sql, ts, id) = match self.after {
-            None => ("SELECT id, topic_id, timestamp, data FROM messages ORDER BY timestamp, id LIMIT ?1", 0, 0),
-            Some((ts, id)) => (
-                "SELECT id, topic_id, timestamp, data FROM messages
-                 WHERE timestamp > ?1 OR (timestamp = ?1 AND id > ?2) ORDER BY timestamp, id LIMIT ?3",
-                ts,
-                id,
-            ),
+        let mut stmt;
+        let mut rows = match self.after {
+            None => {
+                stmt = self.conn.prepare_cached(&self.select_first)?;
+                stmt.query(params![BATCH])?
+            }
+            Some((timestamp, id)) => {
+                stmt = self.conn.prepare_cached(&self.select_after)?;
+                stmt.query(params![timestamp, id, BATCH])?
+            }
         };
-        let mut stmt = self.conn.prepare_cached(sql)?;
-        let mut rows = if self.after.is_some() {
-            stmt.query(params![ts, id, BATCH])?
-        } else {
-            stmt.query(params![BATCH])?
-        };
-        while let Some(row) = rows.next()? {
-            self.batch
-                .push_back((row.get(0)?, row.get(1)?, row.get(2)?, row.get(3)?));
+        let mut bytes = 0;
+        while bytes < self.batch_bytes
+            && let Some(row) = rows.next()?
+        {
+            let data: Vec<u8> = row.get(3)?;
+            bytes += data.len();
+            let (id, timestamp) = (row.get(0)?, row.get(2)?);
+            self.after = Some((timestamp, id));
+            self.batch.push_back((row.get(1)?, timestamp, data));
         }
         Ok(())
     }
@@ -418,40 +451,35 @@ impl SqliteMessages {
 impl Iterator for SqliteMessages {
     type Item = Result<BagMessage>;
     fn next(&mut self) -> Option<Self::Item> {
-        loop {
-            if self.done {
-                return None;
+        if self.done {
+            return None;
+        }
+        if self.batch.is_empty() {
+            if let Err(e) = self.fetch() {
+                self.done = true;
+                return Some(Err(BagError::Sqlite {
+                    path: self.path.clone(),
+                    cause: e,
+                }));
             }
             if self.batch.is_empty() {
-                if let Err(e) = self.fetch() {
-                    self.done = true;
-                    return Some(Err(BagError::Sqlite {
-                        path: self.path.clone(),
-                        cause: e,
-                    }));
-                }
-                if self.batch.is_empty() {
-                    self.done = true;
-                    return None;
-                }
-            }
-            let (id, topic_id, timestamp, data) = self.batch.pop_front()?;
-            self.after = Some((timestamp, id));
-            if let Some(topic) = self.topics.get(&topic_id) {
-                return Some(Ok(BagMessage {
-                    topic: topic.clone(),
-                    log_time_ns: timestamp,
-                    data,
-                }));
-            }
-            if !self.all_topics.contains(&topic_id) {
                 self.done = true;
-                return Some(Err(BagError::UnknownTopicId {
-                    path: self.path.clone(),
-                    id: topic_id,
-                }));
+                return None;
             }
         }
+        let (topic_id, timestamp, data) = self.batch.pop_front()?;
+        let Some(topic) = self.topics.get(&topic_id) else {
+            self.done = true;
+            return Some(Err(BagError::UnknownTopicId {
+                path: self.path.clone(),
+                id: topic_id,
+            }));
+        };
+        Some(Ok(BagMessage {
+            topic: topic.clone(),
+            log_time_ns: timestamp,
+            data,
+        }))
     }
 }
 
@@ -509,6 +537,77 @@ mod tests {
             on_disk,
             (0..on_disk.len() as u32).map(payload).collect::<Vec<_>>()
         );
+    }
+
+    /// A batch ends at the row that brings its message bytes to the budget (8 MiB; 100 kB
+    /// here), so large messages are not held 512 at a time; a topic filter is applied in the
+    /// query, so the rows of the topics not read are not fetched. Messages keep their order
+    /// (timestamp, then id) across batches, rows of equal timestamps included.
+    #[test]
+    fn batches_are_bounded_by_bytes_and_hold_only_the_topics_read() {
+        const BUDGET: usize = 100_000;
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("rec_0.db3");
+        let mut sink = SqliteSink::create(&path, "jazzy", 9).unwrap();
+        let mut add = |name: &str| {
+            let mut topic = WriterTopic {
+                name: name.into(),
+                type_name: "std_msgs/msg/String".into(),
+                serialization_format: "cdr".into(),
+                schema_text: "string data\n".into(),
+                qos: Vec::new(),
+                type_description_hash: String::new(),
+                storage_id: 0,
+                message_count: 0,
+            };
+            topic.storage_id = sink.add_topic(&topic).unwrap();
+            topic
+        };
+        let (image, scan) = (add("/image"), add("/scan"));
+        // 40 kB images and 6 kB scans, two of each on every timestamp.
+        let image_data = |i: u32| payload(i).repeat(7)[..40_000].to_vec();
+        let mut written = Vec::new();
+        for i in 0..10 {
+            let timestamp = 1000 + i64::from(i / 2);
+            for (topic, data) in [(&image, image_data(i)), (&scan, payload(i))] {
+                sink.write(topic, timestamp, &data).unwrap();
+                written.push((topic.name.clone(), timestamp, data));
+            }
+        }
+        sink.flush().unwrap();
+        let file = SqliteFile::open(StorageSource::file(&path)).unwrap();
+        let read = |messages: super::SqliteMessages| -> Vec<(String, i64, Vec<u8>)> {
+            messages
+                .map(|m| m.unwrap())
+                .map(|m| (m.topic.to_string(), m.log_time_ns, m.data))
+                .collect()
+        };
+
+        let mut all = file.messages(None).unwrap();
+        all.batch_bytes = BUDGET;
+        let first = all.next().unwrap().unwrap();
+        let held = first.data.len() + all.batch.iter().map(|r| r.2.len()).sum::<usize>();
+        assert!(
+            held < BUDGET + 40_000,
+            "the first batch held {held} bytes in {} rows",
+            all.batch.len() + 1
+        );
+        let mut all_read = vec![(first.topic.to_string(), first.log_time_ns, first.data)];
+        all_read.extend(read(all));
+        assert!(all_read == written, "every message, in order");
+
+        let only_scan = std::collections::BTreeSet::from(["/scan".to_string()]);
+        let mut scans = file.messages(Some(&only_scan)).unwrap();
+        scans.batch_bytes = BUDGET;
+        let first = scans.next().unwrap().unwrap();
+        assert!(
+            scans.batch.iter().all(|r| r.0 == scan.storage_id),
+            "the batch holds only /scan rows"
+        );
+        let mut scans_read = vec![(first.topic.to_string(), first.log_time_ns, first.data)];
+        scans_read.extend(read(scans));
+        let written_scans: Vec<_> = written.into_iter().filter(|m| m.0 == "/scan").collect();
+        assert!(scans_read == written_scans, "every /scan message, in order");
     }
 
     /// A writer killed in the middle of a commit (or one whose transaction outgrew SQLite's

@@ -1,12 +1,14 @@
 //! `replay`: plays a rosbag2 directory (MCAP or sqlite3) onto ROS 2 topics, like
 //! `ros2 bag play`, with each topic's contract QoS (transient-local topics such as /map stay
 //! available to late subscribers; /scan reliable, as the driver offers it), and /clock from
-//! the bag's time line for `use_sim_time`.
+//! the bag's time line for `use_sim_time`, at a fixed rate as `ros2 bag play --clock` does.
 //!
 //! Parameters: `bag` (required), `rate` (1.0; 0 = as fast as possible), `loop`,
 //! `start_offset` (s into the bag, up to its length), `topics` (only these; empty = all;
 //! those the bag lacks are skipped with a warning, none present is an error), `publish_clock`
-//! (then the bag's own /clock is not played), `wait_for_subscriber` (a topic to wait on before playing, up to `wait_timeout` s),
+//! (then the bag's own /clock is not played), `clock_frequency` (/clock publications a second
+//! of wall time, 40 as `ros2 bag play --clock`), `wait_for_subscriber` (a topic to wait on
+//! before playing, up to `wait_timeout` s),
 //! `wait_for_all_acked` (s to wait at the end for reliable subscribers to acknowledge
 //! everything, so the last messages are not lost when the process exits, and, while the
 //! replay has run for less than that, for a subscriber to match each reliable topic first;
@@ -15,6 +17,7 @@
 //! With `loop`, each pass lasts the whole bag (from `start_offset` to its last message, of any
 //! topic) and at least a second of bag time, both over the rate: a selection of topics that
 //! spans no bag time (`topics:=[/map]`) used to be published again and again without a pause.
+//! Each pass starts /clock again at `start_offset`, as rosbag2's player jumps its clock back.
 //!
 //! A bag cut short (a killed recorder) is played up to its last complete message, with a
 //! warning naming the file and how many complete messages it holds; each `loop` pass ends
@@ -89,6 +92,11 @@ fn decls() -> Vec<ParamDecl> {
             "publish /clock with the bag's time (instead of the bag's own /clock)",
         ),
         ParamDecl::new(
+            "clock_frequency",
+            V::Double(DEFAULT_CLOCK_HZ),
+            "Hz (wall time) at which /clock is published, with publish_clock",
+        ),
+        ParamDecl::new(
             "wait_for_subscriber",
             V::String(String::new()),
             "topic whose subscriber to wait for",
@@ -113,6 +121,10 @@ const MIN_RATE: f64 = 0.001;
 const MAX_OFFSET_S: f64 = 365.0 * 86_400.0;
 /// Longest `wait_timeout` / `wait_for_all_acked`: a day.
 const MAX_WAIT_S: f64 = 86_400.0;
+/// `clock_frequency`'s default: `ros2 bag play --clock` without a value.
+const DEFAULT_CLOCK_HZ: f64 = 40.0;
+/// `clock_frequency`'s range: from one /clock every 10 s to one a millisecond.
+const CLOCK_HZ: std::ops::RangeInclusive<f64> = 0.1..=1000.0;
 
 struct Settings {
     bag: String,
@@ -121,6 +133,7 @@ struct Settings {
     start_offset_ns: i64,
     topics: Vec<String>,
     publish_clock: bool,
+    clock_period: Duration,
     wait_for: String,
     wait_timeout: Duration,
     acked_timeout: Duration,
@@ -139,6 +152,8 @@ impl Settings {
         let rule = format!("0 (as fast as possible) or >= {MIN_RATE}");
         let rate = p.f64_checked("rate", &rule, |v| v == 0.0 || v >= MIN_RATE)?;
         let offset = seconds(p, "start_offset", 0.0..=MAX_OFFSET_S)?;
+        let rule = format!("Hz in {}..={}", CLOCK_HZ.start(), CLOCK_HZ.end());
+        let clock_hz = p.f64_checked("clock_frequency", &rule, |v| CLOCK_HZ.contains(&v))?;
         Ok(Self {
             bag,
             rate,
@@ -146,6 +161,7 @@ impl Settings {
             start_offset_ns: i64::try_from(offset.as_nanos()).unwrap_or(i64::MAX),
             topics: p.string_array("topics")?,
             publish_clock: p.bool("publish_clock")?,
+            clock_period: Duration::from_secs_f64(1.0 / clock_hz),
             wait_for: p.string("wait_for_subscriber")?,
             wait_timeout: seconds(p, "wait_timeout", 0.0..=MAX_WAIT_S)?,
             acked_timeout: seconds(p, "wait_for_all_acked", 0.0..=MAX_WAIT_S)?,
@@ -306,11 +322,17 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
         }
     }
     let writers_created = Instant::now();
-    let clock = if settings.publish_clock {
-        Some(node.publisher_for(&topics::CLOCK)?)
+    let mut clock = if settings.publish_clock {
+        let publisher = node.publisher_for(&topics::CLOCK)?;
+        Some((
+            publisher,
+            ClockTicks::new(settings.clock_period, Instant::now()),
+        ))
     } else {
         None
     };
+    let (bag_start, bag_end) = (info.start_ns, info.end_ns);
+    let begin = bag_start.saturating_add(settings.start_offset_ns);
     if let Some(publisher) = publishers.get(&settings.wait_for) {
         let deadline = Instant::now() + settings.wait_timeout;
         while publisher.subscription_count() == 0 {
@@ -321,18 +343,24 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
                     settings.wait_timeout
                 );
             }
-            if !shutdown.sleep_until(Instant::now() + Duration::from_millis(20)) {
+            // /clock holds at the start meanwhile.
+            let next_look = Instant::now() + Duration::from_millis(20);
+            if !sleep_until_ticking(next_look, shutdown, &mut clock, |_| begin)? {
                 return Ok(());
             }
         }
     }
-    let (bag_start, bag_end) = (info.start_ns, info.end_ns);
     let mut played = 0u64;
     let mut cut_short = None;
+    // Only the played topics are read: the storage leaves the others' data unread (sqlite3
+    // filters them in its query).
+    let play: Vec<&str> = selection.play.iter().map(String::as_str).collect();
     loop {
-        let begin = bag_start.saturating_add(settings.start_offset_ns);
-        let mut pacing = Pacing::new(begin, Instant::now(), settings.rate);
-        for message in reader.messages()? {
+        let mut pacing = Pacing::new(begin, settings.rate);
+        if let Some((_, ticks)) = &mut clock {
+            ticks.restart();
+        }
+        for message in reader.messages_on(&play)? {
             let message = match message {
                 Ok(message) => message,
                 // A killed recorder (a power cut) leaves a file cut short: the reader gives
@@ -346,26 +374,21 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
                 }
                 Err(e) => return Err(anyhow::Error::new(e).context("reading the bag")),
             };
-            if message.log_time_ns < begin {
-                continue;
-            }
-            let Some(publisher) = publishers.get(&*message.topic) else {
-                continue;
+            let publisher = publishers
+                .get(&*message.topic)
+                .filter(|_| message.log_time_ns >= begin);
+            // Messages before the offset are read through at once, with /clock still ticking.
+            let due = match publisher {
+                Some(_) => pacing.due(message.log_time_ns, Instant::now(), &message.topic),
+                None => Instant::now(),
             };
-            if settings.rate > 0.0 {
-                let due = pacing.due(message.log_time_ns, Instant::now(), &message.topic);
-                if !shutdown.sleep_until(due) {
-                    log::info!("replay: stopped by signal after {played} messages");
-                    return Ok(());
-                }
-            } else if shutdown.requested() {
+            if !sleep_until_ticking(due, shutdown, &mut clock, |now| pacing.bag_time_at(now))? {
+                log::info!("replay: stopped by signal after {played} messages");
                 return Ok(());
             }
-            if let Some(clock) = &clock {
-                clock.publish_msg(&Clock {
-                    clock: Time::from_nanos(message.log_time_ns),
-                })?;
-            }
+            let Some(publisher) = publisher else {
+                continue;
+            };
             let data = match &mut static_transforms {
                 Some(merged) if *message.topic == *topics::TF_STATIC.name => {
                     merged.merge_recorded(message.data)
@@ -378,7 +401,10 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
         if !settings.looping || shutdown.requested() {
             break;
         }
-        if settings.rate > 0.0 && !shutdown.sleep_until(pacing.pass_end(bag_end, Instant::now())) {
+        let pass_end = pacing.pass_end(bag_end, Instant::now());
+        if !sleep_until_ticking(pass_end, shutdown, &mut clock, |now| {
+            pacing.bag_time_at(now)
+        })? {
             break;
         }
     }
@@ -456,44 +482,73 @@ const MAX_WAITED_GAP_NS: i64 = 3_600_000_000_000;
 const MIN_PASS_NS: i64 = 1_000_000_000;
 
 /// When each message is due on the wall clock: its bag time since an anchor, scaled by the
-/// rate. The anchor moves to a message that comes more than [`MAX_WAITED_GAP_NS`] after the
-/// one before it, so that nothing waits for ever and no arithmetic overflows.
+/// rate (with rate 0, at once). The pass's start, `start_offset` into the bag, is anchored
+/// when its first message is played, not when the pass starts reading: the wall time spent
+/// reading through (and dropping) the messages before the offset used to count as played,
+/// and the first seconds after it came out in a burst (23 scans in 0.14 s, 17 s into a 20 s
+/// bag with images). The anchor moves to a message that comes more than
+/// [`MAX_WAITED_GAP_NS`] after the one before it, so that nothing waits for ever and no
+/// arithmetic overflows.
 struct Pacing {
     rate: f64,
-    anchor_ns: i64,
-    anchor_at: Instant,
+    begin_ns: i64,
+    /// None until the pass plays its first message (or ends without one).
+    anchor: Option<Anchor>,
     previous_ns: i64,
-    start: Instant,
+}
+
+/// Bag time `ns` is due at wall time `at`; the pass started at `pass_started`.
+#[derive(Clone, Copy)]
+struct Anchor {
+    ns: i64,
+    at: Instant,
+    pass_started: Instant,
 }
 
 impl Pacing {
-    /// Bag time `begin_ns` is due at `start`.
-    fn new(begin_ns: i64, start: Instant, rate: f64) -> Self {
+    /// A pass starting at bag time `begin_ns`, due when its first message is played.
+    fn new(begin_ns: i64, rate: f64) -> Self {
         Self {
             rate,
-            anchor_ns: begin_ns,
-            anchor_at: start,
+            begin_ns,
+            anchor: None,
             previous_ns: begin_ns,
-            start,
         }
+    }
+
+    /// The anchor, `begin_ns` at `now` the first time it is asked for.
+    fn anchor(&mut self, now: Instant) -> Anchor {
+        *self.anchor.get_or_insert(Anchor {
+            ns: self.begin_ns,
+            at: now,
+            pass_started: now,
+        })
     }
 
     /// When a pass of `loop` that played its messages ends: at the bag's end `end_ns` (the
     /// last message of any topic, played or not), paced as a message would be, and at least
-    /// [`MIN_PASS_NS`] of bag time after the pass started.
+    /// [`MIN_PASS_NS`] of bag time after the pass started; with rate 0, at once.
     fn pass_end(&mut self, end_ns: i64, now: Instant) -> Instant {
+        if self.rate == 0.0 {
+            return now;
+        }
+        let started = self.anchor(now).pass_started;
         let at_bag_end = self.due(end_ns, now, "the end of the bag");
         let shortest = Duration::from_secs_f64(MIN_PASS_NS as f64 / 1e9 / self.rate);
-        at_bag_end.max(self.start + shortest)
+        at_bag_end.max(started + shortest)
     }
 
     fn due(&mut self, log_time_ns: i64, now: Instant, topic: &str) -> Instant {
+        let anchor = self.anchor(now);
         let gap_ns = log_time_ns.saturating_sub(self.previous_ns);
         self.previous_ns = log_time_ns;
-        let since_anchor_s = log_time_ns.saturating_sub(self.anchor_ns) as f64 / 1e9;
+        if self.rate == 0.0 {
+            return now;
+        }
+        let since_anchor_s = log_time_ns.saturating_sub(anchor.ns) as f64 / 1e9;
         let due = Duration::try_from_secs_f64(since_anchor_s / self.rate)
             .ok()
-            .and_then(|after| self.anchor_at.checked_add(after));
+            .and_then(|after| anchor.at.checked_add(after));
         match due {
             Some(due) if gap_ns <= MAX_WAITED_GAP_NS => due,
             _ => {
@@ -502,10 +557,101 @@ impl Pacing {
                      message before it: playing on at once",
                     gap_ns as f64 / 1e9
                 );
-                self.anchor_ns = log_time_ns;
-                self.anchor_at = now;
+                self.anchor = Some(Anchor {
+                    ns: log_time_ns,
+                    at: now,
+                    ..anchor
+                });
                 now
             }
+        }
+    }
+
+    /// The bag time at wall time `now`, what /clock says: the pass's start until its first
+    /// message is played, then on at the rate, between messages too, as rosbag2's player
+    /// clock; with rate 0, the time of the last message played.
+    fn bag_time_at(&self, now: Instant) -> i64 {
+        match self.anchor {
+            Some(anchor) if self.rate > 0.0 => {
+                let since = now.saturating_duration_since(anchor.at).as_secs_f64();
+                // `as` saturates: a replay running for centuries stops at the end of time.
+                anchor.ns.saturating_add((since * self.rate * 1e9) as i64)
+            }
+            _ => self.previous_ns,
+        }
+    }
+}
+
+/// When /clock is due: at a fixed wall rate, as `ros2 bag play --clock` publishes it from a
+/// timer, whatever the messages do. It used to be published with each message, with its
+/// time: once per message of a stamp (five times in a row on a bag of five topics), and
+/// never in a gap between messages, the `loop` pass-end wait or the `wait_for_subscriber`
+/// wait, so that `use_sim_time` timers stopped there.
+struct ClockTicks {
+    period: Duration,
+    next: Instant,
+    /// The latest time published in this pass: /clock never goes back within one, even
+    /// where the pacing does (a message stamped before the one played before it).
+    latest_ns: i64,
+}
+
+impl ClockTicks {
+    /// The first tick is at `now`.
+    fn new(period: Duration, now: Instant) -> Self {
+        Self {
+            period,
+            next: now,
+            latest_ns: i64::MIN,
+        }
+    }
+
+    /// The time to publish if a tick has come by `now`, `bag_ns` or the latest one of the
+    /// pass if later. A tick missed (a long write) is not caught up with a burst: the next
+    /// one is a period on.
+    fn take(&mut self, now: Instant, bag_ns: i64) -> Option<i64> {
+        if now < self.next {
+            return None;
+        }
+        self.next += self.period;
+        if self.next <= now {
+            self.next = now + self.period;
+        }
+        self.latest_ns = self.latest_ns.max(bag_ns);
+        Some(self.latest_ns)
+    }
+
+    /// A `loop` pass starts: /clock goes back to its start, as rosbag2's player jumps its
+    /// clock back to the start at each pass.
+    fn restart(&mut self) {
+        self.latest_ns = i64::MIN;
+    }
+}
+
+/// Sleeps until `deadline` (not at all if it has passed), publishing /clock on the way at
+/// each of its ticks, with the bag time `bag_time` gives for the moment. False when a
+/// signal came.
+fn sleep_until_ticking(
+    deadline: Instant,
+    shutdown: &Shutdown,
+    clock: &mut Option<(Publisher, ClockTicks)>,
+    bag_time: impl Fn(Instant) -> i64,
+) -> Result<bool, RosError> {
+    loop {
+        let mut wake = deadline;
+        if let Some((publisher, ticks)) = clock {
+            let now = Instant::now();
+            if let Some(ns) = ticks.take(now, bag_time(now)) {
+                publisher.publish_msg(&Clock {
+                    clock: Time::from_nanos(ns),
+                })?;
+            }
+            wake = wake.min(ticks.next);
+        }
+        if !shutdown.sleep_until(wake) {
+            return Ok(false);
+        }
+        if wake >= deadline {
+            return Ok(true);
         }
     }
 }
@@ -574,7 +720,7 @@ mod tests {
     #[test]
     fn messages_are_due_at_their_bag_time_over_the_rate() {
         let start = Instant::now();
-        let mut pacing = Pacing::new(1_000_000_000, start, 2.0);
+        let mut pacing = Pacing::new(1_000_000_000, 2.0);
         let due = pacing.due(1_000_000_000, start, "/scan");
         assert_eq!(due, start);
         let due = pacing.due(3_000_000_000, start, "/scan");
@@ -585,7 +731,7 @@ mod tests {
     fn a_damaged_stamp_is_played_at_once_and_the_next_ones_keep_their_pace() {
         let start = Instant::now();
         // The bag's start is the damaged row at the start of time.
-        let mut pacing = Pacing::new(i64::MIN, start, 1.0);
+        let mut pacing = Pacing::new(i64::MIN, 1.0);
         assert_eq!(pacing.due(i64::MIN, start, "/scan"), start);
         let later = start + Duration::from_millis(5);
         assert_eq!(pacing.due(100_000_000_000, later, "/scan"), later);
@@ -599,7 +745,7 @@ mod tests {
     fn a_loop_pass_lasts_until_the_bags_end_over_the_rate() {
         // Only /map, at the start of a 4 s bag, is played: the pass still lasts 4 s of bag time.
         let start = Instant::now();
-        let mut pacing = Pacing::new(0, start, 2.0);
+        let mut pacing = Pacing::new(0, 2.0);
         assert_eq!(pacing.due(0, start, "/map"), start);
         let end = pacing.pass_end(4_000_000_000, start);
         assert_eq!(end, start + Duration::from_secs(2));
@@ -609,7 +755,7 @@ mod tests {
     fn a_loop_pass_of_no_bag_time_lasts_a_second_of_it() {
         // A bag of one message used to be played again and again at once (a core spinning).
         let start = Instant::now();
-        let mut pacing = Pacing::new(5, start, 4.0);
+        let mut pacing = Pacing::new(5, 4.0);
         pacing.due(5, start, "/map");
         assert_eq!(
             pacing.pass_end(5, start),
@@ -617,11 +763,138 @@ mod tests {
         );
         // A bag's end an hour of bag time after the last message played is not waited for
         // (as a gap between messages), but the pass still lasts a second of bag time.
-        let mut pacing = Pacing::new(0, start, 1.0);
+        let mut pacing = Pacing::new(0, 1.0);
         pacing.due(0, start, "/map");
         let later = start + Duration::from_millis(10);
         let end = pacing.pass_end(2 * MAX_WAITED_GAP_NS, later);
         assert_eq!(end, start + Duration::from_secs(1));
+    }
+
+    /// 17 s into a 20 s bag with images, reading through the part before the offset took
+    /// about a second, which used to count as played: 2.2 s of scans came out in 0.14 s.
+    #[test]
+    fn the_pace_starts_at_the_first_message_played_not_when_the_pass_starts_reading() {
+        let begin = 17_000_000_000;
+        let mut pacing = Pacing::new(begin, 1.0);
+        let read_through = Instant::now() + Duration::from_millis(1200);
+        assert_eq!(
+            pacing.bag_time_at(read_through),
+            begin,
+            "/clock holds at the start"
+        );
+        // The first message, 50 ms after the offset, waits those 50 ms; the next ones keep
+        // their recorded spacing from there.
+        let first = pacing.due(begin + 50_000_000, read_through, "/scan");
+        assert_eq!(first, read_through + Duration::from_millis(50));
+        for i in 1..=22 {
+            let due = pacing.due(begin + 50_000_000 + i * 100_000_000, first, "/scan");
+            assert_eq!(
+                due,
+                first + Duration::from_millis(100 * i as u64),
+                "scan {i}"
+            );
+        }
+    }
+
+    /// What [`sleep_until_ticking`] publishes on /clock while a pass plays `stamps` (bag ns,
+    /// in order) from `begin` at `rate`, in simulated wall time from `start`: (wall time,
+    /// bag time) of each /clock.
+    fn clock_of_a_pass(
+        stamps: &[i64],
+        begin: i64,
+        rate: f64,
+        ticks: &mut ClockTicks,
+        start: Instant,
+    ) -> Vec<(Instant, i64)> {
+        let mut pacing = Pacing::new(begin, rate);
+        let mut clock = Vec::new();
+        let mut now = start;
+        let mut sleep_until = |deadline: Instant, pacing: &Pacing, now: &mut Instant| loop {
+            if let Some(ns) = ticks.take(*now, pacing.bag_time_at(*now)) {
+                clock.push((*now, ns));
+            }
+            let wake = deadline.min(ticks.next);
+            *now = (*now).max(wake);
+            if wake >= deadline {
+                break;
+            }
+        };
+        for &stamp in stamps {
+            let due = pacing.due(stamp, now, "/scan");
+            sleep_until(due, &pacing, &mut now);
+        }
+        let end = pacing.pass_end(*stamps.last().unwrap(), now);
+        sleep_until(end, &pacing, &mut now);
+        clock
+    }
+
+    /// /clock used to be published with each message: the same time once per topic of a
+    /// stamp, and nothing in a gap between messages.
+    #[test]
+    fn clock_ticks_at_its_rate_moves_on_in_gaps_and_never_repeats_within_a_pass() {
+        let begin = 1_000_000_000_000;
+        // Five topics sharing a 20 Hz time line for 1 s, a 2 s gap, then 1 s more.
+        let mut stamps = Vec::new();
+        for i in (0..20).chain(60..80) {
+            stamps.extend([begin + i * 50_000_000; 5]);
+        }
+        let start = Instant::now();
+        let mut ticks = ClockTicks::new(Duration::from_millis(25), start);
+        let clock = clock_of_a_pass(&stamps, begin, 1.0, &mut ticks, start);
+        // 3.95 s of bag time at 1x, ticking at 40 Hz.
+        assert!((150..=165).contains(&clock.len()), "{} /clock", clock.len());
+        assert_eq!(clock[0].1, begin);
+        for pair in clock.windows(2) {
+            assert!(
+                pair[1].1 > pair[0].1,
+                "/clock repeated or went back: {pair:?}"
+            );
+        }
+        let in_gap = clock
+            .iter()
+            .filter(|(_, ns)| (begin + 1_000_000_000..begin + 3_000_000_000).contains(ns));
+        assert!(in_gap.count() >= 70, "/clock stopped in the gap");
+        // At 4x the bag takes a quarter of the wall time, and /clock keeps its wall rate.
+        let start = Instant::now();
+        let mut ticks = ClockTicks::new(Duration::from_millis(25), start);
+        let clock = clock_of_a_pass(&stamps, begin, 4.0, &mut ticks, start);
+        assert!(
+            (36..=45).contains(&clock.len()),
+            "{} /clock at 4x",
+            clock.len()
+        );
+        let (first, last) = (clock[0], clock[clock.len() - 1]);
+        let wall = last.0 - first.0;
+        let bag_s = (last.1 - first.1) as f64 / 1e9;
+        assert!(
+            (bag_s / wall.as_secs_f64() - 4.0).abs() < 0.01,
+            "{bag_s} s in {wall:?}"
+        );
+    }
+
+    #[test]
+    fn clock_goes_back_to_the_start_only_at_a_new_loop_pass() {
+        let begin = 5_000_000_000;
+        let stamps = [begin, begin + 500_000_000];
+        let start = Instant::now();
+        let mut ticks = ClockTicks::new(Duration::from_millis(25), start);
+        let first = clock_of_a_pass(&stamps, begin, 1.0, &mut ticks, start);
+        // The pass lasts a second of bag time (MIN_PASS_NS), /clock up to its end.
+        assert!(first.last().unwrap().1 >= begin + 950_000_000, "{first:?}");
+        ticks.restart();
+        let again = first.last().unwrap().0;
+        let second = clock_of_a_pass(&stamps, begin, 1.0, &mut ticks, again);
+        // Its first tick, within a period of its start, is back at the pass's start.
+        let back = second[0].1;
+        assert!((begin..=begin + 25_000_000).contains(&back), "{back}");
+        // Within a pass it never goes back, even where the pacing does (a message stamped
+        // before the one played before it moves the anchor back).
+        let mut ticks = ClockTicks::new(Duration::from_millis(25), start);
+        let unsorted = [begin, begin + 400_000_000, begin - 3_000_000_000];
+        let clock = clock_of_a_pass(&unsorted, begin, 1.0, &mut ticks, start);
+        for pair in clock.windows(2) {
+            assert!(pair[1].1 >= pair[0].1, "/clock went back: {pair:?}");
+        }
     }
 
     #[test]

@@ -7,7 +7,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, bail};
 use lidar_har_msgs::qos::{Durability, QosProfile, Reliability};
 use lidar_har_msgs::topics;
-use lidar_har_ros::{Node, NodeSetup, OfferedQos, RosError, args};
+use lidar_har_ros::json::{Truncated, Truncation};
+use lidar_har_ros::{Node, NodeSetup, OfferedQos, RosError, args, json};
 
 #[derive(clap::Subcommand)]
 pub enum TopicCommand {
@@ -36,6 +37,19 @@ pub enum TopicCommand {
         /// Exit non-zero when fewer than --count messages arrived before --timeout.
         #[arg(long)]
         require_count: bool,
+        /// Arrays longer than this are printed as their first N elements then the string
+        /// "...", strings as their first N characters then "..." (as ros2 topic echo).
+        #[arg(short = 'l', long, default_value_t = 128)]
+        truncate_length: usize,
+        /// Print arrays and strings whole, however long (--truncate-length is ignored).
+        #[arg(short = 'f', long)]
+        full_length: bool,
+        /// Print every array as its length ("<sequence length: N>") instead of its elements.
+        #[arg(long)]
+        no_arr: bool,
+        /// Print every string as its length ("<string length: <N>>") instead of its text.
+        #[arg(long)]
+        no_str: bool,
     },
 }
 
@@ -48,9 +62,18 @@ pub fn run(command: TopicCommand) -> anyhow::Result<()> {
             count,
             timeout,
             require_count,
+            truncate_length,
+            full_length,
+            no_arr,
+            no_str,
         } => {
             let timeout = timeout.map(|t| seconds(t, "--timeout")).transpose()?;
-            echo(&topic, type_name, count, timeout, require_count)
+            let truncation = Truncation {
+                length: (!full_length).then_some(truncate_length),
+                no_arr,
+                no_str,
+            };
+            echo(&topic, type_name, count, timeout, require_count, truncation)
         }
     }
 }
@@ -149,6 +172,7 @@ fn echo(
     count: Option<u64>,
     timeout: Option<Duration>,
     require_count: bool,
+    truncation: Truncation,
 ) -> anyhow::Result<()> {
     let start = Instant::now();
     let deadline = timeout.map(|t| start + t);
@@ -169,7 +193,7 @@ fn echo(
     let sub = node.subscriber(topic, &type_name, qos)?;
     let stop = stop_flag()?;
     let mut received = 0u64;
-    let mut out = std::io::stdout().lock();
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     while count.is_none_or(|c| received < c) && !stop.load(std::sync::atomic::Ordering::Relaxed) {
         let left = match deadline {
             Some(d) => d.saturating_duration_since(Instant::now()),
@@ -182,13 +206,24 @@ fn echo(
             continue;
         };
         received += 1;
-        let line = serde_json::json!({
-            "topic": topic,
-            "type": type_name,
-            "source_time_ns": sample.source_time_ns,
-            "msg": to_json(&type_name, &sample.bytes),
-        });
-        match writeln!(out, "{line}").and_then(|()| out.flush()) {
+        let msg = EchoedMessage::new(&type_name, &sample.bytes);
+        // An error is printed whole: cut, it could hide why.
+        let how = match msg {
+            EchoedMessage::DecodeError { .. } => Truncation::FULL,
+            _ => truncation,
+        };
+        let line = EchoLine {
+            topic,
+            type_name: &type_name,
+            source_time_ns: sample.source_time_ns,
+            msg: Truncated::new(&msg, how),
+        };
+        // Straight to the output: no JSON tree of the message is built.
+        let written = serde_json::to_writer(&mut out, &line).map_err(std::io::Error::from);
+        match written
+            .and_then(|()| writeln!(out))
+            .and_then(|()| out.flush())
+        {
             Ok(()) => {}
             // The reader has gone (`| head -n 3`): the echo is over, as after `--count`.
             Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
@@ -227,15 +262,36 @@ fn stop_flag() -> anyhow::Result<std::sync::Arc<std::sync::atomic::AtomicBool>> 
     Ok(flag)
 }
 
-/// A message as JSON: decoded field by field for the types of `lidar_har_msgs`, otherwise
-/// its CDR bytes in hex.
-fn to_json(type_name: &str, bytes: &[u8]) -> serde_json::Value {
-    match lidar_har_ros::json::decode_to_json(type_name, bytes) {
-        Some(Ok(value)) => value,
-        Some(Err(e)) => serde_json::json!({ "decode_error": e.to_string() }),
-        None => {
-            let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
-            serde_json::json!({ "cdr_hex": hex })
+/// One line of `echo`'s output.
+#[derive(serde::Serialize)]
+struct EchoLine<'a> {
+    topic: &'a str,
+    #[serde(rename = "type")]
+    type_name: &'a str,
+    source_time_ns: Option<i64>,
+    msg: Truncated<'a, EchoedMessage>,
+}
+
+/// A message as printed: decoded field by field for the types of `lidar_har_msgs`, otherwise
+/// its CDR bytes in hex (a string, cut at --truncate-length as any other).
+#[derive(serde::Serialize)]
+#[serde(untagged)]
+enum EchoedMessage {
+    Decoded(json::Message),
+    DecodeError { decode_error: String },
+    Unknown { cdr_hex: String },
+}
+
+impl EchoedMessage {
+    fn new(type_name: &str, bytes: &[u8]) -> Self {
+        match json::decode(type_name, bytes) {
+            Some(Ok(msg)) => Self::Decoded(msg),
+            Some(Err(e)) => Self::DecodeError {
+                decode_error: e.to_string(),
+            },
+            None => Self::Unknown {
+                cdr_hex: bytes.iter().map(|b| format!("{b:02x}")).collect(),
+            },
         }
     }
 }
@@ -300,5 +356,67 @@ mod tests {
             let e = seconds(bad, "--timeout").unwrap_err().to_string();
             assert!(e.starts_with("--timeout "), "{e}");
         }
+    }
+
+    /// ros2's options and default (128); a line stays one JSON object whatever is cut.
+    #[test]
+    fn echo_cuts_long_arrays_and_strings_by_default_as_ros2() {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(subcommand)]
+            topic: TopicCommand,
+        }
+        let parsed = |args: &[&str]| {
+            let argv = ["lidar-har", "echo", "/map"].iter().chain(args);
+            match <Cli as clap::Parser>::try_parse_from(argv).unwrap().topic {
+                TopicCommand::Echo {
+                    truncate_length,
+                    full_length,
+                    no_arr,
+                    no_str,
+                    ..
+                } => (truncate_length, full_length, no_arr, no_str),
+                TopicCommand::List { .. } => unreachable!("echo parsed as list"),
+            }
+        };
+        assert_eq!(parsed(&[]), (128, false, false, false));
+        assert_eq!(parsed(&["-l", "5", "-f"]), (5, true, false, false));
+        assert_eq!(parsed(&["--no-arr", "--no-str"]), (128, false, true, true));
+
+        let grid = lidar_har_msgs::nav_msgs::OccupancyGrid {
+            data: vec![100; 300],
+            ..Default::default()
+        };
+        let bytes = lidar_har_msgs::encode(&grid).unwrap();
+        let line = |type_name: &str, truncation| {
+            let msg = EchoedMessage::new(type_name, &bytes);
+            let line = EchoLine {
+                topic: "/map",
+                type_name,
+                source_time_ns: Some(7),
+                msg: Truncated::new(&msg, truncation),
+            };
+            let text = serde_json::to_string(&line).unwrap();
+            assert!(text.starts_with(r#"{"topic":"/map","type":"#), "{text}");
+            serde_json::from_str::<serde_json::Value>(&text).unwrap()
+        };
+        let cut = Truncation {
+            length: Some(128),
+            ..Truncation::FULL
+        };
+        let map = line("nav_msgs/msg/OccupancyGrid", cut);
+        assert_eq!(map["source_time_ns"], 7);
+        let data = map["msg"]["data"].as_array().unwrap();
+        assert_eq!(
+            (data.len(), &data[127], &data[128]),
+            (129, &100.into(), &"...".into())
+        );
+        let whole = line("nav_msgs/msg/OccupancyGrid", Truncation::FULL);
+        assert_eq!(whole["msg"]["data"].as_array().unwrap().len(), 300);
+        // A type without a mirror: its hex is a string like any other.
+        let hex = line("foo_msgs/msg/Bar", cut)["msg"]["cdr_hex"].clone();
+        assert_eq!(hex.as_str().unwrap().len(), 128 + 3);
+        let garbage = EchoedMessage::new("nav_msgs/msg/OccupancyGrid", &bytes[..3]);
+        assert!(matches!(garbage, EchoedMessage::DecodeError { .. }));
     }
 }
