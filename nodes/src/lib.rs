@@ -540,19 +540,32 @@ mod tests {
         );
     }
 
+    /// The launch files (`launch/*.py`) with their text; at least the three shipped.
+    fn launch_files() -> Vec<(std::path::PathBuf, String)> {
+        let launch = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch");
+        let files: Vec<_> = std::fs::read_dir(&launch)
+            .unwrap()
+            .map(|entry| entry.unwrap().path())
+            .filter(|path| path.extension().is_some_and(|e| e == "py"))
+            .map(|path| {
+                let text = std::fs::read_to_string(&path).unwrap();
+                (path, text)
+            })
+            .collect();
+        assert!(
+            files.len() >= 3,
+            "launch files not found in {}",
+            launch.display()
+        );
+        files
+    }
+
     /// launch_ros reads a parameter value given as a bare launch argument as YAML:
     /// `bag:=2024_01_01` reached the replay as the integer 20240101 (status 2). Every launch
     /// argument passed as a parameter goes through `ParameterValue(..., value_type=...)`.
     #[test]
     fn the_launch_files_type_every_launch_argument_they_pass_as_a_parameter() {
-        let launch = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch");
-        let mut checked = 0;
-        for entry in std::fs::read_dir(&launch).unwrap() {
-            let path = entry.unwrap().path();
-            if path.extension().is_none_or(|e| e != "py") {
-                continue;
-            }
-            let text = std::fs::read_to_string(&path).unwrap();
+        for (path, text) in launch_files() {
             for (n, line) in text.lines().enumerate() {
                 // `"name": arg("x")` or `"name": LaunchConfiguration("x")` in a parameters map.
                 let untyped = line.split_once("\": ").is_some_and(|(_, value)| {
@@ -560,13 +573,7 @@ mod tests {
                 });
                 assert!(!untyped, "{}:{}: untyped: {line}", path.display(), n + 1);
             }
-            checked += 1;
         }
-        assert!(
-            checked >= 3,
-            "launch files not found in {}",
-            launch.display()
-        );
     }
 
     /// launch_ros applies a node's `parameters` in order, the last value winning: a launch
@@ -575,15 +582,8 @@ mod tests {
     /// and a `topics` key there was silently overridden.
     #[test]
     fn the_launch_files_pass_only_launch_arguments_after_the_params_file() {
-        let launch = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch");
         let params_file = "arg(\"params_file\")";
-        let mut checked = 0;
-        for entry in std::fs::read_dir(&launch).unwrap() {
-            let path = entry.unwrap().path();
-            if path.extension().is_none_or(|e| e != "py") {
-                continue;
-            }
-            let text = std::fs::read_to_string(&path).unwrap();
+        for (path, text) in launch_files() {
             let mut after_params_file = false;
             for (n, line) in text.lines().enumerate() {
                 if line.contains("Node(") {
@@ -607,13 +607,7 @@ mod tests {
                     );
                 }
             }
-            checked += 1;
         }
-        assert!(
-            checked >= 3,
-            "launch files not found in {}",
-            launch.display()
-        );
     }
 
     #[test]

@@ -1902,11 +1902,9 @@ mod tests {
         assert_eq!(c.lane_schedule(20, true), schedule(1));
     }
 
-    /// The reviewer's case: `lanes: 8` with a model of window 4 (lane period 5) was reported
-    /// without the settings or the model. The model: the infer crate's step-model fixture
-    /// with its `lidar_har.window` metadata "8" made "4".
-    #[test]
-    fn lanes_that_do_not_fit_the_model_name_the_settings_and_the_model() {
+    /// Whether ONNX Runtime is installed; a test needing it skips without it, unless
+    /// `LIDAR_HAR_REQUIRE_CHECKERS` asks for it.
+    fn onnx_runtime_installed() -> bool {
         let (runtime, _) = lidar_har_infer::runtime_library_path();
         if !runtime.is_file() {
             assert!(
@@ -1915,20 +1913,37 @@ mod tests {
                 runtime.display()
             );
             eprintln!("SKIP: {} missing (run scripts/setup.sh)", runtime.display());
+        }
+        runtime.is_file()
+    }
+
+    fn infer_fixture(name: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../infer/tests/fixtures")
+            .join(name)
+    }
+
+    /// The infer crate's fixture `name` written to `out` with its one-character metadata
+    /// value of `key` changed from `from` to `to` (the ONNX bytes: key, tag, length 1, value).
+    fn fixture_with_metadata(name: &str, key: &[u8], from: u8, to: u8, out: &Path) {
+        let mut bytes = std::fs::read(infer_fixture(name)).unwrap();
+        let entry = [key, b"\x12\x01", &[from]].concat();
+        let at = bytes.windows(entry.len()).position(|w| w == entry).unwrap();
+        bytes[at + entry.len() - 1] = to;
+        std::fs::write(out, bytes).unwrap();
+    }
+
+    /// The reviewer's case: `lanes: 8` with a model of window 4 (lane period 5) was reported
+    /// without the settings or the model. The model: the infer crate's step-model fixture
+    /// with its `lidar_har.window` metadata "8" made "4".
+    #[test]
+    fn lanes_that_do_not_fit_the_model_name_the_settings_and_the_model() {
+        if !onnx_runtime_installed() {
             return;
         }
-        let fixture =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../infer/tests/fixtures/step_model.onnx");
-        let mut bytes = std::fs::read(fixture).unwrap();
-        let window_value = b"lidar_har.window\x12\x018";
-        let at = bytes
-            .windows(window_value.len())
-            .position(|w| w == window_value)
-            .unwrap();
-        bytes[at + window_value.len() - 1] = b'4';
         let dir = tempfile::tempdir().unwrap();
         let model = dir.path().join("window4.onnx");
-        std::fs::write(&model, bytes).unwrap();
+        fixture_with_metadata("step_model.onnx", b"lidar_har.window", b'8', b'4', &model);
 
         let config = parse_classifier_config("lanes: 8\npose_head: null\n").unwrap();
         let e = ClassifierStage::load(&config, Some(&model))
@@ -1951,28 +1966,14 @@ mod tests {
     /// its step model (window 8), with its min_history "3" made "9".
     #[test]
     fn a_head_asking_for_more_history_than_the_lanes_give_is_not_used_and_says_why() {
-        let (runtime, _) = lidar_har_infer::runtime_library_path();
-        if !runtime.is_file() {
-            assert!(
-                std::env::var_os("LIDAR_HAR_REQUIRE_CHECKERS").is_none(),
-                "{} missing: run scripts/setup.sh",
-                runtime.display()
-            );
-            eprintln!("SKIP: {} missing (run scripts/setup.sh)", runtime.display());
+        if !onnx_runtime_installed() {
             return;
         }
-        let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../infer/tests/fixtures");
-        let model = fixtures.join("step_model.onnx");
-        let mut bytes = std::fs::read(fixtures.join("pose_head.onnx")).unwrap();
-        let min_history = b"lidar_har.pose_head.min_history\x12\x013";
-        let at = bytes
-            .windows(min_history.len())
-            .position(|w| w == min_history)
-            .unwrap();
-        bytes[at + min_history.len() - 1] = b'9';
+        let model = infer_fixture("step_model.onnx");
         let dir = tempfile::tempdir().unwrap();
         let head = dir.path().join("pose_head_9.onnx");
-        std::fs::write(&head, bytes).unwrap();
+        let min_history = b"lidar_har.pose_head.min_history";
+        fixture_with_metadata("pose_head.onnx", min_history, b'3', b'9', &head);
 
         // Lane period 8 scans (1.0 x the window of 8): no state ever has 9 behind it.
         let config = ClassifierConfig {
