@@ -247,3 +247,93 @@ fn the_simulators_map_files_are_its_map_topic() {
         cells(&from_topic, OccupancyMap::is_occupied)
     );
 }
+
+/// The metadata.yaml `version` of the bag in `dir`, and whether its topics' QoS are the
+/// YAML string that versions 8 and older store (Humble and Iron read only that form).
+fn metadata_version_and_qos_form(dir: &std::path::Path) -> (u64, Vec<bool>) {
+    let text = std::fs::read_to_string(dir.join("metadata.yaml")).unwrap();
+    let yaml: serde_yaml_ng::Value = serde_yaml_ng::from_str(&text).unwrap();
+    let info = &yaml["rosbag2_bagfile_information"];
+    let qos_as_string = info["topics_with_message_count"]
+        .as_sequence()
+        .unwrap()
+        .iter()
+        .map(|t| t["topic_metadata"]["offered_qos_profiles"].is_string())
+        .collect();
+    (info["version"].as_u64().unwrap(), qos_as_string)
+}
+
+/// `simulate` and `run` wrote only version 9, which Humble's and Iron's `ros2 bag info` and
+/// `play` cannot parse (ros2/rosbag2#2013), even over a Humble recording. `simulate
+/// --rosbag2-version 8` writes 8, and `run` keeps its input's 8 unless told otherwise; Humble
+/// reads their QoS (bag_qos_humble.py, as for `bag convert`).
+#[test]
+fn simulate_and_run_write_version_8_for_humble_and_iron() {
+    let tmp = tempfile::tempdir().unwrap();
+    let [sim, run8, run9] = ["sim", "run8", "run9"].map(|name| tmp.path().join(name));
+    let ok = |command: &mut std::process::Command| {
+        let output = command.current_dir(repo_root()).output().unwrap();
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+    };
+    ok(lidar_har()
+        .args([
+            "simulate",
+            "--duration",
+            "1",
+            "--rosbag2-version",
+            "8",
+            "--out",
+        ])
+        .arg(&sim));
+    ok(lidar_har()
+        .args(["run", "--no-classifier", "--bag"])
+        .arg(&sim)
+        .arg("--out")
+        .arg(&run8));
+    ok(lidar_har()
+        .args(["run", "--no-classifier", "--rosbag2-version", "9", "--bag"])
+        .arg(&sim)
+        .arg("--out")
+        .arg(&run9));
+    for (dir, version) in [(&sim, 8), (&run8, 8), (&run9, 9)] {
+        let (written, qos_as_string) = metadata_version_and_qos_form(dir);
+        assert_eq!(written, version, "{}", dir.display());
+        assert!(!qos_as_string.is_empty(), "{}", dir.display());
+        assert!(
+            qos_as_string.iter().all(|&string| string == (version == 8)),
+            "{}: {qos_as_string:?}",
+            dir.display()
+        );
+    }
+    for dir in [&sim, &run8] {
+        let Some(mut python) = checker_python() else {
+            return;
+        };
+        let out = python
+            .arg("tests/python/bag_qos_humble.py")
+            .arg(dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let seen: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(seen["version"], 8, "{seen}");
+        for (topic, read) in seen["topics"].as_object().unwrap() {
+            for place in ["metadata", "storage"] {
+                assert!(
+                    read[place].as_array().is_some_and(|p| !p.is_empty()),
+                    "{}: Humble would read {topic}'s {place} QoS as {}",
+                    dir.display(),
+                    read[place]
+                );
+            }
+        }
+    }
+}

@@ -2,7 +2,7 @@
 //! leaves a readable file) and streaming reading (indexed in log-time order when the file has
 //! a summary, linear in file order when it does not, e.g. after the recorder was killed).
 
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
@@ -18,7 +18,7 @@ use crate::error::{BagError, Result, io_error, mcap_error};
 use crate::mcap_records::{ChunkRecords, check_summary_section, decompress_chunk, parse_checked};
 use crate::metadata::BagMetadata;
 use crate::qos;
-use crate::reader::{BagMessage, TopicInfo};
+use crate::reader::{BagMessage, MessageFilter, TopicInfo};
 use crate::source::StorageSource;
 use crate::writer::{Compression, StorageSink, WriterTopic};
 
@@ -367,7 +367,7 @@ impl McapFile {
     /// message stream stops at the same point and reports the error, so one bad chunk costs
     /// the rest of its file, not the bag.
     fn from_linear_scan(input: McapInput) -> Result<Self> {
-        let mut stream = LinearMessages::new(&input, None)?;
+        let mut stream = LinearMessages::new(&input, &MessageFilter::new())?;
         let mut counts: HashMap<u16, u64> = HashMap::new();
         let mut time_bounds: Option<(i64, i64)> = None;
         let mut truncated = false;
@@ -407,16 +407,17 @@ impl McapFile {
         }
     }
 
-    /// Streams the messages (of `topics` if given) in log-time order when the file has a
-    /// summary, else in file order. Memory stays bounded by the chunks in flight. A file cut
-    /// in its magic has no messages to stream: its truncation is the error.
-    pub(crate) fn messages(&self, topics: Option<&BTreeSet<String>>) -> Result<McapMessages> {
+    /// Streams the messages `filter` selects in log-time order when the file has a summary,
+    /// reading only the chunks whose time span meets its range, else in file order, reading
+    /// every record. Memory stays bounded by the chunks in flight. A file cut in its magic has
+    /// no messages to stream: its truncation is the error.
+    pub(crate) fn messages(&self, filter: &MessageFilter) -> Result<McapMessages> {
         match &self.layout {
             // `mcap`'s indexed reader turns the topics into the channel ids that carry them and
             // takes an empty set for no filter at all: a file with none of the topics (a split
             // file written before a topic first appeared) would yield every message.
             Layout::Indexed(_)
-                if topics.is_some_and(|wanted| {
+                if filter.topic_set().is_some_and(|wanted| {
                     !self.topics.iter().any(|t| wanted.contains(&t.name))
                 }) =>
             {
@@ -425,11 +426,11 @@ impl McapFile {
             Layout::Indexed(summary) => Ok(McapMessages::Indexed(IndexedMessages::new(
                 &self.input,
                 summary,
-                topics,
+                filter,
             )?)),
             Layout::Linear => Ok(McapMessages::Linear(LinearMessages::new(
                 &self.input,
-                topics,
+                filter,
             )?)),
             Layout::CutInMagic(reason) => Err(BagError::Truncated {
                 path: self.input.path(),
@@ -492,7 +493,7 @@ type Counts = (BTreeMap<u16, u64>, Option<(i64, i64)>, bool);
 /// same chunk and reports why.
 fn count_messages(input: &McapInput, summary: &Summary) -> Result<Counts> {
     let path = input.path();
-    let mut stream = IndexedMessages::new(input, summary, None)?;
+    let mut stream = IndexedMessages::new(input, summary, &MessageFilter::new())?;
     let mut counts = BTreeMap::new();
     let mut bounds: Option<(u64, u64)> = None;
     let mut damaged = false;
@@ -592,16 +593,23 @@ pub(crate) struct IndexedMessages {
 }
 
 impl IndexedMessages {
-    fn new(
-        input: &McapInput,
-        summary: &Summary,
-        topics: Option<&BTreeSet<String>>,
-    ) -> Result<Self> {
+    /// The messages `filter` selects. `mcap` leaves out the chunks whose indexed time span
+    /// misses the range unread and drops the messages outside it from the chunks it reads.
+    /// MCAP log times are unsigned: a range starting before 0 starts at 0, and one ending at
+    /// or before 0 is empty (the caller reads nothing for a range with its end at or before
+    /// its start, which `mcap` would refuse).
+    fn new(input: &McapInput, summary: &Summary, filter: &MessageFilter) -> Result<Self> {
         let path = input.path();
         let (file, _) = input.open()?;
         let mut options = IndexedReaderOptions::new().with_record_length_limit(RECORD_LENGTH_LIMIT);
-        if let Some(topics) = topics {
+        if let Some(topics) = filter.topic_set() {
             options = options.include_topics(topics.iter().cloned());
+        }
+        if let Some(start) = filter.start_ns().and_then(|ns| u64::try_from(ns).ok()) {
+            options = options.starting_at(start);
+        }
+        if let Some(end) = filter.end_ns() {
+            options = options.ending_before(u64::try_from(end).unwrap_or(0));
         }
         let reader =
             IndexedReader::new_with_options(summary, options).map_err(mcap_error(&path))?;
@@ -711,7 +719,8 @@ pub(crate) struct LinearMessages {
     schemas: HashMap<u16, (String, String, Vec<u8>)>,
     channels: HashMap<u16, Arc<str>>,
     pub(crate) topics: Vec<TopicInfo>,
-    filter: Option<BTreeSet<String>>,
+    /// Which messages [`Iterator::next`] yields; [`Self::next_raw`] yields all.
+    filter: MessageFilter,
     messages_read: u64,
     /// The records of the chunk being read, checked and decompressed by `mcap_records`.
     chunk: Option<ChunkRecords>,
@@ -721,7 +730,7 @@ pub(crate) struct LinearMessages {
 }
 
 impl LinearMessages {
-    fn new(input: &McapInput, topics: Option<&BTreeSet<String>>) -> Result<Self> {
+    fn new(input: &McapInput, filter: &MessageFilter) -> Result<Self> {
         let path = input.path();
         let (file, file_len) = input.open()?;
         let reader = Box::new(LinearReader::new_with_options(
@@ -737,7 +746,7 @@ impl LinearMessages {
             schemas: HashMap::new(),
             channels: HashMap::new(),
             topics: Vec::new(),
-            filter: topics.cloned(),
+            filter: filter.clone(),
             messages_read: 0,
             chunk: None,
             done: false,
@@ -908,7 +917,7 @@ impl Iterator for LinearMessages {
             let Some(topic) = self.channels.get(&channel_id) else {
                 continue;
             };
-            if self.filter.as_ref().is_some_and(|f| !f.contains(&**topic)) {
+            if !self.filter.includes(topic, log_time_ns) {
                 continue;
             }
             return Some(Ok(BagMessage {
@@ -925,7 +934,7 @@ mod tests {
     use std::collections::BTreeMap;
     use std::path::Path;
 
-    use crate::{BagError, BagReader};
+    use crate::{BagError, BagReader, MessageFilter};
 
     /// An MCAP in rosbag2's profile with `per_topic` messages on each of `topics`, interleaved,
     /// log times 1000, 1001, ... in file order. Small chunks, so there are several.
@@ -1258,6 +1267,104 @@ mod tests {
         assert!(
             text.contains("split_1.mcap") && text.contains("decompression"),
             "{text}"
+        );
+    }
+
+    /// (log time, error text) of what a read of `filter` on the bag at `path` yields.
+    fn read_range(path: &Path, filter: &MessageFilter) -> (Vec<i64>, Vec<String>) {
+        let reader = BagReader::open(path).unwrap_or_else(|e| panic!("open: {e}"));
+        let (mut times, mut errors) = (Vec::new(), Vec::new());
+        for item in reader.messages_matching(filter).unwrap() {
+            match item {
+                Ok(m) => times.push(m.log_time_ns),
+                Err(e) => errors.push(e.to_string()),
+            }
+        }
+        (times, errors)
+    }
+
+    /// Through the summary, a time range reads only the chunks whose indexed span meets it:
+    /// the first chunk, made undecompressable, fails a read of the whole file but not one
+    /// that starts after it (which would fail too if it read that chunk and dropped its
+    /// messages). A range ending inside the file ends there, a topic filter with it.
+    #[test]
+    fn a_time_range_skips_the_chunks_before_it_unread() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("rec_0.mcap");
+        let mut bytes = write_mcap(
+            &path,
+            &["/a", "/b"],
+            40,
+            true,
+            Some(mcap::Compression::Zstd),
+        );
+        let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+        assert!(summary.chunk_indexes.len() > 4, "several chunks");
+        let first = summary
+            .chunk_indexes
+            .iter()
+            .min_by_key(|c| c.chunk_start_offset)
+            .unwrap();
+        let end = (first.chunk_start_offset + first.chunk_length) as usize;
+        bytes[end - 3] ^= 0x40;
+        std::fs::write(&path, &bytes).unwrap();
+        let after = first.message_end_time as i64 + 1;
+
+        let (times, errors) = read_range(&path, &MessageFilter::new());
+        assert!(times.is_empty(), "{times:?}");
+        assert!(
+            errors.len() == 1 && errors[0].contains("rec_0.mcap"),
+            "{errors:?}"
+        );
+        let from = MessageFilter::new().starting_at(after);
+        let (times, errors) = read_range(&path, &from);
+        assert!(errors.is_empty(), "{errors:?}");
+        assert_eq!(times, (after..1080).collect::<Vec<_>>());
+        let (times, errors) = read_range(&path, &from.topics(&["/b"]).ending_before(1050));
+        assert!(errors.is_empty(), "{errors:?}");
+        // `/b` is written second at each step: odd log times.
+        let odd: Vec<i64> = (after..1050).filter(|t| t % 2 == 1).collect();
+        assert_eq!(times, odd);
+    }
+
+    /// A file without a summary (cut short) has no index: its messages are read from the
+    /// start, those in the range come, in file order, then its truncation error, also when
+    /// the range holds none of its messages.
+    #[test]
+    fn a_time_range_of_a_file_cut_short_ends_with_its_truncation() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("rec_0.mcap");
+        let bytes = write_mcap(&path, &["/a", "/b"], 40, true, None);
+        let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+        let last = summary
+            .chunk_indexes
+            .iter()
+            .max_by_key(|c| c.chunk_start_offset)
+            .unwrap();
+        let complete = last.message_start_time as i64;
+        std::fs::write(&path, &bytes[..last.chunk_start_offset as usize + 20]).unwrap();
+        assert!(complete > 1030, "the cut is in the last chunk ({complete})");
+
+        let range = MessageFilter::new().starting_at(1010).ending_before(1030);
+        let (times, errors) = read_range(&path, &range);
+        assert_eq!(times, (1010..1030).collect::<Vec<_>>());
+        let [error] = &errors[..] else {
+            panic!("one error expected: {errors:?}");
+        };
+        assert!(error.contains("rec_0.mcap"), "{error}");
+        let reader = BagReader::open(&path).unwrap();
+        let error = reader
+            .messages_matching(&MessageFilter::new().starting_at(complete))
+            .unwrap()
+            .map(|m| m.map(|m| m.log_time_ns))
+            .collect::<Vec<_>>();
+        assert!(
+            matches!(
+                &error[..],
+                [Err(BagError::Truncated { messages_read, .. })]
+                    if *messages_read == (complete - 1000) as u64
+            ),
+            "{error:?}"
         );
     }
 }

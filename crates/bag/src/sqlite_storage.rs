@@ -11,7 +11,7 @@ use rusqlite::{Connection, OpenFlags, OptionalExtension, ffi, params};
 use crate::error::{BagError, Result, sqlite_error};
 use crate::metadata::BagMetadata;
 use crate::qos;
-use crate::reader::{BagMessage, TopicInfo};
+use crate::reader::{BagMessage, MessageFilter, TopicInfo};
 use crate::source::{StorageSource, copy_for_temporary};
 use crate::writer::{StorageSink, WriterTopic};
 
@@ -358,36 +358,49 @@ impl SqliteFile {
         })
     }
 
-    /// Streams messages in timestamp order, a batch of rows at a time (keyset pagination on
-    /// the `timestamp_idx` index), each batch bounded by [`BATCH`] rows and [`BATCH_BYTES`]
-    /// message bytes, so memory stays bounded whatever the file's size. A topic filter that
-    /// leaves some topic out is applied in the query, so the other topics' rows are not read.
-    pub(crate) fn messages(&self, topics: Option<&BTreeSet<String>>) -> Result<SqliteMessages> {
+    /// Streams the messages `filter` selects in timestamp order, a batch of rows at a time
+    /// (keyset pagination on the `timestamp_idx` index), each batch bounded by [`BATCH`] rows
+    /// and [`BATCH_BYTES`] message bytes, so memory stays bounded whatever the file's size.
+    /// The time range, and a topic filter that leaves some topic out, are applied in the
+    /// query: the rows before the range, and the other topics' rows, are not read. rosbag2
+    /// and [`SqliteSink`] create `timestamp_idx`; in a file without it SQLite scans the table
+    /// for each batch, with the same result.
+    pub(crate) fn messages(&self, filter: &MessageFilter) -> Result<SqliteMessages> {
         let conn = open_read_only(&self.source.bytes).map_err(sqlite_error(&self.source.path))?;
         let wanted: HashMap<i64, Arc<str>> = self
             .topics
             .iter()
-            .filter(|t| topics.is_none_or(|f| f.contains(&t.name)))
+            .filter(|t| filter.topic_set().is_none_or(|f| f.contains(&t.name)))
             .map(|t| (t.storage_id, Arc::from(t.name.as_str())))
             .collect();
+        // Literal integers (ids and times), like rosbag2's own queries.
+        let mut conditions = Vec::new();
         // Without a filter, a row of a topic id that `topics` lacks is reported, not skipped.
-        let topic_filter = if wanted.len() < self.topics.len() {
+        if wanted.len() < self.topics.len() {
             let ids: Vec<String> = wanted.keys().map(i64::to_string).collect();
-            format!("topic_id IN ({})", ids.join(", "))
-        } else {
-            "1".to_string()
-        };
+            conditions.push(format!("topic_id IN ({})", ids.join(", ")));
+        }
+        if let Some(start) = filter.start_ns() {
+            conditions.push(format!("timestamp >= {start}"));
+        }
+        if let Some(end) = filter.end_ns() {
+            conditions.push(format!("timestamp < {end}"));
+        }
+        if conditions.is_empty() {
+            conditions.push("1".to_string());
+        }
+        let selected = conditions.join(" AND ");
         Ok(SqliteMessages {
             path: self.source.path.clone(),
             conn,
             topics: wanted,
             select_first: format!(
-                "SELECT id, topic_id, timestamp, data FROM messages WHERE {topic_filter}
+                "SELECT id, topic_id, timestamp, data FROM messages WHERE {selected}
                  ORDER BY timestamp, id LIMIT ?1"
             ),
             select_after: format!(
                 "SELECT id, topic_id, timestamp, data FROM messages
-                 WHERE (timestamp > ?1 OR (timestamp = ?1 AND id > ?2)) AND {topic_filter}
+                 WHERE (timestamp > ?1 OR (timestamp = ?1 AND id > ?2)) AND {selected}
                  ORDER BY timestamp, id LIMIT ?3"
             ),
             after: None,
@@ -404,7 +417,7 @@ pub(crate) struct SqliteMessages {
     conn: Connection,
     /// The topics read, by storage id; the query returns no other (known) topic's rows.
     topics: HashMap<i64, Arc<str>>,
-    /// The first batch's query, with the topic filter.
+    /// The first batch's query, with the topic filter and time range.
     select_first: String,
     /// The query of the batches after the first: rows after [`Self::after`].
     select_after: String,
@@ -488,6 +501,7 @@ mod tests {
     use rusqlite::{Connection, params};
 
     use super::{SqliteFile, SqliteSink};
+    use crate::reader::MessageFilter;
     use crate::reader::tests::write_bag;
     use crate::source::StorageSource;
     use crate::writer::{StorageSink, WriterTopic};
@@ -523,7 +537,7 @@ mod tests {
         }
         let file = SqliteFile::open(StorageSource::file(&path)).unwrap();
         let on_disk: Vec<Vec<u8>> = file
-            .messages(None)
+            .messages(&MessageFilter::new())
             .unwrap()
             .map(|m| m.unwrap().data)
             .collect();
@@ -583,7 +597,7 @@ mod tests {
                 .collect()
         };
 
-        let mut all = file.messages(None).unwrap();
+        let mut all = file.messages(&MessageFilter::new()).unwrap();
         all.batch_bytes = BUDGET;
         let first = all.next().unwrap().unwrap();
         let held = first.data.len() + all.batch.iter().map(|r| r.2.len()).sum::<usize>();
@@ -596,8 +610,9 @@ mod tests {
         all_read.extend(read(all));
         assert!(all_read == written, "every message, in order");
 
-        let only_scan = std::collections::BTreeSet::from(["/scan".to_string()]);
-        let mut scans = file.messages(Some(&only_scan)).unwrap();
+        let mut scans = file
+            .messages(&MessageFilter::new().topics(&["/scan"]))
+            .unwrap();
         scans.batch_bytes = BUDGET;
         let first = scans.next().unwrap().unwrap();
         assert!(
@@ -652,5 +667,89 @@ mod tests {
         assert_eq!(read, written);
         drop(reader);
         assert!(files() == files_before, "the bag's files are unchanged");
+    }
+    /// A time range is asked for in the query, with the topic filter, across byte-bounded
+    /// batches: the first batch already starts at the range (the rows before it are not
+    /// fetched), and rows of equal timestamps keep their order. The writer creates rosbag2's
+    /// `timestamp_idx`, which SQLite searches for the range; a file without it (an older or
+    /// foreign writer's) gives the same messages from a scan.
+    #[test]
+    fn a_time_range_is_read_in_the_query_with_or_without_timestamp_idx() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("rec_0.db3");
+        let mut sink = SqliteSink::create(&path, "jazzy", 9).unwrap();
+        let mut add = |name: &str| {
+            let mut topic = WriterTopic {
+                name: name.into(),
+                type_name: "std_msgs/msg/String".into(),
+                serialization_format: "cdr".into(),
+                schema_text: "string data\n".into(),
+                qos: Vec::new(),
+                type_description_hash: String::new(),
+                storage_id: 0,
+                message_count: 0,
+            };
+            topic.storage_id = sink.add_topic(&topic).unwrap();
+            topic
+        };
+        let (image, scan) = (add("/image"), add("/scan"));
+        // 40 rows of 6 kB, two topics on each timestamp, written out of timestamp order.
+        let mut written = Vec::new();
+        for i in (0..20).rev().chain(20..40) {
+            let timestamp = 1000 + i64::from(i / 2);
+            for (topic, data) in [(&image, payload(2 * i)), (&scan, payload(2 * i + 1))] {
+                sink.write(topic, timestamp, &data).unwrap();
+                written.push((topic.name.clone(), timestamp, data));
+            }
+        }
+        sink.flush().unwrap();
+        let conn = Connection::open(&path).unwrap();
+        let index: String = conn
+            .query_row(
+                "SELECT sql FROM sqlite_master WHERE name = 'timestamp_idx'",
+                [],
+                |row| row.get(0),
+            )
+            .unwrap();
+        assert!(index.contains("messages (timestamp ASC)"), "{index}");
+        // In timestamp order, rows of a timestamp in the order they were written.
+        written.sort_by_key(|(_, timestamp, _)| *timestamp);
+        let in_range = |topic: Option<&str>| -> Vec<(String, i64, Vec<u8>)> {
+            let wanted = |t: &(String, i64, Vec<u8>)| {
+                (1005..1015).contains(&t.1) && topic.is_none_or(|name| t.0 == name)
+            };
+            written.iter().filter(|t| wanted(t)).cloned().collect()
+        };
+        let range = MessageFilter::new().starting_at(1005).ending_before(1015);
+        for with_index in [true, false] {
+            if !with_index {
+                conn.execute_batch("DROP INDEX timestamp_idx").unwrap();
+            }
+            let file = SqliteFile::open(StorageSource::file(&path)).unwrap();
+            for topic in [None, Some("/scan")] {
+                let filter = match topic {
+                    Some(name) => range.clone().topics(&[name]),
+                    None => range.clone(),
+                };
+                let mut messages = file.messages(&filter).unwrap();
+                messages.batch_bytes = 20_000;
+                let first = messages.next().unwrap().unwrap();
+                assert!(
+                    first.log_time_ns == 1005
+                        && messages.batch.iter().all(|r| (1005..1015).contains(&r.1)),
+                    "the first batch holds rows of the range only"
+                );
+                let mut read = vec![(first.topic.to_string(), first.log_time_ns, first.data)];
+                read.extend(messages.map(|m| {
+                    let m = m.unwrap();
+                    (m.topic.to_string(), m.log_time_ns, m.data)
+                }));
+                assert!(
+                    read == in_range(topic),
+                    "{topic:?}, index {with_index}: {:?}",
+                    read.iter().map(|r| (&r.0, r.1)).collect::<Vec<_>>()
+                );
+            }
+        }
     }
 }

@@ -109,6 +109,18 @@ impl MetadataVersion {
             MetadataVersion::V9 => 9,
         }
     }
+
+    /// The version of a bag made from a source bag of metadata version `source_version` when
+    /// none is asked for: a source that the distributions before Jazzy read (version 8 or
+    /// older: Humble writes 5, Iron 8) gives 8, which they read too, since their `ros2 bag
+    /// info` and `play` cannot parse 9 (ros2/rosbag2#2013); anything else, a source without
+    /// metadata.yaml included, gives 9.
+    pub fn like_source(source_version: Option<u32>) -> Self {
+        match source_version {
+            Some(version) if version < 9 => MetadataVersion::V8,
+            _ => MetadataVersion::default(),
+        }
+    }
 }
 
 impl std::str::FromStr for MetadataVersion {
@@ -541,6 +553,16 @@ mod tests {
 
     use super::*;
     use crate::BagReader;
+
+    /// A Humble (5) or Iron (8) source gives, unasked, a bag they read: `run` and `bag
+    /// convert` used to write version 9, which their `ros2 bag info` cannot parse.
+    #[test]
+    fn a_bag_made_from_one_older_than_jazzy_is_of_a_version_they_read() {
+        assert_eq!(MetadataVersion::like_source(Some(5)), MetadataVersion::V8);
+        assert_eq!(MetadataVersion::like_source(Some(8)), MetadataVersion::V8);
+        assert_eq!(MetadataVersion::like_source(Some(9)), MetadataVersion::V9);
+        assert_eq!(MetadataVersion::like_source(None), MetadataVersion::V9);
+    }
 
     /// Writes `/map` (latched) and `/scan` (sensor data) in `storage` at `version`.
     fn write_map_and_scan(dir: &Path, storage: StorageId, version: MetadataVersion) {

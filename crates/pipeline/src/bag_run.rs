@@ -7,7 +7,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use glam::DVec2;
-use lidar_har_bag::{BagError, BagMessage, BagReader, BagWriter, TopicHandle, WriterOptions};
+use lidar_har_bag::{
+    BagError, BagMessage, BagReader, BagWriter, MetadataVersion, TopicHandle, WriterOptions,
+};
 use lidar_har_core::localiser::{ConfigError, FrameConfig, LocaliserConfig};
 use lidar_har_core::map::OccupancyMap;
 use lidar_har_core::stats::{Spread, SpreadTally};
@@ -36,6 +38,9 @@ pub struct RunOptions {
     /// Asks the run to stop reading its input (a signal): it then finishes as at a bag cut
     /// short, with the outputs and `summary.json` of what was read.
     pub stop: StopRequest,
+    /// The output bag's metadata version; `None` takes one the input's readers parse
+    /// ([`MetadataVersion::like_source`]), so that a Humble recording gives a bag Humble reads.
+    pub metadata_version: Option<MetadataVersion>,
 }
 
 /// A request, made from another thread (a signal handler's), that a run stop reading its
@@ -147,9 +152,13 @@ pub(crate) struct OutputBag {
 }
 
 impl OutputBag {
-    fn create(dir: &Path) -> Result<Self, BagError> {
+    fn create(dir: &Path, metadata_version: MetadataVersion) -> Result<Self, BagError> {
+        let options = WriterOptions {
+            metadata_version,
+            ..WriterOptions::default()
+        };
         Ok(Self {
-            writer: BagWriter::create(dir, WriterOptions::default())?,
+            writer: BagWriter::create(dir, options)?,
             topics: Vec::new(),
         })
     }
@@ -199,8 +208,12 @@ pub fn run_bag(input: &Path, out_dir: &Path, options: RunOptions) -> Result<RunS
     // From here a stop is honoured at the first message, outputs finished, even one that
     // comes while they are being made.
     options.stop.arm();
+    let metadata_version = options
+        .metadata_version
+        .unwrap_or_else(|| MetadataVersion::like_source(reader.bag_metadata().map(|m| m.version)));
     let mut stages = Stages::start(
         out_dir,
+        metadata_version,
         options.config,
         room,
         moving,
@@ -300,6 +313,7 @@ impl Stages {
     /// model leaves no output behind.
     fn start(
         out_dir: &Path,
+        metadata_version: MetadataVersion,
         config: LocaliserConfig,
         room: RoomSource,
         moving: bool,
@@ -313,7 +327,8 @@ impl Stages {
         }
         localiser.set_wait_for_map_to_odom(transforms.map_to_odom);
         let classifier = classifier.map(ClassifierRun::load).transpose()?;
-        let mut outputs = OutputBag::create(out_dir).map_err(output_error(out_dir))?;
+        let mut outputs =
+            OutputBag::create(out_dir, metadata_version).map_err(output_error(out_dir))?;
         outputs
             .add_topics(&LocaliserStage::OUTPUTS)
             .map_err(output_error(out_dir))?;
@@ -811,6 +826,8 @@ mod tests {
         map_to_odom_from_scan: i64,
         /// /odom's x against /tf's `odom -> base_link` at 0 (raw wheel odometry, drifted).
         odom_drift_m: f64,
+        /// Of the bag's metadata.yaml: 8 stands for a Humble or Iron robot's recording.
+        metadata_version: MetadataVersion,
     }
 
     const SCANS: i64 = 40;
@@ -821,7 +838,11 @@ mod tests {
     /// transforms put them; its /tf carries `odom -> base_link`, its /odom the same but for
     /// `odom_drift_m`.
     fn robot_bag(dir: &Path, robot: &Robot) {
-        let mut bag = BagWriter::create(dir, WriterOptions::default()).unwrap();
+        let options = WriterOptions {
+            metadata_version: robot.metadata_version,
+            ..WriterOptions::default()
+        };
+        let mut bag = BagWriter::create(dir, options).unwrap();
         let [map_t, tf_static_t, tf_t, odom_t, scan_t, truth_t] = [
             topics::MAP,
             topics::TF_STATIC,
@@ -928,6 +949,36 @@ mod tests {
         assert_eq!(run(None, "topic").room, "map_topic");
         let given = Some(crate::localiser_stage::tests::empty_room());
         assert_eq!(run(given, "file").room, "map_file");
+    }
+
+    /// `run` over an Iron/Humble-era (version 8) bag wrote version 9, which Humble's
+    /// `ros2 bag info` and `play` cannot parse; asked for a version, it writes that one.
+    #[test]
+    fn the_output_bag_is_of_the_inputs_version_unless_another_is_asked_for() {
+        let dir = tempfile::tempdir().unwrap();
+        let written = |input: MetadataVersion, asked: Option<MetadataVersion>| {
+            let name = format!("{}_{asked:?}", input.number());
+            let (input_dir, out_dir) = (dir.path().join(&name), dir.path().join(name + "_out"));
+            let robot = Robot {
+                metadata_version: input,
+                ..Robot::default()
+            };
+            robot_bag(&input_dir, &robot);
+            let options = RunOptions {
+                metadata_version: asked,
+                ..RunOptions::default()
+            };
+            run_bag(&input_dir, &out_dir, options).unwrap();
+            BagReader::open(&out_dir)
+                .unwrap()
+                .metadata()
+                .metadata_version
+        };
+        use MetadataVersion::{V8, V9};
+        assert_eq!(written(V8, None), Some(8));
+        assert_eq!(written(V9, None), Some(9));
+        assert_eq!(written(V8, Some(V9)), Some(9));
+        assert_eq!(written(V9, Some(V8)), Some(8));
     }
 
     /// REP 105: /tf's `odom -> base_link` (an EKF's fused pose) is the odometry, not raw

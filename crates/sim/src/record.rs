@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use lidar_har_bag::{BagWriter, WriterOptions};
+use lidar_har_bag::{BagWriter, MetadataVersion, WriterOptions};
 use lidar_har_core::geometry::Pose2;
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::geometry_msgs::{
@@ -113,12 +113,30 @@ pub fn laser_scan_msg(sim: &Simulator, frame: &Frame) -> LaserScan {
     }
 }
 
-/// Runs `sim` to its end into a new rosbag2 directory `out` (MCAP), and writes
-/// `out/map.pgm` + `out/map.yaml`. `on_frame` sees every frame (progress, renders).
+/// Runs `sim` to its end into a new rosbag2 directory `out` (MCAP, metadata version 9), and
+/// writes `out/map.pgm` + `out/map.yaml`. `on_frame` sees every frame (progress, renders).
 pub fn record(
     sim: &mut Simulator,
     out: &Path,
     map_resolution: f64,
+    on_frame: impl FnMut(&Frame),
+) -> Result<RecordSummary, RecordError> {
+    record_as(
+        sim,
+        out,
+        map_resolution,
+        MetadataVersion::default(),
+        on_frame,
+    )
+}
+
+/// [`record`] with the bag's metadata version chosen: 8 for a bag that ROS 2 Humble or Iron
+/// must read.
+pub fn record_as(
+    sim: &mut Simulator,
+    out: &Path,
+    map_resolution: f64,
+    metadata_version: MetadataVersion,
     mut on_frame: impl FnMut(&Frame),
 ) -> Result<RecordSummary, RecordError> {
     // The bag writer refuses only a bag already there: a map from an earlier run in the same
@@ -129,6 +147,7 @@ pub fn record(
     })?;
     let options = WriterOptions {
         flush_interval: Duration::MAX,
+        metadata_version,
         ..WriterOptions::default()
     };
     let mut bag = BagWriter::create(out, options)?;
@@ -266,6 +285,22 @@ mod tests {
             let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
             assert_eq!(left.len(), 1, "only {existing} is there");
             assert_eq!(std::fs::read(dir.path().join(existing)).unwrap(), b"mine");
+        }
+    }
+
+    /// A recording for a Humble or Iron robot: the simulator wrote only version 9, which
+    /// their `ros2 bag info` and `play` cannot parse.
+    #[test]
+    fn records_the_metadata_version_asked_for() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/hall.yaml");
+        let mut scene = Scene::load(&path).unwrap();
+        scene.duration = 0.2;
+        for version in [MetadataVersion::V8, MetadataVersion::V9] {
+            let dir = tempfile::tempdir().unwrap();
+            let mut sim = Simulator::new(scene.clone(), 1).unwrap();
+            record_as(&mut sim, dir.path(), 0.05, version, |_| {}).unwrap();
+            let reader = lidar_har_bag::BagReader::open(dir.path()).unwrap();
+            assert_eq!(reader.metadata().metadata_version, Some(version.number()));
         }
     }
 }

@@ -19,6 +19,13 @@
 //! spans no bag time (`topics:=[/map]`) used to be published again and again without a pause.
 //! Each pass starts /clock again at `start_offset`, as rosbag2's player jumps its clock back.
 //!
+//! Each pass reads the bag from `start_offset` on, as `ros2 bag play --start-offset` seeks
+//! to it: an MCAP with a summary reads only its chunks from there, a sqlite3 file asks for
+//! the rows from there in its query (an MCAP cut short, without an index, is still read from
+//! its start, dropping what comes before). The part before the offset used to be read and
+//! decompressed at the start of each pass. A message before `start_offset` is not played,
+//! a /tf_static one included, as with rosbag2's player (ros2/rosbag2#1482: by design).
+//!
 //! A bag cut short (a killed recorder) is played up to its last complete message, with a
 //! warning naming the file and how many complete messages it holds; each `loop` pass ends
 //! there. Without `loop` the replay then waits for acknowledgements as usual and exits with
@@ -36,7 +43,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::bail;
 use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
-use lidar_har_bag::{BagError, BagReader, OfferedQos, PROCESS_ENDING, qos};
+use lidar_har_bag::{BagError, BagReader, MessageFilter, OfferedQos, PROCESS_ENDING, qos};
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::qos::{QosProfile, Reliability};
 use lidar_har_msgs::rosgraph_msgs::Clock;
@@ -352,15 +359,19 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     }
     let mut played = 0u64;
     let mut cut_short = None;
-    // Only the played topics are read: the storage leaves the others' data unread (sqlite3
-    // filters them in its query).
-    let play: Vec<&str> = selection.play.iter().map(String::as_str).collect();
+    // Each pass reads the played topics from `begin` on, as `ros2 bag play --start-offset`
+    // seeks: an MCAP with a summary reads only the chunks from there, sqlite3 asks for the
+    // range (and topics) in its query. Reading the part before the offset took over a second
+    // a pass, 19 s into a 20 s zstd bag of images (0.014 s now: docs/bag.md).
+    let to_play = MessageFilter::new()
+        .topics(&selection.play)
+        .starting_at(begin);
     loop {
         let mut pacing = Pacing::new(begin, settings.rate);
         if let Some((_, ticks)) = &mut clock {
             ticks.restart();
         }
-        for message in reader.messages_on(&play)? {
+        for message in reader.messages_matching(&to_play)? {
             let message = match message {
                 Ok(message) => message,
                 // A killed recorder (a power cut) leaves a file cut short: the reader gives
@@ -374,21 +385,14 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
                 }
                 Err(e) => return Err(anyhow::Error::new(e).context("reading the bag")),
             };
-            let publisher = publishers
-                .get(&*message.topic)
-                .filter(|_| message.log_time_ns >= begin);
-            // Messages before the offset are read through at once, with /clock still ticking.
-            let due = match publisher {
-                Some(_) => pacing.due(message.log_time_ns, Instant::now(), &message.topic),
-                None => Instant::now(),
+            let Some(publisher) = publishers.get(&*message.topic) else {
+                continue;
             };
+            let due = pacing.due(message.log_time_ns, Instant::now(), &message.topic);
             if !sleep_until_ticking(due, shutdown, &mut clock, |now| pacing.bag_time_at(now))? {
                 log::info!("replay: stopped by signal after {played} messages");
                 return Ok(());
             }
-            let Some(publisher) = publisher else {
-                continue;
-            };
             let data = match &mut static_transforms {
                 Some(merged) if *message.topic == *topics::TF_STATIC.name => {
                     merged.merge_recorded(message.data)
@@ -483,10 +487,11 @@ const MIN_PASS_NS: i64 = 1_000_000_000;
 
 /// When each message is due on the wall clock: its bag time since an anchor, scaled by the
 /// rate (with rate 0, at once). The pass's start, `start_offset` into the bag, is anchored
-/// when its first message is played, not when the pass starts reading: the wall time spent
-/// reading through (and dropping) the messages before the offset used to count as played,
-/// and the first seconds after it came out in a burst (23 scans in 0.14 s, 17 s into a 20 s
-/// bag with images). The anchor moves to a message that comes more than
+/// when its first message is played, not when the pass starts reading: the wall time until
+/// then (reading the first chunk; before the replay sought `start_offset`, reading through
+/// the whole part of the bag before it) used to count as played, and the first seconds
+/// after the offset came out in a burst (23 scans in 0.14 s, 17 s into a 20 s bag with
+/// images). The anchor moves to a message that comes more than
 /// [`MAX_WAITED_GAP_NS`] after the one before it, so that nothing waits for ever and no
 /// arithmetic overflows.
 struct Pacing {

@@ -4,7 +4,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use lidar_har_bag::{
-    BagInfo, BagReader, BagWriter, Compression, MetadataVersion, StorageId, WriterOptions,
+    BagInfo, BagReader, BagWriter, Compression, MessageFilter, MetadataVersion, StorageId,
+    TopicInfo, WriterOptions,
 };
 use lidar_har_msgs::RosMessage;
 use lidar_har_msgs::visualization_msgs::{Marker, MarkerArray};
@@ -19,7 +20,12 @@ pub enum BagCommand {
         /// .db3, or either compressed by rosbag2, .zstd).
         bag: PathBuf,
     },
-    /// Copy every message of a bag into a new bag, changing storage and/or compression.
+    /// Copy the messages of a bag into a new bag, changing storage and/or compression; with
+    /// --start-offset, --duration or --topics, only a clip of it.
+    ///
+    /// The new bag lists every topic of the source (or of --topics), also one none of whose
+    /// messages falls in the clip, as rosbag2's convert does; a warning names those: a /map or
+    /// /tf_static recorded once, at the start, is not in a clip that starts later.
     Convert {
         /// The bag to read (directory or bare storage file, as for `info`).
         src: PathBuf,
@@ -34,9 +40,72 @@ pub enum BagCommand {
         /// rosbag2 metadata version of the new bag: 9 (read by Jazzy and later) or 8 (read by
         /// Humble, Iron and later; use it for a Humble robot). Default: 8 when the source's
         /// metadata.yaml is version 8 or older (Humble writes 5, Iron 8), else 9.
-        #[arg(long, value_parser = parse_metadata_version)]
+        #[arg(long, value_parser = super::parse_metadata_version)]
         rosbag2_version: Option<MetadataVersion>,
+        /// Copy from this many seconds into the source, counted from its first message, as
+        /// `ros2 bag play --start-offset` plays (at most the source's length).
+        #[arg(
+            long = "start-offset",
+            value_name = "SECONDS",
+            default_value = "0",
+            allow_negative_numbers = true,
+            value_parser = parse_seconds
+        )]
+        start_offset_ns: i64,
+        /// Copy this many seconds from the start offset (default: to the end of the source);
+        /// a message logged exactly at its end is left out.
+        #[arg(
+            long = "duration",
+            value_name = "SECONDS",
+            allow_negative_numbers = true,
+            value_parser = parse_seconds
+        )]
+        duration_ns: Option<i64>,
+        /// Copy only these topics (default: all); the new bag lists only them. The list takes
+        /// every word after it: give it after SRC and DST.
+        #[arg(long, num_args = 1.., value_name = "TOPIC")]
+        topics: Vec<String>,
     },
+}
+
+/// The part of the source `convert` copies.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+struct Clip {
+    /// From the source's first message.
+    start_offset_ns: i64,
+    /// `None`: to the source's end.
+    duration_ns: Option<i64>,
+    /// Empty: every topic.
+    topics: Vec<String>,
+}
+
+impl Clip {
+    /// Whether a time range is cut (not the whole length of the source).
+    fn is_time_bounded(&self) -> bool {
+        self.start_offset_ns > 0 || self.duration_ns.is_some()
+    }
+
+    /// Where the messages of a topic that the clip leaves out all lie.
+    fn outside(&self) -> &'static str {
+        match (self.start_offset_ns > 0, self.duration_ns.is_some()) {
+            (true, false) => "their only messages are before --start-offset",
+            (false, true) => "their only messages are after --duration",
+            _ => "their only messages are before --start-offset or after --duration",
+        }
+    }
+}
+
+/// `--start-offset`/`--duration`: a finite number of seconds >= 0, in nanoseconds (the
+/// conversion saturates, at 292 years).
+fn parse_seconds(s: &str) -> Result<i64, String> {
+    let seconds: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| "not a number of seconds".to_string())?;
+    if !(seconds.is_finite() && seconds >= 0.0) {
+        return Err("must be a finite number of seconds, 0 or more".to_string());
+    }
+    Ok((seconds * 1e9).round() as i64)
 }
 
 fn parse_storage(s: &str) -> Result<StorageId, String> {
@@ -45,19 +114,6 @@ fn parse_storage(s: &str) -> Result<StorageId, String> {
 
 fn parse_compression(s: &str) -> Result<Compression, String> {
     s.parse()
-}
-
-fn parse_metadata_version(s: &str) -> Result<MetadataVersion, String> {
-    s.parse()
-}
-
-/// The metadata version `convert` writes without `--rosbag2-version`: a source that the
-/// distributions before Jazzy read (version 8 or older) stays readable by them.
-fn default_metadata_version(source_version: Option<u32>) -> MetadataVersion {
-    match source_version {
-        Some(version) if version < 9 => MetadataVersion::V8,
-        _ => MetadataVersion::default(),
-    }
 }
 
 /// Runs a bag command; `stop` (a signal) ends a conversion early, its new bag finished.
@@ -70,7 +126,25 @@ pub fn run(command: BagCommand, stop: &StopRequest) -> anyhow::Result<()> {
             storage,
             compression,
             rosbag2_version,
-        } => convert(&src, &dst, storage, compression, rosbag2_version, stop),
+            start_offset_ns,
+            duration_ns,
+            topics,
+        } => {
+            let clip = Clip {
+                start_offset_ns,
+                duration_ns,
+                topics,
+            };
+            convert(
+                &src,
+                &dst,
+                storage,
+                compression,
+                rosbag2_version,
+                &clip,
+                stop,
+            )
+        }
     }
 }
 
@@ -163,15 +237,18 @@ fn convert(
     storage: StorageId,
     compression: Compression,
     metadata_version: Option<MetadataVersion>,
+    clip: &Clip,
     stop: &StopRequest,
 ) -> anyhow::Result<()> {
     let reader =
         BagReader::open(src).with_context(|| format!("cannot open bag {}", src.display()))?;
+    let filter = clip_filter(&reader, clip, src)?;
     let mut options = WriterOptions {
         storage,
         compression,
-        metadata_version: metadata_version
-            .unwrap_or_else(|| default_metadata_version(reader.bag_metadata().map(|m| m.version))),
+        metadata_version: metadata_version.unwrap_or_else(|| {
+            MetadataVersion::like_source(reader.bag_metadata().map(|m| m.version))
+        }),
         ..WriterOptions::default()
     };
     if let Some(metadata) = reader.bag_metadata() {
@@ -184,6 +261,9 @@ fn convert(
     let mut topics = Vec::new();
     let mut substituted = std::collections::HashSet::new();
     for topic in reader.topics() {
+        if !clip.topics.is_empty() && !clip.topics.contains(&topic.name) {
+            continue;
+        }
         let mut topic = topic.clone();
         if topic.schema_text.is_none() {
             // Older sqlite3 bags (Foxy/Humble) store no definitions: use ours where we know the type.
@@ -213,8 +293,9 @@ fn convert(
         handles.insert(topic.name.clone(), handle);
     }
     let (mut count, mut negative_times) = (0u64, 0u64);
+    let mut copied_on: std::collections::HashMap<String, u64> = std::collections::HashMap::new();
     let mut stopped = None;
-    for message in reader.messages()? {
+    for message in reader.messages_matching(&filter)? {
         // Before the message: what stops the copy (a signal) may also have made it unreadable.
         if let Some(reason) = stop.reason() {
             stopped = Some(reason.to_string());
@@ -242,6 +323,7 @@ fn convert(
         }
         writer.write(handle, message.log_time_ns, &message.data)?;
         count += 1;
+        *copied_on.entry(message.topic.to_string()).or_default() += 1;
     }
     let summary = writer.finish()?;
     if let Some(why) = stopped {
@@ -260,8 +342,26 @@ fn convert(
             src.display()
         );
     }
+    if let Some(warning) = clip_warning(&topics, &copied_on, clip) {
+        errln!("lidar-har: warning: {warning}");
+    }
+    let length_ns = reader.metadata().duration_ns();
+    let part = if clip.is_time_bounded() {
+        let end_ns = clip.duration_ns.map_or(length_ns, |d| {
+            clip.start_offset_ns.saturating_add(d).min(length_ns)
+        });
+        format!(
+            ", {:.3} s to {:.3} s of the source's {:.3} s",
+            clip.start_offset_ns as f64 / 1e9,
+            end_ns as f64 / 1e9,
+            length_ns as f64 / 1e9
+        )
+    } else {
+        String::new()
+    };
     outln!(
-        "Converted {count} messages on {} topics: {} ({}) -> {} ({storage}, metadata version {})",
+        "Converted {count} messages on {} topics: {} ({}) -> {} ({storage}, metadata version \
+         {}){part}",
         handles.len(),
         src.display(),
         reader.storage(),
@@ -269,6 +369,76 @@ fn convert(
         summary.metadata.version
     );
     Ok(())
+}
+
+/// The read that gives `clip`'s messages, checked against the source before anything is
+/// written: an offset past its end or a topic it lacks is refused, naming what it has.
+fn clip_filter(reader: &BagReader, clip: &Clip, src: &Path) -> anyhow::Result<MessageFilter> {
+    let mut filter = MessageFilter::new();
+    if !clip.topics.is_empty() {
+        for name in &clip.topics {
+            if reader.topic(name).is_none() {
+                let in_bag: Vec<&str> = reader.topics().iter().map(|t| t.name.as_str()).collect();
+                bail!(
+                    "--topics: `{name}` is not in the bag {}, which has {}",
+                    src.display(),
+                    if in_bag.is_empty() {
+                        "no topic".to_string()
+                    } else {
+                        in_bag.join(", ")
+                    }
+                );
+            }
+        }
+        filter = filter.topics(&clip.topics);
+    }
+    let info = reader.metadata();
+    if clip.start_offset_ns > info.duration_ns() {
+        bail!(
+            "--start-offset {} s is past the end of the bag {}, which is {:.3} s long: the clip \
+             would be empty",
+            clip.start_offset_ns as f64 / 1e9,
+            src.display(),
+            info.duration_ns() as f64 / 1e9
+        );
+    }
+    // No bound where the clip sets none, so that a whole copy reads what it always read (a
+    // damaged sqlite3 row with a negative log time included, then left out with a warning).
+    let start_ns = info.start_ns.saturating_add(clip.start_offset_ns);
+    if clip.start_offset_ns > 0 {
+        filter = filter.starting_at(start_ns);
+    }
+    if let Some(end_ns) = clip.duration_ns.and_then(|d| start_ns.checked_add(d)) {
+        filter = filter.ending_before(end_ns);
+    }
+    Ok(filter)
+}
+
+/// Names the topics of `topics` that have messages in the source but none in a clip cut in
+/// time (`copied_on`: messages copied per topic): a map or static transforms recorded once,
+/// at the start of a recording, are left out of a clip that starts later.
+fn clip_warning(
+    topics: &[TopicInfo],
+    copied_on: &std::collections::HashMap<String, u64>,
+    clip: &Clip,
+) -> Option<String> {
+    if !clip.is_time_bounded() {
+        return None;
+    }
+    let mut left_out: Vec<&str> = topics
+        .iter()
+        .filter(|t| t.message_count > 0 && !copied_on.contains_key(&t.name))
+        .map(|t| t.name.as_str())
+        .collect();
+    if left_out.is_empty() {
+        return None;
+    }
+    left_out.sort_unstable();
+    Some(format!(
+        "{}: no message in the clip ({}); the new bag lists them without messages",
+        left_out.join(", "),
+        clip.outside()
+    ))
 }
 
 /// The mirrored types whose layout has changed since Foxy and Galactic: their Marker lacks
@@ -387,6 +557,10 @@ fn civil_from_days(days: i64) -> (i64, i64, i64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lidar_har_msgs::nav_msgs::{OccupancyGrid, Odometry};
+    use lidar_har_msgs::qos::QosProfile;
+    use lidar_har_msgs::sensor_msgs::LaserScan;
+    use lidar_har_msgs::tf2_msgs::TFMessage;
 
     #[test]
     fn formats_times() {
@@ -399,19 +573,267 @@ mod tests {
         assert_eq!(human_size(2048), "2.0 KiB");
     }
 
-    /// A Humble (5) or Iron (8) source converted without `--rosbag2-version` stays readable
-    /// by them: it used to become version 9, which their `ros2 bag info` cannot parse.
+    /// `lidar-har bag ...` as the binary parses it.
+    #[derive(clap::Parser)]
+    struct Cli {
+        #[command(subcommand)]
+        bag: BagCommand,
+    }
+
+    /// Runs `lidar-har bag convert SRC DST ARGS...` as the command line would.
+    fn convert_with(src: &Path, dst: &Path, args: &[&str]) -> anyhow::Result<()> {
+        use clap::Parser;
+        let mut line = vec![
+            "bag",
+            "convert",
+            src.to_str().unwrap(),
+            dst.to_str().unwrap(),
+        ];
+        line.extend_from_slice(args);
+        let cli = Cli::try_parse_from(line).map_err(|e| anyhow::anyhow!("{e}"))?;
+        run(cli.bag, &StopRequest::default())
+    }
+
+    /// Start of [`recording`].
+    const T0: i64 = 1_700_000_000_000_000_000;
+
+    /// A 9.9 s recording shaped like a robot's: /map and /tf_static once at its start (as
+    /// map_server and robot_state_publisher latch them), /scan at 10 Hz from the start, /odom
+    /// at 5 Hz from 0.05 s. Each message's bytes say its topic and time.
+    fn recording(dir: &Path, storage: StorageId) {
+        let options = WriterOptions {
+            storage,
+            ..WriterOptions::default()
+        };
+        let mut writer = BagWriter::create(dir, options).unwrap();
+        let map = writer
+            .add_topic_for::<OccupancyGrid>("/map", QosProfile::latched(1))
+            .unwrap();
+        let tf_static = writer
+            .add_topic_for::<TFMessage>("/tf_static", QosProfile::latched(1))
+            .unwrap();
+        let scan = writer
+            .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
+            .unwrap();
+        let odom = writer
+            .add_topic_for::<Odometry>("/odom", QosProfile::reliable(10))
+            .unwrap();
+        let mut write = |handle, name: &str, t: i64| {
+            let data = format!("\0\u{1}\0\0{name}@{t}");
+            writer.write(handle, t, data.as_bytes()).unwrap();
+        };
+        write(map, "/map", T0);
+        write(tf_static, "/tf_static", T0);
+        for k in 0..100 {
+            write(scan, "/scan", T0 + k * 100_000_000);
+            if k % 2 == 0 {
+                write(odom, "/odom", T0 + 50_000_000 + k * 100_000_000);
+            }
+        }
+        writer.finish().unwrap();
+    }
+
+    /// Every message of `bag`: topic, log time, bytes.
+    fn messages_of(bag: &Path) -> Vec<(String, i64, Vec<u8>)> {
+        let reader = BagReader::open(bag).unwrap();
+        reader
+            .messages()
+            .unwrap()
+            .map(|m| {
+                let m = m.unwrap();
+                (m.topic.to_string(), m.log_time_ns, m.data)
+            })
+            .collect()
+    }
+
+    /// `bag convert` could only copy a whole bag: a minute of a long recording meant copying
+    /// all of it, then cutting it with another tool.
     #[test]
-    fn converting_a_bag_older_than_jazzy_keeps_a_version_they_read() {
-        assert_eq!(default_metadata_version(Some(5)), MetadataVersion::V8);
-        assert_eq!(default_metadata_version(Some(8)), MetadataVersion::V8);
-        assert_eq!(default_metadata_version(Some(9)), MetadataVersion::V9);
-        assert_eq!(default_metadata_version(None), MetadataVersion::V9);
-        assert!(
-            parse_metadata_version("5")
-                .unwrap_err()
-                .contains("expected 8, read by Humble")
+    fn a_clip_holds_exactly_the_messages_of_its_range_in_both_storages() {
+        for storage in [StorageId::Mcap, StorageId::Sqlite3] {
+            let tmp = tempfile::tempdir().unwrap();
+            let src = tmp.path().join("rec");
+            recording(&src, storage);
+            let every = messages_of(&src);
+            for (args, start_s, end_s) in [
+                // Bounds on messages: /scan at 2.0 s is in, /scan at 5.0 s is out.
+                (
+                    &["--start-offset", "2", "--duration", "3"][..],
+                    2.0,
+                    Some(5.0),
+                ),
+                (&["--start-offset", "2.05"][..], 2.05, None),
+                (&["--duration", "0.05"][..], 0.0, Some(0.05)),
+                // Up to the source's length: its last message only.
+                (&["--start-offset", "9.9"][..], 9.9, None),
+                (
+                    &["--start-offset", "3", "--duration", "0"][..],
+                    3.0,
+                    Some(3.0),
+                ),
+            ] {
+                let dst = tmp.path().join(format!("clip_{start_s}_{end_s:?}"));
+                let storage_arg = storage.to_string();
+                let args = [args, &["--storage", &storage_arg]].concat();
+                convert_with(&src, &dst, &args).unwrap();
+                let start = T0 + (start_s * 1e9_f64).round() as i64;
+                let end = end_s.map_or(i64::MAX, |e: f64| T0 + (e * 1e9).round() as i64);
+                let expected: Vec<_> = every
+                    .iter()
+                    .filter(|(_, t, _)| (start..end).contains(t))
+                    .cloned()
+                    .collect();
+                assert_eq!(messages_of(&dst), expected, "{storage} {args:?}");
+                let clip = BagReader::open(&dst).unwrap();
+                assert_eq!(clip.storage(), storage);
+                // As rosbag2's rewrite does: every topic of the source, with its QoS, also
+                // those the range leaves without a message.
+                let source = BagReader::open(&src).unwrap();
+                for topic in source.topics() {
+                    let copy = clip.topic(&topic.name).unwrap();
+                    assert_eq!(copy.offered_qos, topic.offered_qos, "{}", topic.name);
+                    let in_range = expected.iter().filter(|m| m.0 == topic.name).count();
+                    assert_eq!(copy.message_count, in_range as u64, "{}", topic.name);
+                }
+            }
+        }
+    }
+
+    /// A clip starting after the one /map and /tf_static message has neither, which
+    /// `lidar-har run` over it needs (--map or a learned background instead); nothing said so.
+    #[test]
+    fn a_clip_that_leaves_a_topic_without_messages_names_it() {
+        let tmp = tempfile::tempdir().unwrap();
+        let src = tmp.path().join("rec");
+        recording(&src, StorageId::Mcap);
+        let source = BagReader::open(&src).unwrap();
+        let warning_for = |args: &[&str], clip: &Clip| {
+            let dst = tmp.path().join(format!("clip{}", args.join("_")));
+            convert_with(&src, &dst, args).unwrap();
+            let copied_on = BagReader::open(&dst)
+                .unwrap()
+                .topics()
+                .iter()
+                .filter(|t| t.message_count > 0)
+                .map(|t| (t.name.clone(), t.message_count))
+                .collect();
+            clip_warning(source.topics(), &copied_on, clip)
+        };
+        let late = Clip {
+            start_offset_ns: 1_000_000_000,
+            ..Clip::default()
+        };
+        assert_eq!(
+            warning_for(&["--start-offset", "1"], &late).as_deref(),
+            Some(
+                "/map, /tf_static: no message in the clip (their only messages are before \
+                 --start-offset); the new bag lists them without messages"
+            )
         );
+        let short = Clip {
+            duration_ns: Some(50_000_000),
+            ..Clip::default()
+        };
+        let warning = warning_for(&["--duration", "0.05"], &short).unwrap();
+        assert!(
+            warning.starts_with("/odom: no message in the clip (their only messages are after"),
+            "{warning}"
+        );
+        let whole = Clip::default();
+        assert_eq!(warning_for(&[], &whole), None);
+        let both = Clip {
+            start_offset_ns: 2_000_000_000,
+            duration_ns: Some(1_000_000_000),
+            ..Clip::default()
+        };
+        assert!(
+            warning_for(&["--start-offset", "2", "--duration", "1"], &both)
+                .unwrap()
+                .contains("before --start-offset or after --duration")
+        );
+    }
+
+    #[test]
+    fn topics_selects_the_topics_of_the_clip_and_refuses_one_the_bag_lacks() {
+        let tmp = tempfile::tempdir().unwrap();
+        let src = tmp.path().join("rec");
+        recording(&src, StorageId::Sqlite3);
+        let dst = tmp.path().join("scans");
+        convert_with(
+            &src,
+            &dst,
+            &["--duration", "1", "--topics", "/scan", "/odom"],
+        )
+        .unwrap();
+        let clip = BagReader::open(&dst).unwrap();
+        let names: Vec<&str> = clip.topics().iter().map(|t| t.name.as_str()).collect();
+        assert_eq!(names.len(), 2, "{names:?}");
+        assert_eq!(clip.topic("/scan").unwrap().message_count, 10);
+        assert_eq!(clip.topic("/odom").unwrap().message_count, 5);
+
+        let refused = tmp.path().join("refused");
+        let err = convert_with(&src, &refused, &["--topics", "/scan", "/laser"])
+            .unwrap_err()
+            .to_string();
+        for needle in [
+            "--topics",
+            "`/laser`",
+            "rec",
+            "/map, /tf_static, /scan, /odom",
+        ] {
+            assert!(err.contains(needle), "{needle} missing from: {err}");
+        }
+        assert!(
+            !refused.exists(),
+            "a refused clip created {}",
+            refused.display()
+        );
+    }
+
+    #[test]
+    fn a_negative_or_non_finite_time_is_refused_naming_the_option() {
+        let tmp = tempfile::tempdir().unwrap();
+        let src = tmp.path().join("rec");
+        recording(&src, StorageId::Mcap);
+        let dst = tmp.path().join("clip");
+        for option in ["--start-offset", "--duration"] {
+            let attached = format!("{option}=-inf");
+            let mut lines: Vec<Vec<&str>> = ["-1", "-0.5", "-1e3", "nan", "inf", "ten", ""]
+                .into_iter()
+                .map(|value| vec![option, value])
+                .collect();
+            lines.push(vec![&attached]);
+            lines.push(vec![option]);
+            for line in lines {
+                let err = convert_with(&src, &dst, &line).unwrap_err().to_string();
+                assert!(
+                    err.contains(&format!("'{option} <SECONDS>'")),
+                    "{line:?}: {err}"
+                );
+            }
+        }
+        assert!(!dst.exists());
+        assert_eq!(parse_seconds("1.5"), Ok(1_500_000_000));
+        assert_eq!(parse_seconds("0.1"), Ok(100_000_000));
+        assert_eq!(parse_seconds("1e300"), Ok(i64::MAX));
+    }
+
+    /// Like the `replay` node's `start_offset`: past the end, nothing would be copied.
+    #[test]
+    fn a_start_offset_past_the_end_is_an_error_naming_it_and_the_bags_length() {
+        let tmp = tempfile::tempdir().unwrap();
+        let src = tmp.path().join("rec");
+        recording(&src, StorageId::Mcap);
+        let dst = tmp.path().join("clip");
+        let err = convert_with(&src, &dst, &["--start-offset", "20"])
+            .unwrap_err()
+            .to_string();
+        for needle in ["--start-offset 20 s", "rec", "9.900 s long"] {
+            assert!(err.contains(needle), "{needle} missing from: {err}");
+        }
+        assert!(!dst.exists());
+        // Just past the last message is past the end too.
+        assert!(convert_with(&src, &dst, &["--start-offset", "9.9000001"]).is_err());
     }
 
     /// `info` on a directory without metadata.yaml said nothing of it, and `ros2 bag play`

@@ -12,6 +12,7 @@ pub mod topic;
 
 use std::path::Path;
 
+use lidar_har_bag::MetadataVersion;
 use lidar_har_pipeline::classifier::{ClassifierConfig, load_classifier_config};
 
 /// The classifier configuration a command runs with: `--classifier-config`'s file (defaults
@@ -29,6 +30,13 @@ pub fn classifier_config(
         classifier.model = model.to_path_buf();
     }
     Ok(classifier)
+}
+
+/// `--rosbag2-version`'s value, for every command that writes a bag: 8 (Humble, Iron and
+/// later read it) or 9 (Jazzy and later). Without the option, `bag convert` and `run` take
+/// [`MetadataVersion::like_source`], `simulate` 9.
+pub fn parse_metadata_version(s: &str) -> Result<MetadataVersion, String> {
+    s.parse()
 }
 
 /// Makes the folder of an output file given as `flag` now, so that a bad path fails before
@@ -79,5 +87,16 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(error.contains("missing.yaml"), "{error}");
+    }
+
+    #[test]
+    fn a_rosbag2_version_other_than_8_or_9_is_refused_saying_which_read_what() {
+        assert_eq!(parse_metadata_version("8"), Ok(MetadataVersion::V8));
+        assert_eq!(parse_metadata_version("9"), Ok(MetadataVersion::V9));
+        assert!(
+            parse_metadata_version("5")
+                .unwrap_err()
+                .contains("expected 8, read by Humble")
+        );
     }
 }

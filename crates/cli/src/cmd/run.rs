@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use lidar_har_bag::MetadataVersion;
 use lidar_har_pipeline::bag_run::{RunOptions, StopRequest, run_bag};
 use lidar_har_pipeline::files;
 
@@ -36,6 +37,13 @@ pub struct RunArgs {
     /// Run the localiser only (no model needed).
     #[arg(long, conflicts_with_all = ["model", "classifier_config"])]
     pub no_classifier: bool,
+    /// rosbag2 metadata version of the output bag: 9 (read by Jazzy and later) or 8 (read by
+    /// Humble, Iron and later; use it for a Humble or Iron robot, whose `ros2 bag info` and
+    /// `play` cannot parse 9; the bag is MCAP, which needs ros-humble-rosbag2-storage-mcap
+    /// there, or `lidar-har bag convert OUT OUT_DB3 --storage sqlite3`). Default: 8 when the
+    /// input's metadata.yaml is version 8 or older (Humble writes 5, Iron 8), else 9.
+    #[arg(long, value_parser = super::parse_metadata_version)]
+    pub rosbag2_version: Option<MetadataVersion>,
 }
 
 /// Runs the pipeline; `stop` (a signal) ends the reading early, as a bag cut short does.
@@ -90,6 +98,7 @@ pub fn run(args: RunArgs, stop: StopRequest) -> anyhow::Result<()> {
         map,
         classifier,
         stop,
+        metadata_version: args.rosbag2_version,
     };
     let summary = run_bag(&args.bag, &args.out, options)
         .with_context(|| format!("running the pipeline over {}", args.bag.display()))?;

@@ -4,8 +4,9 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use lidar_har_bag::MetadataVersion;
 use lidar_har_sim::map::OccupancyMap;
-use lidar_har_sim::record::{RecordSummary, record};
+use lidar_har_sim::record::{RecordSummary, record_as};
 use lidar_har_sim::render::{Trace, animation_scan_every, render_gif, render_png};
 use lidar_har_sim::{Scene, Simulator};
 
@@ -30,6 +31,13 @@ pub struct SimulateArgs {
     /// Cell size of the recorded map, metres.
     #[arg(long, default_value_t = lidar_har_sim::map::DEFAULT_RESOLUTION)]
     pub map_resolution: f64,
+    /// rosbag2 metadata version of the bag: 9 (read by Jazzy and later) or 8 (read by
+    /// Humble, Iron and later; use it for a bag to play on a Humble or Iron robot, whose
+    /// `ros2 bag info` and `play` cannot parse 9; the bag is MCAP, which needs
+    /// ros-humble-rosbag2-storage-mcap there, or `lidar-har bag convert OUT OUT_DB3 --storage
+    /// sqlite3`).
+    #[arg(long, default_value = "9", value_parser = super::parse_metadata_version)]
+    pub rosbag2_version: MetadataVersion,
 }
 
 /// What `--render` draws.
@@ -98,14 +106,20 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
         _ => (total / PNG_SCANS).max(1),
     };
     let mut trace = render.map(|_| Trace::new(scan_every));
-    let summary = record(&mut sim, &args.out, args.map_resolution, |frame| {
-        if let Some(t) = trace.as_mut() {
-            t.add(frame, &geometry);
-        }
-        if frame.index % 256 == 0 {
-            progress.set_position(frame.index);
-        }
-    })
+    let summary = record_as(
+        &mut sim,
+        &args.out,
+        args.map_resolution,
+        args.rosbag2_version,
+        |frame| {
+            if let Some(t) = trace.as_mut() {
+                t.add(frame, &geometry);
+            }
+            if frame.index % 256 == 0 {
+                progress.set_position(frame.index);
+            }
+        },
+    )
     .with_context(|| format!("recording {}", args.out.display()))?;
     progress.finish_and_clear();
     outln!("{}", recorded_line(&summary, simulated_s));
@@ -142,6 +156,7 @@ fn recorded_line(summary: &RecordSummary, simulated_s: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lidar_har_sim::record::record;
 
     /// The line said `(0.1 s simulated)` for `--duration 0.001`: one 20 Hz scan period,
     /// rounded.
