@@ -526,6 +526,37 @@ kill -TERM $E; wait $E; echo "scan_echo=$?"
     );
 }
 
+/// `playback_duration` plays the messages logged in `[start_offset, start_offset +
+/// playback_duration)` and no others, as `ros2 bag play --playback-duration`.
+#[test]
+fn ros_replay_plays_playback_duration_from_the_offset() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    // The map at T0 starts the bag; scan i at 50 ms * (i + 1) after it: from scan 9 (0.5 s
+    // in) for 1 s, up to scan 28; scan 29 lies exactly at the end, which is left out.
+    let bag = write_bag(dir.path(), 60);
+    let script = r#"
+"$LH" topic echo /scan --timeout 30 > "$OUT/scan.jsonl" & E=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p start_offset:=0.5 -p playback_duration:=1.0 \
+  -p topics:=[/scan] -p wait_for_subscriber:=/scan -p wait_for_all_acked:=5.0
+echo "replay=$?"
+sleep 0.5
+kill -TERM $E; wait $E; echo "scan_echo=$?"
+"#;
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(60));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["replay=0", "scan_echo=0"] {
+        assert!(stdout.contains(want), "expected {want}: {stdout}");
+    }
+    let played: Vec<usize> = json_lines(&dir.path().join("scan.jsonl"))
+        .iter()
+        .map(|s| scan_index(&s["msg"]))
+        .collect();
+    assert_eq!(played, (9..29).collect::<Vec<_>>());
+}
+
 #[test]
 fn ros_nodes_reject_bad_parameters_naming_them() {
     if !netns_available() {
@@ -560,6 +591,10 @@ fn ros_nodes_reject_bad_parameters_naming_them() {
         (
             r#""$REPLAY" --ros-args -p bag:="$BAG" -p start_offset:=100.0"#,
             &["`start_offset`", "100 s", "past the end", "s long"],
+        ),
+        (
+            r#""$REPLAY" --ros-args -p bag:="$BAG" -p playback_duration:=0.0"#,
+            &["`playback_duration`", "negative (to the bag's end)"],
         ),
         (
             r#""$REPLAY" --ros-args -p bag:="$BAG" -p speed:=2"#,

@@ -21,7 +21,9 @@ mod writer;
 
 pub use error::{BagError, Result};
 pub use qos::OfferedQos;
-pub use reader::{BagInfo, BagMessage, BagReader, MessageFilter, Messages, TopicInfo};
+pub use reader::{
+    BagInfo, BagMessage, BagReader, MessageFilter, Messages, RecordedVersion, TopicInfo,
+};
 pub use source::{PROCESS_ENDING, remove_temporary_copies};
 pub use writer::{
     BagSummary, BagWriter, Compression, MetadataVersion, StorageId, TopicHandle, WriterOptions,

@@ -28,6 +28,16 @@ pub(crate) fn parse_checked(opcode: u8, body: &[u8]) -> Result<Option<Record<'_>
     mcap::parse_record(opcode, body).map(Some)
 }
 
+/// A Metadata record from its body, every length checked first as in [`parse_checked`];
+/// `None` when it is malformed.
+pub(crate) fn parse_metadata(body: &[u8]) -> Option<mcap::records::Metadata> {
+    check_lengths(op::METADATA, body).ok()?;
+    match mcap::parse_record(op::METADATA, body).ok()? {
+        Record::Metadata(metadata) => Some(metadata),
+        _ => None,
+    }
+}
+
 /// Checks that every string and map inside a record fits in the record, for each record type
 /// that has one (MCAP specification, "Records"); fixed-size records need no check.
 fn check_lengths(opcode: u8, body: &[u8]) -> Result<(), McapError> {

@@ -15,10 +15,12 @@ use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader, SummaryRead
 use mcap::{McapError, Summary};
 
 use crate::error::{BagError, Result, io_error, mcap_error};
-use crate::mcap_records::{ChunkRecords, check_summary_section, decompress_chunk, parse_checked};
+use crate::mcap_records::{
+    ChunkRecords, check_summary_section, decompress_chunk, parse_checked, parse_metadata,
+};
 use crate::metadata::BagMetadata;
 use crate::qos;
-use crate::reader::{BagMessage, MessageFilter, TopicInfo};
+use crate::reader::{BagMessage, MessageFilter, RecordedVersion, TopicInfo};
 use crate::source::StorageSource;
 use crate::writer::{Compression, StorageSink, WriterTopic};
 
@@ -26,6 +28,8 @@ use crate::writer::{Compression, StorageSink, WriterTopic};
 pub(crate) const PROFILE: &str = "ros2";
 pub(crate) const SCHEMA_ENCODING: &str = "ros2msg";
 pub(crate) const MESSAGE_ENCODING: &str = "cdr";
+/// The name of the Metadata record in which rosbag2 notes what wrote the file.
+const ROSBAG2_RECORD: &str = "rosbag2";
 
 /// Records (and decompressed chunks) larger than this are refused rather than allocated:
 /// no real bag has a single 256 MiB message, and garbage lengths must not exhaust memory.
@@ -189,7 +193,7 @@ impl StorageSink for McapSink {
         record.insert("ROS_DISTRO".to_string(), metadata.ros_distro.clone());
         writer
             .write_metadata(&records::Metadata {
-                name: "rosbag2".to_string(),
+                name: ROSBAG2_RECORD.to_string(),
                 metadata: record,
             })
             .map_err(mcap_error(&path))?;
@@ -250,6 +254,9 @@ pub(crate) struct McapFile {
     /// The file cannot be read to its end (cut short or damaged): counts and time bounds cover
     /// the part before, and its message stream ends with the error.
     pub(crate) truncated: bool,
+    /// What the file's `rosbag2` Metadata records say of the rosbag2 that wrote it
+    /// ([`recorded_in`]).
+    pub(crate) recorded: Option<RecordedVersion>,
 }
 
 /// How the messages of an MCAP are read.
@@ -288,6 +295,7 @@ impl McapFile {
                 topics: Vec::new(),
                 time_bounds: None,
                 truncated: true,
+                recorded: None,
             });
         }
         reader
@@ -300,7 +308,11 @@ impl McapFile {
                 if !summary.chunk_indexes.is_empty()
                     || summary.stats.as_ref().is_some_and(|s| s.message_count == 0) =>
             {
-                Self::from_summary(input, summary)
+                let recorded = indexed_rosbag2_records(&mut reader, len, &summary);
+                Ok(Self {
+                    recorded,
+                    ..Self::from_summary(input, summary)?
+                })
             }
             _ => Self::from_linear_scan(input),
         }
@@ -358,6 +370,7 @@ impl McapFile {
             topics,
             time_bounds,
             truncated: damaged,
+            recorded: None,
         })
     }
 
@@ -396,6 +409,7 @@ impl McapFile {
             topics,
             time_bounds,
             truncated,
+            recorded: RecordedVersion::most_telling(std::mem::take(&mut stream.recorded)),
         })
     }
 
@@ -480,6 +494,73 @@ fn read_summary(
         }
     }
     Ok(summary_reader.finish())
+}
+
+/// What the `rosbag2` Metadata records of a file with a summary say, read through the
+/// summary's metadata indexes (one small read each). A record that cannot be read says nothing.
+fn indexed_rosbag2_records(
+    reader: &mut dyn ReadSeek,
+    len: u64,
+    summary: &Summary,
+) -> Option<RecordedVersion> {
+    let read_record = |reader: &mut dyn ReadSeek, index: &records::MetadataIndex| {
+        let length = usize::try_from(index.length)
+            .ok()
+            .filter(|&length| length <= RECORD_LENGTH_LIMIT)
+            .filter(|_| {
+                index
+                    .offset
+                    .checked_add(index.length)
+                    .is_some_and(|end| end <= len)
+            })?;
+        reader.seek(SeekFrom::Start(index.offset)).ok()?;
+        let mut record = vec![0u8; length];
+        reader.read_exact(&mut record).ok()?;
+        // Opcode, body length, body.
+        let (&opcode, rest) = record.split_first()?;
+        let body_length =
+            usize::try_from(u64::from_le_bytes(rest.get(..8)?.try_into().ok()?)).ok()?;
+        let body = rest.get(8..8usize.checked_add(body_length)?)?;
+        (opcode == op::METADATA)
+            .then(|| parse_metadata(body))
+            .flatten()
+            .as_ref()
+            .and_then(recorded_in)
+    };
+    RecordedVersion::most_telling(
+        summary
+            .metadata_indexes
+            .iter()
+            .filter(|index| index.name == ROSBAG2_RECORD)
+            .filter_map(|index| read_record(reader, index)),
+    )
+}
+
+/// What a `rosbag2` Metadata record says of the rosbag2 that wrote its file: the `version` of
+/// its `serialized_metadata` (the metadata without its root key; rosbag2 writes it at each
+/// `update_metadata` call of its writer from Iron on, and `BagWriter` when it finishes), else
+/// its `ROS_DISTRO` (which rosbag2 Iron from 0.22.2 on writes in a record of its own when it
+/// opens a file for writing, so a file a killed recorder left still names it).
+fn recorded_in(record: &records::Metadata) -> Option<RecordedVersion> {
+    #[derive(serde::Deserialize)]
+    struct Versioned {
+        version: u32,
+    }
+    if record.name != ROSBAG2_RECORD {
+        return None;
+    }
+    let version = record
+        .metadata
+        .get("serialized_metadata")
+        .and_then(|text| serde_yaml_ng::from_str::<Versioned>(text).ok())
+        .map(|metadata| RecordedVersion::StorageFile(metadata.version));
+    version.or_else(|| {
+        record
+            .metadata
+            .get("ROS_DISTRO")
+            .filter(|distro| !distro.is_empty())
+            .map(|distro| RecordedVersion::Distribution(distro.clone()))
+    })
 }
 
 /// Message counts per channel, the (first, last) log time when there are messages, and
@@ -724,6 +805,8 @@ pub(crate) struct LinearMessages {
     messages_read: u64,
     /// The records of the chunk being read, checked and decompressed by `mcap_records`.
     chunk: Option<ChunkRecords>,
+    /// What the `rosbag2` Metadata records read so far say ([`recorded_in`]).
+    recorded: Vec<RecordedVersion>,
     done: bool,
     /// Keeps a temporary copy that `file` reads alive (last: dropped after `file`).
     _input: McapInput,
@@ -749,6 +832,7 @@ impl LinearMessages {
             filter: filter.clone(),
             messages_read: 0,
             chunk: None,
+            recorded: Vec::new(),
             done: false,
             _input: input.clone(),
         })
@@ -825,6 +909,10 @@ impl LinearMessages {
                             }));
                         }
                     }
+                }
+                LinearReadEvent::Record { opcode, data } if opcode == op::METADATA => {
+                    self.recorded
+                        .extend(parse_metadata(data).as_ref().and_then(recorded_in));
                 }
                 LinearReadEvent::Record { opcode, data } => {
                     // Owning the parsed record ends the borrow of the reader's buffer; records

@@ -108,6 +108,45 @@ impl MessageFilter {
     }
 }
 
+/// What a bag records of the rosbag2 that wrote it ([`BagReader::recorded_version`]), which
+/// decides the metadata version of a bag made from it
+/// ([`MetadataVersion::like_source`](crate::MetadataVersion::like_source)).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum RecordedVersion {
+    /// `version` of metadata.yaml.
+    MetadataYaml(u32),
+    /// The version of a storage file's own copy of the metadata, where metadata.yaml is missing
+    /// (a killed recorder): sqlite3's `metadata` table (its last row; rosbag2 Iron from 0.22.2
+    /// on, and Jazzy and later, write one at each `update_metadata` call of their writer, at a
+    /// split or close at least) or the `serialized_metadata` of MCAP's `rosbag2` Metadata
+    /// record (written at those calls, from Iron on; `BagWriter` writes it when it finishes).
+    StorageFile(u32),
+    /// No version recorded, only the `ROS_DISTRO` of the writer, as the storage file names it:
+    /// sqlite3's `schema.ros_distro` (rosbag2 Humble from 0.15.4 on and later distributions
+    /// write it when they create a file) or the `ROS_DISTRO` of MCAP's `rosbag2` Metadata record
+    /// (rosbag2 Iron from 0.22.2 on writes it when it opens a file for writing).
+    Distribution(String),
+    /// Nothing named, but a sqlite3 layout that only rosbag2 before Jazzy writes: no `schema`
+    /// table (Foxy, Galactic, Humble before 0.15.4), or schema version 3 (Humble from 0.15.4
+    /// on; Iron and later write 4) with an empty `ros_distro` (`ROS_DISTRO` was unset).
+    SqliteLayoutBeforeJazzy,
+}
+
+impl RecordedVersion {
+    /// The most telling of `recorded` (a version number over a distribution over a layout),
+    /// the first of equals.
+    pub(crate) fn most_telling(
+        recorded: impl IntoIterator<Item = RecordedVersion>,
+    ) -> Option<RecordedVersion> {
+        recorded.into_iter().min_by_key(|r| match r {
+            RecordedVersion::MetadataYaml(_) => 0,
+            RecordedVersion::StorageFile(_) => 1,
+            RecordedVersion::Distribution(_) => 2,
+            RecordedVersion::SqliteLayoutBeforeJazzy => 3,
+        })
+    }
+}
+
 /// What `ros2 bag info` shows about a bag.
 #[derive(Debug, Clone)]
 pub struct BagInfo {
@@ -150,6 +189,15 @@ impl StorageFile {
             StorageFile::Mcap(m) => m.cut_in_magic().is_none(),
             StorageFile::Sqlite(_) => true,
             StorageFile::Unreadable => false,
+        }
+    }
+
+    /// What the file records of the rosbag2 that wrote it.
+    fn recorded_version(&self) -> Option<&RecordedVersion> {
+        match self {
+            StorageFile::Mcap(m) => m.recorded.as_ref(),
+            StorageFile::Sqlite(s) => s.recorded.as_ref(),
+            StorageFile::Unreadable => None,
         }
     }
 
@@ -349,6 +397,22 @@ impl BagReader {
     /// The parsed `metadata.yaml`, `None` for a bare `.mcap`.
     pub fn bag_metadata(&self) -> Option<&BagMetadata> {
         self.metadata.as_ref()
+    }
+
+    /// What the bag records of the rosbag2 metadata version it was written in: metadata.yaml's
+    /// `version`; without metadata.yaml (a killed recorder, a bare file), what its storage
+    /// files record (see [`RecordedVersion`]); `None` when they record nothing. Read when the
+    /// files are opened (a few rows of small sqlite tables, one small MCAP record found
+    /// through the summary's metadata index, or seen by the scan of a file without summary).
+    pub fn recorded_version(&self) -> Option<RecordedVersion> {
+        match &self.metadata {
+            Some(metadata) => Some(RecordedVersion::MetadataYaml(metadata.version)),
+            None => RecordedVersion::most_telling(
+                self.files
+                    .iter()
+                    .filter_map(|(_, file)| file.recorded_version().cloned()),
+            ),
+        }
     }
 
     pub fn topics(&self) -> &[TopicInfo] {
@@ -1247,6 +1311,131 @@ pub(crate) mod tests {
             );
             assert_eq!(on_b.len(), want.iter().filter(|(t, _)| t == "/b").count());
         }
+    }
+
+    /// A killed recorder leaves no metadata.yaml, but its sqlite3 file records what wrote it:
+    /// Humble's `schema` row (version 3, `humble`) without a `metadata` table, Iron's
+    /// `metadata` row of version 8, Jazzy's of 9, or a layout older than both tables. `run` and
+    /// `bag convert` wrote version 9 over all of them, which Humble's and Iron's `ros2 bag
+    /// info` cannot parse. metadata.yaml, where there is one, wins.
+    #[test]
+    fn a_sqlite3_file_without_metadata_yaml_tells_which_rosbag2_wrote_it() {
+        use crate::MetadataVersion::{V8, V9};
+        use crate::{MetadataVersion, RecordedVersion::*};
+        let tmp = tempfile::tempdir().unwrap();
+        let recorded = |name: &str, sql: &str, keep_metadata_yaml: bool| {
+            let bag = tmp.path().join(name);
+            let file = write_bag(&bag, StorageId::Sqlite3, 1000, &[payload(0)]);
+            rusqlite::Connection::open(&file)
+                .unwrap()
+                .execute_batch(sql)
+                .unwrap();
+            if !keep_metadata_yaml {
+                std::fs::remove_file(bag.join("metadata.yaml")).unwrap();
+            }
+            let recorded = BagReader::open(&bag).unwrap().recorded_version();
+            let version = MetadataVersion::like_source(recorded.as_ref());
+            (recorded.unwrap(), version)
+        };
+        let humble = "UPDATE schema SET schema_version = 3, ros_distro = 'humble';
+                      DROP TABLE metadata;";
+        let iron =
+            "UPDATE schema SET ros_distro = 'iron'; UPDATE metadata SET metadata_version = 8;";
+        let jazzy = "UPDATE schema SET ros_distro = 'jazzy';";
+        assert_eq!(
+            recorded("humble", humble, false),
+            (Distribution("humble".into()), V8)
+        );
+        assert_eq!(recorded("iron", iron, false), (StorageFile(8), V8));
+        assert_eq!(recorded("jazzy", jazzy, false), (StorageFile(9), V9));
+        let iron_unclosed = "UPDATE schema SET ros_distro = 'iron'; DELETE FROM metadata;";
+        assert_eq!(
+            recorded("iron_unclosed", iron_unclosed, false),
+            (Distribution("iron".into()), V8)
+        );
+        let jazzy_unclosed = "UPDATE schema SET ros_distro = 'jazzy'; DELETE FROM metadata;";
+        assert_eq!(
+            recorded("jazzy_unclosed", jazzy_unclosed, false),
+            (Distribution("jazzy".into()), V9)
+        );
+        let foxy = "DROP TABLE schema; DROP TABLE metadata;";
+        assert_eq!(recorded("foxy", foxy, false), (SqliteLayoutBeforeJazzy, V8));
+        let humble_unnamed = "UPDATE schema SET schema_version = 3, ros_distro = '';
+                              DROP TABLE metadata;";
+        assert_eq!(
+            recorded("humble_unnamed", humble_unnamed, false),
+            (SqliteLayoutBeforeJazzy, V8)
+        );
+        assert_eq!(
+            recorded("humble_listed", humble, true),
+            (MetadataYaml(9), V9)
+        );
+    }
+
+    /// rosbag2 Iron (from 0.22.2) notes its `ROS_DISTRO` in a `rosbag2` Metadata record when it
+    /// opens an MCAP for writing, so a file its killed recorder left (no summary, no
+    /// metadata.yaml) says it too; a finished file's record is found through the summary's
+    /// metadata index. The `serialized_metadata` a finished file holds (as `BagWriter` writes
+    /// it) tells the version itself.
+    #[test]
+    fn an_mcap_without_metadata_yaml_tells_which_rosbag2_wrote_it() {
+        use crate::MetadataVersion::{V8, V9};
+        use crate::{MetadataVersion, RecordedVersion::*};
+        let tmp = tempfile::tempdir().unwrap();
+        for distro in ["humble", "iron"] {
+            let mut bytes = Vec::new();
+            {
+                let mut writer = mcap::WriteOptions::new()
+                    .profile("ros2")
+                    .create(std::io::Cursor::new(&mut bytes))
+                    .unwrap();
+                writer
+                    .write_metadata(&mcap::records::Metadata {
+                        name: "rosbag2".into(),
+                        metadata: [("ROS_DISTRO".to_string(), distro.to_string())].into(),
+                    })
+                    .unwrap();
+                let schema = writer
+                    .add_schema("std_msgs/msg/String", "ros2msg", b"string data")
+                    .unwrap();
+                let channel_id = writer
+                    .add_channel(schema, "/raw", "cdr", &Default::default())
+                    .unwrap();
+                let header = mcap::records::MessageHeader {
+                    channel_id,
+                    sequence: 1,
+                    log_time: 1000,
+                    publish_time: 1000,
+                };
+                writer.write_to_known_channel(&header, &payload(0)).unwrap();
+                writer.finish().unwrap();
+            }
+            for cut_short in [false, true] {
+                let file = tmp.path().join(format!("{distro}_{cut_short}.mcap"));
+                let kept = if cut_short {
+                    bytes.len() - 20
+                } else {
+                    bytes.len()
+                };
+                std::fs::write(&file, &bytes[..kept]).unwrap();
+                let reader = BagReader::open(&file).unwrap();
+                assert_eq!(reader.metadata().truncated, cut_short, "{}", file.display());
+                let recorded = reader.recorded_version();
+                assert_eq!(
+                    recorded,
+                    Some(Distribution(distro.into())),
+                    "{}",
+                    file.display()
+                );
+                assert_eq!(MetadataVersion::like_source(recorded.as_ref()), V8);
+            }
+        }
+        let bag = tmp.path().join("ours");
+        write_bag(&bag, StorageId::Mcap, 1000, &[payload(0)]);
+        std::fs::remove_file(bag.join("metadata.yaml")).unwrap();
+        let recorded = BagReader::open(&bag).unwrap().recorded_version();
+        assert_eq!(recorded, Some(StorageFile(9)));
+        assert_eq!(MetadataVersion::like_source(recorded.as_ref()), V9);
     }
 
     /// Without metadata.yaml nothing says whether `.mcap` or `.db3` files make up the bag.

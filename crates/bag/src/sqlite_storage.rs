@@ -11,7 +11,7 @@ use rusqlite::{Connection, OpenFlags, OptionalExtension, ffi, params};
 use crate::error::{BagError, Result, sqlite_error};
 use crate::metadata::BagMetadata;
 use crate::qos;
-use crate::reader::{BagMessage, MessageFilter, TopicInfo};
+use crate::reader::{BagMessage, MessageFilter, RecordedVersion, TopicInfo};
 use crate::source::{StorageSource, copy_for_temporary};
 use crate::writer::{StorageSink, WriterTopic};
 
@@ -173,6 +173,8 @@ pub(crate) struct SqliteFile {
     source: StorageSource,
     pub(crate) topics: Vec<TopicInfo>,
     pub(crate) time_bounds: Option<(i64, i64)>,
+    /// What the file records of the rosbag2 that wrote it ([`recorded_version`]).
+    pub(crate) recorded: Option<RecordedVersion>,
 }
 
 fn open_read_only(db: &Path) -> rusqlite::Result<Connection> {
@@ -248,6 +250,51 @@ fn roll_back_on_copy(source: &StorageSource) -> Result<StorageSource> {
     probe(&conn).map_err(sqlite_error(path))?;
     conn.close().map_err(|(_, e)| sqlite_error(path)(e))?;
     Ok(copy)
+}
+
+/// What the file records of the rosbag2 that wrote it: the `metadata_version` of the last row
+/// of the `metadata` table (rosbag2 reads the last one too), else the `ros_distro` of the
+/// `schema` table, else whether its layout is one only rosbag2 before Jazzy writes (see
+/// [`RecordedVersion`]). One-row queries. A table that cannot be read records nothing: this
+/// only picks a default, and must not make a bag whose messages read unreadable.
+fn recorded_version(conn: &Connection) -> Option<RecordedVersion> {
+    let has_table = |name: &str| {
+        conn.query_row(
+            "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?1",
+            [name],
+            |_| Ok(()),
+        )
+        .optional()
+        .is_ok_and(|found| found.is_some())
+    };
+    if has_table("metadata") {
+        let version = conn
+            .query_row(
+                "SELECT metadata_version FROM metadata ORDER BY id DESC LIMIT 1",
+                [],
+                |row| row.get::<_, i64>(0),
+            )
+            .ok()
+            .and_then(|version| u32::try_from(version).ok());
+        if let Some(version) = version {
+            return Some(RecordedVersion::StorageFile(version));
+        }
+    }
+    if !has_table("schema") {
+        return Some(RecordedVersion::SqliteLayoutBeforeJazzy);
+    }
+    let (schema_version, ros_distro) = conn
+        .query_row("SELECT schema_version, ros_distro FROM schema", [], |row| {
+            Ok((row.get::<_, i64>(0)?, row.get::<_, String>(1)?))
+        })
+        .ok()?;
+    if !ros_distro.is_empty() {
+        Some(RecordedVersion::Distribution(ros_distro))
+    } else if schema_version <= 3 {
+        Some(RecordedVersion::SqliteLayoutBeforeJazzy)
+    } else {
+        None
+    }
 }
 
 fn has_column(conn: &Connection, table: &str, column: &str) -> rusqlite::Result<bool> {
@@ -352,6 +399,7 @@ impl SqliteFile {
             _ => None,
         };
         Ok(Self {
+            recorded: recorded_version(&conn),
             source,
             topics,
             time_bounds,

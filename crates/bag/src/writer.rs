@@ -17,7 +17,7 @@ use crate::metadata::{
     BagMetadata, FileInformation, Nanoseconds, NanosecondsSinceEpoch, TopicMetadata, TopicWithCount,
 };
 use crate::qos::{self, OfferedQos};
-use crate::reader::TopicInfo;
+use crate::reader::{RecordedVersion, TopicInfo};
 use crate::sqlite_storage::SqliteSink;
 
 /// Storage plugin of a bag, as named in `metadata.yaml`.
@@ -110,18 +110,36 @@ impl MetadataVersion {
         }
     }
 
-    /// The version of a bag made from a source bag of metadata version `source_version` when
-    /// none is asked for: a source that the distributions before Jazzy read (version 8 or
-    /// older: Humble writes 5, Iron 8) gives 8, which they read too, since their `ros2 bag
-    /// info` and `play` cannot parse 9 (ros2/rosbag2#2013); anything else, a source without
-    /// metadata.yaml included, gives 9.
-    pub fn like_source(source_version: Option<u32>) -> Self {
-        match source_version {
-            Some(version) if version < 9 => MetadataVersion::V8,
-            _ => MetadataVersion::default(),
+    /// The version of a bag made from a source bag that records `source`
+    /// ([`BagReader::recorded_version`](crate::BagReader::recorded_version)) when none is
+    /// asked for: a source that the distributions before Jazzy wrote gives 8, which they read,
+    /// since their `ros2 bag info` and `play` cannot parse 9 (ros2/rosbag2#2013). That is a
+    /// recorded version of 8 or older (Humble writes 5, Iron 8), or, where no version is
+    /// recorded, a distribution before Jazzy (Humble, Iron and older) or a sqlite3 layout only
+    /// they write. Anything else (version 9, Jazzy or later, nothing recorded) gives 9.
+    pub fn like_source(source: Option<&RecordedVersion>) -> Self {
+        let before_jazzy = match source {
+            Some(
+                RecordedVersion::MetadataYaml(version) | RecordedVersion::StorageFile(version),
+            ) => *version < 9,
+            Some(RecordedVersion::Distribution(name)) => DISTRIBUTIONS_BEFORE_JAZZY
+                .iter()
+                .any(|before| name.eq_ignore_ascii_case(before)),
+            Some(RecordedVersion::SqliteLayoutBeforeJazzy) => true,
+            None => false,
+        };
+        if before_jazzy {
+            MetadataVersion::V8
+        } else {
+            MetadataVersion::default()
         }
     }
 }
+
+/// The `ROS_DISTRO` names of the ROS 2 distributions before Jazzy.
+const DISTRIBUTIONS_BEFORE_JAZZY: [&str; 9] = [
+    "ardent", "bouncy", "crystal", "dashing", "eloquent", "foxy", "galactic", "humble", "iron",
+];
 
 impl std::str::FromStr for MetadataVersion {
     type Err = String;
@@ -558,9 +576,19 @@ mod tests {
     /// convert` used to write version 9, which their `ros2 bag info` cannot parse.
     #[test]
     fn a_bag_made_from_one_older_than_jazzy_is_of_a_version_they_read() {
-        assert_eq!(MetadataVersion::like_source(Some(5)), MetadataVersion::V8);
-        assert_eq!(MetadataVersion::like_source(Some(8)), MetadataVersion::V8);
-        assert_eq!(MetadataVersion::like_source(Some(9)), MetadataVersion::V9);
+        use RecordedVersion::*;
+        let like = |recorded: RecordedVersion| MetadataVersion::like_source(Some(&recorded));
+        assert_eq!(like(MetadataYaml(5)), MetadataVersion::V8);
+        assert_eq!(like(MetadataYaml(8)), MetadataVersion::V8);
+        assert_eq!(like(MetadataYaml(9)), MetadataVersion::V9);
+        assert_eq!(like(StorageFile(8)), MetadataVersion::V8);
+        assert_eq!(like(StorageFile(9)), MetadataVersion::V9);
+        assert_eq!(like(Distribution("humble".into())), MetadataVersion::V8);
+        assert_eq!(like(Distribution("iron".into())), MetadataVersion::V8);
+        assert_eq!(like(Distribution("foxy".into())), MetadataVersion::V8);
+        assert_eq!(like(Distribution("jazzy".into())), MetadataVersion::V9);
+        assert_eq!(like(Distribution("rolling".into())), MetadataVersion::V9);
+        assert_eq!(like(SqliteLayoutBeforeJazzy), MetadataVersion::V8);
         assert_eq!(MetadataVersion::like_source(None), MetadataVersion::V9);
     }
 

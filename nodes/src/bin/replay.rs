@@ -4,7 +4,10 @@
 //! the bag's time line for `use_sim_time`, at a fixed rate as `ros2 bag play --clock` does.
 //!
 //! Parameters: `bag` (required), `rate` (1.0; 0 = as fast as possible), `loop`,
-//! `start_offset` (s into the bag, up to its length), `topics` (only these; empty = all;
+//! `start_offset` (s into the bag, up to its length), `playback_duration` (s of bag time
+//! played from `start_offset`, the messages logged in `[offset, offset + duration)`, each
+//! `loop` pass as long; negative, the default, plays to the bag's end, as
+//! `ros2 bag play --playback-duration`), `topics` (only these; empty = all;
 //! those the bag lacks are skipped with a warning, none present is an error), `publish_clock`
 //! (then the bag's own /clock is not played), `clock_frequency` (/clock publications a second
 //! of wall time, 40 as `ros2 bag play --clock`), `wait_for_subscriber` (a topic to wait on
@@ -15,8 +18,9 @@
 //! 0 = don't wait).
 //!
 //! With `loop`, each pass lasts the whole bag (from `start_offset` to its last message, of any
-//! topic) and at least a second of bag time, both over the rate: a selection of topics that
-//! spans no bag time (`topics:=[/map]`) used to be published again and again without a pause.
+//! topic, or `playback_duration` if that ends sooner) and at least a second of bag time,
+//! both over the rate: a selection of topics that spans no bag time (`topics:=[/map]`) used
+//! to be published again and again without a pause.
 //! Each pass starts /clock again at `start_offset`, as rosbag2's player jumps its clock back.
 //!
 //! Each pass reads the bag from `start_offset` on, as `ros2 bag play --start-offset` seeks
@@ -89,6 +93,11 @@ fn decls() -> Vec<ParamDecl> {
             "seconds into the bag to start at, up to its length",
         ),
         ParamDecl::new(
+            "playback_duration",
+            V::Double(-1.0),
+            "seconds of bag time to play from start_offset; negative plays to the bag's end",
+        ),
+        ParamDecl::new(
             "topics",
             V::StringArray(Vec::new()),
             "topics to play; empty plays all; those the bag lacks are skipped",
@@ -138,6 +147,8 @@ struct Settings {
     rate: f64,
     looping: bool,
     start_offset_ns: i64,
+    /// `None`: to the bag's end.
+    playback_duration_ns: Option<i64>,
     topics: Vec<String>,
     publish_clock: bool,
     clock_period: Duration,
@@ -159,6 +170,11 @@ impl Settings {
         let rule = format!("0 (as fast as possible) or >= {MIN_RATE}");
         let rate = p.f64_checked("rate", &rule, |v| v == 0.0 || v >= MIN_RATE)?;
         let offset = seconds(p, "start_offset", 0.0..=MAX_OFFSET_S)?;
+        // As `ros2 bag play --playback-duration`: negative (its default, -1) is no limit.
+        let rule = format!("negative (to the bag's end) or in (0, {MAX_OFFSET_S}] s");
+        let duration = p.f64_checked("playback_duration", &rule, |v| {
+            v < 0.0 || (v > 0.0 && v <= MAX_OFFSET_S)
+        })?;
         let rule = format!("Hz in {}..={}", CLOCK_HZ.start(), CLOCK_HZ.end());
         let clock_hz = p.f64_checked("clock_frequency", &rule, |v| CLOCK_HZ.contains(&v))?;
         Ok(Self {
@@ -166,6 +182,7 @@ impl Settings {
             rate,
             looping: p.bool("loop")?,
             start_offset_ns: i64::try_from(offset.as_nanos()).unwrap_or(i64::MAX),
+            playback_duration_ns: (duration > 0.0).then(|| (duration * 1e9).round() as i64),
             topics: p.string_array("topics")?,
             publish_clock: p.bool("publish_clock")?,
             clock_period: Duration::from_secs_f64(1.0 / clock_hz),
@@ -340,6 +357,10 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     };
     let (bag_start, bag_end) = (info.start_ns, info.end_ns);
     let begin = bag_start.saturating_add(settings.start_offset_ns);
+    // Where a pass ends: `playback_duration` after the offset, at most the bag's end.
+    let pass_end_ns = settings.playback_duration_ns.map_or(bag_end, |duration| {
+        begin.saturating_add(duration).min(bag_end)
+    });
     if let Some(publisher) = publishers.get(&settings.wait_for) {
         let deadline = Instant::now() + settings.wait_timeout;
         while publisher.subscription_count() == 0 {
@@ -363,9 +384,12 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     // seeks: an MCAP with a summary reads only the chunks from there, sqlite3 asks for the
     // range (and topics) in its query. Reading the part before the offset took over a second
     // a pass, 19 s into a 20 s zstd bag of images (0.014 s now: docs/bag.md).
-    let to_play = MessageFilter::new()
+    let mut to_play = MessageFilter::new()
         .topics(&selection.play)
         .starting_at(begin);
+    if let Some(duration) = settings.playback_duration_ns {
+        to_play = to_play.ending_before(begin.saturating_add(duration));
+    }
     loop {
         let mut pacing = Pacing::new(begin, settings.rate);
         if let Some((_, ticks)) = &mut clock {
@@ -405,7 +429,7 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
         if !settings.looping || shutdown.requested() {
             break;
         }
-        let pass_end = pacing.pass_end(bag_end, Instant::now());
+        let pass_end = pacing.pass_end(pass_end_ns, Instant::now());
         if !sleep_until_ticking(pass_end, shutdown, &mut clock, |now| {
             pacing.bag_time_at(now)
         })? {

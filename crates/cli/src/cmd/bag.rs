@@ -4,8 +4,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use lidar_har_bag::{
-    BagInfo, BagReader, BagWriter, Compression, MessageFilter, MetadataVersion, StorageId,
-    TopicInfo, WriterOptions,
+    BagInfo, BagReader, BagWriter, Compression, MessageFilter, MetadataVersion, RecordedVersion,
+    StorageId, TopicInfo, WriterOptions,
 };
 use lidar_har_msgs::RosMessage;
 use lidar_har_msgs::visualization_msgs::{Marker, MarkerArray};
@@ -38,8 +38,9 @@ pub enum BagCommand {
         #[arg(long, default_value = "none", value_parser = parse_compression)]
         compression: Compression,
         /// rosbag2 metadata version of the new bag: 9 (read by Jazzy and later) or 8 (read by
-        /// Humble, Iron and later; use it for a Humble robot). Default: 8 when the source's
-        /// metadata.yaml is version 8 or older (Humble writes 5, Iron 8), else 9.
+        /// Humble, Iron and later; use it for a Humble robot). Default: 8 when the source was
+        /// written before Jazzy (metadata.yaml version 8 or older: Humble writes 5, Iron 8; or,
+        /// without metadata.yaml, what its storage files record), else 9.
         #[arg(long, value_parser = super::parse_metadata_version)]
         rosbag2_version: Option<MetadataVersion>,
         /// Copy from this many seconds into the source, counted from its first message, as
@@ -58,7 +59,7 @@ pub enum BagCommand {
             long = "duration",
             value_name = "SECONDS",
             allow_negative_numbers = true,
-            value_parser = parse_seconds
+            value_parser = parse_duration
         )]
         duration_ns: Option<i64>,
         /// Copy only these topics (default: all); the new bag lists only them. The list takes
@@ -106,6 +107,15 @@ fn parse_seconds(s: &str) -> Result<i64, String> {
         return Err("must be a finite number of seconds, 0 or more".to_string());
     }
     Ok((seconds * 1e9).round() as i64)
+}
+
+/// `--duration`: as [`parse_seconds`], but more than 0: a clip of no time would be empty, as
+/// the `replay` node refuses `playback_duration:=0`.
+fn parse_duration(s: &str) -> Result<i64, String> {
+    match parse_seconds(s)? {
+        0 => Err("must be more than 0 seconds: the clip would be empty".to_string()),
+        ns => Ok(ns),
+    }
 }
 
 fn parse_storage(s: &str) -> Result<StorageId, String> {
@@ -171,8 +181,8 @@ fn info(path: &Path) -> anyhow::Result<()> {
     outln!("Files:             {}", files.join("\n                   "));
     outln!("Bag size:          {}", human_size(size));
     outln!("Storage id:        {}", info.storage);
-    if let Some(version) = info.metadata_version {
-        outln!("Metadata version:  {version}");
+    if let Some(line) = recorded_version_line(reader.recorded_version().as_ref()) {
+        outln!("{line}");
     }
     if !info.ros_distro.is_empty() {
         outln!("ROS Distro:        {}", info.ros_distro);
@@ -231,6 +241,22 @@ fn missing_metadata_note(path: &Path, info: &BagInfo) -> Option<String> {
     })
 }
 
+/// The `info` line of the metadata version (or, where none is recorded, the distribution) the
+/// bag records: without metadata.yaml, what its storage files say, which `convert` and `run`
+/// follow.
+fn recorded_version_line(recorded: Option<&RecordedVersion>) -> Option<String> {
+    match recorded? {
+        RecordedVersion::MetadataYaml(version) => Some(format!("Metadata version:  {version}")),
+        RecordedVersion::StorageFile(version) => Some(format!(
+            "Metadata version:  {version} (from the storage file)"
+        )),
+        RecordedVersion::Distribution(distro) => Some(format!(
+            "ROS Distro:        {distro} (from the storage file)"
+        )),
+        RecordedVersion::SqliteLayoutBeforeJazzy => None,
+    }
+}
+
 fn convert(
     src: &Path,
     dst: &Path,
@@ -246,9 +272,8 @@ fn convert(
     let mut options = WriterOptions {
         storage,
         compression,
-        metadata_version: metadata_version.unwrap_or_else(|| {
-            MetadataVersion::like_source(reader.bag_metadata().map(|m| m.version))
-        }),
+        metadata_version: metadata_version
+            .unwrap_or_else(|| MetadataVersion::like_source(reader.recorded_version().as_ref())),
         ..WriterOptions::default()
     };
     if let Some(metadata) = reader.bag_metadata() {
@@ -666,11 +691,6 @@ mod tests {
                 (&["--duration", "0.05"][..], 0.0, Some(0.05)),
                 // Up to the source's length: its last message only.
                 (&["--start-offset", "9.9"][..], 9.9, None),
-                (
-                    &["--start-offset", "3", "--duration", "0"][..],
-                    3.0,
-                    Some(3.0),
-                ),
             ] {
                 let dst = tmp.path().join(format!("clip_{start_s}_{end_s:?}"));
                 let storage_arg = storage.to_string();
@@ -791,7 +811,7 @@ mod tests {
     }
 
     #[test]
-    fn a_negative_or_non_finite_time_is_refused_naming_the_option() {
+    fn a_negative_non_finite_or_empty_time_is_refused_naming_the_option() {
         let tmp = tempfile::tempdir().unwrap();
         let src = tmp.path().join("rec");
         recording(&src, StorageId::Mcap);
@@ -802,6 +822,10 @@ mod tests {
                 .into_iter()
                 .map(|value| vec![option, value])
                 .collect();
+            if option == "--duration" {
+                // It wrote an empty bag and succeeded.
+                lines.extend([vec![option, "0"], vec![option, "0.0000000001"]]);
+            }
             lines.push(vec![&attached]);
             lines.push(vec![option]);
             for line in lines {
@@ -849,8 +873,16 @@ mod tests {
         writer.finish().unwrap();
         let with = BagReader::open(&dir).unwrap();
         assert_eq!(missing_metadata_note(&dir, &with.metadata()), None);
+        assert_eq!(
+            recorded_version_line(with.recorded_version().as_ref()).unwrap(),
+            "Metadata version:  9"
+        );
         std::fs::remove_file(dir.join("metadata.yaml")).unwrap();
         let without = BagReader::open(&dir).unwrap();
+        assert_eq!(
+            recorded_version_line(without.recorded_version().as_ref()).unwrap(),
+            "Metadata version:  9 (from the storage file)"
+        );
         let note = missing_metadata_note(&dir, &without.metadata()).unwrap();
         assert!(
             note.contains("`ros2 bag play` needs it")

@@ -41,7 +41,8 @@ pub struct RunArgs {
     /// Humble, Iron and later; use it for a Humble or Iron robot, whose `ros2 bag info` and
     /// `play` cannot parse 9; the bag is MCAP, which needs ros-humble-rosbag2-storage-mcap
     /// there, or `lidar-har bag convert OUT OUT_DB3 --storage sqlite3`). Default: 8 when the
-    /// input's metadata.yaml is version 8 or older (Humble writes 5, Iron 8), else 9.
+    /// input was written before Jazzy (metadata.yaml version 8 or older: Humble writes 5, Iron
+    /// 8; or, without metadata.yaml, what its storage files record), else 9.
     #[arg(long, value_parser = super::parse_metadata_version)]
     pub rosbag2_version: Option<MetadataVersion>,
 }
