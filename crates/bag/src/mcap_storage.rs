@@ -1091,17 +1091,7 @@ mod tests {
         );
         let mut sink = super::McapSink::create(&path, Compression::None, 256, 9).unwrap();
         sink.max_message_len = 4096;
-        let mut topic = WriterTopic {
-            name: "/map".into(),
-            type_name: "std_msgs/msg/String".into(),
-            serialization_format: "cdr".into(),
-            schema_text: "string data\n".into(),
-            qos: Vec::new(),
-            type_description_hash: String::new(),
-            storage_id: 0,
-            message_count: 0,
-        };
-        topic.storage_id = sink.add_topic(&topic).unwrap();
+        let topic = WriterTopic::string_added_to(&mut sink, "/map");
         let err = sink.write(&topic, 7, &[0; 4097]).unwrap_err().to_string();
         assert!(
             err.contains("`/map`") && err.contains("4097 bytes") && err.contains("4096 bytes"),

@@ -784,6 +784,20 @@ pub(crate) mod tests {
         compressed
     }
 
+    /// Compresses the bag's one storage `file` whole, as rosbag2's FILE mode does, and lists
+    /// the compressed file in its metadata.yaml; returns it.
+    fn compress_whole(bag: &Path, file: &Path) -> PathBuf {
+        let compressed = zstd_file(file);
+        let mut metadata = BagMetadata::read(bag).unwrap();
+        let listed = compressed.file_name().unwrap().to_string_lossy();
+        metadata.relative_file_paths = vec![listed.to_string()];
+        metadata.files[0].path = listed.to_string();
+        metadata.compression_format = "zstd".into();
+        metadata.compression_mode = "FILE".into();
+        metadata.write(bag).unwrap();
+        compressed
+    }
+
     /// A killed recorder leaves no metadata.yaml; with sqlite3 storage (Humble's default) its
     /// files are `.db3`. They are read in split order (`_10` after `_9`), and so is one given
     /// on its own.
@@ -828,14 +842,7 @@ pub(crate) mod tests {
             let bag = tmp.path().join("bag");
             let written: Vec<Vec<u8>> = (0..30).map(payload).collect();
             let file = write_bag(&bag, storage, 1000, &written);
-            let compressed = zstd_file(&file);
-            let mut metadata = BagMetadata::read(&bag).unwrap();
-            let listed = compressed.file_name().unwrap().to_string_lossy();
-            metadata.relative_file_paths = vec![listed.to_string()];
-            metadata.files[0].path = listed.to_string();
-            metadata.compression_format = "zstd".into();
-            metadata.compression_mode = "FILE".into();
-            metadata.write(&bag).unwrap();
+            let compressed = compress_whole(&bag, &file);
             let expected: Vec<_> = (1000..).zip(written.iter().cloned()).collect();
             let (messages, errors) = read_all(&bag);
             assert!(errors.is_empty(), "{storage}: {errors:?}");
@@ -1195,14 +1202,7 @@ pub(crate) mod tests {
             let bag = tmp.path().join(name);
             let file = write_two_topics(&bag, storage, compression, 1000, 100);
             if name.ends_with("file_mode") {
-                let compressed = zstd_file(&file);
-                let mut metadata = BagMetadata::read(&bag).unwrap();
-                let listed = compressed.file_name().unwrap().to_string_lossy();
-                metadata.relative_file_paths = vec![listed.to_string()];
-                metadata.files[0].path = listed.to_string();
-                metadata.compression_format = "zstd".into();
-                metadata.compression_mode = "FILE".into();
-                metadata.write(&bag).unwrap();
+                compress_whole(&bag, &file);
             }
             let ranges = [(1500, 1700), (1505, 1691), (1990, 2000), (-5, 1010)];
             for (start, end) in ranges {

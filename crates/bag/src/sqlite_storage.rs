@@ -568,17 +568,7 @@ mod tests {
         let path = tmp.path().join("rec_0.db3");
         let mut sink = SqliteSink::create(&path, "jazzy", 9).unwrap();
         sink.commit_after = 64 << 10;
-        let mut topic = WriterTopic {
-            name: "/raw".into(),
-            type_name: "std_msgs/msg/String".into(),
-            serialization_format: "cdr".into(),
-            schema_text: "string data\n".into(),
-            qos: Vec::new(),
-            type_description_hash: String::new(),
-            storage_id: 0,
-            message_count: 0,
-        };
-        topic.storage_id = sink.add_topic(&topic).unwrap();
+        let topic = WriterTopic::string_added_to(&mut sink, "/raw");
         for i in 0..100 {
             sink.write(&topic, 1000 + i64::from(i), &payload(i))
                 .unwrap();
@@ -611,21 +601,8 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let path = tmp.path().join("rec_0.db3");
         let mut sink = SqliteSink::create(&path, "jazzy", 9).unwrap();
-        let mut add = |name: &str| {
-            let mut topic = WriterTopic {
-                name: name.into(),
-                type_name: "std_msgs/msg/String".into(),
-                serialization_format: "cdr".into(),
-                schema_text: "string data\n".into(),
-                qos: Vec::new(),
-                type_description_hash: String::new(),
-                storage_id: 0,
-                message_count: 0,
-            };
-            topic.storage_id = sink.add_topic(&topic).unwrap();
-            topic
-        };
-        let (image, scan) = (add("/image"), add("/scan"));
+        let image = WriterTopic::string_added_to(&mut sink, "/image");
+        let scan = WriterTopic::string_added_to(&mut sink, "/scan");
         // 40 kB images and 6 kB scans, two of each on every timestamp.
         let image_data = |i: u32| payload(i).repeat(7)[..40_000].to_vec();
         let mut written = Vec::new();
@@ -716,6 +693,7 @@ mod tests {
         drop(reader);
         assert!(files() == files_before, "the bag's files are unchanged");
     }
+
     /// A time range is asked for in the query, with the topic filter, across byte-bounded
     /// batches: the first batch already starts at the range (the rows before it are not
     /// fetched), and rows of equal timestamps keep their order. The writer creates rosbag2's
@@ -726,21 +704,8 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let path = tmp.path().join("rec_0.db3");
         let mut sink = SqliteSink::create(&path, "jazzy", 9).unwrap();
-        let mut add = |name: &str| {
-            let mut topic = WriterTopic {
-                name: name.into(),
-                type_name: "std_msgs/msg/String".into(),
-                serialization_format: "cdr".into(),
-                schema_text: "string data\n".into(),
-                qos: Vec::new(),
-                type_description_hash: String::new(),
-                storage_id: 0,
-                message_count: 0,
-            };
-            topic.storage_id = sink.add_topic(&topic).unwrap();
-            topic
-        };
-        let (image, scan) = (add("/image"), add("/scan"));
+        let image = WriterTopic::string_added_to(&mut sink, "/image");
+        let scan = WriterTopic::string_added_to(&mut sink, "/scan");
         // 40 rows of 6 kB, two topics on each timestamp, written out of timestamp order.
         let mut written = Vec::new();
         for i in (0..20).rev().chain(20..40) {

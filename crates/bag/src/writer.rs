@@ -205,6 +205,25 @@ pub(crate) struct WriterTopic {
     pub message_count: u64,
 }
 
+#[cfg(test)]
+impl WriterTopic {
+    /// A `std_msgs/msg/String` topic `name` added to `sink`, for the storages' own tests.
+    pub(crate) fn string_added_to(sink: &mut dyn StorageSink, name: &str) -> Self {
+        let mut topic = WriterTopic {
+            name: name.into(),
+            type_name: "std_msgs/msg/String".into(),
+            serialization_format: "cdr".into(),
+            schema_text: "string data\n".into(),
+            qos: Vec::new(),
+            type_description_hash: String::new(),
+            storage_id: 0,
+            message_count: 0,
+        };
+        topic.storage_id = sink.add_topic(&topic).unwrap();
+        topic
+    }
+}
+
 /// What a storage back-end does; the writer keeps topics, counts and metadata.
 pub(crate) trait StorageSink {
     fn add_topic(&mut self, topic: &WriterTopic) -> Result<i64>;
