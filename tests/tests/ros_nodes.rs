@@ -1013,6 +1013,138 @@ kill -TERM $L $C; wait $L; echo "localiser=$?"; wait $C; echo "classifier=$?"
     }
 }
 
+/// ros2-client's spinner, which served `ros2 param`, subscribed /clock as
+/// builtin_interfaces/msg/Time: every node serving parameters showed a /clock of that type,
+/// and beside a real /clock publisher the topic had two types (`ros2 topic echo /clock`
+/// refuses it, `ros2 bag record -a` leaves it out). Now no node has it, replay included.
+#[test]
+fn ros_clock_has_only_the_ros_2_clock_type_beside_nodes_serving_parameters() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 20);
+    let script = r#"
+"$LOC" 2> "$OUT/localiser.err" & L=$!
+"$CLS" --ros-args -p model:="$MODEL" 2> "$OUT/classifier.err" & C=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p loop:=true 2> "$OUT/replay.err" & R=$!
+wait_until 30 topics_listed /clock /tf /human/pelvis
+"$LH" topic list -t --wait 2 > "$OUT/topics.txt"; echo "list=$?"
+kill -TERM $L $C $R; wait $L; echo "localiser=$?"; wait $C; echo "classifier=$?"
+wait $R; echo "replay=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("LH", &workspace_bin("lidar-har")),
+            ("LOC", &workspace_bin("localiser")),
+            ("CLS", &workspace_bin("classifier")),
+            ("REPLAY", &workspace_bin("replay")),
+            ("MODEL", &repo_root().join("models/activity.onnx")),
+            ("BAG", &bag),
+            ("OUT", dir.path()),
+        ],
+        Duration::from_secs(60),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["list=0", "localiser=0", "classifier=0", "replay=0"] {
+        assert!(stdout.contains(want), "expected {want}");
+    }
+    let topics = std::fs::read_to_string(dir.path().join("topics.txt")).unwrap();
+    let clock: Vec<&str> = topics
+        .lines()
+        .filter(|l| l.starts_with("/clock "))
+        .collect();
+    assert_eq!(clock, ["/clock [rosgraph_msgs/msg/Clock]"], "{topics}");
+}
+
+/// The nodes serve `ros2 param` without ros2-client's spinner (whose /clock reader had the
+/// wrong type): answered to a DDS client of another stack (Cyclone DDS) framing requests as
+/// rclcpp's default RMW does, from the start-up values, every set refused with the restart
+/// that would apply it. The replay and nodes on `use_sim_time:=true` used to serve nothing;
+/// a set of `use_sim_time` used to succeed and `describe` to say `read_only: false`.
+#[test]
+fn ros_param_services_answer_a_cyclone_dds_client_from_start_up_values() {
+    let Some(python) = cyclone_python() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 20);
+    let script = r#"
+"$LOC" --ros-args -p use_sim_time:=true -p moving:=false 2> "$OUT/localiser.err" & L=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p rate:=2.0 -p loop:=true 2> "$OUT/replay.err" & R=$!
+wait_until 30 topics_listed /clock /tf
+cd "$PYDIR"
+"$PY" ros_param_client.py localiser 15 use_sim_time false > "$OUT/localiser.json"; echo "localiser_client=$?"
+"$PY" ros_param_client.py replay 15 rate 2.5 > "$OUT/replay.json"; echo "replay_client=$?"
+kill -TERM $L $R; wait $L; echo "localiser=$?"; wait $R; echo "replay=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("LH", &workspace_bin("lidar-har")),
+            ("LOC", &workspace_bin("localiser")),
+            ("REPLAY", &workspace_bin("replay")),
+            ("BAG", &bag),
+            ("OUT", dir.path()),
+            ("PY", &python),
+            ("PYDIR", &repo_root().join("tests/python")),
+        ],
+        Duration::from_secs(60),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in [
+        "localiser_client=0",
+        "replay_client=0",
+        "localiser=0",
+        "replay=0",
+    ] {
+        assert!(stdout.contains(want), "expected {want}");
+    }
+    let answers = |node: &str| -> serde_json::Value {
+        let path = dir.path().join(format!("{node}.json"));
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+    };
+    let localiser = answers("localiser");
+    let names: Vec<&str> = localiser["names"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    assert!(
+        names.contains(&"map_file") && names.contains(&"use_sim_time"),
+        "{names:?}"
+    );
+    assert_eq!(localiser["values"]["use_sim_time"], true);
+    assert_eq!(localiser["values"]["moving"], false);
+    let descriptors = localiser["descriptors"].as_array().unwrap();
+    assert_eq!(descriptors.len(), names.len());
+    assert!(
+        descriptors.iter().all(|d| d["read_only"] == true),
+        "{descriptors:?}"
+    );
+    let refused = "read-only: use_sim_time is read at start-up; restart the node with \
+                   --ros-args -p use_sim_time:=false";
+    assert_eq!(localiser["set"][0]["successful"], false);
+    assert_eq!(localiser["set"][0]["reason"], refused);
+    assert_eq!(localiser["set_atomically"]["successful"], false);
+    assert_eq!(localiser["set_atomically"]["reason"], refused);
+
+    let replay = answers("replay");
+    assert_eq!(replay["values"]["rate"], 2.0);
+    assert_eq!(replay["values"]["bag"], bag.to_str().unwrap());
+    assert_eq!(replay["set"][0]["successful"], false);
+    assert_eq!(
+        replay["set"][0]["reason"],
+        "read-only: rate is read at start-up; restart the node with --ros-args -p rate:=2.5"
+    );
+    for node in ["localiser", "replay"] {
+        let log = std::fs::read_to_string(dir.path().join(format!("{node}.err"))).unwrap();
+        assert!(!log.contains("ERROR"), "{node} logged errors:\n{log}");
+    }
+}
+
 #[test]
 fn ros_sigterm_during_replay_stops_cleanly_without_zombies_or_partial_lines() {
     if !netns_available() {

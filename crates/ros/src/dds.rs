@@ -1,21 +1,23 @@
 //! The default backend: ros2-client (RustDDS) with raw CDR bytes.
 //!
 //! ros2-client's typed publishers serialise serde values; we already have CDR bytes from our
-//! codec. So the ros2-client `Node` provides the ROS side (node in the graph, parameter
-//! services, /clock, ROS topic and type naming) and our data readers and writers are RustDDS
-//! ones on its participant, with a serializer adapter that passes bytes through unchanged.
+//! codec. So the ros2-client `Node` provides the ROS side (node in the graph, rosout, ROS
+//! topic and type naming) and our data readers and writers are RustDDS ones on its
+//! participant, with a serializer adapter that passes bytes through unchanged. The node runs
+//! no ros2-client spinner: `ros2 param` is served by [`crate::param_services`] and /clock read
+//! by [`SimClock`].
 
 use std::collections::HashMap;
 use std::net::Ipv4Addr;
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use lidar_har_msgs::qos::{Durability, History, QosProfile, Reliability};
 use lidar_har_msgs::rosgraph_msgs::Clock;
 use lidar_har_msgs::topics;
 use ros2_client::dds::rustdds;
-use ros2_client::{MessageTypeName, Name, NodeName, NodeOptions, ParameterValue as Ros2Value};
+use ros2_client::{MessageTypeName, Name, NodeName, NodeOptions};
 use rustdds::mio1;
 use rustdds::no_key::{
     self, DataWriter, Decode, DefaultDecoder, DeserializerAdapter, SerializerAdapter,
@@ -25,7 +27,8 @@ use rustdds::{
 };
 
 use crate::args::DiscoveryRange;
-use crate::params::{ParamValue, Parameters};
+use crate::param_services::{ParameterServices, ServedParameters};
+use crate::params::{ParamDecl, ParamValue, Parameters};
 use crate::{
     NodeBackend, OfferedQos, PublisherBackend, RosError, Sample, SubscriberBackend, TopicInfo,
     split_type_name,
@@ -100,54 +103,6 @@ impl Decode<'_, RawCdr> for RawDecoder {
 impl DefaultDecoder<RawCdr> for RawAdapter {
     type Decoder = RawDecoder;
     const DECODER: RawDecoder = RawDecoder;
-}
-
-fn to_ros2_value(v: &ParamValue) -> Ros2Value {
-    match v.clone() {
-        ParamValue::Bool(b) => Ros2Value::Boolean(b),
-        ParamValue::Integer(i) => Ros2Value::Integer(i),
-        ParamValue::Double(d) => Ros2Value::Double(d),
-        ParamValue::String(s) => Ros2Value::String(s),
-        ParamValue::BoolArray(v) => Ros2Value::BooleanArray(v),
-        ParamValue::IntegerArray(v) => Ros2Value::IntegerArray(v),
-        ParamValue::DoubleArray(v) => Ros2Value::DoubleArray(v),
-        ParamValue::StringArray(v) => Ros2Value::StringArray(v),
-    }
-}
-
-fn from_ros2_value(v: Ros2Value) -> Option<ParamValue> {
-    Some(match v {
-        Ros2Value::NotSet | Ros2Value::ByteArray(_) => return None,
-        Ros2Value::Boolean(b) => ParamValue::Bool(b),
-        Ros2Value::Integer(i) => ParamValue::Integer(i),
-        Ros2Value::Double(d) => ParamValue::Double(d),
-        Ros2Value::String(s) => ParamValue::String(s),
-        Ros2Value::BooleanArray(v) => ParamValue::BoolArray(v),
-        Ros2Value::IntegerArray(v) => ParamValue::IntegerArray(v),
-        Ros2Value::DoubleArray(v) => ParamValue::DoubleArray(v),
-        Ros2Value::StringArray(v) => ParamValue::StringArray(v),
-    })
-}
-
-/// What ros2-client's `NodeOptions::parameter_validator` takes: the reason for refusing a set.
-type ParameterValidator = Box<dyn Fn(&str, &Ros2Value) -> Result<(), String> + Send + Sync>;
-
-/// Refuses every `ros2 param set` once `serving` is true (ros2-client also runs the validator
-/// on the values the node is created with, which must pass). The nodes read their parameters
-/// once, at start-up: a set that succeeded used to change the value served to `ros2 param get`
-/// and nothing else. `use_sim_time` never reaches the validator: ros2-client checks it itself.
-fn read_only_validator(serving: Arc<AtomicBool>) -> ParameterValidator {
-    Box::new(move |name, value| {
-        if !serving.load(Ordering::Relaxed) {
-            return Ok(());
-        }
-        let value =
-            from_ros2_value(value.clone()).map_or_else(|| "VALUE".into(), |v| v.to_string());
-        Err(format!(
-            "read-only: {name} is read at start-up; restart the node with \
-             --ros-args -p {name}:={value}"
-        ))
-    })
 }
 
 /// The QoS of a topic and of our readers of it.
@@ -260,16 +215,18 @@ fn dds_err(e: impl std::fmt::Display) -> RosError {
     RosError::Dds(e.to_string())
 }
 
-/// Fields drop in this order: every reader and writer (ours, then the node's parameter
-/// services, which the spinner thread drops once the node is gone) before the participant,
-/// whose event loop must still run to remove them.
+/// Fields drop in this order: every reader and writer (the parameter services', ours, then
+/// the node's) before the participant, whose event loop must still run to remove them.
 pub(crate) struct DdsNode {
-    /// /clock when `use_sim_time` is true. Our own reader, because ros2-client 0.12's
-    /// spinner subscribes /clock as `builtin_interfaces/msg/Time`, a type name that ROS 2's
-    /// `rosgraph_msgs/msg/Clock` publishers (e.g. Cyclone DDS, Fast DDS) do not match.
+    /// `ros2 param`, answered by a thread of ours: the node runs no ros2-client spinner
+    /// (see [`crate::param_services`]).
+    _parameter_services: Option<ParameterServices>,
+    served: Arc<ServedParameters>,
+    /// /clock when `use_sim_time` is true, as `rosgraph_msgs/msg/Clock` (ros2-client 0.12's
+    /// spinner read it as `builtin_interfaces/msg/Time`, which ROS 2's publishers do not
+    /// match).
     sim_clock: Option<SimClock>,
     node: ros2_client::Node,
-    _spinner: SpinnerThread,
     topics: Mutex<HashMap<String, Topic>>,
     publisher: rustdds::Publisher,
     subscriber: rustdds::Subscriber,
@@ -277,26 +234,6 @@ pub(crate) struct DdsNode {
     registry: mio1::Registry,
     next_token: Mutex<usize>,
     context: ros2_client::Context,
-}
-
-/// The thread running the node's spinner (parameter services, graph). Dropped after the node,
-/// it waits a moment for the spinner to end: left running, the spinner dropped its readers
-/// and writers after the participant had stopped, each an ERROR line at shutdown.
-struct SpinnerThread(Option<std::thread::JoinHandle<()>>);
-
-impl Drop for SpinnerThread {
-    fn drop(&mut self) {
-        let Some(thread) = self.0.take() else {
-            return;
-        };
-        let deadline = Instant::now() + Duration::from_secs(1);
-        while !thread.is_finished() && Instant::now() < deadline {
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        if thread.is_finished() {
-            let _ = thread.join();
-        }
-    }
 }
 
 /// The newest time received on /clock.
@@ -333,41 +270,25 @@ impl DdsNode {
         name: &str,
         namespace: &str,
         params: &Parameters,
+        decls: &[ParamDecl],
         parameter_services: bool,
     ) -> Result<Self, RosError> {
+        let use_sim_time = params.bool("use_sim_time")?;
         let context = ros2_client::Context::from_domain_participant(participant_from_env()?)
             .map_err(dds_err)?;
         let node_name = NodeName::new(namespace, name).map_err(|e| RosError::Name {
             name: format!("{namespace}/{name}"),
             reason: format!("{e:?}"),
         })?;
-        let mut options = NodeOptions::new()
+        // ros2-client's parameter services are its spinner's, which the node does not run:
+        // ours (below) replace them.
+        let options = NodeOptions::new()
             .enable_rosout(true)
-            .start_parameter_services(true);
-        for (pname, value) in params.iter() {
-            options = options.declare_parameter(pname, to_ros2_value(value));
-        }
-        let serving = Arc::new(AtomicBool::new(false));
-        options = options.parameter_validator(read_only_validator(serving.clone()));
+            .start_parameter_services(false);
         let mut node = context.new_node(node_name, options).map_err(dds_err)?;
-        serving.store(true, Ordering::Relaxed);
-        // The spinner serves parameter services (and the graph); it ends when the node is
-        // dropped.
-        // The spinner also reads /clock, as builtin_interfaces/msg/Time: beside our own
-        // rosgraph_msgs/msg/Clock reader (use_sim_time) the two types on one topic are an
-        // ERROR of the DDS stack, so a node on simulated time does without it.
-        let use_sim_time = params.bool("use_sim_time")?;
-        let spinner = if parameter_services && !use_sim_time {
-            let spinner = node.spinner().map_err(dds_err)?;
-            let thread = std::thread::Builder::new()
-                .name("ros2-spinner".into())
-                .spawn(move || {
-                    if let Err(e) = futures::executor::block_on(spinner.spin()) {
-                        log::warn!("ros2-client spinner stopped: {e:?}");
-                    }
-                })
-                .map_err(dds_err)?;
-            Some(thread)
+        let served = Arc::new(ServedParameters::new(params, decls));
+        let parameter_services = if parameter_services {
+            Some(ParameterServices::start(&mut node, served.clone())?)
         } else {
             None
         };
@@ -381,9 +302,10 @@ impl DdsNode {
         let poll = mio1::Poll::new().map_err(dds_err)?;
         let registry = poll.registry().try_clone().map_err(dds_err)?;
         let mut this = Self {
+            _parameter_services: parameter_services,
+            served,
             sim_clock: None,
             node,
-            _spinner: SpinnerThread(spinner),
             topics: Mutex::new(HashMap::new()),
             publisher,
             subscriber,
@@ -509,12 +431,12 @@ impl NodeBackend for DdsNode {
     fn now_ns(&self) -> i64 {
         match &self.sim_clock {
             Some(clock) => clock.now_ns(),
-            None => self.node.time_now().to_nanos(),
+            None => self.node.time_now_not_simulated().to_nanos(),
         }
     }
 
     fn parameter(&self, name: &str) -> Option<ParamValue> {
-        self.node.get_parameter(name).and_then(from_ros2_value)
+        self.served.get(name).cloned()
     }
 
     fn topics(&self) -> Vec<TopicInfo> {
@@ -729,22 +651,6 @@ impl SubscriberBackend for DdsSubscriber {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn ros2_param_set_is_refused_naming_the_restart_that_would_apply_it() {
-        let serving = Arc::new(AtomicBool::new(false));
-        let validate = read_only_validator(serving.clone());
-        // ros2-client validates the values the node is created with.
-        validate("rate", &Ros2Value::Double(2.0)).unwrap();
-        serving.store(true, Ordering::Relaxed);
-        // Used to be accepted (and then ignored by the node).
-        assert_eq!(
-            validate("rate", &Ros2Value::Double(2.5)).unwrap_err(),
-            "read-only: rate is read at start-up; restart the node with --ros-args -p rate:=2.5"
-        );
-        let err = validate("model", &Ros2Value::String("/m.onnx".into())).unwrap_err();
-        assert!(err.ends_with("-p model:=\"/m.onnx\""), "{err}");
-    }
 
     #[test]
     fn an_unannounced_policy_is_the_dds_default_of_a_writer() {

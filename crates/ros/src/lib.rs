@@ -14,6 +14,7 @@
 pub mod args;
 mod dds;
 pub mod json;
+mod param_services;
 pub mod params;
 #[cfg(feature = "r2r")]
 mod rcl;
@@ -79,11 +80,8 @@ pub struct NodeSetup {
     pub parameters: Vec<ParamDecl>,
     pub args: Vec<String>,
     pub backend: Backend,
-    /// Serve `ros2 param` (default). With the DDS backend, ros2-client's spinner, which
-    /// serves them, also subscribes /clock with its own type, `builtin_interfaces/msg/Time`:
-    /// a node that publishes /clock (replay), reads it as `rosgraph_msgs/msg/Clock`
-    /// (`use_sim_time`, which then turns this off) or lists the graph (`lidar-har topic`)
-    /// does without it.
+    /// Serve `ros2 param` (default): every node does; a tool that joins the graph only to
+    /// look at it (`lidar-har topic`) does without.
     pub parameter_services: bool,
 }
 
@@ -131,9 +129,10 @@ impl NodeSetup {
         };
         args::validate_node_name(&name).map_err(bad_name)?;
         args::validate_namespace(&namespace).map_err(bad_name)?;
-        // ros2-client names the parameter services after the node's full name and unwraps
-        // the result once DDS has started: a name it refuses must be refused here, by its
-        // own rules, or it panics (`__` in a token did, before `validate_token` refused it).
+        // The parameter services are named after the node's full name by ros2-client's rules
+        // once DDS has started: a name it refuses must be refused here, before the node joins
+        // the graph (its spinner panicked on `__` in a token, before `validate_token`
+        // refused it).
         ros2_client::Name::new(&fqn, "get_parameters")
             .map_err(|e| bad_name(format!("ros2-client refuses it: {e}")))?;
         let decls = params::node_parameters(self.parameters.clone());
@@ -258,6 +257,7 @@ impl PreparedNode {
                 &name,
                 &namespace,
                 &params,
+                &params::node_parameters(setup.parameters.clone()),
                 setup.parameter_services,
             )?),
             #[cfg(feature = "r2r")]
@@ -298,7 +298,7 @@ impl Node {
     }
 
     /// The value of a parameter that the node serves to `ros2 param get`: with the DDS backend,
-    /// which refuses `ros2 param set` (but of `use_sim_time`), its start-up value.
+    /// which refuses every `ros2 param set`, its start-up value.
     pub fn parameter(&self, name: &str) -> Option<ParamValue> {
         self.backend
             .parameter(name)

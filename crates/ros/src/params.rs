@@ -195,7 +195,7 @@ pub fn node_parameters(mut decls: Vec<ParamDecl>) -> Vec<ParamDecl> {
             "use_sim_time",
             ParamValue::Bool(false),
             "the node clock (Node::now) follows /clock; outputs keep their inputs' stamps \
-             either way; true: no ros2 param services (pure-Rust transport)",
+             either way",
         ));
     }
     decls

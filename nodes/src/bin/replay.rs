@@ -295,12 +295,7 @@ fn qos_for(topic: &str, offered: &[OfferedQos]) -> QosProfile {
 }
 
 fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
-    // No `ros2 param` services: ros2-client's server subscribes /clock as
-    // builtin_interfaces/msg/Time, which clashes with the /clock the replay publishes.
-    let setup = NodeSetup::new("replay")
-        .parameters(decls())
-        .without_parameter_services()
-        .prepare()?;
+    let setup = NodeSetup::new("replay").parameters(decls()).prepare()?;
     // The bag and what the parameters ask of it are checked before the node joins the graph.
     let settings = Settings::from(setup.params())?;
     // A bag that cannot be opened is a bad parameter (exit status 2), like any other.

@@ -94,7 +94,7 @@ fn cli_node_name() -> String {
 }
 
 fn cli_node() -> anyhow::Result<Node> {
-    // Without parameter services: their /clock reader would be listed as a topic.
+    // A tool, not a node: nothing for `ros2 param` to read.
     Node::new(
         NodeSetup::new(&cli_node_name())
             .args(Vec::<String>::new())
