@@ -557,6 +557,43 @@ kill -TERM $E; wait $E; echo "scan_echo=$?"
     assert_eq!(played, (9..29).collect::<Vec<_>>());
 }
 
+/// `topic hz` reports a topic's rate once a second as `ros2 topic hz` does: a replay's 20 Hz
+/// scans (4 s of them, at rate 1) read 20 Hz, timed by the publisher's source timestamps.
+#[test]
+fn ros_topic_hz_reports_the_rate_of_a_topic() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 80);
+    let script = r#"
+"$LH" topic hz /scan --timeout 6 > "$OUT/hz.txt" & H=$!
+"$REPLAY" --ros-args -p bag:="$BAG" -p topics:=[/scan] -p wait_for_subscriber:=/scan \
+  -p wait_for_all_acked:=0.0
+echo "replay=$?"
+wait $H; echo "hz=$?"
+"#;
+    let out = replay_in_netns(script, &bag, dir.path(), Duration::from_secs(60));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["replay=0", "hz=0"] {
+        assert!(stdout.contains(want), "expected {want}: {stdout}");
+    }
+    let text = std::fs::read_to_string(dir.path().join("hz.txt")).unwrap();
+    let rates: Vec<f64> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("average rate: "))
+        .map(|r| r.parse().unwrap())
+        .collect();
+    assert!(rates.len() >= 2, "{text}");
+    let last = rates[rates.len() - 1];
+    assert!((19.0..=21.0).contains(&last), "{text}");
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("\tmin: ") && l.contains(" window: ")),
+        "{text}"
+    );
+}
+
 #[test]
 fn ros_nodes_reject_bad_parameters_naming_them() {
     if !netns_available() {

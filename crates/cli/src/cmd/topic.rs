@@ -1,5 +1,8 @@
-//! `lidar-har topic list|echo`: see and read ROS 2 topics over DDS without ROS 2 installed
-//! (the pure-Rust transport of `lidar-har-ros`), as JSON lines that tests and scripts parse.
+//! `lidar-har topic list|echo|hz`: see and read ROS 2 topics over DDS without ROS 2
+//! installed (the pure-Rust transport of `lidar-har-ros`), as JSON lines that tests and
+//! scripts parse, and measure a topic's rate as `ros2 topic hz` does.
+
+mod hz;
 
 use std::io::Write;
 use std::time::{Duration, Instant};
@@ -51,6 +54,21 @@ pub enum TopicCommand {
         #[arg(long)]
         no_str: bool,
     },
+    /// Print a topic's rate once a second, as `ros2 topic hz` does (e.g. the Lidar's scan
+    /// rate, which the classifier wants within 25 % of its model's).
+    Hz {
+        /// Topic name, e.g. /scan (a relative name is in `/`).
+        topic: String,
+        /// Message type; found by discovery when omitted.
+        #[arg(long = "type")]
+        type_name: Option<String>,
+        /// How many of the latest periods the rate is taken over.
+        #[arg(short = 'w', long, default_value_t = 10_000)]
+        window: usize,
+        /// Stop after this many seconds, at most a day (default: at Ctrl-C).
+        #[arg(long)]
+        timeout: Option<f64>,
+    },
 }
 
 pub fn run(command: TopicCommand) -> anyhow::Result<()> {
@@ -74,6 +92,15 @@ pub fn run(command: TopicCommand) -> anyhow::Result<()> {
                 no_str,
             };
             echo(&topic, type_name, count, timeout, require_count, truncation)
+        }
+        TopicCommand::Hz {
+            topic,
+            type_name,
+            window,
+            timeout,
+        } => {
+            let timeout = timeout.map(|t| seconds(t, "--timeout")).transpose()?;
+            rate(&topic, type_name, window, timeout)
         }
     }
 }
@@ -239,6 +266,64 @@ fn echo(
     Ok(())
 }
 
+/// How often `hz` prints the rate, as `ros2 topic hz`.
+const HZ_REPORT_PERIOD: Duration = Duration::from_secs(1);
+
+/// `topic hz`: each message is timed by the publisher's source timestamp, which DDS carries
+/// with it, so the rate is the publisher's, not how a loaded machine happened to deliver it
+/// (`ros2 topic hz` times arrivals); a message without one is timed on arrival.
+fn rate(
+    topic: &str,
+    type_name: Option<String>,
+    window: usize,
+    timeout: Option<Duration>,
+) -> anyhow::Result<()> {
+    let start = Instant::now();
+    let deadline = timeout.map(|t| start + t);
+    let topic = &topic_name(topic)?;
+    let node = cli_node()?;
+    let contract = topics::find(topic);
+    let type_name = match (type_name, contract) {
+        (Some(t), _) => t,
+        (None, Some(spec)) => spec.type_name.to_string(),
+        (None, None) => discover_type(&node, topic, deadline)?,
+    };
+    let fallback = contract.map_or(QosProfile::sensor_data(), |spec| spec.qos);
+    let qos = echo_qos(fallback, &discover_publishers(&node, topic, deadline));
+    let sub = node.subscriber(topic, &type_name, qos)?;
+    let stop = stop_flag()?;
+    let mut rates = hz::RateWindow::new(window);
+    let mut new_messages = false;
+    let mut next_report = Instant::now() + HZ_REPORT_PERIOD;
+    let mut out = std::io::stdout().lock();
+    while !stop.load(std::sync::atomic::Ordering::Relaxed)
+        && deadline.is_none_or(|d| Instant::now() < d)
+    {
+        let wait = next_report.saturating_duration_since(Instant::now());
+        if let Some(sample) = sub.take_timeout(&node, wait.min(Duration::from_millis(200)))? {
+            let arrival_ns = start.elapsed().as_nanos() as i64;
+            rates.add(sample.source_time_ns.unwrap_or(arrival_ns));
+            new_messages = true;
+            continue;
+        }
+        if Instant::now() < next_report {
+            continue;
+        }
+        next_report += HZ_REPORT_PERIOD;
+        let report = match rates.stats() {
+            Some(stats) if new_messages => stats.to_string(),
+            _ => "no new messages".to_string(),
+        };
+        new_messages = false;
+        match writeln!(out, "{report}").and_then(|()| out.flush()) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return Ok(()),
+            Err(e) => return Err(e.into()),
+        }
+    }
+    Ok(())
+}
+
 fn discover_type(node: &Node, topic: &str, deadline: Option<Instant>) -> anyhow::Result<String> {
     let deadline = deadline.unwrap_or_else(|| Instant::now() + Duration::from_secs(5));
     loop {
@@ -376,7 +461,7 @@ mod tests {
                     no_str,
                     ..
                 } => (truncate_length, full_length, no_arr, no_str),
-                TopicCommand::List { .. } => unreachable!("echo parsed as list"),
+                _ => unreachable!("echo parsed as another command"),
             }
         };
         assert_eq!(parsed(&[]), (128, false, false, false));
