@@ -527,7 +527,7 @@ kill -TERM $E; wait $E; echo "scan_echo=$?"
 }
 
 /// `playback_duration` plays the messages logged in `[start_offset, start_offset +
-/// playback_duration)` and no others, as `ros2 bag play --playback-duration`.
+/// playback_duration]` and no others, as `ros2 bag play --playback-duration`.
 #[test]
 fn ros_replay_plays_playback_duration_from_the_offset() {
     if !netns_available() {
@@ -535,7 +535,7 @@ fn ros_replay_plays_playback_duration_from_the_offset() {
     }
     let dir = tempfile::tempdir().unwrap();
     // The map at T0 starts the bag; scan i at 50 ms * (i + 1) after it: from scan 9 (0.5 s
-    // in) for 1 s, up to scan 28; scan 29 lies exactly at the end, which is left out.
+    // in) for 1 s, up to scan 29, exactly at the end, which rosbag2's player plays too.
     let bag = write_bag(dir.path(), 60);
     let script = r#"
 "$LH" topic echo /scan --timeout 30 > "$OUT/scan.jsonl" & E=$!
@@ -554,7 +554,7 @@ kill -TERM $E; wait $E; echo "scan_echo=$?"
         .iter()
         .map(|s| scan_index(&s["msg"]))
         .collect();
-    assert_eq!(played, (9..29).collect::<Vec<_>>());
+    assert_eq!(played, (9..=29).collect::<Vec<_>>());
 }
 
 /// `topic hz` reports a topic's rate once a second as `ros2 topic hz` does: a replay's 20 Hz

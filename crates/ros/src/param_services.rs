@@ -68,20 +68,20 @@ impl ServedParameters {
             .unwrap_or_default()
     }
 
-    /// As rclcpp: `ParameterType` of each name, NOT_SET for one not declared.
+    /// As rclcpp: the `ParameterType` of each name, or none at all if a name is not declared
+    /// (its service catches `ParameterNotDeclaredException` and answers an empty list).
     fn types(&self, names: &[String]) -> Vec<u8> {
         names
             .iter()
-            .map(|name| {
-                self.get(name)
-                    .map_or(raw::ParameterType::NOT_SET, |v| to_raw(v).ptype)
-            })
-            .collect()
+            .map(|name| self.get(name).map(|v| to_raw(v).ptype))
+            .collect::<Option<Vec<_>>>()
+            .unwrap_or_default()
     }
 
     /// As rclcpp's `list_parameters`: without prefixes every name with fewer than `depth`
     /// dots (`depth` 0: any number, what `ros2 param list` asks); else the names equal to a
-    /// prefix or under `prefix.` within `depth` further levels. `prefixes` of the result
+    /// prefix or under `prefix.` with fewer than `depth` dots after it (Jazzy's rclcpp,
+    /// ros2/rclcpp#2300: depth 1 is the prefix's children). `prefixes` of the result
     /// are the distinct namespaces (up to the last dot) of the names listed.
     fn list(&self, prefixes: &[String], depth: u64) -> ListParametersResult {
         let within_depth = |s: &str| depth == 0 || (s.matches('.').count() as u64) < depth;
@@ -95,7 +95,7 @@ impl ServedParameters {
                 name == prefix
                     || name
                         .strip_prefix(prefix.as_str())
-                        .filter(|rest| rest.starts_with('.'))
+                        .and_then(|rest| rest.strip_prefix('.'))
                         .is_some_and(within_depth)
             });
             if all || under_a_prefix {
@@ -421,9 +421,10 @@ mod tests {
         assert_eq!(p.list(&[], 1).names, ["rate", "topics", "use_sim_time"]);
         let qos = strings(&["qos"]);
         assert_eq!(p.list(&qos, 0).names, ["qos.deep.x", "qos.depth"]);
-        // rclcpp counts the dot after the prefix: depth 2 is the prefix's children.
-        assert_eq!(p.list(&qos, 2).names, ["qos.depth"]);
-        assert!(p.list(&qos, 1).names.is_empty());
+        // Depth counts from the prefix (rclcpp since ros2/rclcpp#2300, Jazzy): depth 1 is the
+        // prefix's children; Humble's counted the dot after the prefix too.
+        assert_eq!(p.list(&qos, 1).names, ["qos.depth"]);
+        assert_eq!(p.list(&qos, 2).names, ["qos.deep.x", "qos.depth"]);
         // A prefix matches whole dotted levels only.
         assert_eq!(p.list(&strings(&["qo"]), 0).names, Vec::<String>::new());
         assert_eq!(p.list(&strings(&["rate"]), 0).names, ["rate"]);
@@ -438,9 +439,10 @@ mod tests {
         assert_eq!(values[1].ptype, raw::ParameterType::STRING_ARRAY);
         assert!(p.values(&strings(&["rate", "nope"])).is_empty());
         assert_eq!(
-            p.types(&strings(&["qos.depth", "nope"])),
-            [raw::ParameterType::INTEGER, raw::ParameterType::NOT_SET]
+            p.types(&strings(&["qos.depth", "rate"])),
+            [raw::ParameterType::INTEGER, raw::ParameterType::DOUBLE]
         );
+        assert!(p.types(&strings(&["qos.depth", "nope"])).is_empty());
     }
 
     #[test]

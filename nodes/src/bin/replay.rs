@@ -5,7 +5,7 @@
 //!
 //! Parameters: `bag` (required), `rate` (1.0; 0 = as fast as possible), `loop`,
 //! `start_offset` (s into the bag, up to its length), `playback_duration` (s of bag time
-//! played from `start_offset`, the messages logged in `[offset, offset + duration)`, each
+//! played from `start_offset`, the messages logged in `[offset, offset + duration]`, each
 //! `loop` pass as long; negative, the default, plays to the bag's end, as
 //! `ros2 bag play --playback-duration`), `topics` (only these; empty = all;
 //! those the bag lacks are skipped with a warning, none present is an error), `publish_clock`
@@ -171,7 +171,7 @@ impl Settings {
         let rate = p.f64_checked("rate", &rule, |v| v == 0.0 || v >= MIN_RATE)?;
         let offset = seconds(p, "start_offset", 0.0..=MAX_OFFSET_S)?;
         // As `ros2 bag play --playback-duration`: negative (its default, -1) is no limit.
-        let rule = format!("negative (to the bag's end) or in (0, {MAX_OFFSET_S}] s");
+        let rule = format!("finite: negative (to the bag's end) or in (0, {MAX_OFFSET_S}] s");
         let duration = p.f64_checked("playback_duration", &rule, |v| {
             v < 0.0 || (v > 0.0 && v <= MAX_OFFSET_S)
         })?;
@@ -382,8 +382,9 @@ fn play(shutdown: &Shutdown) -> anyhow::Result<()> {
     let mut to_play = MessageFilter::new()
         .topics(&selection.play)
         .starting_at(begin);
+    // The end itself is played, as rosbag2's player stops only at a message after it.
     if let Some(duration) = settings.playback_duration_ns {
-        to_play = to_play.ending_before(begin.saturating_add(duration));
+        to_play = to_play.ending_before(begin.saturating_add(duration).saturating_add(1));
     }
     loop {
         let mut pacing = Pacing::new(begin, settings.rate);

@@ -62,9 +62,10 @@ pub enum TopicCommand {
         /// Message type; found by discovery when omitted.
         #[arg(long = "type")]
         type_name: Option<String>,
-        /// How many of the latest periods the rate is taken over.
-        #[arg(short = 'w', long, default_value_t = 10_000)]
-        window: usize,
+        /// How many of the latest periods the rate is taken over (1 to 1,000,000).
+        #[arg(short = 'w', long, default_value_t = 10_000,
+              value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+        window: u32,
         /// Stop after this many seconds, at most a day (default: at Ctrl-C).
         #[arg(long)]
         timeout: Option<f64>,
@@ -269,13 +270,13 @@ fn echo(
 /// How often `hz` prints the rate, as `ros2 topic hz`.
 const HZ_REPORT_PERIOD: Duration = Duration::from_secs(1);
 
-/// `topic hz`: each message is timed by the publisher's source timestamp, which DDS carries
-/// with it, so the rate is the publisher's, not how a loaded machine happened to deliver it
-/// (`ros2 topic hz` times arrivals); a message without one is timed on arrival.
+/// `topic hz`: messages are timed as they arrive, as `ros2 topic hz` times them. The
+/// publishers' source timestamps would be steadier on a loaded machine, but two publishers'
+/// clocks disagree (a reviewer's two 10 Hz publishers 0.3 s apart read "no new messages").
 fn rate(
     topic: &str,
     type_name: Option<String>,
-    window: usize,
+    window: u32,
     timeout: Option<Duration>,
 ) -> anyhow::Result<()> {
     let start = Instant::now();
@@ -292,7 +293,7 @@ fn rate(
     let qos = echo_qos(fallback, &discover_publishers(&node, topic, deadline));
     let sub = node.subscriber(topic, &type_name, qos)?;
     let stop = stop_flag()?;
-    let mut rates = hz::RateWindow::new(window);
+    let mut rates = hz::RateWindow::new(window as usize);
     let mut new_messages = false;
     let mut next_report = Instant::now() + HZ_REPORT_PERIOD;
     let mut out = std::io::stdout().lock();
@@ -300,16 +301,19 @@ fn rate(
         && deadline.is_none_or(|d| Instant::now() < d)
     {
         let wait = next_report.saturating_duration_since(Instant::now());
-        if let Some(sample) = sub.take_timeout(&node, wait.min(Duration::from_millis(200)))? {
-            let arrival_ns = start.elapsed().as_nanos() as i64;
-            rates.add(sample.source_time_ns.unwrap_or(arrival_ns));
+        if sub
+            .take_timeout(&node, wait.min(Duration::from_millis(200)))?
+            .is_some()
+        {
+            rates.add(start.elapsed().as_nanos() as i64);
             new_messages = true;
+        }
+        let now = Instant::now();
+        if now < next_report {
             continue;
         }
-        if Instant::now() < next_report {
-            continue;
-        }
-        next_report += HZ_REPORT_PERIOD;
+        // Once a second even under a flood of messages; a late report is not made up for.
+        next_report = (next_report + HZ_REPORT_PERIOD).max(now);
         let report = match rates.stats() {
             Some(stats) if new_messages => stats.to_string(),
             _ => "no new messages".to_string(),
@@ -441,6 +445,24 @@ mod tests {
             let e = seconds(bad, "--timeout").unwrap_err().to_string();
             assert!(e.starts_with("--timeout "), "{e}");
         }
+    }
+
+    /// `--window` is bounded: a window of `usize::MAX` periods overflowed, and memory grows
+    /// with it.
+    #[test]
+    fn the_hz_window_is_refused_outside_one_to_a_million() {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(subcommand)]
+            topic: TopicCommand,
+        }
+        let parse = |window: &str| {
+            <Cli as clap::Parser>::try_parse_from(["lidar-har", "hz", "/scan", "-w", window])
+        };
+        for bad in ["0", "1000001", "18446744073709551615", "-3"] {
+            assert!(parse(bad).is_err(), "--window {bad} accepted");
+        }
+        assert!(parse("1").is_ok() && parse("1000000").is_ok());
     }
 
     /// ros2's options and default (128); a line stays one JSON object whatever is cut.

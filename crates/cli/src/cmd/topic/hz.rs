@@ -4,7 +4,7 @@
 use std::collections::VecDeque;
 use std::fmt;
 
-/// The times (ns) of the latest messages of a topic, at most `capacity` of them.
+/// The arrival times (ns, monotonic) of the latest messages of a topic: `capacity` periods.
 #[derive(Debug)]
 pub struct RateWindow {
     times_ns: VecDeque<i64>,
@@ -33,15 +33,10 @@ impl RateWindow {
         }
     }
 
-    /// Adds a message at `time_ns`. One earlier than the last (a publisher restarted, a bag
-    /// played again) starts the window afresh, so that no period is negative; one at the
-    /// same time is a period of 0.
+    /// Adds a message that arrived at `time_ns`, no earlier than the one before it.
     pub fn add(&mut self, time_ns: i64) {
-        if self.times_ns.back().is_some_and(|&last| time_ns < last) {
-            self.times_ns.clear();
-        }
         self.times_ns.push_back(time_ns);
-        while self.times_ns.len() > self.capacity + 1 {
+        while self.times_ns.len() > self.capacity.saturating_add(1) {
             self.times_ns.pop_front();
         }
     }
@@ -61,11 +56,8 @@ impl RateWindow {
         let mean = periods.iter().sum::<f64>() / n;
         let variance = periods.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / n;
         Some(RateStats {
-            rate_hz: if mean > 0.0 {
-                1.0 / mean
-            } else {
-                f64::INFINITY
-            },
+            // As ros2: messages that all came at once have no rate to show.
+            rate_hz: if mean > 0.0 { 1.0 / mean } else { 0.0 },
             min_s: periods.iter().copied().fold(f64::INFINITY, f64::min),
             max_s: periods.iter().copied().fold(0.0, f64::max),
             std_dev_s: variance.sqrt(),
@@ -138,22 +130,15 @@ mod tests {
         assert!((stats.rate_hz - 10.0).abs() < 1e-9, "{stats:?}");
     }
 
-    /// Time going backwards (a bag played again) starts afresh rather than giving a negative
-    /// period; messages at the same time give an infinite rate, not a NaN.
+    /// Messages that arrived together have a rate of 0, as ros2 prints it, not an infinite
+    /// or NaN one; the largest window does not overflow.
     #[test]
-    fn time_going_back_restarts_the_window_and_equal_times_stay_finite_or_infinite() {
-        let mut window = RateWindow::new(100);
-        for t in [0, 100, 200, 50, 150] {
-            window.add(t * MS);
-        }
-        let stats = window.stats().unwrap();
-        assert_eq!(stats.periods, 1);
-        assert!((stats.rate_hz - 10.0).abs() < 1e-9, "{stats:?}");
-        let mut same = RateWindow::new(100);
+    fn equal_times_give_a_rate_of_0_and_any_window_holds() {
+        let mut same = RateWindow::new(usize::MAX);
         same.add(7);
         same.add(7);
         let stats = same.stats().unwrap();
-        assert_eq!(stats.rate_hz, f64::INFINITY);
+        assert_eq!((stats.rate_hz, stats.periods), (0.0, 1));
         assert!(!stats.std_dev_s.is_nan());
     }
 }
