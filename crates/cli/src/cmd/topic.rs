@@ -11,7 +11,7 @@ use anyhow::{Context, bail};
 use lidar_har_msgs::qos::{Durability, QosProfile, Reliability};
 use lidar_har_msgs::topics;
 use lidar_har_ros::json::{Truncated, Truncation};
-use lidar_har_ros::{Node, NodeSetup, OfferedQos, RosError, args, json};
+use lidar_har_ros::{Node, NodeSetup, OfferedQos, RosError, Subscriber, args, json};
 
 #[derive(clap::Subcommand)]
 pub enum TopicCommand {
@@ -194,6 +194,45 @@ fn discover_publishers(node: &Node, topic: &str, deadline: Option<Instant>) -> V
     }
 }
 
+/// A subscription of the tool to one topic, with the QoS `ros2 topic echo` would choose.
+struct TopicReader {
+    node: Node,
+    sub: Subscriber,
+    /// The topic's full name.
+    topic: String,
+    type_name: String,
+}
+
+impl TopicReader {
+    /// Subscribes to `topic` as `type_name`, else the contract's type, else the type
+    /// discovered on the network (waiting up to `deadline` for it).
+    fn open(
+        topic: &str,
+        type_name: Option<String>,
+        deadline: Option<Instant>,
+    ) -> anyhow::Result<Self> {
+        let topic = topic_name(topic)?;
+        let node = cli_node()?;
+        let contract = topics::find(&topic);
+        let type_name = match (type_name, contract) {
+            (Some(t), _) => t,
+            (None, Some(spec)) => spec.type_name.to_string(),
+            (None, None) => discover_type(&node, &topic, deadline)?,
+        };
+        // Without publishers to go by: the contract's QoS, else best effort, which every
+        // publisher matches.
+        let fallback = contract.map_or(QosProfile::sensor_data(), |spec| spec.qos);
+        let qos = echo_qos(fallback, &discover_publishers(&node, &topic, deadline));
+        let sub = node.subscriber(&topic, &type_name, qos)?;
+        Ok(Self {
+            node,
+            sub,
+            topic,
+            type_name,
+        })
+    }
+}
+
 fn echo(
     topic: &str,
     type_name: Option<String>,
@@ -202,23 +241,14 @@ fn echo(
     require_count: bool,
     truncation: Truncation,
 ) -> anyhow::Result<()> {
-    let start = Instant::now();
-    let deadline = timeout.map(|t| start + t);
-    let topic = &topic_name(topic)?;
-    let node = cli_node()?;
-    let contract = topics::find(topic);
-    let type_name = match type_name {
-        Some(t) => t,
-        None => match contract {
-            Some(spec) => spec.type_name.to_string(),
-            None => discover_type(&node, topic, deadline)?,
-        },
-    };
-    // Without publishers to go by: the contract's QoS, else best effort, which every
-    // publisher matches.
-    let fallback = contract.map_or(QosProfile::sensor_data(), |spec| spec.qos);
-    let qos = echo_qos(fallback, &discover_publishers(&node, topic, deadline));
-    let sub = node.subscriber(topic, &type_name, qos)?;
+    let deadline = timeout.map(|t| Instant::now() + t);
+    let TopicReader {
+        node,
+        sub,
+        topic,
+        type_name,
+    } = TopicReader::open(topic, type_name, deadline)?;
+    let topic = &topic;
     let stop = stop_flag()?;
     let mut received = 0u64;
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
@@ -281,17 +311,7 @@ fn rate(
 ) -> anyhow::Result<()> {
     let start = Instant::now();
     let deadline = timeout.map(|t| start + t);
-    let topic = &topic_name(topic)?;
-    let node = cli_node()?;
-    let contract = topics::find(topic);
-    let type_name = match (type_name, contract) {
-        (Some(t), _) => t,
-        (None, Some(spec)) => spec.type_name.to_string(),
-        (None, None) => discover_type(&node, topic, deadline)?,
-    };
-    let fallback = contract.map_or(QosProfile::sensor_data(), |spec| spec.qos);
-    let qos = echo_qos(fallback, &discover_publishers(&node, topic, deadline));
-    let sub = node.subscriber(topic, &type_name, qos)?;
+    let TopicReader { node, sub, .. } = TopicReader::open(topic, type_name, deadline)?;
     let stop = stop_flag()?;
     let mut rates = hz::RateWindow::new(window as usize);
     let mut new_messages = false;
