@@ -4,7 +4,8 @@
 from dataclasses import dataclass, field
 
 from cyclonedds.idl import IdlStruct
-from cyclonedds.idl.types import float32, float64, int8, int32, sequence, uint8, uint32
+from cyclonedds.idl.types import (float32, float64, int8, int32, int64, sequence, uint8, uint32,
+                                  uint64)
 
 
 @dataclass
@@ -87,3 +88,116 @@ class OccupancyGrid(IdlStruct, typename="nav_msgs::msg::dds_::OccupancyGrid_"):
     header: Header = field(default_factory=Header)
     info: MapMetaData = field(default_factory=MapMetaData)
     data: sequence[int8] = field(default_factory=list)
+
+
+# rcl_interfaces: the parameter services' messages, requests and replies (`ros2 param`).
+@dataclass
+class ParameterValue(IdlStruct, typename="rcl_interfaces::msg::dds_::ParameterValue_"):
+    type: uint8 = 0
+    bool_value: bool = False
+    integer_value: int64 = 0
+    double_value: float64 = 0.0
+    string_value: str = ""
+    byte_array_value: sequence[uint8] = field(default_factory=list)
+    bool_array_value: sequence[bool] = field(default_factory=list)
+    integer_array_value: sequence[int64] = field(default_factory=list)
+    double_array_value: sequence[float64] = field(default_factory=list)
+    string_array_value: sequence[str] = field(default_factory=list)
+
+
+@dataclass
+class Parameter(IdlStruct, typename="rcl_interfaces::msg::dds_::Parameter_"):
+    name: str = ""
+    value: ParameterValue = field(default_factory=ParameterValue)
+
+
+@dataclass
+class SetParametersResult(IdlStruct, typename="rcl_interfaces::msg::dds_::SetParametersResult_"):
+    successful: bool = False
+    reason: str = ""
+
+
+@dataclass
+class FloatingPointRange(IdlStruct, typename="rcl_interfaces::msg::dds_::FloatingPointRange_"):
+    from_value: float64 = 0.0
+    to_value: float64 = 0.0
+    step: float64 = 0.0
+
+
+@dataclass
+class IntegerRange(IdlStruct, typename="rcl_interfaces::msg::dds_::IntegerRange_"):
+    from_value: int64 = 0
+    to_value: int64 = 0
+    step: uint64 = 0
+
+
+@dataclass
+class ParameterDescriptor(IdlStruct, typename="rcl_interfaces::msg::dds_::ParameterDescriptor_"):
+    name: str = ""
+    type: uint8 = 0
+    description: str = ""
+    additional_constraints: str = ""
+    read_only: bool = False
+    dynamic_typing: bool = False
+    floating_point_range: sequence[FloatingPointRange, 1] = field(default_factory=list)
+    integer_range: sequence[IntegerRange, 1] = field(default_factory=list)
+
+
+@dataclass
+class ListParametersResult(IdlStruct, typename="rcl_interfaces::msg::dds_::ListParametersResult_"):
+    names: sequence[str] = field(default_factory=list)
+    prefixes: sequence[str] = field(default_factory=list)
+
+
+@dataclass
+class ListRequest(IdlStruct, typename="rcl_interfaces::srv::dds_::ListParameters_Request_"):
+    prefixes: sequence[str] = field(default_factory=list)
+    depth: uint64 = 0
+
+
+@dataclass
+class ListResponse(IdlStruct, typename="rcl_interfaces::srv::dds_::ListParameters_Response_"):
+    result: ListParametersResult = field(default_factory=ListParametersResult)
+
+
+@dataclass
+class GetRequest(IdlStruct, typename="rcl_interfaces::srv::dds_::GetParameters_Request_"):
+    names: sequence[str] = field(default_factory=list)
+
+
+@dataclass
+class GetResponse(IdlStruct, typename="rcl_interfaces::srv::dds_::GetParameters_Response_"):
+    values: sequence[ParameterValue] = field(default_factory=list)
+
+
+@dataclass
+class DescribeRequest(IdlStruct, typename="rcl_interfaces::srv::dds_::DescribeParameters_Request_"):
+    names: sequence[str] = field(default_factory=list)
+
+
+@dataclass
+class DescribeResponse(IdlStruct,
+                       typename="rcl_interfaces::srv::dds_::DescribeParameters_Response_"):
+    descriptors: sequence[ParameterDescriptor] = field(default_factory=list)
+
+
+@dataclass
+class SetRequest(IdlStruct, typename="rcl_interfaces::srv::dds_::SetParameters_Request_"):
+    parameters: sequence[Parameter] = field(default_factory=list)
+
+
+@dataclass
+class SetResponse(IdlStruct, typename="rcl_interfaces::srv::dds_::SetParameters_Response_"):
+    results: sequence[SetParametersResult] = field(default_factory=list)
+
+
+@dataclass
+class SetAtomicallyRequest(IdlStruct,
+                           typename="rcl_interfaces::srv::dds_::SetParametersAtomically_Request_"):
+    parameters: sequence[Parameter] = field(default_factory=list)
+
+
+@dataclass
+class SetAtomicallyResponse(
+        IdlStruct, typename="rcl_interfaces::srv::dds_::SetParametersAtomically_Response_"):
+    result: SetParametersResult = field(default_factory=SetParametersResult)

@@ -174,7 +174,8 @@ pub(crate) fn decompress_chunk(
     Ok(data)
 }
 
-/// The records inside one decompressed chunk (or a summary section), in order.
+/// The records inside one decompressed chunk (or a summary section, or a record read alone),
+/// in order.
 pub(crate) struct ChunkRecords {
     data: Vec<u8>,
     next: usize,

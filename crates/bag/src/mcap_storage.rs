@@ -516,13 +516,10 @@ fn indexed_rosbag2_records(
         reader.seek(SeekFrom::Start(index.offset)).ok()?;
         let mut record = vec![0u8; length];
         reader.read_exact(&mut record).ok()?;
-        // Opcode, body length, body.
-        let (&opcode, rest) = record.split_first()?;
-        let body_length =
-            usize::try_from(u64::from_le_bytes(rest.get(..8)?.try_into().ok()?)).ok()?;
-        let body = rest.get(8..8usize.checked_add(body_length)?)?;
+        let mut records = ChunkRecords::new(record);
+        let (opcode, body) = records.next_record()?.ok()?;
         (opcode == op::METADATA)
-            .then(|| parse_metadata(body))
+            .then(|| parse_metadata(records.body(body)))
             .flatten()
             .as_ref()
             .and_then(recorded_in)
