@@ -110,6 +110,16 @@ impl MetadataVersion {
         }
     }
 
+    /// The first ROS 2 distribution whose rosbag2 writes this version: the `ros_distro` a bag
+    /// of this version is labelled with when none is given, so that the label never names a
+    /// distribution whose rosbag2 writes another format.
+    pub fn distribution(self) -> &'static str {
+        match self {
+            MetadataVersion::V8 => "iron",
+            MetadataVersion::V9 => "jazzy",
+        }
+    }
+
     /// The version of a bag made from a source bag that records `source`
     /// ([`BagReader::recorded_version`](crate::BagReader::recorded_version)) when none is
     /// asked for: a source that the distributions before Jazzy wrote gives 8, which they read,
@@ -167,11 +177,21 @@ pub struct WriterOptions {
     /// while messages keep coming. Only writes check it; during a pause call `flush()`.
     pub flush_interval: Duration,
     /// `ros_distro` recorded in the metadata (informative only: `metadata_version` decides
-    /// the format).
-    pub ros_distro: String,
+    /// the format); `None` names the distribution of `metadata_version`
+    /// ([`MetadataVersion::distribution`]).
+    pub ros_distro: Option<String>,
     pub custom_data: BTreeMap<String, String>,
     /// Version 9 by default; version 8 for a bag that ROS 2 Humble or Iron must read.
     pub metadata_version: MetadataVersion,
+}
+
+impl WriterOptions {
+    /// The `ros_distro` the bag is labelled with.
+    pub fn ros_distro(&self) -> &str {
+        self.ros_distro
+            .as_deref()
+            .unwrap_or_else(|| self.metadata_version.distribution())
+    }
 }
 
 impl Default for WriterOptions {
@@ -181,7 +201,7 @@ impl Default for WriterOptions {
             compression: Compression::None,
             chunk_size: 1 << 20,
             flush_interval: Duration::from_millis(500),
-            ros_distro: "jazzy".to_string(),
+            ros_distro: None,
             custom_data: BTreeMap::new(),
             metadata_version: MetadataVersion::default(),
         }
@@ -294,7 +314,7 @@ impl BagWriter {
             )?),
             StorageId::Sqlite3 => Box::new(SqliteSink::create(
                 &file_path,
-                &options.ros_distro,
+                options.ros_distro(),
                 options.metadata_version.number(),
             )?),
         };
@@ -572,7 +592,7 @@ impl BagWriter {
                 message_count,
             }],
             custom_data: Some(self.options.custom_data.clone()),
-            ros_distro: self.options.ros_distro.clone(),
+            ros_distro: self.options.ros_distro().to_string(),
         }
     }
 }
@@ -609,6 +629,49 @@ mod tests {
         assert_eq!(like(Distribution("rolling".into())), MetadataVersion::V9);
         assert_eq!(like(SqliteLayoutBeforeJazzy), MetadataVersion::V8);
         assert_eq!(MetadataVersion::like_source(None), MetadataVersion::V9);
+    }
+
+    /// A version-8 bag labelled `jazzy` (as every bag was) named a distribution whose rosbag2
+    /// writes 9; the label now follows the format unless one is given.
+    #[test]
+    fn a_bag_is_labelled_with_a_distribution_that_writes_its_version() {
+        let tmp = tempfile::tempdir().unwrap();
+        let cases = [
+            (MetadataVersion::V8, None, "iron"),
+            (MetadataVersion::V9, None, "jazzy"),
+            (MetadataVersion::V8, Some("humble"), "humble"),
+        ];
+        for (version, given, expected) in cases {
+            for storage in [StorageId::Mcap, StorageId::Sqlite3] {
+                let dir = tmp
+                    .path()
+                    .join(format!("{}_{storage}_{expected}", version.number()));
+                let options = WriterOptions {
+                    storage,
+                    metadata_version: version,
+                    ros_distro: given.map(str::to_string),
+                    ..WriterOptions::default()
+                };
+                BagWriter::create(&dir, options).unwrap().finish().unwrap();
+                let reader = BagReader::open(&dir).unwrap();
+                assert_eq!(
+                    reader.metadata().ros_distro,
+                    expected,
+                    "{storage} {version:?}"
+                );
+                if storage == StorageId::Sqlite3 {
+                    let file = dir.join(format!(
+                        "{}_0.db3",
+                        dir.file_name().unwrap().to_str().unwrap()
+                    ));
+                    let in_schema: String = rusqlite::Connection::open(file)
+                        .unwrap()
+                        .query_row("SELECT ros_distro FROM schema", [], |row| row.get(0))
+                        .unwrap();
+                    assert_eq!(in_schema, expected, "{version:?}");
+                }
+            }
+        }
     }
 
     /// Writes `/map` (latched) and `/scan` (sensor data) in `storage` at `version`.

@@ -277,8 +277,13 @@ fn convert(
         ..WriterOptions::default()
     };
     if let Some(metadata) = reader.bag_metadata() {
-        if !metadata.ros_distro.is_empty() {
-            options.ros_distro = metadata.ros_distro.clone();
+        // The source's label is kept where it names a distribution of the format written (a
+        // Humble recording kept at 8); else the format's own names it (asked for 9: jazzy).
+        let source = RecordedVersion::Distribution(metadata.ros_distro.clone());
+        if !metadata.ros_distro.is_empty()
+            && MetadataVersion::like_source(Some(&source)) == options.metadata_version
+        {
+            options.ros_distro = Some(metadata.ros_distro.clone());
         }
         options.custom_data = metadata.custom_data.clone().unwrap_or_default();
     }
@@ -669,6 +674,33 @@ mod tests {
                 (m.topic.to_string(), m.log_time_ns, m.data)
             })
             .collect()
+    }
+
+    /// A Humble recording converted to version 9 used to keep its `humble` label, naming a
+    /// distribution that writes another format; kept at 8 it keeps it.
+    #[test]
+    fn a_converted_bag_keeps_its_label_only_where_it_names_the_format_written() {
+        let tmp = tempfile::tempdir().unwrap();
+        let src = tmp.path().join("humble");
+        let options = WriterOptions {
+            metadata_version: MetadataVersion::V8,
+            ros_distro: Some("humble".into()),
+            ..WriterOptions::default()
+        };
+        BagWriter::create(&src, options).unwrap().finish().unwrap();
+        for (n, (args, expected)) in [
+            (&[][..], "humble"),
+            (&["--rosbag2-version", "8"][..], "humble"),
+            (&["--rosbag2-version", "9"][..], "jazzy"),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let dst = tmp.path().join(format!("out{n}"));
+            convert_with(&src, &dst, args).unwrap();
+            let label = BagReader::open(&dst).unwrap().metadata().ros_distro;
+            assert_eq!(label, expected, "{args:?}");
+        }
     }
 
     /// `bag convert` could only copy a whole bag: a minute of a long recording meant copying
