@@ -6,23 +6,31 @@ use crate::{
     rosgraph_msgs, sensor_msgs, tf2_msgs, visualization_msgs,
 };
 
-/// A topic of the contract: its default name, its message type and the QoS it is offered with.
+/// A topic of the contract: its default name, its message type, the QoS its publishers offer
+/// (and a bag records, which `ros2 bag play` offers again) and the QoS its subscribers ask for.
 #[derive(Debug, Clone, Copy)]
 pub struct TopicSpec {
     pub name: &'static str,
     pub type_name: &'static str,
     /// The type's definition, for recording the topic in a bag.
     pub definition: &'static MessageDefinition,
+    /// What publishers offer and bags record.
     pub qos: QosProfile,
+    /// What subscribers ask for: the offer, except where asking for less matches more
+    /// publishers (/scan best effort: many drivers offer it so).
+    pub subscribed: QosProfile,
 }
 
 macro_rules! topics {
-    ($($(#[$doc:meta])* $id:ident = $name:literal, $ty:ty, $qos:expr;)*) => {
+    (@subscribed $qos:expr) => { $qos };
+    (@subscribed $qos:expr, $subscribed:expr) => { $subscribed };
+    ($($(#[$doc:meta])* $id:ident = $name:literal, $ty:ty, $qos:expr $(, subscribed $subscribed:expr)?;)*) => {
         $($(#[$doc])* pub const $id: TopicSpec = TopicSpec {
             name: $name,
             type_name: <$ty as RosMessage>::TYPE_NAME,
             definition: &<$ty as RosMessage>::DEFINITION,
             qos: $qos,
+            subscribed: topics!(@subscribed $qos $(, $subscribed)?),
         };)*
         /// Every topic of the contract.
         pub const ALL: &[TopicSpec] = &[$($id),*];
@@ -30,7 +38,13 @@ macro_rules! topics {
 }
 
 topics! {
-    SCAN = "/scan", sensor_msgs::LaserScan, QosProfile::sensor_data();
+    /// Offered reliable, as REP-2003 asks of sensor drivers and Slamtec's drivers do, so that
+    /// a reliable subscriber (rclcpp's default `QoS(10)`) matches as well as a best-effort one;
+    /// asked best effort, which matches every publisher. Offered (or recorded: `ros2 bag
+    /// play` offers the recorded QoS again) best effort, a reliable subscriber got nothing. A
+    /// subscriber that stops acknowledging does not hold up the scans (docs/ros.md, "/scan
+    /// QoS").
+    SCAN = "/scan", sensor_msgs::LaserScan, SCAN_OFFERED, subscribed QosProfile::sensor_data();
     ODOM = "/odom", nav_msgs::Odometry, QosProfile::reliable(50);
     MAP = "/map", nav_msgs::OccupancyGrid, QosProfile::latched(1);
     TF = "/tf", tf2_msgs::TFMessage, QosProfile::reliable(100);
@@ -49,14 +63,10 @@ topics! {
     GROUND_TRUTH_ACTIVITY = "/ground_truth/activity", lidar_har_msgs::Activity, QosProfile::reliable(10);
 }
 
-/// What the publishers of /scan (`rplidar_driver`, `replay`) offer: [`SCAN`]'s QoS made
-/// reliable, as REP-2003 asks of sensor drivers and Slamtec's drivers do, so that a reliable
-/// subscriber (rclcpp's default `QoS(10)`) matches as well as a best-effort one ([`SCAN`]'s,
-/// the localiser's). Offered best effort, a reliable subscriber got nothing. A subscriber
-/// that stops acknowledging does not hold up the scans (docs/ros.md, "/scan QoS").
-pub const SCAN_OFFERED_QOS: QosProfile = QosProfile {
+/// [`SCAN`]'s offer: the sensor-data profile made reliable.
+const SCAN_OFFERED: QosProfile = QosProfile {
     reliability: Reliability::Reliable,
-    ..SCAN.qos
+    ..QosProfile::sensor_data()
 };
 
 /// The topic of the contract with this name, if any.
@@ -68,13 +78,19 @@ pub fn find(name: &str) -> Option<&'static TopicSpec> {
 mod tests {
     use super::*;
 
+    /// /scan was recorded best effort, the subscription's QoS, so `ros2 bag play` of a
+    /// simulated bag offered it so and a reliable subscriber got nothing.
     #[test]
-    fn scan_is_offered_reliable_with_the_contracts_depth() {
-        assert_eq!(SCAN_OFFERED_QOS.reliability, Reliability::Reliable);
+    fn scan_is_offered_reliable_and_asked_best_effort_with_the_same_depth() {
+        assert_eq!(SCAN.qos.reliability, Reliability::Reliable);
+        assert_eq!(SCAN.subscribed.reliability, Reliability::BestEffort);
         assert_eq!(
-            (SCAN_OFFERED_QOS.durability, SCAN_OFFERED_QOS.history),
-            (SCAN.qos.durability, SCAN.qos.history)
+            (SCAN.qos.durability, SCAN.qos.history),
+            (SCAN.subscribed.durability, SCAN.subscribed.history)
         );
+        for spec in ALL.iter().filter(|spec| spec.name != SCAN.name) {
+            assert_eq!(spec.subscribed, spec.qos, "{}", spec.name);
+        }
     }
 
     /// The type names the contract's tables give, so a topic cannot change type unnoticed.

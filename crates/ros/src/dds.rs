@@ -318,7 +318,7 @@ impl DdsNode {
             let clock = &topics::CLOCK;
             this.sim_clock = Some(SimClock {
                 // Not registered with the node's poll: /clock alone need not wake `wait`.
-                reader: this.reader(clock.name, clock.type_name, &clock.qos)?,
+                reader: this.reader(clock.name, clock.type_name, &clock.subscribed)?,
                 latest_ns: Mutex::new(0),
             });
         }

@@ -351,9 +351,9 @@ impl Node {
         self.publisher(spec.name, spec.type_name, spec.qos)
     }
 
-    /// A subscriber for a topic of the contract (its name, type and QoS).
+    /// A subscriber for a topic of the contract (its name, type and subscription QoS).
     pub fn subscriber_for(&self, spec: &TopicSpec) -> Result<Subscriber, RosError> {
-        self.subscriber(spec.name, spec.type_name, spec.qos)
+        self.subscriber(spec.name, spec.type_name, spec.subscribed)
     }
 
     /// Blocks until one of this node's subscribers may have data, or `timeout` passes. Take

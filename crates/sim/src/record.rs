@@ -301,6 +301,29 @@ mod tests {
             record_as(&mut sim, dir.path(), 0.05, version, |_| {}).unwrap();
             let reader = lidar_har_bag::BagReader::open(dir.path()).unwrap();
             assert_eq!(reader.metadata().metadata_version, Some(version.number()));
+            assert_eq!(
+                reader.topic(topics::SCAN.name).unwrap().offered_qos[0].to_profile(),
+                Some(topics::SCAN.qos),
+                "{version:?}"
+            );
         }
+    }
+
+    /// A bag records what the robot's publishers offer, which `ros2 bag play` offers again:
+    /// /scan was recorded best effort (the localiser's subscription), so a reliable subscriber
+    /// (rclcpp's default) of a played simulator bag got nothing.
+    #[test]
+    fn records_scan_offered_reliable_as_the_driver_offers_it() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenes/hall.yaml");
+        let mut scene = Scene::load(&path).unwrap();
+        scene.duration = 0.2;
+        let dir = tempfile::tempdir().unwrap();
+        let mut sim = Simulator::new(scene, 1).unwrap();
+        record(&mut sim, dir.path(), 0.05, |_| {}).unwrap();
+        let reader = lidar_har_bag::BagReader::open(dir.path()).unwrap();
+        let scan = reader.topic("/scan").unwrap().offered_qos[0]
+            .to_profile()
+            .unwrap();
+        assert_eq!(scan.reliability, lidar_har_msgs::qos::Reliability::Reliable);
     }
 }

@@ -102,7 +102,7 @@ fn stage(p: &Parameters) -> Result<LocaliserStage, RosError> {
     Ok(stage)
 }
 
-/// The QoS the localiser asks for on an input. The contract gives what a topic is offered
+/// The QoS the localiser asks for on an input. The contract gives what a topic is asked
 /// with; /odom is asked best effort, which matches reliable and best-effort publishers
 /// alike (robot bases such as the iRobot Create 3 publish their sensor topics best effort,
 /// and a reliable subscription would never match them). A lost odometry message only
@@ -117,20 +117,20 @@ fn subscription_qos(spec: &TopicSpec, map_transient_local: bool) -> QosProfile {
     if spec.name == topics::MAP.name && !map_transient_local {
         QosProfile {
             durability: Durability::Volatile,
-            ..spec.qos
+            ..spec.subscribed
         }
     } else if spec.name == topics::ODOM.name {
         QosProfile {
             reliability: Reliability::BestEffort,
-            ..spec.qos
+            ..spec.subscribed
         }
     } else if spec.name == topics::TF_STATIC.name {
         QosProfile {
             history: History::KeepLast(TF_STATIC_DEPTH),
-            ..spec.qos
+            ..spec.subscribed
         }
     } else {
-        spec.qos
+        spec.subscribed
     }
 }
 
@@ -250,7 +250,7 @@ mod tests {
     }
 
     #[test]
-    fn odom_is_asked_best_effort_tf_static_deep_and_the_rest_as_offered() {
+    fn odom_and_scan_are_asked_best_effort_tf_static_deep_and_the_rest_as_the_contract() {
         let odom = subscription_qos(&topics::ODOM, true);
         assert_eq!(odom.reliability, Reliability::BestEffort);
         assert_eq!(odom.history, topics::ODOM.qos.history);
@@ -260,8 +260,16 @@ mod tests {
             (tf_static.reliability, tf_static.durability),
             (Reliability::Reliable, Durability::TransientLocal)
         );
+        // Offered reliable by our driver; asked best effort, matching any driver.
+        let scan = subscription_qos(&topics::SCAN, true);
+        assert_eq!(scan.reliability, Reliability::BestEffort);
         for spec in [topics::SCAN, topics::MAP, topics::TF] {
-            assert_eq!(subscription_qos(&spec, true), spec.qos, "{}", spec.name);
+            assert_eq!(
+                subscription_qos(&spec, true),
+                spec.subscribed,
+                "{}",
+                spec.name
+            );
         }
     }
 

@@ -270,13 +270,10 @@ fn check_start_offset(offset_ns: i64, bag_length_ns: i64, bag: &str) -> Result<(
     ))
 }
 
-/// The contract's QoS for a known topic (/scan as its driver offers it, whatever the bag
-/// recorded: [`topics::SCAN_OFFERED_QOS`]), else the one rosbag2's player would offer for
-/// what the bag says its publishers offered.
+/// The contract's offer for a known topic, whatever the bag recorded (/scan reliable, as its
+/// driver offers it, where older simulator bags recorded it best effort), else the one
+/// rosbag2's player would offer for what the bag says its publishers offered.
 fn qos_for(topic: &str, offered: &[OfferedQos]) -> QosProfile {
-    if topic == topics::SCAN.name {
-        return topics::SCAN_OFFERED_QOS;
-    }
     if let Some(spec) = topics::find(topic) {
         return spec.qos;
     }
@@ -1040,14 +1037,11 @@ mod tests {
     /// subscriber (rclcpp's default) got nothing. Other contract topics keep their QoS.
     #[test]
     fn scan_is_offered_reliable_like_the_driver_and_other_topics_as_the_contract() {
-        // Recorded best effort, as the simulator records it.
-        let recorded = [OfferedQos::from(topics::SCAN.qos)];
+        // Recorded best effort, as the simulator recorded it before session 54.
+        let recorded = [OfferedQos::from(topics::SCAN.subscribed)];
         let scan = qos_for(topics::SCAN.name, &recorded);
         assert_eq!(scan.reliability, Reliability::Reliable);
-        assert_eq!(
-            (scan.durability, scan.history),
-            (topics::SCAN.qos.durability, topics::SCAN.qos.history)
-        );
+        assert_eq!(scan, topics::SCAN.qos);
         for spec in [topics::MAP, topics::ODOM, topics::TF_STATIC] {
             assert_eq!(qos_for(spec.name, &[]), spec.qos, "{}", spec.name);
         }

@@ -172,11 +172,7 @@ fn drive(shutdown: &Shutdown) -> anyhow::Result<()> {
              the wall clock"
         );
     }
-    let scans = node.publisher(
-        topics::SCAN.name,
-        topics::SCAN.type_name,
-        topics::SCAN_OFFERED_QOS,
-    )?;
+    let scans = node.publisher_for(&topics::SCAN)?;
     let diagnostics = node.publisher_for(&topics::DIAGNOSTICS)?;
     // next_event returns at least once per diagnostics period, so a signal is seen promptly.
     while !shutdown.requested() {

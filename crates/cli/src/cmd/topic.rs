@@ -221,7 +221,7 @@ impl TopicReader {
         };
         // Without publishers to go by: the contract's QoS, else best effort, which every
         // publisher matches.
-        let fallback = contract.map_or(QosProfile::sensor_data(), |spec| spec.qos);
+        let fallback = contract.map_or(QosProfile::sensor_data(), |spec| spec.subscribed);
         let qos = echo_qos(fallback, &discover_publishers(&node, &topic, deadline));
         let sub = node.subscriber(&topic, &type_name, qos)?;
         Ok(Self {
