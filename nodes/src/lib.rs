@@ -1,12 +1,13 @@
 //! Shared plumbing of the lidar_har node binaries: start-up, exit codes, signals and stamps.
 //! The nodes themselves stay thin: parameters in, library crates do the work, topics out.
 
+use std::cell::Cell;
 use std::process::ExitCode;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use lidar_har_ros::{Backend, Node, ParamDecl, PreparedNode, RosArgs, RosError};
+use lidar_har_ros::{Backend, LogEntry, Node, ParamDecl, PreparedNode, RosArgs, RosError, Rosout};
 
 /// What the nodes log without `RUST_LOG`: their own info, only warnings from the DDS stack
 /// (whose info level describes every discovery packet).
@@ -36,7 +37,8 @@ const DISTRO_CHECK_TARGET: &str = "ros2_client::distributions";
 const TRANSPORT_DISTRO: &str = "jazzy";
 
 /// env_logger without RustDDS's datagram size and full send window warnings, and without
-/// ros2-client's `ROS_DISTRO` check.
+/// ros2-client's `ROS_DISTRO` check; what it prints of the node's own records also goes to
+/// /rosout ([`forward_to_rosout`]).
 struct NodeLogger(env_logger::Logger);
 
 fn is_datagram_size_warning(record: &log::Record) -> bool {
@@ -69,11 +71,78 @@ impl log::Log for NodeLogger {
             && !is_ros_distro_check(record)
         {
             self.0.log(record);
+            if self.0.matches(record) && !is_transport_record(record) {
+                forward_to_rosout(record);
+            }
         }
     }
 
     fn flush(&self) {
         self.0.flush();
+    }
+}
+
+/// Records of the DDS stack: rclcpp leaves its middleware's logs off /rosout too, and one
+/// written while publishing there would be published in turn.
+fn is_transport_record(record: &log::Record) -> bool {
+    ["rustdds", "ros2_client"]
+        .iter()
+        .any(|transport| record.target().starts_with(transport))
+}
+
+/// Where [`NodeLogger`] sends the node's records on /rosout.
+enum RosoutForward {
+    /// The node has not joined the graph yet: the first [`EARLY_RECORDS`] wait for it (what
+    /// it found while starting, such as a bag's missing topics).
+    Waiting(Vec<LogEntry>),
+    Joined(Rosout),
+    /// `--disable-rosout-logs`, the rcl backend, or a program that is no node.
+    Off,
+}
+
+/// Records kept until the node joins.
+const EARLY_RECORDS: usize = 100;
+
+static ROSOUT: Mutex<RosoutForward> = Mutex::new(RosoutForward::Waiting(Vec::new()));
+
+thread_local! {
+    /// Set while this thread publishes a record: a record logged on the way is not forwarded.
+    static FORWARDING: Cell<bool> = const { Cell::new(false) };
+}
+
+fn forward_to_rosout(record: &log::Record) {
+    if FORWARDING.replace(true) {
+        return;
+    }
+    if let Ok(mut forward) = ROSOUT.lock() {
+        match &mut *forward {
+            RosoutForward::Waiting(early) if early.len() < EARLY_RECORDS => {
+                early.push(LogEntry::from(record));
+            }
+            RosoutForward::Joined(rosout) => rosout.publish(&LogEntry::from(record)),
+            RosoutForward::Waiting(_) | RosoutForward::Off => {}
+        }
+    }
+    FORWARDING.set(false);
+}
+
+/// From now on the node's records go to `rosout`, those logged before it joined first; or,
+/// with none, nowhere.
+fn start_rosout(rosout: Option<Rosout>) {
+    let Ok(mut forward) = ROSOUT.lock() else {
+        return;
+    };
+    let early = match std::mem::replace(&mut *forward, RosoutForward::Off) {
+        RosoutForward::Waiting(early) => early,
+        RosoutForward::Joined(_) | RosoutForward::Off => Vec::new(),
+    };
+    if let Some(rosout) = rosout {
+        FORWARDING.set(true);
+        for entry in &early {
+            rosout.publish(entry);
+        }
+        FORWARDING.set(false);
+        *forward = RosoutForward::Joined(rosout);
     }
 }
 
@@ -108,7 +177,9 @@ pub fn join(setup: PreparedNode) -> Result<Node, RosError> {
     {
         log::warn!("{note}");
     }
-    setup.join()
+    let node = setup.join()?;
+    start_rosout(node.rosout());
+    Ok(node)
 }
 
 /// What a node is, for its `--help`: its name, one line on what it does, its parameters.
@@ -494,6 +565,18 @@ mod tests {
             );
         }
         String::from_utf8(buffer.0.lock().unwrap().clone()).unwrap()
+    }
+
+    /// The DDS stack's records stay off /rosout: one logged while a record is published
+    /// there would be published in turn.
+    #[test]
+    fn only_the_nodes_own_records_go_to_rosout() {
+        let transport =
+            |target| is_transport_record(&log::Record::builder().target(target).build());
+        assert!(transport("rustdds::network::udp_sender"));
+        assert!(transport("ros2_client::context"));
+        assert!(!transport("replay"));
+        assert!(!transport("lidar_har_pipeline::localiser"));
     }
 
     /// ros2-client's check logged a warning at every start without ROS 2, and under Humble an

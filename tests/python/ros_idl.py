@@ -201,3 +201,14 @@ class SetAtomicallyRequest(IdlStruct,
 class SetAtomicallyResponse(
         IdlStruct, typename="rcl_interfaces::srv::dds_::SetParametersAtomically_Response_"):
     result: SetParametersResult = field(default_factory=SetParametersResult)
+
+
+@dataclass
+class Log(IdlStruct, typename="rcl_interfaces::msg::dds_::Log_"):
+    stamp: Time = field(default_factory=Time)
+    level: uint8 = 0
+    name: str = ""
+    msg: str = ""
+    file: str = ""
+    function: str = ""
+    line: uint32 = 0

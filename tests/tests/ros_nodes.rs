@@ -1581,6 +1581,103 @@ wait $C; echo "reliable_reader=$?"
     assert_eq!(firsts, want, "every scan, in order (reliable)");
 }
 
+/// A node's log records reach /rosout as rclcpp publishes them (`rcl_interfaces/msg/Log`,
+/// rcl's logger name, level and source), read here by Cyclone DDS as `rqt_console` would;
+/// the warnings logged before the node joined the graph too. `--disable-rosout-logs` keeps
+/// them off. They used to reach only the node's terminal.
+#[test]
+fn ros_a_nodes_log_records_reach_rosout() {
+    let Some(python) = cyclone_python() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(dir.path(), 40);
+    let reader = r#"
+import json, sys, time
+from cyclonedds.core import Policy, Qos
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+from ros_idl import Log
+p = DomainParticipant(0)
+# rcl's rosout subscription: reliable, transient local, keep last 1000.
+qos = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
+          Policy.Durability.TransientLocal, Policy.History.KeepLast(1000))
+reader = DataReader(p, Topic(p, "rt/rosout", Log), qos=qos)
+print("ready", flush=True)
+end, marker, seen = time.monotonic() + float(sys.argv[1]), sys.argv[2], False
+while not seen and time.monotonic() < end:
+    for s in reader.take(N=16):
+        if getattr(s, "sample_info", None) is None or s.sample_info.valid_data:
+            print(json.dumps({"name": s.name, "level": s.level, "msg": s.msg, "file": s.file,
+                              "line": s.line, "sec": s.stamp.sec}), flush=True)
+            seen = seen or marker in s.msg
+    time.sleep(0.01)
+sys.exit(0 if seen else 1)
+"#;
+    let reader_path = dir.path().join("rosout.py");
+    std::fs::write(&reader_path, reader).unwrap();
+    let script = r#"
+PYTHONPATH="$PYDIR" "$PY" "$READER" 30 /missing_loud > "$OUT/rosout.jsonl" & C=$!
+wait_until 10 has_lines "$OUT/rosout.jsonl" 1
+"$REPLAY" --ros-args -p bag:="$BAG" -p topics:="[/scan, /missing_quiet]" --disable-rosout-logs 2> /dev/null
+echo "quiet_replay=$?"
+"$REPLAY" --ros-args -r __ns:=/robot1 -p bag:="$BAG" -p topics:="[/scan, /missing_loud]" 2> /dev/null
+echo "replay=$?"
+wait $C; echo "reader=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("REPLAY", &workspace_bin("replay")),
+            ("BAG", &bag),
+            ("OUT", dir.path()),
+            ("READER", &reader_path),
+            ("PY", &python),
+            ("PYDIR", &repo_root().join("tests/python")),
+        ],
+        Duration::from_secs(60),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for want in ["quiet_replay=0", "replay=0", "reader=0"] {
+        assert!(stdout.contains(want), "expected {want}: {stdout}");
+    }
+    let text = std::fs::read_to_string(dir.path().join("rosout.jsonl")).unwrap();
+    let records: Vec<serde_json::Value> = text
+        .lines()
+        .skip_while(|line| *line == "ready")
+        .map(|line| serde_json::from_str(line).unwrap())
+        .collect();
+    let missing = records
+        .iter()
+        .find(|r| {
+            r["msg"]
+                .as_str()
+                .is_some_and(|m| m.contains("/missing_loud"))
+        })
+        .unwrap_or_else(|| panic!("no record of the missing topic: {records:?}"));
+    assert_eq!(
+        missing["name"], "robot1.replay",
+        "rcl's logger name: {missing}"
+    );
+    assert_eq!(missing["level"], 30, "a warning: {missing}");
+    assert!(
+        missing["file"].as_str().unwrap().ends_with("replay.rs") && missing["line"] != 0,
+        "{missing}"
+    );
+    assert!(
+        missing["sec"].as_i64().unwrap() > 1_700_000_000,
+        "wall clock: {missing}"
+    );
+    assert!(
+        records
+            .iter()
+            .all(|r| !r["msg"].as_str().unwrap_or("").contains("/missing_quiet")),
+        "--disable-rosout-logs: {records:?}"
+    );
+}
+
 /// A /map publisher that does not latch it (cartographer's occupancy_grid_node: volatile,
 /// reliable), here Cyclone DDS: a transient-local subscription, the localiser's default, never
 /// matches it (DDS QoS matching), so the localiser skips every scan for want of a map;

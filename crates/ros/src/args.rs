@@ -20,6 +20,9 @@ pub struct RosArgs {
     pub params: Vec<ParamArg>,
     /// Arguments outside `--ros-args` sections (the program's own).
     pub rest: Vec<String>,
+    /// `--disable-rosout-logs` (the last of it and `--enable-rosout-logs` wins, as in rcl):
+    /// the node's log records are not published on /rosout.
+    pub disable_rosout_logs: bool,
 }
 
 /// One `-r` remapping rule.
@@ -90,14 +93,15 @@ impl RosArgs {
                         .params
                         .push(ParamArg::File(PathBuf::from(value("a file")?))),
                     // Accepted and ignored: logging and security settings of rcl. The nodes
-                    // log to stderr only, so Jazzy's `--log-file-name` names nothing here.
+                    // log to stderr and /rosout, so Jazzy's `--log-file-name` names nothing
+                    // here.
                     "--log-level" | "--log-config-file" | "--log-file-name" | "-e"
                     | "--enclave" => {
                         value("a value")?;
                     }
-                    "--enable-rosout-logs"
-                    | "--disable-rosout-logs"
-                    | "--enable-stdout-logs"
+                    "--enable-rosout-logs" => out.disable_rosout_logs = false,
+                    "--disable-rosout-logs" => out.disable_rosout_logs = true,
+                    "--enable-stdout-logs"
                     | "--disable-stdout-logs"
                     | "--enable-external-lib-logs"
                     | "--disable-external-lib-logs" => {}
@@ -491,6 +495,19 @@ mod tests {
                 ParamSource::File("p.yaml".into())
             ]
         );
+    }
+
+    #[test]
+    fn rosout_logs_follow_the_last_switch() {
+        let parse = |args: &[&str]| RosArgs::parse(args.iter().copied()).unwrap();
+        assert!(!parse(&["--ros-args"]).disable_rosout_logs);
+        assert!(parse(&["--ros-args", "--disable-rosout-logs"]).disable_rosout_logs);
+        let both = [
+            "--ros-args",
+            "--disable-rosout-logs",
+            "--enable-rosout-logs",
+        ];
+        assert!(!parse(&both).disable_rosout_logs);
     }
 
     /// rcl applies `-p` and `--params-file` in command-line order; `-p` used to win always.

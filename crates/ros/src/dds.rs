@@ -30,8 +30,8 @@ use crate::args::DiscoveryRange;
 use crate::param_services::{ParameterServices, ServedParameters};
 use crate::params::{ParamDecl, ParamValue, Parameters};
 use crate::{
-    NodeBackend, OfferedQos, PublisherBackend, RosError, Sample, SubscriberBackend, TopicInfo,
-    split_type_name,
+    NodeBackend, OfferedQos, PublisherBackend, RosError, Rosout, Sample, SubscriberBackend,
+    TopicInfo, split_type_name,
 };
 
 /// CDR bytes after the encapsulation header, with the header's representation identifier.
@@ -192,6 +192,31 @@ fn writer_qos_policies(qos: &QosProfile) -> QosPolicies {
     }
 }
 
+/// rcl's /rosout QoS (`rcl_qos_profile_rosout_default`): reliable, transient local, keep
+/// last 1000 (ResourceLimits as [`writer_qos_policies`] sets them), lifespan 10 s; a write
+/// never waits, so a console that stops acknowledging cannot stall the node's logging.
+/// ros2-client's own /rosout writer keeps 1 record: a console opened a moment late missed
+/// every record but the last.
+fn rosout_qos_policies() -> QosPolicies {
+    let profile = QosProfile {
+        reliability: Reliability::Reliable,
+        durability: Durability::TransientLocal,
+        history: History::KeepLast(ROSOUT_DEPTH),
+    };
+    let never_wait = rustdds::QosPolicyBuilder::new()
+        .reliability(rustdds::policy::Reliability::Reliable {
+            max_blocking_time: rustdds::Duration::ZERO,
+        })
+        .lifespan(rustdds::policy::Lifespan {
+            duration: rustdds::Duration::from_secs(10),
+        })
+        .build();
+    writer_qos_policies(&profile).modify_by(&never_wait)
+}
+
+/// rcl's /rosout depth.
+const ROSOUT_DEPTH: u32 = 1000;
+
 /// A participant on `ROS_DOMAIN_ID`, announcing itself and listening for multicast only on
 /// the interfaces the discovery range allows. RustDDS filters what it announces and where it
 /// sends multicast, not what its unicast sockets accept: a peer elsewhere that learns our
@@ -221,6 +246,8 @@ pub(crate) struct DdsNode {
     /// `ros2 param`, answered by a thread of ours: the node runs no ros2-client spinner
     /// (see [`crate::param_services`]).
     _parameter_services: Option<ParameterServices>,
+    /// Where the node's log records go, unless `--disable-rosout-logs`.
+    rosout: Option<Rosout>,
     served: Arc<ServedParameters>,
     /// /clock when `use_sim_time` is true, as `rosgraph_msgs/msg/Clock` (ros2-client 0.12's
     /// spinner read it as `builtin_interfaces/msg/Time`, which ROS 2's publishers do not
@@ -272,6 +299,7 @@ impl DdsNode {
         params: &Parameters,
         decls: &[ParamDecl],
         parameter_services: bool,
+        rosout: bool,
     ) -> Result<Self, RosError> {
         let use_sim_time = params.bool("use_sim_time")?;
         let context = ros2_client::Context::from_domain_participant(participant_from_env()?)
@@ -281,9 +309,9 @@ impl DdsNode {
             reason: format!("{e:?}"),
         })?;
         // ros2-client's parameter services are its spinner's, which the node does not run:
-        // ours (below) replace them.
+        // ours (below) replace them; so does our /rosout writer its own.
         let options = NodeOptions::new()
-            .enable_rosout(true)
+            .enable_rosout(false)
             .start_parameter_services(false);
         let mut node = context.new_node(node_name, options).map_err(dds_err)?;
         let served = Arc::new(ServedParameters::new(params, decls));
@@ -303,6 +331,7 @@ impl DdsNode {
         let registry = poll.registry().try_clone().map_err(dds_err)?;
         let mut this = Self {
             _parameter_services: parameter_services,
+            rosout: None,
             served,
             sim_clock: None,
             node,
@@ -314,6 +343,19 @@ impl DdsNode {
             next_token: Mutex::new(0),
             context,
         };
+        if rosout {
+            let writer = this
+                .publisher
+                .create_datawriter_no_key_cdr::<ros2_client::Log>(
+                    &this.context.get_rosout_topic(),
+                    Some(rosout_qos_policies()),
+                )
+                .map_err(|e| RosError::Topic {
+                    topic: "/rosout".into(),
+                    reason: e.to_string(),
+                })?;
+            this.rosout = Some(Rosout::new(writer, namespace, name));
+        }
         if use_sim_time {
             let clock = &topics::CLOCK;
             this.sim_clock = Some(SimClock {
@@ -461,6 +503,10 @@ impl NodeBackend for DdsNode {
             .filter(|p| crate::ros_topic_from_dds(&p.topic_name).as_deref() == Some(topic))
             .map(|p| offered_qos(p.reliability, p.durability))
             .collect()
+    }
+
+    fn rosout(&self) -> Option<Rosout> {
+        self.rosout.clone()
     }
 }
 

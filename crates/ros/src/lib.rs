@@ -18,6 +18,7 @@ mod param_services;
 pub mod params;
 #[cfg(feature = "r2r")]
 mod rcl;
+mod rosout;
 mod yaml;
 
 use std::path::PathBuf;
@@ -29,6 +30,7 @@ use lidar_har_msgs::{CdrError, RosMessage};
 
 pub use args::RosArgs;
 pub use params::{ParamDecl, ParamSource, ParamValue, Parameters, node_parameters};
+pub use rosout::{LogEntry, Rosout};
 
 /// Everything that can go wrong in the transport, each naming what it is about.
 #[derive(Debug, thiserror::Error)]
@@ -199,6 +201,10 @@ trait NodeBackend: Send + Sync {
     fn parameter(&self, name: &str) -> Option<ParamValue>;
     fn topics(&self) -> Vec<TopicInfo>;
     fn publishers_qos(&self, topic: &str) -> Vec<OfferedQos>;
+    /// Where the node's log records go on /rosout, where the backend publishes them itself.
+    fn rosout(&self) -> Option<Rosout> {
+        None
+    }
 }
 
 trait PublisherBackend: Send + Sync {
@@ -259,6 +265,7 @@ impl PreparedNode {
                 &params,
                 &params::node_parameters(setup.parameters.clone()),
                 setup.parameter_services,
+                !ros_args.disable_rosout_logs,
             )?),
             #[cfg(feature = "r2r")]
             Backend::Rcl => Box::new(rcl::RclNode::new(&name, &namespace, &setup.args)?),
@@ -303,6 +310,13 @@ impl Node {
         self.backend
             .parameter(name)
             .or_else(|| self.params.get(name).cloned())
+    }
+
+    /// Where to publish the node's log records on /rosout, as rclcpp does: none with
+    /// `--disable-rosout-logs`, nor with the rcl backend (whose rosout rcl's logging feeds;
+    /// the `log` crate's records are not passed to it).
+    pub fn rosout(&self) -> Option<Rosout> {
+        self.backend.rosout()
     }
 
     /// `topic` after namespace expansion and `-r` remapping.

@@ -1,0 +1,116 @@
+//! A node's log records on /rosout (`rcl_interfaces/msg/Log`), as rclcpp publishes every
+//! record a node logs: `rqt_console`, Foxglove's log panel and `ros2 bag record /rosout` see
+//! what the node says, not only its terminal.
+
+use std::sync::Arc;
+use std::time::SystemTime;
+
+use ros2_client::Log;
+use ros2_client::builtin_interfaces::Time;
+use ros2_client::dds::rustdds::no_key::DataWriterCdr;
+
+/// One log record, owned: one logged before the node joined the graph waits in this form.
+#[derive(Debug, Clone)]
+pub struct LogEntry {
+    pub time: SystemTime,
+    pub level: log::Level,
+    pub msg: String,
+    pub file: String,
+    pub function: String,
+    pub line: u32,
+}
+
+impl From<&log::Record<'_>> for LogEntry {
+    /// The record, timed now.
+    fn from(record: &log::Record<'_>) -> Self {
+        Self {
+            time: SystemTime::now(),
+            level: record.level(),
+            msg: record.args().to_string(),
+            file: record.file().unwrap_or_default().to_string(),
+            function: record.module_path().unwrap_or_default().to_string(),
+            line: record.line().unwrap_or_default(),
+        }
+    }
+}
+
+/// Where a node's log records are published, under its logger name: a /rosout writer of
+/// rcl's QoS (reliable, transient local, keep last 1000, lifespan 10 s: a console opened
+/// within 10 s gets what was logged before it), which never waits.
+#[derive(Clone)]
+pub struct Rosout {
+    writer: Arc<DataWriterCdr<Log>>,
+    logger_name: String,
+}
+
+impl Rosout {
+    pub(crate) fn new(writer: DataWriterCdr<Log>, namespace: &str, name: &str) -> Self {
+        Self {
+            writer: Arc::new(writer),
+            logger_name: logger_name(namespace, name),
+        }
+    }
+
+    /// Publishes `entry`, stamped with its time on the system clock (as rcl stamps /rosout,
+    /// whatever `use_sim_time` says). A failed write is dropped: the record has been printed
+    /// already, and logging the failure would log again.
+    pub fn publish(&self, entry: &LogEntry) {
+        let stamp = Time::try_from(entry.time).unwrap_or(Time::ZERO);
+        let log = Log {
+            stamp,
+            level: level(entry.level),
+            name: self.logger_name.clone(),
+            msg: entry.msg.clone(),
+            file: entry.file.clone(),
+            function: entry.function.clone(),
+            line: entry.line,
+        };
+        let _ = self.writer.write(log, None);
+    }
+}
+
+/// rcl's logger name of a node: its namespace without the leading slash, then its name,
+/// joined by dots (`/robot1` + `localiser` = `robot1.localiser`).
+fn logger_name(namespace: &str, name: &str) -> String {
+    let namespace = namespace.trim_matches('/');
+    if namespace.is_empty() {
+        name.to_string()
+    } else {
+        format!("{}.{name}", namespace.replace('/', "."))
+    }
+}
+
+/// The `Log` level of a record (`rcl_interfaces/msg/Log`'s constants; `trace` is a debug).
+fn level(level: log::Level) -> u8 {
+    match level {
+        log::Level::Error => Log::ERROR,
+        log::Level::Warn => Log::WARN,
+        log::Level::Info => Log::INFO,
+        log::Level::Debug | log::Level::Trace => Log::DEBUG,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn logger_names_are_rcls() {
+        assert_eq!(logger_name("/", "localiser"), "localiser");
+        assert_eq!(logger_name("/robot1", "localiser"), "robot1.localiser");
+        assert_eq!(logger_name("/a/b", "replay"), "a.b.replay");
+    }
+
+    #[test]
+    fn levels_are_rcl_interfaces_constants() {
+        let levels = [
+            log::Level::Error,
+            log::Level::Warn,
+            log::Level::Info,
+            log::Level::Debug,
+            log::Level::Trace,
+        ]
+        .map(level);
+        assert_eq!(levels, [40, 30, 20, 10, 10]);
+    }
+}
