@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use lidar_har_ros::args::Severity;
 use lidar_har_ros::{Backend, LogEntry, Node, ParamDecl, PreparedNode, RosArgs, RosError, Rosout};
 
 /// What the nodes log without `RUST_LOG`: their own info, only warnings from the DDS stack
@@ -146,12 +147,16 @@ fn start_rosout(rosout: Option<Rosout>) {
     }
 }
 
-/// Logs to stderr: `RUST_LOG`, default [`DEFAULT_LOG_FILTER`], through [`NodeLogger`].
-fn init_logging() {
-    let logger = env_logger::Builder::from_env(
+/// Logs to stderr: `RUST_LOG`, default [`DEFAULT_LOG_FILTER`], with `level` (from
+/// `--log-level`) as the level of every module it names no level for, through [`NodeLogger`].
+fn init_logging(level: Option<log::LevelFilter>) {
+    let mut builder = env_logger::Builder::from_env(
         env_logger::Env::default().default_filter_or(DEFAULT_LOG_FILTER),
-    )
-    .build();
+    );
+    if let Some(level) = level {
+        builder.filter_level(level);
+    }
+    let logger = builder.build();
     let max_level = logger.filter();
     if log::set_boxed_logger(Box::new(NodeLogger(logger))).is_ok() {
         log::set_max_level(max_level);
@@ -232,6 +237,23 @@ fn program_args(args: &[String]) -> Result<ProgramArgs, RosError> {
     }
 }
 
+/// The level `--log-level` gives the records of the node `default_name` (after `__node` and
+/// `__ns` remapping, by rcl's logger name: `robot1.localiser`); a command line that does not
+/// parse gives none here and is refused by the node's set-up.
+fn log_level(args: &[String], default_name: &str) -> Option<log::LevelFilter> {
+    let ros_args = RosArgs::parse(args.iter().cloned()).ok()?;
+    let name = ros_args.node_name(default_name);
+    let namespace = ros_args.namespace(name, "/");
+    let level = match ros_args.log_level_for(&lidar_har_ros::logger_name(namespace, name))? {
+        Severity::Unset => return None,
+        Severity::Debug => log::LevelFilter::Debug,
+        Severity::Info => log::LevelFilter::Info,
+        Severity::Warn => log::LevelFilter::Warn,
+        Severity::Error | Severity::Fatal => log::LevelFilter::Error,
+    };
+    Some(level)
+}
+
 /// Runs a node's body: logs to stderr ([`init_logging`]), and turns
 /// an error into a one-line message and a non-zero exit code: 2 for a bad argument or
 /// parameter, 1 otherwise. `--help` prints the node's usage instead.
@@ -249,7 +271,7 @@ pub fn run(node: &NodeInfo, body: impl FnOnce(&Shutdown) -> anyhow::Result<()>) 
             return ExitCode::from(2);
         }
     }
-    init_logging();
+    init_logging(log_level(&args, name));
     let shutdown = match Shutdown::install() {
         Ok(s) => s,
         Err(e) => {
@@ -565,6 +587,24 @@ mod tests {
             );
         }
         String::from_utf8(buffer.0.lock().unwrap().clone()).unwrap()
+    }
+
+    /// `--log-level` was accepted and ignored.
+    #[test]
+    fn log_level_is_the_one_rcl_gives_the_nodes_logger() {
+        let level = |args: &[&str]| {
+            let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+            log_level(&args, "replay")
+        };
+        assert_eq!(level(&["--ros-args"]), None);
+        let debug = level(&["--ros-args", "--log-level", "debug"]);
+        assert_eq!(debug, Some(log::LevelFilter::Debug));
+        let in_robot1 = ["--ros-args", "-r", "__ns:=/robot1", "--log-level"];
+        let named = [&in_robot1[..], &["robot1.replay:=fatal"]].concat();
+        assert_eq!(level(&named), Some(log::LevelFilter::Error));
+        let other = [&in_robot1[..], &["replay:=error"]].concat();
+        assert_eq!(level(&other), None, "another logger's rule");
+        assert_eq!(level(&["--ros-args", "--log-level", "loud"]), None);
     }
 
     /// The DDS stack's records stay off /rosout: one logged while a record is published

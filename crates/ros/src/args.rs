@@ -23,6 +23,44 @@ pub struct RosArgs {
     /// `--disable-rosout-logs` (the last of it and `--enable-rosout-logs` wins, as in rcl):
     /// the node's log records are not published on /rosout.
     pub disable_rosout_logs: bool,
+    /// `--log-level [logger:=]severity`, in order; see [`RosArgs::log_level_for`].
+    pub log_levels: Vec<LogLevelRule>,
+}
+
+/// A `--log-level` rule: the severity of one logger (`localiser:=debug`), or of every logger
+/// without a rule of its own (`debug`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LogLevelRule {
+    pub logger: Option<String>,
+    pub severity: Severity,
+}
+
+/// rcutils' log severities, as `--log-level` names them (in any case).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Severity {
+    Unset,
+    Debug,
+    Info,
+    Warn,
+    Error,
+    Fatal,
+}
+
+impl std::str::FromStr for Severity {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "unset" => Ok(Self::Unset),
+            "debug" => Ok(Self::Debug),
+            "info" => Ok(Self::Info),
+            "warn" => Ok(Self::Warn),
+            "error" => Ok(Self::Error),
+            "fatal" => Ok(Self::Fatal),
+            _ => Err(format!(
+                "unknown severity `{s}` (expected debug, info, warn, error, fatal or unset)"
+            )),
+        }
+    }
 }
 
 /// One `-r` remapping rule.
@@ -92,11 +130,14 @@ impl RosArgs {
                     "--params-file" => out
                         .params
                         .push(ParamArg::File(PathBuf::from(value("a file")?))),
+                    "--log-level" => {
+                        let rule = value("a severity, or `logger:=severity`")?;
+                        out.log_levels.push(parse_log_level(&rule)?);
+                    }
                     // Accepted and ignored: logging and security settings of rcl. The nodes
                     // log to stderr and /rosout, so Jazzy's `--log-file-name` names nothing
                     // here.
-                    "--log-level" | "--log-config-file" | "--log-file-name" | "-e"
-                    | "--enclave" => {
+                    "--log-config-file" | "--log-file-name" | "-e" | "--enclave" => {
                         value("a value")?;
                     }
                     "--enable-rosout-logs" => out.disable_rosout_logs = false,
@@ -179,6 +220,25 @@ impl RosArgs {
         first_rule_for(&self.namespaces, name).unwrap_or(default)
     }
 
+    /// The severity `--log-level` sets for the logger `logger` (a node's is its name,
+    /// prefixed by its namespace with dots: `robot1.localiser`): the last rule naming it,
+    /// else the last without a name, as rcl applies them. `unset` counts as none.
+    pub fn log_level_for(&self, logger: &str) -> Option<Severity> {
+        let last = |named: bool| {
+            self.log_levels
+                .iter()
+                .rev()
+                .find(|rule| match &rule.logger {
+                    Some(name) => named && name == logger,
+                    None => !named,
+                })
+                .map(|rule| rule.severity)
+        };
+        last(true)
+            .or_else(|| last(false))
+            .filter(|severity| *severity != Severity::Unset)
+    }
+
     /// The parameter files and the `-p` overrides for the node `node_fqn` (`/ns/name`), in
     /// command-line order: every file, the overrides without a node prefix, and those whose
     /// prefix names it. rcl keeps `node:name:=value` as a parameter of the node `node`, which
@@ -210,6 +270,20 @@ fn first_rule_for<'a>(rules: &'a [NodeRule], node_name: &str) -> Option<&'a str>
 }
 
 /// `[node:]name:=value` of `-p`, the value typed as rcl types it.
+/// `severity` or `logger:=severity`, as rcl reads `--log-level`.
+fn parse_log_level(rule: &str) -> Result<LogLevelRule, RosError> {
+    let bad = |reason: String| RosError::Args(format!("--log-level `{rule}`: {reason}"));
+    let (logger, severity) = match rule.split_once(":=") {
+        Some((logger, _)) if logger.is_empty() => return Err(bad("empty logger name".into())),
+        Some((logger, severity)) => (Some(logger.to_string()), severity),
+        None => (None, rule),
+    };
+    Ok(LogLevelRule {
+        logger,
+        severity: severity.parse().map_err(bad)?,
+    })
+}
+
 fn parse_param(rule: &str) -> Result<ParamOverride, RosError> {
     let bad = |reason: &str| RosError::Args(format!("`{rule}`: {reason}"));
     let (lhs, text) = rule
@@ -495,6 +569,37 @@ mod tests {
                 ParamSource::File("p.yaml".into())
             ]
         );
+    }
+
+    /// `--log-level` was accepted and ignored: a launch file asking a node for debug output
+    /// got the default.
+    #[test]
+    fn log_levels_apply_as_rcl_applies_them() {
+        let parse = |args: &[&str]| RosArgs::parse(args.iter().copied()).unwrap();
+        assert_eq!(parse(&["--ros-args"]).log_level_for("localiser"), None);
+        let bare = parse(&["--ros-args", "--log-level", "DEBUG"]);
+        assert_eq!(bare.log_level_for("localiser"), Some(Severity::Debug));
+        let named = parse(&[
+            "--ros-args",
+            "--log-level",
+            "localiser:=error",
+            "--log-level",
+            "warn",
+            "--log-level",
+            "classifier:=debug",
+        ]);
+        assert_eq!(named.log_level_for("localiser"), Some(Severity::Error));
+        assert_eq!(named.log_level_for("classifier"), Some(Severity::Debug));
+        assert_eq!(named.log_level_for("replay"), Some(Severity::Warn));
+        let unset = parse(&["--ros-args", "--log-level", "info", "--log-level", "unset"]);
+        assert_eq!(unset.log_level_for("replay"), None);
+        for bad in ["loud", "localiser:=", ":=debug"] {
+            let err = RosArgs::parse(["--ros-args", "--log-level", bad]).unwrap_err();
+            assert!(
+                err.to_string().contains(&format!("--log-level `{bad}`")),
+                "{err}"
+            );
+        }
     }
 
     #[test]

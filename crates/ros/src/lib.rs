@@ -30,7 +30,7 @@ use lidar_har_msgs::{CdrError, RosMessage};
 
 pub use args::RosArgs;
 pub use params::{ParamDecl, ParamSource, ParamValue, Parameters, node_parameters};
-pub use rosout::{LogEntry, Rosout};
+pub use rosout::{LogEntry, Rosout, logger_name};
 
 /// Everything that can go wrong in the transport, each naming what it is about.
 #[derive(Debug, thiserror::Error)]

@@ -71,7 +71,7 @@ impl Rosout {
 
 /// rcl's logger name of a node: its namespace without the leading slash, then its name,
 /// joined by dots (`/robot1` + `localiser` = `robot1.localiser`).
-fn logger_name(namespace: &str, name: &str) -> String {
+pub fn logger_name(namespace: &str, name: &str) -> String {
     let namespace = namespace.trim_matches('/');
     if namespace.is_empty() {
         name.to_string()
