@@ -274,7 +274,7 @@ fn first_rule_for<'a>(rules: &'a [NodeRule], node_name: &str) -> Option<&'a str>
 fn parse_log_level(rule: &str) -> Result<LogLevelRule, RosError> {
     let bad = |reason: String| RosError::Args(format!("--log-level `{rule}`: {reason}"));
     let (logger, severity) = match rule.split_once(":=") {
-        Some((logger, _)) if logger.is_empty() => return Err(bad("empty logger name".into())),
+        Some(("", _)) => return Err(bad("empty logger name".into())),
         Some((logger, severity)) => (Some(logger.to_string()), severity),
         None => (None, rule),
     };
