@@ -309,6 +309,48 @@ fn rosbags_and_mcap_ros2_decode_the_project_bag_field_by_field() {
     }
 }
 
+/// Bags record each topic's RIHS01 type hash, a constant next to each definition
+/// (`MessageDefinition::type_hash`). rosbags recomputes every one from our schema text, and,
+/// for the standard types, from its own Jazzy definitions: a wrong or missing constant fails.
+/// Three of them equal values published elsewhere: LaserScan `RIHS01_64c19139…bd828`,
+/// TFMessage `RIHS01_e369d0f0…0f087`, Odometry `RIHS01_3cc97dc7…ec6e0` (see docs/msgs.md).
+#[test]
+fn every_type_hash_is_the_rihs01_hash_rosbags_computes_from_its_schema() {
+    let tmp = tempfile::tempdir().unwrap();
+    let schemas: Vec<Json> = lidar_har_msgs::schema::ALL
+        .iter()
+        .map(|def| serde_json::json!({"type": def.type_name, "schema": def.schema_text()}))
+        .collect();
+    let input = tmp.path().join("schemas.json");
+    std::fs::write(&input, serde_json::to_vec(&schemas).unwrap()).unwrap();
+    let Some(out) = run_python("type_hashes.py", &input) else {
+        return;
+    };
+    let computed: Json = serde_json::from_slice(&out.stdout).unwrap();
+    let mut standard = 0;
+    for def in lidar_har_msgs::schema::ALL {
+        let by_rosbags = &computed[def.type_name];
+        assert_eq!(
+            by_rosbags["ours"].as_str(),
+            Some(def.type_hash),
+            "{}: the type_hash constant is not the hash of its schema",
+            def.type_name
+        );
+        if def.package() == "lidar_har_msgs" {
+            assert!(by_rosbags["jazzy"].is_null(), "{}", def.type_name);
+        } else {
+            assert_eq!(
+                by_rosbags["jazzy"].as_str(),
+                Some(def.type_hash),
+                "{}: not Jazzy's hash",
+                def.type_name
+            );
+            standard += 1;
+        }
+    }
+    assert_eq!(standard, lidar_har_msgs::schema::ALL.len() - 3);
+}
+
 /// Sqlite3 bags of Foxy and Humble store no message definitions; `bag convert` gives their
 /// topics lidar-har's, which are Humble's. Foxy's Marker lacks fields Humble's has: its
 /// messages were written under Humble's definition, and no reader could decode the new bag.
@@ -343,6 +385,14 @@ fn bag_convert_refuses_a_type_whose_layout_is_not_its_definitions() {
     let (run, out) = convert("humble");
     assert!(run.status.success(), "{run:?}");
     let reader = BagReader::open(&out).unwrap();
+    // Humble records no type hash; the definitions given are ours, and so is the hash.
+    assert_eq!(
+        reader
+            .topic("/human/markers")
+            .unwrap()
+            .type_description_hash,
+        MarkerArray::DEFINITION.type_hash
+    );
     let mut decoded_markers = 0;
     for message in reader.messages().unwrap() {
         let message = message.unwrap();

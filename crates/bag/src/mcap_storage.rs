@@ -116,14 +116,15 @@ impl StorageSink for McapSink {
                 topic.schema_text.as_bytes(),
             )
             .map_err(mcap_error(&path))?;
-        let mut metadata = BTreeMap::new();
-        metadata.insert("offered_qos_profiles".to_string(), qos);
-        if !topic.type_description_hash.is_empty() {
-            metadata.insert(
+        // Both keys on every channel, the hash empty where unknown, as rosbag2 Iron and later
+        // write them (rosbag2_storage_mcap `create_topic`); earlier readers ignore the hash.
+        let metadata = BTreeMap::from([
+            ("offered_qos_profiles".to_string(), qos),
+            (
                 "topic_type_hash".to_string(),
                 topic.type_description_hash.clone(),
-            );
-        }
+            ),
+        ]);
         let channel = writer
             .add_channel(
                 schema_id,

@@ -34,6 +34,8 @@ pub struct TopicMetadata {
     /// A YAML string (versions 4 to 8) or a list (version 9); see [`crate::qos::parse`].
     #[serde(default)]
     pub offered_qos_profiles: Value,
+    /// The type's RIHS01 hash (metadata version 7 and later; rosbag2 Iron writes 8), empty
+    /// where the writer does not know it.
     #[serde(default)]
     pub type_description_hash: String,
 }

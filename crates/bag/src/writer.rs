@@ -338,6 +338,8 @@ impl BagWriter {
     }
 
     /// Adds a topic with its type, `ros2msg` schema text (the .msg and its dependencies) and QoS.
+    /// Its type hash is ours where the type is one we mirror and the schema has our fields
+    /// ([`lidar_har_msgs::schema::type_hash_of`]), else empty, as rosbag2 records an unknown one.
     pub fn add_topic(
         &mut self,
         name: &str,
@@ -350,26 +352,34 @@ impl BagWriter {
             type_name,
             schema_text,
             vec![OfferedQos::from(qos)],
-            "",
+            lidar_har_msgs::schema::type_hash_of(type_name, schema_text).unwrap_or_default(),
         )
     }
 
-    /// Adds a topic for message type `M`, taking its type name and schema from the type.
+    /// Adds a topic for message type `M`, taking its type name, schema and hash from the type.
     pub fn add_topic_for<M: RosMessage>(
         &mut self,
         name: &str,
         qos: QosProfile,
     ) -> Result<TopicHandle> {
-        self.add_topic(name, M::TYPE_NAME, &M::schema_text(), qos)
+        self.add_topic_with(
+            name,
+            M::TYPE_NAME,
+            &M::schema_text(),
+            vec![OfferedQos::from(qos)],
+            M::DEFINITION.type_hash,
+        )
     }
 
-    /// Adds a topic of the contract (`lidar_har_msgs::topics`) with its type, schema and QoS.
+    /// Adds a topic of the contract (`lidar_har_msgs::topics`) with its type, schema, type
+    /// hash and QoS.
     pub fn add_contract_topic(&mut self, topic: &TopicSpec) -> Result<TopicHandle> {
-        self.add_topic(
+        self.add_topic_with(
             topic.name,
             topic.type_name,
             &topic.definition.schema_text(),
-            topic.qos,
+            vec![OfferedQos::from(topic.qos)],
+            topic.definition.type_hash,
         )
     }
 
@@ -672,6 +682,113 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The type hash each storage file keeps for `topic`: MCAP channel metadata
+    /// `topic_type_hash`; sqlite `topics` and `message_definitions` (both, which must agree).
+    fn storage_type_hash(file: &Path, storage: StorageId, topic: &str) -> String {
+        match storage {
+            StorageId::Mcap => {
+                let bytes = std::fs::read(file).unwrap();
+                let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+                let channel = summary
+                    .channels
+                    .values()
+                    .find(|c| c.topic == topic)
+                    .unwrap();
+                channel.metadata["topic_type_hash"].clone()
+            }
+            StorageId::Sqlite3 => {
+                let (in_topics, in_definitions): (String, String) =
+                    rusqlite::Connection::open(file)
+                        .unwrap()
+                        .query_row(
+                            "SELECT t.type_description_hash, d.type_description_hash
+                             FROM topics t JOIN message_definitions d ON d.topic_type = t.type
+                             WHERE t.name = ?1",
+                            [topic],
+                            |row| Ok((row.get(0)?, row.get(1)?)),
+                        )
+                        .unwrap();
+                assert_eq!(in_topics, in_definitions, "{topic}");
+                in_topics
+            }
+        }
+    }
+
+    /// Every hash was written empty: rosbag2 Iron and later record a topic's RIHS01 type hash
+    /// in metadata.yaml (metadata version 7 and later) and in the storage file. A type we
+    /// mirror gets ours, whichever way it is added; an unknown one stays empty.
+    #[test]
+    fn a_known_type_is_recorded_with_its_hash_in_metadata_and_storage() {
+        use lidar_har_msgs::lidar_har_msgs::FallAlert;
+        use lidar_har_msgs::sensor_msgs::LaserScan;
+        let tmp = tempfile::tempdir().unwrap();
+        for version in [MetadataVersion::V8, MetadataVersion::V9] {
+            for storage in [StorageId::Mcap, StorageId::Sqlite3] {
+                let name = format!("v{}_{storage}", version.number());
+                let dir = tmp.path().join(&name);
+                let options = WriterOptions {
+                    storage,
+                    metadata_version: version,
+                    ..WriterOptions::default()
+                };
+                let mut writer = BagWriter::create(&dir, options).unwrap();
+                writer
+                    .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
+                    .unwrap();
+                writer
+                    .add_topic(
+                        "/fall",
+                        FallAlert::TYPE_NAME,
+                        &FallAlert::schema_text(),
+                        QosProfile::reliable(10),
+                    )
+                    .unwrap();
+                writer
+                    .add_topic(
+                        "/chatter",
+                        "std_msgs/msg/String",
+                        "string data\n",
+                        QosProfile::reliable(10),
+                    )
+                    .unwrap();
+                writer.finish().unwrap();
+                let yaml: Value = serde_yaml_ng::from_str(
+                    &std::fs::read_to_string(dir.join("metadata.yaml")).unwrap(),
+                )
+                .unwrap();
+                let listed = &yaml["rosbag2_bagfile_information"]["topics_with_message_count"];
+                let file = dir.join(format!("{name}_0.{}", storage.extension()));
+                let reader = BagReader::open(&dir).unwrap();
+                for (i, (topic, hash)) in [
+                    ("/scan", LaserScan::DEFINITION.type_hash),
+                    ("/fall", FallAlert::DEFINITION.type_hash),
+                    ("/chatter", ""),
+                ]
+                .into_iter()
+                .enumerate()
+                {
+                    let in_metadata = &listed[i]["topic_metadata"]["type_description_hash"];
+                    assert_eq!(in_metadata.as_str(), Some(hash), "{name} {topic}");
+                    assert_eq!(
+                        storage_type_hash(&file, storage, topic),
+                        hash,
+                        "{name} {topic}"
+                    );
+                    assert_eq!(
+                        reader.topic(topic).unwrap().type_description_hash,
+                        hash,
+                        "{name} {topic}"
+                    );
+                }
+            }
+        }
+        assert!(
+            LaserScan::DEFINITION
+                .type_hash
+                .starts_with("RIHS01_64c19139")
+        );
     }
 
     /// Writes `/map` (latched) and `/scan` (sensor data) in `storage` at `version`.

@@ -32,7 +32,8 @@ ros_message!(
     Time,
     "builtin_interfaces/msg/Time",
     "int32 sec\nuint32 nanosec\n",
-    []
+    [],
+    "RIHS01_b106235e25a4c5ed35098aa0a61a3ee9c9b18d197f398b0e4206cea9acf9c197"
 );
 
 impl Time {
@@ -68,7 +69,8 @@ ros_message!(
     Duration,
     "builtin_interfaces/msg/Duration",
     "int32 sec\nuint32 nanosec\n",
-    []
+    [],
+    "RIHS01_e8d009f659816f758b75334ee1a9ca5b5c0b859843261f14c7f937349599d93b"
 );
 
 impl Duration {

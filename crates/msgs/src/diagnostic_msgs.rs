@@ -15,7 +15,8 @@ ros_message!(
     DiagnosticArray,
     "diagnostic_msgs/msg/DiagnosticArray",
     "std_msgs/Header header\nDiagnosticStatus[] status\n",
-    [Header, DiagnosticStatus]
+    [Header, DiagnosticStatus],
+    "RIHS01_5a8a36efb05fb25070fa0fb3810290c0e6cd4862b54a8fb975a1ee8dc55a333e"
 );
 
 /// `diagnostic_msgs/msg/DiagnosticStatus`: one component's health; `level` is one of the
@@ -45,7 +46,8 @@ string message
 string hardware_id
 KeyValue[] values
 ",
-    [KeyValue]
+    [KeyValue],
+    "RIHS01_b0e3e692ea2d54a8af2f4ef1930e81556a2db55216b771f8a7d2724ed47bf0e4"
 );
 
 impl DiagnosticStatus {
@@ -67,7 +69,8 @@ ros_message!(
     KeyValue,
     "diagnostic_msgs/msg/KeyValue",
     "string key\nstring value\n",
-    []
+    [],
+    "RIHS01_d68081eaa540288c5440753baecef0c4e16e81a5f78ad68902ded5100413bb42"
 );
 
 impl KeyValue {

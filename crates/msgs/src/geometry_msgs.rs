@@ -17,7 +17,8 @@ ros_message!(
     Point,
     "geometry_msgs/msg/Point",
     "float64 x\nfloat64 y\nfloat64 z\n",
-    []
+    [],
+    "RIHS01_6963084842a9b04494d6b2941d11444708d892da2f4b09843b9c43f42a7f6881"
 );
 
 impl Point {
@@ -37,7 +38,8 @@ ros_message!(
     Point32,
     "geometry_msgs/msg/Point32",
     "float32 x\nfloat32 y\nfloat32 z\n",
-    []
+    [],
+    "RIHS01_2fc4db7cae16a4582c79a56b66173a8d48d52c7dc520ddc55a0d4bcf2a4bfdbc"
 );
 
 impl Point32 {
@@ -59,7 +61,8 @@ ros_message!(
     Quaternion,
     "geometry_msgs/msg/Quaternion",
     "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1\n",
-    []
+    [],
+    "RIHS01_8a765f66778c8ff7c8ab94afcc590a2ed5325a1d9a076ffff38fbce36f458684"
 );
 
 impl Default for Quaternion {
@@ -107,7 +110,8 @@ ros_message!(
     Vector3,
     "geometry_msgs/msg/Vector3",
     "float64 x\nfloat64 y\nfloat64 z\n",
-    []
+    [],
+    "RIHS01_cc12fe83e4c02719f1ce8070bfd14aecd40f75a96696a67a2a1f37f7dbb0765d"
 );
 
 impl Vector3 {
@@ -126,7 +130,8 @@ ros_message!(
     Pose,
     "geometry_msgs/msg/Pose",
     "Point position\nQuaternion orientation\n",
-    [Point, Quaternion]
+    [Point, Quaternion],
+    "RIHS01_d501954e9476cea2996984e812054b68026ae0bfae789d9a10b23daf35cc90fa"
 );
 
 impl Pose {
@@ -149,7 +154,8 @@ ros_message!(
     PoseStamped,
     "geometry_msgs/msg/PoseStamped",
     "std_msgs/Header header\nPose pose\n",
-    [Header, Pose]
+    [Header, Pose],
+    "RIHS01_10f3786d7d40fd2b54367835614bff85d4ad3b5dab62bf8bca0cc232d73b4cd8"
 );
 
 /// `geometry_msgs/msg/PoseWithCovariance`: a pose with the row-major 6x6 covariance of
@@ -164,7 +170,8 @@ ros_message!(
     PoseWithCovariance,
     "geometry_msgs/msg/PoseWithCovariance",
     "Pose pose\nfloat64[36] covariance\n",
-    [Pose]
+    [Pose],
+    "RIHS01_9a7c0fd234b7f45c6098745ecccd773ca1085670e64107135397aee31c02e1bb"
 );
 
 impl Default for PoseWithCovariance {
@@ -186,7 +193,8 @@ ros_message!(
     PoseWithCovarianceStamped,
     "geometry_msgs/msg/PoseWithCovarianceStamped",
     "std_msgs/Header header\nPoseWithCovariance pose\n",
-    [Header, PoseWithCovariance]
+    [Header, PoseWithCovariance],
+    "RIHS01_26432f9803e43727d3c8f668d1fdb3c630f548af631e2f4e31382371bfea3b6e"
 );
 
 /// `geometry_msgs/msg/Twist`: linear (m/s) and angular (rad/s) velocity.
@@ -199,7 +207,8 @@ ros_message!(
     Twist,
     "geometry_msgs/msg/Twist",
     "Vector3 linear\nVector3 angular\n",
-    [Vector3]
+    [Vector3],
+    "RIHS01_9c45bf16fe0983d80e3cfe750d6835843d265a9a6c46bd2e609fcddde6fb8d2a"
 );
 
 /// `geometry_msgs/msg/TwistWithCovariance`: a twist with its row-major 6x6 covariance.
@@ -213,7 +222,8 @@ ros_message!(
     TwistWithCovariance,
     "geometry_msgs/msg/TwistWithCovariance",
     "Twist twist\nfloat64[36] covariance\n",
-    [Twist]
+    [Twist],
+    "RIHS01_49f574f033f095d8b6cd1beaca5ca7925e296e84af1716d16c89d38b059c8c18"
 );
 
 impl Default for TwistWithCovariance {
@@ -235,7 +245,8 @@ ros_message!(
     Transform,
     "geometry_msgs/msg/Transform",
     "Vector3 translation\nQuaternion rotation\n",
-    [Vector3, Quaternion]
+    [Vector3, Quaternion],
+    "RIHS01_beb83fbe698636351461f6f35d1abb20010c43d55374d81bd041f1ba2581fddc"
 );
 
 /// `geometry_msgs/msg/TransformStamped`: the pose of `child_frame_id` in `header.frame_id`.
@@ -250,7 +261,8 @@ ros_message!(
     TransformStamped,
     "geometry_msgs/msg/TransformStamped",
     "std_msgs/Header header\nstring child_frame_id\nTransform transform\n",
-    [Header, Transform]
+    [Header, Transform],
+    "RIHS01_0a241f87d04668d94099cbb5ba11691d5ad32c2f29682e4eb5653424bd275206"
 );
 
 #[cfg(test)]

@@ -40,16 +40,18 @@ pub trait RosMessage: Serialize + DeserializeOwned {
     }
 }
 
-/// Implements [`RosMessage`] for a mirror: its type name, .msg text and the message types
-/// its fields use (checked against the .msg text by the tests of `schema`).
+/// Implements [`RosMessage`] for a mirror: its type name, .msg text, the message types its
+/// fields use (checked against the .msg text by the tests of `schema`) and its RIHS01 type
+/// hash (checked against the schema text by `tests/tests/bag_python.rs`).
 macro_rules! ros_message {
-    ($ty:ty, $name:literal, $text:expr, [$($dep:ty),* $(,)?]) => {
+    ($ty:ty, $name:literal, $text:expr, [$($dep:ty),* $(,)?], $hash:literal) => {
         impl $crate::RosMessage for $ty {
             const TYPE_NAME: &'static str = $name;
             const DEFINITION: $crate::MessageDefinition = $crate::MessageDefinition {
                 type_name: $name,
                 text: $text,
                 dependencies: &[$(&<$dep as $crate::RosMessage>::DEFINITION),*],
+                type_hash: $hash,
             };
         }
     };

@@ -27,7 +27,8 @@ ros_message!(
     Activity,
     "lidar_har_msgs/msg/Activity",
     include_str!("../../../msg/msg/Activity.msg"),
-    [Header]
+    [Header],
+    "RIHS01_b248f59b12ddb0747ed2c2c4bd11ed085dcab4561910daf3524c0607e8f7cbe8"
 );
 
 impl Activity {
@@ -80,7 +81,8 @@ ros_message!(
     FallAlert,
     "lidar_har_msgs/msg/FallAlert",
     include_str!("../../../msg/msg/FallAlert.msg"),
-    [Header, Point, Time]
+    [Header, Point, Time],
+    "RIHS01_ad5d7ba3d55f3f361957279d989a5cf792fc650cf3aeab168ec67d6ab3e4841e"
 );
 
 impl FallAlert {
@@ -114,5 +116,6 @@ ros_message!(
     HumanObservation,
     "lidar_har_msgs/msg/HumanObservation",
     include_str!("../../../msg/msg/HumanObservation.msg"),
-    [Header, Point, Vector3, Point32]
+    [Header, Point, Vector3, Point32],
+    "RIHS01_12ebdbdbb56dca8037e22488534cbbcadd5f0da8c713779f8debbd1507fe1caa"
 );

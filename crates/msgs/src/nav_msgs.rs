@@ -21,7 +21,8 @@ ros_message!(
     Odometry,
     "nav_msgs/msg/Odometry",
     "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist\n",
-    [Header, PoseWithCovariance, TwistWithCovariance]
+    [Header, PoseWithCovariance, TwistWithCovariance],
+    "RIHS01_3cc97dc7fb7502f8714462c526d369e35b603cfc34d946e3f2eda2766dfec6e0"
 );
 
 /// `nav_msgs/msg/MapMetaData`: size and placement of an occupancy grid.
@@ -41,7 +42,8 @@ ros_message!(
     MapMetaData,
     "nav_msgs/msg/MapMetaData",
     "builtin_interfaces/Time map_load_time\nfloat32 resolution\nuint32 width\nuint32 height\ngeometry_msgs/Pose origin\n",
-    [Time, Pose]
+    [Time, Pose],
+    "RIHS01_2772d4b2000ef2b35dbaeb80fd3946c1369f817fb4f75677d916d27c17d763c8"
 );
 
 /// `nav_msgs/msg/OccupancyGrid`: a 2D map, row-major from cell (0, 0); each cell is the
@@ -56,5 +58,6 @@ ros_message!(
     OccupancyGrid,
     "nav_msgs/msg/OccupancyGrid",
     "std_msgs/Header header\nMapMetaData info\nint8[] data\n",
-    [Header, MapMetaData]
+    [Header, MapMetaData],
+    "RIHS01_8d348150c12913a31ee0ec170fbf25089e4745d17035792a1ba94d6f0bc0cfc7"
 );

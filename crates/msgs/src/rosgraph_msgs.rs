@@ -14,5 +14,6 @@ ros_message!(
     Clock,
     "rosgraph_msgs/msg/Clock",
     "builtin_interfaces/Time clock\n",
-    [Time]
+    [Time],
+    "RIHS01_692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564"
 );

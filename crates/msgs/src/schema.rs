@@ -1,6 +1,8 @@
 //! Message definitions (.msg texts), the full schema text rosbag2 writes into MCAP files,
 //! and a small .msg parser used to keep the texts, the mirrors and `msg/` in sync.
 
+use std::collections::BTreeMap;
+
 use crate::RosMessage;
 
 /// A message type's own .msg text and the definitions of the message types its fields use.
@@ -12,6 +14,12 @@ pub struct MessageDefinition {
     pub text: &'static str,
     /// The message types its fields use directly, in field order.
     pub dependencies: &'static [&'static MessageDefinition],
+    /// The RIHS01 type description hash (`RIHS01_` and 64 hex digits) that ROS 2 Iron and
+    /// later compute from the type's fields (not its constants or comments): rosbag2 records
+    /// it per topic, and rmw implementations match endpoints on it. A constant, since the
+    /// definitions are; `tests/tests/bag_python.rs` recomputes every one from
+    /// [`Self::schema_text`] with rosbags' `hash_rihs01`.
+    pub type_hash: &'static str,
 }
 
 /// The line rosbag2 puts between the definitions of a schema.
@@ -106,6 +114,66 @@ pub fn definition(type_name: &str) -> Option<&'static MessageDefinition> {
     ALL.iter()
         .copied()
         .find(|def| def.type_name == type_name || def.short_name() == type_name)
+}
+
+/// The RIHS01 hash of our definition of `type_name` where `schema_text` (a `ros2msg` schema,
+/// as a bag stores it) declares the same fields as ours, in the type and in each dependency:
+/// the hash covers field names and types only, so comments, constants, default values and the
+/// order of the dependency sections do not matter. `None` for a type we do not mirror, or for
+/// a schema of other fields (Foxy's Marker, say), whose hash ours is not.
+pub fn type_hash_of(type_name: &str, schema_text: &str) -> Option<&'static str> {
+    let ours = definition(type_name)?;
+    let same = schema_fields(ours.type_name, &ours.schema_text())?
+        == schema_fields(ours.type_name, schema_text)?;
+    same.then_some(ours.type_hash)
+}
+
+/// Each section of a schema: full type name -> its fields (type, name) in order.
+type SchemaFields = BTreeMap<String, Vec<(String, String)>>;
+
+/// The fields of every section of a `ros2msg` schema whose first section is `type_name`;
+/// `None` where a section does not parse (an IDL schema, a separator without `MSG:` line).
+fn schema_fields(type_name: &str, schema_text: &str) -> Option<SchemaFields> {
+    let mut sections = SchemaFields::new();
+    let mut section = (type_name.to_owned(), String::new());
+    let mut lines = schema_text.lines();
+    while let Some(line) = lines.next() {
+        let trimmed = line.trim();
+        if !trimmed.is_empty() && trimmed.chars().all(|c| c == '=') {
+            let name = lines.next()?.trim().strip_prefix("MSG:")?.trim();
+            let next = (field_message_type(name, "")?, String::new());
+            let (done, text) = std::mem::replace(&mut section, next);
+            sections.insert(done.clone(), section_fields(&done, &text)?);
+        } else {
+            section.1.push_str(line);
+            section.1.push('\n');
+        }
+    }
+    let fields = section_fields(&section.0, &section.1)?;
+    sections.insert(section.0, fields);
+    Some(sections)
+}
+
+/// The fields of the .msg text of `type_name`, message types written `pkg/msg/Type` (then
+/// any array suffix) whichever way the text writes them.
+fn section_fields(type_name: &str, text: &str) -> Option<Vec<(String, String)>> {
+    let package = type_name.split('/').next().unwrap_or(type_name);
+    let items = parse_msg(text).ok()?;
+    Some(
+        items
+            .into_iter()
+            .filter_map(|item| match item {
+                MsgItem::Field { ty, name } => {
+                    let ty = match field_message_type(&ty, package) {
+                        Some(full) => format!("{full}{}", &ty[element_type(&ty).len()..]),
+                        None => ty,
+                    };
+                    Some((ty, name))
+                }
+                MsgItem::Constant { .. } => None,
+            })
+            .collect(),
+    )
 }
 
 /// One line of a .msg file that declares something.
@@ -267,6 +335,66 @@ mod tests {
             ]
         );
         assert!(text.ends_with("float64 z\n"));
+    }
+
+    /// A hash rosbag2 records is `RIHS01_` and 64 lowercase hex digits; two types never share
+    /// one (the type name is hashed too). Their values are checked by `bag_python.rs`.
+    #[test]
+    fn every_type_has_a_rihs01_hash_of_its_own() {
+        for (i, def) in ALL.iter().enumerate() {
+            let hex = def.type_hash.strip_prefix("RIHS01_").unwrap_or_default();
+            assert!(
+                hex.len() == 64 && hex.chars().all(|c| matches!(c, '0'..='9' | 'a'..='f')),
+                "{}: `{}` is not a RIHS01 hash",
+                def.type_name,
+                def.type_hash
+            );
+            assert!(
+                ALL[..i]
+                    .iter()
+                    .all(|other| other.type_hash != def.type_hash),
+                "{}: hash shared with another type",
+                def.type_name
+            );
+        }
+    }
+
+    /// Our hash goes with a schema of our fields however it is written (rosbag2 keeps the
+    /// comments, rosbags writes `MSG: pkg/msg/Type`, bare names in the package), never with
+    /// other fields.
+    #[test]
+    fn a_known_type_hash_goes_only_with_a_schema_of_its_fields() {
+        use crate::visualization_msgs::Marker;
+        let ours = Marker::DEFINITION.schema_text();
+        assert_eq!(
+            type_hash_of("visualization_msgs/msg/Marker", &ours),
+            Some(Marker::DEFINITION.type_hash)
+        );
+        let rewritten = format!("# a comment\nint32 NEW=12\n{}", ours)
+            .replace("MSG: std_msgs/Header", "MSG: std_msgs/msg/Header")
+            .replace("std_msgs/Header header", "Header header  # stamped");
+        assert_eq!(
+            type_hash_of("visualization_msgs/Marker", &rewritten),
+            Some(Marker::DEFINITION.type_hash),
+            "{rewritten}"
+        );
+        let foxy = ours.replace("bool mesh_use_embedded_materials\n", "");
+        assert_ne!(foxy, ours);
+        assert_eq!(type_hash_of("visualization_msgs/msg/Marker", &foxy), None);
+        let point = crate::geometry_msgs::Point::DEFINITION.schema_text();
+        assert_eq!(
+            type_hash_of(
+                "geometry_msgs/msg/Point",
+                &point.replace("float64 z", "float32 z")
+            ),
+            None
+        );
+        assert_eq!(type_hash_of("std_msgs/msg/String", "string data\n"), None);
+        assert_eq!(
+            type_hash_of("geometry_msgs/msg/Point", "struct Point { double x; };"),
+            None,
+            "an IDL schema is not ours"
+        );
     }
 
     #[test]

@@ -35,7 +35,8 @@ float32 range_max            # maximum range value [m]
 float32[] ranges             # range data [m] (values < range_min or > range_max should be discarded)
 float32[] intensities        # intensity data [device-specific units]
 ",
-    [Header]
+    [Header],
+    "RIHS01_64c191398013af96509d518dac71d5164f9382553fce5c1f8cca5be7924bd828"
 );
 
 /// `sensor_msgs/msg/CompressedImage`: an image in `format` (e.g. `png`, `jpeg`).
@@ -50,5 +51,6 @@ ros_message!(
     CompressedImage,
     "sensor_msgs/msg/CompressedImage",
     "std_msgs/Header header\nstring format\nuint8[] data\n",
-    [Header]
+    [Header],
+    "RIHS01_15640771531571185e2efc8a100baf923961a4d15d5569652e6cb6691e8e371a"
 );

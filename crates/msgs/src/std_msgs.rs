@@ -16,7 +16,8 @@ ros_message!(
     Header,
     "std_msgs/msg/Header",
     "builtin_interfaces/Time stamp\nstring frame_id\n",
-    [Time]
+    [Time],
+    "RIHS01_f49fb3ae2cf070f793645ff749683ac6b06203e41c891e17701b1cb597ce6a01"
 );
 
 impl Header {
@@ -41,7 +42,8 @@ ros_message!(
     ColorRGBA,
     "std_msgs/msg/ColorRGBA",
     "float32 r\nfloat32 g\nfloat32 b\nfloat32 a\n",
-    []
+    [],
+    "RIHS01_77a7a5b9ae477306097665106e0413ba74440245b1f3d0c6d6405fe5c7813fe8"
 );
 
 impl ColorRGBA {

@@ -14,5 +14,6 @@ ros_message!(
     TFMessage,
     "tf2_msgs/msg/TFMessage",
     "geometry_msgs/TransformStamped[] transforms\n",
-    [TransformStamped]
+    [TransformStamped],
+    "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087"
 );

@@ -92,7 +92,8 @@ bool mesh_use_embedded_materials
         CompressedImage,
         UVCoordinate,
         MeshFile
-    ]
+    ],
+    "RIHS01_45b13ccf791f225962bf74e746f9644518855d783a6f42ba0cc14fde2b4f3ce0"
 );
 
 impl Marker {
@@ -124,7 +125,8 @@ ros_message!(
     MarkerArray,
     "visualization_msgs/msg/MarkerArray",
     "Marker[] markers\n",
-    [Marker]
+    [Marker],
+    "RIHS01_86cb8800b6fb05b5eff1abd7a56f62a5641d3ae9a1c29e78e67e704f1d067dcf"
 );
 
 /// `visualization_msgs/msg/UVCoordinate`: a texture coordinate of a triangle-list vertex.
@@ -137,7 +139,8 @@ ros_message!(
     UVCoordinate,
     "visualization_msgs/msg/UVCoordinate",
     "float32 u\nfloat32 v\n",
-    []
+    [],
+    "RIHS01_f27f7ed21fe360c6066944f856b801a0c0d1e94e815b6886444b42d90b196a26"
 );
 
 /// `visualization_msgs/msg/MeshFile`: a mesh sent inline instead of by `mesh_resource`.
@@ -151,5 +154,6 @@ ros_message!(
     MeshFile,
     "visualization_msgs/msg/MeshFile",
     "string filename\nuint8[] data\n",
-    []
+    [],
+    "RIHS01_7710ece15a148fb7c9b546364cfb215bb06098087bd6394fe5b73a493508f8c4"
 );

@@ -308,6 +308,14 @@ fn convert(
             topic.schema_text = Some(definition.schema_text());
             substituted.insert(topic.name.clone());
         }
+        // A source that records no type hash (Humble's, or one of ours made before we wrote
+        // them) gets ours where the type and its fields are ours; a recorded one is kept.
+        if topic.type_description_hash.is_empty()
+            && let Some(schema) = &topic.schema_text
+            && let Some(hash) = lidar_har_msgs::schema::type_hash_of(&topic.type_name, schema)
+        {
+            topic.type_description_hash = hash.to_string();
+        }
         topics.push(topic);
     }
     check_messages_decode(&reader, &substituted, src)?;
@@ -872,6 +880,55 @@ mod tests {
         assert_eq!(parse_seconds("1.5"), Ok(1_500_000_000));
         assert_eq!(parse_seconds("0.1"), Ok(100_000_000));
         assert_eq!(parse_seconds("1e300"), Ok(i64::MAX));
+    }
+
+    /// A Humble source records no type hash; rosbag2 Iron and later read one per topic.
+    /// `bag convert` gives ours where the type and its fields are ours, keeps a recorded one
+    /// (even one we would not compute) and leaves an unknown type's empty.
+    #[test]
+    fn convert_keeps_a_recorded_type_hash_and_gives_ours_where_none_is() {
+        let tmp = tempfile::tempdir().unwrap();
+        let template = tmp.path().join("template");
+        recording(&template, StorageId::Mcap);
+        let template = BagReader::open(&template).unwrap();
+        let recorded = format!("RIHS01_{}", "ab".repeat(32));
+        let src = tmp.path().join("humble");
+        let mut writer = BagWriter::create(&src, WriterOptions::default()).unwrap();
+        for (name, hash) in [("/scan", ""), ("/odom", recorded.as_str())] {
+            let mut topic = template.topic(name).unwrap().clone();
+            topic.type_description_hash = hash.to_string();
+            writer.add_topic_like(&topic).unwrap();
+        }
+        writer
+            .add_topic(
+                "/chatter",
+                "std_msgs/msg/String",
+                "string data\n",
+                QosProfile::reliable(1),
+            )
+            .unwrap();
+        writer.finish().unwrap();
+        assert_eq!(
+            BagReader::open(&src)
+                .unwrap()
+                .topic("/scan")
+                .unwrap()
+                .type_description_hash,
+            ""
+        );
+        for storage in ["mcap", "sqlite3"] {
+            let dst = tmp.path().join(storage);
+            convert_with(&src, &dst, &["--storage", storage]).unwrap();
+            let converted = BagReader::open(&dst).unwrap();
+            let hash_of = |name| converted.topic(name).unwrap().type_description_hash.clone();
+            assert_eq!(
+                hash_of("/scan"),
+                LaserScan::DEFINITION.type_hash,
+                "{storage}"
+            );
+            assert_eq!(hash_of("/odom"), recorded, "{storage}");
+            assert_eq!(hash_of("/chatter"), "", "{storage}");
+        }
     }
 
     /// Like the `replay` node's `start_offset`: past the end, nothing would be copied.
