@@ -2393,3 +2393,147 @@ wait $L; echo "localiser=$?"
         "{stdout}"
     );
 }
+
+/// The `rplidar_driver` node against the fake RPLIDAR on a pseudo-terminal
+/// (`fake_rplidar`), over DDS: /scan carries the configured frame and beam count with
+/// returns wherever the fake's room has them, /diagnostics says OK while it scans, WARN
+/// while the fake's window is covered (every scan `+inf`, which reads as free space) and OK
+/// again once returns come back; SIGINT stops the node with status 0.
+#[test]
+fn ros_rplidar_driver_publishes_a_fake_devices_scans_and_warns_when_it_is_blinded() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let script = r#"
+mkfifo "$OUT/ctl"
+"$FAKE" "$OUT/rplidar" < "$OUT/ctl" > "$OUT/fake.out" 2> "$OUT/fake.err" & F=$!
+exec 3> "$OUT/ctl"
+wait_until 10 has_lines "$OUT/fake.out" 1
+"$DRIVER" --ros-args -p port:="$(head -n 1 "$OUT/fake.out")" -p frame_id:=e2e_laser \
+  -p diagnostics_period:=0.5 2> "$OUT/driver.err" & D=$!
+echo_n() { _t=$1; _n=$2; _f=$3
+  "$LH" topic echo "$_t" --count "$_n" --timeout 20 --require-count --full-length > "$OUT/$_f.jsonl"
+  echo "$_f=$?"; }
+echo_n /scan 5 scan
+echo_n /diagnostics 3 seeing
+echo blind >&3
+wait_until 20 grep -q "no return on any beam" "$OUT/driver.err"
+echo_n /scan 2 blind_scan
+echo_n /diagnostics 2 blind
+echo see >&3
+wait_until 20 grep -q "returns again" "$OUT/driver.err"
+echo_n /diagnostics 2 back
+kill -INT $D; wait $D; echo "driver=$?"
+exec 3>&-
+wait $F; echo "fake=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("LH", &workspace_bin("lidar-har")),
+            ("DRIVER", &workspace_bin("rplidar_driver")),
+            ("FAKE", Path::new(env!("CARGO_BIN_EXE_fake_rplidar"))),
+            ("OUT", dir.path()),
+        ],
+        Duration::from_secs(120),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let log = std::fs::read_to_string(dir.path().join("driver.err")).unwrap_or_default();
+    let fake_log = std::fs::read_to_string(dir.path().join("fake.err")).unwrap_or_default();
+    for want in [
+        "scan=0",
+        "seeing=0",
+        "blind_scan=0",
+        "blind=0",
+        "back=0",
+        "driver=0",
+        "fake=0",
+    ] {
+        assert!(
+            stdout.contains(want),
+            "expected {want}: {stdout}\n{log}\n{fake_log}"
+        );
+    }
+    let read = |name: &str| json_lines(&dir.path().join(format!("{name}.jsonl")));
+    let ranges = |line: &serde_json::Value| -> Vec<Option<f64>> {
+        line["msg"]["ranges"]
+            .as_array()
+            .expect("ranges printed whole")
+            .iter()
+            .map(serde_json::Value::as_f64)
+            .collect()
+    };
+    // The fake's room returns everywhere but a window at device angles 200..215 deg, ROS
+    // angles (-35, -20] deg (ROS angle = 180 deg - device angle).
+    let scans = read("scan");
+    assert_eq!(scans.len(), 5);
+    for line in &scans {
+        let msg = &line["msg"];
+        assert_eq!(msg["header"]["frame_id"], "e2e_laser");
+        let (min, step) = (
+            msg["angle_min"].as_f64().unwrap(),
+            msg["angle_increment"].as_f64().unwrap(),
+        );
+        let beams = ranges(line);
+        assert_eq!(beams.len(), 720);
+        for (i, r) in beams.iter().enumerate() {
+            let deg = (min + i as f64 * step).to_degrees();
+            if !(-36.0..=-19.0).contains(&deg) {
+                assert!(
+                    r.is_some_and(|r| (0.15..=12.0).contains(&r)),
+                    "beam {i} at {deg:.1} deg: {r:?}"
+                );
+            } else if -34.0 < deg && deg < -21.0 {
+                assert_eq!(r, &None, "beam {i} at {deg:.1} deg is in the window");
+            }
+        }
+    }
+    let statuses = |name: &str| -> Vec<serde_json::Value> {
+        read(name)
+            .iter()
+            .map(|line| line["msg"]["status"][0].clone())
+            .collect()
+    };
+    let value = |status: &serde_json::Value, key: &str| -> String {
+        status["values"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|kv| kv["key"] == key)
+            .and_then(|kv| kv["value"].as_str())
+            .unwrap_or_default()
+            .to_owned()
+    };
+    // A period without a complete rotation (the host stalled, the suite loading both cores)
+    // is reported as such whatever the phase; each phase must have its own report too.
+    let stalled = "scanning, but no complete rotation";
+    for (name, level, message) in [
+        ("seeing", 0, "scanning at"),
+        ("blind", 1, "no return on any beam"),
+        ("back", 0, "scanning at"),
+    ] {
+        let got = statuses(name);
+        let text = |status: &serde_json::Value| status["message"].as_str().unwrap().to_owned();
+        assert!(
+            got.iter()
+                .any(|status| status["level"] == level && text(status).starts_with(message)),
+            "{name}: {got:?}"
+        );
+        for status in &got {
+            assert!(
+                text(status).starts_with(message) || text(status).starts_with(stalled),
+                "{name}: {status}"
+            );
+        }
+    }
+    let last_seeing = statuses("seeing").pop().unwrap();
+    let valid: usize = value(&last_seeing, "valid_beams").parse().unwrap();
+    assert!((680..=700).contains(&valid), "{last_seeing}");
+    for status in statuses("blind") {
+        assert_eq!(value(&status, "valid_beams"), "0", "{status}");
+    }
+    for line in read("blind_scan") {
+        assert!(ranges(&line).iter().all(Option::is_none), "{line}");
+    }
+}

@@ -91,6 +91,11 @@ pub struct DriverStatus {
     /// Measured rotation rate (smoothed) and samples in the last rotation.
     pub rotation_hz: Option<f64>,
     pub samples_per_rotation: Option<usize>,
+    /// Beams with a valid return (in `range_min..=range_max`) in the last rotation.
+    pub valid_beams: Option<usize>,
+    /// Rotations in a row, up to the last, without a valid return on any beam: a blinded
+    /// sensor still scans, and its all-`+inf` scans read as free space downstream.
+    pub rotations_without_return: u64,
     /// Motor duty cycle sent through the accessory board this session (`None`: not used).
     pub motor_pwm: Option<u16>,
     pub last_error: Option<String>,
@@ -366,6 +371,11 @@ pub struct Driver {
     scans_at_last_report: u64,
     /// Decode counters of earlier sessions, so totals survive reconnects.
     decode_before: DecodeStats,
+    /// Start of the first of the `rotations_without_return`.
+    no_return_since: Option<Instant>,
+    /// The last routine report warned of rotations without a return: the change is logged
+    /// once, not at every report.
+    warned_no_return: bool,
 }
 
 /// Wall-clock nanoseconds since the Unix epoch.
@@ -395,6 +405,8 @@ impl Driver {
             status: DriverStatus::default(),
             scans_at_last_report: 0,
             decode_before: DecodeStats::default(),
+            no_return_since: None,
+            warned_no_return: false,
         })
     }
 
@@ -508,6 +520,11 @@ impl Driver {
         self.status.nominal_sample_rate_hz = session.nominal_rate_hz;
         self.status.baud_readback = session.baud_readback;
         self.status.motor_pwm = session.motor_pwm;
+        // Returns are judged on this session's rotations: a gap spent reconnecting is no
+        // time without a return.
+        self.status.valid_beams = None;
+        self.status.rotations_without_return = 0;
+        self.no_return_since = None;
         self.state = State::Scanning(Box::new(session));
     }
 
@@ -968,6 +985,14 @@ impl Driver {
                 );
             }
             self.status.samples_per_rotation = Some(frame.samples_in_rotation);
+            self.status.valid_beams = Some(frame.valid_beams);
+            if frame.valid_beams == 0 {
+                self.status.rotations_without_return += 1;
+                self.no_return_since.get_or_insert(rotation.started);
+            } else {
+                self.status.rotations_without_return = 0;
+                self.no_return_since = None;
+            }
             self.pending
                 .push_back(Event::Scan(frame.to_laser_scan(&self.config.frame_id)));
         }
@@ -1038,6 +1063,10 @@ impl Driver {
     fn routine_report(&mut self) {
         let new_scans = self.status.scans - self.scans_at_last_report;
         self.scans_at_last_report = self.status.scans;
+        // Every rotation of the period came back empty, not one stray turn: a blinded sensor.
+        let no_return = self.status.scanning
+            && new_scans > 0
+            && self.status.rotations_without_return >= new_scans;
         let (level, message) = if !self.status.scanning {
             let why = self
                 .status
@@ -1050,6 +1079,18 @@ impl Driver {
                 DiagnosticStatus::WARN,
                 "scanning, but no complete rotation in the last period".to_owned(),
             )
+        } else if no_return {
+            let seconds = self
+                .no_return_since
+                .map_or(0.0, |t| t.elapsed().as_secs_f64());
+            (
+                DiagnosticStatus::WARN,
+                format!(
+                    "no return on any beam for {} rotations ({seconds:.1} s): covered, \
+                     blinded, or facing open space beyond range_max ({} m)",
+                    self.status.rotations_without_return, self.config.geometry.range_max_m
+                ),
+            )
         } else {
             (
                 DiagnosticStatus::OK,
@@ -1060,6 +1101,12 @@ impl Driver {
                 ),
             )
         };
+        if no_return && !self.warned_no_return {
+            warn!("{}: {message}", self.config.port);
+        } else if self.warned_no_return && level == DiagnosticStatus::OK {
+            info!("{}: returns again; {message}", self.config.port);
+        }
+        self.warned_no_return = no_return;
         self.report(level, message);
     }
 
@@ -1119,6 +1166,18 @@ impl Driver {
                     format!("{:.0}", hz * n as f64),
                 ));
             }
+        }
+        if let Some(valid) = s.valid_beams {
+            let beams = self.config.geometry.beams;
+            values.push(KeyValue::new("valid_beams", valid.to_string()));
+            values.push(KeyValue::new(
+                "valid_beams_percent",
+                format!("{:.1}", 100.0 * valid as f64 / beams as f64),
+            ));
+            values.push(KeyValue::new(
+                "rotations_without_return",
+                s.rotations_without_return.to_string(),
+            ));
         }
         let status = DiagnosticStatus {
             level,

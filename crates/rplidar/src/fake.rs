@@ -9,7 +9,7 @@
 //! [`SyntheticRoom`]) in standard, express or dense mode at a chosen rotation rate, answers
 //! info, health, sample rate and scan-mode configuration requests, and injects faults:
 //! garbage bytes, dropped bytes, stalls, a hung device that only a reset revives, health
-//! errors and disconnects.
+//! errors, a blinded window (samples without a return) and disconnects.
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -254,6 +254,7 @@ struct Control {
     stall_until: Option<Instant>,
     hung: bool,
     motor_stopped: bool,
+    blinded: bool,
     health: DeviceHealth,
     health_cleared_by_reset: bool,
     plugged: bool,
@@ -294,6 +295,7 @@ impl FakeLidar {
                 stall_until: None,
                 hung: false,
                 motor_stopped: false,
+                blinded: false,
                 health: DeviceHealth {
                     status: HealthStatus::Good,
                     error_code: 0,
@@ -358,6 +360,13 @@ impl FakeLidar {
     /// The motor stops: samples keep coming, all at one angle, until `RESET`.
     pub fn stop_motor(&self) {
         lock(&self.shared.control).motor_stopped = true;
+    }
+
+    /// While `on`, every sample comes without a return (distance 0, quality 0), whatever the
+    /// source serves: a covered, dirty or blinded window. The device keeps turning and
+    /// streaming, and a `RESET` does not clear it.
+    pub fn set_blinded(&self, on: bool) {
+        lock(&self.shared.control).blinded = on;
     }
 
     /// Health reported from now on; `cleared_by_reset`: a `RESET` makes it good again.
@@ -674,12 +683,13 @@ impl Device {
 
     fn stream_out(&mut self) {
         let now = Instant::now();
-        let (stalled, hung, motor_stopped) = {
+        let (stalled, hung, motor_stopped, blinded) = {
             let c = lock(&self.shared.control);
             (
                 c.stall_until.is_some_and(|t| now < t),
                 c.hung,
                 c.motor_stopped,
+                c.blinded,
             )
         };
         let n = self.config.samples_per_rotation;
@@ -724,7 +734,7 @@ impl Device {
                 .ranges
                 .as_ref()
                 .map_or(0.0, |(_, r)| r[(j % n as u64) as usize]);
-            let dist_mm = if range.is_finite() && range > 0.0 {
+            let dist_mm = if !blinded && range.is_finite() && range > 0.0 {
                 range * 1000.0
             } else {
                 0.0

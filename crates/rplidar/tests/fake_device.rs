@@ -946,3 +946,83 @@ fn motor_without_accessory_board_control_gets_no_pwm() {
         assert_eq!(log.commands.last(), Some(&0x25), "STOP last");
     }
 }
+
+/// The last routine report ("scanning ..." or the warning of no return) among `diags`.
+fn last_routine<'a>(diags: &'a [DiagnosticStatus], starts: &str) -> Option<&'a DiagnosticStatus> {
+    diags.iter().rev().find(|d| d.message.starts_with(starts))
+}
+
+#[test]
+fn a_blinded_sensor_warns_until_returns_come_back() {
+    // A covered window: the device turns and streams, every sample without a return. Its
+    // all-`+inf` scans read as free space downstream, and the diagnostics used to stay OK.
+    const SEEING: &str = "scanning at";
+    const BLIND: &str = "no return on any beam";
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::default());
+    let cfg = config(fake.path(), ScanModeChoice::Express);
+    let room_beams = expected_ranges(&cfg.geometry)
+        .iter()
+        .filter(|r| r.is_finite())
+        .count();
+    let mut driver = Driver::new(cfg).unwrap();
+    let (_, seeing) = run_until(&mut driver, LIMIT, |_, d| {
+        last_routine(d, SEEING).is_some_and(|d| value(d, "valid_beams").is_some())
+    });
+    assert!(
+        seeing.iter().all(|d| d.level == DiagnosticStatus::OK),
+        "{seeing:#?}"
+    );
+    let report = last_routine(&seeing, SEEING).unwrap();
+    let valid: usize = value(report, "valid_beams").unwrap().parse().unwrap();
+    // All but the room's window (30 of 720 beams); angle quantisation may move one beam.
+    assert!(valid.abs_diff(room_beams) <= 2, "{valid} of {room_beams}");
+    let percent: f64 = value(report, "valid_beams_percent")
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        (percent - 100.0 * valid as f64 / 720.0).abs() < 0.1,
+        "{percent}"
+    );
+    assert_eq!(value(report, "rotations_without_return"), Some("0"));
+
+    fake.set_blinded(true);
+    let (blind_scans, blind) =
+        run_until(&mut driver, LIMIT, |_, d| last_routine(d, BLIND).is_some());
+    let warning = last_routine(&blind, BLIND).unwrap();
+    assert_eq!(warning.level, DiagnosticStatus::WARN);
+    assert!(
+        warning
+            .message
+            .contains("covered, blinded, or facing open space beyond range_max (12 m)"),
+        "{}",
+        warning.message
+    );
+    assert_eq!(value(warning, "valid_beams"), Some("0"));
+    assert_eq!(value(warning, "valid_beams_percent"), Some("0.0"));
+    let rotations: u64 = value(warning, "rotations_without_return")
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        warning
+            .message
+            .contains(&format!("for {rotations} rotations"))
+            && rotations >= 1,
+        "{}",
+        warning.message
+    );
+    let last = blind_scans.last().expect("scans go on while blinded");
+    assert!(last.ranges.iter().all(|r| r.is_infinite()));
+    // Samples keep coming: nothing to reset.
+    assert_eq!(driver.status().resets, 0);
+
+    fake.set_blinded(false);
+    let (_, back) = run_until(&mut driver, LIMIT, |_, d| last_routine(d, SEEING).is_some());
+    let report = last_routine(&back, SEEING).unwrap();
+    assert_eq!(report.level, DiagnosticStatus::OK);
+    let valid: usize = value(report, "valid_beams").unwrap().parse().unwrap();
+    assert!(valid.abs_diff(room_beams) <= 2, "{valid} of {room_beams}");
+    assert_eq!(value(report, "rotations_without_return"), Some("0"));
+}
