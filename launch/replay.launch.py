@@ -27,9 +27,13 @@ def generate_launch_description():
         DeclareLaunchArgument("use_localiser", default_value="true", description="start the localiser"),
         DeclareLaunchArgument("use_classifier", default_value="true", description="start the classifier"),
         DeclareLaunchArgument("use_rviz", default_value="false", description="start rviz2 with config/lidar_har.rviz"),
+        DeclareLaunchArgument("log_level", default_value="info",
+                              description="severity of the lidar_har nodes' logs (stderr and /rosout): "
+                                          "debug, info, warn, error or fatal"),
         DeclareLaunchArgument("params_file", default_value=os.path.join(config, "replay.yaml"),
                               description="parameters of all nodes (ROS 2 params-file layout)"),
         Node(package="lidar_har", executable="replay", name="replay", output="screen",
+             ros_arguments=["--log-level", arg("log_level")],
              # The topics first, so that a `topics` key in the params file wins over them
              # (it used to be overridden); the launch arguments last, winning over the file.
              parameters=[{
@@ -45,9 +49,11 @@ def generate_launch_description():
                  "loop": ParameterValue(arg("loop"), value_type=bool),
              }]),
         Node(package="lidar_har", executable="localiser", name="localiser", output="screen",
+             ros_arguments=["--log-level", arg("log_level")],
              parameters=[{"config": os.path.join(config, "localiser.yaml")}, arg("params_file"), sim_time],
              condition=IfCondition(arg("use_localiser"))),
         Node(package="lidar_har", executable="classifier", name="classifier", output="screen",
+             ros_arguments=["--log-level", arg("log_level")],
              # The installed files first: the params file's keys win over them.
              parameters=[{"config": os.path.join(config, "classifier.yaml"),
                           "model": os.path.join(share, "models", "activity.onnx"),

@@ -28,6 +28,9 @@ def generate_launch_description():
         DeclareLaunchArgument("use_localiser", default_value="true", description="start the localiser"),
         DeclareLaunchArgument("use_classifier", default_value="true", description="start the classifier"),
         DeclareLaunchArgument("use_rviz", default_value="false", description="start rviz2 with config/lidar_har.rviz"),
+        DeclareLaunchArgument("log_level", default_value="info",
+                              description="severity of the lidar_har nodes' logs (stderr and /rosout): "
+                                          "debug, info, warn, error or fatal"),
         DeclareLaunchArgument("serial_port", default_value="/dev/ttyUSB0",
                               description="RPLIDAR serial device (driver parameter port)"),
         DeclareLaunchArgument("baud", default_value="115200",
@@ -40,6 +43,7 @@ def generate_launch_description():
         DeclareLaunchArgument("params_file", default_value=os.path.join(config, "robot.yaml"),
                               description="parameters of all nodes (ROS 2 params-file layout)"),
         Node(package="lidar_har", executable="rplidar_driver", name="rplidar_driver", output="screen",
+             ros_arguments=["--log-level", arg("log_level")],
              parameters=[arg("params_file"), {
                  # Strings as given: a port, mode or frame name must not be read as YAML
                  # (on, 1, 2024_01_01, ...).
@@ -50,9 +54,11 @@ def generate_launch_description():
              }],
              condition=IfCondition(arg("use_driver"))),
         Node(package="lidar_har", executable="localiser", name="localiser", output="screen",
+             ros_arguments=["--log-level", arg("log_level")],
              parameters=[{"config": os.path.join(config, "localiser.yaml")}, arg("params_file")],
              condition=IfCondition(arg("use_localiser"))),
         Node(package="lidar_har", executable="classifier", name="classifier", output="screen",
+             ros_arguments=["--log-level", arg("log_level")],
              # The installed files first: the params file's keys win over them.
              parameters=[{"config": os.path.join(config, "classifier.yaml"),
                           "model": os.path.join(share, "models", "activity.onnx"),

@@ -683,6 +683,22 @@ mod tests {
         files
     }
 
+    /// Every lidar_har node a launch file starts takes the `log_level` launch argument as
+    /// `--log-level`, as ROS 2 packages' launch files offer it.
+    #[test]
+    fn the_launch_files_pass_log_level_to_every_node_of_the_package() {
+        for (path, text) in launch_files() {
+            let nodes = text.matches("Node(package=\"lidar_har\"").count();
+            let passed = text
+                .matches("ros_arguments=[\"--log-level\", arg(\"log_level\")]")
+                .count();
+            assert_eq!(passed, nodes, "{}", path.display());
+            if nodes > 0 {
+                assert!(text.contains("DeclareLaunchArgument(\"log_level\""));
+            }
+        }
+    }
+
     /// launch_ros reads a parameter value given as a bare launch argument as YAML:
     /// `bag:=2024_01_01` reached the replay as the integer 20240101 (status 2). Every launch
     /// argument passed as a parameter goes through `ParameterValue(..., value_type=...)`.
