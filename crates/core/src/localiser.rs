@@ -537,6 +537,32 @@ impl OdometryBuffer {
         self.take_held(buffer_ns)
     }
 
+    /// Time went back to a scan stamped `stamp_ns` (a bag looping, a simulation restarted):
+    /// forgets the old timeline's samples, but not what already came for the new one, before
+    /// its first scan (in a bag the odometry of a stamp comes before the scan). Samples
+    /// no more than `TIME_RESET_S` ahead of the scan are the new timeline's, the buffer having
+    /// moved there already; otherwise the sample held for being far from them is its first,
+    /// where near the scan. Clearing both lost the new timeline's first scan to
+    /// `no_odometry`. A jump back within the buffer mixes the two timelines' samples, which
+    /// stamps cannot tell apart: all are forgotten.
+    fn restart_at(&mut self, stamp_ns: i64, config: &OdometryConfig) {
+        let reset_ns = (TIME_RESET_S * 1e9) as i64;
+        let on_new_timeline = self
+            .samples
+            .back()
+            .is_none_or(|&(latest_ns, _)| latest_ns <= stamp_ns.saturating_add(reset_ns));
+        if on_new_timeline {
+            return;
+        }
+        self.samples.clear();
+        let buffer_ns = (config.buffer_s * 1e9) as i64;
+        if let Some((held_ns, pose)) = self.held.take()
+            && held_ns.abs_diff(stamp_ns) <= buffer_ns.unsigned_abs()
+        {
+            self.samples.push_back((held_ns, pose));
+        }
+    }
+
     /// Puts the held sample in: ahead of the newest, the samples before are forgotten as it
     /// goes in (a pause longer than the buffer, as always); behind, they are dropped first.
     fn take_held(&mut self, buffer_ns: i64) -> Option<Warning> {
@@ -803,7 +829,8 @@ impl Localiser {
             }
             result.warnings.push(Warning::TimeReset { back_s });
             self.tracker.reset();
-            self.odometry = OdometryBuffer::default();
+            self.odometry
+                .restart_at(scan.stamp_ns, &self.config.odometry);
             // The new timeline starts here even when this scan cannot be localised (its
             // odometry has not arrived yet): the next scan is not another restart.
             self.last_scan_ns = Some(scan.stamp_ns);
@@ -1516,6 +1543,35 @@ mod tests {
     }
 
     #[test]
+    fn the_first_scan_after_a_restart_keeps_the_odometry_that_came_for_it() {
+        // Passes of 8 s (longer than the 5 s buffer), each stamp's odometry before its scan,
+        // as in a bag: the second pass's first sample is held (far from the first pass's),
+        // or, at twice the scan rate, has already restarted the buffer with the next one.
+        for samples_per_scan in [1, 2] {
+            let mut loc = map_localiser(Motion::Odometry);
+            let person = Some(DVec2::new(1.0, 1.0));
+            let mut play = || {
+                let mut localised = 0;
+                let mut no_odometry = 0;
+                for k in 0..160 {
+                    for i in 0..samples_per_scan {
+                        let stamp_ns = k * PERIOD_NS + i * PERIOD_NS / 2;
+                        loc.add_odometry(stamp_ns, Pose2::IDENTITY);
+                    }
+                    let result = loc.process_scan(&cast(k * PERIOD_NS, Pose2::IDENTITY, person));
+                    localised += usize::from(result.output.is_some());
+                    no_odometry += (result.warnings.iter())
+                        .filter(|w| matches!(w, Warning::NoOdometry))
+                        .count();
+                }
+                (localised, no_odometry)
+            };
+            assert_eq!(play(), (160, 0), "{samples_per_scan} per scan, first pass");
+            assert_eq!(play(), (160, 0), "{samples_per_scan} per scan, second pass");
+        }
+    }
+
+    #[test]
     fn a_looping_bag_with_odometry_localises_again_after_the_restart() {
         let mut loc = map_localiser(Motion::Odometry);
         let person = Some(DVec2::new(1.0, 1.0));
@@ -1531,8 +1587,9 @@ mod tests {
             localised
         };
         assert_eq!(play(&mut loc), 40);
-        // The restart clears the odometry (the new loop's first samples cannot be told from
-        // the old loop's), so the loop's first scan cannot be placed; every later one must be.
+        // A loop shorter than the odometry buffer: the restart clears the odometry (the new
+        // loop's first samples cannot be told from the old loop's), so the loop's first scan
+        // cannot be placed; every later one must be.
         assert_eq!(play(&mut loc), 39);
     }
 

@@ -1070,8 +1070,8 @@ impl Default for ActivityLog {
     }
 }
 
-/// Runs of the same recognised activity (a gap over 1 s also ends a run), built as the
-/// predictions are settled.
+/// Runs of the same recognised activity (a gap over 1 s, or time going back, also ends a
+/// run), built as the predictions are settled.
 #[derive(Debug, Clone, Default)]
 struct Segments {
     done: Vec<Segment>,
@@ -1081,8 +1081,10 @@ struct Segments {
 
 impl Segments {
     fn add(&mut self, stamp_ns: i64, activity: Activity, confidence: f32, truth: Option<Activity>) {
+        // Time going back (a bag played again) is another stream, as for the rest of the
+        // stage: a run across it would end before it starts.
         let continues = self.open.as_ref().is_some_and(|(seg, _, last)| {
-            seg.activity == activity && stamp_ns - last < 1_000_000_000
+            seg.activity == activity && (0..1_000_000_000).contains(&(stamp_ns - last))
         });
         let s = stamp_ns as f64 * 1e-9;
         if !continues {
@@ -2073,6 +2075,29 @@ mod tests {
                 .to_string();
             assert!(err.contains(needle), "{setting}: {err}");
         }
+    }
+
+    #[test]
+    fn time_going_back_ends_a_segment() {
+        // A bag played twice: the first pass ends standing, the second starts standing.
+        let mut segments = Segments::default();
+        let pass = [0, 50_000_000, 100_000_000];
+        for offset_ns in [60_000_000_000, 0] {
+            for t in pass {
+                segments.add(offset_ns + t, Activity::Standing, 0.9, None);
+            }
+        }
+        segments.close();
+        let spans: Vec<(i64, i64, usize)> = (segments.done.iter())
+            .map(|s| {
+                (
+                    (s.start_s * 1e3).round() as i64,
+                    (s.end_s * 1e3).round() as i64,
+                    s.scans,
+                )
+            })
+            .collect();
+        assert_eq!(spans, [(60_000, 60_100, 3), (0, 100, 3)]);
     }
 
     #[test]
