@@ -15,7 +15,8 @@ namespace by tests/tests/ros_nodes.rs).
                                    fails if none did
 
 Topics use ROS 2 naming (`rt/` prefix) and the QoS of the topic contract (`lidar_har_msgs::topics`),
-but for publish-map's DURABILITY.
+but for publish-map's DURABILITY; /rosout (rcl_interfaces/msg/Log) is read as rcl's subscribers
+read it.
 """
 
 import json
@@ -31,7 +32,7 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
-from ros_idl import Activity, FallAlert, Header, LaserScan, MapMetaData, OccupancyGrid, Time
+from ros_idl import Activity, FallAlert, Header, LaserScan, Log, MapMetaData, OccupancyGrid, Time
 
 
 TYPES = {
@@ -40,6 +41,9 @@ TYPES = {
                                       Policy.History.KeepLast(10))),
     "/human/fall_alert": (FallAlert, Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
                                          Policy.Durability.TransientLocal, Policy.History.KeepLast(10))),
+    # rcl's rosout subscription (rqt_console's).
+    "/rosout": (Log, Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
+                         Policy.Durability.TransientLocal, Policy.History.KeepLast(1000))),
 }
 
 

@@ -684,20 +684,23 @@ mod tests {
         }
     }
 
+    /// The value of `key` in the metadata of the MCAP channel of `topic` in `file`.
+    fn mcap_channel_metadata(file: &Path, topic: &str, key: &str) -> String {
+        let bytes = std::fs::read(file).unwrap();
+        let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+        let channel = summary
+            .channels
+            .values()
+            .find(|c| c.topic == topic)
+            .unwrap();
+        channel.metadata[key].clone()
+    }
+
     /// The type hash each storage file keeps for `topic`: MCAP channel metadata
     /// `topic_type_hash`; sqlite `topics` and `message_definitions` (both, which must agree).
     fn storage_type_hash(file: &Path, storage: StorageId, topic: &str) -> String {
         match storage {
-            StorageId::Mcap => {
-                let bytes = std::fs::read(file).unwrap();
-                let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
-                let channel = summary
-                    .channels
-                    .values()
-                    .find(|c| c.topic == topic)
-                    .unwrap();
-                channel.metadata["topic_type_hash"].clone()
-            }
+            StorageId::Mcap => mcap_channel_metadata(file, topic, "topic_type_hash"),
             StorageId::Sqlite3 => {
                 let (in_topics, in_definitions): (String, String) =
                     rusqlite::Connection::open(file)
@@ -822,16 +825,7 @@ mod tests {
     /// The QoS text each storage file keeps for `topic`, as rosbag2 reads it there.
     fn storage_qos(file: &Path, storage: StorageId, topic: &str) -> String {
         match storage {
-            StorageId::Mcap => {
-                let bytes = std::fs::read(file).unwrap();
-                let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
-                let channel = summary
-                    .channels
-                    .values()
-                    .find(|c| c.topic == topic)
-                    .unwrap();
-                channel.metadata["offered_qos_profiles"].clone()
-            }
+            StorageId::Mcap => mcap_channel_metadata(file, topic, "offered_qos_profiles"),
             StorageId::Sqlite3 => rusqlite::Connection::open(file)
                 .unwrap()
                 .query_row(
