@@ -147,13 +147,14 @@ fn start_rosout(rosout: Option<Rosout>) {
     }
 }
 
-/// Logs to stderr: `RUST_LOG`, default [`DEFAULT_LOG_FILTER`], with `level` (from
-/// `--log-level`) as the level of every module it names no level for, through [`NodeLogger`].
+/// Logs to stderr through [`NodeLogger`]: `RUST_LOG` where it is set, else
+/// [`DEFAULT_LOG_FILTER`] with `level` (from `--log-level`) as the level of every module it
+/// names no level for. `RUST_LOG` wins: the launch files pass their `log_level` argument,
+/// `info` by default, to every node, and a `RUST_LOG=debug ros2 launch ...` must still work.
 fn init_logging(level: Option<log::LevelFilter>) {
-    let mut builder = env_logger::Builder::from_env(
-        env_logger::Env::default().default_filter_or(DEFAULT_LOG_FILTER),
-    );
-    if let Some(level) = level {
+    let env = env_logger::Env::default().default_filter_or(DEFAULT_LOG_FILTER);
+    let mut builder = env_logger::Builder::from_env(env);
+    if let Some(level) = unless_rust_log(level, std::env::var_os("RUST_LOG").as_deref()) {
         builder.filter_level(level);
     }
     let logger = builder.build();
@@ -235,6 +236,14 @@ fn program_args(args: &[String]) -> Result<ProgramArgs, RosError> {
              (`--ros-args -p name:=value`), and --help lists them"
         ))),
     }
+}
+
+/// `level` where `rust_log` (`RUST_LOG`) is unset or empty ([`init_logging`]).
+fn unless_rust_log(
+    level: Option<log::LevelFilter>,
+    rust_log: Option<&std::ffi::OsStr>,
+) -> Option<log::LevelFilter> {
+    level.filter(|_| rust_log.is_none_or(|v| v.is_empty()))
 }
 
 /// The level `--log-level` gives the records of the node `default_name` (after `__node` and
@@ -605,6 +614,16 @@ mod tests {
         let other = [&in_robot1[..], &["replay:=error"]].concat();
         assert_eq!(level(&other), None, "another logger's rule");
         assert_eq!(level(&["--ros-args", "--log-level", "loud"]), None);
+    }
+
+    /// The launch files pass `--log-level info` to every node: it used to silence a
+    /// `RUST_LOG=debug ros2 launch ...`.
+    #[test]
+    fn rust_log_wins_over_log_level() {
+        let debug = Some(log::LevelFilter::Debug);
+        assert_eq!(unless_rust_log(debug, None), debug);
+        assert_eq!(unless_rust_log(debug, Some("".as_ref())), debug);
+        assert_eq!(unless_rust_log(debug, Some("warn".as_ref())), None);
     }
 
     /// The DDS stack's records stay off /rosout: one logged while a record is published

@@ -1591,7 +1591,9 @@ fn ros_a_nodes_log_records_reach_rosout() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let bag = write_bag(dir.path(), 40);
+    // 5 s of scans: each replay lives long enough for the reader to match it and take its
+    // records on a loaded machine (nothing waits for /rosout's acknowledgements at exit).
+    let bag = write_bag(dir.path(), 100);
     // The quiet replay runs once the reader has the loud one's record: it is matched then.
     let script = r#"
 cd "$PYDIR"

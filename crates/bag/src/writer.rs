@@ -112,7 +112,8 @@ impl MetadataVersion {
 
     /// The first ROS 2 distribution whose rosbag2 writes this version: the `ros_distro` a bag
     /// of this version is labelled with when none is given, so that the label never names a
-    /// distribution whose rosbag2 writes another format.
+    /// distribution that cannot read the bag (`jazzy` on a version-8 bag said it was Jazzy's
+    /// format; a Humble recording kept at 8 by `bag convert` keeps `humble`, which reads it).
     pub fn distribution(self) -> &'static str {
         match self {
             MetadataVersion::V8 => "iron",

@@ -16,7 +16,7 @@ pub struct MessageDefinition {
     pub dependencies: &'static [&'static MessageDefinition],
     /// The RIHS01 type description hash (`RIHS01_` and 64 hex digits) that ROS 2 Iron and
     /// later compute from the type's fields (not its constants or comments): rosbag2 records
-    /// it per topic, and rmw implementations match endpoints on it. A constant, since the
+    /// it per topic, and rmw implementations announce it with their endpoints. A constant, since the
     /// definitions are; `tests/tests/bag_python.rs` recomputes every one from
     /// [`Self::schema_text`] with rosbags' `hash_rihs01`.
     pub type_hash: &'static str,

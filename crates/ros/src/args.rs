@@ -221,22 +221,27 @@ impl RosArgs {
     }
 
     /// The severity `--log-level` sets for the logger `logger` (a node's is its name,
-    /// prefixed by its namespace with dots: `robot1.localiser`): the last rule naming it,
-    /// else the last without a name, as rcl applies them. `unset` counts as none.
+    /// prefixed by its namespace with dots: `robot1.localiser`), as rcutils resolves it: the
+    /// last rule naming the logger, else the nearest ancestor's (`robot1` for
+    /// `robot1.localiser`), else the last without a name; a rule of `unset` passes to the
+    /// next.
     pub fn log_level_for(&self, logger: &str) -> Option<Severity> {
-        let last = |named: bool| {
+        let last_rule = |name: Option<&str>| {
             self.log_levels
                 .iter()
                 .rev()
-                .find(|rule| match &rule.logger {
-                    Some(name) => named && name == logger,
-                    None => !named,
-                })
+                .find(|rule| rule.logger.as_deref() == name)
                 .map(|rule| rule.severity)
+                .filter(|severity| *severity != Severity::Unset)
         };
-        last(true)
-            .or_else(|| last(false))
-            .filter(|severity| *severity != Severity::Unset)
+        let mut name = Some(logger);
+        while let Some(current) = name {
+            if let Some(severity) = last_rule(Some(current)) {
+                return Some(severity);
+            }
+            name = current.rsplit_once('.').map(|(parent, _)| parent);
+        }
+        last_rule(None)
     }
 
     /// The parameter files and the `-p` overrides for the node `node_fqn` (`/ns/name`), in
@@ -593,6 +598,23 @@ mod tests {
         assert_eq!(named.log_level_for("replay"), Some(Severity::Warn));
         let unset = parse(&["--ros-args", "--log-level", "info", "--log-level", "unset"]);
         assert_eq!(unset.log_level_for("replay"), None);
+        // rcutils: a logger without a level of its own takes its nearest ancestor's, and an
+        // `unset` logger level passes to it.
+        let tree = parse(&[
+            "--ros-args",
+            "--log-level",
+            "debug",
+            "--log-level",
+            "robot1:=warn",
+            "--log-level",
+            "robot1.replay:=unset",
+            "--log-level",
+            "localiser:=unset",
+        ]);
+        assert_eq!(tree.log_level_for("robot1.replay"), Some(Severity::Warn));
+        assert_eq!(tree.log_level_for("robot1.a.b"), Some(Severity::Warn));
+        assert_eq!(tree.log_level_for("localiser"), Some(Severity::Debug));
+        assert_eq!(tree.log_level_for("robot10.replay"), Some(Severity::Debug));
         for bad in ["loud", "localiser:=", ":=debug"] {
             let err = RosArgs::parse(["--ros-args", "--log-level", bad]).unwrap_err();
             assert!(

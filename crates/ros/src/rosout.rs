@@ -3,6 +3,7 @@
 //! what the node says, not only its terminal.
 
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::SystemTime;
 
 use ros2_client::Log;
@@ -35,12 +36,14 @@ impl From<&log::Record<'_>> for LogEntry {
 }
 
 /// Where a node's log records are published, under its logger name: a /rosout writer of
-/// rcl's QoS (reliable, transient local, keep last 1000, lifespan 10 s: a console opened
-/// within 10 s gets what was logged before it), which never waits.
+/// rcl's QoS (reliable, transient local, keep last 1000, lifespan 10 s), which never waits
+/// (docs/ros.md, "Nodes").
 #[derive(Clone)]
 pub struct Rosout {
     writer: Arc<DataWriterCdr<Log>>,
     logger_name: String,
+    /// Records the writer refused (its send window full: a reader stopped acknowledging).
+    dropped: Arc<AtomicU64>,
 }
 
 impl Rosout {
@@ -48,12 +51,14 @@ impl Rosout {
         Self {
             writer: Arc::new(writer),
             logger_name: logger_name(namespace, name),
+            dropped: Arc::new(AtomicU64::new(0)),
         }
     }
 
     /// Publishes `entry`, stamped with its time on the system clock (as rcl stamps /rosout,
-    /// whatever `use_sim_time` says). A failed write is dropped: the record has been printed
-    /// already, and logging the failure would log again.
+    /// whatever `use_sim_time` says). A record the writer refuses is dropped (it has been
+    /// printed) and counted, with a warning through `log` at the first and every 1000th: a
+    /// logger that forwards records here must not forward those it gets while publishing.
     pub fn publish(&self, entry: &LogEntry) {
         let stamp = Time::try_from(entry.time).unwrap_or(Time::ZERO);
         let log = Log {
@@ -65,9 +70,20 @@ impl Rosout {
             function: entry.function.clone(),
             line: entry.line,
         };
-        let _ = self.writer.write(log, None);
+        if self.writer.write(log, None).is_err() {
+            let dropped = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
+            if dropped % DROPPED_WARNING_EVERY == 1 {
+                log::warn!(
+                    "rosout: {dropped} log records not published: a /rosout reader has \
+                     stopped acknowledging (they are printed here still)"
+                );
+            }
+        }
     }
 }
+
+/// Refused records between two warnings.
+const DROPPED_WARNING_EVERY: u64 = 1000;
 
 /// rcl's logger name of a node: its namespace without the leading slash, then its name,
 /// joined by dots (`/robot1` + `localiser` = `robot1.localiser`).
