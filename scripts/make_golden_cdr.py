@@ -171,6 +171,18 @@ def diagnostic_status():
     )
 
 
+def log_record():
+    return t("rcl_interfaces/msg/Log")(
+        stamp=time(),
+        level=30,
+        name="robot1.replay",
+        msg="bag has no topic /missing",
+        file="nodes/src/bin/replay.rs",
+        function="replay",
+        line=277,
+    )
+
+
 def map_meta_data():
     return t("nav_msgs/msg/MapMetaData")(
         map_load_time=time(12, 34), resolution=f32(0.05), width=3, height=2, origin=pose()
@@ -231,6 +243,7 @@ VALUES = {
     ),
     "diagnostic_msgs/msg/DiagnosticStatus": lambda: diagnostic_status(),
     "diagnostic_msgs/msg/KeyValue": lambda: key_value(),
+    "rcl_interfaces/msg/Log": lambda: log_record(),
     "lidar_har_msgs/msg/Activity": lambda: t("lidar_har_msgs/msg/Activity")(
         header=header("map"),
         activity=8,

@@ -6,8 +6,9 @@
 use libfuzzer_sys::fuzz_target;
 use lidar_har_msgs::{
     RosMessage, builtin_interfaces as bi, decode, diagnostic_msgs as dm, encode,
-    geometry_msgs as gm, lidar_har_msgs as lh, nav_msgs as nm, rosgraph_msgs as rg,
-    sensor_msgs as sm, std_msgs as st, tf2_msgs as tf, visualization_msgs as vm,
+    geometry_msgs as gm, lidar_har_msgs as lh, nav_msgs as nm, rcl_interfaces as rc,
+    rosgraph_msgs as rg, sensor_msgs as sm, std_msgs as st, tf2_msgs as tf,
+    visualization_msgs as vm,
 };
 
 fn check<M: RosMessage>(data: &[u8]) {
@@ -55,6 +56,7 @@ fuzz_target!(|data: &[u8]| {
     check::<dm::DiagnosticArray>(data);
     check::<dm::DiagnosticStatus>(data);
     check::<dm::KeyValue>(data);
+    check::<rc::Log>(data);
     check::<lh::Activity>(data);
     check::<lh::FallAlert>(data);
     check::<lh::HumanObservation>(data);

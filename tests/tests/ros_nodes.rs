@@ -1584,7 +1584,8 @@ wait $C; echo "reliable_reader=$?"
 /// A node's log records reach /rosout as rclcpp publishes them (`rcl_interfaces/msg/Log`,
 /// rcl's logger name, level and source), read here by Cyclone DDS as `rqt_console` would;
 /// the warnings logged before the node joined the graph too. `--disable-rosout-logs` keeps
-/// them off. They used to reach only the node's terminal.
+/// them off. They used to reach only the node's terminal. `lidar-har topic echo /rosout`,
+/// started before the node, prints the records decoded (it printed their CDR in hex).
 #[test]
 fn ros_a_nodes_log_records_reach_rosout() {
     let Some(python) = cyclone_python() else {
@@ -1598,9 +1599,12 @@ fn ros_a_nodes_log_records_reach_rosout() {
     let script = r#"
 cd "$PYDIR"
 "$PY" ros_cyclone_interop.py receive /rosout 1000 40 1 > "$OUT/rosout.jsonl" & C=$!
+"$LH" topic echo /rosout --timeout 50 > "$OUT/echo.jsonl" & E=$!
 "$REPLAY" --ros-args -r __ns:=/robot1 -p bag:="$BAG" -p topics:="[/scan, /missing_loud]" 2> /dev/null
 echo "replay=$?"
 wait_until 10 grep -q /missing_loud "$OUT/rosout.jsonl"
+wait_until 10 grep -q /missing_loud "$OUT/echo.jsonl"
+kill -TERM $E; wait $E; echo "echo=$?"
 "$REPLAY" --ros-args -p bag:="$BAG" -p topics:="[/scan, /missing_quiet]" --disable-rosout-logs 2> /dev/null
 echo "quiet_replay=$?"
 kill -TERM $C; wait $C; echo "reader=$?"
@@ -1608,6 +1612,7 @@ kill -TERM $C; wait $C; echo "reader=$?"
     let out = in_netns(
         script,
         &[
+            ("LH", &workspace_bin("lidar-har")),
             ("REPLAY", &workspace_bin("replay")),
             ("BAG", &bag),
             ("OUT", dir.path()),
@@ -1617,7 +1622,7 @@ kill -TERM $C; wait $C; echo "reader=$?"
         Duration::from_secs(60),
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
-    for want in ["replay=0", "quiet_replay=0", "reader=0"] {
+    for want in ["replay=0", "echo=0", "quiet_replay=0", "reader=0"] {
         assert!(stdout.contains(want), "expected {want}: {stdout}");
     }
     let records = json_lines(&dir.path().join("rosout.jsonl"));
@@ -1646,6 +1651,18 @@ kill -TERM $C; wait $C; echo "reader=$?"
             .all(|r| !r["msg"].as_str().unwrap_or("").contains("/missing_quiet")),
         "--disable-rosout-logs: {records:?}"
     );
+    let echoed = json_lines(&dir.path().join("echo.jsonl"));
+    let line = echoed
+        .iter()
+        .find(|l| {
+            l["msg"]["msg"]
+                .as_str()
+                .is_some_and(|m| m.contains("/missing_loud"))
+        })
+        .unwrap_or_else(|| panic!("topic echo /rosout: no decoded record: {echoed:?}"));
+    assert_eq!(line["type"], "rcl_interfaces/msg/Log", "{line}");
+    assert_eq!(line["msg"]["name"], "robot1.replay", "{line}");
+    assert_eq!(line["msg"]["level"], 30, "{line}");
 }
 
 /// A /map publisher that does not latch it (cartographer's occupancy_grid_node: volatile,

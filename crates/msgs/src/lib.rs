@@ -11,6 +11,7 @@ pub mod geometry_msgs;
 pub mod lidar_har_msgs;
 pub mod nav_msgs;
 pub mod qos;
+pub mod rcl_interfaces;
 pub mod rosgraph_msgs;
 pub mod schema;
 pub mod sensor_msgs;

@@ -69,8 +69,8 @@ fn append_dependencies(def: &MessageDefinition, seen: &mut Vec<&'static str>, ou
 pub const ALL: &[&MessageDefinition] = {
     use crate::{
         builtin_interfaces as bi, diagnostic_msgs as dm, geometry_msgs as gm, lidar_har_msgs as lh,
-        nav_msgs as nm, rosgraph_msgs as rg, sensor_msgs as sm, std_msgs as st, tf2_msgs as tf,
-        visualization_msgs as vm,
+        nav_msgs as nm, rcl_interfaces as rc, rosgraph_msgs as rg, sensor_msgs as sm,
+        std_msgs as st, tf2_msgs as tf, visualization_msgs as vm,
     };
     &[
         &bi::Time::DEFINITION,
@@ -103,6 +103,7 @@ pub const ALL: &[&MessageDefinition] = {
         &dm::DiagnosticArray::DEFINITION,
         &dm::DiagnosticStatus::DEFINITION,
         &dm::KeyValue::DEFINITION,
+        &rc::Log::DEFINITION,
         &lh::Activity::DEFINITION,
         &lh::FallAlert::DEFINITION,
         &lh::HumanObservation::DEFINITION,

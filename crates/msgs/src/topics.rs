@@ -3,7 +3,7 @@
 use crate::qos::{QosProfile, Reliability};
 use crate::{
     MessageDefinition, RosMessage, diagnostic_msgs, geometry_msgs, lidar_har_msgs, nav_msgs,
-    rosgraph_msgs, sensor_msgs, tf2_msgs, visualization_msgs,
+    rcl_interfaces, rosgraph_msgs, sensor_msgs, tf2_msgs, visualization_msgs,
 };
 
 /// A topic of the contract: its default name, its message type, the QoS its publishers offer
@@ -61,6 +61,11 @@ topics! {
     DIAGNOSTICS = "/diagnostics", diagnostic_msgs::DiagnosticArray, QosProfile::reliable(10);
     GROUND_TRUTH_POSE = "/ground_truth/human_pose", geometry_msgs::PoseStamped, QosProfile::reliable(10);
     GROUND_TRUTH_ACTIVITY = "/ground_truth/activity", lidar_har_msgs::Activity, QosProfile::reliable(10);
+    /// Every node's log records, with rcl's /rosout QoS (`rcl_qos_profile_rosout_default`,
+    /// whose 10 s lifespan only writers set), as every ROS 2 node offers them: so
+    /// `lidar-har topic echo /rosout` started before the nodes reads them as `rqt_console`
+    /// does, with the records they published before it matched them.
+    ROSOUT = "/rosout", rcl_interfaces::Log, QosProfile::latched(1000);
 }
 
 /// [`SCAN`]'s offer: the sensor-data profile made reliable.
@@ -118,6 +123,7 @@ mod tests {
                 ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),
                 ("/ground_truth/human_pose", "geometry_msgs/msg/PoseStamped"),
                 ("/ground_truth/activity", "lidar_har_msgs/msg/Activity"),
+                ("/rosout", "rcl_interfaces/msg/Log"),
             ]
         );
         for topic in ALL {

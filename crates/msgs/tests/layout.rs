@@ -442,6 +442,7 @@ fn assert_constants(def: &lidar_har_msgs::MessageDefinition, rust: &[(&str, &str
 fn constants_of_the_mirrors_equal_those_of_the_msg_texts() {
     use lh::{Activity as A, FallAlert as F};
     use lidar_har_msgs::diagnostic_msgs::DiagnosticStatus as D;
+    use lidar_har_msgs::rcl_interfaces::Log as L;
     use lidar_har_msgs::visualization_msgs::Marker as M;
     let u = |v: u8| i64::from(v);
     assert_constants(
@@ -475,6 +476,16 @@ fn constants_of_the_mirrors_equal_those_of_the_msg_texts() {
             ("STALE", "byte", u(D::STALE)),
         ],
     );
+    assert_constants(
+        &L::DEFINITION,
+        &[
+            ("DEBUG", "uint8", u(L::DEBUG)),
+            ("INFO", "uint8", u(L::INFO)),
+            ("WARN", "uint8", u(L::WARN)),
+            ("ERROR", "uint8", u(L::ERROR)),
+            ("FATAL", "uint8", u(L::FATAL)),
+        ],
+    );
     let i = i64::from;
     assert_constants(
         &M::DEFINITION,
@@ -499,7 +510,15 @@ fn constants_of_the_mirrors_equal_those_of_the_msg_texts() {
     );
     // Types without constants have none in their text either.
     for def in schema::ALL {
-        if ![A::TYPE_NAME, F::TYPE_NAME, D::TYPE_NAME, M::TYPE_NAME].contains(&def.type_name) {
+        if ![
+            A::TYPE_NAME,
+            F::TYPE_NAME,
+            D::TYPE_NAME,
+            L::TYPE_NAME,
+            M::TYPE_NAME,
+        ]
+        .contains(&def.type_name)
+        {
             assert!(
                 msg_constants(def.text).is_empty(),
                 "{} has constants the mirror lacks",

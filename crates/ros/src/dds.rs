@@ -40,6 +40,16 @@ pub(crate) struct RawCdr {
     body: Vec<u8>,
 }
 
+impl RawCdr {
+    /// Little-endian CDR `body`, as our codec writes it after the encapsulation header.
+    pub(crate) fn little_endian(body: &[u8]) -> Self {
+        Self {
+            representation: RepresentationIdentifier::CDR_LE,
+            body: body.to_vec(),
+        }
+    }
+}
+
 /// Why bytes could not be handed to or taken from DDS.
 #[derive(Debug, thiserror::Error)]
 pub(crate) enum RawCdrError {
@@ -192,17 +202,12 @@ fn writer_qos_policies(qos: &QosProfile) -> QosPolicies {
     }
 }
 
-/// rcl's /rosout QoS (`rcl_qos_profile_rosout_default`): reliable, transient local, keep
-/// last 1000 (ResourceLimits as [`writer_qos_policies`] sets them), lifespan 10 s; a write
-/// never waits, so a console that stops acknowledging cannot stall the node's logging.
-/// ros2-client's own /rosout writer keeps 1 record: a console opened a moment late missed
-/// every record but the last.
+/// The contract's /rosout QoS (rcl's `rcl_qos_profile_rosout_default`: reliable, transient
+/// local, keep last 1000; ResourceLimits as [`writer_qos_policies`] sets them) with rcl's
+/// lifespan of 10 s; a write never waits, so a console that stops acknowledging cannot stall
+/// the node's logging. ros2-client's own /rosout writer keeps 1 record: a console opened a
+/// moment late missed every record but the last.
 fn rosout_qos_policies() -> QosPolicies {
-    let profile = QosProfile {
-        reliability: Reliability::Reliable,
-        durability: Durability::TransientLocal,
-        history: History::KeepLast(ROSOUT_DEPTH),
-    };
     let never_wait = rustdds::QosPolicyBuilder::new()
         .reliability(rustdds::policy::Reliability::Reliable {
             max_blocking_time: rustdds::Duration::ZERO,
@@ -211,11 +216,8 @@ fn rosout_qos_policies() -> QosPolicies {
             duration: rustdds::Duration::from_secs(10),
         })
         .build();
-    writer_qos_policies(&profile).modify_by(&never_wait)
+    writer_qos_policies(&topics::ROSOUT.qos).modify_by(&never_wait)
 }
-
-/// rcl's /rosout depth.
-const ROSOUT_DEPTH: u32 = 1000;
 
 /// A participant on `ROS_DOMAIN_ID`, announcing itself and listening for multicast only on
 /// the interfaces the discovery range allows. RustDDS filters what it announces and where it
@@ -344,14 +346,13 @@ impl DdsNode {
             context,
         };
         if rosout {
+            let policies = rosout_qos_policies();
+            let topic = this.topic(topics::ROSOUT.name, topics::ROSOUT.type_name, &policies)?;
             let writer = this
                 .publisher
-                .create_datawriter_no_key_cdr::<ros2_client::Log>(
-                    &this.context.get_rosout_topic(),
-                    Some(rosout_qos_policies()),
-                )
+                .create_datawriter_no_key::<RawCdr, RawAdapter>(&topic, Some(policies))
                 .map_err(|e| RosError::Topic {
-                    topic: "/rosout".into(),
+                    topic: topics::ROSOUT.name.into(),
                     reason: e.to_string(),
                 })?;
             this.rosout = Some(Rosout::new(writer, namespace, name));

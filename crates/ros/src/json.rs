@@ -7,8 +7,8 @@
 //! close, NaN no measurement): they are written as the strings "inf", "-inf" and "nan".
 
 use lidar_har_msgs::{
-    RosMessage, diagnostic_msgs, geometry_msgs, lidar_har_msgs as har, nav_msgs, rosgraph_msgs,
-    sensor_msgs, tf2_msgs, visualization_msgs,
+    RosMessage, diagnostic_msgs, geometry_msgs, lidar_har_msgs as har, nav_msgs, rcl_interfaces,
+    rosgraph_msgs, sensor_msgs, tf2_msgs, visualization_msgs,
 };
 use serde::ser::{self, Serialize, Serializer};
 
@@ -441,6 +441,7 @@ messages!(
     HumanObservation: har::HumanObservation,
     MarkerArray: visualization_msgs::MarkerArray,
     DiagnosticArray: diagnostic_msgs::DiagnosticArray,
+    Log: rcl_interfaces::Log,
 );
 
 /// `bytes` decoded as `type_name` and turned whole into JSON; `None` for a type this project
@@ -489,6 +490,26 @@ mod tests {
                 .unwrap()
                 .is_err()
         );
+    }
+
+    /// /rosout's records are read field by field (`topic echo /rosout`); they were printed
+    /// as hex.
+    #[test]
+    fn log_records_decode() {
+        let record = rcl_interfaces::Log {
+            level: rcl_interfaces::Log::WARN,
+            name: "robot1.replay".into(),
+            msg: "no /missing in the bag".into(),
+            line: 42,
+            ..Default::default()
+        };
+        let bytes = lidar_har_msgs::encode(&record).unwrap();
+        let json = decode_to_json("rcl_interfaces/msg/Log", &bytes)
+            .unwrap()
+            .unwrap();
+        assert_eq!(json["name"], "robot1.replay");
+        assert_eq!(json["msg"], "no /missing in the bag");
+        assert_eq!((&json["level"], &json["line"]), (&30.into(), &42.into()));
     }
 
     #[test]

@@ -6,9 +6,12 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::SystemTime;
 
-use ros2_client::Log;
-use ros2_client::builtin_interfaces::Time;
-use ros2_client::dds::rustdds::no_key::DataWriterCdr;
+use lidar_har_msgs::builtin_interfaces::Time;
+use lidar_har_msgs::rcl_interfaces::Log;
+use ros2_client::dds::rustdds::Timestamp;
+use ros2_client::dds::rustdds::no_key::DataWriter;
+
+use crate::dds::{RawAdapter, RawCdr};
 
 /// One log record, owned: one logged before the node joined the graph waits in this form.
 #[derive(Debug, Clone)]
@@ -40,14 +43,15 @@ impl From<&log::Record<'_>> for LogEntry {
 /// (docs/ros.md, "Nodes").
 #[derive(Clone)]
 pub struct Rosout {
-    writer: Arc<DataWriterCdr<Log>>,
+    /// Our codec's CDR of `rcl_interfaces/msg/Log`, as every other topic's.
+    writer: Arc<DataWriter<RawCdr, RawAdapter>>,
     logger_name: String,
     /// Records the writer refused (its send window full: a reader stopped acknowledging).
     dropped: Arc<AtomicU64>,
 }
 
 impl Rosout {
-    pub(crate) fn new(writer: DataWriterCdr<Log>, namespace: &str, name: &str) -> Self {
+    pub(crate) fn new(writer: DataWriter<RawCdr, RawAdapter>, namespace: &str, name: &str) -> Self {
         Self {
             writer: Arc::new(writer),
             logger_name: logger_name(namespace, name),
@@ -60,9 +64,8 @@ impl Rosout {
     /// printed) and counted, with a warning through `log` at the first and every 1000th: a
     /// logger that forwards records here must not forward those it gets while publishing.
     pub fn publish(&self, entry: &LogEntry) {
-        let stamp = Time::try_from(entry.time).unwrap_or(Time::ZERO);
         let log = Log {
-            stamp,
+            stamp: stamp(entry.time),
             level: level(entry.level),
             name: self.logger_name.clone(),
             msg: entry.msg.clone(),
@@ -70,7 +73,14 @@ impl Rosout {
             function: entry.function.clone(),
             line: entry.line,
         };
-        if self.writer.write(log, None).is_err() {
+        // A `Log` always encodes; were it not to, the record would be dropped like a refused one.
+        let written = lidar_har_msgs::encode(&log).ok().and_then(|cdr| {
+            let body = cdr.strip_prefix(&lidar_har_msgs::CDR_LE_HEADER)?;
+            // With a source time, as the node's other samples (`topic echo`'s `source_time_ns`).
+            let sent = Some(Timestamp::now());
+            self.writer.write(RawCdr::little_endian(body), sent).ok()
+        });
+        if written.is_none() {
             let dropped = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
             if dropped % DROPPED_WARNING_EVERY == 1 {
                 log::warn!(
@@ -96,6 +106,14 @@ pub fn logger_name(namespace: &str, name: &str) -> String {
     }
 }
 
+/// `time` as a `Time` since the Unix epoch; a time before it is 0, as ros2-client stamped it.
+fn stamp(time: SystemTime) -> Time {
+    time.duration_since(SystemTime::UNIX_EPOCH)
+        .ok()
+        .and_then(|since| i64::try_from(since.as_nanos()).ok())
+        .map_or(Time::default(), Time::from_nanos)
+}
+
 /// The `Log` level of a record (`rcl_interfaces/msg/Log`'s constants; `trace` is a debug).
 fn level(level: log::Level) -> u8 {
     match level {
@@ -115,6 +133,20 @@ mod tests {
         assert_eq!(logger_name("/", "localiser"), "localiser");
         assert_eq!(logger_name("/robot1", "localiser"), "robot1.localiser");
         assert_eq!(logger_name("/a/b", "replay"), "a.b.replay");
+    }
+
+    #[test]
+    fn stamps_are_wall_clock_times_and_zero_before_the_epoch() {
+        let time = SystemTime::UNIX_EPOCH + std::time::Duration::from_nanos(1_700_000_000_250);
+        assert_eq!(
+            stamp(time),
+            Time {
+                sec: 1700,
+                nanosec: 250
+            }
+        );
+        let before = SystemTime::UNIX_EPOCH - std::time::Duration::from_secs(1);
+        assert_eq!(stamp(before), Time::default());
     }
 
     #[test]

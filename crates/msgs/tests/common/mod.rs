@@ -14,8 +14,8 @@ macro_rules! for_every_type {
     ($mac:ident) => {{
         use lidar_har_msgs::{
             builtin_interfaces as bi, diagnostic_msgs as dm, geometry_msgs as gm,
-            lidar_har_msgs as lh, nav_msgs as nm, rosgraph_msgs as rg, sensor_msgs as sm,
-            std_msgs as st, tf2_msgs as tf, visualization_msgs as vm,
+            lidar_har_msgs as lh, nav_msgs as nm, rcl_interfaces as rc, rosgraph_msgs as rg,
+            sensor_msgs as sm, std_msgs as st, tf2_msgs as tf, visualization_msgs as vm,
         };
         vec![
             $mac!(bi::Time),
@@ -48,6 +48,7 @@ macro_rules! for_every_type {
             $mac!(dm::DiagnosticArray),
             $mac!(dm::DiagnosticStatus),
             $mac!(dm::KeyValue),
+            $mac!(rc::Log),
             $mac!(lh::Activity),
             $mac!(lh::FallAlert),
             $mac!(lh::HumanObservation),
