@@ -40,16 +40,6 @@ pub(crate) struct RawCdr {
     body: Vec<u8>,
 }
 
-impl RawCdr {
-    /// Little-endian CDR `body`, as our codec writes it after the encapsulation header.
-    pub(crate) fn little_endian(body: &[u8]) -> Self {
-        Self {
-            representation: RepresentationIdentifier::CDR_LE,
-            body: body.to_vec(),
-        }
-    }
-}
-
 /// Why bytes could not be handed to or taken from DDS.
 #[derive(Debug, thiserror::Error)]
 pub(crate) enum RawCdrError {
@@ -347,14 +337,16 @@ impl DdsNode {
         };
         if rosout {
             let policies = rosout_qos_policies();
-            let topic = this.topic(topics::ROSOUT.name, topics::ROSOUT.type_name, &policies)?;
-            let writer = this
-                .publisher
-                .create_datawriter_no_key::<RawCdr, RawAdapter>(&topic, Some(policies))
-                .map_err(|e| RosError::Topic {
-                    topic: topics::ROSOUT.name.into(),
-                    reason: e.to_string(),
-                })?;
+            let spec = &topics::ROSOUT;
+            // Its drops are warned about sparingly, as a volatile topic's: one warning per
+            // dropped record would double what the node prints.
+            let writer = this.writer(
+                spec.name,
+                spec.type_name,
+                &policies,
+                policies.clone(),
+                false,
+            )?;
             this.rosout = Some(Rosout::new(writer, namespace, name));
         }
         if use_sim_time {
@@ -366,6 +358,33 @@ impl DdsNode {
             });
         }
         Ok(this)
+    }
+
+    /// A writer of CDR bytes on `topic`; `latched`: each dropped sample is warned about.
+    fn writer(
+        &self,
+        topic: &str,
+        type_name: &str,
+        topic_policies: &QosPolicies,
+        writer_policies: QosPolicies,
+        latched: bool,
+    ) -> Result<DdsPublisher, RosError> {
+        let t = self.topic(topic, type_name, topic_policies)?;
+        let writer = self
+            .publisher
+            .create_datawriter_no_key::<RawCdr, RawAdapter>(&t, Some(writer_policies))
+            .map_err(|e| RosError::Topic {
+                topic: topic.into(),
+                reason: e.to_string(),
+            })?;
+        Ok(DdsPublisher {
+            topic: topic.to_string(),
+            writer,
+            matched: AtomicUsize::new(0),
+            matched_ever: AtomicUsize::new(0),
+            dropped: AtomicU64::new(0),
+            latched,
+        })
     }
 
     fn reader(
@@ -421,22 +440,16 @@ impl NodeBackend for DdsNode {
         type_name: &str,
         qos: &QosProfile,
     ) -> Result<Box<dyn PublisherBackend>, RosError> {
-        let t = self.topic(topic, type_name, &qos_policies(qos))?;
-        let writer = self
-            .publisher
-            .create_datawriter_no_key::<RawCdr, RawAdapter>(&t, Some(writer_qos_policies(qos)))
-            .map_err(|e| RosError::Topic {
-                topic: topic.into(),
-                reason: e.to_string(),
-            })?;
-        Ok(Box::new(DdsPublisher {
-            topic: topic.to_string(),
-            writer,
-            matched: AtomicUsize::new(0),
-            matched_ever: AtomicUsize::new(0),
-            dropped: AtomicU64::new(0),
-            latched: qos.durability == Durability::TransientLocal,
-        }))
+        let latched = qos.durability == Durability::TransientLocal;
+        let writer_policies = writer_qos_policies(qos);
+        let writer = self.writer(
+            topic,
+            type_name,
+            &qos_policies(qos),
+            writer_policies,
+            latched,
+        )?;
+        Ok(Box::new(writer))
     }
 
     fn subscriber(
@@ -529,7 +542,7 @@ fn offered_qos(
     }
 }
 
-struct DdsPublisher {
+pub(crate) struct DdsPublisher {
     topic: String,
     writer: DataWriter<RawCdr, RawAdapter>,
     /// Matched readers, from the writer's status events (RustDDS has no direct query).

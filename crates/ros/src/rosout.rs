@@ -3,15 +3,13 @@
 //! what the node says, not only its terminal.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::SystemTime;
 
 use lidar_har_msgs::builtin_interfaces::Time;
 use lidar_har_msgs::rcl_interfaces::Log;
-use ros2_client::dds::rustdds::Timestamp;
-use ros2_client::dds::rustdds::no_key::DataWriter;
 
-use crate::dds::{RawAdapter, RawCdr};
+use crate::PublisherBackend;
+use crate::dds::DdsPublisher;
 
 /// One log record, owned: one logged before the node joined the graph waits in this form.
 #[derive(Debug, Clone)]
@@ -43,26 +41,24 @@ impl From<&log::Record<'_>> for LogEntry {
 /// (docs/ros.md, "Nodes").
 #[derive(Clone)]
 pub struct Rosout {
-    /// Our codec's CDR of `rcl_interfaces/msg/Log`, as every other topic's.
-    writer: Arc<DataWriter<RawCdr, RawAdapter>>,
+    /// Our codec's CDR of `rcl_interfaces/msg/Log`, through the writer every topic has: a
+    /// record it refuses (a reader stopped acknowledging) is dropped and warned about there.
+    writer: Arc<DdsPublisher>,
     logger_name: String,
-    /// Records the writer refused (its send window full: a reader stopped acknowledging).
-    dropped: Arc<AtomicU64>,
 }
 
 impl Rosout {
-    pub(crate) fn new(writer: DataWriter<RawCdr, RawAdapter>, namespace: &str, name: &str) -> Self {
+    pub(crate) fn new(writer: DdsPublisher, namespace: &str, name: &str) -> Self {
         Self {
             writer: Arc::new(writer),
             logger_name: logger_name(namespace, name),
-            dropped: Arc::new(AtomicU64::new(0)),
         }
     }
 
     /// Publishes `entry`, stamped with its time on the system clock (as rcl stamps /rosout,
-    /// whatever `use_sim_time` says). A record the writer refuses is dropped (it has been
-    /// printed) and counted, with a warning through `log` at the first and every 1000th: a
-    /// logger that forwards records here must not forward those it gets while publishing.
+    /// whatever `use_sim_time` says). A record that cannot be written is dropped (it has
+    /// been printed); a refused one is warned about through `log`, so a logger that forwards
+    /// records here must not forward those it gets while publishing.
     pub fn publish(&self, entry: &LogEntry) {
         let log = Log {
             stamp: stamp(entry.time),
@@ -73,27 +69,11 @@ impl Rosout {
             function: entry.function.clone(),
             line: entry.line,
         };
-        // A `Log` always encodes; were it not to, the record would be dropped like a refused one.
-        let written = lidar_har_msgs::encode(&log).ok().and_then(|cdr| {
-            let body = cdr.strip_prefix(&lidar_har_msgs::CDR_LE_HEADER)?;
-            // With a source time, as the node's other samples (`topic echo`'s `source_time_ns`).
-            let sent = Some(Timestamp::now());
-            self.writer.write(RawCdr::little_endian(body), sent).ok()
-        });
-        if written.is_none() {
-            let dropped = self.dropped.fetch_add(1, Ordering::Relaxed) + 1;
-            if dropped % DROPPED_WARNING_EVERY == 1 {
-                log::warn!(
-                    "rosout: {dropped} log records not published: a /rosout reader has \
-                     stopped acknowledging (they are printed here still)"
-                );
-            }
+        if let Ok(cdr) = lidar_har_msgs::encode(&log) {
+            let _ = self.writer.publish(&cdr);
         }
     }
 }
-
-/// Refused records between two warnings.
-const DROPPED_WARNING_EVERY: u64 = 1000;
 
 /// rcl's logger name of a node: its namespace without the leading slash, then its name,
 /// joined by dots (`/robot1` + `localiser` = `robot1.localiser`).
