@@ -376,6 +376,9 @@ pub struct Driver {
     /// The last routine report warned of rotations without a return: the change is logged
     /// once, not at every report.
     warned_no_return: bool,
+    /// A motor parameter the connected family has no use for was warned about (once, not at
+    /// every reconnect).
+    warned_motor_parameter: bool,
 }
 
 /// Wall-clock nanoseconds since the Unix epoch.
@@ -407,6 +410,7 @@ impl Driver {
             decode_before: DecodeStats::default(),
             no_return_since: None,
             warned_no_return: false,
+            warned_motor_parameter: false,
         })
     }
 
@@ -588,6 +592,7 @@ impl Driver {
         // Chosen before a PWM motor is started, so that a mode the device lacks (permanent)
         // never starts it; the link stops a DTR motor when dropped with the error.
         let mut plan = self.plan_scan(&mut link, &info)?;
+        self.warn_of_motor_parameter_ignored(&info);
         let mut motor_pwm = None;
         if info.is_time_of_flight() {
             if let Some(rpm) = self.config.motor_rpm {
@@ -636,6 +641,29 @@ impl Driver {
             baud_readback,
             motor_pwm,
         })
+    }
+
+    /// `motor_pwm` drives A2/A3 accessory boards and `motor_rpm` time-of-flight motors: the
+    /// other one is not sent, and a user who set it to tune the scan rate is told why nothing
+    /// changed rather than left guessing.
+    fn warn_of_motor_parameter_ignored(&mut self, info: &DeviceInfo) {
+        let ignored = if info.is_time_of_flight() {
+            self.config
+                .motor_pwm
+                .map(|pwm| format!("motor_pwm = {pwm} ignored: this device takes motor_rpm"))
+        } else {
+            self.config.motor_rpm.map(|rpm| {
+                format!("motor_rpm = {rpm} ignored: only time-of-flight (S-series) devices take it; set motor_pwm (A2/A3) instead")
+            })
+        };
+        let Some(ignored) = ignored else { return };
+        if self.warned_motor_parameter {
+            return;
+        }
+        self.warned_motor_parameter = true;
+        let message = format!("{} ({})", ignored, info.family());
+        warn!("{}: {message}", self.config.port);
+        self.report(DiagnosticStatus::WARN, message);
     }
 
     /// Whether the device's motor is driven by the accessory board (`GET_ACC_BOARD_FLAG`,

@@ -947,6 +947,36 @@ fn motor_without_accessory_board_control_gets_no_pwm() {
     }
 }
 
+#[test]
+fn a_motor_parameter_of_the_other_family_is_warned_about_and_not_sent() {
+    // motor_pwm on an S-series (time of flight) and motor_rpm on an A2: neither is sent,
+    // and the user learns why the scan rate did not change.
+    let s_series = FakeConfig::s_series();
+    let mut a2 = FakeConfig::default();
+    a2.info.model = 0x28;
+    for (fake_config, pwm, rpm, names) in [
+        (s_series, Some(600), None, "motor_pwm = 600 ignored"),
+        (a2, None, Some(900), "motor_rpm = 900 ignored"),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let fake = spawn(dir.path(), fake_config);
+        let mut cfg = config(fake.path(), ScanModeChoice::Auto);
+        cfg.motor_pwm = pwm;
+        cfg.motor_rpm = rpm;
+        let mut driver = Driver::new(cfg).unwrap();
+        let (_, diags) = run_until(&mut driver, LIMIT, scans(2));
+        let warnings: Vec<_> = diags.iter().filter(|d| d.message.contains(names)).collect();
+        assert_eq!(warnings.len(), 1, "{names}: {diags:#?}");
+        assert_eq!(warnings[0].level, DiagnosticStatus::WARN);
+        drop(driver);
+        let log = log_when(&fake, LIMIT, |l| l.commands.last() == Some(&0x25));
+        assert_eq!(log.motor_rpm, None, "{names}");
+        if pwm.is_some() {
+            assert_eq!(log.motor_pwm, None, "{names}");
+        }
+    }
+}
+
 /// The last routine report ("scanning ..." or the warning of no return) among `diags`.
 fn last_routine<'a>(diags: &'a [DiagnosticStatus], starts: &str) -> Option<&'a DiagnosticStatus> {
     diags.iter().rev().find(|d| d.message.starts_with(starts))
