@@ -335,13 +335,11 @@ where
 ///   100 unknown.
 ///
 /// The mean, not the luminance these files were once read with, so a colour image loads as
-/// map_server reads it too. The occupancy is one division of the pixel's integers: an 8-bit
-/// pixel's quanta are 257 times its values, so the quotient, correctly rounded, is the one
-/// its 8-bit values gave, and a grey image (what map_saver and the simulator write) loads
-/// exactly as it did.
+/// map_server reads it too. The arithmetic is map_io's, step by step in f64 (the mean of the
+/// 16-bit quanta, divided by 65535, subtracted from 1): a pixel on a threshold rounds as
+/// there, so a grey of 204 under `free_thresh: 0.2` is free here as on /map, not unknown.
 fn map_server_value(pixel: Rgba<u16>, has_alpha: bool, spec: &MapSpec) -> i8 {
     const UNKNOWN: i8 = -1;
-    const QUANTUM_PER_BYTE: u32 = 257;
     let Rgba([r, g, b, a]) = pixel;
     let mut total = u32::from(r) + u32::from(g) + u32::from(b);
     let mut channels = 3;
@@ -349,20 +347,15 @@ fn map_server_value(pixel: Rgba<u16>, has_alpha: bool, spec: &MapSpec) -> i8 {
         total += u32::from(a);
         channels += 1;
     }
-    let full = f64::from(u32::from(u16::MAX) * channels);
-    let total = f64::from(total);
+    let shade = f64::from(total) / f64::from(channels) / f64::from(u16::MAX);
     if spec.mode == MapMode::Raw {
-        let value = (total / f64::from(QUANTUM_PER_BYTE * channels)).round();
+        let value = (shade * 255.0).round();
         return if value <= 100.0 { value as i8 } else { UNKNOWN };
     }
     if spec.mode == MapMode::Scale && a != u16::MAX {
         return UNKNOWN;
     }
-    let occupancy = if spec.negate {
-        total / full
-    } else {
-        (full - total) / full
-    };
+    let occupancy = if spec.negate { shade } else { 1.0 - shade };
     if occupancy > spec.occupied_thresh {
         100
     } else if occupancy < spec.free_thresh {
@@ -470,6 +463,24 @@ mod tests {
         assert_loads_as_grid(&yaml("raw"), &[-1, -1, -1, 100, 0]);
         // Trinary: between the thresholds unknown, as before.
         assert_loads_as_grid(&yaml("trinary"), &[0, -1, -1, -1, 100]);
+    }
+
+    /// A pixel whose occupancy is a threshold to the last digit falls on the side map_io's
+    /// arithmetic puts it: 204 grey is 1 - 0.8 = 0.19999999999999996 there, under
+    /// `free_thresh: 0.2`, so free; 0.2 computed in one division would make it unknown.
+    #[test]
+    fn a_pixel_on_a_threshold_falls_where_map_server_puts_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut pgm = b"P5\n3 1\n255\n".to_vec();
+        pgm.extend_from_slice(&[254, 204, 0]);
+        write(dir.path(), "grey.pgm", &pgm);
+        let yaml = write(
+            dir.path(),
+            "grey.yaml",
+            b"image: grey.pgm\nmode: trinary\nresolution: 0.05\norigin: [0, 0, 0]\n\
+              negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.2\n",
+        );
+        assert_loads_as_grid(&yaml, &[0, 0, 100]);
     }
 
     /// An RGBA PNG: map_server makes a pixel that is not opaque unknown in scale mode, and in
