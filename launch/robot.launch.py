@@ -42,7 +42,14 @@ def generate_launch_description():
         DeclareLaunchArgument("frame_id", default_value="laser", description="frame of the published scans"),
         DeclareLaunchArgument("params_file", default_value=os.path.join(config, "robot.yaml"),
                               description="parameters of all nodes (ROS 2 params-file layout)"),
-        Node(package="lidar_har", executable="rplidar_driver", name="rplidar_driver", output="screen",
+        # With a namespace (`namespace=""`: the root one) launch_ros files the dict below under
+        # the node's full name, /rplidar_driver, instead of `/**`: rcl merges the sections of all
+        # parameter files in the order each name first appears, and rclcpp applies them in that
+        # order, so a `/**` dict lost to a params_file with `/**:` before `rplidar_driver:`.
+        # Under its own name the dict comes last and wins, unless params_file names the node
+        # `/rplidar_driver` itself and has another section for it after that one.
+        Node(package="lidar_har", executable="rplidar_driver", name="rplidar_driver", namespace="",
+             output="screen",
              ros_arguments=["--log-level", arg("log_level")],
              parameters=[arg("params_file"), {
                  # Strings as given: a port, mode or frame name must not be read as YAML
