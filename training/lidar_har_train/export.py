@@ -143,8 +143,10 @@ def parity(model: ActivityConvLSTM, path: Path, windows_u8: np.ndarray) -> dict:
         for name, a, b in zip(names, reference, outputs):
             a = a.numpy()
             f = figures[kind][name]
-            f["max_abs_diff"] = max(f["max_abs_diff"], float(np.abs(a - b).max()))
-            f["max_abs_value"] = max(f["max_abs_value"], float(np.abs(a).max()))
+            # np.maximum keeps a NaN (Python's max(0.0, nan) drops it): a model whose outputs
+            # are not finite must fail the check, not pass it.
+            f["max_abs_diff"] = float(np.maximum(f["max_abs_diff"], np.abs(a - b).max()))
+            f["max_abs_value"] = float(np.maximum(f["max_abs_value"], np.abs(a).max()))
 
     for window in windows_u8:
         frames = window.astype(np.float32) / 255.0

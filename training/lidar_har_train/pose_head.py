@@ -254,7 +254,8 @@ def export(head, out: Path, hidden: int, side: int, metadata: dict, sample: dict
                 reference = head.double()(torch.from_numpy(h).double(), torch.from_numpy(located).double())
                 got = session.run(["offset", "sigma"], {"h": h, "located": located})
                 for r, g in zip(reference, got):
-                    worst = max(worst, float(np.abs(r.numpy() - g).max()))
+                    # np.maximum keeps a NaN, which must fail the check (max(0.0, nan) is 0.0).
+                    worst = float(np.maximum(worst, np.abs(r.numpy() - g).max()))
         head.float()
         if not worst <= PARITY_TOLERANCE:
             rejected = set_aside(temp, out)

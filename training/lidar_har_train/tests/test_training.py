@@ -55,6 +55,22 @@ class Training(unittest.TestCase):
         export.model_from_onnx(out.parent / "activity.rejected.onnx")
         self.assertEqual(sorted(p.name for p in out.parent.iterdir()), ["activity.onnx", "activity.rejected.onnx"])
 
+    def test_a_model_whose_outputs_are_nan_fails_the_parity_check(self):
+        # Python's max(0.0, nan) is 0.0: a NaN difference used to vanish and the check pass.
+        out = self.root / "models" / "activity.onnx"
+        out.parent.mkdir()
+        step = train.ActivityConvLSTM.step
+
+        def poisoned(model, x, h, c):
+            logits, h, c = step(model, x, h, c)
+            return logits * float("nan"), h, c
+
+        with mock.patch.object(train.ActivityConvLSTM, "step", poisoned):
+            code, _, stderr = quietly(train.main, ["--data", str(self.data), "--out", str(out), *TINY])
+        self.assertEqual(code, 1, stderr)
+        self.assertIn("train: error: parity check failed", stderr)
+        self.assertFalse(out.exists())
+
     def test_the_first_steps_rate_does_not_depend_on_the_wall_time(self):
         args = train.parse_args(["--data", "d", "--out", "o.onnx"])
         budget_s = 60 * args.time_budget_min
