@@ -55,6 +55,14 @@ pub enum InferError {
     ModelMissing { path: PathBuf },
     #[error("could not load model {path}: {message}")]
     ModelLoad { path: PathBuf, message: String },
+    /// A thread count of 0, which ONNX Runtime would read as one thread per core: the
+    /// caller's setting is wrong, not the model file.
+    #[error(
+        "ONNX Runtime intra-op threads must be at least 1, got 0 (loading {}): set the threads \
+         option to 1 or more",
+        path.display()
+    )]
+    ZeroThreads { path: PathBuf },
     #[error("model {path} does not follow docs/model_contract.md: {problem}")]
     Contract { path: PathBuf, problem: String },
     #[error("model {path} has unusable metadata: {cause}")]
@@ -431,7 +439,9 @@ fn open_session(env: &Environment, path: &Path, threads: usize) -> Result<Sessio
     };
     // ONNX Runtime would read 0 as "its default", one thread per core.
     if threads == 0 {
-        return Err(load_error("threads must be at least 1, got 0".to_string()));
+        return Err(InferError::ZeroThreads {
+            path: path.to_path_buf(),
+        });
     }
     Session::builder(env)
         .map_err(|e| load_error(e.to_string()))?

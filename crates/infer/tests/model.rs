@@ -255,24 +255,33 @@ fn a_state_of_another_model_is_refused_naming_tensor_and_shapes() {
 }
 
 #[test]
-fn zero_threads_are_refused_at_load_naming_the_model() {
+fn zero_threads_are_refused_at_load_as_a_wrong_setting_not_a_broken_model() {
     if !runtime_available() {
         return;
     }
-    // Used to be turned into 1 silently.
-    let e = ActivityModel::load(fixture("step_model.onnx"), 0).unwrap_err();
-    let text = e.to_string();
-    assert!(
-        text.contains("step_model.onnx") && text.contains("threads must be at least 1"),
-        "{text}"
-    );
+    // Used to be turned into 1 silently; then refused as "could not load model", blaming a
+    // model file that is fine.
     let model = load("step_model.onnx").unwrap();
-    let e = PoseHeadModel::load(fixture("pose_head.onnx"), &model, 0).unwrap_err();
-    let text = e.to_string();
-    assert!(
-        text.contains("pose_head.onnx") && text.contains("threads must be at least 1"),
-        "{text}"
-    );
+    let errors = [
+        (
+            ActivityModel::load(fixture("step_model.onnx"), 0).unwrap_err(),
+            "step_model.onnx",
+        ),
+        (
+            PoseHeadModel::load(fixture("pose_head.onnx"), &model, 0).unwrap_err(),
+            "pose_head.onnx",
+        ),
+    ];
+    for (e, file) in errors {
+        assert!(matches!(e, InferError::ZeroThreads { .. }), "{e}");
+        let text = e.to_string();
+        assert!(
+            text.contains(file)
+                && text.contains("threads must be at least 1, got 0")
+                && !text.contains("could not load model"),
+            "{text}"
+        );
+    }
 }
 
 fn person(t: f64, visible: bool, points: &[DVec2]) -> PersonScan<'_> {

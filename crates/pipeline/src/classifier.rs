@@ -1861,7 +1861,10 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("fall_probability"), "{e}");
-        assert!(parse_classifier_config("threads: 0\n").is_err());
+        let e = parse_classifier_config("threads: 0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("threads must be at least 1"), "{e}");
         for bad in ["0.9", ".nan", "11"] {
             let e = parse_classifier_config(&format!("lane_period_windows: {bad}\n"))
                 .unwrap_err()

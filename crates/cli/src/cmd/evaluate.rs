@@ -37,9 +37,19 @@ pub struct EvaluateArgs {
     /// Where metrics.json, report.md and the confusion PNGs go.
     #[arg(long)]
     pub out: PathBuf,
-    /// ONNX Runtime intra-op threads.
-    #[arg(long, default_value_t = 1)]
+    /// ONNX Runtime intra-op threads; at least 1.
+    #[arg(long, default_value_t = 1, value_parser = parse_threads)]
     pub threads: usize,
+}
+
+/// `--threads`: at least 1, refused here naming the flag, as ONNX Runtime would take 0 as
+/// one thread per core (and the model loader refuses it).
+fn parse_threads(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(0) => Err("must be at least 1 (ONNX Runtime intra-op threads)".to_string()),
+        Ok(threads) => Ok(threads),
+        Err(_) => Err("not a whole number of threads".to_string()),
+    }
 }
 
 /// The paper's per-class Boolean-grid results (Bouazizi et al. 2023): recall, precision in %.
@@ -62,6 +72,59 @@ const PAPER_ACCURACY_AND_WEIGHTED_F1: [(&str, f64, f64); 3] = [
     ("circles", 78.8, 76.5),
     ("ellipses", 78.3, 76.9),
 ];
+
+/// The paper's fixed-Lidar accuracy in % (Boolean grid) at its worst and its best Lidar
+/// position: all it gives for a fixed Lidar (no F1, no per-class table).
+const PAPER_FIXED_LIDAR_ACCURACY: (f64, f64) = (74.0, 82.9);
+
+/// report.md's "paper" column: the figures of the paper's set-up that the dataset's matches,
+/// as text, "-" where the paper gives none.
+struct PaperColumn {
+    /// The set-up, for the report's header.
+    setting: String,
+    accuracy: String,
+    weighted_f1: String,
+    macro_f1: String,
+}
+
+impl PaperColumn {
+    /// The moving robot's figures for `representation`; for a `--fixed-lidar` dataset the
+    /// fixed-Lidar accuracy range instead, as a fixed Lidar's accuracy beside the moving
+    /// robot's would misstate how far it is from the paper.
+    fn new(representation: &str, fixed_lidar: bool) -> Self {
+        let one = |x: f64| format!("{x:.1}");
+        let boolean_grid = representation == "boolean_grid";
+        if fixed_lidar {
+            let (worst, best) = PAPER_FIXED_LIDAR_ACCURACY;
+            return Self {
+                setting: format!(
+                    "Boolean grid, fixed Lidar: {best:.1} % accuracy at its best position, \
+                     {worst:.1} % at its worst; no F1 for it"
+                ),
+                accuracy: if boolean_grid {
+                    format!("{worst:.1}-{best:.1}")
+                } else {
+                    "-".into()
+                },
+                weighted_f1: "-".into(),
+                macro_f1: "-".into(),
+            };
+        }
+        let figures = PAPER_ACCURACY_AND_WEIGHTED_F1
+            .iter()
+            .find(|(k, _, _)| *k == representation);
+        Self {
+            setting: "Boolean grid, moving robot".into(),
+            accuracy: figures.map_or("-".into(), |&(_, accuracy, _)| one(accuracy)),
+            weighted_f1: figures.map_or("-".into(), |&(_, _, f1)| one(f1)),
+            macro_f1: if boolean_grid {
+                one(paper_boolean_macro_f1())
+            } else {
+                "-".into()
+            },
+        }
+    }
+}
 
 /// The paper's Boolean-grid macro F1 in %, from its per-class table (it gives only the
 /// support-weighted one; the other representations have no per-class table).
@@ -500,29 +563,32 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
     let mut out = String::new();
     let pct = |x: f64| format!("{:.1}", 100.0 * x);
     out += "# Activity recognition: evaluation against the paper\n\n";
+    let paper = PaperColumn::new(&m.representation, index.spec.fixed_lidar);
     out += &format!(
-        "Model `{}` on dataset `{}` ({} {}, {}x{} px at {} m, window {} scans). Paper: Bouazizi et al., \
-         Sensors 23(5) 2534, 2023 (Boolean grid, moving robot).\n\n",
+        "Model `{}` on dataset `{}` ({} {}{}, {}x{} px at {} m, window {} scans). Paper: \
+         Bouazizi et al., Sensors 23(5) 2534, 2023 ({}).\n\n",
         m.model,
         m.data,
         m.representation,
         m.framing,
+        if index.spec.fixed_lidar {
+            ", fixed Lidar"
+        } else {
+            ""
+        },
         index.spec.size,
         index.spec.size,
         index.spec.resolution_m,
-        index.spec.window
+        index.spec.window,
+        paper.setting
     );
-    let paper_figures = PAPER_ACCURACY_AND_WEIGHTED_F1
-        .iter()
-        .find(|(k, _, _)| *k == m.representation);
-    let paper_acc = paper_figures.map(|(_, accuracy, _)| format!("{accuracy:.1}"));
     out += "| | ours: test | ours: unseen rooms | paper |\n|---|---|---|---|\n";
     let unseen = m.splits.get("test_unseen");
     out += &format!(
         "| accuracy (%) | {} | {} | {} |\n",
         pct(m.test.all.accuracy),
         unseen.map(|u| pct(u.all.accuracy)).unwrap_or("-".into()),
-        paper_acc.clone().unwrap_or("-".into())
+        paper.accuracy
     );
     out += &format!(
         "| accuracy at T/2 (%) | {} | {} | - |\n",
@@ -535,26 +601,21 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
         "| F1, support-weighted (%) | {} | {} | {} |\n",
         pct(m.test.all.weighted_f1),
         unseen.map(|u| pct(u.all.weighted_f1)).unwrap_or("-".into()),
-        paper_figures
-            .map(|(_, _, f1)| format!("{f1:.1}"))
-            .unwrap_or("-".into())
+        paper.weighted_f1
     );
     out += &format!(
         "| macro F1 (%) | {} | {} | {} |\n",
         pct(m.test.all.macro_f1),
         unseen.map(|u| pct(u.all.macro_f1)).unwrap_or("-".into()),
-        if m.representation == "boolean_grid" {
-            format!("{:.1}", paper_boolean_macro_f1())
-        } else {
-            "-".into()
-        }
+        paper.macro_f1
     );
     out += &format!(
         "| windows | {} | {} | - |\n",
         m.test.all.windows,
-        unseen.map(|u| u.all.windows).unwrap_or(0)
+        unseen
+            .map(|u| u.all.windows.to_string())
+            .unwrap_or("-".into())
     );
-    let paper = paper_acc.unwrap_or("-".into());
     let subsets: [(&str, SubsetOf, &str); 4] = [
         (
             "windows ending with the person in view (published)",
@@ -564,22 +625,22 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
         (
             "windows within one activity",
             |s| &s.within_one_activity,
-            &paper,
+            &paper.accuracy,
         ),
         ("windows in full view", |s| &s.in_full_view, "-"),
         (
             "within one activity and in full view",
             |s| &s.within_one_activity_in_full_view,
-            &paper,
+            &paper.accuracy,
         ),
     ];
-    for (title, scores, paper) in subsets {
+    for (title, scores, paper_cell) in subsets {
         let cell = |s: &SplitMetrics| {
             let w = scores(s);
             format!("{} ({} windows)", pct(w.accuracy), w.windows)
         };
         out += &format!(
-            "| accuracy, {title} (%) | {} | {} | {paper} |\n",
+            "| accuracy, {title} (%) | {} | {} | {paper_cell} |\n",
             cell(&m.test),
             unseen.map(cell).unwrap_or("-".into()),
         );
@@ -602,10 +663,13 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
                 .unwrap_or_default()
         };
         let what = if index.spec.fixed_lidar {
-            "Fixed Lidar, one random spot per test episode (paper, fixed Lidar: 82.9 % at the best \
-             position, 74.0 % at the worst)"
+            let (worst, best) = PAPER_FIXED_LIDAR_ACCURACY;
+            format!(
+                "Fixed Lidar, one random spot per test episode (paper, fixed Lidar: {best:.1} % \
+                 at the best position, {worst:.1} % at the worst)"
+            )
         } else {
-            "Moving robot, per test episode"
+            "Moving robot, per test episode".to_string()
         };
         out += &format!(
             "{what}: best {} % (episode {}, {}{}), median {} %, worst {} % (episode {}, {}{}) \
@@ -622,7 +686,14 @@ fn report(m: &Metrics, index: &DatasetIndex) -> String {
             spread.episodes
         );
     }
-    out += "Per class on the test split, recall / precision in % (paper: Boolean grid):\n\n";
+    out += &format!(
+        "Per class on the test split, recall / precision in % (paper: Boolean grid{}):\n\n",
+        if index.spec.fixed_lidar {
+            ", moving robot; it gives none for a fixed Lidar"
+        } else {
+            ""
+        }
+    );
     out += "| class | ours recall | ours precision | ours F1 | ours recall, within one activity | paper recall | paper precision |\n|---|---|---|---|---|---|---|\n";
     for a in Activity::ALL {
         let (pr, pp) = PAPER_BOOLEAN[a.index()];
@@ -1017,6 +1088,117 @@ mod tests {
             line(&text, "| macro F1 (%) |"),
             "| macro F1 (%) | 25.0 | - | - |"
         );
+    }
+
+    /// Used to say 0 windows for a split the dataset does not have, as if scored on none.
+    #[test]
+    fn a_split_the_dataset_lacks_has_no_window_count() {
+        let text = report(
+            &metrics(split_metrics(&confusion()), RepresentationKind::BooleanGrid),
+            &index(dataset_spec()),
+        );
+        assert_eq!(line(&text, "| windows |"), "| windows | 5 | - | - |");
+    }
+
+    /// A fixed Lidar's figures used to be set beside the paper's moving robot's (91.3 %).
+    #[test]
+    fn a_fixed_lidar_dataset_is_set_beside_the_papers_fixed_lidar_figures() {
+        let fixed = DatasetSpec {
+            fixed_lidar: true,
+            ..dataset_spec()
+        };
+        let text = report(
+            &metrics(split_metrics(&confusion()), RepresentationKind::BooleanGrid),
+            &index(fixed.clone()),
+        );
+        let header = line(&text, "Model `m.onnx`");
+        assert!(
+            header.contains("room_fixed, fixed Lidar,")
+                && header.contains("(Boolean grid, fixed Lidar: 82.9 % accuracy at its best")
+                && !header.contains("moving robot"),
+            "{header}"
+        );
+        for (start, expected) in [
+            (
+                "| accuracy (%) |",
+                "| accuracy (%) | 60.0 | - | 74.0-82.9 |",
+            ),
+            (
+                "| F1, support-weighted (%) |",
+                "| F1, support-weighted (%) | 60.0 | - | - |",
+            ),
+            ("| macro F1 (%) |", "| macro F1 (%) | 25.0 | - | - |"),
+            (
+                "| accuracy, windows within one activity (%) |",
+                "| accuracy, windows within one activity (%) | 60.0 (5 windows) | - | 74.0-82.9 |",
+            ),
+            (
+                "| accuracy, within one activity and in full view (%) |",
+                "| accuracy, within one activity and in full view (%) | 60.0 (5 windows) | - | \
+                 74.0-82.9 |",
+            ),
+        ] {
+            assert_eq!(line(&text, start), expected);
+        }
+        assert!(
+            line(&text, "Per class on the test split").contains("moving robot"),
+            "the per-class figures are the moving robot's"
+        );
+        // The paper gives its fixed-Lidar figures for the Boolean grid only.
+        let text = report(
+            &metrics(split_metrics(&confusion()), RepresentationKind::Circles),
+            &index(DatasetSpec {
+                representation: RepresentationKind::Circles,
+                ..fixed
+            }),
+        );
+        assert_eq!(
+            line(&text, "| accuracy (%) |"),
+            "| accuracy (%) | 60.0 | - | - |"
+        );
+        // The moving robot's as before.
+        let text = report(
+            &metrics(split_metrics(&confusion()), RepresentationKind::BooleanGrid),
+            &index(dataset_spec()),
+        );
+        assert!(line(&text, "Model `m.onnx`").contains("(Boolean grid, moving robot)."));
+        assert_eq!(
+            line(&text, "| accuracy (%) |"),
+            "| accuracy (%) | 60.0 | - | 91.3 |"
+        );
+    }
+
+    /// `--threads 0` used to reach the model loader, whose error blamed the model file.
+    #[test]
+    fn zero_threads_are_refused_naming_the_flag() {
+        #[derive(clap::Parser)]
+        struct Command {
+            #[command(flatten)]
+            args: EvaluateArgs,
+        }
+        let parse = |threads: &str| {
+            <Command as clap::Parser>::try_parse_from([
+                "evaluate".to_string(),
+                "--model=m.onnx".to_string(),
+                "--data=d".to_string(),
+                "--out=o".to_string(),
+                format!("--threads={threads}"),
+            ])
+            .map(|c| c.args.threads)
+        };
+        assert_eq!(parse("2").unwrap(), 2);
+        for (threads, needle) in [
+            ("0", "must be at least 1"),
+            ("-1", "not a whole number"),
+            ("x", "not a whole number"),
+        ] {
+            let error = parse(threads).unwrap_err().to_string();
+            assert!(
+                error.contains(&format!("'{threads}' for '--threads <THREADS>'"))
+                    && error.contains(needle),
+                "{threads}: {error}"
+            );
+        }
     }
 
     #[test]
