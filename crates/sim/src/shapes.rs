@@ -211,9 +211,17 @@ pub fn segments_intersect(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
 }
 
 /// Twice the signed area (positive counter-clockwise).
+///
+/// Summed from the first corner: on absolute coordinates a 5 x 4 m room at (1e9, 1e9) has
+/// shoelace terms near 1e18 that cancel to exactly 0.
 pub fn polygon_area2(poly: &[DVec2]) -> f64 {
+    let Some(&origin) = poly.first() else {
+        return 0.0;
+    };
     let n = poly.len();
-    (0..n).map(|i| poly[i].perp_dot(poly[(i + 1) % n])).sum()
+    (0..n)
+        .map(|i| (poly[i] - origin).perp_dot(poly[(i + 1) % n] - origin))
+        .sum()
 }
 
 /// The first pair of non-adjacent edges that cross, if the polygon is not simple.

@@ -804,6 +804,25 @@ mod tests {
         );
     }
 
+    /// A room far from the origin was refused as having no area.
+    #[test]
+    fn a_room_far_from_the_origin_has_its_area() {
+        for outline in [
+            "[[1e9,1e9],[1000000005,1e9],[1000000005,1000000004],[1e9,1000000004]]",
+            "[[1e9,1e9],[1e9,1000000004],[1000000005,1000000004],[1000000005,1e9]]",
+        ] {
+            accepted(&format!(
+                "duration: 1\nroom: {{outline: {outline}}}\n\
+                 robot: {{start: {{x: 1000000001, y: 1000000001}}}}\n"
+            ));
+        }
+        let e = error(
+            "duration: 1\nroom: {outline: [[1e9,1e9],[1000000005,1e9],[1000000010,1e9]]}\n\
+             robot: {start: {x: 1000000001, y: 1e9}}\n",
+        );
+        assert_eq!(e, "bad.yaml: room.outline: the polygon has no area");
+    }
+
     #[test]
     fn lidar_values_too_small_for_a_laser_scan_are_refused() {
         let ok_robot = "{start: {x: 0.5, y: 0.5}}";

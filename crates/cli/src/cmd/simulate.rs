@@ -1,7 +1,7 @@
 //! `lidar-har simulate`: run a scene and record it as a rosbag2 directory (MCAP) with the
 //! map beside it; optionally draw a top view.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use lidar_har_bag::MetadataVersion;
@@ -92,6 +92,7 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     let simulated_s = scene.duration;
     let mut sim = Simulator::new(scene, args.seed)
         .with_context(|| format!("scene {}", args.scene.display()))?;
+    check_output_space(&args, &sim)?;
     let geometry = sim.scan_geometry();
     let total = sim.frame_count();
     let progress = indicatif::ProgressBar::new(total);
@@ -142,6 +143,122 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Bytes each scan adds to the bag besides its ranges (4 bytes a beam): the /clock, /tf and
+/// /odom messages with MCAP's records and index. Measured: 1 178 B a scan in a 1-beam bag
+/// without a person, about 290 B more with one (its ground-truth pose and activity).
+const BAG_BYTES_PER_SCAN: u64 = 1_200;
+const TRUTH_BYTES_PER_SCAN: u64 = 300;
+/// A recording estimated at this size or more is announced on stderr before it starts.
+const NOTE_OUTPUT_BYTES: u64 = 1_000_000_000;
+
+/// What a recording will write, known before the first scan: a duration typed with the wrong
+/// exponent (`1e7` s at 1000 Hz is 10^10 scans, about 40 TB) must not start filling the disk.
+struct OutputEstimate {
+    scans: u64,
+    beams: u64,
+    bytes: u64,
+}
+
+impl OutputEstimate {
+    /// The scans in the bag, plus the map: a byte a cell in `map.pgm` and again in `/map`
+    /// (the room's bounds at `map_resolution`; the map's narrow border is left out).
+    fn of(sim: &Simulator, map_resolution: f64) -> Self {
+        let scans = sim.frame_count();
+        let beams = sim.scan_geometry().beams as u64;
+        let truth = if sim.scene().person.is_some() {
+            TRUTH_BYTES_PER_SCAN
+        } else {
+            0
+        };
+        let (lo, hi) = sim.world().bounds();
+        let cells =
+            ((hi.x - lo.x) / map_resolution).ceil() * ((hi.y - lo.y) / map_resolution).ceil();
+        let per_scan = beams * 4 + BAG_BYTES_PER_SCAN + truth;
+        Self {
+            scans,
+            beams,
+            bytes: scans
+                .saturating_mul(per_scan)
+                .saturating_add(2 * cells as u64),
+        }
+    }
+
+    fn describe(&self) -> String {
+        format!(
+            "{} scans of {} beams, about {} to write",
+            self.scans,
+            self.beams,
+            size(self.bytes)
+        )
+    }
+
+    /// Refuses a recording that would not fit in the `free` bytes of `out`'s filesystem.
+    fn check_fits(&self, free: u64, asked: &str, out: &Path) -> anyhow::Result<()> {
+        anyhow::ensure!(
+            self.bytes <= free,
+            "{asked}: {}, more than the {} free where {} would be written; shorten the \
+             duration or lower lidar.rate_hz (an exponent typed wrong?), or record elsewhere",
+            self.describe(),
+            size(free),
+            out.display()
+        );
+        Ok(())
+    }
+}
+
+/// Bytes an unprivileged writer may still use on the filesystem that will hold `out`: that
+/// of its nearest existing ancestor, since the recording creates `out` itself.
+fn free_bytes(out: &Path) -> nix::Result<u64> {
+    let existing = out
+        .ancestors()
+        .find(|dir| !dir.as_os_str().is_empty() && dir.exists())
+        .unwrap_or(Path::new("."));
+    let stat = nix::sys::statvfs::statvfs(existing)?;
+    Ok((stat.blocks_available() as u64).saturating_mul(stat.fragment_size() as u64))
+}
+
+/// Decimal gigabytes, or terabytes from 1 TB, as `df -H` gives them.
+fn size(bytes: u64) -> String {
+    if bytes >= 1_000_000_000_000 {
+        format!("{:.1} TB", bytes as f64 / 1e12)
+    } else {
+        format!("{:.1} GB", bytes as f64 / 1e9)
+    }
+}
+
+/// Refuses a recording larger than the free space where it would be written, and announces
+/// a large one, before anything is written.
+fn check_output_space(args: &SimulateArgs, sim: &Simulator) -> anyhow::Result<()> {
+    let rate_hz = sim.scene().lidar.rate_hz;
+    let estimate = OutputEstimate::of(sim, args.map_resolution);
+    let asked = match args.duration {
+        Some(d) => format!(
+            "scene {} with --duration {d} at {rate_hz} Hz",
+            args.scene.display()
+        ),
+        None => format!(
+            "scene {} (duration {} s at {rate_hz} Hz)",
+            args.scene.display(),
+            sim.scene().duration
+        ),
+    };
+    match free_bytes(&args.out) {
+        Ok(free) => {
+            estimate.check_fits(free, &asked, &args.out)?;
+            if estimate.bytes >= NOTE_OUTPUT_BYTES {
+                errln!("{asked}: {}; {} free", estimate.describe(), size(free));
+            }
+        }
+        Err(e) if estimate.bytes >= NOTE_OUTPUT_BYTES => errln!(
+            "{asked}: {}; the free space of {} is unknown ({e})",
+            estimate.describe(),
+            args.out.display()
+        ),
+        Err(_) => {}
+    }
+    Ok(())
+}
+
 /// The summary of a recording. The time is the scene's duration: the stamps span whole
 /// scan periods (one scan of 0.05 s for `--duration 0.001`), which is not what was asked.
 fn recorded_line(summary: &RecordSummary, simulated_s: f64) -> String {
@@ -157,6 +274,93 @@ fn recorded_line(summary: &RecordSummary, simulated_s: f64) -> String {
 mod tests {
     use super::*;
     use lidar_har_sim::record::record;
+
+    /// The review's scene: `duration: 1e7` at 1000 Hz passes validation and asks for 10^10
+    /// scans (about 40 TB); `simulate` wrote 32 GB in ten minutes before it was stopped.
+    const HUGE_SCENE: &str = "duration: 1e7\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\n\
+                              robot: {start: {x: 1, y: 1}}\nlidar: {rate_hz: 1000}\n";
+
+    fn simulate_args(scene: &Path, out: &Path) -> SimulateArgs {
+        SimulateArgs {
+            scene: scene.to_path_buf(),
+            out: out.to_path_buf(),
+            seed: 0,
+            duration: None,
+            render: None,
+            map_resolution: lidar_har_sim::map::DEFAULT_RESOLUTION,
+            rosbag2_version: MetadataVersion::default(),
+        }
+    }
+
+    #[test]
+    fn a_recording_larger_than_the_free_space_is_refused_before_writing() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = dir.path().join("big.yaml");
+        std::fs::write(&scene, HUGE_SCENE).unwrap();
+        let out = dir.path().join("bag");
+        let message = format!("{:#}", run(simulate_args(&scene, &out)).unwrap_err());
+        for expected in [
+            "big.yaml (duration 10000000 s at 1000 Hz)",
+            "10000000000 scans of 720 beams",
+            "about 40.8 TB to write, more than the",
+        ] {
+            assert!(message.contains(expected), "{expected:?} in {message}");
+        }
+        assert!(!out.exists(), "{message}");
+        // `--duration` is named when it set the duration.
+        let mut args = simulate_args(&scene, &out);
+        args.duration = Some(2e6);
+        let message = format!("{:#}", run(args).unwrap_err());
+        assert!(
+            message.contains("with --duration 2000000 at 1000 Hz"),
+            "{message}"
+        );
+        assert!(!out.exists(), "{message}");
+    }
+
+    /// The estimate is the size of the bag and map written, a little above it (under 5 %),
+    /// with and without a person, at one beam and at the paper's 720.
+    #[test]
+    fn the_output_estimate_is_near_the_size_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let person = "person: {start: {x: 3, y: 2}, script: [{activity: standing, duration: 1}]}\n";
+        for (i, (beams, extra)) in [(1, ""), (720, ""), (720, person)].into_iter().enumerate() {
+            let scene = Scene::parse(
+                &format!(
+                    "duration: 20\nroom: {{outline: [[0,0],[5,0],[5,4],[0,4]]}}\n\
+                     robot: {{start: {{x: 1, y: 1}}}}\nlidar: {{rate_hz: 100, beams: {beams}}}\n\
+                     {extra}"
+                ),
+                "s.yaml",
+            )
+            .unwrap();
+            let mut sim = Simulator::new(scene, 0).unwrap();
+            let estimate = OutputEstimate::of(&sim, 0.05);
+            let out = dir.path().join(format!("bag_{i}"));
+            record(&mut sim, &out, 0.05, |_| {}).unwrap();
+            let written: u64 = std::fs::read_dir(&out)
+                .unwrap()
+                .map(|e| e.unwrap().metadata().unwrap().len())
+                .sum();
+            let ratio = estimate.bytes as f64 / written as f64;
+            assert!(
+                (1.0..1.05).contains(&ratio),
+                "{beams} {extra}: {} / {written}",
+                estimate.bytes
+            );
+        }
+    }
+
+    #[test]
+    fn the_free_space_is_that_of_the_nearest_folder_there() {
+        let dir = tempfile::tempdir().unwrap();
+        let free = free_bytes(dir.path()).unwrap();
+        assert!(free > 0);
+        let below = free_bytes(&dir.path().join("not/yet/there")).unwrap();
+        // Other writers may change it between the two calls, not by gigabytes.
+        assert!(below.abs_diff(free) < 1_000_000_000, "{below} {free}");
+        assert!(free_bytes(Path::new("not_there_relative")).is_ok());
+    }
 
     /// The line said `(0.1 s simulated)` for `--duration 0.001`: one 20 Hz scan period,
     /// rounded.
