@@ -10,6 +10,7 @@ kind will not mend. Reads the JSON lines of `localiser_accuracy --dump-points` r
         --classifier-config config/classifier.yaml --dump-points out/points.jsonl
     training/.venv/bin/python scripts/pelvis_spells.py out/points.jsonl [ACTIVITY [THRESHOLD_M]]
 """
+import argparse
 import json
 import sys
 
@@ -37,26 +38,47 @@ def spells_of(rows: list[dict], activity: str) -> list[list[dict]]:
     return spells
 
 
+def parse_args() -> argparse.Namespace:
+    """argparse, so that `--help` prints the usage instead of being opened as the file."""
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "points", metavar="POINTS.jsonl", help="the JSON lines of localiser_accuracy --dump-points"
+    )
+    parser.add_argument(
+        "activity",
+        metavar="ACTIVITY",
+        nargs="?",
+        default="lying_down",
+        help="the true activity whose spells are grouped (default lying_down)",
+    )
+    parser.add_argument(
+        "threshold",
+        metavar="THRESHOLD_M",
+        nargs="?",
+        type=float,
+        default=0.3,
+        help="how far from the true pelvis a published one is off, metres (default 0.3)",
+    )
+    return parser.parse_args()
+
+
 def main() -> None:
-    if not 2 <= len(sys.argv) <= 4:
-        sys.exit(f"usage: {sys.argv[0]} POINTS.jsonl [ACTIVITY [THRESHOLD_M]]")
-    activity = sys.argv[2] if len(sys.argv) > 2 else "lying_down"
+    args = parse_args()
+    activity, threshold = args.activity, args.threshold
     try:
-        threshold = float(sys.argv[3]) if len(sys.argv) > 3 else 0.3
-    except ValueError:
-        sys.exit(f"THRESHOLD_M {sys.argv[3]!r}: not a number")
-    try:
-        with open(sys.argv[1]) as points:
+        with open(args.points) as points:
             rows = [json.loads(line) for line in points]
     except (OSError, json.JSONDecodeError) as e:
-        sys.exit(f"{sys.argv[1]}: {e}")
+        sys.exit(f"{args.points}: {e}")
     if rows and not {"run", "stamp_ns"} <= rows[0].keys():
-        sys.exit(f"{sys.argv[1]}: no run or stamp_ns; dump again with this tree's example")
+        sys.exit(f"{args.points}: no run or stamp_ns; dump again with this tree's example")
     if rows and rows[0].get("published", "absent") == "absent":
-        sys.exit(f"{sys.argv[1]}: no published pelvis; dump with --classifier-config")
+        sys.exit(f"{args.points}: no published pelvis; dump with --classifier-config")
     spells = spells_of(rows, activity)
     if not spells:
-        sys.exit(f"{sys.argv[1]}: no seen scans of {activity} with a published pelvis")
+        sys.exit(f"{args.points}: no seen scans of {activity} with a published pelvis")
 
     def error(row: dict) -> float:
         return float(np.hypot(*np.subtract(row["published"], row["pelvis"][:2])))

@@ -6,6 +6,7 @@
 //! cargo run -p lidar-har-rplidar --example rplidar_dump -- --fake [mode] [seconds]
 //! ```
 //! `mode`: standard, express, auto (default) or a device mode name such as Sensitivity.
+//! `-h` / `--help` prints this usage.
 
 use std::time::{Duration, Instant};
 
@@ -28,6 +29,38 @@ fn parse_seconds(text: &str) -> Result<Duration, String> {
     }
 }
 
+/// The one-line usage, printed with every argument error and with the help.
+const USAGE: &str =
+    "usage: rplidar_dump PORT [BAUD] [MODE] [SECONDS] | rplidar_dump --fake [MODE] [SECONDS]";
+
+/// What `-h` / `--help` prints.
+const HELP: &str = "Runs the RPLIDAR driver on a serial device (PORT; BAUD default 115200) or on
+a fake one (--fake), printing one line per scan and per diagnostics report.
+MODE: standard, express, auto (default) or a device mode name such as Sensitivity.
+SECONDS: how long to run, default 5; exits 1 when no scan came in that time.";
+
+/// Where the command line points the driver, read before anything is opened.
+#[derive(Debug, PartialEq)]
+enum Target {
+    Help,
+    Fake,
+    Port(String),
+}
+
+/// `-h` / `--help` anywhere asks for the usage. Any other option where PORT goes is refused:
+/// taken as a port, it would only be retried, with diagnostics, for the whole run.
+fn target(args: &[String]) -> Result<Target, String> {
+    if args.iter().any(|a| a == "-h" || a == "--help") {
+        return Ok(Target::Help);
+    }
+    match args.first().map(String::as_str) {
+        None => Err("PORT or --fake is required".to_string()),
+        Some("--fake") => Ok(Target::Fake),
+        Some(option) if option.starts_with('-') => Err(format!("unknown option `{option}`")),
+        Some(port) => Ok(Target::Port(port.to_string())),
+    }
+}
+
 /// One line on stdout; false when it cannot be written (the reader of `| head` has gone).
 fn print(line: std::fmt::Arguments) -> bool {
     use std::io::Write;
@@ -37,36 +70,39 @@ fn print(line: std::fmt::Arguments) -> bool {
 fn main() {
     env_logger::init();
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage =
-        "usage: rplidar_dump PORT [BAUD] [MODE] [SECONDS] | rplidar_dump --fake [MODE] [SECONDS]";
-    let Some(first) = args.first() else {
-        eprintln!("{usage}");
-        std::process::exit(2);
-    };
     // Arguments first, so that a bad one leaves no fake device or temporary directory behind.
-    let (config, rest) = if first == "--fake" {
-        (None, &args[1..])
-    } else {
-        let mut config = Config::new(first.clone());
-        let mut rest = &args[1..];
-        if let Some(baud) = rest.first().and_then(|b| b.parse().ok()) {
-            config.baud = baud;
-            rest = &rest[1..];
+    let (config, rest) = match target(&args) {
+        Ok(Target::Help) => {
+            print(format_args!("{USAGE}\n{HELP}"));
+            return;
         }
-        (Some(config), rest)
+        Ok(Target::Fake) => (None, &args[1..]),
+        Ok(Target::Port(port)) => {
+            let mut config = Config::new(port);
+            let mut rest = &args[1..];
+            if let Some(baud) = rest.first().and_then(|b| b.parse().ok()) {
+                config.baud = baud;
+                rest = &rest[1..];
+            }
+            (Some(config), rest)
+        }
+        Err(e) => {
+            eprintln!("{e}\n{USAGE}");
+            std::process::exit(2);
+        }
     };
     let mode = match rest.first().map(|m| m.parse::<ScanModeChoice>()) {
         None => ScanModeChoice::Auto,
         Some(Ok(m)) => m,
         Some(Err(e)) => {
-            eprintln!("{e}\n{usage}");
+            eprintln!("{e}\n{USAGE}");
             std::process::exit(2);
         }
     };
     let run = match rest.get(1).map_or(Ok(DEFAULT_RUN), |s| parse_seconds(s)) {
         Ok(run) => run,
         Err(e) => {
-            eprintln!("{e}\n{usage}");
+            eprintln!("{e}\n{USAGE}");
             std::process::exit(2);
         }
     };
@@ -173,6 +209,23 @@ fn main() {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn help_is_asked_for_anywhere_and_no_other_option_is_taken_for_a_port() {
+        let target =
+            |line: &[&str]| target(&line.iter().map(|a| a.to_string()).collect::<Vec<_>>());
+        assert_eq!(target(&["--help"]), Ok(Target::Help));
+        assert_eq!(target(&["-h"]), Ok(Target::Help));
+        assert_eq!(target(&["--fake", "express", "--help"]), Ok(Target::Help));
+        assert_eq!(target(&["--fake", "express"]), Ok(Target::Fake));
+        assert_eq!(
+            target(&["/dev/ttyUSB0", "115200"]),
+            Ok(Target::Port("/dev/ttyUSB0".into()))
+        );
+        let err = target(&["--port"]).unwrap_err();
+        assert!(err.contains("unknown option `--port`"), "{err}");
+        assert!(target(&[]).is_err());
+    }
 
     #[test]
     fn seconds_must_be_positive_finite_and_at_most_a_day() {

@@ -170,6 +170,10 @@ pub struct AlertsReport {
     pub person_down_due: Vec<DownSpell>,
     /// Of those, the spells with a PERSON_DOWN raised in them (or within a second of their end).
     pub person_down_due_alerted: usize,
+    /// Of those, the spells whose PERSON_DOWN came within `person_down_window_s` of falling
+    /// due: the "within 3 s of due" the figures quote (README, docs/classifier.md).
+    pub person_down_due_in_time: usize,
+    pub person_down_window_s: f64,
     /// `PERSON_DOWN` alerts after the first in the same spell: one spell alerted twice,
     /// which the hysteresis should prevent. Spells that fell due only in the run-on past an
     /// episode's end count here too.
@@ -830,6 +834,11 @@ impl Tally {
                 0.0
             },
             person_down_due_alerted: delays.len(),
+            person_down_due_in_time: delays
+                .iter()
+                .filter(|&&d| d <= PERSON_DOWN_WINDOW_S)
+                .count(),
+            person_down_window_s: PERSON_DOWN_WINDOW_S,
             repeated_person_down: self.repeated_person_down,
             person_down_delay_s: Spread::of(delays),
             person_down_due: self.person_down_due,
@@ -864,8 +873,8 @@ fn fall_run_on_s(latency_target_s: f64) -> f64 {
     scripts::FALL_SECONDS.end + latency_target_s
 }
 
-/// How long after PERSON_DOWN fell due it is counted in time in the figures (README,
-/// docs/classifier.md: "within 3 s of due"), and so how long an episode staying down runs on
+/// How long after PERSON_DOWN fell due it is counted in time (`person_down_due_in_time`, the
+/// figures' "within 3 s of due" in README and docs/classifier.md), and so how long an episode staying down runs on
 /// past its end: a spell due on its last scan can then be answered. Before, such episodes
 /// stopped at their end, and a spell due just before it counted as missed.
 const PERSON_DOWN_WINDOW_S: f64 = 3.0;
@@ -1247,23 +1256,12 @@ fn print_report(r: &AlertsReport) {
         "PERSON_DOWN there for someone truly on the floor for down_after_s (due, not counted as false): {}",
         r.everyday_person_down_due
     );
-    let delay = r.person_down_delay_s.as_ref().map_or(String::new(), |d| {
-        format!(
-            ", raised after it fell due: median {:.2} s, max {:.2} s",
-            d.median, d.max
-        )
-    });
     outln!(
         "episodes ending with a fall and staying down: {}, FALL_DETECTED in {}",
         r.stay_down_episodes,
         r.stay_down_fall_detected
     );
-    outln!(
-        "person truly on the floor for down_after_s (all episodes): {} spells, PERSON_DOWN in {}{delay}; spells alerted more than once: {}",
-        r.person_down_due.len(),
-        r.person_down_due_alerted,
-        r.repeated_person_down
-    );
+    outln!("{}", person_down_due_line(r));
     if !r.false_alerts_by_activity.is_empty() {
         let list: Vec<String> = r
             .false_alerts_by_activity
@@ -1275,6 +1273,26 @@ fn print_report(r: &AlertsReport) {
             list.join(", ")
         );
     }
+}
+
+/// The spells where PERSON_DOWN was due and how they were answered: all raised, then those
+/// within the window of falling due (the count the README quotes), then the delays.
+fn person_down_due_line(r: &AlertsReport) -> String {
+    let delay = r.person_down_delay_s.as_ref().map_or(String::new(), |d| {
+        format!(
+            ", raised after it fell due: median {:.2} s, max {:.2} s",
+            d.median, d.max
+        )
+    });
+    format!(
+        "person truly on the floor for down_after_s (all episodes): {} spells, PERSON_DOWN in {}, \
+         within {} s of due in {}{delay}; spells alerted more than once: {}",
+        r.person_down_due.len(),
+        r.person_down_due_alerted,
+        r.person_down_window_s,
+        r.person_down_due_in_time,
+        r.repeated_person_down
+    )
 }
 
 /// A class's recall in percent, or "-" when no scan truly was of it: 0 % would read as a
@@ -1790,6 +1808,39 @@ mod tests {
             "the PERSON_DOWN at 21.5 s, 15 s after the fall, was due"
         );
         assert_eq!(report.repeated_person_down, 1);
+    }
+
+    #[test]
+    fn person_down_within_the_window_of_due_is_counted_and_printed_apart_from_late_ones() {
+        use Activity::*;
+        let mut tally = Tally::new(FallAlertConfig::default(), 1.0);
+        // Down from 3 s: due at 18 s. Answered 0.5 s and 3 s after (in time), 4 s after
+        // (late), and never.
+        let stay_down = [(Walking, 3.0), (FallingDown, 1.0), (LyingDown, 26.0)];
+        for (id, raised_at_s) in [Some(18.5), Some(21.0), Some(22.0), None]
+            .into_iter()
+            .enumerate()
+        {
+            let alerts = raised_at_s.map_or(Vec::new(), |t| vec![alert(AlertKind::PersonDown, t)]);
+            tally.add(
+                &logged(id, ScriptKind::FallAndStayDown, &stay_down, 30.0),
+                alerts,
+            );
+        }
+        let report = tally
+            .report(String::new(), Vec::new(), 1, 30.0, None)
+            .unwrap();
+        assert_eq!(report.person_down_due.len(), 4);
+        assert_eq!(report.person_down_due_alerted, 3);
+        assert_eq!(report.person_down_due_in_time, 2);
+        let line = person_down_due_line(&report);
+        assert!(
+            line.contains("4 spells, PERSON_DOWN in 3, within 3 s of due in 2, raised after"),
+            "{line}"
+        );
+        let json = serde_json::to_value(&report).unwrap();
+        assert_eq!(json["person_down_due_in_time"], 2, "{json}");
+        assert_eq!(json["person_down_window_s"], 3.0, "{json}");
     }
 
     #[test]
