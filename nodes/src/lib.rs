@@ -843,6 +843,13 @@ mod tests {
                         );
                     }
                 }
+                // And every launch argument after it: one before it would lose to the file.
+                for item in &items[..user] {
+                    assert!(
+                        !item.contains("arg("),
+                        "{where_}: a launch argument before params_file: {item}"
+                    );
+                }
                 // Each item but params_file: its section, its names and the value it gives.
                 let sources: Vec<_> = items
                     .iter()
