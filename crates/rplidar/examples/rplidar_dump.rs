@@ -61,6 +61,12 @@ fn target(args: &[String]) -> Result<Target, String> {
     }
 }
 
+/// A bad command line: the problem and the usage on stderr, exit status 2.
+fn refuse(problem: impl std::fmt::Display) -> ! {
+    eprintln!("{problem}\n{USAGE}");
+    std::process::exit(2);
+}
+
 /// One line on stdout; false when it cannot be written (the reader of `| head` has gone).
 fn print(line: std::fmt::Arguments) -> bool {
     use std::io::Write;
@@ -86,25 +92,16 @@ fn main() {
             }
             (Some(config), rest)
         }
-        Err(e) => {
-            eprintln!("{e}\n{USAGE}");
-            std::process::exit(2);
-        }
+        Err(e) => refuse(e),
     };
     let mode = match rest.first().map(|m| m.parse::<ScanModeChoice>()) {
         None => ScanModeChoice::Auto,
         Some(Ok(m)) => m,
-        Some(Err(e)) => {
-            eprintln!("{e}\n{USAGE}");
-            std::process::exit(2);
-        }
+        Some(Err(e)) => refuse(e),
     };
     let run = match rest.get(1).map_or(Ok(DEFAULT_RUN), |s| parse_seconds(s)) {
         Ok(run) => run,
-        Err(e) => {
-            eprintln!("{e}\n{USAGE}");
-            std::process::exit(2);
-        }
+        Err(e) => refuse(e),
     };
     let mut fake_dir = None;
     let mut fake = None;

@@ -874,8 +874,8 @@ fn fall_run_on_s(latency_target_s: f64) -> f64 {
 }
 
 /// How long after PERSON_DOWN fell due it is counted in time (`person_down_due_in_time`, the
-/// figures' "within 3 s of due" in README and docs/classifier.md), and so how long an episode staying down runs on
-/// past its end: a spell due on its last scan can then be answered. Before, such episodes
+/// figures' "within 3 s of due" in README and docs/classifier.md), and so how long an episode
+/// staying down runs on past its end: a spell due on its last scan can then be answered. Before, such episodes
 /// stopped at their end, and a spell due just before it counted as missed.
 const PERSON_DOWN_WINDOW_S: f64 = 3.0;
 
