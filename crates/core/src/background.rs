@@ -3,21 +3,31 @@
 //!
 //! The background is kept per bearing, not per beam index: some drivers (`sllidar_ros2`
 //! with `angle_compensate` false) publish a few beams more or fewer each rotation, over the
-//! same turn, so beam `i` of one scan is not where beam `i` of the next points. The first
-//! learning scan with beams sets the bins: a full turn of them, as wide as its
-//! `angle_increment`, from one centred on its `angle_min`, whatever part of the turn that
-//! scan covers (a driver's first rotation may be cut short: bins sized to it had left the
-//! rest of the turn open space, and every later return there foreground). Every beam of
-//! every scan, learning or classified, goes to the bin nearest its angle; bins that no
-//! learning beam fell in look into open space.
+//! same turn, so beam `i` of one scan is not where beam `i` of the next points. The learning
+//! scan with the finest `angle_increment` (the first of them on a tie) sets the bins when
+//! learning ends: a full turn of them, as wide as its increment, from one centred on its
+//! `angle_min`, whatever part of the turn that scan covers (a driver's first rotation may be
+//! cut short: bins sized to it had left the rest of the turn open space, and every later
+//! return there foreground; or sparse, a motor spinning up: bins as coarse as it had hidden a
+//! person beside furniture). Every beam of every scan, learning or classified, goes to the
+//! bin nearest its angle; bins that no learning beam fell in look into open space.
 //!
-//! Per bin, the background range is the median of the returns seen while learning, which
-//! ignores a person who crosses the bearing for less than half of that time. A bin that
-//! returned in fewer than `min_return_fraction` of the learning scans looks into open space
-//! (beyond `range_max`): its background is infinite, and anything it returns later is
-//! foreground. A point is foreground when it is closer than `margin_m` in front of the
-//! background of its bin and of both neighbour bins (the neighbours absorb the angular
-//! jitter at depth edges, where a beam alternates between a near and a far surface).
+//! Per bin, the background range is the median of the returns seen while learning. Where a
+//! wall or furniture stands behind, that ignores a person who crosses the bearing for less
+//! than half of the learning. A bin that returned in fewer than `min_return_fraction` of the
+//! learning scans looks into open space (beyond `range_max`): its background is infinite, and
+//! anything it returns later is foreground; but a bin that looks into open space and sees a
+//! person in `min_return_fraction` (20 %) of the learning scans or more has only the person's
+//! returns, and their range becomes its background. So does the range of a person who stays
+//! still through the learning, anywhere. Hence, after learning, a bin that sees nothing
+//! (beyond `range_max`, NaN or 0) or only returns more than `margin_m` behind its background for
+//! `raise_after_s` takes the nearest of those returns (infinite if none) as its background:
+//! the background only ever moves farther, so a person who keeps still in front of it later
+//! stays foreground.
+//!
+//! A point is foreground when it is closer than `margin_m` in front of the background of its
+//! bin and of both neighbour bins (the neighbours absorb the angular jitter at depth edges,
+//! where a beam alternates between a near and a far surface).
 
 use std::f64::consts::TAU;
 
@@ -36,6 +46,12 @@ pub struct BackgroundConfig {
     pub margin_m: f64,
     /// Bearings that returned in fewer learning scans than this fraction look into open space.
     pub min_return_fraction: f64,
+    /// After learning, a bearing that sees nothing, or only returns `margin_m` or more behind
+    /// its background, for this many seconds (a gap between two scans counts at most half a
+    /// second) moves its background out to the nearest of them (infinite if none), never
+    /// nearer: a person present while learning stops being background once they have left.
+    /// 0 keeps the learned background.
+    pub raise_after_s: f64,
 }
 
 impl Default for BackgroundConfig {
@@ -44,6 +60,7 @@ impl Default for BackgroundConfig {
             learn_duration_s: 3.0,
             margin_m: 0.2,
             min_return_fraction: 0.2,
+            raise_after_s: 5.0,
         }
     }
 }
@@ -55,18 +72,19 @@ pub struct LearnedBackground {
     state: State,
 }
 
-/// The most one gap between scans adds to the learning time (nanoseconds): a clock stepped
-/// forward (NTP at boot) or a stalled driver must not end learning on one or two scans.
-const MAX_LEARNING_GAP_NS: i64 = 500_000_000;
+/// The most one gap between scans adds to the learning time, or to the time a bearing has
+/// seen past its background (nanoseconds): a clock stepped forward (NTP at boot) or a
+/// stalled driver must not end learning on one or two scans, nor move the background.
+const MAX_GAP_NS: i64 = 500_000_000;
 
-/// The background's bins: a full turn of them at the first learning scan's `angle_increment`,
-/// bin `i` centred on `angle_min + i * angle_increment` and as wide as the increment; the
-/// last one neighbours the first.
+/// The background's bins: a full turn of them at a learning scan's `angle_increment`, bin `i`
+/// centred on `angle_min + i * angle_increment` and as wide as the increment; the last one
+/// neighbours the first.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Bins {
-    /// The angle in the middle of the first learning scan's beams (radians, Lidar frame):
-    /// the seam, where the turn's bins may fall a fraction of a bin short of a turn, is half
-    /// a turn from it (behind a Lidar that scans less than a turn).
+    /// The angle in the middle of the learning scan's beams (radians, Lidar frame): the
+    /// seam, where the turn's bins may fall a fraction of a bin short of a turn, is half a
+    /// turn from it (behind a Lidar that scans less than a turn).
     centre: f64,
     /// Where `centre` lies, in bins from bin 0's centre.
     middle: f64,
@@ -153,30 +171,75 @@ impl Bins {
 struct Learning {
     last_ns: Option<i64>,
     learned_ns: i64,
-    scans: usize,
-    /// Set by the first learning scan (one with a return).
+    /// The learning scans (those with a return), binned when learning ends.
+    scans: Vec<Scan>,
+    /// The bins of the learning scan with the finest increment so far.
     bins: Option<Bins>,
-    /// The returns of each bin.
-    samples: Vec<Vec<f32>>,
 }
 
-/// The thresholds of one scan geometry's beams, kept while the geometry stays the same.
+/// The bins and thresholds of one scan geometry's beams, kept while the geometry stays the
+/// same.
 #[derive(Debug, Clone, Default)]
 struct BeamThresholds {
     /// `angle_min`, `angle_increment` (bits) and beam count of the scans they are for.
     key: Option<(u32, u32, usize)>,
+    bin: Vec<usize>,
     threshold: Vec<f32>,
+}
+
+impl BeamThresholds {
+    /// Makes these the thresholds of `scan`'s beams.
+    fn follow(&mut self, scan: &Scan, bins: &Bins, threshold: &[f32]) {
+        let key = (
+            scan.angle_min.to_bits(),
+            scan.angle_increment.to_bits(),
+            scan.ranges.len(),
+        );
+        if self.key != Some(key) {
+            self.key = Some(key);
+            self.bin.clear();
+            self.bin.extend(bins.of_beams(scan));
+            self.refresh(threshold);
+        }
+    }
+
+    /// Takes the bins' thresholds again (after the background moved).
+    fn refresh(&mut self, threshold: &[f32]) {
+        self.threshold.clear();
+        self.threshold
+            .extend(self.bin.iter().map(|&bin| threshold[bin]));
+    }
+}
+
+/// What moves the background farther after learning: per bin, since when it has seen
+/// nothing in front of its background, and the nearest return past it since then.
+#[derive(Debug, Clone)]
+struct Raising {
+    after_ns: i64,
+    /// Scan time since learning ended, each gap counted at most [`MAX_GAP_NS`].
+    clock_ns: i64,
+    last_ns: i64,
+    /// Per bin: `clock_ns` of the last scan in which it returned at or in front of its
+    /// background (or closer than `range_min`), or of its last move or due check.
+    blocked_ns: Vec<i64>,
+    /// Per bin: the nearest return past its background since `blocked_ns` (infinite if none).
+    nearest_past: Vec<f32>,
+    /// The bins due to move in this scan (kept to reuse its allocation).
+    due: Vec<usize>,
 }
 
 #[derive(Debug, Clone)]
 enum State {
-    /// Collecting returns per bin.
+    /// Collecting learning scans.
     Learning(Learning),
     /// `threshold[b]`: a return in bin `b` closer than this is foreground.
     Ready {
         bins: Bins,
+        background: Vec<f32>,
         threshold: Vec<f32>,
         beams: BeamThresholds,
+        /// None when `raise_after_s` is 0.
+        raising: Option<Raising>,
     },
 }
 
@@ -187,6 +250,16 @@ pub enum BackgroundStatus {
     Learning,
     /// The background is known; the scan can be classified.
     Ready,
+}
+
+/// Bin `i`'s threshold: `margin` in front of the nearest background of it and its neighbours,
+/// around the turn (the last bin neighbours the first). A bin past the end of a Lidar's field
+/// of view takes the end's background, as a beam there may be the end's beam a fraction of a
+/// bin further on; the next one is open space.
+fn threshold_of(background: &[f32], i: usize, margin: f32) -> f32 {
+    let n = background.len();
+    let (before, after) = ((i + n - 1) % n, (i + 1) % n);
+    background[before].min(background[i]).min(background[after]) - margin
 }
 
 impl LearnedBackground {
@@ -202,11 +275,13 @@ impl LearnedBackground {
     }
 
     /// Learns from `scan` (validated: [`Scan::validate`]) while in the learning period;
-    /// afterwards does nothing. The scan that first falls after the period completes the
-    /// background and is itself classifiable. A stamp before the previous one (a restarted
-    /// recording) starts learning again.
+    /// afterwards moves the background of bearings that have seen past it for
+    /// `raise_after_s`. The scan that first falls after the period completes the background
+    /// and is itself classifiable. A stamp before the previous one (a restarted recording)
+    /// starts learning again.
     pub fn observe(&mut self, scan: &Scan) -> BackgroundStatus {
         let State::Learning(learning) = &mut self.state else {
+            self.raise(scan);
             return BackgroundStatus::Ready;
         };
         // A scan without a single return (a motor spinning up, a covered window, a driver's
@@ -217,7 +292,7 @@ impl LearnedBackground {
         match learning.last_ns {
             Some(last) if scan.stamp_ns < last => *learning = Learning::default(),
             Some(last) if has_returns => {
-                let gap_ns = scan.stamp_ns.saturating_sub(last).min(MAX_LEARNING_GAP_NS);
+                let gap_ns = scan.stamp_ns.saturating_sub(last).min(MAX_GAP_NS);
                 learning.learned_ns = learning.learned_ns.saturating_add(gap_ns);
             }
             _ => {}
@@ -226,40 +301,37 @@ impl LearnedBackground {
         if !has_returns {
             return BackgroundStatus::Learning;
         }
-        let Learning {
-            learned_ns,
-            scans,
-            bins,
-            samples,
-            ..
-        } = learning;
-        if (*learned_ns as f64) * 1e-9 < self.config.learn_duration_s || *scans == 0 {
-            if bins.is_none() {
-                let learned = Bins::of(scan);
-                samples.resize_with(learned.count, Vec::new);
-                *bins = Some(learned);
+        if (learning.learned_ns as f64) * 1e-9 < self.config.learn_duration_s
+            || learning.scans.is_empty()
+        {
+            let finer = learning
+                .bins
+                .is_none_or(|bins| f64::from(scan.angle_increment).abs() < bins.increment.abs());
+            if finer {
+                learning.bins = Some(Bins::of(scan));
             }
-            if let Some(bins) = bins {
-                for (&r, bin) in scan.ranges.iter().zip(bins.of_beams(scan)) {
-                    if scan.is_return(r) {
-                        samples[bin].push(r);
-                    }
-                }
-            }
-            *scans += 1;
+            learning.scans.push(scan.clone());
             return BackgroundStatus::Learning;
         }
         // Set by the learning scans, of which there was one at least.
-        let Some(bins) = *bins else {
+        let Some(bins) = learning.bins else {
             return BackgroundStatus::Learning;
         };
-        let min_returns = (self.config.min_return_fraction * *scans as f64)
+        let mut samples = vec![Vec::new(); bins.count];
+        for learned in &learning.scans {
+            for (&r, bin) in learned.ranges.iter().zip(bins.of_beams(learned)) {
+                if learned.is_return(r) {
+                    samples[bin].push(r);
+                }
+            }
+        }
+        let min_returns = (self.config.min_return_fraction * learning.scans.len() as f64)
             .ceil()
             .max(1.0) as usize;
         let margin = self.config.margin_m as f32;
         let background: Vec<f32> = samples
             .iter_mut()
-            .map(|returns| {
+            .map(|returns: &mut Vec<f32>| {
                 if returns.len() < min_returns {
                     return f32::INFINITY;
                 }
@@ -267,22 +339,89 @@ impl LearnedBackground {
                 *returns.select_nth_unstable_by(mid, f32::total_cmp).1
             })
             .collect();
-        // Around the turn: the last bin neighbours the first. A bin past the end of a
-        // Lidar's field of view takes the end's background, as a beam there may be the
-        // end's beam a fraction of a bin further on; the next one is open space.
-        let n = background.len();
-        let threshold = (0..n)
-            .map(|i| {
-                let (before, after) = ((i + n - 1) % n, (i + 1) % n);
-                background[before].min(background[i]).min(background[after]) - margin
-            })
+        let threshold = (0..background.len())
+            .map(|i| threshold_of(&background, i, margin))
             .collect();
+        let raising = (self.config.raise_after_s > 0.0).then(|| Raising {
+            after_ns: (self.config.raise_after_s * 1e9).min(i64::MAX as f64) as i64,
+            clock_ns: 0,
+            last_ns: scan.stamp_ns,
+            blocked_ns: vec![0; bins.count],
+            nearest_past: vec![f32::INFINITY; bins.count],
+            due: Vec::new(),
+        });
         self.state = State::Ready {
             bins,
+            background,
             threshold,
             beams: BeamThresholds::default(),
+            raising,
         };
         BackgroundStatus::Ready
+    }
+
+    /// Moves the background of the bins of `scan` (validated) that have seen nothing, or
+    /// only returns more than `margin_m` past it, for `raise_after_s`, to the nearest of
+    /// those returns (infinite if none); never nearer.
+    fn raise(&mut self, scan: &Scan) {
+        let State::Ready {
+            bins,
+            background,
+            threshold,
+            beams,
+            raising: Some(raising),
+        } = &mut self.state
+        else {
+            return;
+        };
+        let gap_ns = scan.stamp_ns.saturating_sub(raising.last_ns);
+        raising.clock_ns = raising.clock_ns.saturating_add(gap_ns.clamp(0, MAX_GAP_NS));
+        raising.last_ns = scan.stamp_ns;
+        let clock_ns = raising.clock_ns;
+        let margin = self.config.margin_m as f32;
+        beams.follow(scan, bins, threshold);
+        // One pass over the beams (this runs on every scan); a bin due to move moves after
+        // it, unless a beam of this scan saw something in front of its background.
+        raising.due.clear();
+        for (&r, &bin) in scan.ranges.iter().zip(&beams.bin) {
+            // Open space already (most beams of a Lidar in a large room): nothing is farther.
+            let behind = background[bin];
+            if behind == f32::INFINITY {
+                continue;
+            }
+            // In front of the background, too close for the Lidar included; not nothing
+            // (NaN, 0 as some drivers encode no return, or beyond range_max) nor a return
+            // more than the margin behind it.
+            if r <= scan.range_max && r != 0.0 && r < behind + margin {
+                raising.blocked_ns[bin] = clock_ns;
+                raising.nearest_past[bin] = f32::INFINITY;
+            } else if raising.blocked_ns[bin] != clock_ns {
+                if scan.is_return(r) {
+                    raising.nearest_past[bin] = raising.nearest_past[bin].min(r);
+                }
+                if clock_ns - raising.blocked_ns[bin] >= raising.after_ns {
+                    raising.due.push(bin);
+                }
+            }
+        }
+        let mut moved = false;
+        for &bin in &raising.due {
+            if raising.blocked_ns[bin] == clock_ns {
+                continue;
+            }
+            // Farther: only returns more than the margin behind it went into nearest_past.
+            background[bin] = raising.nearest_past[bin];
+            let n = background.len();
+            for i in [(bin + n - 1) % n, bin, (bin + 1) % n] {
+                threshold[i] = threshold_of(background, i, margin);
+            }
+            raising.blocked_ns[bin] = clock_ns;
+            raising.nearest_past[bin] = f32::INFINITY;
+            moved = true;
+        }
+        if moved {
+            beams.refresh(threshold);
+        }
     }
 
     /// For each beam of `scan` (validated), the range below which its return is foreground
@@ -297,22 +436,12 @@ impl LearnedBackground {
             bins,
             threshold,
             beams,
+            ..
         } = &mut self.state
         else {
             return &[];
         };
-        let key = (
-            scan.angle_min.to_bits(),
-            scan.angle_increment.to_bits(),
-            scan.ranges.len(),
-        );
-        if beams.key != Some(key) {
-            beams.key = Some(key);
-            beams.threshold.clear();
-            beams
-                .threshold
-                .extend(bins.of_beams(scan).map(|bin| threshold[bin]));
-        }
+        beams.follow(scan, bins, threshold);
         &beams.threshold
     }
 }
@@ -368,6 +497,135 @@ mod tests {
             "within the margin of the wall"
         );
         assert!(!is_foreground(&mut bg, at(2), 4.0));
+    }
+
+    /// Feeds `bg` (learned) the scans `ranges(k)` at `from_s + k * 0.1` s for `k` in `0..count`.
+    fn watch(
+        bg: &mut LearnedBackground,
+        from_s: f64,
+        count: usize,
+        ranges: impl Fn(usize) -> Vec<f32>,
+    ) {
+        for k in 0..count {
+            let status = bg.observe(&scan(from_s + k as f64 * 0.1, ranges(k)));
+            assert_eq!(status, BackgroundStatus::Ready);
+        }
+    }
+
+    #[test]
+    fn a_doorway_a_person_stood_in_while_learning_is_open_space_once_seen_empty() {
+        // Beams 3..7 look through a doorway into open space (no return), the others see a
+        // wall at 4 m; a person stands in the doorway at 3 m on beams 4..6 for the first
+        // second of learning (10 of 31 scans): all of those bins' returns, so 3 m became
+        // their background, and anyone there at 3 m or beyond was never foreground again.
+        let doorway = |person: bool| -> Vec<f32> {
+            (0..10)
+                .map(|b| match b {
+                    4..6 if person => 3.0,
+                    3..7 => f32::INFINITY,
+                    _ => 4.0,
+                })
+                .collect()
+        };
+        // No return, as some drivers encode it: 0.
+        let empty_doorway = |k: usize| -> Vec<f32> {
+            let mut ranges = doorway(false);
+            if k % 2 == 1 {
+                ranges[3..7].fill(0.0);
+            }
+            ranges
+        };
+        let mut bg = learned(|k| doorway(k < 10));
+        assert!(!is_foreground(&mut bg, at(5), 3.0), "as learned");
+        // The doorway stays empty: 4.9 s after learning is not yet raise_after_s (5 s).
+        watch(&mut bg, 3.1, 49, empty_doorway);
+        assert!(!is_foreground(&mut bg, at(5), 3.0));
+        watch(&mut bg, 8.0, 2, empty_doorway);
+        for range in [2.9, 3.0, 4.5] {
+            assert!(is_foreground(&mut bg, at(5), range), "{range} m");
+        }
+        // The wall beside the doorway stays background.
+        assert!(!is_foreground(&mut bg, at(8), 4.0));
+    }
+
+    #[test]
+    fn a_person_still_through_the_learning_is_foreground_again_when_they_come_back() {
+        // Someone sits still in their armchair (1.5 m, beams 4..6, a wall at 4 m behind)
+        // through the whole learning, then leaves: the wall shows behind them.
+        let room = |person: bool| -> Vec<f32> {
+            (0..10)
+                .map(|b| {
+                    if person && (4..6).contains(&b) {
+                        1.5
+                    } else {
+                        4.0
+                    }
+                })
+                .collect()
+        };
+        let mut bg = learned(|_| room(true));
+        watch(&mut bg, 3.1, 30, |_| room(false));
+        assert!(
+            !is_foreground(&mut bg, at(5), 1.5),
+            "3 s gone: not yet raise_after_s"
+        );
+        watch(&mut bg, 6.1, 30, |_| room(false));
+        // Back in the armchair: foreground, and the wall is still background.
+        assert!(is_foreground(&mut bg, at(5), 1.5));
+        assert!(is_foreground(&mut bg, at(4), 1.5));
+        assert!(!is_foreground(&mut bg, at(5), 4.0));
+        assert!(
+            !is_foreground(&mut bg, at(5), 3.85),
+            "within the margin of the wall"
+        );
+    }
+
+    #[test]
+    fn the_background_never_moves_nearer_nor_for_a_bearing_that_returns_at_times() {
+        // Beams 0..5 see a far wall at 4.9 m in one scan out of three (inf otherwise), beams
+        // 5..10 a wall at 4 m.
+        let room = |k: usize, person: bool| -> Vec<f32> {
+            (0..10)
+                .map(|b| match b {
+                    5..7 if person => 1.5,
+                    0..5 if !k.is_multiple_of(3) => f32::INFINITY,
+                    0..5 => 4.9,
+                    _ => 4.0,
+                })
+                .collect()
+        };
+        let mut bg = learned(|k| room(k, false));
+        // A person keeps still in front of the wall for a minute: still foreground.
+        watch(&mut bg, 3.1, 600, |k| room(k, true));
+        assert!(is_foreground(&mut bg, at(5), 1.5));
+        assert!(is_foreground(&mut bg, at(6), 1.5));
+        // The far wall that returns now and then is still background.
+        assert!(!is_foreground(&mut bg, at(2), 4.9));
+    }
+
+    #[test]
+    fn a_clock_stepped_forward_does_not_move_the_background() {
+        let wall = |_| vec![4.0; 10];
+        let mut bg = learned(wall);
+        // No return in two scans 1000 s apart (NTP at boot): 0.6 s counted, not 1000.
+        watch(&mut bg, 3.1, 1, |_| vec![f32::INFINITY; 10]);
+        watch(&mut bg, 1003.1, 1, |_| vec![f32::INFINITY; 10]);
+        assert!(!is_foreground(&mut bg, at(5), 3.9));
+    }
+
+    #[test]
+    fn raise_after_s_0_keeps_the_learned_background() {
+        let config = BackgroundConfig {
+            raise_after_s: 0.0,
+            ..BackgroundConfig::default()
+        };
+        let mut bg = LearnedBackground::new(config);
+        for k in 0..=30 {
+            bg.observe(&scan(k as f64 * 0.1, vec![1.5; 10]));
+        }
+        assert!(bg.is_ready());
+        watch(&mut bg, 3.1, 100, |_| vec![4.0; 10]);
+        assert!(!is_foreground(&mut bg, at(5), 1.5));
     }
 
     #[test]
@@ -546,6 +804,36 @@ mod tests {
         let expected: Vec<usize> = (0..1080)
             .filter(|&i| (person.beam_angle(i) - 1.0).abs() < 0.17)
             .collect();
+        assert!(!expected.is_empty());
+        assert_eq!(foreground(&mut bg, &person), expected);
+    }
+
+    #[test]
+    fn a_sparse_first_learning_scan_does_not_coarsen_the_bins() {
+        // The driver's first rotation (a motor spinning up) came with 40 beams over the
+        // turn, the rest with 1080: bins as coarse as the first scan's spread the pole's 1 m
+        // over the person beside it (at 1.2 m, 0.1-0.3 rad from the pole's edge, moved here).
+        let tau = std::f64::consts::TAU;
+        let pi = -std::f32::consts::PI;
+        let person_by_the_pole = |mut s: Scan| {
+            for i in 0..s.ranges.len() {
+                let off = crate::geometry::normalize_angle(s.beam_angle(i) - 2.5);
+                if (0.2..0.3).contains(&off) {
+                    s.ranges[i] = 1.2;
+                }
+            }
+            s
+        };
+        let mut bg = LearnedBackground::new(BackgroundConfig::default());
+        bg.observe(&room_scan(0.0, pi, tau, 40, false));
+        for k in 1..=31 {
+            bg.observe(&room_scan(k as f64 * 0.1, pi, tau, 1080, false));
+        }
+        assert!(bg.is_ready());
+        let empty = room_scan(3.2, pi, tau, 1080, false);
+        assert_eq!(foreground(&mut bg, &empty), [] as [usize; 0]);
+        let person = person_by_the_pole(room_scan(3.2, pi, tau, 1080, false));
+        let expected: Vec<usize> = (0..1080).filter(|&i| person.ranges[i] == 1.2).collect();
         assert!(!expected.is_empty());
         assert_eq!(foreground(&mut bg, &person), expected);
     }

@@ -150,6 +150,7 @@ impl LocaliserConfig {
                 self.background.learn_duration_s,
             ),
             ("background.margin_m", self.background.margin_m),
+            ("background.raise_after_s", self.background.raise_after_s),
             (
                 "odometry.max_extrapolation_s",
                 self.odometry.max_extrapolation_s,

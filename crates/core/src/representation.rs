@@ -68,15 +68,35 @@ fn default_ellipse_axes() -> [f64; 2] {
     RepresentationSpec::DEFAULT_ELLIPSE_AXES_M
 }
 
-/// Why a representation spec cannot be used.
+/// The largest image side (pixels), and the farthest a mark may reach from its point: a
+/// mark reaching farther than any image is meaningless, and bounding it keeps the marks'
+/// squared distances finite.
+pub const MAX_SIZE: usize = 1024;
+
+/// Why a representation spec cannot be used; each names the setting (the metadata key
+/// without its `lidar_har.` prefix).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SpecError {
-    #[error("image size {0} is out of range (1..=1024 pixels)")]
+    #[error("size = {0}: the image side must be 1..={MAX_SIZE} pixels")]
     Size(usize),
-    #[error("resolution {0} m/pixel must be finite and positive")]
+    #[error("resolution_m = {0}: must be finite and positive, with finite pixels per metre")]
     Resolution(f64),
-    #[error("mark size {0} m must be finite and non-negative")]
-    MarkSize(f64),
+    #[error(
+        "resolution_m = {resolution_m} with size = {size}: the image side (size x resolution_m) \
+         must be finite"
+    )]
+    Extent { size: usize, resolution_m: f64 },
+    #[error("{key} = {value}: must be finite and non-negative (metres)")]
+    MarkSize { key: &'static str, value: f64 },
+    #[error(
+        "{key} = {value} with resolution_m = {resolution_m}: a mark may reach at most \
+         {MAX_SIZE} pixels"
+    )]
+    MarkReach {
+        key: &'static str,
+        value: f64,
+        resolution_m: f64,
+    },
     #[error("unknown {what} '{value}' (expected one of: {expected})")]
     UnknownName {
         what: &'static str,
@@ -100,20 +120,37 @@ impl RepresentationSpec {
         }
     }
 
+    /// Refuses a spec whose image or marks cannot be drawn, including one whose derived
+    /// sizes overflow: an infinite image side left every image blank, and a mark reaching
+    /// infinitely far lit every pixel for a point anywhere.
     pub fn validate(&self) -> Result<(), SpecError> {
-        if self.size == 0 || self.size > 1024 {
+        if self.size == 0 || self.size > MAX_SIZE {
             return Err(SpecError::Size(self.size));
         }
-        if !(self.resolution_m.is_finite() && self.resolution_m > 0.0) {
-            return Err(SpecError::Resolution(self.resolution_m));
+        let resolution_m = self.resolution_m;
+        if !(resolution_m.is_finite() && resolution_m > 0.0 && (1.0 / resolution_m).is_finite()) {
+            return Err(SpecError::Resolution(resolution_m));
         }
-        for m in [
-            self.mark_radius_m,
-            self.ellipse_axes_m[0],
-            self.ellipse_axes_m[1],
+        if !self.extent_m().is_finite() {
+            return Err(SpecError::Extent {
+                size: self.size,
+                resolution_m,
+            });
+        }
+        for (key, value) in [
+            ("mark_radius_m", self.mark_radius_m),
+            ("ellipse_axes_m", self.ellipse_axes_m[0]),
+            ("ellipse_axes_m", self.ellipse_axes_m[1]),
         ] {
-            if !(m.is_finite() && m >= 0.0) {
-                return Err(SpecError::MarkSize(m));
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(SpecError::MarkSize { key, value });
+            }
+            if value / resolution_m > MAX_SIZE as f64 {
+                return Err(SpecError::MarkReach {
+                    key,
+                    value,
+                    resolution_m,
+                });
             }
         }
         Ok(())
@@ -399,8 +436,89 @@ mod tests {
         s.mark_radius_m = -1.0;
         assert!(matches!(
             Renderer::new(s).unwrap_err(),
-            SpecError::MarkSize(_)
+            SpecError::MarkSize { .. }
         ));
+    }
+
+    #[test]
+    fn each_refusal_names_its_setting() {
+        let refusal = |change: fn(&mut RepresentationSpec)| {
+            let mut s = spec(RepresentationKind::Ellipses);
+            change(&mut s);
+            s.validate().unwrap_err().to_string()
+        };
+        for (message, setting) in [
+            (refusal(|s| s.size = 0), "size = 0"),
+            (refusal(|s| s.resolution_m = 0.0), "resolution_m = 0"),
+            (refusal(|s| s.mark_radius_m = -1.0), "mark_radius_m = -1"),
+            (
+                refusal(|s| s.ellipse_axes_m = [0.08, -0.03]),
+                "ellipse_axes_m = -0.03",
+            ),
+        ] {
+            assert!(message.starts_with(setting), "{message}");
+        }
+    }
+
+    #[test]
+    fn specs_whose_derived_sizes_overflow_are_refused() {
+        // Accepted before: a mark reaching 1e310 pixels lit all 64 pixels for a point 1e300 m
+        // away, a resolution of 1e-310 m has infinite pixels per metre, and an image side of
+        // 1024 x 1e306 m is infinite (every image came out blank).
+        let mut s =
+            RepresentationSpec::new(RepresentationKind::Circles, Framing::RoomFixed, 8, 1e-10);
+        s.mark_radius_m = 1e300;
+        let e = s.validate().unwrap_err();
+        assert!(
+            matches!(
+                e,
+                SpecError::MarkReach {
+                    key: "mark_radius_m",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        s.mark_radius_m = 0.05;
+        s.resolution_m = 1e-310;
+        assert_eq!(s.validate(), Err(SpecError::Resolution(1e-310)));
+        let s = RepresentationSpec::new(
+            RepresentationKind::BooleanGrid,
+            Framing::RoomFixed,
+            1024,
+            1e306,
+        );
+        assert!(matches!(
+            s.validate(),
+            Err(SpecError::Extent { size: 1024, .. })
+        ));
+        let mut s =
+            RepresentationSpec::new(RepresentationKind::Ellipses, Framing::RoomFixed, 8, 0.05);
+        s.ellipse_axes_m = [0.08, 60.0];
+        let e = s.validate().unwrap_err();
+        assert!(
+            matches!(
+                e,
+                SpecError::MarkReach {
+                    key: "ellipse_axes_m",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        // At the bounds, a point far away lights nothing and one at the centre is drawn.
+        for kind in [RepresentationKind::Circles, RepresentationKind::Ellipses] {
+            let mut s = RepresentationSpec::new(kind, Framing::RoomFixed, 8, 1e-10);
+            s.mark_radius_m = 1e-10 * MAX_SIZE as f64;
+            s.ellipse_axes_m = [s.mark_radius_m, s.mark_radius_m / 2.0];
+            let r = Renderer::new(s).unwrap();
+            let mut img = s.blank_image();
+            let far = DVec2::splat(1e300);
+            assert_eq!(r.render([far], DVec2::ZERO, DVec2::ZERO, img.view_mut()), 0);
+            assert_eq!(lit(&img), 0, "{kind}");
+            let n = r.render([DVec2::ZERO], DVec2::ZERO, DVec2::X, img.view_mut());
+            assert_eq!((n, lit(&img)), (1, 64), "{kind}");
+        }
     }
 
     #[test]
