@@ -46,7 +46,9 @@
 //! accept the alert (raise `down_after_s` where children crawl about).
 //!
 //! Hysteresis: postures change only after `confirm_scans` consecutive scans agree (one
-//! flickering scan changes nothing), and after an alert its kind is re-armed only once the
+//! flickering scan changes nothing; a stretch out of sight longer than `GLIMPSE_GAP_S`
+//! starts them again, as it does a `falling_down` run, and every "seen for so long" below
+//! counts only time seen), and after an alert its kind is re-armed only once the
 //! person has been seen upright (standing, walking, running, walking unsteadily) for
 //! `rearm_upright_s` (a moment read as falling does not restart that clock: a standing person
 //! is often misread so). `FallDetected` is also re-armed by being read as getting up on every
@@ -450,6 +452,25 @@ fn posture_of(activity: Activity) -> Posture {
     }
 }
 
+/// The longest stretch out of sight, from one scan the person is seen on to the next, that
+/// still joins the readings on either side: up to it, a run of readings (the posture being
+/// confirmed, `falling_down`, lying) runs on and the stretch counts as time seen; past it,
+/// every run starts again and the stretch counts as time out of sight. A walker read on the
+/// floor for a scan or two as they left view, then found sitting a minute later, was taken
+/// as on the floor since that first reading, and 0.3 s seen upright around a second out of
+/// sight re-armed an alert. Getting up, people were out of sight for 0.4-0.5 s (seed 2
+/// episodes 6 and 37 of `lidar-har alerts`): 0.25 s broke those runs, which lost a fall
+/// (not re-armed) and a spell's end (a false `PersonDown`; docs/classifier.md, session 56).
+const GLIMPSE_GAP_S: f64 = 0.6;
+
+/// When an alert was raised: its stamp, and the seen clock then (what re-arming counts
+/// from).
+#[derive(Debug, Clone, Copy)]
+struct Disarmed {
+    at_s: f64,
+    seen_s: f64,
+}
+
 /// The alert state machine. Feed it every scan in time order.
 #[derive(Debug, Clone)]
 pub struct FallDetector {
@@ -460,7 +481,8 @@ pub struct FallDetector {
     fall_run: Option<FallRun>,
     /// A fall run waiting for the person to be confirmed on the floor.
     pending_fall: Option<PendingFall>,
-    /// Candidate posture, since when, how many consecutive scans.
+    /// Candidate posture, since when, how many consecutive scans (a hidden stretch longer
+    /// than `GLIMPSE_GAP_S` breaks them).
     candidate: Option<(Posture, f64, u32)>,
     /// The body lengths known on the candidate's scans.
     candidate_lengths: Vec<f64>,
@@ -471,13 +493,14 @@ pub struct FallDetector {
     /// The last `confirm_scans` scans of the current run read as lying: what lands a fall
     /// run (`fall_lands_lying`).
     lying_run: VecDeque<LyingScan>,
-    /// Confirmed posture and since when.
+    /// Confirmed posture and since when, on the seen clock.
     posture: Option<(Posture, f64)>,
     /// How surely the confirmed posture's scans, since it was first read, read it.
     posture_reads: PostureReads,
     /// The last visible scan classified upright while the confirmed posture was upright.
     last_upright_s: Option<f64>,
-    /// How long the person had been upright by then (`upright_since` to `last_upright_s`).
+    /// How long the person had been seen upright by then (`upright_since` to
+    /// `last_upright_s`).
     last_upright_for_s: f64,
     /// The scans read as falling since `last_upright_s`: a fall read in pieces.
     broken_fall_run: Option<BrokenFallRun>,
@@ -508,13 +531,16 @@ pub struct FallDetector {
     down_positions: VecDeque<(f64, DVec2)>,
     /// The last scan with the person seen (and classified).
     last_seen_s: Option<f64>,
-    /// Since when the person has been upright without being confirmed on the floor or
-    /// getting up in between (a `falling_down` misreading of a standing person does not
-    /// break it): what re-arms the alerts.
+    /// The stretches out of sight longer than `GLIMPSE_GAP_S` so far, in all: the seen
+    /// clock (the stamp less this) stands still over them.
+    hidden_s: f64,
+    /// Since when, on the seen clock, the person has been upright without being confirmed
+    /// on the floor or getting up in between (a `falling_down` misreading of a standing
+    /// person does not break it): what re-arms the alerts.
     upright_since: Option<f64>,
     /// When each alert was last raised; `None` while armed.
-    fall_disarmed_at: Option<f64>,
-    down_disarmed_at: Option<f64>,
+    fall_disarmed_at: Option<Disarmed>,
+    down_disarmed_at: Option<Disarmed>,
 }
 
 impl FallDetector {
@@ -551,6 +577,7 @@ impl FallDetector {
             down: None,
             down_positions: VecDeque::new(),
             last_seen_s: None,
+            hidden_s: 0.0,
             upright_since: None,
             fall_disarmed_at: None,
             down_disarmed_at: None,
@@ -591,6 +618,12 @@ impl FallDetector {
             if let Some(down) = self.down.as_mut() {
                 down.uncounted_s += unseen_s;
             }
+            if let Some(seen) = self.last_seen_s.filter(|seen| t - seen > GLIMPSE_GAP_S) {
+                self.hidden_s += t - seen;
+                self.candidate = None;
+                self.fall_run = None;
+                self.lying_run.clear();
+            }
             self.last_seen_s = Some(t);
             let body_length_m = input.body_length_m.filter(|l| l.is_finite());
             self.observe(t, &input.probabilities, body_length_m, &mut alerts);
@@ -608,7 +641,7 @@ impl FallDetector {
                 && !(self.config.down_waits_on_upright_glimpse && self.off_floor_since_on_floor)
                 && self.seen_on_floor_lately(t)
             {
-                self.down_disarmed_at = Some(t);
+                self.down_disarmed_at = Some(self.disarmed_now(t));
                 alerts.push(FallAlert {
                     kind: AlertKind::PersonDown,
                     event_time_s: down.since_s + uncounted_s + self.config.down_after_s,
@@ -631,6 +664,7 @@ impl FallDetector {
         alerts: &mut Vec<FallAlert>,
     ) {
         let (best, best_p) = Activity::most_likely(probabilities);
+        let seen_now = self.seen_clock_s();
         let on_floor_p: f32 = Activity::ALL
             .into_iter()
             .filter(|a| a.is_on_floor())
@@ -666,7 +700,7 @@ impl FallDetector {
                 && fall.start_s == run.start_s
             {
                 fall.peak_confidence = fall.peak_confidence.max(mean);
-                fall.last_scan_s = t;
+                fall.last_scan_seen_s = seen_now;
             }
             if !run.counted
                 && run.recent.len() == min_scans
@@ -680,7 +714,7 @@ impl FallDetector {
                     let fall = PendingFall {
                         start_s: start,
                         counted_at_s: t,
-                        last_scan_s: t,
+                        last_scan_seen_s: seen_now,
                         confidence: mean,
                         peak_confidence: mean,
                         from_getting_up: !from_upright,
@@ -727,8 +761,11 @@ impl FallDetector {
                 self.candidate_lying.push(best_p as f64);
             }
         }
+        // The candidate's scans lie in one stretch in sight: the seen clock then read `since`
+        // less the stretches out of sight before it.
+        let since_seen = since - self.hidden_s;
         if n >= self.config.confirm_scans && self.posture.map(|(p, _)| p) != Some(posture) {
-            self.posture = Some((posture, since));
+            self.posture = Some((posture, since_seen));
             self.posture_reads = self.candidate_reads;
             match posture {
                 Posture::OnFloor => {
@@ -743,7 +780,7 @@ impl FallDetector {
                     self.check_descent(t, since, best, on_floor_p, alerts);
                 }
                 Posture::Upright => {
-                    self.upright_since.get_or_insert(since);
+                    self.upright_since.get_or_insert(since_seen);
                 }
                 Posture::GettingUp => {
                     self.upright_since = None;
@@ -760,11 +797,11 @@ impl FallDetector {
         let confirmed = self.posture.map(|(p, _)| p);
         if seen == Posture::Upright && confirmed == Some(Posture::Upright) {
             self.last_upright_s = Some(t);
-            self.last_upright_for_s = self.upright_since.map_or(0.0, |since| t - since);
+            self.last_upright_for_s = self.upright_since.map_or(0.0, |since| seen_now - since);
             self.broken_fall_run = None;
         }
-        // Up again: confirmed getting up, or upright for `down_ends_upright_s`; after a fall,
-        // surely and getting up for `down_ends_getting_up_s`.
+        // Up again: confirmed getting up, or seen upright for `down_ends_upright_s`; after a
+        // fall, surely and seen getting up for `down_ends_getting_up_s`.
         let after_fall = self.down.is_some_and(|down| down.after_fall);
         let getting_up_s = if after_fall {
             self.config.down_ends_getting_up_s
@@ -775,8 +812,8 @@ impl FallDetector {
             && seen == posture
             && (self.posture_reads.mostly_sure() || !after_fall)
             && match posture {
-                Posture::GettingUp => t - since >= getting_up_s,
-                Posture::Upright => t - since >= self.config.down_ends_upright_s,
+                Posture::GettingUp => seen_now - since >= getting_up_s,
+                Posture::Upright => seen_now - since >= self.config.down_ends_upright_s,
                 _ => false,
             }
         {
@@ -827,20 +864,22 @@ impl FallDetector {
         if posture == Posture::GettingUp
             && n >= self.config.confirm_scans
             && self.config.rearm_getting_up_s > 0.0
-            && self
-                .fall_disarmed_at
-                .is_some_and(|at| t - since.max(at) >= self.config.rearm_getting_up_s)
+            && self.fall_disarmed_at.is_some_and(|at| {
+                seen_now - since_seen.max(at.seen_s) >= self.config.rearm_getting_up_s
+            })
         {
             self.fall_disarmed_at = None;
         }
-        // Re-arm once upright long enough, counting only uprightness after the alert (an
+        // Re-arm once seen upright long enough, counting only uprightness after the alert (an
         // alert raised while the person was still confirmed upright counts from the alert);
         // `PersonDown` only once the person is up again, not read upright with doubt.
         if let Some(since) = self.upright_since
             && self.posture.is_some_and(|(p, _)| p == Posture::Upright)
         {
-            let upright_long_enough = |disarmed_at: Option<f64>| {
-                disarmed_at.is_some_and(|at| t - since.max(at) >= self.config.rearm_upright_s)
+            let upright_long_enough = |disarmed_at: Option<Disarmed>| {
+                disarmed_at.is_some_and(|at| {
+                    seen_now - since.max(at.seen_s) >= self.config.rearm_upright_s
+                })
             };
             if upright_long_enough(self.fall_disarmed_at) {
                 self.fall_disarmed_at = None;
@@ -850,7 +889,7 @@ impl FallDetector {
             }
             // Upright a while after a fall run: it was a stagger, or the fall is over.
             if self.pending_fall.is_some_and(|fall| {
-                t - since.max(fall.last_scan_s) >= self.config.fall_cancel_upright_s
+                seen_now - since.max(fall.last_scan_seen_s) >= self.config.fall_cancel_upright_s
             }) {
                 self.pending_fall = None;
             }
@@ -1060,7 +1099,7 @@ impl FallDetector {
         self.start_down(start);
         self.mark_fall_in_spell();
         if self.fall_disarmed_at.is_none() {
-            self.fall_disarmed_at = Some(t);
+            self.fall_disarmed_at = Some(self.disarmed_now(t));
             alerts.push(FallAlert {
                 kind: AlertKind::FallDetected,
                 event_time_s: start,
@@ -1094,7 +1133,7 @@ impl FallDetector {
     fn got_up_since_fall_alert(&self) -> bool {
         self.fall_disarmed_at
             .zip(self.last_getting_up_s)
-            .is_some_and(|(alerted, getting_up)| getting_up > alerted)
+            .is_some_and(|(alerted, getting_up)| getting_up > alerted.at_s)
     }
 
     /// Lying confirmed soon after the person was last off the floor, by a body that looks
@@ -1119,7 +1158,7 @@ impl FallDetector {
             return;
         }
         self.mark_fall_in_spell();
-        self.fall_disarmed_at = Some(t);
+        self.fall_disarmed_at = Some(self.disarmed_now(t));
         // A run waiting for a landing waits for this one: when it lands it still dates the
         // incident, but this alert is its alert, not a re-armed one a scan later.
         if let Some(fall) = self.pending_fall.as_mut() {
@@ -1185,6 +1224,21 @@ impl FallDetector {
             self.down_positions.clear();
         }
         self.down_positions.push_back((t, position));
+    }
+
+    /// The seen clock: the stamp of the last scan the person was seen on, less the stretches
+    /// out of sight longer than `GLIMPSE_GAP_S` before it. It stands still while the person
+    /// is out of sight, so what it measures is time seen (glimpse gaps included).
+    fn seen_clock_s(&self) -> f64 {
+        self.last_seen_s.map_or(0.0, |seen| seen - self.hidden_s)
+    }
+
+    /// An alert raised at `t`.
+    fn disarmed_now(&self, t: f64) -> Disarmed {
+        Disarmed {
+            at_s: t,
+            seen_s: self.seen_clock_s(),
+        }
     }
 
     /// How much of the time out of sight from the last scan the person was seen on (or
@@ -1310,9 +1364,10 @@ struct PendingFall {
     start_s: f64,
     /// When it reached `fall_min_scans`.
     counted_at_s: f64,
-    /// Its latest scan read as falling: time upright counts from here, not from the count,
-    /// so a run that counts early is not dropped while the person is still falling.
-    last_scan_s: f64,
+    /// Its latest scan read as falling, on the seen clock: time upright counts from here,
+    /// not from the count, so a run that counts early is not dropped while the person is
+    /// still falling.
+    last_scan_seen_s: f64,
     /// Its mean probability when counted.
     confidence: f64,
     /// The highest mean over `fall_min_scans` scans it has reached since.
@@ -2522,6 +2577,124 @@ mod tests {
             "{:?}",
             alerts[0]
         );
+    }
+
+    /// A walker read on the floor for a few scans as they leave view, out of sight for a
+    /// minute, then seen `then` for `for_s`: the readings before the minute are no part of
+    /// what the robot sees afterwards.
+    fn stray_scans_then_a_minute_away(
+        stray: Activity,
+        stray_scans: u32,
+        then: Activity,
+        for_s: f64,
+    ) -> Vec<FallAlert> {
+        run(
+            &mut detector(),
+            &[
+                (Walking, 3.0, true),
+                (stray, f64::from(stray_scans) * DT, true),
+                (Walking, 60.0, false),
+                (then, for_s, true),
+            ],
+        )
+    }
+
+    #[test]
+    fn floor_readings_before_a_minute_out_of_sight_do_not_date_the_floor_posture() {
+        // Found sitting on the floor for 5 s (due after 15 s): no alert, however many of the
+        // scans as the person left view were read as sitting (too few to confirm it).
+        for stray_scans in 1..=4 {
+            let alerts =
+                stray_scans_then_a_minute_away(SittingOnFloor, stray_scans, SittingOnFloor, 5.0);
+            assert!(alerts.is_empty(), "{stray_scans} stray scans: {alerts:?}");
+        }
+        // Found lying: down from when they were found (63.1 s), not a descent from being
+        // upright a minute earlier (as `hidden_fall_still_gives_person_down`).
+        let alerts = stray_scans_then_a_minute_away(LyingDown, 2, LyingDown, 20.0);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown]);
+        assert!(
+            (alerts[0].down_since_s - 63.1).abs() < 1e-6,
+            "{:?}",
+            alerts[0]
+        );
+    }
+
+    #[test]
+    fn a_falling_run_does_not_span_a_minute_out_of_sight() {
+        // 2 scans read as falling, a minute away, 3 more and lying for a second: no run of
+        // 5, and no fall.
+        let alerts = run(
+            &mut detector(),
+            &[
+                (Walking, 3.0, true),
+                (FallingDown, 0.1, true),
+                (Walking, 60.0, false),
+                (FallingDown, 0.15, true),
+                (LyingDown, 1.0, true),
+            ],
+        );
+        assert!(alerts.is_empty(), "{alerts:?}");
+    }
+
+    /// A fall alerted at 3.7 s (down since 3 s), then `after` (activity, seconds, seen);
+    /// returns the alerts after the first.
+    fn after_an_alerted_fall(after: &[(Activity, f64, bool)]) -> Vec<FallAlert> {
+        let mut script = vec![
+            (Walking, 3.0, true),
+            (FallingDown, 0.5, true),
+            (LyingDown, 3.0, true),
+        ];
+        script.extend_from_slice(after);
+        let alerts = run(&mut detector(), &script);
+        assert_eq!(alerts[0].kind, AlertKind::FallDetected, "{alerts:?}");
+        alerts[1..].to_vec()
+    }
+
+    #[test]
+    fn time_out_of_sight_does_not_count_as_seen_upright_or_getting_up() {
+        // Misread as standing for 0.25 s, out of sight 2 s, lying again: one fall, still
+        // down since it (seen upright 0.2 s, not the 1.5 s that re-arms).
+        let alerts = after_an_alerted_fall(&[
+            (Standing, 0.25, true),
+            (LyingDown, 2.0, false),
+            (LyingDown, 20.0, true),
+        ]);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown], "{alerts:?}");
+        // Nor as upright for `down_ends_upright_s`: the spell does not end.
+        let alerts = after_an_alerted_fall(&[
+            (Standing, 0.25, true),
+            (LyingDown, 1.0, false),
+            (Standing, 0.05, true),
+            (LyingDown, 20.0, true),
+        ]);
+        assert_eq!(kinds(&alerts), [AlertKind::PersonDown], "{alerts:?}");
+        assert!(
+            (alerts[0].down_since_s - 3.0).abs() < 1e-6,
+            "{:?}",
+            alerts[0]
+        );
+        // Nor as getting up for `rearm_getting_up_s`: lying again is the same fall.
+        let alerts = after_an_alerted_fall(&[
+            (GettingUp, 0.25, true),
+            (GettingUp, 1.0, false),
+            (GettingUp, 0.05, true),
+            (LyingDown, 5.0, true),
+        ]);
+        assert!(alerts.is_empty(), "{alerts:?}");
+    }
+
+    #[test]
+    fn a_glimpse_gap_while_getting_up_still_counts() {
+        // Getting up 0.8 s, out of sight 0.4 s (7 scans), getting up 0.3 s: read so on
+        // every scan seen for over `rearm_getting_up_s`, then lying again: a second fall
+        // (seed 2 episode 6 of `lidar-har alerts`).
+        let alerts = after_an_alerted_fall(&[
+            (GettingUp, 0.8, true),
+            (GettingUp, 0.35, false),
+            (GettingUp, 0.3, true),
+            (LyingDown, 3.0, true),
+        ]);
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected], "{alerts:?}");
     }
 
     /// Runs segments of (activity read, seconds, velocity in m/s) at 20 Hz, the person always

@@ -278,8 +278,11 @@ pub struct ClassifierOutput {
     /// How far the person's points stretch along their main axis, as the fall alerts took
     /// it; `None` when not visible.
     pub body_length_m: Option<f64>,
-    /// Alerts raised by this observation.
+    /// Alerts raised by this observation, their times in seconds since the stamps' zero.
     pub alerts: Vec<FallAlert>,
+    /// The stamp each of `alerts` names as its `event_time` on /human/fall_alert, ns: exact,
+    /// where the seconds in `alerts` are not (f64 seconds since the epoch lose nanoseconds).
+    pub alert_event_ns: Vec<i64>,
 }
 
 /// The pelvis the pose head placed.
@@ -348,6 +351,61 @@ pub fn fall_input(
     }
 }
 
+/// The fall alerts' clock: seconds from the first stamp of the stream (since a reset). Seconds
+/// since the epoch as f64 resolve only ~240 ns, so an alert's time turned back into a stamp
+/// named no scan; counted from the stream's start, times turn back into the exact stamp for
+/// 2^22 s (48 days) of stream, and to within a nanosecond after that.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StreamClock {
+    start_ns: Option<i64>,
+}
+
+impl StreamClock {
+    /// A stamp in stream time; the first one since a reset starts the stream.
+    pub fn seconds(&mut self, stamp_ns: i64) -> f64 {
+        let start_ns = *self.start_ns.get_or_insert(stamp_ns);
+        // One rounding (a division by the exact 1e9), so that `stamp_ns` undoes it.
+        stamp_ns.saturating_sub(start_ns) as f64 / 1e9
+    }
+
+    /// The stamp of a time in stream time, ns.
+    pub fn stamp_ns(&self, s: f64) -> i64 {
+        self.start_ns
+            .unwrap_or(0)
+            .saturating_add((s * 1e9).round() as i64)
+    }
+
+    /// Seconds since the stamps' zero (the epoch, for wall-clock stamps) of a time in stream
+    /// time: what the rest of the stage's outputs count in.
+    pub fn stamp_s(&self, s: f64) -> f64 {
+        self.stamp_ns(s) as f64 * 1e-9
+    }
+
+    /// An alert raised in stream time, its times in seconds since the stamps' zero.
+    pub fn alert_in_stamp_time(&self, alert: &FallAlert) -> FallAlert {
+        FallAlert {
+            event_time_s: self.stamp_s(alert.event_time_s),
+            raised_at_s: self.stamp_s(alert.raised_at_s),
+            down_since_s: self.stamp_s(alert.down_since_s),
+            ..*alert
+        }
+    }
+
+    /// The next stamp starts the stream afresh.
+    pub fn reset(&mut self) {
+        self.start_ns = None;
+    }
+}
+
+/// The time an alert's `event_time` names: the fall's start for FALL_DETECTED, since when
+/// the person is down for PERSON_DOWN.
+pub fn event_time_s(alert: &FallAlert) -> f64 {
+    match alert.kind {
+        AlertKind::FallDetected => alert.event_time_s,
+        AlertKind::PersonDown => alert.down_since_s,
+    }
+}
+
 /// The stage's messages for one observation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClassifierMessages {
@@ -370,6 +428,8 @@ pub struct ClassifierStage<M: StepModel = ActivityModel, H = PoseHeadModel> {
     non_finite_positions: u64,
     scan_rate: ScanRate,
     fall: FallDetector,
+    /// The fall alerts run on it, so that their event times turn back into exact stamps.
+    alert_clock: StreamClock,
     points: Vec<DVec2>,
     track_id: Option<u32>,
     alerts_raised: usize,
@@ -553,6 +613,7 @@ impl<M: StepModel> ClassifierStage<M, NoPoseHead> {
             non_finite_positions: 0,
             scan_rate: ScanRate::default(),
             fall: FallDetector::new(fall_alert)?,
+            alert_clock: StreamClock::default(),
             points: Vec::new(),
             track_id: None,
             alerts_raised: 0,
@@ -575,6 +636,7 @@ impl<M: StepModel> ClassifierStage<M, NoPoseHead> {
             non_finite_positions: 0,
             scan_rate: self.scan_rate,
             fall: self.fall,
+            alert_clock: self.alert_clock,
             points: self.points,
             track_id: self.track_id,
             alerts_raised: self.alerts_raised,
@@ -606,6 +668,7 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             placer.reset();
         }
         self.fall.reset();
+        self.alert_clock.reset();
         self.track_id = None;
         self.last_alert = None;
     }
@@ -616,6 +679,7 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
         obs: &HumanObservation,
     ) -> Result<ClassifierOutput, ClassifierError> {
         let stamp_ns = obs.header.stamp.to_nanos();
+        // The model's and the pose head's clock; the alerts run on `alert_clock`'s.
         let stamp_s = stamp_ns as f64 * 1e-9;
         // Time going back (a bag played again, a simulation restarted) is another stream for
         // every part of the stage: the model and the alerts restarted on their own, but the
@@ -624,6 +688,7 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             self.reset();
         }
         self.last_stamp_ns = Some(stamp_ns);
+        let stream_s = self.alert_clock.seconds(stamp_ns);
         let model_hz = self.classifier.spec().scan_rate_hz;
         if let Some(hz) = self.scan_rate.observe(stamp_ns)
             && (hz / model_hz - 1.0).abs() > SCAN_RATE_TOLERANCE
@@ -707,14 +772,22 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
         };
         let body_length_m = MainAxisSpan::of(&self.points).map(|span| span.length());
         let was_down = self.fall.down_since_s().is_some();
-        let alerts = self.fall.update(&fall_input(
-            stamp_s,
+        let raised = self.fall.update(&fall_input(
+            stream_s,
             visible,
             prediction.ready,
             position,
             prediction.probabilities,
             body_length_m,
         ));
+        let alert_event_ns = raised
+            .iter()
+            .map(|a| self.alert_clock.stamp_ns(event_time_s(a)))
+            .collect();
+        let alerts: Vec<FallAlert> = raised
+            .iter()
+            .map(|a| self.alert_clock.alert_in_stamp_time(a))
+            .collect();
         self.alerts_raised += alerts.len();
         // The marker shows an alert for the spell on the floor it belongs to: a later spell
         // (sitting down to play, hours on) used to show the old alert in red.
@@ -733,6 +806,7 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
             pelvis,
             body_length_m,
             alerts,
+            alert_event_ns,
         })
     }
 
@@ -749,7 +823,8 @@ impl<M: StepModel, H: PoseHead<M::State>> ClassifierStage<M, H> {
         let alerts = out
             .alerts
             .iter()
-            .map(|a| alert_msg(header.clone(), a))
+            .zip(&out.alert_event_ns)
+            .map(|(a, &event_ns)| alert_msg(header.clone(), a, Time::from_nanos(event_ns)))
             .collect();
         ClassifierMessages {
             activity,
@@ -976,14 +1051,13 @@ pub fn pelvis_msg(header: Header, pelvis: &Pelvis) -> PoseWithCovarianceStamped 
     }
 }
 
-/// The /human/fall_alert message of an alert raised on the scan of `header` (its stamp
-/// exact: seconds since the epoch as f64 lose the nanoseconds).
-pub fn alert_msg(header: Header, alert: &FallAlert) -> har::FallAlert {
-    let secs_to_time = |s: f64| Time::from_nanos((s * 1e9).round() as i64);
-    let (kind, event_time_s, description) = match alert.kind {
+/// The /human/fall_alert message of an alert raised on the scan of `header`, with the stamp
+/// its [`event_time_s`] names (both exact: seconds since the epoch as f64 lose the
+/// nanoseconds).
+pub fn alert_msg(header: Header, alert: &FallAlert, event_time: Time) -> har::FallAlert {
+    let (kind, description) = match alert.kind {
         AlertKind::FallDetected => (
             har::FallAlert::FALL_DETECTED,
-            alert.event_time_s,
             format!(
                 "fall detected near ({:.1}, {:.1})",
                 alert.position.x, alert.position.y
@@ -991,7 +1065,6 @@ pub fn alert_msg(header: Header, alert: &FallAlert) -> har::FallAlert {
         ),
         AlertKind::PersonDown => (
             har::FallAlert::PERSON_DOWN,
-            alert.down_since_s,
             format!(
                 "person down for {:.0} s near ({:.1}, {:.1})",
                 alert.raised_at_s - alert.down_since_s,
@@ -1009,7 +1082,7 @@ pub fn alert_msg(header: Header, alert: &FallAlert) -> har::FallAlert {
             z: 0.0,
         },
         confidence: alert.confidence,
-        event_time: secs_to_time(event_time_s),
+        event_time,
         description,
     }
 }
@@ -1142,7 +1215,7 @@ pub struct Segment {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct AlertRecord {
     pub kind: &'static str,
-    /// When the alert was raised, s (stream time).
+    /// When the alert was raised, s since the stamps' zero (the epoch, for wall-clock stamps).
     pub time_s: f64,
     /// When the fall happened / since when the person is down, s.
     pub event_time_s: f64,
@@ -1221,10 +1294,7 @@ impl ActivityLog {
                 .map(|a| AlertRecord {
                     kind: a.kind.name(),
                     time_s: a.raised_at_s,
-                    event_time_s: match a.kind {
-                        AlertKind::FallDetected => a.event_time_s,
-                        AlertKind::PersonDown => a.down_since_s,
-                    },
+                    event_time_s: event_time_s(a),
                     position: [a.position.x, a.position.y],
                     confidence: a.confidence,
                 })
@@ -1563,6 +1633,87 @@ mod tests {
             }
         }
         assert_eq!(alerts, 1, "FALL_DETECTED");
+    }
+
+    #[test]
+    fn alert_event_times_are_the_exact_stamps_of_the_scans_they_name() {
+        let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
+        let model = TimelineModel {
+            timeline: vec![
+                (0.0, Activity::Walking),
+                (3.0, Activity::FallingDown),
+                (4.0, Activity::LyingDown),
+            ],
+            now: now.clone(),
+        };
+        let config = FallAlertConfig {
+            down_after_s: 5.0,
+            ..Default::default()
+        };
+        let mut stage = ClassifierStage::new(model, stream(), config).unwrap();
+        // Wall-clock stamps with odd nanoseconds, as from a driver: through f64 seconds since
+        // the epoch, event times came out up to ~380 ns off the scans they name.
+        let first_ns = 1_760_000_000_123_456_789;
+        let days_ns = 3 * 86_400 * 1_000_000_000;
+        // A run, the bag played again from earlier on (time going back starts the stream
+        // afresh), then a fall days after that stream started.
+        let again_ns = first_ns - 40_000_000_333;
+        for pass_ns in [first_ns, again_ns, again_ns + days_ns] {
+            let stamp_ns = |k: i64| pass_ns + k * 50_000_000 + 7;
+            let mut alerts = Vec::new();
+            for k in 0..240 {
+                now.set(k as f64 * 0.05);
+                let mut obs = observation(k as f64 * 0.05, true);
+                obs.header.stamp = Time::from_nanos(stamp_ns(k));
+                let out = stage.on_observation(&obs).unwrap();
+                alerts.extend(
+                    stage
+                        .messages(&out)
+                        .alerts
+                        .into_iter()
+                        .map(|a| (a.kind, a.event_time.to_nanos())),
+                );
+            }
+            let fall_start_ns = stamp_ns(60);
+            assert_eq!(
+                alerts,
+                [
+                    (har::FallAlert::FALL_DETECTED, fall_start_ns),
+                    (har::FallAlert::PERSON_DOWN, fall_start_ns)
+                ],
+                "pass from {pass_ns} ns: the fall's first scan, and down since then"
+            );
+        }
+    }
+
+    #[test]
+    fn the_stream_clock_turns_times_back_into_exact_stamps_for_weeks() {
+        let start_ns = 1_760_000_000_123_456_789;
+        let mut clock = StreamClock::default();
+        assert_eq!(clock.seconds(start_ns), 0.0);
+        let weeks_ns = (1_i64 << 22) * 1_000_000_000;
+        // The last nanoseconds before 2^22 s (48 days), then offsets spread over them.
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        for i in 0..300_000 {
+            x = x
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            let offset_ns = if i < 1000 {
+                weeks_ns - 1 - i
+            } else {
+                (x >> 11) as i64 % weeks_ns
+            };
+            let stamp_ns = start_ns + offset_ns;
+            let s = clock.seconds(stamp_ns);
+            assert_eq!(
+                clock.stamp_ns(s),
+                stamp_ns,
+                "{offset_ns} ns into the stream"
+            );
+        }
+        clock.reset();
+        assert_eq!(clock.seconds(start_ns - 5), 0.0, "a reset starts afresh");
+        assert_eq!(clock.stamp_ns(0.05), start_ns - 5 + 50_000_000);
     }
 
     #[test]

@@ -25,7 +25,9 @@ use lidar_har_core::metrics::{ConfusionMatrix, MetricsReport};
 use lidar_har_core::pose_head::NoPoseHead;
 use lidar_har_core::stats::Spread;
 use lidar_har_infer::ActivityModel;
-use lidar_har_pipeline::classifier::{ClassifierConfig, ClassifierStage, with_fall_alert_setting};
+use lidar_har_pipeline::classifier::{
+    ClassifierConfig, ClassifierStage, StreamClock, with_fall_alert_setting,
+};
 use lidar_har_pipeline::convert::observation_msg;
 use lidar_har_sim::scripts::{self, ScriptKind};
 use serde::Serialize;
@@ -565,11 +567,20 @@ fn replay(
             traced.push(log.id);
         }
         detector.reset();
+        // The stage's clock: reset with it for each episode, started by its first reading.
+        let mut clock = StreamClock::default();
         let start_s = log.start_s();
         let mut alerts = Vec::new();
         for frame in &log.frames {
-            let raised = match frame.reading {
-                Some(reading) => detector.update(&reading.fall_input(frame.stamp_ns)),
+            let raised: Vec<FallAlert> = match frame.reading {
+                Some(reading) => {
+                    let stream_s = clock.seconds(frame.stamp_ns as i64);
+                    let raised = detector.update(&reading.fall_input(stream_s));
+                    raised
+                        .iter()
+                        .map(|a| clock.alert_in_stamp_time(a))
+                        .collect()
+                }
                 None => Vec::new(),
             };
             if trace {

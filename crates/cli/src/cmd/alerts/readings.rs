@@ -140,10 +140,11 @@ impl Reading {
         DVec2::from_array(self.position)
     }
 
-    /// What the classifier stage gives the fall alerts for this scan.
-    pub fn fall_input(&self, stamp_ns: u64) -> FallInput {
+    /// What the classifier stage gives the fall alerts for this scan, at `stamp_s` on the
+    /// stage's alert clock ([`classifier::StreamClock`]).
+    pub fn fall_input(&self, stamp_s: f64) -> FallInput {
         classifier::fall_input(
-            stamp_ns as f64 * 1e-9,
+            stamp_s,
             self.visible,
             self.ready,
             self.position(),
@@ -374,7 +375,7 @@ mod tests {
     #[test]
     fn a_reading_gives_the_alerts_a_position_only_when_seen_and_ready() {
         let reading = episode(0).frames[1].reading.unwrap();
-        let input = reading.fall_input(1_500_000_000);
+        let input = reading.fall_input(1.5);
         assert_eq!(input.stamp_s, 1.5);
         assert_eq!(input.position, Some(DVec2::new(1.25, -0.1)));
         for (visible, ready) in [(false, true), (true, false)] {
@@ -383,7 +384,7 @@ mod tests {
                 ready,
                 ..reading
             }
-            .fall_input(0);
+            .fall_input(0.0);
             assert_eq!(input.position, None);
         }
     }
