@@ -4,12 +4,12 @@
 //! The background is kept per bearing, not per beam index: some drivers (`sllidar_ros2`
 //! with `angle_compensate` false) publish a few beams more or fewer each rotation, over the
 //! same turn, so beam `i` of one scan is not where beam `i` of the next points. The learning
-//! scan with the finest `angle_increment` (the first of them on a tie) sets the bins when
-//! learning ends: a full turn of them, as wide as its increment, from one centred on its
-//! `angle_min`, whatever part of the turn that scan covers (a driver's first rotation may be
-//! cut short: bins sized to it had left the rest of the turn open space, and every later
-//! return there foreground; or sparse, a motor spinning up: bins as coarse as it had hidden a
-//! person beside furniture). Every beam of every scan, learning or classified, goes to the
+//! scan with the median `angle_increment` sets the bins when learning ends: a full turn of
+//! them, as wide as its increment, from one centred on its `angle_min`, whatever part of the
+//! turn that scan covers (a driver's first rotation may be cut short: bins sized to it had
+//! left the rest of the turn open space, and every later return there foreground; or sparse:
+//! bins as coarse as it had hidden a person beside furniture; or, finest, one dense rotation:
+//! bins too fine for the others, most of them open space). Every beam of every scan, learning or classified, goes to the
 //! bin nearest its angle; bins that no learning beam fell in look into open space.
 //!
 //! Per bin, the background range is the median of the returns seen while learning. Where a
@@ -19,11 +19,14 @@
 //! anything it returns later is foreground; but a bin that looks into open space and sees a
 //! person in `min_return_fraction` (20 %) of the learning scans or more has only the person's
 //! returns, and their range becomes its background. So does the range of a person who stays
-//! still through the learning, anywhere. Hence, after learning, a bin that sees nothing
-//! (beyond `range_max`, NaN or 0) or only returns more than `margin_m` behind its background for
-//! `raise_after_s` takes the nearest of those returns (infinite if none) as its background:
-//! the background only ever moves farther, so a person who keeps still in front of it later
-//! stays foreground.
+//! still through the learning, anywhere. Hence, after learning, a bin that sees only returns
+//! more than `margin_m` behind its background, or, if it returned in under half of the
+//! learning scans, nothing (beyond `range_max`, NaN or 0), for `raise_after_s` takes the
+//! nearest of those returns (infinite if none) as its background. The background only ever
+//! moves farther, so a person who keeps still in front of it later stays foreground; nothing
+//! in a bin that mostly returned may be a dark coat in front of the wall, and a scan with no
+//! return at all a covered Lidar: neither moves it (so a person still through the learning
+//! in front of open space, where nothing shows once they leave, stays background there).
 //!
 //! A point is foreground when it is closer than `margin_m` in front of the background of its
 //! bin and of both neighbour bins (the neighbours absorb the angular jitter at depth edges,
@@ -46,11 +49,12 @@ pub struct BackgroundConfig {
     pub margin_m: f64,
     /// Bearings that returned in fewer learning scans than this fraction look into open space.
     pub min_return_fraction: f64,
-    /// After learning, a bearing that sees nothing, or only returns `margin_m` or more behind
-    /// its background, for this many seconds (a gap between two scans counts at most half a
-    /// second) moves its background out to the nearest of them (infinite if none), never
-    /// nearer: a person present while learning stops being background once they have left.
-    /// 0 keeps the learned background.
+    /// After learning, a bearing that sees only returns `margin_m` or more behind its
+    /// background (or nothing, where it returned in under half of the learning scans), for
+    /// this many seconds (a gap between two scans counts at most half a second) moves its
+    /// background out to the nearest of them (infinite if none), never nearer: a person
+    /// present while learning stops being background once they have left. 0 keeps the
+    /// learned background.
     pub raise_after_s: f64,
 }
 
@@ -173,8 +177,6 @@ struct Learning {
     learned_ns: i64,
     /// The learning scans (those with a return), binned when learning ends.
     scans: Vec<Scan>,
-    /// The bins of the learning scan with the finest increment so far.
-    bins: Option<Bins>,
 }
 
 /// The bins and thresholds of one scan geometry's beams, kept while the geometry stays the
@@ -224,6 +226,11 @@ struct Raising {
     blocked_ns: Vec<i64>,
     /// Per bin: the nearest return past its background since `blocked_ns` (infinite if none).
     nearest_past: Vec<f32>,
+    /// Per bin: whether it returned in under half of the learning scans, so that seeing
+    /// nothing there moves it. Where it mostly returned, nothing may be a dark coat or a
+    /// black chair in front of the wall, not the wall gone: only returns behind move it,
+    /// else the wall would be foreground for good once they left.
+    nothing_raises: Vec<bool>,
     /// The bins due to move in this scan (kept to reuse its allocation).
     due: Vec<usize>,
 }
@@ -239,7 +246,7 @@ enum State {
         threshold: Vec<f32>,
         beams: BeamThresholds,
         /// None when `raise_after_s` is 0.
-        raising: Option<Raising>,
+        raising: Option<Box<Raising>>,
     },
 }
 
@@ -260,6 +267,18 @@ fn threshold_of(background: &[f32], i: usize, margin: f32) -> f32 {
     let n = background.len();
     let (before, after) = ((i + n - 1) % n, (i + 1) % n);
     background[before].min(background[i]).min(background[after]) - margin
+}
+
+/// The learning scan whose `angle_increment` is the median's (the learning has one at
+/// least): its bins are the background's. The finest one let a single dense rotation make
+/// bins too fine for every other scan, most of them then looking into open space.
+fn median_increment_scan(scans: &[Scan]) -> &Scan {
+    let mut by_increment: Vec<&Scan> = scans.iter().collect();
+    let mid = by_increment.len() / 2;
+    by_increment.select_nth_unstable_by(mid, |a, b| {
+        a.angle_increment.abs().total_cmp(&b.angle_increment.abs())
+    });
+    by_increment[mid]
 }
 
 impl LearnedBackground {
@@ -304,19 +323,10 @@ impl LearnedBackground {
         if (learning.learned_ns as f64) * 1e-9 < self.config.learn_duration_s
             || learning.scans.is_empty()
         {
-            let finer = learning
-                .bins
-                .is_none_or(|bins| f64::from(scan.angle_increment).abs() < bins.increment.abs());
-            if finer {
-                learning.bins = Some(Bins::of(scan));
-            }
             learning.scans.push(scan.clone());
             return BackgroundStatus::Learning;
         }
-        // Set by the learning scans, of which there was one at least.
-        let Some(bins) = learning.bins else {
-            return BackgroundStatus::Learning;
-        };
+        let bins = Bins::of(median_increment_scan(&learning.scans));
         let mut samples = vec![Vec::new(); bins.count];
         for learned in &learning.scans {
             for (&r, bin) in learned.ranges.iter().zip(bins.of_beams(learned)) {
@@ -329,6 +339,8 @@ impl LearnedBackground {
             .ceil()
             .max(1.0) as usize;
         let margin = self.config.margin_m as f32;
+        let half = learning.scans.len().div_ceil(2);
+        let nothing_raises = samples.iter().map(|returns| returns.len() < half).collect();
         let background: Vec<f32> = samples
             .iter_mut()
             .map(|returns: &mut Vec<f32>| {
@@ -342,13 +354,16 @@ impl LearnedBackground {
         let threshold = (0..background.len())
             .map(|i| threshold_of(&background, i, margin))
             .collect();
-        let raising = (self.config.raise_after_s > 0.0).then(|| Raising {
-            after_ns: (self.config.raise_after_s * 1e9).min(i64::MAX as f64) as i64,
-            clock_ns: 0,
-            last_ns: scan.stamp_ns,
-            blocked_ns: vec![0; bins.count],
-            nearest_past: vec![f32::INFINITY; bins.count],
-            due: Vec::new(),
+        let raising = (self.config.raise_after_s > 0.0).then(|| {
+            Box::new(Raising {
+                after_ns: (self.config.raise_after_s * 1e9).min(i64::MAX as f64) as i64,
+                clock_ns: 0,
+                last_ns: scan.stamp_ns,
+                blocked_ns: vec![0; bins.count],
+                nearest_past: vec![f32::INFINITY; bins.count],
+                nothing_raises,
+                due: Vec::new(),
+            })
         });
         self.state = State::Ready {
             bins,
@@ -375,8 +390,14 @@ impl LearnedBackground {
             return;
         };
         let gap_ns = scan.stamp_ns.saturating_sub(raising.last_ns);
-        raising.clock_ns = raising.clock_ns.saturating_add(gap_ns.clamp(0, MAX_GAP_NS));
         raising.last_ns = scan.stamp_ns;
+        // A scan without a single return (a covered or blinded Lidar, an empty rotation)
+        // says nothing of the room: counted, five seconds of them made every bearing open
+        // space, and the whole room foreground for good. Its time does not count either.
+        if !scan.ranges.iter().any(|&r| scan.is_return(r)) {
+            return;
+        }
+        raising.clock_ns = raising.clock_ns.saturating_add(gap_ns.clamp(0, MAX_GAP_NS));
         let clock_ns = raising.clock_ns;
         let margin = self.config.margin_m as f32;
         beams.follow(scan, bins, threshold);
@@ -398,6 +419,8 @@ impl LearnedBackground {
             } else if raising.blocked_ns[bin] != clock_ns {
                 if scan.is_return(r) {
                     raising.nearest_past[bin] = raising.nearest_past[bin].min(r);
+                } else if !raising.nothing_raises[bin] {
+                    continue;
                 }
                 if clock_ns - raising.blocked_ns[bin] >= raising.after_ns {
                     raising.due.push(bin);
@@ -607,10 +630,60 @@ mod tests {
     fn a_clock_stepped_forward_does_not_move_the_background() {
         let wall = |_| vec![4.0; 10];
         let mut bg = learned(wall);
-        // No return in two scans 1000 s apart (NTP at boot): 0.6 s counted, not 1000.
-        watch(&mut bg, 3.1, 1, |_| vec![f32::INFINITY; 10]);
-        watch(&mut bg, 1003.1, 1, |_| vec![f32::INFINITY; 10]);
-        assert!(!is_foreground(&mut bg, at(5), 3.9));
+        // Beams 5..10 return past the wall in two scans 1000 s apart (NTP at boot): 0.6 s
+        // counted, not 1000.
+        let past = |_| [[4.0; 5], [4.5; 5]].concat();
+        watch(&mut bg, 3.1, 1, past);
+        watch(&mut bg, 1003.1, 1, past);
+        assert!(!is_foreground(&mut bg, at(7), 3.9));
+    }
+
+    #[test]
+    fn a_lidar_that_returns_nothing_for_a_while_leaves_the_background_as_it_was() {
+        // Covered or blinded for 10 s: inf, NaN and 0 (as drivers encode no return) on every
+        // beam. Counted, every bearing that returned in under half of the learning (beams
+        // 0..4: a far wall, in one scan out of three) became open space, and its wall
+        // foreground for good.
+        let mut bg = learned(|k| {
+            (0..10)
+                .map(|b| match b {
+                    0..4 if k.is_multiple_of(3) => 4.9,
+                    0..4 => f32::INFINITY,
+                    _ => 4.0,
+                })
+                .collect()
+        });
+        for (k, nothing) in [f32::INFINITY, f32::NAN, 0.0].into_iter().enumerate() {
+            watch(&mut bg, 3.1 + 40.0 * k as f64, 100, |_| vec![nothing; 10]);
+        }
+        assert!(!is_foreground(&mut bg, at(1), 4.9));
+        for beam in 4..10 {
+            assert!(!is_foreground(&mut bg, at(beam), 4.0), "beam {beam}");
+        }
+    }
+
+    #[test]
+    fn nothing_in_front_of_a_wall_that_always_returned_does_not_move_it() {
+        // A person in a dark coat, or a black chair, returns nothing on beams 4..7 for 10 s
+        // in front of a wall that returned in every learning scan: the wall is still there.
+        let mut bg = learned(|_| vec![4.0; 10]);
+        watch(&mut bg, 3.1, 100, |_| {
+            (0..10)
+                .map(|b| {
+                    if (4..7).contains(&b) {
+                        f32::INFINITY
+                    } else {
+                        4.0
+                    }
+                })
+                .collect()
+        });
+        assert!(!is_foreground(&mut bg, at(5), 4.0));
+        // Returns behind it still move it (the wall was someone standing there).
+        watch(&mut bg, 13.1, 60, |_| {
+            [&[4.0f32; 4][..], &[4.6; 6]].concat()
+        });
+        assert!(is_foreground(&mut bg, at(8), 4.0));
     }
 
     #[test]
@@ -810,8 +883,7 @@ mod tests {
 
     #[test]
     fn a_sparse_first_learning_scan_does_not_coarsen_the_bins() {
-        // The driver's first rotation (a motor spinning up) came with 40 beams over the
-        // turn, the rest with 1080: bins as coarse as the first scan's spread the pole's 1 m
+        // The driver's first rotation came with 40 beams over the turn, the rest with 1080: bins as coarse as the first scan's spread the pole's 1 m
         // over the person beside it (at 1.2 m, 0.1-0.3 rad from the pole's edge, moved here).
         let tau = std::f64::consts::TAU;
         let pi = -std::f32::consts::PI;
@@ -836,6 +908,26 @@ mod tests {
         let expected: Vec<usize> = (0..1080).filter(|&i| person.ranges[i] == 1.2).collect();
         assert!(!expected.is_empty());
         assert_eq!(foreground(&mut bg, &person), expected);
+    }
+
+    #[test]
+    fn one_dense_learning_scan_does_not_set_the_bins() {
+        // 1078-1084 beams a turn (sllidar_ros2 without angle compensation), one rotation in
+        // the middle of the learning with eight times as many: bins that fine left most of
+        // them open space, and a quarter of an empty room's beams foreground.
+        let tau = std::f64::consts::TAU;
+        let pi = -std::f32::consts::PI;
+        let beams = |k: usize| 1078 + k % 7;
+        let mut bg = LearnedBackground::new(BackgroundConfig::default());
+        for k in 0..=31 {
+            let count = if k == 15 { 8 * 1080 } else { beams(k) };
+            bg.observe(&room_scan(k as f64 * 0.1, pi, tau, count, false));
+        }
+        assert!(bg.is_ready());
+        for k in 32..40 {
+            let empty = room_scan(k as f64 * 0.1, pi, tau, beams(k), false);
+            assert_eq!(foreground(&mut bg, &empty), [] as [usize; 0], "scan {k}");
+        }
     }
 
     proptest::proptest! {
