@@ -1443,6 +1443,22 @@ mod tests {
         }
     }
 
+    impl TimelineModel {
+        /// Walking, falling from 3 s, lying from 4 s; and the clock it reads.
+        fn walk_fall_lie() -> (Self, std::rc::Rc<std::cell::Cell<f64>>) {
+            let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
+            let model = TimelineModel {
+                timeline: vec![
+                    (0.0, Activity::Walking),
+                    (3.0, Activity::FallingDown),
+                    (4.0, Activity::LyingDown),
+                ],
+                now: now.clone(),
+            };
+            (model, now)
+        }
+    }
+
     fn stream() -> StreamSpec {
         StreamSpec {
             representation: RepresentationSpec::new(
@@ -1610,15 +1626,7 @@ mod tests {
 
     #[test]
     fn alerts_carry_their_scan_stamp_to_the_nanosecond() {
-        let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
-        let model = TimelineModel {
-            timeline: vec![
-                (0.0, Activity::Walking),
-                (3.0, Activity::FallingDown),
-                (4.0, Activity::LyingDown),
-            ],
-            now: now.clone(),
-        };
+        let (model, now) = TimelineModel::walk_fall_lie();
         let mut stage = ClassifierStage::new(model, stream(), FallAlertConfig::default()).unwrap();
         let epoch_ns = 1_700_000_000_000_000_000;
         let mut alerts = 0;
@@ -1637,15 +1645,7 @@ mod tests {
 
     #[test]
     fn alert_event_times_are_the_exact_stamps_of_the_scans_they_name() {
-        let now = std::rc::Rc::new(std::cell::Cell::new(0.0));
-        let model = TimelineModel {
-            timeline: vec![
-                (0.0, Activity::Walking),
-                (3.0, Activity::FallingDown),
-                (4.0, Activity::LyingDown),
-            ],
-            now: now.clone(),
-        };
+        let (model, now) = TimelineModel::walk_fall_lie();
         let config = FallAlertConfig {
             down_after_s: 5.0,
             ..Default::default()
