@@ -9,8 +9,9 @@
 //! turn that scan covers (a driver's first rotation may be cut short: bins sized to it had
 //! left the rest of the turn open space, and every later return there foreground; or sparse:
 //! bins as coarse as it had hidden a person beside furniture; or, finest, one dense rotation:
-//! bins too fine for the others, most of them open space). Every beam of every scan, learning or classified, goes to the
-//! bin nearest its angle; bins that no learning beam fell in look into open space.
+//! bins too fine for the others, most of them open space). Every beam of every scan,
+//! learning or classified, goes to the bin nearest its angle; bins that no learning beam
+//! fell in look into open space.
 //!
 //! Per bin, the background range is the median of the returns seen while learning. Where a
 //! wall or furniture stands behind, that ignores a person who crosses the bearing for less
@@ -883,8 +884,9 @@ mod tests {
 
     #[test]
     fn a_sparse_first_learning_scan_does_not_coarsen_the_bins() {
-        // The driver's first rotation came with 40 beams over the turn, the rest with 1080: bins as coarse as the first scan's spread the pole's 1 m
-        // over the person beside it (at 1.2 m, 0.1-0.3 rad from the pole's edge, moved here).
+        // The driver's first rotation came with 40 beams over the turn, the rest with 1080:
+        // bins as coarse as the first scan's spread the pole's 1 m over the person beside it
+        // (at 1.2 m, 0.1-0.3 rad from the pole's edge, moved here).
         let tau = std::f64::consts::TAU;
         let pi = -std::f32::consts::PI;
         let person_by_the_pole = |mut s: Scan| {
