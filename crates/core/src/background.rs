@@ -300,15 +300,15 @@ impl LearnedBackground {
     /// and is itself classifiable. A stamp before the previous one (a restarted recording)
     /// starts learning again.
     pub fn observe(&mut self, scan: &Scan) -> BackgroundStatus {
+        // A scan without a single return (a motor spinning up, a covered or blinded Lidar, a
+        // driver's empty rotation) shows nothing of the room: learning from it made every
+        // bearing open space, and all furniture foreground for good; after learning, five
+        // seconds of them did the same. It counts neither as a scan nor as time.
+        let has_returns = scan.ranges.iter().any(|&r| scan.is_return(r));
         let State::Learning(learning) = &mut self.state else {
-            self.raise(scan);
+            self.raise(scan, has_returns);
             return BackgroundStatus::Ready;
         };
-        // A scan without a single return (a motor spinning up, a covered window, a driver's
-        // empty rotation) shows nothing of the room: learning from it made every bearing
-        // open space, and all furniture foreground for good. It counts neither as a
-        // learning scan nor as learning time.
-        let has_returns = scan.ranges.iter().any(|&r| scan.is_return(r));
         match learning.last_ns {
             Some(last) if scan.stamp_ns < last => *learning = Learning::default(),
             Some(last) if has_returns => {
@@ -376,10 +376,11 @@ impl LearnedBackground {
         BackgroundStatus::Ready
     }
 
-    /// Moves the background of the bins of `scan` (validated) that have seen nothing, or
-    /// only returns more than `margin_m` past it, for `raise_after_s`, to the nearest of
-    /// those returns (infinite if none); never nearer.
-    fn raise(&mut self, scan: &Scan) {
+    /// Moves the background of the bins of `scan` (validated) that have seen only returns
+    /// more than `margin_m` past it (or nothing, where `nothing_raises`) for `raise_after_s`,
+    /// to the nearest of those returns (infinite if none); never nearer. A scan without
+    /// returns (`has_returns` false) neither counts nor adds time.
+    fn raise(&mut self, scan: &Scan, has_returns: bool) {
         let State::Ready {
             bins,
             background,
@@ -392,10 +393,7 @@ impl LearnedBackground {
         };
         let gap_ns = scan.stamp_ns.saturating_sub(raising.last_ns);
         raising.last_ns = scan.stamp_ns;
-        // A scan without a single return (a covered or blinded Lidar, an empty rotation)
-        // says nothing of the room: counted, five seconds of them made every bearing open
-        // space, and the whole room foreground for good. Its time does not count either.
-        if !scan.ranges.iter().any(|&r| scan.is_return(r)) {
+        if !has_returns {
             return;
         }
         raising.clock_ns = raising.clock_ns.saturating_add(gap_ns.clamp(0, MAX_GAP_NS));
