@@ -46,7 +46,7 @@
 //! accept the alert (raise `down_after_s` where children crawl about).
 //!
 //! Hysteresis: postures change only after `confirm_scans` consecutive scans agree (one
-//! flickering scan changes nothing; a stretch out of sight longer than `GLIMPSE_GAP_S`
+//! flickering scan changes nothing; a stretch out of sight longer than `glimpse_gap_s`
 //! starts them again, as it does a `falling_down` run, and every "seen for so long" below
 //! counts only time seen), and after an alert its kind is re-armed only once the
 //! person has been seen upright (standing, walking, running, walking unsteadily) for
@@ -265,6 +265,17 @@ pub struct FallAlertConfig {
     /// such and sat straight down again was read getting up for 4 scans, then falling for
     /// 1.2 s (seed 4 episode 327 of `lidar-har alerts`, docs/classifier.md, session 36).
     pub down_restarts_on_fall_run: bool,
+    /// The longest stretch out of sight, from one scan the person is seen on to the next, that
+    /// still joins the readings on either side: up to it, a run of readings (the posture being
+    /// confirmed, `falling_down`, lying) runs on and the stretch counts as time seen; past it,
+    /// every run starts again and the stretch counts as time out of sight. A walker read on the
+    /// floor for a scan or two as they left view, then found sitting a minute later, was taken
+    /// as on the floor since that first reading, and 0.3 s seen upright around a second out of
+    /// sight re-armed an alert. Getting up, people were out of sight for 0.4-0.5 s (seed 2
+    /// episodes 6 and 37 of `lidar-har alerts`): 0.25 s broke those runs, which lost a fall
+    /// (not re-armed) and a spell's end (a false `PersonDown`; docs/classifier.md, session 56).
+    /// Seconds; 0: any scan out of sight starts the runs again.
+    pub glimpse_gap_s: f64,
 }
 
 impl Default for FallAlertConfig {
@@ -304,6 +315,7 @@ impl Default for FallAlertConfig {
             down_travel_m: 2.0,
             down_travel_within_s: 2.0,
             down_restarts_on_fall_run: true,
+            glimpse_gap_s: 0.6,
         }
     }
 }
@@ -372,6 +384,7 @@ impl FallAlertConfig {
         at_least_zero("down_unseen_counts_s", self.down_unseen_counts_s)?;
         at_least_zero("down_travel_m", self.down_travel_m)?;
         at_least_zero("down_travel_within_s", self.down_travel_within_s)?;
+        at_least_zero("glimpse_gap_s", self.glimpse_gap_s)?;
         probability("landing_min_probability", self.landing_min_probability)?;
         probability("sure_fall_run_probability", self.sure_fall_run_probability)?;
         probability("down_ends_min_probability", self.down_ends_min_probability)?;
@@ -452,17 +465,6 @@ fn posture_of(activity: Activity) -> Posture {
     }
 }
 
-/// The longest stretch out of sight, from one scan the person is seen on to the next, that
-/// still joins the readings on either side: up to it, a run of readings (the posture being
-/// confirmed, `falling_down`, lying) runs on and the stretch counts as time seen; past it,
-/// every run starts again and the stretch counts as time out of sight. A walker read on the
-/// floor for a scan or two as they left view, then found sitting a minute later, was taken
-/// as on the floor since that first reading, and 0.3 s seen upright around a second out of
-/// sight re-armed an alert. Getting up, people were out of sight for 0.4-0.5 s (seed 2
-/// episodes 6 and 37 of `lidar-har alerts`): 0.25 s broke those runs, which lost a fall
-/// (not re-armed) and a spell's end (a false `PersonDown`; docs/classifier.md, session 56).
-const GLIMPSE_GAP_S: f64 = 0.6;
-
 /// When an alert was raised: its stamp, and the seen clock then (what re-arming counts
 /// from).
 #[derive(Debug, Clone, Copy)]
@@ -482,7 +484,7 @@ pub struct FallDetector {
     /// A fall run waiting for the person to be confirmed on the floor.
     pending_fall: Option<PendingFall>,
     /// Candidate posture, since when, how many consecutive scans (a hidden stretch longer
-    /// than `GLIMPSE_GAP_S` breaks them).
+    /// than `glimpse_gap_s` breaks them).
     candidate: Option<(Posture, f64, u32)>,
     /// The body lengths known on the candidate's scans.
     candidate_lengths: Vec<f64>,
@@ -531,7 +533,7 @@ pub struct FallDetector {
     down_positions: VecDeque<(f64, DVec2)>,
     /// The last scan with the person seen (and classified).
     last_seen_s: Option<f64>,
-    /// The stretches out of sight longer than `GLIMPSE_GAP_S` so far, in all: the seen
+    /// The stretches out of sight longer than `glimpse_gap_s` so far, in all: the seen
     /// clock (the stamp less this) stands still over them.
     hidden_s: f64,
     /// Since when, on the seen clock, the person has been upright without being confirmed
@@ -618,7 +620,10 @@ impl FallDetector {
             if let Some(down) = self.down.as_mut() {
                 down.uncounted_s += unseen_s;
             }
-            if let Some(seen) = self.last_seen_s.filter(|seen| t - seen > GLIMPSE_GAP_S) {
+            if let Some(seen) = self
+                .last_seen_s
+                .filter(|seen| t - seen > self.config.glimpse_gap_s)
+            {
                 self.hidden_s += t - seen;
                 self.candidate = None;
                 self.fall_run = None;
@@ -1227,7 +1232,7 @@ impl FallDetector {
     }
 
     /// The seen clock: the stamp of the last scan the person was seen on, less the stretches
-    /// out of sight longer than `GLIMPSE_GAP_S` before it. It stands still while the person
+    /// out of sight longer than `glimpse_gap_s` before it. It stands still while the person
     /// is out of sight, so what it measures is time seen (glimpse gaps included).
     fn seen_clock_s(&self) -> f64 {
         self.last_seen_s.map_or(0.0, |seen| seen - self.hidden_s)
@@ -2697,6 +2702,24 @@ mod tests {
         assert_eq!(kinds(&alerts), [AlertKind::FallDetected], "{alerts:?}");
     }
 
+    #[test]
+    fn a_shorter_glimpse_gap_breaks_the_getting_up_run() {
+        // The script above with `glimpse_gap_s` under the 0.4 s out of sight: getting up is
+        // read on 0.3 s seen since, not the second that re-arms, so lying again is the same
+        // fall.
+        let script = [
+            (Walking, 3.0, true),
+            (FallingDown, 0.5, true),
+            (LyingDown, 3.0, true),
+            (GettingUp, 0.8, true),
+            (GettingUp, 0.35, false),
+            (GettingUp, 0.3, true),
+            (LyingDown, 3.0, true),
+        ];
+        let alerts = run(&mut detector_with(|c| c.glimpse_gap_s = 0.25), &script);
+        assert_eq!(kinds(&alerts), [AlertKind::FallDetected], "{alerts:?}");
+    }
+
     /// Runs segments of (activity read, seconds, velocity in m/s) at 20 Hz, the person always
     /// seen, from the map origin; returns the alerts.
     fn run_moving(
@@ -3185,6 +3208,12 @@ mod tests {
         };
         let e = FallDetector::new(config).unwrap_err().to_string();
         assert!(e.contains("down_travel_m"), "{e}");
+        let config = FallAlertConfig {
+            glimpse_gap_s: f64::NAN,
+            ..Default::default()
+        };
+        let e = FallDetector::new(config).unwrap_err().to_string();
+        assert!(e.contains("glimpse_gap_s"), "{e}");
         let config = FallAlertConfig {
             down_after_s: f64::NAN,
             ..Default::default()
