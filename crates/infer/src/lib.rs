@@ -465,7 +465,7 @@ fn float_outlet_shape(outlets: &[Outlet], kind: &str, name: &str) -> Result<Vec<
         .ok_or_else(|| format!("no {kind} named '{name}' (the model's {kind}s: {names:?})"))?;
     if outlet.dtype().tensor_type() != Some(TensorElementType::Float32) {
         return Err(format!(
-            "{kind} '{name}' is {:?}, expected a float32 tensor",
+            "{kind} '{name}' is {}, expected a float32 tensor",
             outlet.dtype()
         ));
     }

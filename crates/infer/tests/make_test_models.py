@@ -46,10 +46,10 @@ def weights(logit_scale=1.0, classes=CLASSES, hidden=HIDDEN):
     }
 
 
-def build(w, frame_name="frame", classes=CLASSES, metadata=METADATA, hidden=HIDDEN):
+def build(w, frame_name="frame", classes=CLASSES, metadata=METADATA, hidden=HIDDEN, frame_type=TensorProto.FLOAT):
     f = TensorProto.FLOAT
     inputs = [
-        helper.make_tensor_value_info(frame_name, f, [1, 1, SIZE, SIZE]),
+        helper.make_tensor_value_info(frame_name, frame_type, [1, 1, SIZE, SIZE]),
         helper.make_tensor_value_info("h", f, [1, hidden, HS, HS]),
         helper.make_tensor_value_info("c", f, [1, hidden, HS, HS]),
     ]
@@ -61,8 +61,12 @@ def build(w, frame_name="frame", classes=CLASSES, metadata=METADATA, hidden=HIDD
     init = [numpy_helper.from_array(v, k) for k, v in w.items()]
     init.append(numpy_helper.from_array(np.array([hidden] * 4, dtype=np.int64), "split"))
     n = helper.make_node
-    nodes = [
-        n("MaxPool", [frame_name], ["pooled"], kernel_shape=[2, 2], strides=[2, 2]),
+    # A frame of another element type is cast to float32 first: the graph is valid, only its
+    # input breaks the contract.
+    cast = [] if frame_type == f else [n("Cast", [frame_name], ["frame_f32"], to=f)]
+    pool_input = frame_name if frame_type == f else "frame_f32"
+    nodes = cast + [
+        n("MaxPool", [pool_input], ["pooled"], kernel_shape=[2, 2], strides=[2, 2]),
         n("Concat", ["pooled", "h"], ["x"], axis=1),
         n("Conv", ["x", "w_conv", "b_conv"], ["gates"], pads=[1, 1, 1, 1]),
         n("Split", ["gates", "split"], ["gi", "gf", "go", "gg"], axis=1),
@@ -196,6 +200,7 @@ def main():
     onnx.save(build(w), OUT / "step_model.onnx")
     onnx.save(build(weights(logit_scale=1e4)), OUT / "saturating_model.onnx")
     onnx.save(build(w, frame_name="image"), OUT / "wrong_input_name.onnx")
+    onnx.save(build(w, frame_type=TensorProto.DOUBLE), OUT / "float64_frame.onnx")
     onnx.save(build(weights(classes=8), classes=8), OUT / "wrong_class_count.onnx")
     onnx.save(build(w, metadata={k: v for k, v in METADATA.items() if k != "lidar_har.window"}), OUT / "missing_window.onnx")
     onnx.save(build(w, metadata={**METADATA, "lidar_har.size": "32"}), OUT / "size_mismatch.onnx")

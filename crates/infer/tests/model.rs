@@ -102,6 +102,10 @@ fn contract_violations_are_refused_at_load_naming_file_and_problem() {
     }
     let cases = [
         ("wrong_input_name.onnx", "no input named 'frame'"),
+        (
+            "float64_frame.onnx",
+            "input 'frame' is Tensor<f64>(1, 1, 16, 16), expected a float32 tensor",
+        ),
         ("wrong_class_count.onnx", "output 'logits' has shape [1, 8]"),
         ("missing_window.onnx", "lidar_har.window"),
         ("size_mismatch.onnx", "lidar_har.size = 32"),
