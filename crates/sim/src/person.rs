@@ -345,7 +345,8 @@ impl Traits {
     }
 
     /// Walking, running and unsteady walking: legs swing with `phase`; the stance foot moves
-    /// back at the walking speed when `amp` matches the stride (see `Plan::new`).
+    /// back at the walking speed on average over a step when `amp` matches the stride (see
+    /// `Plan::new`).
     fn gait(&self, a: Activity, phase: f64, amp: f64, t: f64) -> PoseParams {
         let ph = [phase, phase + PI];
         let mut p = PoseParams::default();
@@ -577,7 +578,8 @@ impl Person {
             base_speed * self.traits.pace * self.traits.stride * self.rng.random_range(0.9..=1.1),
         );
         let freq = base_freq * self.traits.pace;
-        // Hip amplitude that makes the stance foot move back at the walking speed:
+        // Hip amplitude that makes the stance foot move back at the walking speed on average
+        // over a step (it slides within the step: docs/simulator.md, "Body model"):
         // stride = speed / freq = 4 * leg * sin(amp).
         let leg = self.traits.dims.leg_length();
         let amp = if a == Activity::Crawling {
