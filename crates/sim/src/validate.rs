@@ -142,6 +142,15 @@ pub fn validate(scene: &Scene) -> Check {
 
 fn check_times(scene: &Scene) -> Check {
     in_range("duration", scene.duration, 1e-3, 1e7)?;
+    // ROS reads a stamp of 0 as unset: a simulated clock at 0 has not started (rclcpp waits
+    // for a /clock after it), and tf2 answers a lookup at time 0 with the latest transform.
+    if scene.start_time == 0 {
+        return fail(
+            "start_time",
+            "0 would stamp the first scan, /map and /tf_static at time 0, which ROS reads as \
+             unset (a simulated clock at 0 has not started); use 1 or later",
+        );
+    }
     if scene.start_time as f64 + scene.duration > LAST_ROS_SECOND as f64 {
         return fail(
             "start_time",
@@ -1040,6 +1049,12 @@ mod tests {
             error(late).contains("start_time: 2200000000 s"),
             "{}",
             error(late)
+        );
+        let zero = "duration: 5\nstart_time: 0\nroom: {outline: [[0,0],[5,0],[5,4],[0,4]]}\nrobot: {start: {x: 0.5, y: 0.5}}\n";
+        assert!(
+            error(zero).contains("start_time: 0 would stamp"),
+            "{}",
+            error(zero)
         );
         assert!(error("").contains("bad.yaml"), "{}", error(""));
         assert!(error("duration: [1").contains("bad.yaml"));
