@@ -6,12 +6,16 @@
 //! cargo run -p lidar-har-rplidar --example rplidar_dump -- --fake [mode] [seconds]
 //! ```
 //! `mode`: standard, express, auto (default) or a device mode name such as Sensitivity.
-//! `-h` / `--help` prints this usage.
+//! `-h` / `--help` prints this usage. Ctrl-C (SIGINT) or SIGTERM ends the run early, with the
+//! device stopped as at the end of SECONDS.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use lidar_har_rplidar::fake::{FakeConfig, FakeLidar, SyntheticRoom};
-use lidar_har_rplidar::{Config, Driver, Event, ScanModeChoice};
+use lidar_har_rplidar::{Config, Driver, Error, Event, ScanModeChoice};
+use signal_hook::consts::{SIGINT, SIGTERM};
 
 /// How long to run without a SECONDS argument.
 const DEFAULT_RUN: Duration = Duration::from_secs(5);
@@ -37,7 +41,8 @@ const USAGE: &str =
 const HELP: &str = "Runs the RPLIDAR driver on a serial device (PORT; BAUD default 115200) or on
 a fake one (--fake), printing one line per scan and per diagnostics report.
 MODE: standard, express, auto (default) or a device mode name such as Sensitivity.
-SECONDS: how long to run, default 5; exits 1 when no scan came in that time.";
+SECONDS: how long to run, default 5; exits 1 when no scan came in that time.
+Ctrl-C or SIGTERM ends the run early (a second one at once, without stopping the device).";
 
 /// Where the command line points the driver, read before anything is opened.
 #[derive(Debug, PartialEq)]
@@ -73,71 +78,35 @@ fn print(line: std::fmt::Arguments) -> bool {
     writeln!(std::io::stdout().lock(), "{line}").is_ok()
 }
 
-fn main() {
-    env_logger::init();
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    // Arguments first, so that a bad one leaves no fake device or temporary directory behind.
-    let (config, rest) = match target(&args) {
-        Ok(Target::Help) => {
-            print(format_args!("{USAGE}\n{HELP}"));
-            return;
-        }
-        Ok(Target::Fake) => (None, &args[1..]),
-        Ok(Target::Port(port)) => {
-            let mut config = Config::new(port);
-            let mut rest = &args[1..];
-            if let Some(baud) = rest.first().and_then(|b| b.parse().ok()) {
-                config.baud = baud;
-                rest = &rest[1..];
-            }
-            (Some(config), rest)
-        }
-        Err(e) => refuse(e),
-    };
-    let mode = match rest.first().map(|m| m.parse::<ScanModeChoice>()) {
-        None => ScanModeChoice::Auto,
-        Some(Ok(m)) => m,
-        Some(Err(e)) => refuse(e),
-    };
-    let run = match rest.get(1).map_or(Ok(DEFAULT_RUN), |s| parse_seconds(s)) {
-        Ok(run) => run,
-        Err(e) => refuse(e),
-    };
-    let mut fake_dir = None;
-    let mut fake = None;
-    let mut config = match config {
-        Some(config) => config,
-        None => {
-            let dir = std::env::temp_dir().join(format!("rplidar-dump-{}", std::process::id()));
-            if let Err(e) = std::fs::create_dir_all(&dir) {
-                eprintln!("cannot create {}: {e}", dir.display());
-                std::process::exit(1);
-            }
-            let link = dir.join("rplidar");
-            fake_dir = Some(dir);
-            match FakeLidar::spawn(&link, FakeConfig::default(), SyntheticRoom::default()) {
-                Ok(device) => fake = Some(device),
-                Err(e) => {
-                    eprintln!("cannot start the fake device: {e}");
-                    std::process::exit(1);
-                }
-            }
-            Config::new(link.to_string_lossy())
-        }
-    };
-    config.scan_mode = mode;
-    let end = Instant::now() + run;
-    let mut driver = match Driver::new(config) {
-        Ok(d) => d,
-        Err(e) => {
-            eprintln!("{e}");
-            std::process::exit(2);
-        }
-    };
+/// A flag set by the first SIGINT or SIGTERM (Ctrl-C, `kill`): killed by them, the program
+/// would leave the device scanning and a PWM motor turning, as the driver is never dropped.
+/// A second signal takes the default action (the way out of a run that does not end).
+fn stop_on_signals() -> std::io::Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [SIGINT, SIGTERM] {
+        // Registered first, so it runs before the flag is set: only a second signal finds it.
+        signal_hook::flag::register_conditional_default(signal, Arc::clone(&stop))?;
+        signal_hook::flag::register(signal, Arc::clone(&stop))?;
+    }
+    Ok(stop)
+}
+
+/// How a run ended.
+struct Outcome {
+    scans: u64,
+    /// The driver's permanent error (a scan mode the device lacks).
+    failure: Option<Error>,
+}
+
+/// Prints the driver's scans and reports until `end`, a permanent error, the reader of stdout
+/// leaving, or `stop`; it then drops the driver, which stops the device (STOP, then PWM 0 for
+/// a motor it started by PWM). `next_event` returns at least once per diagnostics period, so
+/// `stop` is seen promptly.
+fn dump(mut driver: Driver, end: Instant, stop: &AtomicBool) -> Outcome {
     let mut scans = 0u64;
     let mut reader_gone = false;
     let mut failure = None;
-    while Instant::now() < end && !reader_gone {
+    while Instant::now() < end && !reader_gone && !stop.load(Ordering::Relaxed) {
         let event = match driver.next_event() {
             Ok(event) => event,
             Err(e) => {
@@ -184,6 +153,79 @@ fn main() {
         }
     }
     drop(driver);
+    Outcome { scans, failure }
+}
+
+fn main() {
+    env_logger::init();
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    // Arguments first, so that a bad one leaves no fake device or temporary directory behind.
+    let (config, rest) = match target(&args) {
+        Ok(Target::Help) => {
+            print(format_args!("{USAGE}\n{HELP}"));
+            return;
+        }
+        Ok(Target::Fake) => (None, &args[1..]),
+        Ok(Target::Port(port)) => {
+            let mut config = Config::new(port);
+            let mut rest = &args[1..];
+            if let Some(baud) = rest.first().and_then(|b| b.parse().ok()) {
+                config.baud = baud;
+                rest = &rest[1..];
+            }
+            (Some(config), rest)
+        }
+        Err(e) => refuse(e),
+    };
+    let mode = match rest.first().map(|m| m.parse::<ScanModeChoice>()) {
+        None => ScanModeChoice::Auto,
+        Some(Ok(m)) => m,
+        Some(Err(e)) => refuse(e),
+    };
+    let run = match rest.get(1).map_or(Ok(DEFAULT_RUN), |s| parse_seconds(s)) {
+        Ok(run) => run,
+        Err(e) => refuse(e),
+    };
+    // Before anything is opened, so that a signal always finds the handlers.
+    let stop = match stop_on_signals() {
+        Ok(stop) => stop,
+        Err(e) => {
+            eprintln!("cannot handle SIGINT and SIGTERM: {e}");
+            std::process::exit(1);
+        }
+    };
+    let mut fake_dir = None;
+    let mut fake = None;
+    let mut config = match config {
+        Some(config) => config,
+        None => {
+            let dir = std::env::temp_dir().join(format!("rplidar-dump-{}", std::process::id()));
+            if let Err(e) = std::fs::create_dir_all(&dir) {
+                eprintln!("cannot create {}: {e}", dir.display());
+                std::process::exit(1);
+            }
+            let link = dir.join("rplidar");
+            fake_dir = Some(dir);
+            match FakeLidar::spawn(&link, FakeConfig::default(), SyntheticRoom::default()) {
+                Ok(device) => fake = Some(device),
+                Err(e) => {
+                    eprintln!("cannot start the fake device: {e}");
+                    std::process::exit(1);
+                }
+            }
+            Config::new(link.to_string_lossy())
+        }
+    };
+    config.scan_mode = mode;
+    let started = Instant::now();
+    let driver = match Driver::new(config) {
+        Ok(d) => d,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(2);
+        }
+    };
+    let Outcome { scans, failure } = dump(driver, started + run, &stop);
     drop(fake);
     if let Some(dir) = fake_dir {
         let _ = std::fs::remove_dir(dir);
@@ -197,7 +239,7 @@ fn main() {
     if scans == 0 {
         eprintln!(
             "no scan in {:.1} s: the diagnostics above say why (port, baud, scan mode)",
-            run.as_secs_f64()
+            started.elapsed().as_secs_f64()
         );
         std::process::exit(1);
     }
@@ -222,6 +264,67 @@ mod tests {
         let err = target(&["--port"]).unwrap_err();
         assert!(err.contains("unknown option `--port`"), "{err}");
         assert!(target(&[]).is_err());
+    }
+
+    /// The fake's log once `done` holds, or when `limit` has passed.
+    fn log_when(
+        fake: &FakeLidar,
+        limit: Duration,
+        done: impl Fn(&lidar_har_rplidar::fake::FakeLog) -> bool,
+    ) -> lidar_har_rplidar::fake::FakeLog {
+        let deadline = Instant::now() + limit;
+        loop {
+            let log = fake.log();
+            if done(&log) || Instant::now() > deadline {
+                return log;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    #[test]
+    fn sigint_ends_the_run_with_the_device_and_its_pwm_motor_stopped() {
+        // Waits sized for a loaded CI machine; only a run that ignores the signal uses them up.
+        const LIMIT: Duration = Duration::from_secs(20);
+        let stop = stop_on_signals().unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let link = dir.path().join("rplidar");
+        let mut info = FakeConfig::default().info;
+        info.model = 0x28; // an A2 whose accessory board runs the motor only on PWM
+        let fake = FakeLidar::spawn(
+            &link,
+            FakeConfig {
+                info,
+                accessory_board_motor: true,
+                ..FakeConfig::default()
+            },
+            SyntheticRoom::default(),
+        )
+        .unwrap();
+        let mut config = Config::new(link.to_string_lossy());
+        config.request_timeout = LIMIT;
+        config.data_timeout = LIMIT;
+        let driver = Driver::new(config).unwrap();
+        let (finished, outcome) = std::sync::mpsc::channel();
+        let run_stop = Arc::clone(&stop);
+        std::thread::spawn(move || {
+            let run = dump(driver, Instant::now() + Duration::from_secs(600), &run_stop);
+            let _ = finished.send(run.failure.map(|e| e.to_string()));
+        });
+        let log = log_when(&fake, LIMIT, |l| l.rotations_served >= 3);
+        assert_eq!(log.motor_pwm, Some(660), "{log:?}");
+        signal_hook::low_level::raise(SIGINT).unwrap();
+        let failure = outcome
+            .recv_timeout(LIMIT)
+            .expect("the run ends at SIGINT, not after its 600 s");
+        assert_eq!(failure, None);
+        let log = log_when(&fake, LIMIT, |l| l.motor_pwm == Some(0));
+        assert_eq!(log.motor_pwm, Some(0), "the motor is switched off: {log:?}");
+        assert_eq!(
+            log.commands[log.commands.len() - 2..],
+            [0x25, 0xF0],
+            "STOP, then PWM 0"
+        );
     }
 
     #[test]

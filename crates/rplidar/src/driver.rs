@@ -1088,13 +1088,36 @@ impl Driver {
             .map_or_else(|| self.config.port.clone(), DeviceInfo::serial_hex)
     }
 
+    /// How long without a complete rotation before a routine report warns: two turns at the
+    /// measured rate (one late turn is no fault; before a rate is measured, as while the
+    /// motor spins up, `data_timeout`), and never less than the report period.
+    fn rotation_overdue_after(&self) -> Duration {
+        let two_turns = self
+            .status
+            .rotation_hz
+            .and_then(|hz| Duration::try_from_secs_f64(2.0 / hz).ok())
+            .unwrap_or(self.config.data_timeout);
+        two_turns.max(self.config.diagnostics_period)
+    }
+
     fn routine_report(&mut self) {
         let new_scans = self.status.scans - self.scans_at_last_report;
         self.scans_at_last_report = self.status.scans;
+        // By the age of the last rotation, not the rotations of the period: a period shorter
+        // than a turn often has none on a healthy device.
+        let overdue = match &self.state {
+            State::Scanning(session) => Some(session.last_rotation.elapsed())
+                .filter(|&turnless_for| turnless_for > self.rotation_overdue_after()),
+            _ => None,
+        };
         // Every rotation of the period came back empty, not one stray turn: a blinded sensor.
+        // A period without a rotation (shorter than a turn) keeps the last judgement.
         let no_return = self.status.scanning
-            && new_scans > 0
-            && self.status.rotations_without_return >= new_scans;
+            && if new_scans > 0 {
+                self.status.rotations_without_return >= new_scans
+            } else {
+                self.warned_no_return && self.status.rotations_without_return > 0
+            };
         let (level, message) = if !self.status.scanning {
             let why = self
                 .status
@@ -1102,10 +1125,13 @@ impl Driver {
                 .clone()
                 .unwrap_or_else(|| "not connected yet".into());
             (DiagnosticStatus::ERROR, format!("not scanning: {why}"))
-        } else if new_scans == 0 {
+        } else if let Some(turnless_for) = overdue {
             (
                 DiagnosticStatus::WARN,
-                "scanning, but no complete rotation in the last period".to_owned(),
+                format!(
+                    "scanning, but no complete rotation for {:.1} s",
+                    turnless_for.as_secs_f64()
+                ),
             )
         } else if no_return {
             let seconds = self
@@ -1305,10 +1331,16 @@ mod tests {
 
     /// Standard nodes `range` of an endless stream of 100-sample turns.
     fn nodes(range: std::ops::Range<usize>) -> Vec<u8> {
+        nodes_at(range, 1000.0)
+    }
+
+    /// [`nodes`] with every return at `distance_mm` (0: none, a covered window).
+    fn nodes_at(range: std::ops::Range<usize>, distance_mm: f32) -> Vec<u8> {
+        let quality = if distance_mm > 0.0 { 188 } else { 0 };
         range
             .flat_map(|j| {
                 let k = j % TURN;
-                encode::standard_node(k as f32 * 360.0 / TURN as f32, 1000.0, 188, k == 0)
+                encode::standard_node(k as f32 * 360.0 / TURN as f32, distance_mm, quality, k == 0)
             })
             .collect()
     }
@@ -1406,6 +1438,81 @@ mod tests {
                 Event::Diagnostics(_) => None,
             })
             .collect()
+    }
+
+    /// The level and message of each diagnostics report queued, in order.
+    fn reports(driver: &mut Driver) -> Vec<(u8, String)> {
+        driver
+            .pending
+            .drain(..)
+            .filter_map(|e| match e {
+                Event::Diagnostics(array) => Some(array.status),
+                Event::Scan(_) => None,
+            })
+            .flatten()
+            .map(|s| (s.level, s.message))
+            .collect()
+    }
+
+    #[test]
+    fn a_report_period_shorter_than_a_turn_warns_only_when_rotations_are_overdue() {
+        // Two turns at 10 Hz read at once (the rate is measured), then a third that ends
+        // without returns (its first two samples came with the first read).
+        let (mut driver, mut master, _slave) = scanning(nodes(0..2 * TURN + 2));
+        driver.config.diagnostics_period = Duration::from_millis(20);
+        driver.poll_scan();
+        master
+            .write_all(&nodes_at(2 * TURN + 2..3 * TURN + 2, 0.0))
+            .unwrap();
+        driver.poll_scan();
+        assert_eq!(scans(&mut driver).len(), 3);
+        let last_rotation_ago = |driver: &mut Driver, ago: Duration| {
+            let State::Scanning(session) = &mut driver.state else {
+                panic!("not scanning: {:?}", driver.status.last_error);
+            };
+            session.last_rotation = Instant::now() - ago;
+        };
+        // A healthy device between two rotations: the second period has none, and was OK
+        // (it used to warn "no complete rotation in the last period").
+        last_rotation_ago(&mut driver, Duration::from_millis(50));
+        driver.routine_report();
+        driver.routine_report();
+        let got = reports(&mut driver);
+        assert!(
+            got.iter()
+                .all(|(level, m)| *level == DiagnosticStatus::OK && m.starts_with("scanning at")),
+            "{got:?}"
+        );
+
+        // Two turns without a return: blinded, also in the next period without a rotation.
+        master
+            .write_all(&nodes_at(3 * TURN + 2..5 * TURN + 2, 0.0))
+            .unwrap();
+        driver.poll_scan();
+        assert_eq!(scans(&mut driver).len(), 2);
+        last_rotation_ago(&mut driver, Duration::from_millis(50));
+        driver.routine_report();
+        driver.routine_report();
+        let got = reports(&mut driver);
+        assert_eq!(got.len(), 2, "{got:?}");
+        assert!(
+            got.iter().all(|(level, m)| *level == DiagnosticStatus::WARN
+                && m.starts_with("no return on any beam")),
+            "{got:?}"
+        );
+
+        // No rotation for longer than two turns (0.2 s at 10 Hz): stalled, warned.
+        last_rotation_ago(&mut driver, Duration::from_millis(300));
+        driver.routine_report();
+        let got = reports(&mut driver);
+        assert_eq!(got.len(), 1, "{got:?}");
+        assert_eq!(got[0].0, DiagnosticStatus::WARN, "{got:?}");
+        assert!(
+            got[0]
+                .1
+                .starts_with("scanning, but no complete rotation for 0.3 s"),
+            "{got:?}"
+        );
     }
 
     #[test]

@@ -12,9 +12,11 @@
 //! `time_increment` is negative, `−scan_time/beams`, so `stamp + i·time_increment` is the
 //! time of beam `i`.
 //!
-//! Every scan has the same number of beams. A beam without a valid return is `+inf`; when
-//! several samples fall into one beam the nearest wins (the conservative choice for a
-//! safety sensor).
+//! Every scan has the same number of beams. A beam without a valid return is `+inf`, or
+//! `-inf` when its only returns were closer than `range_min` (REP 117: too close to
+//! measure, so that consumers do not take it for free space); when several valid samples
+//! fall into one beam the nearest wins (the conservative choice for a safety sensor).
+//! `intensities` are the sample quality on `rplidar_ros`'s scale, 0..=63.
 
 use std::f32::consts::PI;
 
@@ -97,7 +99,7 @@ pub struct ScanFrame {
     pub range_min: f32,
     pub range_max: f32,
     pub ranges: Vec<f32>,
-    /// Sample quality, 0..=255 (0 where no return).
+    /// Sample quality >> 2, 0..=63 as `rplidar_ros` publishes it (0 where no return).
     pub intensities: Vec<f32>,
     /// Samples the device delivered in this rotation (whatever the beam count).
     pub samples_in_rotation: usize,
@@ -114,13 +116,20 @@ impl ScanFrame {
         let mut intensities = vec![0.0f32; beams];
         for s in &rotation.samples {
             let r = s.distance_mm / 1000.0;
-            if !(r > 0.0 && r >= geometry.range_min_m && r <= geometry.range_max_m) {
+            // Distance 0 is the device's "no return"; beyond range_max the beam stays +inf.
+            if !(r > 0.0 && r <= geometry.range_max_m) {
                 continue;
             }
             let beam = geometry.beam_of(s.angle_deg);
-            if r < ranges[beam] {
+            if r < geometry.range_min_m {
+                // Something too close to measure, unless the beam has a valid return.
+                if ranges[beam] == f32::INFINITY {
+                    ranges[beam] = f32::NEG_INFINITY;
+                }
+            } else if !ranges[beam].is_finite() || r < ranges[beam] {
                 ranges[beam] = r;
-                intensities[beam] = f32::from(s.quality);
+                // rplidar_ros's scale (quality >> 2), so thresholds tuned on it carry over.
+                intensities[beam] = f32::from(s.quality >> 2);
             }
         }
         let scan_time = rotation.period_s() as f32;
@@ -236,8 +245,13 @@ mod tests {
         assert_eq!(f.intensities.len(), 360);
         assert_eq!(f.valid_beams, 1);
         assert_eq!(f.ranges[g.beam_of(10.0)], 1.5);
-        assert_eq!(f.intensities[g.beam_of(10.0)], 60.0);
-        assert!(f.ranges[g.beam_of(20.0)].is_infinite() && f.ranges[g.beam_of(30.0)].is_infinite());
+        // rplidar_ros's scale: quality >> 2.
+        assert_eq!(f.intensities[g.beam_of(10.0)], 15.0);
+        // No return (distance 0) and beyond range_max: +inf; closer than range_min: -inf.
+        assert_eq!(f.ranges[g.beam_of(20.0)], f32::INFINITY);
+        assert_eq!(f.ranges[g.beam_of(30.0)], f32::NEG_INFINITY);
+        assert_eq!(f.intensities[g.beam_of(30.0)], 0.0);
+        assert_eq!(f.ranges[g.beam_of(40.0)], f32::INFINITY);
         assert!((f.scan_time - 0.1).abs() < 1e-6);
         assert!((f.time_increment + 0.1 / 360.0).abs() < 1e-9);
         // Beam 0 is measured last, just before the rotation ends.
@@ -245,6 +259,38 @@ mod tests {
         let msg = f.to_laser_scan("laser");
         assert_eq!(msg.header.frame_id, "laser");
         assert_eq!(msg.ranges.len(), 360);
+    }
+
+    #[test]
+    fn a_valid_return_beats_one_too_close_to_measure_in_either_order() {
+        let g = geometry(360);
+        let t = Instant::now();
+        let sample = |angle_deg: f32, distance_mm: f32| RotationSample {
+            angle_deg,
+            distance_mm,
+            quality: 188,
+        };
+        let rotation = Rotation {
+            samples: vec![
+                // Too close, then valid; valid, then too close; only too close.
+                sample(10.0, 100.0),
+                sample(10.2, 800.0),
+                sample(20.0, 900.0),
+                sample(20.2, 100.0),
+                sample(30.0, 100.0),
+                sample(30.2, 120.0),
+            ],
+            started: t,
+            ended: t + Duration::from_millis(100),
+        };
+        let f = ScanFrame::from_rotation(&rotation, 0, &g);
+        assert_eq!(f.ranges[g.beam_of(10.0)], 0.8);
+        assert_eq!(f.ranges[g.beam_of(20.0)], 0.9);
+        assert_eq!(f.ranges[g.beam_of(30.0)], f32::NEG_INFINITY);
+        assert_eq!(f.valid_beams, 2);
+        // A capsule sample's quality 188 is rplidar_ros's 47.
+        assert_eq!(f.intensities[g.beam_of(10.0)], 47.0);
+        assert_eq!(f.intensities[g.beam_of(30.0)], 0.0);
     }
 
     #[test]
