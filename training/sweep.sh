@@ -7,7 +7,7 @@ set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 ROOT="$(cd "$HERE/.." && pwd)"
 cd "$ROOT"
-"$HERE/train.sh" --help >/dev/null # creates training/.venv when missing
+"$HERE/train.sh" --setup # creates training/.venv when missing
 case " $* " in
 *" --report-only "* | *" --retime "*) ;;
 *)

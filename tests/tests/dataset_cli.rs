@@ -507,6 +507,23 @@ fn evaluate_refuses_a_dataset_whose_test_episodes_the_model_trained_on() {
         "{stderr}"
     );
     assert!(!dir.path().join("eval").exists());
+    // The same report with a diverged epoch's loss as Python's json wrote it until session
+    // 57 (a bare NaN, no JSON): evaluated, but not in silence.
+    let report = dir.path().join("model.training.json");
+    let text = serde_json::json!({ "dataset_generator": larger, "history": [{ "loss": 0.5 }] })
+        .to_string()
+        .replace("0.5", "NaN");
+    std::fs::write(&report, text).unwrap();
+    let out = evaluate(&model, &data, &dir.path().join("eval"));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "lidar-har: warning: {}: the training report is not JSON: expected value",
+            report.display()
+        )) && stderr.contains("trained on the test episodes of"),
+        "{stderr}"
+    );
     // Trained on this very dataset: its test episodes were not trained on.
     training_report(&index["generator"]);
     let out = evaluate(&model, &data, &dir.path().join("eval"));

@@ -4,14 +4,13 @@ The exported graph is `(frame, h, c) -> (logits, h_next, c_next)` (docs/model_co
 Parity: whole windows are stepped from zero states through the PyTorch model in float64 (the
 exact function of the exported weights; float32 PyTorch has rounding errors of its own, about
 as large as ONNX Runtime's) and through ONNX Runtime, which at every step is given the same
-frame and the reference's state; the largest difference of logits and states must be at most
-1e-5 absolute for values up to 1 in magnitude, and 1e-5 of the largest magnitude above that
-(float32 keeps about seven digits: a cell state of magnitude 20 is a few ulps from the exact
-value at 1e-5 absolute); else the export fails, leaving what was at `--out` as it was (the
-refused export is kept as `<out>.rejected.onnx`). Against float32
-PyTorch, free-running, one retraining of the sweep's reference failed at 1.1e-5 on h: the
-check measured two runtimes' rounding, not the export. How far ONNX Runtime drifts when it
-carries its own state through a whole window is reported too, not checked. The report keeps
+frame and the reference's state; the largest difference of each output (logits, h, c) must be
+at most 1e-5 absolute (the issue's limit; the cell state's values reach about 20, where 1e-5 is
+a few float32 ulps, but every export measured this way was within it); else the export fails,
+leaving what was at `--out` as it was (the refused export is kept as `<out>.rejected.onnx`).
+Against float32 PyTorch, free-running, one retraining of the sweep's reference failed at 1.1e-5
+on h: the check measured two runtimes' rounding, not the export. How far ONNX Runtime drifts
+when it carries its own state through a whole window is reported too, not checked. The report keeps
 the figures per output for both (`step`, `window`).
 
 Rechecking a committed model (the PyTorch model is rebuilt from the ONNX file's weights):
@@ -81,7 +80,7 @@ def export_step_model(model: ActivityConvLSTM, spec: dict, out: Path, windows_u8
         failed = outside_tolerance(figures["step"])
         if failed:
             rejected = set_aside(temp, out)
-            raise ExportError(f"parity check failed (limit {PARITY_TOLERANCE:.0e} x max(1, largest magnitude)): "
+            raise ExportError(f"parity check failed (limit {PARITY_TOLERANCE:.0e} absolute): "
                               f"{failed}; {out} is not written, the refused export is {rejected}")
     return figures
 
@@ -108,10 +107,9 @@ def image_metadata(spec: dict) -> dict:
 
 
 def outside_tolerance(figures: dict) -> dict:
-    """The outputs whose difference exceeds 1e-5, absolute up to magnitude 1, relative above
-    (one kind of figures: `parity(...)["step"]`)."""
-    return {name: f for name, f in figures.items()
-            if not f["max_abs_diff"] <= PARITY_TOLERANCE * max(1.0, f["max_abs_value"])}
+    """The outputs whose largest absolute difference exceeds `PARITY_TOLERANCE` (one kind of
+    figures: `parity(...)["step"]`); a NaN difference exceeds it."""
+    return {name: f for name, f in figures.items() if not f["max_abs_diff"] <= PARITY_TOLERANCE}
 
 
 def check_io(proto, size: int, hidden: int, hs: int):
@@ -212,7 +210,8 @@ def main(argv=None) -> int:
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     try:
         index = load_index(args.data)
-        split = load_split(args.data, index, "test")
+        # Mapped: only the 16 windows stepped are read.
+        split = load_split(args.data, index, "test", mapped=True)
         if split is None:
             raise DatasetError(f"{args.data}: no test split")
         # The dataset's image settings: a model of another image is named as such, not
@@ -223,7 +222,7 @@ def main(argv=None) -> int:
         return 1
     print(json.dumps(figures, indent=2))
     ok = not outside_tolerance(figures["step"])
-    print(f"step parity {'within' if ok else 'OUTSIDE'} {PARITY_TOLERANCE:.0e} x max(1, largest magnitude)")
+    print(f"step parity {'within' if ok else 'OUTSIDE'} {PARITY_TOLERANCE:.0e} absolute")
     return 0 if ok else 1
 
 

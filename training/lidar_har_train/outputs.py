@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import json
+import math
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -45,3 +47,21 @@ def set_aside(temp: Path, out: Path) -> Path:
     rejected = out.with_name(f"{out.stem}.rejected{out.suffix}")
     os.replace(temp, rejected)
     return rejected
+
+
+def report_json(report) -> str:
+    """`report` as JSON text, a non-finite number (a diverged epoch's loss, the accuracy of no
+    window) as null: Python's default writes a bare `NaN`, which is no JSON, and a reader
+    (`lidar-har evaluate`) then cannot read the report at all."""
+    return json.dumps(finite_or_none(report), indent=2, allow_nan=False) + "\n"
+
+
+def finite_or_none(value):
+    """`value` with every non-finite float inside it replaced by None."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: finite_or_none(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_none(item) for item in value]
+    return value

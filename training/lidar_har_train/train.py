@@ -12,8 +12,6 @@ the square image (the map frame has no preferred direction for a person), and sm
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import os
 import random
@@ -26,52 +24,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from .arguments import at_least, number
 from .data import CLASSES, DatasetError, Split, load_index, load_split
 from .export import ExportError, export_step_model, model_from_onnx
 from .model import ActivityConvLSTM
-from .outputs import OutputError, prepare_output
-
-
-def parse_args(argv):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--data", type=Path, required=True, help="dataset directory (index.json + .npy)")
-    p.add_argument("--out", type=Path, required=True, help="ONNX file to write")
-    p.add_argument("--hidden", type=at_least(1), default=16, help="ConvLSTM hidden channels")
-    p.add_argument("--encoder-channels", type=at_least(1), default=8)
-    p.add_argument("--batch", type=at_least(1), default=64)
-    p.add_argument("--lr", type=number(above=0), default=3e-3, help="learning rate at the start")
-    p.add_argument("--lr-final", type=number(minimum=0), default=1e-4,
-                   help="learning rate at the end: a cosine from --lr reaches it when --max-epochs or "
-                        "--time-budget-min runs out, whichever comes first (equal to --lr: constant)")
-    p.add_argument("--max-epochs", type=at_least(1), default=40)
-    p.add_argument("--patience", type=at_least(1), default=5, help="epochs without validation gain before stopping")
-    p.add_argument("--steps-per-epoch", type=at_least(1), default=150, help="balanced batches drawn per epoch")
-    p.add_argument("--time-budget-min", type=number(above=0), default=45.0,
-                   help="stop training after this many minutes")
-    p.add_argument("--val-fraction", type=number(above=0, below=1), default=0.15,
-                   help="share of training episodes held for validation")
-    p.add_argument("--threads", type=at_least(1), default=2)
-    p.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto",
-                   help="where to train: auto takes a CUDA GPU when PyTorch sees one (the export and its "
-                        "parity check always run on the CPU)")
-    p.add_argument("--seed", type=at_least(0), default=7)
-    p.add_argument("--no-augment", action="store_true")
-    p.add_argument("--shift-px", type=at_least(0), default=2,
-                   help="augmentation: random shift of each window by up to this many pixels")
-    p.add_argument("--bf16", action="store_true",
-                   help="bfloat16 autocast for the forward pass (GPUs, and CPUs with AVX-512 BF16 or AMX): 1.25x "
-                        "the steps per second on the development machine; weights, loss and export stay float32")
-    p.add_argument("--mask-hidden-steps", action="store_true",
-                   help="leave out of the loss, and of the validation score, the steps at which the localiser did "
-                        "not see the person (the dataset's positions; the robot publishes nothing for them)")
-    p.add_argument("--init-from", type=Path, metavar="MODEL.onnx",
-                   help="start from an exported model's weights instead of random ones (fine-tuning, or going on "
-                        "where a time budget stopped); its image must be the dataset's, and its hidden and encoder "
-                        "sizes replace --hidden and --encoder-channels")
-    p.add_argument("--skip-test-eval", action="store_true",
-                   help="skip PyTorch metrics on the test splits (`lidar-har evaluate` gives them through ONNX Runtime)")
-    return p.parse_args(argv)
+from .outputs import OutputError, prepare_output, report_json
+from .train_args import parse_args
 
 
 class DeviceError(Exception):
@@ -125,6 +82,15 @@ def shift(window: np.ndarray, dy: int, dx: int) -> np.ndarray:
     return out
 
 
+def check_shift(shift_px: int, size: int):
+    """A shift of half the image or more moves a person seen at its centre out of it (the
+    window would be trained on, empty, as their activity); one of the whole image cannot be
+    made at all. Known only once the dataset's image size is."""
+    if 2 * shift_px >= size:
+        raise DatasetError(f"--shift-px {shift_px}: the dataset's images are {size} pixels wide, and a shift of "
+                           f"half that or more moves the person out of the image (at most {(size - 1) // 2})")
+
+
 def augment(batch: np.ndarray, rng: np.random.Generator, shift_px: int = 0) -> np.ndarray:
     """One of the eight square symmetries per window (same for all its frames), then a shift
     of up to `shift_px` pixels each way: the localiser's position error moves the person in
@@ -166,7 +132,8 @@ def predict(model: ActivityConvLSTM, split: Split, batch: int = 256) -> np.ndarr
     model.eval()
     out = []
     for start in range(0, len(split), batch):
-        out.append(model(to_tensor(split.images[start : start + batch], model.device)).cpu().numpy())
+        # A copy of the batch: a mapped split's slice is read-only, which torch.from_numpy warns about.
+        out.append(model(to_tensor(np.array(split.images[start : start + batch]), model.device)).cpu().numpy())
     return np.concatenate(out) if out else np.zeros((0, split.images.shape[1], len(CLASSES)), np.float32)
 
 
@@ -223,11 +190,13 @@ def train(args) -> int:
     prepare_output(args.out)
     index = load_index(args.data)
     spec = index["spec"]
-    train_all = load_split(args.data, index, "train")
+    check_shift(args.shift_px, spec["size"])
+    # Mapped: the two parts are copies of the windows they take (the only copies in memory);
+    # a loaded whole split beside them doubled the images' memory at its peak.
+    train_all = load_split(args.data, index, "train", mapped=True)
     if train_all is None:
         raise DatasetError(f"{args.data}: the train split is empty")
     train_split, val_split = split_validation(train_all, args.val_fraction, rng)
-    # The two splits are copies: holding the whole split too would double the images' memory.
     del train_all
     print(f"train {len(train_split)} windows, validation {len(val_split)} windows "
           f"({len(np.unique(val_split.episodes))} episodes)", flush=True)
@@ -293,13 +262,14 @@ def train(args) -> int:
 
     results = {"validation": summarise(predict(model, val_split), val_split, args.mask_hidden_steps)}
     for name in () if args.skip_test_eval else ("test", "test_unseen"):
-        split = load_split(args.data, index, name)
+        split = load_split(args.data, index, name, mapped=True)
         if split is not None:
             results[name] = summarise(predict(model, split), split)
             print(f"{name}: accuracy at T {results[name]['accuracy_at_T']:.4f}, "
                   f"at T/2 {results[name]['accuracy_at_T_half']:.4f} ({len(split)} windows)", flush=True)
 
-    parity_split = load_split(args.data, index, "test") or val_split
+    # Mapped: 16 windows are read, not the whole split.
+    parity_split = load_split(args.data, index, "test", mapped=True) or val_split
     parity = export_step_model(model.cpu(), spec, args.out, parity_split.images[:16])
     parity_max = max(f["max_abs_diff"] for f in parity["step"].values())
     report = {
@@ -319,7 +289,7 @@ def train(args) -> int:
         "parity": parity,
     }
     report_path = args.out.with_suffix(".training.json")
-    report_path.write_text(json.dumps(report, indent=2) + "\n")
+    report_path.write_text(report_json(report))
 
     def per_output(kind):
         return ", ".join(f"{name} {f['max_abs_diff']:.2e} (values up to {f['max_abs_value']:.1f})"

@@ -1,9 +1,10 @@
+import json
 import os
 import tempfile
 import unittest
 from pathlib import Path
 
-from lidar_har_train.outputs import OutputError, prepare_output, replaced_when_done, set_aside
+from lidar_har_train.outputs import OutputError, prepare_output, replaced_when_done, report_json, set_aside
 
 
 class ReplacedWhenDone(unittest.TestCase):
@@ -52,6 +53,22 @@ class ReplacedWhenDone(unittest.TestCase):
         with self.assertRaises(OutputError) as refused:
             prepare_output(self.out)
         self.assertIn(f"{self.out}: cannot make its folder {blocker}", str(refused.exception))
+
+
+class ReportJson(unittest.TestCase):
+    """train.py writes its report with `report_json`: `lidar-har evaluate` reads it (the
+    train/test leak check) and refused the whole file over one bare NaN."""
+
+    def test_non_finite_numbers_are_written_as_null(self):
+        report = {"history": [{"epoch": 1, "loss": 0.5}, {"epoch": 2, "loss": float("nan")}],
+                  "results": {"validation": {"accuracy_at_T": float("inf"), "recall_at_T": (None, -float("inf"))}},
+                  "best_epoch": 1}
+        text = report_json(report)
+        self.assertEqual(json.loads(text, parse_constant=lambda name: self.fail(f"{name} in {text}")), {
+            "history": [{"epoch": 1, "loss": 0.5}, {"epoch": 2, "loss": None}],
+            "results": {"validation": {"accuracy_at_T": None, "recall_at_T": [None, None]}},
+            "best_epoch": 1})
+        self.assertTrue(text.endswith("}\n"))
 
 
 if __name__ == "__main__":

@@ -414,18 +414,23 @@ fn check_model_matches(stream: &StreamSpec, spec: &DatasetSpec, path: &Path) -> 
 /// (`M.training.json` beside `M.onnx`) records: a dataset made with the same `--seed` but
 /// another `--episodes` or `--test-fraction` holds the same episodes split otherwise, and
 /// its figures would flatter the model. Without a report (or one naming no dataset)
-/// nothing can be checked. A model fine-tuned from another (`--init-from`) names only its
-/// last dataset.
+/// nothing can be checked; a report that cannot be read is warned about, naming why (until
+/// session 57 it was passed over in silence: train.py wrote a diverged epoch's loss as a
+/// bare `NaN`, which is no JSON). A model fine-tuned from another (`--init-from`) names
+/// only its last dataset.
 fn check_not_trained_on(model: &Path, index: &DatasetIndex, data: &Path) -> anyhow::Result<()> {
     let report = model.with_extension("training.json");
-    let Ok(text) = std::fs::read_to_string(&report) else {
-        return Ok(());
-    };
-    let trained_on: Option<Generator> = serde_json::from_str::<serde_json::Value>(&text)
-        .ok()
-        .and_then(|r| serde_json::from_value(r.get("dataset_generator")?.clone()).ok());
-    let Some(trained_on) = trained_on else {
-        return Ok(());
+    let trained_on = match training_dataset(&report) {
+        Ok(Some(generator)) => generator,
+        Ok(None) => return Ok(()),
+        Err(err) => {
+            errln!(
+                "lidar-har: warning: {err:#}; whether {} trained on the test episodes of {} is not checked",
+                model.display(),
+                data.display()
+            );
+            return Ok(());
+        }
     };
     let Some(trained) = trained_on.trained_episodes() else {
         return Ok(());
@@ -454,6 +459,32 @@ fn check_not_trained_on(model: &Path, index: &DatasetIndex, data: &Path) -> anyh
         );
     }
     Ok(())
+}
+
+/// The dataset a training report (`M.training.json`) names: `None` without a report, or
+/// with one that names none (a dataset made before `index.json` recorded its generator).
+fn training_dataset(report: &Path) -> anyhow::Result<Option<Generator>> {
+    let text = match std::fs::read_to_string(report) {
+        Ok(text) => text,
+        Err(err) if err.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(err) => bail!(
+            "{}: cannot read the training report: {err}",
+            report.display()
+        ),
+    };
+    let value: serde_json::Value = serde_json::from_str(&text)
+        .with_context(|| format!("{}: the training report is not JSON", report.display()))?;
+    match value.get("dataset_generator") {
+        None | Some(serde_json::Value::Null) => Ok(None),
+        Some(generator) => serde_json::from_value(generator.clone())
+            .map(Some)
+            .with_context(|| {
+                format!(
+                    "{}: the training report's dataset_generator is not a dataset's generator",
+                    report.display()
+                )
+            }),
+    }
 }
 
 fn evaluate_split(
@@ -862,6 +893,46 @@ fn draw_confusion(confusion: &ConfusionMatrix, split: &str, path: &Path) -> anyh
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A training report that exists but cannot be read is an error naming it and why (a
+    /// bare `NaN`, as train.py wrote a diverged epoch's loss until session 57, used to read as
+    /// no report); no report, or one naming no dataset, is `None`.
+    #[test]
+    fn a_training_report_that_cannot_be_read_is_named_with_why() {
+        let dir = tempfile::tempdir().unwrap();
+        let report = dir.path().join("m.training.json");
+        assert!(training_dataset(&report).unwrap().is_none(), "no report");
+        let why = |text: &str| {
+            std::fs::write(&report, text).unwrap();
+            format!("{:#}", training_dataset(&report).unwrap_err())
+        };
+        let named = report.display().to_string();
+        let nan = why(r#"{"dataset_generator": null, "history": [{"loss": NaN}]}"#);
+        assert!(
+            nan.starts_with(&format!(
+                "{named}: the training report is not JSON: expected value at line 1"
+            )),
+            "{nan}"
+        );
+        let generator = why(r#"{"dataset_generator": {"seed": "five"}}"#);
+        assert!(
+            generator.starts_with(&format!("{named}: the training report's dataset_generator")),
+            "{generator}"
+        );
+        for names_none in [r#"{"dataset_generator": null}"#, r#"{"history": []}"#] {
+            std::fs::write(&report, names_none).unwrap();
+            assert!(training_dataset(&report).unwrap().is_none(), "{names_none}");
+        }
+        std::fs::create_dir(dir.path().join("d.training.json")).unwrap();
+        let unreadable = format!(
+            "{:#}",
+            training_dataset(&dir.path().join("d.training.json")).unwrap_err()
+        );
+        assert!(
+            unreadable.contains("cannot read the training report"),
+            "{unreadable}"
+        );
+    }
 
     /// The pixels of a box of the picture, row by row.
     fn pixels(img: &image::RgbImage, (x0, y0): (i32, i32), (w, h): (i32, i32)) -> Vec<[u8; 3]> {
