@@ -3,7 +3,7 @@
 
 use std::cell::Cell;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -316,40 +316,62 @@ pub fn run(node: &NodeInfo, body: impl FnOnce(&Shutdown) -> anyhow::Result<()>) 
 /// [`lidar_har_bag::remove_temporary_copies`]), which stops a decompression under way. A
 /// second SIGINT or SIGTERM ends the process at once, by that signal (the shell sees 130 or
 /// 143), as the `lidar-har` tool does: a node whose clean stop is held up (a DDS stack that
-/// hangs) used to ignore every further signal but SIGKILL.
+/// hangs) used to ignore every further signal but SIGKILL. The same signal again within
+/// [`REPEAT_GRACE`] of the first is the same request, not a second: one sender may deliver
+/// it twice (coreutils `timeout` signals the child and its process group; `ros2 launch
+/// --noninteractive` under a terminal resends the terminal's Ctrl-C), and 1 stop in 12 of a
+/// replay under `timeout -s INT` skipped its clean stop (status 130).
 #[derive(Clone)]
-pub struct Shutdown(Arc<AtomicBool>);
+pub struct Shutdown(Arc<AtomicI32>);
+
+/// How long a repeat of the first signal counts as the same request (see [`Shutdown`]).
+const REPEAT_GRACE: Duration = Duration::from_secs(1);
+
+/// Whether a signal after the first ends the process at once: another kind of signal does
+/// (`ros2 launch` escalates SIGINT to SIGTERM), the same one only once `grace_over`.
+fn repeat_ends_at_once(first: i32, this: i32, grace_over: bool) -> bool {
+    this != first || grace_over
+}
 
 impl Shutdown {
     fn install() -> std::io::Result<Self> {
-        let flag = Arc::new(AtomicBool::new(false));
+        // The first signal's number, 0 before any.
+        let first = Arc::new(AtomicI32::new(0));
+        let grace_over = Arc::new(AtomicBool::new(false));
         let handled = [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM];
         for signal in handled {
-            let requested = flag.clone();
+            let (first, grace_over) = (first.clone(), grace_over.clone());
             // In the handler itself, not in a thread reading `Signals` (which may take two
-            // quick signals of one kind for one): the first signal sets the flag, any later
-            // one finds it set and takes the signal's default action. One atomic swap, so
-            // that of two signals handled at once on two threads, one is the second.
+            // quick signals of one kind for one): the first signal is recorded, a later one
+            // that counts as a second takes the signal's default action. One atomic
+            // exchange, so that of two signals handled at once on two threads, one is the
+            // second.
             let action = move || {
-                if requested.swap(true, Ordering::SeqCst) {
+                if let Err(earlier) =
+                    first.compare_exchange(0, signal, Ordering::SeqCst, Ordering::SeqCst)
+                    && repeat_ends_at_once(earlier, signal, grace_over.load(Ordering::SeqCst))
+                {
                     let _ = signal_hook::low_level::emulate_default_handler(signal);
                 }
             };
-            // SAFETY: the action only swaps an atomic and emulates the default action, which
-            // is async-signal-safe (it is what `flag::register_conditional_default` runs).
+            // SAFETY: the action only reads and exchanges atomics and emulates the default
+            // action, which is async-signal-safe (it is what
+            // `flag::register_conditional_default` runs).
             unsafe { signal_hook::low_level::register(signal, action) }?;
         }
         let mut signals = signal_hook::iterator::Signals::new(handled)?;
         std::thread::spawn(move || {
             if signals.forever().next().is_some() {
                 lidar_har_bag::remove_temporary_copies();
+                std::thread::sleep(REPEAT_GRACE);
+                grace_over.store(true, Ordering::SeqCst);
             }
         });
-        Ok(Self(flag))
+        Ok(Self(first))
     }
 
     pub fn requested(&self) -> bool {
-        self.0.load(Ordering::Relaxed)
+        self.0.load(Ordering::Relaxed) != 0
     }
 
     /// Sleeps until `deadline` in short steps; false when shutdown was requested meanwhile.
@@ -437,6 +459,18 @@ pub fn seconds(
 mod tests {
     use super::*;
     use lidar_har_ros::{ParamDecl, ParamValue, Parameters};
+
+    #[test]
+    fn a_repeat_of_the_first_signal_within_the_grace_is_the_same_request() {
+        use signal_hook::consts::{SIGINT, SIGTERM};
+        // `timeout -s INT` delivers one SIGINT twice: one clean stop.
+        assert!(!repeat_ends_at_once(SIGINT, SIGINT, false));
+        // Ctrl-C again after the grace, or SIGTERM after SIGINT (as `ros2 launch`
+        // escalates), ends the process at once.
+        assert!(repeat_ends_at_once(SIGINT, SIGINT, true));
+        assert!(repeat_ends_at_once(SIGINT, SIGTERM, false));
+        assert!(repeat_ends_at_once(SIGTERM, SIGINT, false));
+    }
 
     fn params(value: f64) -> Parameters {
         let decls = [ParamDecl::new("period", ParamValue::Double(1.0), "s")];

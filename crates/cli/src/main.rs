@@ -4,6 +4,7 @@
 
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicI32, Ordering};
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
@@ -85,9 +86,10 @@ static STOP_SIGNAL: AtomicI32 = AtomicI32::new(0);
 /// way it deletes the bag reader's temporary copies (a storage file rosbag2 compressed whole,
 /// `.zstd`, is read from a decompressed copy in $TMPDIR as large as the file uncompressed),
 /// which also stops a decompression under way: a process ended by a signal runs no
-/// destructors. A second signal ends the process at once. A signal the process started with
-/// ignored (a background job of a script) stays ignored. Not for `topic echo`, which turns
-/// both signals into a clean stop of its own.
+/// destructors. A second signal ends the process at once (the same signal again within
+/// `REPEAT_GRACE` is not a second). A signal the process started with ignored (a background
+/// job of a script) stays ignored. Not for `topic echo`, which turns both signals into a
+/// clean stop of its own.
 fn stop_on_signal() -> anyhow::Result<StopRequest> {
     use signal_hook::consts::{SIGINT, SIGTERM};
     let handled = [SIGINT, SIGTERM].into_iter().filter(|&s| !ignored(s));
@@ -108,12 +110,21 @@ fn stop_on_signal() -> anyhow::Result<StopRequest> {
             request.request(format!("interrupted by {name}"));
             lidar_har_bag::remove_temporary_copies();
         }
-        if let Some(signal) = received.next() {
-            end_by(signal);
+        // The same signal again within a second is the same request: one sender may deliver
+        // it twice (coreutils `timeout` signals the process and its process group).
+        let first_at = Instant::now();
+        let first = STOP_SIGNAL.load(Ordering::SeqCst);
+        for signal in received {
+            if signal != first || first_at.elapsed() >= REPEAT_GRACE {
+                end_by(signal);
+            }
         }
     });
     Ok(stop)
 }
+
+/// How long a repeat of the first signal counts as the same request.
+const REPEAT_GRACE: Duration = Duration::from_secs(1);
 
 /// Ends the process by `signal`, its default action, as if it had not been handled.
 fn end_by(signal: i32) -> ! {
