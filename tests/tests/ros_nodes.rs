@@ -761,6 +761,45 @@ echo "domain_exit=$?"
     );
 }
 
+/// A learned background takes the Lidar as fixed: the localiser says so at start-up when
+/// `moving` (robot.yaml's value) or `wait_for_map_to_odom` asks otherwise, which it used to
+/// ignore without a word (a robot's scans placed as a fixed Lidar's), and is quiet with
+/// `moving:=false`.
+#[test]
+fn ros_localiser_warns_that_a_learned_background_ignores_moving() {
+    if !netns_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let script = r#"
+"$LOC" --ros-args -p learned_background:=true 2> "$OUT/moving.txt" & L=$!
+wait_until 20 has_lines "$OUT/moving.txt" 1
+kill -INT $L; wait $L; echo "moving=$?"
+"$LOC" --ros-args -p learned_background:=true -p moving:=false 2> "$OUT/fixed.txt" & L=$!
+wait_until 20 topics_listed /tf
+kill -INT $L; wait $L; echo "fixed=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("LH", &workspace_bin("lidar-har")),
+            ("LOC", &workspace_bin("localiser")),
+            ("OUT", dir.path()),
+        ],
+        Duration::from_secs(60),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("moving=0") && stdout.contains("fixed=0"),
+        "{stdout}"
+    );
+    let ignored = "moving:=true and wait_for_map_to_odom:=false are ignored";
+    let moving = std::fs::read_to_string(dir.path().join("moving.txt")).unwrap();
+    assert!(moving.contains(ignored), "{moving}");
+    let fixed = std::fs::read_to_string(dir.path().join("fixed.txt")).unwrap();
+    assert!(!fixed.contains("are ignored"), "{fixed}");
+}
+
 /// The driver checks its parameters before it joins the graph, as the replay does: a bad one
 /// used to be found with the participant up, and runs printed the DDS stack's discovery
 /// warnings before the one-line error. A bad `ROS_DOMAIN_ID`, which only joining the graph

@@ -96,9 +96,20 @@ fn stage(p: &Parameters) -> Result<LocaliserStage, RosError> {
         (None, true) => RoomSource::LearnedBackground,
         (None, false) => RoomSource::MapTopic,
     };
-    let mut stage = LocaliserStage::new(config, room, p.bool("moving")?)
-        .map_err(|e| bad_parameter("config", e))?;
-    stage.set_wait_for_map_to_odom(p.bool("wait_for_map_to_odom")?);
+    let (moving, wait_for_map_to_odom) = (p.bool("moving")?, p.bool("wait_for_map_to_odom")?);
+    if learned && (moving || wait_for_map_to_odom) {
+        // `robot.yaml` sets moving: a map-less user who adds only learned_background got a
+        // robot's scans placed as a fixed Lidar's without a word (27 tracks for one person).
+        log::warn!(
+            "learned_background:=true takes the Lidar as fixed where it learned the room: \
+             odometry and map -> odom are not used, so moving:={moving} and \
+             wait_for_map_to_odom:={wait_for_map_to_odom} are ignored (set moving:=false for \
+             a fixed Lidar; a robot that moves needs a map: map_file or /map)"
+        );
+    }
+    let mut stage =
+        LocaliserStage::new(config, room, moving).map_err(|e| bad_parameter("config", e))?;
+    stage.set_wait_for_map_to_odom(wait_for_map_to_odom);
     Ok(stage)
 }
 
