@@ -893,6 +893,17 @@ fn the_classifier_tells_a_missing_runtime_from_a_bad_model() {
             "exit=2",
             &["`model`", "/nonexistent/model.onnx"],
         ),
+        // The model the `config` file names: its key is blamed, not the empty parameter
+        // `model` (which it used to be).
+        (
+            r#""$CLASSIFIER" --ros-args -p config:="$CONFIG""#,
+            "exit=2",
+            &[
+                "parameter `config`: classifier configuration",
+                "my_classifier.yaml, key `model`",
+                "/nonexistent/retrained.onnx",
+            ],
+        ),
         // Loaded before the node joins the graph, which alone reads `ROS_DOMAIN_ID`.
         (
             r#"ROS_DOMAIN_ID=999 ORT_DYLIB_PATH=/nonexistent/libonnxruntime.so "$CLASSIFIER""#,
@@ -900,12 +911,15 @@ fn the_classifier_tells_a_missing_runtime_from_a_bad_model() {
             &["/nonexistent/libonnxruntime.so"],
         ),
     ];
+    let config = dir.path().join("my_classifier.yaml");
+    std::fs::write(&config, "model: /nonexistent/retrained.onnx\n").unwrap();
     for (command, status, needles) in cases {
         let script = format!("{command} 2> \"$OUT/err.txt\"; echo \"exit=$?\"");
         let out = in_netns(
             &script,
             &[
                 ("CLASSIFIER", &workspace_bin("classifier")),
+                ("CONFIG", &config),
                 ("OUT", dir.path()),
             ],
             Duration::from_secs(20),
@@ -1053,6 +1067,8 @@ kill $PEER
 
 /// On simulated time a node reads /clock as rosgraph_msgs/msg/Clock; ros2-client's spinner
 /// reading it as another type in the same participant made the DDS stack log an ERROR.
+/// `-r` rules move a node's /clock reader and /rosout writer, as rcl moves rclcpp's (they
+/// stayed at /clock and /rosout).
 #[test]
 fn ros_nodes_on_simulated_time_start_and_stop_without_errors() {
     if !netns_available() {
@@ -1060,11 +1076,13 @@ fn ros_nodes_on_simulated_time_start_and_stop_without_errors() {
     }
     let dir = tempfile::tempdir().unwrap();
     let script = r#"
-"$LOC" --ros-args -p use_sim_time:=true 2> "$OUT/localiser.err" & L=$!
+"$LOC" --ros-args -p use_sim_time:=true -r /clock:=/sim/clock -r /rosout:=/sim/rosout \
+  2> "$OUT/localiser.err" & L=$!
 "$CLS" --ros-args -p use_sim_time:=true -p model:="$MODEL" 2> "$OUT/classifier.err" & C=$!
 # Both are up: the localiser subscribes /tf (only it does), and the classifier advertises
 # /human/pelvis once its model is loaded.
-wait_until 30 topics_listed /tf /human/pelvis
+wait_until 30 topics_listed /tf /human/pelvis /sim/clock /sim/rosout
+"$LH" topic list -t --wait 1 > "$OUT/topics.txt"; echo "list=$?"
 kill -TERM $L $C; wait $L; echo "localiser=$?"; wait $C; echo "classifier=$?"
 "#;
     let out = in_netns(
@@ -1086,6 +1104,13 @@ kill -TERM $L $C; wait $L; echo "localiser=$?"; wait $C; echo "classifier=$?"
             "{node}: {stdout}\n{log}"
         );
         assert!(!log.contains("ERROR"), "{node} logged errors:\n{log}");
+    }
+    let topics = std::fs::read_to_string(dir.path().join("topics.txt")).unwrap();
+    for want in [
+        "/sim/clock [rosgraph_msgs/msg/Clock]",
+        "/sim/rosout [rcl_interfaces/msg/Log]",
+    ] {
+        assert!(topics.lines().any(|l| l == want), "no {want} in\n{topics}");
     }
 }
 

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use crate::RosError;
-use crate::params::{CLI_SECTION, ParamSource, ParamValue, section_applies};
+use crate::params::{CLI_SECTION, GivenValue, ParamSource, section_applies};
 
 /// What `--ros-args` sections of a command line say.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -93,7 +93,7 @@ pub struct ParamOverride {
     /// Applies only to the node of this name (`node:name:=value`), or to every node.
     pub node: Option<String>,
     pub name: String,
-    pub value: ParamValue,
+    pub value: GivenValue,
 }
 
 impl RosArgs {
@@ -303,7 +303,7 @@ fn parse_param(rule: &str) -> Result<ParamOverride, RosError> {
             "a parameter name cannot contain ':' (one `node:` prefix at most)",
         ));
     }
-    let value = ParamValue::parse_cli(text).map_err(|reason| RosError::Parameter {
+    let value = GivenValue::parse_cli(text).map_err(|reason| RosError::Parameter {
         name: name.to_string(),
         reason,
     })?;
@@ -531,6 +531,7 @@ fn parse_discovery_range(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::params::ParamValue;
 
     #[test]
     fn parses_remaps_node_ns_params_and_files() {
@@ -696,12 +697,12 @@ mod tests {
         let rate = |section: &str, v| ParamSource::Value {
             section: section.into(),
             name: "rate".into(),
-            value: ParamValue::Integer(v),
+            value: ParamValue::Integer(v).into(),
         };
         let moving = ParamSource::Value {
             section: "localiser".into(),
             name: "moving".into(),
-            value: ParamValue::Bool(false),
+            value: ParamValue::Bool(false).into(),
         };
         assert_eq!(a.params_for("/localiser"), vec![moving, rate("/**", 2)]);
         // A `node:` prefix is matched with the whole name, as a parameter file's section.

@@ -284,14 +284,25 @@ impl SimClock {
     }
 }
 
+/// The resolved names of the topics the node opens itself, as rcl names rclcpp's.
+#[derive(Debug, PartialEq)]
+pub(crate) struct OwnTopics {
+    /// Read when `use_sim_time` is true.
+    pub(crate) clock: String,
+    pub(crate) rosout: String,
+}
+
 impl DdsNode {
+    /// `rosout`: where the node's log records go (none with `--disable-rosout-logs`);
+    /// `clock`: what it reads as /clock when `use_sim_time` is true.
     pub(crate) fn new(
         name: &str,
         namespace: &str,
         params: &Parameters,
         decls: &[ParamDecl],
         parameter_services: bool,
-        rosout: bool,
+        rosout: Option<String>,
+        clock: &str,
     ) -> Result<Self, RosError> {
         let use_sim_time = params.bool("use_sim_time")?;
         let context = ros2_client::Context::from_domain_participant(participant_from_env()?)
@@ -335,14 +346,13 @@ impl DdsNode {
             next_token: Mutex::new(0),
             context,
         };
-        if rosout {
+        if let Some(rosout) = rosout {
             let policies = rosout_qos_policies();
-            let spec = &topics::ROSOUT;
             // Its drops are warned about sparingly, as a volatile topic's: one warning per
             // dropped record would double what the node prints.
             let writer = this.writer(
-                spec.name,
-                spec.type_name,
+                &rosout,
+                topics::ROSOUT.type_name,
                 &policies,
                 policies.clone(),
                 false,
@@ -350,10 +360,10 @@ impl DdsNode {
             this.rosout = Some(Rosout::new(writer, namespace, name));
         }
         if use_sim_time {
-            let clock = &topics::CLOCK;
+            let spec = &topics::CLOCK;
             this.sim_clock = Some(SimClock {
                 // Not registered with the node's poll: /clock alone need not wake `wait`.
-                reader: this.reader(clock.name, clock.type_name, &clock.subscribed)?,
+                reader: this.reader(clock, spec.type_name, &spec.subscribed)?,
                 latest_ns: Mutex::new(0),
             });
         }

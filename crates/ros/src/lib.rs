@@ -25,7 +25,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use lidar_har_msgs::qos::{Durability, QosProfile, Reliability};
-use lidar_har_msgs::topics::TopicSpec;
+use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_msgs::{CdrError, RosMessage};
 
 pub use args::RosArgs;
@@ -249,8 +249,25 @@ impl PreparedNode {
         &self.params
     }
 
+    /// `topic` after namespace expansion and `-r` remapping, as [`Node::resolve_topic`].
+    fn resolve_topic(&self, topic: &str) -> String {
+        args::resolve_topic(topic, &self.ros_args.remaps, &self.namespace, &self.name)
+    }
+
+    /// The topics the DDS backend opens itself, resolved as any of the node's topics: rcl
+    /// resolves rclcpp's /clock subscription (TimeSource) and its /rosout publisher with the
+    /// node's `-r` rules too, so `-r /clock:=/robot1/clock` moves them as it moves the
+    /// replay's /clock (they used to stay at /clock and /rosout).
+    fn own_topics(&self) -> dds::OwnTopics {
+        dds::OwnTopics {
+            clock: self.resolve_topic(topics::CLOCK.name),
+            rosout: self.resolve_topic(topics::ROSOUT.name),
+        }
+    }
+
     /// Joins the ROS graph.
     pub fn join(self) -> Result<Node, RosError> {
+        let own_topics = self.own_topics();
         let Self {
             setup,
             name,
@@ -265,7 +282,8 @@ impl PreparedNode {
                 &params,
                 &params::node_parameters(setup.parameters.clone()),
                 setup.parameter_services,
-                !ros_args.disable_rosout_logs,
+                (!ros_args.disable_rosout_logs).then_some(own_topics.rosout),
+                &own_topics.clock,
             )?),
             #[cfg(feature = "r2r")]
             Backend::Rcl => Box::new(rcl::RclNode::new(&name, &namespace, &setup.args)?),
@@ -560,6 +578,41 @@ mod tests {
                 Ok(_) => panic!("{namespace} {name}: accepted"),
             }
         }
+    }
+
+    /// `-r` rules move the node's own /clock and /rosout as rcl moves rclcpp's (they stayed
+    /// at /clock and /rosout while the replay's /clock publisher followed the rule); a
+    /// relative rule resolves in the node's namespace, and a rule for another node is not
+    /// applied.
+    #[test]
+    fn remapping_rules_apply_to_the_nodes_own_clock_and_rosout() {
+        let own = |args: &[&str]| {
+            NodeSetup::new("localiser")
+                .args(args.iter().copied())
+                .prepare()
+                .unwrap()
+                .own_topics()
+        };
+        let default = dds::OwnTopics {
+            clock: "/clock".into(),
+            rosout: "/rosout".into(),
+        };
+        assert_eq!(own(&[]), default);
+        let remapped = dds::OwnTopics {
+            clock: "/sim/clock".into(),
+            rosout: "/robot1/rosout".into(),
+        };
+        let args = [
+            "--ros-args",
+            "-r",
+            "/clock:=/sim/clock",
+            "-r",
+            "__ns:=/robot1",
+        ];
+        let args = [&args[..], &["-r", "/rosout:=rosout"]].concat();
+        assert_eq!(own(&args), remapped);
+        let other_node = ["--ros-args", "-r", "classifier:/clock:=/sim/clock"];
+        assert_eq!(own(&other_node), default);
     }
 
     /// Names with `__` passed rmw's rules and then panicked in ros2-client's spinner (status

@@ -40,20 +40,6 @@ impl ParamValue {
         }
     }
 
-    /// Parses the right-hand side of `-p name:=value` as a YAML scalar or flow sequence.
-    pub fn parse_cli(text: &str) -> Result<Self, String> {
-        if text.trim().is_empty() {
-            // rcl refuses it too (`rcl_parse_yaml_value`: no value), and the node with it.
-            return Err("no value after `:=` (for an empty string write `:=''`)".into());
-        }
-        let value = yaml::parse(text).map_err(|e| format!("`{text}` is not a YAML value: {e}"))?;
-        match value {
-            // rcl types `~` and `null` by their text, as the strings "~" and "null".
-            Yaml::Null => Ok(Self::String(text.to_string())),
-            other => Self::from_yaml(&other),
-        }
-    }
-
     /// Converts a YAML value of a parameter file or command line.
     fn from_yaml(value: &Yaml) -> Result<Self, String> {
         match value {
@@ -74,7 +60,8 @@ impl ParamValue {
             .collect::<Result<Vec<_>, _>>()?;
         let all = |pred: fn(&ParamValue) -> bool| scalars.iter().all(pred);
         if scalars.is_empty() {
-            // An empty list carries no element type; rcl rejects it too.
+            // Only a declaration can type an empty list (see `GivenValue`); within a list
+            // (`[[]]`) nothing can.
             return Err("an empty list has no element type".into());
         }
         if all(|v| matches!(v, Self::Bool(_))) {
@@ -113,6 +100,17 @@ impl ParamValue {
                 Some(v)
             }
             _ => None,
+        }
+    }
+
+    /// An empty array of the type of `self` (the declared default), if it is an array.
+    fn empty_like(&self) -> Option<ParamValue> {
+        match self {
+            Self::BoolArray(_) => Some(Self::BoolArray(Vec::new())),
+            Self::IntegerArray(_) => Some(Self::IntegerArray(Vec::new())),
+            Self::DoubleArray(_) => Some(Self::DoubleArray(Vec::new())),
+            Self::StringArray(_) => Some(Self::StringArray(Vec::new())),
+            Self::Bool(_) | Self::Integer(_) | Self::Double(_) | Self::String(_) => None,
         }
     }
 
@@ -168,6 +166,64 @@ impl fmt::Display for ParamValue {
     }
 }
 
+/// A value as a parameter file or `-p` gives it, before the node's declaration types it. rcl
+/// reads `[]` as an array of no element type, which rclcpp then refuses for any parameter
+/// (ros2/rclcpp#1955: "No parameter value set"); here a parameter declared as an array takes
+/// it as an empty array of its type, so that `topics: []` ("empty = all") can be given. For a
+/// parameter the node does not declare it is still refused, as in rclcpp.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GivenValue {
+    Typed(ParamValue),
+    EmptyList,
+}
+
+impl From<ParamValue> for GivenValue {
+    fn from(value: ParamValue) -> Self {
+        Self::Typed(value)
+    }
+}
+
+impl GivenValue {
+    /// Parses the right-hand side of `-p name:=value` as a YAML scalar or flow sequence.
+    pub fn parse_cli(text: &str) -> Result<Self, String> {
+        if text.trim().is_empty() {
+            // rcl refuses it too (`rcl_parse_yaml_value`: no value), and the node with it.
+            return Err("no value after `:=` (for an empty string write `:=''`)".into());
+        }
+        let value = yaml::parse(text).map_err(|e| format!("`{text}` is not a YAML value: {e}"))?;
+        match value {
+            // rcl types `~` and `null` by their text, as the strings "~" and "null".
+            Yaml::Null => Ok(Self::Typed(ParamValue::String(text.to_string()))),
+            other => Self::from_yaml(&other),
+        }
+    }
+
+    /// Converts a YAML value of a parameter file or command line.
+    fn from_yaml(value: &Yaml) -> Result<Self, String> {
+        match value {
+            Yaml::Seq(items) if items.is_empty() => Ok(Self::EmptyList),
+            other => ParamValue::from_yaml(other).map(Self::Typed),
+        }
+    }
+
+    /// The type given, for messages.
+    fn type_name(&self) -> &'static str {
+        match self {
+            Self::Typed(value) => value.type_name(),
+            Self::EmptyList => "an empty list",
+        }
+    }
+
+    /// `self` as a value of the type of `declared` (the declared default), when ROS allows it;
+    /// an empty list is an empty array of any array type.
+    fn typed_like(self, declared: &ParamValue) -> Option<ParamValue> {
+        match self {
+            Self::Typed(value) => declared.coerce_like(value),
+            Self::EmptyList => declared.empty_like(),
+        }
+    }
+}
+
 /// A parameter a node declares: its name, default (which fixes its type) and what it means.
 #[derive(Debug, Clone)]
 pub struct ParamDecl {
@@ -212,17 +268,17 @@ pub enum ParamSource {
     Value {
         section: String,
         name: String,
-        value: ParamValue,
+        value: GivenValue,
     },
 }
 
 impl ParamSource {
     /// A `-p name:=value` without a node prefix.
-    pub fn value(name: &str, value: ParamValue) -> Self {
+    pub fn value(name: &str, value: impl Into<GivenValue>) -> Self {
         Self::Value {
             section: CLI_SECTION.to_string(),
             name: name.to_string(),
-            value,
+            value: value.into(),
         }
     }
 }
@@ -234,7 +290,7 @@ pub const CLI_SECTION: &str = "/**";
 /// One parameter of a merged section: its value and where the value came from.
 struct MergedParam {
     name: String,
-    value: ParamValue,
+    value: GivenValue,
     source: String,
     /// Whether a name the node does not declare is an error (see [`Section::is_wildcard`]).
     strict: bool,
@@ -357,11 +413,22 @@ impl Parameters {
                         name,
                     });
                 }
+                if value == GivenValue::EmptyList {
+                    // rclcpp refuses it for every node the section applies to.
+                    return Err(RosError::Parameter {
+                        reason: format!(
+                            "{source} gives an empty list, which has no element type: only \
+                             a node that declares `{name}` as an array can take it, and this \
+                             one does not"
+                        ),
+                        name,
+                    });
+                }
                 continue;
             };
             let given_type = value.type_name();
-            let coerced = declared
-                .coerce_like(value)
+            let coerced = value
+                .typed_like(declared)
                 .ok_or_else(|| RosError::Parameter {
                     name: name.clone(),
                     reason: format!(
@@ -462,7 +529,7 @@ pub struct Section {
     /// section `robot1/localiser`.
     pub name: String,
     /// In file order; nested mappings become dotted names, as in rcl.
-    pub params: Vec<(String, ParamValue)>,
+    pub params: Vec<(String, GivenValue)>,
 }
 
 impl Section {
@@ -616,7 +683,7 @@ fn key_text(key: &Yaml) -> Result<String, String> {
     }
 }
 
-fn flatten(value: &Yaml, prefix: &str, out: &mut Vec<(String, ParamValue)>) -> Result<(), String> {
+fn flatten(value: &Yaml, prefix: &str, out: &mut Vec<(String, GivenValue)>) -> Result<(), String> {
     let Yaml::Map(entries) = value else {
         let what = match prefix.strip_suffix('.') {
             Some(name) => name,
@@ -630,7 +697,7 @@ fn flatten(value: &Yaml, prefix: &str, out: &mut Vec<(String, ParamValue)>) -> R
             flatten(value, &format!("{name}."), out)?;
         } else {
             let value =
-                ParamValue::from_yaml(value).map_err(|e| format!("parameter `{name}`: {e}"))?;
+                GivenValue::from_yaml(value).map_err(|e| format!("parameter `{name}`: {e}"))?;
             out.push((name, value));
         }
     }
@@ -648,6 +715,14 @@ mod tests {
             ParamDecl::new("bag", ParamValue::String(String::new()), ""),
             ParamDecl::new("topics", ParamValue::StringArray(vec![]), ""),
         ]
+    }
+
+    /// A `-p` value, typed by its text alone.
+    fn cli(text: &str) -> Result<ParamValue, String> {
+        match GivenValue::parse_cli(text)? {
+            GivenValue::Typed(value) => Ok(value),
+            GivenValue::EmptyList => Err("an empty list has no type of its own".into()),
+        }
     }
 
     fn names(decls: &[ParamDecl]) -> Vec<&str> {
@@ -676,46 +751,32 @@ mod tests {
 
     #[test]
     fn cli_values_are_typed_like_yaml() {
-        assert_eq!(ParamValue::parse_cli("3").unwrap(), ParamValue::Integer(3));
+        assert_eq!(cli("3").unwrap(), ParamValue::Integer(3));
+        assert_eq!(cli("3.5").unwrap(), ParamValue::Double(3.5));
+        assert_eq!(cli("true").unwrap(), ParamValue::Bool(true));
+        assert_eq!(cli("hello").unwrap(), ParamValue::String("hello".into()));
         assert_eq!(
-            ParamValue::parse_cli("3.5").unwrap(),
-            ParamValue::Double(3.5)
-        );
-        assert_eq!(
-            ParamValue::parse_cli("true").unwrap(),
-            ParamValue::Bool(true)
-        );
-        assert_eq!(
-            ParamValue::parse_cli("hello").unwrap(),
-            ParamValue::String("hello".into())
-        );
-        assert_eq!(
-            ParamValue::parse_cli("[1.0, 2.5]").unwrap(),
+            cli("[1.0, 2.5]").unwrap(),
             ParamValue::DoubleArray(vec![1.0, 2.5])
         );
         // As rcl: one type per list ("Sequence should be of same type").
-        assert!(ParamValue::parse_cli("[1, 2.5]").is_err());
+        assert!(cli("[1, 2.5]").is_err());
         assert_eq!(
-            ParamValue::parse_cli("[/scan, /odom]").unwrap(),
+            cli("[/scan, /odom]").unwrap(),
             ParamValue::StringArray(vec!["/scan".into(), "/odom".into()])
         );
-        assert!(ParamValue::parse_cli("[1, abc]").is_err());
-        assert!(ParamValue::parse_cli("[]").is_err());
-        assert_eq!(
-            ParamValue::parse_cli("~").unwrap(),
-            ParamValue::String("~".into())
-        );
-        assert_eq!(
-            ParamValue::parse_cli("''").unwrap(),
-            ParamValue::String(String::new())
-        );
+        assert!(cli("[1, abc]").is_err());
+        assert_eq!(GivenValue::parse_cli("[]").unwrap(), GivenValue::EmptyList);
+        assert!(cli("[[]]").is_err());
+        assert_eq!(cli("~").unwrap(), ParamValue::String("~".into()));
+        assert_eq!(cli("''").unwrap(), ParamValue::String(String::new()));
     }
 
     /// rcl refuses `-p name:=` (no value), and so the node; it used to be the empty string.
     #[test]
     fn an_empty_cli_value_is_refused_as_rcl_refuses_it() {
         for text in ["", " "] {
-            let err = ParamValue::parse_cli(text).unwrap_err();
+            let err = cli(text).unwrap_err();
             assert!(
                 err.contains("no value") && err.contains(":=''"),
                 "{text:?}: {err}"
@@ -726,22 +787,16 @@ mod tests {
     #[test]
     fn cli_values_take_rcl_booleans_unquoted_only() {
         for (text, want) in [("off", false), ("yes", true), ("On", true), ("N", false)] {
-            assert_eq!(ParamValue::parse_cli(text).unwrap(), ParamValue::Bool(want));
+            assert_eq!(cli(text).unwrap(), ParamValue::Bool(want));
         }
+        assert_eq!(cli("'off'").unwrap(), ParamValue::String("off".into()));
         assert_eq!(
-            ParamValue::parse_cli("'off'").unwrap(),
-            ParamValue::String("off".into())
-        );
-        assert_eq!(
-            ParamValue::parse_cli("[yes, no]").unwrap(),
+            cli("[yes, no]").unwrap(),
             ParamValue::BoolArray(vec![true, false])
         );
-        assert!(ParamValue::parse_cli("[on, 'off']").is_err());
+        assert!(cli("[on, 'off']").is_err());
         // The documented way to give one of those words as a string; it used to be a bool.
-        assert_eq!(
-            ParamValue::parse_cli("!!str on").unwrap(),
-            ParamValue::String("on".into())
-        );
+        assert_eq!(cli("!!str on").unwrap(), ParamValue::String("on".into()));
     }
 
     /// (section, node, applies), as rclcpp's `parameter_map_from` decides.
@@ -842,15 +897,15 @@ robot1:
         assert_eq!(
             robot1[1].params,
             vec![
-                ("moving".to_string(), ParamValue::Bool(false)),
-                ("frame".to_string(), ParamValue::String("off".into())),
+                ("moving".to_string(), ParamValue::Bool(false).into()),
+                ("frame".to_string(), ParamValue::String("off".into()).into()),
             ]
         );
         let robot2 = file.sections_for("/robot2/localiser");
         assert_eq!(robot2.len(), 2);
         assert_eq!(
             robot2[1].params,
-            vec![("moving".to_string(), ParamValue::Bool(true))]
+            vec![("moving".to_string(), ParamValue::Bool(true).into())]
         );
         assert_eq!(file.sections_for("/robot1")[1].name, "robot1");
         assert_eq!(file.sections_for("/localiser").len(), 1);
@@ -1002,6 +1057,75 @@ robot1:
         assert!(err.contains("missing.yaml"), "{err}");
     }
 
+    /// An empty list takes its type from the declaration: replay's `topics: []` ("empty =
+    /// all") in a params file after replay.launch.py's own `/**` list, or as `-p topics:=[]`,
+    /// is an empty string array; both used to be refused ("an empty list has no element
+    /// type"), so every topic could not be asked for under the launch file. A scalar, or a
+    /// parameter the node does not declare (as rclcpp, which refuses `[]` for any), refuses
+    /// it naming the parameter; a section for another node does not matter.
+    #[test]
+    fn an_empty_list_takes_the_type_of_a_declared_array() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = |name: &str, text: &str| {
+            let path = dir.path().join(name);
+            std::fs::write(&path, text).unwrap();
+            path
+        };
+        let own = file(
+            "own.yaml",
+            "/**:\n  ros__parameters:\n    topics: [/scan, /odom]\n",
+        );
+        let all = file(
+            "all.yaml",
+            "localiser:\n  ros__parameters:\n    unrelated: []\n\
+             replay:\n  ros__parameters:\n    topics: []\n",
+        );
+        let launch = file("args.yaml", "/replay:\n  ros__parameters:\n    rate: 2.0\n");
+        let resolve = |decls: &[ParamDecl], args: &[&str]| {
+            let args = crate::RosArgs::parse(args.iter().copied())?;
+            Parameters::resolve_sources(decls, "/replay", &args.params_for("/replay"))
+        };
+        let (own, all, launch) = (
+            own.to_str().unwrap(),
+            all.to_str().unwrap(),
+            launch.to_str().unwrap(),
+        );
+        let layered = ["--ros-args", "--params-file", own, "--params-file", all];
+        let p = resolve(
+            &decls(),
+            &[&layered[..], &["--params-file", launch]].concat(),
+        )
+        .unwrap();
+        assert_eq!(p.get("topics"), Some(&ParamValue::StringArray(vec![])));
+        assert_eq!(p.f64("rate").unwrap(), 2.0);
+        let cli = ["--ros-args", "--params-file", own, "-p", "topics:=[]"];
+        let p = resolve(&decls(), &cli).unwrap();
+        assert_eq!(p.get("topics"), Some(&ParamValue::StringArray(vec![])));
+        let ids = [ParamDecl::new("ids", ParamValue::IntegerArray(vec![1]), "")];
+        let p = resolve(&ids, &["--ros-args", "-p", "ids:=[]"]).unwrap();
+        assert_eq!(p.get("ids"), Some(&ParamValue::IntegerArray(vec![])));
+
+        let err = resolve(&decls(), &["--ros-args", "-p", "rate:=[]"]).unwrap_err();
+        let err = err.to_string();
+        assert!(
+            err.contains("`rate`")
+                && err.contains("expected double")
+                && err.contains("an empty list"),
+            "{err}"
+        );
+        let shared = file("shared.yaml", "/**:\n  ros__parameters:\n    other: []\n");
+        let err = resolve(
+            &decls(),
+            &["--ros-args", "--params-file", shared.to_str().unwrap()],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("`other`") && err.contains("shared.yaml") && err.contains("empty list"),
+            "{err}"
+        );
+    }
+
     /// A parameter file after a `-p` wins over it, as in rcl; `-p` used to win always.
     #[test]
     fn sources_apply_in_order_whatever_their_kind() {
@@ -1048,10 +1172,10 @@ robot1:
             ParamDecl::new("rate", ParamValue::Double(1.0), ""),
         ];
         let cli = |name: &str, value| ParamSource::value(name, value);
-        let prefixed = |section: &str, value| ParamSource::Value {
+        let prefixed = |section: &str, value: ParamValue| ParamSource::Value {
             section: section.into(),
             name: "moving".into(),
-            value,
+            value: value.into(),
         };
         let resolve = |sources: &[ParamSource]| {
             Parameters::resolve_sources(&decls, "/localiser", sources).unwrap()
