@@ -339,6 +339,9 @@ impl Shutdown {
         let first = Arc::new(AtomicI32::new(0));
         let grace_over = Arc::new(AtomicBool::new(false));
         let handled = [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM];
+        // Before the handlers: a first signal between the two would start no grace, and no
+        // repeat could then end a stop that hangs.
+        let mut signals = signal_hook::iterator::Signals::new(handled)?;
         for signal in handled {
             let (first, grace_over) = (first.clone(), grace_over.clone());
             // In the handler itself, not in a thread reading `Signals` (which may take two
@@ -359,7 +362,6 @@ impl Shutdown {
             // `flag::register_conditional_default` runs).
             unsafe { signal_hook::low_level::register(signal, action) }?;
         }
-        let mut signals = signal_hook::iterator::Signals::new(handled)?;
         std::thread::spawn(move || {
             if signals.forever().next().is_some() {
                 lidar_har_bag::remove_temporary_copies();

@@ -265,8 +265,9 @@ pub struct FallAlertConfig {
     /// such and sat straight down again was read getting up for 4 scans, then falling for
     /// 1.2 s (seed 4 episode 327 of `lidar-har alerts`, docs/classifier.md, session 36).
     pub down_restarts_on_fall_run: bool,
-    /// The longest stretch out of sight, from one scan the person is seen on to the next, that
-    /// still joins the readings on either side: up to it, a run of readings (the posture being
+    /// The longest stretch out of sight (from one scan the person is seen on to the next, with
+    /// at least one scan between that does not see them) that still joins the readings on
+    /// either side: up to it, a run of readings (the posture being
     /// confirmed, `falling_down`, lying) runs on and the stretch counts as time seen; past it,
     /// every run starts again and the stretch counts as time out of sight. A walker read on the
     /// floor for a scan or two as they left view, then found sitting a minute later, was taken
@@ -274,7 +275,9 @@ pub struct FallAlertConfig {
     /// sight re-armed an alert. Getting up, people were out of sight for 0.4-0.5 s (seed 2
     /// episodes 6 and 37 of `lidar-har alerts`): 0.25 s broke those runs, which lost a fall
     /// (not re-armed) and a spell's end (a false `PersonDown`; docs/classifier.md, session 56).
-    /// Seconds; 0: any scan out of sight starts the runs again.
+    /// Seconds; 0: any scan out of sight starts the runs again. Two scans in a row that see
+    /// the person are never a stretch out of sight, however far apart (a value under the scan
+    /// period used to break every run, and no alert was ever raised).
     pub glimpse_gap_s: f64,
 }
 
@@ -533,6 +536,8 @@ pub struct FallDetector {
     down_positions: VecDeque<(f64, DVec2)>,
     /// The last scan with the person seen (and classified).
     last_seen_s: Option<f64>,
+    /// Whether a scan since `last_seen_s` did not see the person: a stretch out of sight.
+    missed_since_seen: bool,
     /// The stretches out of sight longer than `glimpse_gap_s` so far, in all: the seen
     /// clock (the stamp less this) stands still over them.
     hidden_s: f64,
@@ -579,6 +584,7 @@ impl FallDetector {
             down: None,
             down_positions: VecDeque::new(),
             last_seen_s: None,
+            missed_since_seen: false,
             hidden_s: 0.0,
             upright_since: None,
             fall_disarmed_at: None,
@@ -622,7 +628,7 @@ impl FallDetector {
             }
             if let Some(seen) = self
                 .last_seen_s
-                .filter(|seen| t - seen > self.config.glimpse_gap_s)
+                .filter(|seen| self.missed_since_seen && t - seen > self.config.glimpse_gap_s)
             {
                 self.hidden_s += t - seen;
                 self.candidate = None;
@@ -630,12 +636,16 @@ impl FallDetector {
                 self.lying_run.clear();
             }
             self.last_seen_s = Some(t);
+            self.missed_since_seen = false;
             let body_length_m = input.body_length_m.filter(|l| l.is_finite());
             self.observe(t, &input.probabilities, body_length_m, &mut alerts);
             self.restart_down_on_travel(t, position);
-        } else if self.config.down_found_in_view {
-            self.down_evidence_scans = 0;
-            self.down_evidence_lying = false;
+        } else {
+            self.missed_since_seen = true;
+            if self.config.down_found_in_view {
+                self.down_evidence_scans = 0;
+                self.down_evidence_lying = false;
+            }
         }
 
         if let (Some(down), Some(position)) = (self.down, self.last_position) {
@@ -2718,6 +2728,23 @@ mod tests {
         ];
         let alerts = run(&mut detector_with(|c| c.glimpse_gap_s = 0.25), &script);
         assert_eq!(kinds(&alerts), [AlertKind::FallDetected], "{alerts:?}");
+    }
+
+    #[test]
+    fn a_glimpse_gap_under_the_scan_period_breaks_no_run_of_scans_that_see_the_person() {
+        // Seen on every scan: a fall and 20 s down raise both alerts, as with the default
+        // (with 0 every run used to break between two scans, and nothing was alerted).
+        let script = [
+            (Walking, 3.0, true),
+            (FallingDown, 0.5, true),
+            (LyingDown, 20.0, true),
+        ];
+        let alerts = run(&mut detector_with(|c| c.glimpse_gap_s = 0.0), &script);
+        assert_eq!(
+            kinds(&alerts),
+            [AlertKind::FallDetected, AlertKind::PersonDown],
+            "{alerts:?}"
+        );
     }
 
     /// Runs segments of (activity read, seconds, velocity in m/s) at 20 Hz, the person always

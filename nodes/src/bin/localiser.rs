@@ -100,10 +100,14 @@ fn stage(p: &Parameters) -> Result<LocaliserStage, RosError> {
     if learned && (moving || wait_for_map_to_odom) {
         // `robot.yaml` sets moving: a map-less user who adds only learned_background got a
         // robot's scans placed as a fixed Lidar's without a word (27 tracks for one person).
+        let ignored = match (moving, wait_for_map_to_odom) {
+            (true, true) => "moving:=true and wait_for_map_to_odom:=true are",
+            (true, false) => "moving:=true is",
+            _ => "wait_for_map_to_odom:=true is",
+        };
         log::warn!(
             "learned_background:=true takes the Lidar as fixed where it learned the room: \
-             odometry and map -> odom are not used, so moving:={moving} and \
-             wait_for_map_to_odom:={wait_for_map_to_odom} are ignored (set moving:=false for \
+             odometry and map -> odom are not used, so {ignored} ignored (set them false for \
              a fixed Lidar; a robot that moves needs a map: map_file or /map)"
         );
     }
