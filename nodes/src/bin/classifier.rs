@@ -138,15 +138,21 @@ fn replaced_by_parameter(
         (Some(set), Some(given)) => same_file(set, given),
         (set, given) => set == given,
     };
-    if set == default || same {
+    // `./models/activity.onnx` is the default too (a leading `.` is a path component).
+    let plain = |path: &Path| -> std::path::PathBuf {
+        path.components()
+            .filter(|c| *c != std::path::Component::CurDir)
+            .collect()
+    };
+    if set.map(plain) == default.map(plain) || same {
         return None;
     }
     let show =
         |path: Option<&Path>| path.map_or_else(|| "none".into(), |p| p.display().to_string());
     Some(format!(
         "parameter `{name}` ({}) replaces the `{name}` of the classifier configuration {} ({}): \
-         the launch files pass the installed {name}, so give `{name}:=` (or a `{name}` key in \
-         params_file) beside `config` for the configuration's to apply",
+         the launch files pass the installed {name}, so set `{name}` in params_file beside \
+         `config` for the configuration's to apply (`pose_head: none` for no head)",
         show(given),
         config_path.display(),
         show(set),
@@ -263,17 +269,23 @@ mod tests {
             &*installed.display().to_string(),
             &*retrained.display().to_string(),
             &*config.display().to_string(),
-            "`model:=`",
+            "set `model` in params_file",
         ] {
             assert!(warning.contains(needle), "{needle}: {warning}");
         }
-        // The committed configuration keeps the default, which the launch files replace.
+        // The committed configuration keeps the default, which the launch files replace,
+        // however it is written.
         assert_eq!(replaced(default, &installed), None);
+        assert_eq!(
+            replaced(Path::new("./models/activity.onnx"), &installed),
+            None
+        );
         assert_eq!(replaced(&retrained, &retrained), None);
-        // The same file by another path.
+        // The same file by another path (a link, which only the file system resolves).
         std::fs::write(&retrained, b"").unwrap();
-        let spelled = dir.join(".").join("retrained.onnx");
-        assert_eq!(replaced(&retrained, &spelled), None);
+        let link = dir.join("link.onnx");
+        std::os::unix::fs::symlink(&retrained, &link).unwrap();
+        assert_eq!(replaced(&retrained, &link), None);
         // `pose_head: null` in the configuration, the installed head given.
         let head = Path::new("models/pose_head.onnx");
         let warning = replaced_by_parameter("pose_head", &config, None, Some(head), Some(head))
