@@ -21,7 +21,6 @@ figure to quote.
 
 import argparse
 import hashlib
-import json
 import sys
 import time
 from pathlib import Path
@@ -36,7 +35,7 @@ from torch import nn
 from .arguments import at_least, number
 from .data import CLASSES, DatasetError, load_array, load_index, load_split
 from .export import PARITY_TOLERANCE, ExportError, model_from_onnx, set_metadata
-from .outputs import OutputError, prepare_output, replaced_when_done, set_aside
+from .outputs import OutputError, prepare_output, replaced_when_done, report_json, set_aside
 from .train import DeviceError, choose_device
 
 KEY_ACTIVITY_SHA256 = "lidar_har.pose_head.activity_sha256"
@@ -414,8 +413,10 @@ def head_metadata(model: Path, first_step: int, used: list[str], max_sigma: floa
 
 
 def write_report(path: Path | None, report: dict) -> None:
+    """As train.py writes its report: a non-finite figure (a score over no scans) as null,
+    not as a bare `NaN`, which is no JSON."""
     if path:
-        path.write_text(json.dumps(report, indent=1) + "\n")
+        path.write_text(report_json(report))
 
 
 if __name__ == "__main__":

@@ -536,8 +536,6 @@ pub struct FallDetector {
     down_positions: VecDeque<(f64, DVec2)>,
     /// The last scan with the person seen (and classified).
     last_seen_s: Option<f64>,
-    /// Whether a scan since `last_seen_s` did not see the person: a stretch out of sight.
-    missed_since_seen: bool,
     /// The stretches out of sight longer than `glimpse_gap_s` so far, in all: the seen
     /// clock (the stamp less this) stands still over them.
     hidden_s: f64,
@@ -584,7 +582,6 @@ impl FallDetector {
             down: None,
             down_positions: VecDeque::new(),
             last_seen_s: None,
-            missed_since_seen: false,
             hidden_s: 0.0,
             upright_since: None,
             fall_disarmed_at: None,
@@ -616,6 +613,8 @@ impl FallDetector {
         if self.last_stamp_s.is_some_and(|last| t < last) {
             self.reset();
         }
+        // A scan before this one that did not see the person: a stretch out of sight.
+        let missed_since_seen = self.last_stamp_s != self.last_seen_s;
         self.last_stamp_s = Some(t);
 
         let visible = input.position.filter(|p| p.is_finite());
@@ -628,7 +627,7 @@ impl FallDetector {
             }
             if let Some(seen) = self
                 .last_seen_s
-                .filter(|seen| self.missed_since_seen && t - seen > self.config.glimpse_gap_s)
+                .filter(|seen| missed_since_seen && t - seen > self.config.glimpse_gap_s)
             {
                 self.hidden_s += t - seen;
                 self.candidate = None;
@@ -636,16 +635,12 @@ impl FallDetector {
                 self.lying_run.clear();
             }
             self.last_seen_s = Some(t);
-            self.missed_since_seen = false;
             let body_length_m = input.body_length_m.filter(|l| l.is_finite());
             self.observe(t, &input.probabilities, body_length_m, &mut alerts);
             self.restart_down_on_travel(t, position);
-        } else {
-            self.missed_since_seen = true;
-            if self.config.down_found_in_view {
-                self.down_evidence_scans = 0;
-                self.down_evidence_lying = false;
-            }
+        } else if self.config.down_found_in_view {
+            self.down_evidence_scans = 0;
+            self.down_evidence_lying = false;
         }
 
         if let (Some(down), Some(position)) = (self.down, self.last_position) {
