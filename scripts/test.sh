@@ -41,6 +41,6 @@ cargo test --workspace --locked
 
 if [ "$QUICK" = 0 ] && [ -x scripts/fuzz.sh ]; then
     say "fuzzing (short, fixed number of runs)"
-    scripts/fuzz.sh cdr_decode rplidar_decode mcap_read
+    scripts/fuzz.sh
 fi
 say "all tests passed"

@@ -17,8 +17,9 @@ fuzz_target!(|data: &[u8]| {
     let Some((&selector, rest)) = data.split_first() else {
         return;
     };
-    let format = FORMATS[usize::from(selector) % FORMATS.len()];
-    // The selector's high bits choose the read size, as a serial port hands bytes over.
+    // The selector's low three bits choose the format (so a seed keeps its format whatever
+    // its read size), its high bits the read size, as a serial port hands bytes over.
+    let format = FORMATS[usize::from(selector & 7) % FORMATS.len()];
     let chunk = 1 + usize::from(selector >> 3) * 7;
     let geometry = ScanGeometry { beams: 360, range_min_m: 0.0, range_max_m: 1.0e6 };
     let mut decoder = StreamDecoder::new(format);

@@ -212,3 +212,13 @@ class Log(IdlStruct, typename="rcl_interfaces::msg::dds_::Log_"):
     file: str = ""
     function: str = ""
     line: uint32 = 0
+
+
+@dataclass
+class EmptyRequest(IdlStruct, typename="std_srvs::srv::dds_::Empty_Request_"):
+    structure_needs_at_least_one_member: uint8 = 0
+
+
+@dataclass
+class EmptyResponse(IdlStruct, typename="std_srvs::srv::dds_::Empty_Response_"):
+    structure_needs_at_least_one_member: uint8 = 0

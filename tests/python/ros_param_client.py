@@ -50,13 +50,14 @@ SERVICE_QOS = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
 
 
 class Service:
-    """A client of `/NODE/SERVICE`: its request writer and reply reader."""
+    """A client of the service `name` (absolute, e.g. `/replay/get_parameters`): its request
+    writer and reply reader."""
 
-    def __init__(self, participant, node, service, request_type, response_type):
-        self.name = f"/{node}/{service}"
-        self.writer = DataWriter(participant, Topic(participant, f"rq/{node}/{service}Request",
+    def __init__(self, participant, name, request_type, response_type):
+        self.name = name
+        self.writer = DataWriter(participant, Topic(participant, f"rq{name}Request",
                                                     request_type), qos=SERVICE_QOS)
-        self.reader = DataReader(participant, Topic(participant, f"rr/{node}/{service}Reply",
+        self.reader = DataReader(participant, Topic(participant, f"rr{name}Reply",
                                                     response_type), qos=SERVICE_QOS)
 
     def call(self, request, timeout):
@@ -104,7 +105,7 @@ def main(argv):
     participant = DomainParticipant(0)
 
     def client(service, request_type, response_type):
-        return Service(participant, node, service, request_type, response_type)
+        return Service(participant, f"/{node}/{service}", request_type, response_type)
 
     names = client("list_parameters", ListRequest, ListResponse).call(
         ListRequest(prefixes=[], depth=0), timeout).result.names

@@ -2445,6 +2445,95 @@ wait $L; echo "localiser=$?"
     );
 }
 
+/// `ros2 service call` (a Cyclone DDS client) stops the `rplidar_driver`'s motor and
+/// starts it again, as rplidar_ros's services do: no /scan while stopped, a /diagnostics
+/// report saying so, scans again after `start_motor`; `-r` moves a service as it moves topics.
+#[test]
+fn ros_rplidar_driver_stops_and_starts_its_motor_on_service_calls() {
+    let Some(python) = cyclone_python() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let script = r#"
+mkfifo "$OUT/ctl"
+"$FAKE" "$OUT/rplidar" < "$OUT/ctl" > "$OUT/fake.out" 2> "$OUT/fake.err" & F=$!
+exec 3> "$OUT/ctl"
+wait_until 10 has_lines "$OUT/fake.out" 1
+"$DRIVER" --ros-args -p port:="$(head -n 1 "$OUT/fake.out")" -p diagnostics_period:=0.5 \
+  -r stop_motor:=lidar/stop_motor 2> "$OUT/driver.err" & D=$!
+echo_n() { "$LH" topic echo "$1" --count "$2" --timeout "$3" --require-count > "$OUT/$4.jsonl"
+  echo "$4=$?"; }
+echo_n /scan 2 20 scanning
+cd "$PYDIR"
+"$PY" ros_empty_service_call.py /lidar/stop_motor 20; echo "stop_call=$?"
+echo_n /diagnostics 2 20 stopped
+echo_n /scan 1 3 scan_while_stopped
+"$PY" ros_empty_service_call.py /start_motor 20; echo "start_call=$?"
+echo_n /scan 2 20 restarted
+kill -INT $D; wait $D; echo "driver=$?"
+exec 3>&-
+wait $F; echo "fake=$?"
+"#;
+    let out = in_netns(
+        script,
+        &[
+            ("LH", &workspace_bin("lidar-har")),
+            ("DRIVER", &workspace_bin("rplidar_driver")),
+            ("FAKE", Path::new(env!("CARGO_BIN_EXE_fake_rplidar"))),
+            ("OUT", dir.path()),
+            ("PY", &python),
+            ("PYDIR", &repo_root().join("tests/python")),
+        ],
+        Duration::from_secs(120),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let log = std::fs::read_to_string(dir.path().join("driver.err")).unwrap_or_default();
+    let fake_log = std::fs::read_to_string(dir.path().join("fake.err")).unwrap_or_default();
+    for want in [
+        "scanning=0",
+        "/lidar/stop_motor answered",
+        "stop_call=0",
+        "stopped=0",
+        "/start_motor answered",
+        "start_call=0",
+        "restarted=0",
+        "driver=0",
+        "fake=0",
+    ] {
+        assert!(
+            stdout.contains(want),
+            "expected {want}: {stdout}\n{log}\n{fake_log}"
+        );
+    }
+    // `--require-count` fails when the count does not come: no scan while stopped.
+    assert!(
+        !stdout.contains("scan_while_stopped=0"),
+        "a scan while the motor was stopped: {stdout}"
+    );
+    let reports = json_lines(&dir.path().join("stopped.jsonl"));
+    for report in &reports {
+        let status = &report["msg"]["status"][0];
+        assert_eq!(status["level"], 0, "{status}");
+        assert!(
+            status["message"]
+                .as_str()
+                .unwrap()
+                .contains("stopped on request"),
+            "{status}"
+        );
+    }
+    // The fake started scanning at start-up and again after start_motor (more, were the
+    // host to stall long enough for a reset).
+    let starts: usize = fake_log
+        .split(" scan starts")
+        .next()
+        .and_then(|head| head.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no scan starts in the fake's log: {fake_log}"));
+    assert!(starts >= 2, "{fake_log}");
+    assert!(!log.contains("ERROR"), "{log}");
+}
+
 /// The `rplidar_driver` node against the fake RPLIDAR on a pseudo-terminal
 /// (`fake_rplidar`), over DDS: /scan carries the configured frame and beam count with
 /// returns wherever the fake's room has them, /diagnostics says OK while it scans, WARN

@@ -11,6 +11,8 @@ use crate::params::{CLI_SECTION, GivenValue, ParamSource, section_applies};
 pub struct RosArgs {
     /// `-r [node:]from:=to` topic remappings, in order (first match wins, as in rcl).
     pub remaps: Vec<Remap>,
+    /// The rules that apply to service names: those without `rostopic://`, in order.
+    pub service_remaps: Vec<Remap>,
     /// `-r [node:]__node:=name` (or `__name:=`), in order; see [`RosArgs::node_name`].
     pub node_names: Vec<NodeRule>,
     /// `-r [node:]__ns:=/namespace`, in order; see [`RosArgs::namespace`].
@@ -195,14 +197,19 @@ impl RosArgs {
                 validate_namespace(&to).map_err(|e| bad(&e))?;
                 self.namespaces.push(NodeRule { node, to });
             }
-            // Service names are not remapped: the nodes serve only ros2-client's parameter
-            // services, which it names itself. The rule is checked, as rcl does, and left.
-            _ if kind == Some(RuleKind::Service) => {}
-            _ => self.remaps.push(Remap {
-                node,
-                from: from.to_string(),
-                to,
-            }),
+            _ => {
+                let rule = Remap {
+                    node,
+                    from: from.to_string(),
+                    to,
+                };
+                if kind != Some(RuleKind::Topic) {
+                    self.service_remaps.push(rule.clone());
+                }
+                if kind != Some(RuleKind::Service) {
+                    self.remaps.push(rule);
+                }
+            }
         }
         Ok(())
     }
@@ -459,8 +466,8 @@ pub fn expand_name(name: &str, namespace: &str, node_name: &str) -> String {
     }
 }
 
-/// Applies the first matching remap rule to the expanded `name`.
-pub fn resolve_topic(name: &str, remaps: &[Remap], namespace: &str, node_name: &str) -> String {
+/// Applies the first matching remap rule to the expanded topic or service `name`.
+pub fn resolve_name(name: &str, remaps: &[Remap], namespace: &str, node_name: &str) -> String {
     let expanded = expand_name(name, namespace, node_name);
     remaps
         .iter()
@@ -811,13 +818,16 @@ mod tests {
             ]
         );
         assert_eq!(
-            resolve_topic("/scan", &a.remaps, "/", "localiser"),
+            resolve_name("/scan", &a.remaps, "/", "localiser"),
             "/robot1/scan"
         );
+        assert_eq!(resolve_name("/odom", &a.remaps, "/", "localiser"), "/odom2");
+        // The rosservice:// rules move services only.
         assert_eq!(
-            resolve_topic("/odom", &a.remaps, "/", "localiser"),
-            "/odom2"
+            resolve_name("reset", &a.service_remaps, "/", "classifier"),
+            "/reset2"
         );
+        assert_eq!(resolve_name("scan", &a.service_remaps, "/", "x"), "/scan");
         // A node named `rostopic`: only `://` makes the scheme.
         let a = RosArgs::parse(["--ros-args", "-r", "rostopic:scan:=x"]).unwrap();
         assert_eq!(a.remaps[0].node.as_deref(), Some("rostopic"));
@@ -871,15 +881,24 @@ mod tests {
                 to: "/x".into(),
             },
         ];
-        assert_eq!(resolve_topic("/scan", &remaps, "/", "loc"), "/base_scan");
+        assert_eq!(resolve_name("/scan", &remaps, "/", "loc"), "/base_scan");
+        assert_eq!(resolve_name("scan", &remaps, "/r1", "loc"), "/r1/base_scan");
+        assert_eq!(resolve_name("/scan", &remaps, "/r1", "loc"), "/scan");
+        assert_eq!(resolve_name("/odom", &remaps, "/", "loc"), "/odom");
+        assert_eq!(resolve_name("/odom", &remaps, "/", "other"), "/x");
+        assert_eq!(resolve_name("~/debug", &[], "/r1", "loc"), "/r1/loc/debug");
+    }
+
+    /// A rule without a scheme moves topics and services alike, as in rcl (the RPLIDAR
+    /// driver's `stop_motor` service under `-r stop_motor:=lidar/stop_motor`).
+    #[test]
+    fn a_rule_without_a_scheme_applies_to_services_too() {
+        let a = RosArgs::parse(["--ros-args", "-r", "stop_motor:=lidar/stop_motor"]).unwrap();
+        assert_eq!(a.service_remaps, a.remaps);
         assert_eq!(
-            resolve_topic("scan", &remaps, "/r1", "loc"),
-            "/r1/base_scan"
+            resolve_name("stop_motor", &a.service_remaps, "/r1", "rplidar_driver"),
+            "/r1/lidar/stop_motor"
         );
-        assert_eq!(resolve_topic("/scan", &remaps, "/r1", "loc"), "/scan");
-        assert_eq!(resolve_topic("/odom", &remaps, "/", "loc"), "/odom");
-        assert_eq!(resolve_topic("/odom", &remaps, "/", "other"), "/x");
-        assert_eq!(resolve_topic("~/debug", &[], "/r1", "loc"), "/r1/loc/debug");
     }
 
     #[test]

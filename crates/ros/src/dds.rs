@@ -30,8 +30,8 @@ use crate::args::DiscoveryRange;
 use crate::param_services::{ParameterServices, ServedParameters};
 use crate::params::{ParamDecl, ParamValue, Parameters};
 use crate::{
-    NodeBackend, OfferedQos, PublisherBackend, RosError, Rosout, Sample, SubscriberBackend,
-    TopicInfo, split_type_name,
+    EmptyServiceBackend, NodeBackend, OfferedQos, PublisherBackend, RequestId, RosError, Rosout,
+    Sample, SubscriberBackend, TopicInfo, split_type_name,
 };
 
 /// CDR bytes after the encapsulation header, with the header's representation identifier.
@@ -245,7 +245,8 @@ pub(crate) struct DdsNode {
     /// spinner read it as `builtin_interfaces/msg/Time`, which ROS 2's publishers do not
     /// match).
     sim_clock: Option<SimClock>,
-    node: ros2_client::Node,
+    /// Locked only to create servers (ros2-client's `create_server` takes it mutably).
+    node: Mutex<ros2_client::Node>,
     topics: Mutex<HashMap<String, Topic>>,
     publisher: rustdds::Publisher,
     subscriber: rustdds::Subscriber,
@@ -337,7 +338,7 @@ impl DdsNode {
             rosout: None,
             served,
             sim_clock: None,
-            node,
+            node: Mutex::new(node),
             topics: Mutex::new(HashMap::new()),
             publisher,
             subscriber,
@@ -432,6 +433,8 @@ impl DdsNode {
         let profile = ros2_client::QosProfile::from(qos);
         let topic = self
             .node
+            .lock()
+            .map_err(lock_poisoned)?
             .create_topic(&ros_name, MessageTypeName::new(pkg, ty), &profile)
             .map_err(dds_err)?;
         topics.insert(name.to_string(), topic.clone());
@@ -497,7 +500,7 @@ impl NodeBackend for DdsNode {
     fn now_ns(&self) -> i64 {
         match &self.sim_clock {
             Some(clock) => clock.now_ns(),
-            None => self.node.time_now_not_simulated().to_nanos(),
+            None => crate::rosout::nanos_since_epoch(std::time::SystemTime::now()).unwrap_or(0),
         }
     }
 
@@ -531,6 +534,56 @@ impl NodeBackend for DdsNode {
 
     fn rosout(&self) -> Option<Rosout> {
         self.rosout.clone()
+    }
+
+    fn empty_service(&self, service: &str) -> Result<Box<dyn EmptyServiceBackend>, RosError> {
+        let server = crate::param_services::server(
+            &mut *self.node.lock().map_err(lock_poisoned)?,
+            service,
+            &ros2_client::ServiceTypeName::new("std_srvs", "Empty"),
+        )?;
+        Ok(Box::new(DdsEmptyService {
+            service: service.to_string(),
+            server,
+        }))
+    }
+}
+
+/// `std_srvs/srv/Empty`'s request and response alike: an IDL structure has at least one
+/// member, so ROS 2 gives an empty one this byte.
+#[derive(Debug, Default, Clone, serde::Serialize, serde::Deserialize)]
+struct EmptyMessage {
+    structure_needs_at_least_one_member: u8,
+}
+
+impl ros2_client::Message for EmptyMessage {}
+
+struct DdsEmptyService {
+    service: String,
+    server: ros2_client::Server<EmptyMessage, EmptyMessage>,
+}
+
+impl DdsEmptyService {
+    fn error(&self, what: &str, e: impl std::fmt::Debug) -> RosError {
+        RosError::Service {
+            service: self.service.clone(),
+            reason: format!("{what}: {e:?}"),
+        }
+    }
+}
+
+impl EmptyServiceBackend for DdsEmptyService {
+    fn try_take(&self) -> Result<Option<RequestId>, RosError> {
+        self.server
+            .receive_request()
+            .map(|request| request.map(|(id, _)| RequestId(id)))
+            .map_err(|e| self.error("a request that cannot be read", e))
+    }
+
+    fn respond(&self, RequestId(id): RequestId) -> Result<(), RosError> {
+        self.server
+            .send_response(id, EmptyMessage::default())
+            .map_err(|e| self.error("the response could not be sent", e))
     }
 }
 

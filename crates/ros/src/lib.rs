@@ -49,6 +49,8 @@ pub enum RosError {
     Dds(String),
     #[error("topic {topic}: {reason}")]
     Topic { topic: String, reason: String },
+    #[error("service {service}: {reason}")]
+    Service { service: String, reason: String },
     #[error(transparent)]
     Cdr(#[from] CdrError),
 }
@@ -205,7 +207,23 @@ trait NodeBackend: Send + Sync {
     fn rosout(&self) -> Option<Rosout> {
         None
     }
+    /// A `std_srvs/srv/Empty` server at the resolved name `service`.
+    fn empty_service(&self, service: &str) -> Result<Box<dyn EmptyServiceBackend>, RosError> {
+        Err(RosError::Service {
+            service: service.to_string(),
+            reason: "services are not offered by this transport".into(),
+        })
+    }
 }
+
+trait EmptyServiceBackend: Send + Sync {
+    /// Takes the next waiting request, if any, and returns the handle to answer it with.
+    fn try_take(&self) -> Result<Option<RequestId>, RosError>;
+    fn respond(&self, request: RequestId) -> Result<(), RosError>;
+}
+
+/// A request taken from a service, to be answered once it is acted on.
+struct RequestId(ros2_client::RmwRequestId);
 
 trait PublisherBackend: Send + Sync {
     fn publish(&self, cdr: &[u8]) -> Result<(), RosError>;
@@ -251,7 +269,7 @@ impl PreparedNode {
 
     /// `topic` after namespace expansion and `-r` remapping, as [`Node::resolve_topic`].
     fn resolve_topic(&self, topic: &str) -> String {
-        args::resolve_topic(topic, &self.ros_args.remaps, &self.namespace, &self.name)
+        args::resolve_name(topic, &self.ros_args.remaps, &self.namespace, &self.name)
     }
 
     /// The topics the DDS backend opens itself, resolved as any of the node's topics: rcl
@@ -339,7 +357,28 @@ impl Node {
 
     /// `topic` after namespace expansion and `-r` remapping.
     pub fn resolve_topic(&self, topic: &str) -> String {
-        args::resolve_topic(topic, &self.ros_args.remaps, &self.namespace, &self.name)
+        args::resolve_name(topic, &self.ros_args.remaps, &self.namespace, &self.name)
+    }
+
+    /// `service` after namespace expansion and the `-r` rules that apply to services.
+    pub fn resolve_service(&self, service: &str) -> String {
+        args::resolve_name(
+            service,
+            &self.ros_args.service_remaps,
+            &self.namespace,
+            &self.name,
+        )
+    }
+
+    /// Serves `service` (relative names are in the node's namespace, as rclcpp's) with the
+    /// type `std_srvs/srv/Empty`: a trigger, answered from the node's own loop by
+    /// [`EmptyService::answer`]. Only the default transport offers services.
+    pub fn empty_service(&self, service: &str) -> Result<EmptyService, RosError> {
+        let resolved = self.resolve_service(service);
+        Ok(EmptyService {
+            backend: self.backend.empty_service(&resolved)?,
+            name: resolved,
+        })
     }
 
     /// Now, in nanoseconds since the epoch: /clock time when `use_sim_time` is true (zero
@@ -512,6 +551,41 @@ impl Subscriber {
 
     pub fn type_name(&self) -> &str {
         &self.type_name
+    }
+}
+
+/// A `std_srvs/srv/Empty` service (see [`Node::empty_service`]).
+pub struct EmptyService {
+    name: String,
+    backend: Box<dyn EmptyServiceBackend>,
+}
+
+impl EmptyService {
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Runs `act` for each waiting request and answers the request after it, so that a
+    /// caller's response means the action has been taken. Returns how many were answered. A
+    /// request that cannot be read or answered is logged and skipped: its caller times out.
+    pub fn answer(&self, mut act: impl FnMut()) -> usize {
+        let mut answered = 0;
+        loop {
+            match self.backend.try_take() {
+                Ok(Some(request)) => {
+                    act();
+                    match self.backend.respond(request) {
+                        Ok(()) => answered += 1,
+                        Err(e) => log::warn!("{e}"),
+                    }
+                }
+                Ok(None) => return answered,
+                Err(e) => {
+                    log::warn!("{e}");
+                    return answered;
+                }
+            }
+        }
     }
 }
 

@@ -219,17 +219,36 @@ impl Servers {
     fn create(node: &mut ros2_client::Node) -> Result<Self, RosError> {
         let fqn = node.fully_qualified_name();
         Ok(Self {
-            get: server(node, &fqn, "get_parameters", "GetParameters")?,
-            get_types: server(node, &fqn, "get_parameter_types", "GetParameterTypes")?,
-            list: server(node, &fqn, "list_parameters", "ListParameters")?,
-            set: server(node, &fqn, "set_parameters", "SetParameters")?,
+            get: server(
+                node,
+                &format!("{fqn}/get_parameters"),
+                &rcl("GetParameters"),
+            )?,
+            get_types: server(
+                node,
+                &format!("{fqn}/get_parameter_types"),
+                &rcl("GetParameterTypes"),
+            )?,
+            list: server(
+                node,
+                &format!("{fqn}/list_parameters"),
+                &rcl("ListParameters"),
+            )?,
+            set: server(
+                node,
+                &format!("{fqn}/set_parameters"),
+                &rcl("SetParameters"),
+            )?,
             set_atomically: server(
                 node,
-                &fqn,
-                "set_parameters_atomically",
-                "SetParametersAtomically",
+                &format!("{fqn}/set_parameters_atomically"),
+                &rcl("SetParametersAtomically"),
             )?,
-            describe: server(node, &fqn, "describe_parameters", "DescribeParameters")?,
+            describe: server(
+                node,
+                &format!("{fqn}/describe_parameters"),
+                &rcl("DescribeParameters"),
+            )?,
         })
     }
 
@@ -280,24 +299,32 @@ fn service_qos() -> ros2_client::QosProfile {
         .history(ros2_client::qos::History::KeepLast { depth: 10 })
 }
 
-fn server<Req: Message + Clone + 'static, Resp: Message + 'static>(
+fn rcl(type_name: &str) -> ServiceTypeName {
+    ServiceTypeName::new("rcl_interfaces", type_name)
+}
+
+/// A server of the absolute `service` on `node`, framed as rmw_fastrtps (ROS 2's default
+/// RMW) frames requests and replies, with rclcpp's service QoS.
+pub(crate) fn server<Req: Message + Clone + 'static, Resp: Message + 'static>(
     node: &mut ros2_client::Node,
-    fqn: &str,
     service: &str,
-    type_name: &str,
+    service_type: &ServiceTypeName,
 ) -> Result<Server<Req, Resp>, RosError> {
-    let name = Name::new(fqn, service).map_err(|e| RosError::Name {
-        name: format!("{fqn}/{service}"),
+    let name = Name::parse(service).map_err(|e| RosError::Name {
+        name: service.into(),
         reason: format!("{e:?}"),
     })?;
     node.create_server(
         ServiceMapping::Enhanced,
         &name,
-        &ServiceTypeName::new("rcl_interfaces", type_name),
+        service_type,
         service_qos(),
         service_qos(),
     )
-    .map_err(|e| RosError::Dds(format!("{fqn}/{service} service: {e}")))
+    .map_err(|e| RosError::Service {
+        service: service.into(),
+        reason: e.to_string(),
+    })
 }
 
 /// Answers the requests `server` has, each with `respond`'s response.

@@ -88,10 +88,14 @@ pub fn logger_name(namespace: &str, name: &str) -> String {
 
 /// `time` as a `Time` since the Unix epoch; a time before it is 0, as ros2-client stamped it.
 fn stamp(time: SystemTime) -> Time {
+    nanos_since_epoch(time).map_or(Time::default(), Time::from_nanos)
+}
+
+/// Nanoseconds from the Unix epoch to `time`; none before it (or past 2262).
+pub(crate) fn nanos_since_epoch(time: SystemTime) -> Option<i64> {
     time.duration_since(SystemTime::UNIX_EPOCH)
         .ok()
         .and_then(|since| i64::try_from(since.as_nanos()).ok())
-        .map_or(Time::default(), Time::from_nanos)
 }
 
 /// The `Log` level of a record (`rcl_interfaces/msg/Log`'s constants; `trace` is a debug).

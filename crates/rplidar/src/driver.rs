@@ -9,6 +9,10 @@
 //!   |  +------------- read/write error (unplugged) -------------+   RESET, then start again
 //!   |                                                                 health error at start: RESET
 //!   +--scan mode the device lacks--> Failed (next_event returns the error)
+//!
+//! Scanning --stop_motor--> StoppedOnRequest (STOP, motor off, port kept open)
+//!   --start_motor--> Scanning (started again on the kept port)
+//! Disconnected --stop_motor--> Disconnected, then stopped as soon as the device is found
 //! ```
 //!
 //! A host (the ROS node) only loops over [`Driver::next_event`] and publishes what it gets.
@@ -17,6 +21,7 @@
 
 use std::collections::VecDeque;
 use std::io::{ErrorKind, Read, Write};
+use std::os::fd::{AsRawFd, BorrowedFd};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use lidar_har_msgs::builtin_interfaces::Time;
@@ -24,7 +29,8 @@ use lidar_har_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValu
 use lidar_har_msgs::sensor_msgs::LaserScan;
 use lidar_har_msgs::std_msgs::Header;
 use log::{debug, error, info, warn};
-use serialport::{ClearBuffer, SerialPort};
+use nix::sys::termios::{ControlFlags, SetArg, tcgetattr, tcsetattr};
+use serialport::{ClearBuffer, SerialPort, TTYPort};
 
 use crate::config::{Config, ScanModeChoice};
 use crate::decode::{DecodeStats, Sample, ScanFormat, StreamDecoder};
@@ -67,6 +73,11 @@ const AFTER_STOP: Duration = Duration::from_millis(20);
 const CONF_PROBE_TIMEOUT: Duration = Duration::from_millis(300);
 /// Motor duty cycle Slamtec's SDK starts an accessory-board motor with (`DEFAULT_MOTOR_PWM`).
 pub const DEFAULT_MOTOR_PWM: u16 = 660;
+/// Speed Slamtec's SDK 2 gives a time-of-flight motor when the device does not tell the one
+/// it prefers (`setMotorSpeed`).
+const FALLBACK_MOTOR_RPM: u16 = 600;
+/// The routine report while [`Driver::stop_motor`] holds the device.
+const MOTOR_STOPPED_MESSAGE: &str = "motor stopped on request (stop_motor); start_motor resumes";
 /// Answers longer than this are not single answers of this protocol.
 const MAX_ANSWER_LEN: u32 = 4096;
 
@@ -98,6 +109,8 @@ pub struct DriverStatus {
     pub rotations_without_return: u64,
     /// Motor duty cycle sent through the accessory board this session (`None`: not used).
     pub motor_pwm: Option<u16>,
+    /// [`Driver::stop_motor`] holds the device stopped until [`Driver::start_motor`].
+    pub motor_stopped_on_request: bool,
     pub last_error: Option<String>,
 }
 
@@ -120,13 +133,14 @@ impl Link {
     fn open(config: &Config) -> Result<Self> {
         let port = serialport::new(&config.port, config.baud)
             .timeout(POLL)
-            .open()
+            .open_native()
             .map_err(|cause| Error::Port {
                 path: config.port.clone(),
                 cause,
             })?;
+        keep_modem_lines_at_close(&port, &config.port);
         Ok(Self {
-            port,
+            port: Box::new(port),
             path: config.port.clone(),
             rx: Vec::with_capacity(8192),
             chunk: vec![0; 8192],
@@ -208,6 +222,26 @@ impl Link {
                 self.path
             );
         }
+    }
+
+    /// Stops as Slamtec's SDK does: `STOP` ends the measurements only; an accessory-board
+    /// motor then needs PWM 0, a time-of-flight one 0 rpm (`zero_rpm`: the SDK's
+    /// `setMotorSpeed(0)`), the others DTR raised. Every step is tried; the first error is
+    /// returned.
+    fn stop_device(&mut self, zero_rpm: bool) -> Result<()> {
+        let mut result = self.send(&Request::Stop);
+        if self.motor_pwm || zero_rpm {
+            std::thread::sleep(AFTER_STOP);
+        }
+        if self.motor_pwm {
+            result = result.and(self.send(&Request::SetMotorPwm(0)));
+        }
+        if zero_rpm {
+            result = result.and(self.send(&Request::SetMotorRpm(0)));
+        }
+        self.set_motor_dtr(false);
+        self.started = false;
+        result
     }
 
     /// Waits for a descriptor of `expected` type, skipping anything else (stale scan data,
@@ -352,6 +386,10 @@ enum State {
         next_attempt: Instant,
     },
     Scanning(Box<Session>),
+    /// Held by [`Driver::stop_motor`]: the device stopped with its motor off and its port
+    /// kept open: where HUPCL could not be cleared ([`keep_modem_lines_at_close`]), closing it
+    /// lowers DTR, which runs an A1's motor.
+    StoppedOnRequest(Link),
     /// Stopped for good: the configuration asks for what the device does not have.
     Failed {
         parameter: &'static str,
@@ -379,6 +417,8 @@ pub struct Driver {
     /// A motor parameter the connected family has no use for was warned about (once, not at
     /// every reconnect).
     warned_motor_parameter: bool,
+    /// `stop_motor` told a time-of-flight motor 0 rpm: the next start gives it a speed again.
+    motor_rpm_zeroed: bool,
 }
 
 /// Wall-clock nanoseconds since the Unix epoch.
@@ -411,6 +451,7 @@ impl Driver {
             no_return_since: None,
             warned_no_return: false,
             warned_motor_parameter: false,
+            motor_rpm_zeroed: false,
         })
     }
 
@@ -422,6 +463,98 @@ impl Driver {
         let mut s = self.status.clone();
         s.decode = self.decode_totals();
         s
+    }
+
+    /// Stops scanning and the motor (Slamtec's SDK `stop()` and `setMotorSpeed(0)`, the
+    /// `stop_motor` service of `rplidar_ros`) and keeps the port open, until
+    /// [`Driver::start_motor`]: meanwhile [`Driver::next_event`] gives only the routine
+    /// reports (OK, saying so), and neither reads, resets nor reconnects the device. Scans read
+    /// before the stop and not yet taken are dropped. Without a device (unplugged, or waiting
+    /// to reconnect) the driver goes on looking for it and stops it once it answers; an I/O
+    /// error while stopping is a lost device, looked for the same way. Stopping again only
+    /// records the request; a driver failed for good (its device already stopped) stays as
+    /// it is.
+    pub fn stop_motor(&mut self) {
+        if self.status.motor_stopped_on_request || matches!(self.state, State::Failed { .. }) {
+            return;
+        }
+        self.status.motor_stopped_on_request = true;
+        self.pending
+            .retain(|event| !matches!(event, Event::Scan(_)));
+        // Measured on a turning motor: the next start measures afresh (a motor spinning up
+        // gets `data_timeout` before a late rotation is warned of).
+        self.status.rotation_hz = None;
+        self.status.samples_per_rotation = None;
+        self.status.valid_beams = None;
+        self.status.rotations_without_return = 0;
+        self.no_return_since = None;
+        self.warned_no_return = false;
+        info!("{}: stop_motor: stopping the device", self.config.port);
+        self.hold_stopped();
+    }
+
+    /// Stops the device of a scanning session and holds it: the state
+    /// `stop_motor` asks for. Without a device, nothing to do until `connect` finds one.
+    fn hold_stopped(&mut self) {
+        let now = Instant::now();
+        let disconnected = State::Disconnected { next_attempt: now };
+        let link = match std::mem::replace(&mut self.state, disconnected) {
+            State::Scanning(session) => {
+                self.decode_before = add_stats(self.decode_before, session.decoder.stats());
+                let zero_rpm = session.info.is_time_of_flight();
+                self.motor_rpm_zeroed |= zero_rpm;
+                let mut link = session.link;
+                if let Err(e) = link.stop_device(zero_rpm) {
+                    self.status.scanning = false;
+                    self.status.disconnects += 1;
+                    self.status.last_error = Some(e.to_string());
+                    let message = format!(
+                        "lost the device while stopping its motor: {e}; it is stopped once it \
+                         answers again"
+                    );
+                    error!("{}: {message}", self.config.port);
+                    self.state = State::Disconnected {
+                        next_attempt: now + self.backoff,
+                    };
+                    self.report(DiagnosticStatus::ERROR, message);
+                    return;
+                }
+                link
+            }
+            other => {
+                self.state = other;
+                return;
+            }
+        };
+        self.state = State::StoppedOnRequest(link);
+        self.status.scanning = false;
+        info!("{}: {MOTOR_STOPPED_MESSAGE}", self.config.port);
+        self.report(DiagnosticStatus::OK, MOTOR_STOPPED_MESSAGE.into());
+    }
+
+    /// Ends [`Driver::stop_motor`]: starts scanning on the kept port as at the first
+    /// connection (its failure is a fault, retried as any), or has the next
+    /// [`Driver::next_event`] look for the device at once. Does nothing unless stopped.
+    pub fn start_motor(&mut self) {
+        if !self.status.motor_stopped_on_request {
+            return;
+        }
+        self.status.motor_stopped_on_request = false;
+        self.backoff = self.config.reconnect_min;
+        info!("{}: start_motor: starting the device", self.config.port);
+        let disconnected = State::Disconnected {
+            next_attempt: Instant::now(),
+        };
+        match std::mem::replace(&mut self.state, disconnected) {
+            State::StoppedOnRequest(link) => {
+                let started = self.start_session(link);
+                self.begin_scanning(started, |session| {
+                    format!("scanning again (start_motor), mode {}", session.mode_name)
+                });
+            }
+            State::Disconnected { .. } => {}
+            other => self.state = other,
+        }
     }
 
     /// Blocks until the next scan or diagnostics report. Faults are reported and recovered
@@ -458,23 +591,46 @@ impl Driver {
                 }
             }
             State::Scanning(_) => self.poll_scan(),
+            // Nothing to read or retry: the host gets the reports, and its requests between them.
+            State::StoppedOnRequest(_) => {
+                std::thread::sleep(self.next_report.saturating_duration_since(now));
+            }
             State::Failed { .. } => {}
         }
     }
 
     fn connect(&mut self) {
-        let result = Link::open(&self.config).and_then(|link| self.start_session(link));
-        match result {
+        let started = Link::open(&self.config).and_then(|link| self.start_session(link));
+        if started.is_ok() {
+            self.status.connects += 1;
+            self.backoff = self.config.reconnect_min;
+        }
+        self.begin_scanning(started, |session| {
+            format!(
+                "scanning: RPLIDAR {} firmware {} hardware {}, mode {}",
+                session.info.family(),
+                session.info.firmware(),
+                session.info.hardware,
+                session.mode_name
+            )
+        });
+        // Asked while there was no device: stopped as soon as it answers (its family, which
+        // says how to stop the motor, is known only now).
+        if self.status.scanning && self.status.motor_stopped_on_request {
+            self.hold_stopped();
+        }
+    }
+
+    /// Scans with a started session, reported OK as `describe` says, or takes its failure
+    /// to start as a fault.
+    fn begin_scanning(
+        &mut self,
+        started: Result<Session>,
+        describe: impl FnOnce(&Session) -> String,
+    ) {
+        match started {
             Ok(session) => {
-                self.status.connects += 1;
-                self.backoff = self.config.reconnect_min;
-                let message = format!(
-                    "scanning: RPLIDAR {} firmware {} hardware {}, mode {}",
-                    session.info.family(),
-                    session.info.firmware(),
-                    session.info.hardware,
-                    session.mode_name
-                );
+                let message = describe(&session);
                 info!("{}: {message}", self.config.port);
                 self.status.last_error = None;
                 self.enter_scanning(session);
@@ -546,7 +702,7 @@ impl Driver {
     fn decode_totals(&self) -> DecodeStats {
         match &self.state {
             State::Scanning(s) => add_stats(self.decode_before, s.decoder.stats()),
-            State::Disconnected { .. } | State::Failed { .. } => self.decode_before,
+            _ => self.decode_before,
         }
     }
 
@@ -595,8 +751,14 @@ impl Driver {
         self.warn_of_motor_parameter_ignored(&info);
         let mut motor_pwm = None;
         if info.is_time_of_flight() {
-            if let Some(rpm) = self.config.motor_rpm {
+            let rpm = match self.config.motor_rpm {
+                // Told 0 rpm by `stop_motor`: it turns again only when told a speed.
+                None if self.motor_rpm_zeroed => Some(self.desired_rpm(&mut link)),
+                configured => configured,
+            };
+            if let Some(rpm) = rpm {
                 link.send(&Request::SetMotorRpm(rpm))?;
+                self.motor_rpm_zeroed = false;
             }
         } else {
             // A2/A3 motors on the accessory board stand still until told a duty cycle.
@@ -696,6 +858,25 @@ impl Driver {
                 debug!("{}: no accessory board flag: {e}", self.config.port);
                 link.clear_input();
                 false
+            }
+        }
+    }
+
+    /// The rpm a time-of-flight device prefers (`GET_LIDAR_CONF` entry 0x01), as Slamtec's SDK
+    /// 2 asks it when starting the motor, and its fallback without an answer.
+    fn desired_rpm(&self, link: &mut Link) -> u16 {
+        let probe = self.probe_timeout();
+        match conf_request(link, conf::DESIRED_ROT_FREQ, None, probe)
+            .and_then(|v| conf_u32(&v, 2, "desired rpm"))
+        {
+            Ok(rpm) if rpm > 0 => rpm as u16,
+            answer => {
+                debug!(
+                    "{}: no desired motor speed ({answer:?}): {FALLBACK_MOTOR_RPM} rpm",
+                    self.config.port
+                );
+                link.clear_input();
+                FALLBACK_MOTOR_RPM
             }
         }
     }
@@ -1118,13 +1299,23 @@ impl Driver {
             } else {
                 self.warned_no_return && self.status.rotations_without_return > 0
             };
-        let (level, message) = if !self.status.scanning {
+        let (level, message) = if matches!(self.state, State::StoppedOnRequest(_)) {
+            (DiagnosticStatus::OK, MOTOR_STOPPED_MESSAGE.into())
+        } else if !self.status.scanning {
             let why = self
                 .status
                 .last_error
                 .clone()
                 .unwrap_or_else(|| "not connected yet".into());
-            (DiagnosticStatus::ERROR, format!("not scanning: {why}"))
+            let stop = if self.status.motor_stopped_on_request {
+                "; stop_motor: stopped once the device answers"
+            } else {
+                ""
+            };
+            (
+                DiagnosticStatus::ERROR,
+                format!("not scanning: {why}{stop}"),
+            )
         } else if let Some(turnless_for) = overdue {
             (
                 DiagnosticStatus::WARN,
@@ -1171,6 +1362,10 @@ impl Driver {
             KeyValue::new("port", self.config.port.clone()),
             KeyValue::new("baud", self.config.baud.to_string()),
             KeyValue::new("scanning", s.scanning.to_string()),
+            KeyValue::new(
+                "motor_stopped_on_request",
+                s.motor_stopped_on_request.to_string(),
+            ),
             KeyValue::new("beams", self.config.geometry.beams.to_string()),
             KeyValue::new("scans", s.scans.to_string()),
             KeyValue::new("resets", s.resets.to_string()),
@@ -1251,20 +1446,34 @@ impl Driver {
     }
 }
 
+/// Clears HUPCL, which Linux sets on ttys by default: with it, closing the port (the host
+/// exits, a fault drops the link) lowers DTR, and DTR low runs an A1's motor, so the motor
+/// that `stop_device` turned off would start again. Without it DTR keeps the level set last.
+/// A port without termios (not a tty) is left as it is, as DTR errors are.
+fn keep_modem_lines_at_close(port: &TTYPort, path: &str) {
+    // SAFETY: the descriptor belongs to `port`, which outlives this borrow.
+    let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
+    let cleared = tcgetattr(fd).and_then(|mut termios| {
+        if !termios.control_flags.contains(ControlFlags::HUPCL) {
+            return Ok(());
+        }
+        termios.control_flags.remove(ControlFlags::HUPCL);
+        tcsetattr(fd, SetArg::TCSANOW, &termios)
+    });
+    if let Err(e) = cleared {
+        debug!(
+            "{path}: clearing HUPCL failed ({e}); closing the port will lower DTR (an A1's motor runs)"
+        );
+    }
+}
+
 impl Drop for Link {
-    /// Stops as Slamtec's SDK `stop()` does: `STOP` ends the measurements only; an
-    /// accessory-board motor needs PWM 0, the others DTR. Errors are moot here (an unplugged
-    /// device has stopped anyway).
+    /// Stops as Slamtec's SDK `stop()` does (`stop_device`, without the rpm command). Errors
+    /// are moot here (an unplugged device has stopped anyway).
     fn drop(&mut self) {
-        if !self.started {
-            return;
+        if self.started {
+            let _ = self.stop_device(false);
         }
-        let _ = self.send(&Request::Stop);
-        if self.motor_pwm {
-            std::thread::sleep(AFTER_STOP);
-            let _ = self.send(&Request::SetMotorPwm(0));
-        }
-        self.set_motor_dtr(false);
     }
 }
 
@@ -1629,6 +1838,241 @@ mod tests {
                 (pair[1] - pair[0] - 100_000_000).abs() < 1_000,
                 "{stamps:?}"
             );
+        }
+    }
+
+    /// `stop_motor` and `start_motor` against the fake device.
+    #[cfg(feature = "fake")]
+    mod motor_on_request {
+        use super::*;
+        use crate::fake::{FakeConfig, FakeLidar, SyntheticRoom};
+        use std::path::Path;
+
+        /// How long a test waits for what it expects: only a broken driver takes it.
+        const LIMIT: Duration = Duration::from_secs(30);
+
+        /// Timings of `tests/fake_device.rs`, for a loaded 2-core CI machine.
+        fn config(path: &Path) -> Config {
+            Config {
+                request_timeout: Duration::from_secs(20),
+                data_timeout: Duration::from_secs(10),
+                reset_wait: Duration::from_millis(30),
+                reconnect_min: Duration::from_millis(20),
+                reconnect_max: Duration::from_millis(160),
+                diagnostics_period: Duration::from_millis(200),
+                ..Config::new(path.to_str().expect("temp paths are UTF-8"))
+            }
+        }
+
+        fn spawn(path: &Path, fake: FakeConfig) -> FakeLidar {
+            FakeLidar::spawn(path, fake, SyntheticRoom::default()).expect("fake device starts")
+        }
+
+        /// Runs the driver until `done` says so, returning the scans and diagnostics seen.
+        fn run_until(
+            driver: &mut Driver,
+            mut done: impl FnMut(&[LaserScan], &[DiagnosticStatus]) -> bool,
+        ) -> (Vec<LaserScan>, Vec<DiagnosticStatus>) {
+            let deadline = Instant::now() + LIMIT;
+            let (mut scans, mut diags) = (Vec::new(), Vec::new());
+            while !done(&scans, &diags) {
+                assert!(Instant::now() < deadline, "gave up: {diags:#?}");
+                match driver.next_event() {
+                    Ok(Event::Scan(scan)) => scans.push(scan),
+                    Ok(Event::Diagnostics(array)) => diags.extend(array.status),
+                    Err(e) => panic!("the driver stopped: {e}"),
+                }
+            }
+            (scans, diags)
+        }
+
+        fn value<'a>(d: &'a DiagnosticStatus, key: &str) -> Option<&'a str> {
+            d.values
+                .iter()
+                .find(|kv| kv.key == key)
+                .map(|kv| kv.value.as_str())
+        }
+
+        /// Runs the stopped driver for several report periods: only OK reports saying it is
+        /// stopped, no scan, and nothing sent to the device.
+        fn check_stopped(driver: &mut Driver, fake: &FakeLidar) {
+            let sent = fake.log().commands.len();
+            let (scans, diags) = run_until(driver, |_, d| d.len() >= 5);
+            assert!(scans.is_empty(), "{} scans while stopped", scans.len());
+            for d in &diags {
+                assert_eq!(
+                    (d.level, d.message.as_str()),
+                    (DiagnosticStatus::OK, MOTOR_STOPPED_MESSAGE)
+                );
+                assert_eq!(value(d, "motor_stopped_on_request"), Some("true"));
+                assert_eq!(value(d, "scanning"), Some("false"));
+            }
+            assert_eq!(fake.log().commands.len(), sent, "{:?}", fake.log());
+            let status = driver.status();
+            assert!(status.motor_stopped_on_request && !status.scanning);
+            // The rate was measured on a turning motor: a restart measures afresh.
+            assert_eq!(status.rotation_hz, None);
+            assert!(diags.iter().all(|d| value(d, "rotation_hz").is_none()));
+        }
+
+        #[test]
+        fn stop_motor_stops_a_pwm_motor_on_the_open_port_and_start_motor_scans_again() {
+            let dir = tempfile::tempdir().unwrap();
+            let mut a2 = FakeConfig {
+                accessory_board_motor: true,
+                ..FakeConfig::default()
+            };
+            a2.info.model = 0x28;
+            let fake = spawn(&dir.path().join("rplidar"), a2);
+            let mut driver = Driver::new(config(fake.path())).unwrap();
+            run_until(&mut driver, |s, _| s.len() >= 2);
+            assert_eq!(fake.log().motor_pwm, Some(DEFAULT_MOTOR_PWM));
+            // Scans read before the stop are not the stop's concern.
+            driver.pending.clear();
+
+            driver.stop_motor();
+            let log = fake.log_when(LIMIT, |l| l.motor_pwm == Some(0));
+            assert_eq!(log.motor_pwm, Some(0), "{log:?}");
+            assert_eq!(
+                log.commands[log.commands.len() - 2..],
+                [command::STOP, command::SET_MOTOR_PWM],
+                "STOP, then PWM 0"
+            );
+            assert!(
+                matches!(driver.state, State::StoppedOnRequest(_)),
+                "the port is kept open"
+            );
+            driver.stop_motor();
+            check_stopped(&mut driver, &fake);
+
+            driver.start_motor();
+            driver.start_motor();
+            let restarted = log.commands.len();
+            let (_, diags) = run_until(&mut driver, |s, d| {
+                s.len() >= 2 && d.iter().any(|d| d.message.starts_with("scanning at"))
+            });
+            assert!(
+                diags[0].message.starts_with("scanning again (start_motor)"),
+                "{diags:#?}"
+            );
+            // The stopped time is no stall: no WARN "no complete rotation" or reset.
+            assert!(
+                diags.iter().all(|d| d.level == DiagnosticStatus::OK),
+                "{diags:#?}"
+            );
+            assert!(
+                diags
+                    .iter()
+                    .all(|d| value(d, "motor_stopped_on_request") == Some("false"))
+            );
+            let log = fake.log();
+            let again = &log.commands[restarted..];
+            for c in [command::STOP, command::GET_INFO, command::EXPRESS_SCAN] {
+                assert!(again.contains(&c), "0x{c:02X} not in {again:02X?}");
+            }
+            assert_eq!(
+                log.motor_pwm,
+                Some(DEFAULT_MOTOR_PWM),
+                "the motor runs again"
+            );
+            assert_eq!(log.scans_started.len(), 2);
+            let status = driver.status();
+            assert!(status.scanning && !status.motor_stopped_on_request);
+            assert_eq!((status.connects, status.resets), (1, 0), "the kept port");
+        }
+
+        #[test]
+        fn stop_motor_gives_a_time_of_flight_motor_0_rpm_and_start_motor_its_speed() {
+            let dir = tempfile::tempdir().unwrap();
+            let fake = spawn(&dir.path().join("rplidar"), FakeConfig::s_series());
+            let mut driver = Driver::new(config(fake.path())).unwrap();
+            run_until(&mut driver, |s, _| !s.is_empty());
+            assert_eq!(fake.log().motor_rpm, None, "no motor_rpm configured");
+            driver.pending.clear();
+
+            driver.stop_motor();
+            let log = fake.log_when(LIMIT, |l| l.motor_rpm == Some(0));
+            assert_eq!(log.motor_rpm, Some(0), "{log:?}");
+            assert_eq!(
+                log.commands[log.commands.len() - 2..],
+                [command::STOP, command::HQ_MOTOR_SPEED],
+                "STOP, then 0 rpm"
+            );
+            check_stopped(&mut driver, &fake);
+
+            driver.start_motor();
+            run_until(&mut driver, |s, _| !s.is_empty());
+            // The speed the device prefers (the fake turns at 10 Hz).
+            assert_eq!(fake.log().motor_rpm, Some(600));
+        }
+
+        /// Asked while the device is away (unplugged, or a reconnect pending), the stop
+        /// waits for it: an S-series left after a lost link turns until told 0 rpm.
+        #[test]
+        fn stop_motor_without_a_device_stops_it_once_it_answers() {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("rplidar");
+            let mut driver = Driver::new(Config {
+                motor_rpm: Some(900),
+                ..config(&path)
+            })
+            .unwrap();
+            run_until(&mut driver, |_, d| {
+                d.iter().any(|d| d.message.starts_with("cannot start"))
+            });
+            driver.pending.clear();
+            driver.stop_motor();
+            driver.stop_motor();
+            // The routine report says what is pending (the driver goes on looking).
+            run_until(&mut driver, |_, d| {
+                d.iter().any(|d| {
+                    d.message.starts_with("not scanning")
+                        && d.message
+                            .ends_with("stop_motor: stopped once the device answers")
+                })
+            });
+            let fake = spawn(&path, FakeConfig::s_series());
+            run_until(&mut driver, |_, d| {
+                d.iter().any(|d| d.message == MOTOR_STOPPED_MESSAGE)
+            });
+            let log = fake.log_when(LIMIT, |l| l.motor_rpm == Some(0));
+            assert_eq!(log.motor_rpm, Some(0), "{log:?}");
+            assert_eq!(
+                log.commands[log.commands.len() - 2..],
+                [command::STOP, command::HQ_MOTOR_SPEED],
+                "found, then STOP and 0 rpm"
+            );
+            driver.pending.clear();
+            check_stopped(&mut driver, &fake);
+            assert_eq!(driver.status().connects, 1);
+
+            driver.start_motor();
+            run_until(&mut driver, |s, _| !s.is_empty());
+            assert_eq!(
+                fake.log().motor_rpm,
+                Some(900),
+                "the configured speed again"
+            );
+        }
+
+        /// Scans read before the stop are not handed out after it: the caller's reply says
+        /// the scan has stopped.
+        #[test]
+        fn stop_motor_drops_the_scans_not_yet_taken() {
+            let dir = tempfile::tempdir().unwrap();
+            let fake = spawn(&dir.path().join("rplidar"), FakeConfig::default());
+            let mut driver = Driver::new(config(fake.path())).unwrap();
+            run_until(&mut driver, |s, _| !s.is_empty());
+            // A host late to take them: rotations waiting, as after a stall.
+            std::thread::sleep(Duration::from_millis(400));
+            driver.poll_scan();
+            assert!(
+                driver.pending.iter().any(|e| matches!(e, Event::Scan(_))),
+                "scans waiting before the stop"
+            );
+            driver.stop_motor();
+            let (scans, _) = run_until(&mut driver, |_, d| d.len() >= 2);
+            assert!(scans.is_empty(), "{} scans after the stop", scans.len());
         }
     }
 }

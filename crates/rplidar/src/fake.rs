@@ -7,9 +7,9 @@
 //!
 //! It serves rotations from a [`RangeSource`] (a closure, the simulator, a bag; by default
 //! [`SyntheticRoom`]) in standard, express or dense mode at a chosen rotation rate, answers
-//! info, health, sample rate and scan-mode configuration requests, and injects faults:
-//! garbage bytes, dropped bytes, stalls, a hung device that only a reset revives, health
-//! errors, a blinded window (samples without a return) and disconnects.
+//! info, health, sample rate, scan-mode configuration and desired motor speed requests, and
+//! injects faults: garbage bytes, dropped bytes, stalls, a hung device that only a reset
+//! revives, health errors, a blinded window (samples without a return) and disconnects.
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 
 use serialport::{SerialPort, TTYPort};
 
+use crate::driver::DEFAULT_MOTOR_PWM;
 use crate::encode;
 use crate::protocol::{
     Descriptor, DeviceHealth, DeviceInfo, HealthStatus, REQUEST_SYNC, SendMode, answer, command,
@@ -389,6 +390,19 @@ impl FakeLidar {
     pub fn log(&self) -> FakeLog {
         lock(&self.shared.log).clone()
     }
+
+    /// The log once `done` holds, polled until `limit` passes (then the last one seen, so
+    /// that a test's asserts show what did arrive): no fixed sleep guesses the delay.
+    pub fn log_when(&self, limit: Duration, done: impl Fn(&FakeLog) -> bool) -> FakeLog {
+        let deadline = Instant::now() + limit;
+        loop {
+            let log = self.log();
+            if done(&log) || Instant::now() >= deadline {
+                return log;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
 }
 
 impl Drop for FakeLidar {
@@ -662,6 +676,12 @@ impl Device {
         let modes = &self.config.scan_modes;
         let selected = mode.and_then(|m| modes.get(usize::from(m)));
         let value: Vec<u8> = match (entry, selected) {
+            (conf::DESIRED_ROT_FREQ, _) => {
+                let rpm = (self.config.rotation_hz * 60.0).round() as u16;
+                let mut v = rpm.to_le_bytes().to_vec();
+                v.extend_from_slice(&DEFAULT_MOTOR_PWM.to_le_bytes());
+                v
+            }
             (conf::SCAN_MODE_COUNT, _) => (modes.len() as u16).to_le_bytes().to_vec(),
             (conf::SCAN_MODE_TYPICAL, _) => self.config.typical_mode.to_le_bytes().to_vec(),
             (conf::SCAN_MODE_US_PER_SAMPLE, Some(_)) => ((self.us_per_sample() * 256.0) as u32)

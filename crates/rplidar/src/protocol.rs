@@ -54,6 +54,8 @@ pub const ACC_BOARD_MOTOR_CTRL: u32 = 0x1;
 
 /// Configuration entries readable with `GET_LIDAR_CONF`.
 pub mod conf {
+    /// The motor speed the device prefers: rpm, then PWM reference (2 bytes each).
+    pub const DESIRED_ROT_FREQ: u32 = 0x01;
     pub const SCAN_MODE_COUNT: u32 = 0x70;
     pub const SCAN_MODE_US_PER_SAMPLE: u32 = 0x71;
     pub const SCAN_MODE_MAX_DISTANCE: u32 = 0x74;

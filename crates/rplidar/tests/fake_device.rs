@@ -1,6 +1,7 @@
 //! The real driver against the fake RPLIDAR on a pseudo-terminal: scans decoded to the
 //! served ranges, scan-mode selection, and recovery from every injected fault.
 
+use std::os::fd::OwnedFd;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -11,6 +12,9 @@ use lidar_har_rplidar::protocol::HealthStatus;
 use lidar_har_rplidar::{
     Config, DEFAULT_MOTOR_PWM, Driver, Error, Event, ScanFormat, ScanGeometry, ScanModeChoice,
 };
+use nix::fcntl::OFlag;
+use nix::sys::stat::Mode;
+use nix::sys::termios::{ControlFlags, SetArg, tcgetattr, tcsetattr};
 
 const SAMPLES: usize = 720;
 
@@ -130,19 +134,6 @@ fn run_until_stopped(driver: &mut Driver, limit: Duration) -> (Error, Vec<Diagno
             Ok(Event::Diagnostics(DiagnosticArray { status, .. })) => diags.extend(status),
             Err(e) => return (e, diags),
         }
-    }
-}
-
-/// The fake's log once `done` holds, polled until `limit` passes (then the last one seen, so
-/// that the caller's asserts show what did arrive): no fixed sleep guesses the delay.
-fn log_when(fake: &FakeLidar, limit: Duration, done: impl Fn(&FakeLog) -> bool) -> FakeLog {
-    let deadline = Instant::now() + limit;
-    loop {
-        let log = fake.log();
-        if done(&log) || Instant::now() >= deadline {
-            return log;
-        }
-        std::thread::sleep(Duration::from_millis(10));
     }
 }
 
@@ -825,8 +816,48 @@ fn stamps_follow_the_callers_clock_and_drop_stops_the_device() {
         );
     }
     drop(driver);
-    let log = log_when(&fake, LIMIT, |l| l.commands.last() == Some(&0x25));
+    let log = fake.log_when(LIMIT, |l| l.commands.last() == Some(&0x25));
     assert_eq!(log.commands.last(), Some(&0x25), "STOP sent on drop");
+}
+
+/// HUPCL set on a tty (the Linux default for a ttyUSB), before the driver opens it.
+fn set_hupcl(tty: &OwnedFd) {
+    let mut termios = tcgetattr(tty).expect("the fake's slave is a tty");
+    termios.control_flags.insert(ControlFlags::HUPCL);
+    tcsetattr(tty, SetArg::TCSANOW, &termios).expect("HUPCL can be set on a pty");
+}
+
+fn hupcl(tty: &OwnedFd) -> bool {
+    let termios = tcgetattr(tty).expect("the fake's slave is a tty");
+    termios.control_flags.contains(ControlFlags::HUPCL)
+}
+
+#[test]
+fn the_driver_clears_hupcl_so_closing_the_port_leaves_dtr_as_set() {
+    // With HUPCL the kernel lowers DTR when the driver closes the port, and DTR low runs an
+    // A1's motor that the driver's stop turned off. A pty slave starts without HUPCL: the
+    // test sets it, as a ttyUSB has it, through its own handle of the fake's slave (opened
+    // before the driver, whose exclusive open would refuse it afterwards).
+    let dir = tempfile::tempdir().unwrap();
+    let fake = spawn(dir.path(), FakeConfig::default());
+    let tty = nix::fcntl::open(fake.path(), OFlag::O_RDWR | OFlag::O_NOCTTY, Mode::empty())
+        .expect("the fake's slave opens");
+    set_hupcl(&tty);
+    assert!(hupcl(&tty), "HUPCL is set before the driver opens the port");
+    // 256000 is no `Bnnn` constant: the rate set with termios2 survives clearing the flag.
+    let cfg = Config {
+        baud: 256_000,
+        ..config(fake.path(), ScanModeChoice::Standard)
+    };
+    let mut driver = Driver::new(cfg).unwrap();
+    run_until(&mut driver, LIMIT, scans(1));
+    assert!(
+        !hupcl(&tty),
+        "the driver clears HUPCL on the port it opened"
+    );
+    if let Some(baud) = driver.status().baud_readback {
+        assert_eq!(baud, 256_000, "the configured rate is kept");
+    }
 }
 
 #[test]
@@ -853,7 +884,7 @@ fn accessory_board_motor_gets_the_default_pwm_and_pwm_0_on_drop() {
         .expect("a connect report");
     assert_eq!(value(connected, "motor_pwm"), Some("660"));
     drop(driver);
-    let log = log_when(&fake, LIMIT, |l| l.motor_pwm == Some(0));
+    let log = fake.log_when(LIMIT, |l| l.motor_pwm == Some(0));
     assert_eq!(log.motor_pwm, Some(0), "the motor is switched off on drop");
     assert_eq!(
         log.commands[log.commands.len() - 2..],
@@ -900,7 +931,7 @@ fn a_scan_that_does_not_start_leaves_the_motor_off() {
         let scan = l.commands.iter().rposition(|&c| c == 0x82);
         l.motor_pwm == Some(0) && scan.is_some_and(|i| l.commands[i..].contains(&0x25))
     };
-    let log = log_when(&fake, LIMIT, stopped);
+    let log = fake.log_when(LIMIT, stopped);
     assert!(
         stopped(&log),
         "STOP and PWM 0 after the failed start: {log:?}"
@@ -934,7 +965,7 @@ fn motor_without_accessory_board_control_gets_no_pwm() {
         assert_eq!(driver.status().motor_pwm, None, "model 0x{model:02X}");
         drop(driver);
         // A PWM command would come after the STOP.
-        let log = log_when(&fake, LIMIT, |l| l.commands.last() == Some(&0x25));
+        let log = fake.log_when(LIMIT, |l| l.commands.last() == Some(&0x25));
         assert_eq!(log.motor_pwm, None, "model 0x{model:02X}");
         assert_eq!(
             log.commands.contains(&0xFF),
@@ -967,7 +998,7 @@ fn a_motor_parameter_of_the_other_family_is_warned_about_and_not_sent() {
         assert_eq!(warnings.len(), 1, "{names}: {diags:#?}");
         assert_eq!(warnings[0].level, DiagnosticStatus::WARN);
         drop(driver);
-        let log = log_when(&fake, LIMIT, |l| l.commands.last() == Some(&0x25));
+        let log = fake.log_when(LIMIT, |l| l.commands.last() == Some(&0x25));
         assert_eq!(log.motor_rpm, None, "{names}");
         if pwm.is_some() {
             assert_eq!(log.motor_pwm, None, "{names}");

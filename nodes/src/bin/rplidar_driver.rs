@@ -9,12 +9,15 @@
 //! accessory board drives the motor, else none sent), `motor_rpm` (-1 = device default),
 //! `diagnostics_period` (s, 0.01..=5). Scans are stamped by the wall clock, also with
 //! `use_sim_time` (warned about): a live device's time is the wall clock.
+//!
+//! Services: `stop_motor` and `start_motor` (`std_srvs/srv/Empty`), answered between events,
+//! so within a diagnostics period while the motor is stopped.
 
 use std::process::ExitCode;
 
 use lidar_har::{NodeInfo, Shutdown, bad_parameter, seconds};
 use lidar_har_msgs::topics;
-use lidar_har_ros::{NodeSetup, ParamDecl, ParamValue, Parameters, RosError};
+use lidar_har_ros::{EmptyService, Node, NodeSetup, ParamDecl, ParamValue, Parameters, RosError};
 use lidar_har_rplidar::config::MIN_BAUD;
 use lidar_har_rplidar::{Config, ConfigField, Driver, Error, Event, ScanModeChoice};
 
@@ -174,11 +177,16 @@ fn drive(shutdown: &Shutdown) -> anyhow::Result<()> {
     }
     let scans = node.publisher_for(&topics::SCAN)?;
     let diagnostics = node.publisher_for(&topics::DIAGNOSTICS)?;
-    // next_event returns at least once per diagnostics period, so a signal is seen promptly.
+    let motor_services = MotorServices::offer(&node);
+    // next_event returns at least once per diagnostics period, so a signal or a service
+    // request is seen promptly.
     while !shutdown.requested() {
         match driver.next_event().map_err(driver_error)? {
             Event::Scan(scan) => scans.publish_msg(&scan)?,
             Event::Diagnostics(report) => diagnostics.publish_msg(&report)?,
+        }
+        if let Some(services) = &motor_services {
+            services.answer(&mut driver);
         }
     }
     log::info!(
@@ -186,6 +194,43 @@ fn drive(shutdown: &Shutdown) -> anyhow::Result<()> {
         driver.status().scans
     );
     Ok(())
+}
+
+/// `stop_motor` and `start_motor` (`std_srvs/srv/Empty`), as rplidar_ros offers them: a
+/// docked robot stops its Lidar's motor instead of wearing it for hours.
+struct MotorServices {
+    stop: EmptyService,
+    start: EmptyService,
+}
+
+impl MotorServices {
+    /// The services, or none (warned) where the transport cannot offer them: scanning goes on
+    /// without them.
+    fn offer(node: &Node) -> Option<Self> {
+        let services = node
+            .empty_service("stop_motor")
+            .and_then(|stop| Ok((stop, node.empty_service("start_motor")?)));
+        match services {
+            Ok((stop, start)) => Some(Self { stop, start }),
+            Err(e) => {
+                log::warn!("rplidar_driver: {e}; stop_motor and start_motor are not offered");
+                None
+            }
+        }
+    }
+
+    /// Acts on the requests waiting and answers each once done: stops first, then starts, so
+    /// a stop and a start waiting together (their order is not known) leave the Lidar
+    /// scanning, the safe side for a robot that may move.
+    fn answer(&self, driver: &mut Driver) {
+        let stops = self.stop.answer(|| driver.stop_motor());
+        let starts = self.start.answer(|| driver.start_motor());
+        for (count, name) in [(stops, self.stop.name()), (starts, self.start.name())] {
+            if count > 0 {
+                log::info!("rplidar_driver: {name} called");
+            }
+        }
+    }
 }
 
 /// The driver's permanent errors are bad parameters (exit status 2), named as it names them.
