@@ -341,6 +341,77 @@ fn a_run_that_gives_no_window_leaves_the_dataset_already_there_whole() {
     assert!(leftovers.is_empty(), "left behind: {leftovers:?}");
 }
 
+/// SIGTERM (or Ctrl-C) between episodes stops `dataset` with its scratch rows removed: they
+/// stayed in `--out` (gigabytes for a training set) when the signal ended it at once.
+#[test]
+fn a_signal_stops_a_dataset_run_without_leaving_its_scratch_rows() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut child = lidar_har()
+        .current_dir(repo_root())
+        .args([
+            "dataset",
+            "--scenes",
+            "config/scenes/kitchen.yaml",
+            "--episodes",
+            "400",
+        ])
+        .args([
+            "--episode-seconds",
+            "6",
+            "--window",
+            "8",
+            "--size",
+            "16",
+            "--threads",
+            "1",
+        ])
+        .arg("--out")
+        .arg(dir.path())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("lidar-har runs");
+    let rows = |dir: &Path| -> Vec<(String, u64)> {
+        std::fs::read_dir(dir)
+            .expect("read_dir")
+            .filter_map(|entry| {
+                let entry = entry.ok()?;
+                let name = entry.file_name().into_string().ok()?;
+                let len = entry.metadata().ok()?.len();
+                name.ends_with(".rows").then_some((name, len))
+            })
+            .collect()
+    };
+    // Rows written: an episode is in, so the run takes signals between episodes.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    while !rows(dir.path()).iter().any(|(_, len)| *len > 0) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no episode written in 120 s"
+        );
+        assert!(child.try_wait().expect("try_wait").is_none(), "ended early");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let kill = std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(kill.success());
+    let out = child.wait_with_output().expect("wait");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.signal(), Some(15), "ended by SIGTERM: {stderr}");
+    assert!(
+        stderr.contains("interrupted by SIGTERM; nothing was written"),
+        "{stderr}"
+    );
+    assert!(
+        rows(dir.path()).is_empty(),
+        "left behind: {:?}",
+        rows(dir.path())
+    );
+    assert!(!dir.path().join("index.json").exists());
+}
+
 /// `lidar-har random-scenes` with `--seed` and `--count`, into `out`.
 fn random_scenes(out: &Path, seed: &str, count: &str) -> std::process::Output {
     lidar_har()
@@ -578,6 +649,36 @@ fn alerts(args: &[&str]) -> std::process::Output {
         .args(args)
         .output()
         .expect("lidar-har runs")
+}
+
+/// `--out` naming the readings file (given or being saved) is refused before anything is
+/// written: the report replaced readings that stand for hours of simulation.
+#[test]
+fn alerts_refuse_an_out_that_is_the_readings_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let readings = dir.path().join("r.zst");
+    std::fs::write(&readings, b"saved readings").expect("write");
+    let same = dir.path().join(".").join("r.zst");
+    for (flag, path) in [("--readings", &readings), ("--save-readings", &same)] {
+        // Not `alerts`: a replay takes the model its readings name, and no --model.
+        let out = lidar_har()
+            .current_dir(repo_root())
+            .args(["alerts", flag, path.to_str().unwrap(), "--out"])
+            .arg(&readings)
+            .output()
+            .expect("lidar-har runs");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{flag}: {stderr}");
+        assert!(
+            stderr.contains(&format!("is the file {flag} names")),
+            "{flag}: {stderr}"
+        );
+        assert_eq!(
+            std::fs::read(&readings).unwrap(),
+            b"saved readings",
+            "{flag}"
+        );
+    }
 }
 
 #[test]

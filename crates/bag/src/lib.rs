@@ -27,4 +27,5 @@ pub use reader::{
 pub use source::{PROCESS_ENDING, remove_temporary_copies};
 pub use writer::{
     BagSummary, BagWriter, Compression, MetadataVersion, StorageId, TopicHandle, WriterOptions,
+    validate_topic_name,
 };

@@ -20,13 +20,12 @@ use crate::mcap_records::{
 };
 use crate::metadata::BagMetadata;
 use crate::qos;
-use crate::reader::{BagMessage, MessageFilter, RecordedVersion, TopicInfo};
+use crate::reader::{BagMessage, MessageFilter, RecordedVersion, TopicInfo, stored_definition};
 use crate::source::StorageSource;
 use crate::writer::{Compression, StorageSink, WriterTopic};
 
-/// The MCAP profile, schema encoding and message encoding of rosbag2.
+/// The MCAP profile and message encoding of rosbag2.
 pub(crate) const PROFILE: &str = "ros2";
-pub(crate) const SCHEMA_ENCODING: &str = "ros2msg";
 pub(crate) const MESSAGE_ENCODING: &str = "cdr";
 /// The name of the Metadata record in which rosbag2 notes what wrote the file.
 const ROSBAG2_RECORD: &str = "rosbag2";
@@ -112,7 +111,7 @@ impl StorageSink for McapSink {
         let schema_id = writer
             .add_schema(
                 &topic.type_name,
-                SCHEMA_ENCODING,
+                &topic.schema_encoding,
                 topic.schema_text.as_bytes(),
             )
             .map_err(mcap_error(&path))?;
@@ -136,7 +135,13 @@ impl StorageSink for McapSink {
         Ok(i64::from(channel))
     }
 
-    fn write(&mut self, topic: &WriterTopic, log_time_ns: i64, data: &[u8]) -> Result<()> {
+    fn write(
+        &mut self,
+        topic: &WriterTopic,
+        log_time_ns: i64,
+        publish_time_ns: i64,
+        data: &[u8],
+    ) -> Result<()> {
         let path = self.path.clone();
         if data.len() > self.max_message_len {
             return Err(BagError::Write {
@@ -158,17 +163,21 @@ impl StorageSink for McapSink {
             // In a chunk of its own: with the messages before it the chunk could pass the limit.
             self.writer()?.flush().map_err(mcap_error(&path))?;
         }
-        let time = u64::try_from(log_time_ns).map_err(|_| BagError::Write {
-            path: path.clone(),
-            message: format!("negative log time {log_time_ns} ns"),
-        })?;
+        let time = |ns: i64, what: &str| {
+            u64::try_from(ns).map_err(|_| BagError::Write {
+                path: path.clone(),
+                message: format!("negative {what} time {ns} ns"),
+            })
+        };
+        let (log_time, publish_time) =
+            (time(log_time_ns, "log")?, time(publish_time_ns, "publish")?);
         let sequence = self.sequences.entry(channel_id).or_insert(0);
         *sequence = sequence.wrapping_add(1);
         let header = MessageHeader {
             channel_id,
             sequence: *sequence,
-            log_time: time,
-            publish_time: time,
+            log_time,
+            publish_time,
         };
         self.writer()?
             .write_to_known_channel(&header, data)
@@ -252,9 +261,9 @@ pub(crate) struct McapFile {
     pub(crate) topics: Vec<TopicInfo>,
     /// (first, last) log time, when there are messages.
     pub(crate) time_bounds: Option<(i64, i64)>,
-    /// The file cannot be read to its end (cut short or damaged): counts and time bounds cover
-    /// the part before, and its message stream ends with the error.
-    pub(crate) truncated: bool,
+    /// Why the file cannot be read to its end (cut short or damaged), naming it: counts and
+    /// time bounds cover the part before, and its message stream ends with the error.
+    pub(crate) damage: Option<String>,
     /// What the file's `rosbag2` Metadata records say of the rosbag2 that wrote it
     /// ([`recorded_in`]).
     pub(crate) recorded: Option<RecordedVersion>,
@@ -290,12 +299,17 @@ impl McapFile {
                 0 => "the file is empty".to_string(),
                 _ => format!("the file ends inside its magic (after {got} bytes of 8)"),
             };
+            let damage = BagError::Truncated {
+                path,
+                messages_read: 0,
+                reason: reason.clone(),
+            };
             return Ok(Self {
                 input,
                 layout: Layout::CutInMagic(reason),
                 topics: Vec::new(),
                 time_bounds: None,
-                truncated: true,
+                damage: Some(damage.to_string()),
                 recorded: None,
             });
         }
@@ -340,7 +354,7 @@ impl McapFile {
                 } else {
                     None
                 };
-                (stats.channel_message_counts.clone(), bounds, false)
+                (stats.channel_message_counts.clone(), bounds, None)
             }
             _ => count_messages(&input, &summary)?,
         };
@@ -370,7 +384,7 @@ impl McapFile {
             layout: Layout::Indexed(Box::new(summary)),
             topics,
             time_bounds,
-            truncated: damaged,
+            damage: damaged,
             recorded: None,
         })
     }
@@ -384,18 +398,18 @@ impl McapFile {
         let mut stream = LinearMessages::new(&input, &MessageFilter::new())?;
         let mut counts: HashMap<u16, u64> = HashMap::new();
         let mut time_bounds: Option<(i64, i64)> = None;
-        let mut truncated = false;
+        let mut damage = None;
         while let Some(item) = stream.next_raw() {
             match item {
-                Ok((channel_id, log_time, _data)) => {
+                Ok((channel_id, log_time, _, _)) => {
                     *counts.entry(channel_id).or_insert(0) += 1;
                     time_bounds = Some(match time_bounds {
                         None => (log_time, log_time),
                         Some((lo, hi)) => (lo.min(log_time), hi.max(log_time)),
                     });
                 }
-                Err(_) => {
-                    truncated = true;
+                Err(e) => {
+                    damage = Some(e.to_string());
                     break;
                 }
             }
@@ -409,7 +423,7 @@ impl McapFile {
             layout: Layout::Linear,
             topics,
             time_bounds,
-            truncated,
+            damage,
             recorded: RecordedVersion::most_telling(std::mem::take(&mut stream.recorded)),
         })
     }
@@ -562,8 +576,8 @@ fn recorded_in(record: &records::Metadata) -> Option<RecordedVersion> {
 }
 
 /// Message counts per channel, the (first, last) log time when there are messages, and
-/// whether reading stopped early at a damaged chunk.
-type Counts = (BTreeMap<u16, u64>, Option<(i64, i64)>, bool);
+/// why reading stopped early (at a damaged chunk), if it did.
+type Counts = (BTreeMap<u16, u64>, Option<(i64, i64)>, Option<String>);
 
 /// Per-channel counts and time bounds of a file whose summary has no Statistics record (the
 /// record is optional: e.g. Python's `mcap` writer with `use_statistics=False`) or one without
@@ -575,13 +589,16 @@ fn count_messages(input: &McapInput, summary: &Summary) -> Result<Counts> {
     let mut stream = IndexedMessages::new(input, summary, &MessageFilter::new())?;
     let mut counts = BTreeMap::new();
     let mut bounds: Option<(u64, u64)> = None;
-    let mut damaged = false;
+    let mut damaged = None;
     while let Some(item) =
         stream.next_with(|_, _, header, _| Ok((header.channel_id, header.log_time)))
     {
-        let Ok((channel_id, log_time)) = item else {
-            damaged = true;
-            break;
+        let (channel_id, log_time) = match item {
+            Ok(item) => item,
+            Err(e) => {
+                damaged = Some(e.to_string());
+                break;
+            }
         };
         *counts.entry(channel_id).or_insert(0) += 1;
         bounds = Some(match bounds {
@@ -596,6 +613,15 @@ fn count_messages(input: &McapInput, summary: &Summary) -> Result<Counts> {
     Ok((counts, bounds, damaged))
 }
 
+/// A message of a file read in file order: channel id, log time, publish time, bytes.
+type RawMessage = (u16, i64, i64, Vec<u8>);
+
+/// A message's publish (send) time; its log time where the publish time is past an `i64`,
+/// which no clock gives (the log time is what orders and selects messages).
+fn publish_time_ns(header: &MessageHeader, log_time_ns: i64) -> i64 {
+    i64::try_from(header.publish_time).unwrap_or(log_time_ns)
+}
+
 fn to_i64(path: &Path, topic: &str, log_time: u64) -> Result<i64> {
     i64::try_from(log_time).map_err(|_| BagError::BadTime {
         path: path.to_path_buf(),
@@ -604,7 +630,8 @@ fn to_i64(path: &Path, topic: &str, log_time: u64) -> Result<i64> {
     })
 }
 
-/// A rosbag2 topic from an MCAP channel; refuses a channel without a `ros2msg` schema.
+/// A rosbag2 topic from an MCAP channel; refuses a channel without a schema record (rosbag2
+/// writes one for every channel, empty where it has no definition).
 fn topic_info(
     path: &Path,
     channel_id: u16,
@@ -626,14 +653,18 @@ fn topic_info(
         })?,
         None => Vec::new(),
     };
-    let schema_text =
-        (encoding == SCHEMA_ENCODING).then(|| String::from_utf8_lossy(&data).into_owned());
+    let (schema_encoding, schema_text) =
+        match stored_definition(&encoding, &String::from_utf8_lossy(&data)) {
+            Some((encoding, text)) => (encoding, Some(text)),
+            None => (String::new(), None),
+        };
     Ok(TopicInfo {
         name: topic.to_string(),
         type_name,
         serialization_format: message_encoding.to_string(),
         offered_qos,
         schema_text,
+        schema_encoding,
         type_description_hash: metadata.get("topic_type_hash").cloned().unwrap_or_default(),
         message_count: 0,
         storage_id: i64::from(channel_id),
@@ -779,6 +810,7 @@ impl Iterator for IndexedMessages {
             to_i64(path, topic, header.log_time).map(|log_time_ns| BagMessage {
                 topic: topic.clone(),
                 log_time_ns,
+                publish_time_ns: publish_time_ns(header, log_time_ns),
                 data: data.to_vec(),
             })
         })
@@ -866,8 +898,8 @@ impl LinearMessages {
         }
     }
 
-    /// The next message as (channel id, log time, bytes), whatever its topic.
-    fn next_raw(&mut self) -> Option<Result<(u16, i64, Vec<u8>)>> {
+    /// The next message, whatever its topic.
+    fn next_raw(&mut self) -> Option<Result<RawMessage>> {
         loop {
             if self.done {
                 return None;
@@ -928,7 +960,7 @@ impl LinearMessages {
     fn on_record(
         &mut self,
         parsed: std::result::Result<Option<Record<'static>>, McapError>,
-    ) -> Option<Result<(u16, i64, Vec<u8>)>> {
+    ) -> Option<Result<RawMessage>> {
         let record = match parsed {
             Ok(Some(record)) => record,
             Ok(None) => return None,
@@ -984,7 +1016,12 @@ impl LinearMessages {
                     }
                 };
                 self.messages_read += 1;
-                return Some(Ok((header.channel_id, log_time, data.into_owned())));
+                return Some(Ok((
+                    header.channel_id,
+                    log_time,
+                    publish_time_ns(&header, log_time),
+                    data.into_owned(),
+                )));
             }
             _ => {}
         }
@@ -996,7 +1033,7 @@ impl Iterator for LinearMessages {
     type Item = Result<BagMessage>;
     fn next(&mut self) -> Option<Self::Item> {
         loop {
-            let (channel_id, log_time_ns, data) = match self.next_raw()? {
+            let (channel_id, log_time_ns, publish_time_ns, data) = match self.next_raw()? {
                 Ok(raw) => raw,
                 Err(e) => return Some(Err(e)),
             };
@@ -1009,6 +1046,7 @@ impl Iterator for LinearMessages {
             return Some(Ok(BagMessage {
                 topic: topic.clone(),
                 log_time_ns,
+                publish_time_ns,
                 data,
             }));
         }
@@ -1090,17 +1128,20 @@ mod tests {
         let mut sink = super::McapSink::create(&path, Compression::None, 256, 9).unwrap();
         sink.max_message_len = 4096;
         let topic = WriterTopic::string_added_to(&mut sink, "/map");
-        let err = sink.write(&topic, 7, &[0; 4097]).unwrap_err().to_string();
+        let err = sink
+            .write(&topic, 7, 7, &[0; 4097])
+            .unwrap_err()
+            .to_string();
         assert!(
             err.contains("`/map`") && err.contains("4097 bytes") && err.contains("4096 bytes"),
             "{err}"
         );
         // The first chunk closes after the schema, channel and first message; the second
         // still has room when the large message comes.
-        sink.write(&topic, 0, &[1; 200]).unwrap();
-        sink.write(&topic, 1, &[1; 100]).unwrap();
-        sink.write(&topic, 2, &[2; 4096]).unwrap();
-        sink.write(&topic, 3, &[3; 10]).unwrap();
+        sink.write(&topic, 0, 0, &[1; 200]).unwrap();
+        sink.write(&topic, 1, 1, &[1; 100]).unwrap();
+        sink.write(&topic, 2, 2, &[2; 4096]).unwrap();
+        sink.write(&topic, 3, 3, &[3; 10]).unwrap();
         sink.finish(
             &crate::metadata::BagMetadata::parse(
                 "rosbag2_bagfile_information: {version: 9, storage_identifier: mcap}",
@@ -1292,6 +1333,13 @@ mod tests {
         let reader = BagReader::open(tmp.path()).unwrap_or_else(|e| panic!("open: {e}"));
         let info = reader.metadata();
         assert!(info.truncated, "the damage is reported by metadata()");
+        assert!(
+            info.damaged.len() == 1
+                && info.damaged[0].contains("split_1.mcap")
+                && info.damaged[0].contains("CRC"),
+            "the file and why: {:?}",
+            info.damaged
+        );
         let (times, errors) = read_all(tmp.path());
         // The first file's 20 messages and the second's before its last chunk, in order.
         let expected: Vec<i64> = (1000..1020).chain(1000..bad_from).collect();
@@ -1331,6 +1379,13 @@ mod tests {
         let reader = BagReader::open(tmp.path()).unwrap_or_else(|e| panic!("open: {e}"));
         let info = reader.metadata();
         assert!(info.truncated, "the damage is reported by metadata()");
+        assert!(
+            info.damaged.len() == 1
+                && info.damaged[0].contains("split_1.mcap")
+                && info.damaged[0].contains("decompression"),
+            "the file and why: {:?}",
+            info.damaged
+        );
         let (times, errors) = read_all(tmp.path());
         let mut expected: Vec<i64> = (1000..1020).chain(1000..bad_from).collect();
         expected.sort_unstable();

@@ -16,6 +16,18 @@ use crate::qos::OfferedQos;
 use crate::sqlite_storage::{SqliteFile, SqliteMessages};
 use crate::writer::StorageId;
 
+/// The encoding of a definition in .msg form, the one lidar-har writes.
+pub(crate) const ROS2MSG: &str = "ros2msg";
+
+/// A stored definition as rosbag2 keeps it, `(encoding, text)`: none where the encoding is
+/// empty or `unknown`, which is how rosbag2 stores a type it found no definition for
+/// (rosbag2_cpp `SequentialWriter::create_topic`). A `ros2msg` one may be empty: a type
+/// without fields (`std_msgs/msg/Empty`), which decoders read by that encoding.
+pub(crate) fn stored_definition(encoding: &str, text: &str) -> Option<(String, String)> {
+    (!encoding.is_empty() && encoding != "unknown")
+        .then(|| (encoding.to_string(), text.to_string()))
+}
+
 /// A topic of a bag.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TopicInfo {
@@ -25,19 +37,39 @@ pub struct TopicInfo {
     /// `cdr` for every ROS 2 bag.
     pub serialization_format: String,
     pub offered_qos: Vec<OfferedQos>,
-    /// The `ros2msg` schema (the .msg and its dependencies), when the bag stores it.
+    /// The message definition the bag stores for the type, in [`Self::schema_encoding`];
+    /// `None` where it stores none (an empty or `unknown` encoding): rosbag2 (Iron and later)
+    /// records a type whose package the recorder could not find so, and Foxy's and Humble's
+    /// sqlite3 bags store no definitions at all.
     pub schema_text: Option<String>,
+    /// `ros2msg` (the .msg and its dependencies) or `ros2idl` (rosbag2 stores a type defined
+    /// only in .idl so); empty where `schema_text` is `None`.
+    pub schema_encoding: String,
     pub type_description_hash: String,
     pub message_count: u64,
     /// Channel id (MCAP) or `topics.id` (sqlite3) in the storage file.
     pub(crate) storage_id: i64,
 }
 
+impl TopicInfo {
+    /// The stored `ros2msg` definition, which is what rosbags, Foxglove and lidar-har's
+    /// writer need; `None` for a topic stored without one or with an IDL one.
+    pub fn ros2msg_schema(&self) -> Option<&str> {
+        self.schema_text
+            .as_deref()
+            .filter(|_| self.schema_encoding == ROS2MSG)
+    }
+}
+
 /// One serialised message: CDR bytes with their encapsulation header.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BagMessage {
     pub topic: Arc<str>,
+    /// When the recorder received it (rosbag2's `recv_timestamp`); messages are ordered by it.
     pub log_time_ns: i64,
+    /// When the publisher sent it (rosbag2's `send_timestamp`), where the storage records it
+    /// (MCAP `publish_time`); the log time where it does not (sqlite3), as rosbag2 reads it.
+    pub publish_time_ns: i64,
     pub data: Vec<u8>,
 }
 
@@ -162,8 +194,11 @@ pub struct BagInfo {
     /// True when a storage file cannot be read to its end: cut short (a recorder was killed)
     /// or damaged (an MCAP chunk that fails its CRC or does not decompress, a malformed
     /// record), or, in a bag of several files, one cannot be opened at all. Counts cover the
-    /// part before; reading the messages ends with the error.
+    /// part before; reading the messages ends with the error. `damaged` says which and why.
     pub truncated: bool,
+    /// For each storage file that cannot be read to its end, why: the error its read ends
+    /// with, which names the file.
+    pub damaged: Vec<String>,
 }
 
 impl BagInfo {
@@ -176,10 +211,10 @@ impl BagInfo {
 enum StorageFile {
     Mcap(Box<McapFile>),
     Sqlite(SqliteFile),
-    /// A file of a bag of several that could not be opened. Like an error while reading a
-    /// file, that ends this file only: it is opened again when messages are read, and its
-    /// stream is the error.
-    Unreadable,
+    /// A file of a bag of several that could not be opened, with the error. Like an error
+    /// while reading a file, that ends this file only: it is opened again when messages are
+    /// read, and its stream is the error.
+    Unreadable(String),
 }
 
 impl StorageFile {
@@ -188,7 +223,7 @@ impl StorageFile {
         match self {
             StorageFile::Mcap(m) => m.cut_in_magic().is_none(),
             StorageFile::Sqlite(_) => true,
-            StorageFile::Unreadable => false,
+            StorageFile::Unreadable(_) => false,
         }
     }
 
@@ -197,7 +232,7 @@ impl StorageFile {
         match self {
             StorageFile::Mcap(m) => m.recorded.as_ref(),
             StorageFile::Sqlite(s) => s.recorded.as_ref(),
-            StorageFile::Unreadable => None,
+            StorageFile::Unreadable(_) => None,
         }
     }
 
@@ -309,8 +344,9 @@ impl BagReader {
         let mut files = Vec::new();
         for file_path in file_paths {
             let file = open_storage_file(storage, &file_path).unwrap_or_else(|e| {
+                let reason = e.to_string();
                 first_error.get_or_insert(e);
-                StorageFile::Unreadable
+                StorageFile::Unreadable(reason)
             });
             if let Some(error) = file.cut_in_magic(&file_path) {
                 first_error.get_or_insert(error);
@@ -353,7 +389,7 @@ impl BagReader {
             let file_topics: &[TopicInfo] = match file {
                 StorageFile::Mcap(m) => &m.topics,
                 StorageFile::Sqlite(s) => &s.topics,
-                StorageFile::Unreadable => &[],
+                StorageFile::Unreadable(_) => &[],
             };
             for topic in file_topics {
                 match topics.iter_mut().find(|t| t.name == topic.name) {
@@ -427,14 +463,14 @@ impl BagReader {
     /// only from metadata.yaml, which a killed recorder leaves behind its data).
     pub fn metadata(&self) -> BagInfo {
         let mut bounds: Option<(i64, i64)> = None;
-        let mut truncated = false;
+        let mut damaged = Vec::new();
         for (_, file) in &self.files {
-            let (file_bounds, file_truncated) = match file {
-                StorageFile::Mcap(m) => (m.time_bounds, m.truncated),
-                StorageFile::Sqlite(s) => (s.time_bounds, false),
-                StorageFile::Unreadable => (None, true),
+            let (file_bounds, damage) = match file {
+                StorageFile::Mcap(m) => (m.time_bounds, m.damage.as_ref()),
+                StorageFile::Sqlite(s) => (s.time_bounds, None),
+                StorageFile::Unreadable(reason) => (None, Some(reason)),
             };
-            truncated |= file_truncated;
+            damaged.extend(damage.cloned());
             if let Some((lo, hi)) = file_bounds {
                 bounds = Some(bounds.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
             }
@@ -453,7 +489,8 @@ impl BagReader {
                 .as_ref()
                 .map(|m| m.ros_distro.clone())
                 .unwrap_or_default(),
-            truncated,
+            truncated: !damaged.is_empty(),
+            damaged,
         }
     }
 
@@ -511,7 +548,7 @@ impl BagReader {
         Ok(match file {
             StorageFile::Mcap(m) => Stream::Mcap(m.messages(filter)?),
             StorageFile::Sqlite(s) => Stream::Sqlite(s.messages(filter)?),
-            StorageFile::Unreadable => {
+            StorageFile::Unreadable(_) => {
                 let file = open_storage_file(self.storage, path)?;
                 return self.stream(path, &file, filter);
             }
@@ -583,16 +620,26 @@ fn storage_of(path: &Path) -> Option<StorageId> {
         .find(|storage| extension == storage.extension())
 }
 
+/// The storage files directly in `dir`, with the storage each one's name says, unordered.
+fn storage_files(dir: &Path) -> std::io::Result<impl Iterator<Item = (StorageId, PathBuf)>> {
+    Ok(std::fs::read_dir(dir)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .filter_map(|p| Some((storage_of(&p)?, p))))
+}
+
+/// A storage file directly in `dir` (none when it cannot be listed, or does not exist).
+pub(crate) fn storage_file_in(dir: &Path) -> Option<PathBuf> {
+    storage_files(dir).ok()?.next().map(|(_, path)| path)
+}
+
 /// The storage files of a directory without metadata.yaml (rosbag2 writes it when recording
 /// ends, so a killed recorder leaves none), in split order. A file compressed whole is left out
 /// while the file it was made from is still there: rosbag2 deletes that file once the
 /// compressed one is complete, so its compression was cut short.
 fn list_storage_files(dir: &Path) -> Result<(StorageId, Vec<PathBuf>)> {
-    let entries = std::fs::read_dir(dir).map_err(crate::error::io_error(dir, "cannot list"))?;
-    let mut files: Vec<(StorageId, PathBuf)> = entries
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file())
-        .filter_map(|p| Some((storage_of(&p)?, p)))
+    let mut files: Vec<(StorageId, PathBuf)> = storage_files(dir)
+        .map_err(crate::error::io_error(dir, "cannot list"))?
         .collect();
     files.retain(|(_, p)| {
         compression::compressed_file_name(p).is_none_or(|name| !dir.join(name).exists())
@@ -992,6 +1039,13 @@ pub(crate) mod tests {
 
         let reader = BagReader::open(&bag).unwrap_or_else(|e| panic!("open: {e}"));
         assert!(reader.metadata().truncated);
+        let damaged = reader.metadata().damaged;
+        assert!(
+            damaged.len() == 1
+                && damaged[0].contains("bag_1.db3")
+                && damaged[0].contains("sqlite3 storage"),
+            "{damaged:?}"
+        );
         assert_eq!(reader.metadata().message_count, 10);
         let (messages, errors) = read_all(&bag);
         assert_eq!(messages.len(), 10);

@@ -11,7 +11,7 @@ use rusqlite::{Connection, OpenFlags, OptionalExtension, ffi, params};
 use crate::error::{BagError, Result, sqlite_error};
 use crate::metadata::BagMetadata;
 use crate::qos;
-use crate::reader::{BagMessage, MessageFilter, RecordedVersion, TopicInfo};
+use crate::reader::{BagMessage, MessageFilter, RecordedVersion, TopicInfo, stored_definition};
 use crate::source::{StorageSource, copy_for_temporary};
 use crate::writer::{StorageSink, WriterTopic};
 
@@ -112,11 +112,19 @@ impl StorageSink for SqliteSink {
         )
         .map_err(sqlite_error(&path))?;
         let id = conn.last_insert_rowid();
-        if !self.defined_types.contains(&topic.type_name) {
+        // No row for a type without a definition: rosbag2 writes one with an empty encoding,
+        // which rosbags (0.11) cannot read (`KeyError: ''`); without a row, rosbag2 and
+        // rosbags both read the type as having none, as in a Humble bag.
+        if !topic.schema_encoding.is_empty() && !self.defined_types.contains(&topic.type_name) {
             conn.execute(
                 "INSERT INTO message_definitions(topic_type, encoding, encoded_message_definition, type_description_hash)
-                 VALUES (?1, 'ros2msg', ?2, ?3)",
-                params![topic.type_name, topic.schema_text, topic.type_description_hash],
+                 VALUES (?1, ?2, ?3, ?4)",
+                params![
+                    topic.type_name,
+                    topic.schema_encoding,
+                    topic.schema_text,
+                    topic.type_description_hash
+                ],
             )
             .map_err(sqlite_error(&path))?;
             self.defined_types.insert(topic.type_name.clone());
@@ -124,7 +132,14 @@ impl StorageSink for SqliteSink {
         Ok(id)
     }
 
-    fn write(&mut self, topic: &WriterTopic, log_time_ns: i64, data: &[u8]) -> Result<()> {
+    /// sqlite3 has no column for the send time: rosbag2's sqlite3 plugin drops it too.
+    fn write(
+        &mut self,
+        topic: &WriterTopic,
+        log_time_ns: i64,
+        _publish_time_ns: i64,
+        data: &[u8],
+    ) -> Result<()> {
         let path = self.path.clone();
         let conn = self.conn()?;
         let mut insert = conn
@@ -364,17 +379,24 @@ impl SqliteFile {
                 path: path.to_path_buf(),
                 message: format!("topics row `{name}`: offered_qos_profiles: {message}"),
             })?;
-            let schema_text = if has_definitions {
+            // rosbag2 stores one definition per type; a `ros2msg` one is preferred where
+            // another tool has added more.
+            let definition = if has_definitions {
                 conn.query_row(
-                    "SELECT encoded_message_definition FROM message_definitions WHERE topic_type = ?1 AND encoding = 'ros2msg'",
+                    "SELECT encoding, encoded_message_definition FROM message_definitions
+                     WHERE topic_type = ?1 ORDER BY encoding = 'ros2msg' DESC, rowid LIMIT 1",
                     [&type_name],
-                    |row| row.get::<_, String>(0),
+                    |row| Ok((row.get::<_, String>(0)?, row.get::<_, String>(1)?)),
                 )
                 .optional()
                 .map_err(err)?
-                .filter(|s| !s.is_empty())
+                .and_then(|(encoding, text)| stored_definition(&encoding, &text))
             } else {
                 None
+            };
+            let (schema_encoding, schema_text) = match definition {
+                Some((encoding, text)) => (encoding, Some(text)),
+                None => (String::new(), None),
             };
             topics.push(TopicInfo {
                 name,
@@ -382,6 +404,7 @@ impl SqliteFile {
                 serialization_format,
                 offered_qos,
                 schema_text,
+                schema_encoding,
                 type_description_hash: hash,
                 message_count: counts.get(&id).copied().unwrap_or(0),
                 storage_id: id,
@@ -539,6 +562,7 @@ impl Iterator for SqliteMessages {
         Some(Ok(BagMessage {
             topic: topic.clone(),
             log_time_ns: timestamp,
+            publish_time_ns: timestamp,
             data,
         }))
     }
@@ -570,8 +594,13 @@ mod tests {
         sink.commit_after = 64 << 10;
         let topic = WriterTopic::string_added_to(&mut sink, "/raw");
         for i in 0..100 {
-            sink.write(&topic, 1000 + i64::from(i), &payload(i))
-                .unwrap();
+            sink.write(
+                &topic,
+                1000 + i64::from(i),
+                1000 + i64::from(i),
+                &payload(i),
+            )
+            .unwrap();
         }
         let file = SqliteFile::open(StorageSource::file(&path)).unwrap();
         let on_disk: Vec<Vec<u8>> = file
@@ -609,7 +638,7 @@ mod tests {
         for i in 0..10 {
             let timestamp = 1000 + i64::from(i / 2);
             for (topic, data) in [(&image, image_data(i)), (&scan, payload(i))] {
-                sink.write(topic, timestamp, &data).unwrap();
+                sink.write(topic, timestamp, timestamp, &data).unwrap();
                 written.push((topic.name.clone(), timestamp, data));
             }
         }
@@ -711,7 +740,7 @@ mod tests {
         for i in (0..20).rev().chain(20..40) {
             let timestamp = 1000 + i64::from(i / 2);
             for (topic, data) in [(&image, payload(2 * i)), (&scan, payload(2 * i + 1))] {
-                sink.write(topic, timestamp, &data).unwrap();
+                sink.write(topic, timestamp, timestamp, &data).unwrap();
                 written.push((topic.name.clone(), timestamp, data));
             }
         }

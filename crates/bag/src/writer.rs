@@ -17,7 +17,7 @@ use crate::metadata::{
     BagMetadata, FileInformation, Nanoseconds, NanosecondsSinceEpoch, TopicMetadata, TopicWithCount,
 };
 use crate::qos::{self, OfferedQos};
-use crate::reader::{RecordedVersion, TopicInfo};
+use crate::reader::{ROS2MSG, RecordedVersion, TopicInfo, stored_definition};
 use crate::sqlite_storage::SqliteSink;
 
 /// Storage plugin of a bag, as named in `metadata.yaml`.
@@ -209,6 +209,39 @@ impl Default for WriterOptions {
     }
 }
 
+/// Checks a topic name as rcl checks a fully qualified one (`rcl_validate_topic_name`, then
+/// `rmw_validate_full_topic_name`): `ros2 bag play` creates a publisher per topic, and rcl
+/// refuses any other name.
+pub fn validate_topic_name(name: &str) -> std::result::Result<(), String> {
+    const RULE: &str = "a ROS 2 topic name is '/' then name tokens separated by single '/', \
+                        each of ASCII letters, digits and '_' and not starting with a digit \
+                        (rcl_validate_topic_name)";
+    // rmw's limit (RMW_TOPIC_MAX_NAME_LENGTH), which leaves room for the DDS prefix.
+    const MAX_LEN: usize = 247;
+    let problem = match name.strip_prefix('/') {
+        _ if name.len() > MAX_LEN => format!("is longer than {MAX_LEN} characters"),
+        None => "does not start with '/'".to_string(),
+        Some(tokens) if tokens.is_empty() || tokens.ends_with('/') => "ends with '/'".to_string(),
+        Some(tokens) if tokens.split('/').any(str::is_empty) => "contains `//`".to_string(),
+        Some(tokens) => {
+            if let Some(c) = tokens
+                .chars()
+                .find(|c| !(c.is_ascii_alphanumeric() || *c == '_' || *c == '/'))
+            {
+                format!("contains {c:?}")
+            } else if let Some(token) = tokens
+                .split('/')
+                .find(|t| t.starts_with(|c: char| c.is_ascii_digit()))
+            {
+                format!("has a token `{token}` that starts with a digit")
+            } else {
+                return Ok(());
+            }
+        }
+    };
+    Err(format!("topic `{name}` {problem}: {RULE}"))
+}
+
 /// A topic added to a [`BagWriter`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct TopicHandle(usize);
@@ -219,6 +252,9 @@ pub(crate) struct WriterTopic {
     pub name: String,
     pub type_name: String,
     pub serialization_format: String,
+    /// The definition's encoding and text as stored: both empty for a topic without one, as
+    /// rosbag2 stores it.
+    pub schema_encoding: String,
     pub schema_text: String,
     pub qos: Vec<OfferedQos>,
     pub type_description_hash: String,
@@ -234,6 +270,7 @@ impl WriterTopic {
             name: name.into(),
             type_name: "std_msgs/msg/String".into(),
             serialization_format: "cdr".into(),
+            schema_encoding: ROS2MSG.into(),
             schema_text: "string data\n".into(),
             qos: Vec::new(),
             type_description_hash: String::new(),
@@ -248,7 +285,13 @@ impl WriterTopic {
 /// What a storage back-end does; the writer keeps topics, counts and metadata.
 pub(crate) trait StorageSink {
     fn add_topic(&mut self, topic: &WriterTopic) -> Result<i64>;
-    fn write(&mut self, topic: &WriterTopic, log_time_ns: i64, data: &[u8]) -> Result<()>;
+    fn write(
+        &mut self,
+        topic: &WriterTopic,
+        log_time_ns: i64,
+        publish_time_ns: i64,
+        data: &[u8],
+    ) -> Result<()>;
     fn flush(&mut self) -> Result<()>;
     fn finish(&mut self, metadata: &BagMetadata) -> Result<()>;
 }
@@ -298,6 +341,19 @@ impl BagWriter {
                 message: "a bag already exists there".into(),
             });
         }
+        // A recorder killed before it wrote metadata.yaml leaves only these; our reader reads
+        // them as a bag, and a metadata.yaml of ours would hide them.
+        if let Some(file) = crate::reader::storage_file_in(&dir) {
+            return Err(BagError::Write {
+                path: dir,
+                message: format!(
+                    "it holds a bag's storage file, {}, without metadata.yaml: readers take the \
+                     folder for that bag, which a new metadata.yaml would hide; write to a \
+                     folder holding no bag",
+                    file.display()
+                ),
+            });
+        }
         std::fs::create_dir_all(&dir).map_err(io_error(&dir, "cannot create the bag directory"))?;
         let stem = dir
             .file_name()
@@ -339,6 +395,8 @@ impl BagWriter {
     }
 
     /// Adds a topic with its type, `ros2msg` schema text (the .msg and its dependencies) and QoS.
+    /// A blank schema is stored as an empty definition, as rosbag2 stores a type it has no
+    /// definition of (readers that decode by the stored definition cannot decode its messages).
     /// Its type hash is ours where the type is one we mirror and the schema has our fields
     /// ([`lidar_har_msgs::schema::type_hash_of`]), else empty, as rosbag2 records an unknown one.
     pub fn add_topic(
@@ -348,10 +406,17 @@ impl BagWriter {
         schema_text: &str,
         qos: QosProfile,
     ) -> Result<TopicHandle> {
+        validate_topic_name(name).map_err(|message| self.refusal(message))?;
+        // A blank text is no definition, stored as rosbag2 stores one it did not find.
+        let encoding = if schema_text.trim().is_empty() {
+            ""
+        } else {
+            ROS2MSG
+        };
         self.add_topic_with(
             name,
             type_name,
-            schema_text,
+            (encoding, schema_text),
             vec![OfferedQos::from(qos)],
             lidar_har_msgs::schema::type_hash_of(type_name, schema_text).unwrap_or_default(),
         )
@@ -363,10 +428,11 @@ impl BagWriter {
         name: &str,
         qos: QosProfile,
     ) -> Result<TopicHandle> {
+        validate_topic_name(name).map_err(|message| self.refusal(message))?;
         self.add_topic_with(
             name,
             M::TYPE_NAME,
-            &M::schema_text(),
+            (ROS2MSG, &M::schema_text()),
             vec![OfferedQos::from(qos)],
             M::DEFINITION.type_hash,
         )
@@ -375,32 +441,63 @@ impl BagWriter {
     /// Adds a topic of the contract (`lidar_har_msgs::topics`) with its type, schema, type
     /// hash and QoS.
     pub fn add_contract_topic(&mut self, topic: &TopicSpec) -> Result<TopicHandle> {
+        validate_topic_name(topic.name).map_err(|message| self.refusal(message))?;
         self.add_topic_with(
             topic.name,
             topic.type_name,
-            &topic.definition.schema_text(),
+            (ROS2MSG, &topic.definition.schema_text()),
             vec![OfferedQos::from(topic.qos)],
             topic.definition.type_hash,
         )
     }
 
-    /// Adds a topic copied from another bag (keeps its QoS list and type hash as they were).
+    /// Adds a topic copied from another bag: keeps its name, QoS list, type hash and stored
+    /// definition as they were (an `ros2idl` one, or none; a name rcl would refuse, which
+    /// another tool recorded), as rosbag2's convert copies them.
     pub fn add_topic_like(&mut self, topic: &TopicInfo) -> Result<TopicHandle> {
-        let schema = topic.schema_text.clone().unwrap_or_default();
         self.add_topic_with(
             &topic.name,
             &topic.type_name,
-            &schema,
+            (
+                &topic.schema_encoding,
+                topic.schema_text.as_deref().unwrap_or_default(),
+            ),
             topic.offered_qos.clone(),
             &topic.type_description_hash,
         )
     }
 
+    /// Whether a topic of this name and type can be copied ([`BagWriter::add_topic_like`]):
+    /// an absolute name and a `pkg/msg/Type` type. A bag converter checks its topics with this
+    /// before it creates the new bag, so that a refusal leaves nothing behind. Topics of our
+    /// own (`add_topic`, `add_topic_for`) must also have a name rcl takes
+    /// ([`validate_topic_name`]).
+    pub fn check_topic(name: &str, type_name: &str) -> std::result::Result<(), String> {
+        if !name.starts_with('/') || name.len() < 2 {
+            return Err(format!("topic `{name}` is not an absolute topic name"));
+        }
+        if type_name.split('/').count() != 3 {
+            return Err(format!(
+                "topic `{name}`: type `{type_name}` is not of the form `pkg/msg/Type`"
+            ));
+        }
+        Ok(())
+    }
+
+    fn refusal(&self, message: String) -> BagError {
+        BagError::Write {
+            path: self.dir.clone(),
+            message,
+        }
+    }
+
+    /// `definition`: encoding and text, stored as rosbag2 stores them: as none where the
+    /// encoding is empty or `unknown`.
     fn add_topic_with(
         &mut self,
         name: &str,
         type_name: &str,
-        schema_text: &str,
+        definition: (&str, &str),
         qos: Vec<OfferedQos>,
         type_description_hash: &str,
     ) -> Result<TopicHandle> {
@@ -408,28 +505,20 @@ impl BagWriter {
             Some(closed)
         } else if self.topics.iter().any(|t| t.name == name) {
             Some(format!("topic `{name}` added twice"))
-        } else if schema_text.trim().is_empty() {
-            Some(format!(
-                "topic `{name}` ({type_name}) has no schema text; rosbag2 needs one per topic"
-            ))
-        } else if !name.starts_with('/') || type_name.split('/').count() != 3 {
-            Some(format!(
-                "topic `{name}` of type `{type_name}`: expected `/name` and `pkg/msg/Type`"
-            ))
         } else {
-            None
+            Self::check_topic(name, type_name).err()
         };
         if let Some(message) = problem {
-            return Err(BagError::Write {
-                path: self.dir.clone(),
-                message,
-            });
+            return Err(self.refusal(message));
         }
+        let (schema_encoding, schema_text) =
+            stored_definition(definition.0, definition.1).unwrap_or_default();
         let mut topic = WriterTopic {
             name: name.to_string(),
             type_name: type_name.to_string(),
             serialization_format: crate::mcap_storage::MESSAGE_ENCODING.to_string(),
-            schema_text: schema_text.to_string(),
+            schema_encoding,
+            schema_text,
             qos,
             type_description_hash: type_description_hash.to_string(),
             storage_id: 0,
@@ -441,8 +530,22 @@ impl BagWriter {
         Ok(TopicHandle(self.topics.len() - 1))
     }
 
-    /// Writes one serialised (CDR, with encapsulation header) message received at `log_time_ns`.
+    /// Writes one serialised (CDR, with encapsulation header) message received at
+    /// `log_time_ns`, and sent then too.
     pub fn write(&mut self, topic: TopicHandle, log_time_ns: i64, cdr: &[u8]) -> Result<()> {
+        self.write_sent_at(topic, log_time_ns, log_time_ns, cdr)
+    }
+
+    /// Writes one serialised message received at `log_time_ns` and sent at `publish_time_ns`
+    /// (rosbag2's receive and send timestamps, MCAP `log_time` and `publish_time`; sqlite3
+    /// keeps only the first, as rosbag2's does). `bag convert` keeps both so.
+    pub fn write_sent_at(
+        &mut self,
+        topic: TopicHandle,
+        log_time_ns: i64,
+        publish_time_ns: i64,
+        cdr: &[u8],
+    ) -> Result<()> {
         if let Some(message) = self.closed() {
             return Err(BagError::Write {
                 path: self.dir.clone(),
@@ -461,7 +564,16 @@ impl BagWriter {
                 message: format!("`{}`: negative log time {log_time_ns} ns", entry.name),
             });
         }
-        self.sink.write(entry, log_time_ns, cdr)?;
+        if publish_time_ns < 0 {
+            return Err(BagError::Write {
+                path: self.dir.clone(),
+                message: format!(
+                    "`{}`: negative publish time {publish_time_ns} ns",
+                    entry.name
+                ),
+            });
+        }
+        self.sink.write(entry, log_time_ns, publish_time_ns, cdr)?;
         entry.message_count += 1;
         self.time_bounds = Some(match self.time_bounds {
             None => (log_time_ns, log_time_ns),
@@ -621,6 +733,29 @@ mod tests {
 
     use super::*;
     use crate::BagReader;
+
+    /// A folder holding a recording cut short (storage files, no metadata.yaml) is a bag to
+    /// the reader: writing there hid it behind a metadata.yaml listing only the new file.
+    #[test]
+    fn a_folder_holding_storage_files_without_metadata_is_not_written_over() {
+        let tmp = tempfile::tempdir().unwrap();
+        for storage in ["rec_0.db3", "rec_0.mcap", "rec_0.mcap.zstd"] {
+            let dir = tmp.path().join(storage.replace('.', "_"));
+            std::fs::create_dir(&dir).unwrap();
+            std::fs::write(dir.join(storage), b"recorded").unwrap();
+            std::fs::write(dir.join("summary.json"), b"{}").unwrap();
+            let err = BagWriter::create(&dir, WriterOptions::default())
+                .err()
+                .expect("refused");
+            assert!(err.to_string().contains(storage), "{storage}: {err}");
+            assert!(!dir.join("metadata.yaml").exists(), "{storage}");
+        }
+        // Other files (a run's summary.json, a picture) are no bag.
+        let dir = tmp.path().join("other");
+        std::fs::create_dir(&dir).unwrap();
+        std::fs::write(dir.join("summary.json"), b"{}").unwrap();
+        BagWriter::create(&dir, WriterOptions::default()).expect("written");
+    }
 
     /// A Humble (5) or Iron (8) source gives, unasked, a bag they read: `run` and `bag
     /// convert` used to write version 9, which their `ros2 bag info` cannot parse.
@@ -890,5 +1025,240 @@ mod tests {
             storage_qos(&dir.join("v9_0.mcap"), StorageId::Mcap, "/map")
                 .contains("transient_local")
         );
+    }
+
+    /// The stored definition of each topic of `file`: `(type, encoding, text)`, as the MCAP
+    /// schema records or the sqlite3 `message_definitions` rows hold them.
+    fn stored_definitions(file: &Path, storage: StorageId) -> Vec<(String, String, String)> {
+        let mut definitions: Vec<(String, String, String)> = match storage {
+            StorageId::Mcap => {
+                let bytes = std::fs::read(file).unwrap();
+                let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+                summary
+                    .schemas
+                    .values()
+                    .map(|s| {
+                        let text = String::from_utf8(s.data.to_vec()).unwrap();
+                        (s.name.clone(), s.encoding.clone(), text)
+                    })
+                    .collect()
+            }
+            StorageId::Sqlite3 => rusqlite::Connection::open(file)
+                .unwrap()
+                .prepare(
+                    "SELECT topic_type, encoding, encoded_message_definition
+                     FROM message_definitions",
+                )
+                .unwrap()
+                .query_map([], |row| Ok((row.get(0)?, row.get(1)?, row.get(2)?)))
+                .unwrap()
+                .collect::<rusqlite::Result<_>>()
+                .unwrap(),
+        };
+        definitions.sort();
+        definitions
+    }
+
+    /// rosbag2 records a type whose package the recorder cannot find with an empty definition
+    /// (encoding and text empty; `unknown` is taken as empty too), and a type defined only in
+    /// .idl as `ros2idl`. The writer refused both ("has no schema text"), so `bag convert`
+    /// refused such a recording; each is now copied as rosbag2 stores it, in either storage.
+    /// A `ros2msg` one with a blank text (a type without fields) stays a `ros2msg` one: taken
+    /// for none, its copy lost the encoding decoders read it by.
+    #[test]
+    fn definitions_other_than_ros2msg_are_copied_as_rosbag2_stores_them() {
+        const IDL: &str = "module acme_msgs { module msg { struct Widget { string name; }; }; };\n";
+        let stored = [
+            ("/empty", "acme_msgs/msg/Empty", "", ""),
+            ("/unknown", "acme_msgs/msg/Unknown", "unknown", ""),
+            ("/idl", "acme_msgs/msg/Widget", "ros2idl", IDL),
+            // A type without fields: a ros2msg definition all the same (std_msgs/msg/Empty).
+            ("/blank", "std_msgs/msg/Empty", ROS2MSG, " \n"),
+        ];
+        let tmp = tempfile::tempdir().unwrap();
+        let source = tmp.path().join("source.mcap");
+        {
+            let file = std::io::BufWriter::new(std::fs::File::create(&source).unwrap());
+            let mut writer = mcap::WriteOptions::new()
+                .profile(crate::mcap_storage::PROFILE)
+                .create(file)
+                .unwrap();
+            for (sequence, (topic, type_name, encoding, text)) in stored.iter().enumerate() {
+                let schema = writer
+                    .add_schema(type_name, encoding, text.as_bytes())
+                    .unwrap();
+                let channel_id = writer
+                    .add_channel(schema, topic, "cdr", &BTreeMap::new())
+                    .unwrap();
+                let header = mcap::records::MessageHeader {
+                    channel_id,
+                    sequence: sequence as u32,
+                    log_time: 1000,
+                    publish_time: 1000,
+                };
+                writer
+                    .write_to_known_channel(&header, &[0, 1, 0, 0])
+                    .unwrap();
+            }
+            writer.finish().unwrap();
+        }
+        let as_read = |reader: &BagReader| -> Vec<(String, String, Option<String>)> {
+            let mut topics: Vec<_> = reader
+                .topics()
+                .iter()
+                .map(|t| {
+                    let ros2msg = (t.name == "/blank").then_some(" \n");
+                    assert_eq!(t.ros2msg_schema(), ros2msg, "{}", t.name);
+                    (
+                        t.name.clone(),
+                        t.schema_encoding.clone(),
+                        t.schema_text.clone(),
+                    )
+                })
+                .collect();
+            topics.sort();
+            topics
+        };
+        let expected = vec![
+            (
+                "/blank".to_string(),
+                ROS2MSG.to_string(),
+                Some(" \n".to_string()),
+            ),
+            ("/empty".to_string(), String::new(), None),
+            (
+                "/idl".to_string(),
+                "ros2idl".to_string(),
+                Some(IDL.to_string()),
+            ),
+            ("/unknown".to_string(), String::new(), None),
+        ];
+        let reader = BagReader::open(&source).unwrap();
+        assert_eq!(as_read(&reader), expected);
+        for storage in [StorageId::Mcap, StorageId::Sqlite3] {
+            let dir = tmp.path().join(format!("copy_{storage}"));
+            let options = WriterOptions {
+                storage,
+                ..WriterOptions::default()
+            };
+            let mut writer = BagWriter::create(&dir, options).unwrap();
+            for topic in reader.topics() {
+                let handle = writer.add_topic_like(topic).unwrap();
+                writer.write(handle, 1000, &[0, 1, 0, 0]).unwrap();
+            }
+            writer.finish().unwrap();
+            let copy = BagReader::open(&dir).unwrap();
+            assert_eq!(as_read(&copy), expected, "{storage}");
+            let file = dir.join(format!("copy_{storage}_0.{}", storage.extension()));
+            // MCAP: an empty schema record, as rosbag2 writes it. sqlite3: no row, which
+            // rosbags reads, where it fails on rosbag2's row with an empty encoding.
+            let empty = |type_name: &str| (type_name.to_string(), String::new(), String::new());
+            let idl = (
+                "acme_msgs/msg/Widget".to_string(),
+                "ros2idl".to_string(),
+                IDL.to_string(),
+            );
+            let blank = (
+                "std_msgs/msg/Empty".to_string(),
+                ROS2MSG.to_string(),
+                " \n".to_string(),
+            );
+            let expected_stored = match storage {
+                StorageId::Mcap => vec![
+                    empty("acme_msgs/msg/Empty"),
+                    empty("acme_msgs/msg/Unknown"),
+                    idl,
+                    blank,
+                ],
+                StorageId::Sqlite3 => vec![idl, blank],
+            };
+            assert_eq!(
+                stored_definitions(&file, storage),
+                expected_stored,
+                "{storage}"
+            );
+            assert_eq!(copy.messages().unwrap().count(), stored.len(), "{storage}");
+        }
+    }
+
+    /// `ros2 bag play` creates a publisher per topic, and rcl refuses a name outside its
+    /// rules: the writer took `/a b`, `/héllo` and `/x//y`, making bags that cannot be played.
+    #[test]
+    fn topic_names_that_rcl_refuses_are_refused_naming_the_topic_and_the_rule() {
+        for topic in lidar_har_msgs::topics::ALL {
+            assert_eq!(validate_topic_name(topic.name), Ok(()), "{}", topic.name);
+        }
+        for name in ["/a", "/_private/x_1", "/A9/b_c/D"] {
+            assert_eq!(validate_topic_name(name), Ok(()), "{name}");
+        }
+        let long = format!("/{}", "a".repeat(300));
+        let refused = [
+            ("/a b", "contains ' '"),
+            ("/héllo", "contains 'é'"),
+            ("/ünï/çødé", "contains 'ü'"),
+            ("/x//y", "contains `//`"),
+            ("/x-y", "contains '-'"),
+            ("/x/1y", "has a token `1y` that starts with a digit"),
+            ("/x/", "ends with '/'"),
+            ("/", "ends with '/'"),
+            ("scan", "does not start with '/'"),
+            ("~/scan", "does not start with '/'"),
+            (&long, "is longer than 247 characters"),
+        ];
+        let tmp = tempfile::tempdir().unwrap();
+        for storage in [StorageId::Mcap, StorageId::Sqlite3] {
+            let options = WriterOptions {
+                storage,
+                ..WriterOptions::default()
+            };
+            let mut writer = BagWriter::create(tmp.path().join(storage.as_str()), options).unwrap();
+            for (name, problem) in refused {
+                let error = writer
+                    .add_topic(
+                        name,
+                        "std_msgs/msg/String",
+                        "string data\n",
+                        QosProfile::reliable(1),
+                    )
+                    .unwrap_err()
+                    .to_string();
+                assert!(
+                    error.contains(&format!("topic `{name}` {problem}"))
+                        && error.contains("rcl_validate_topic_name"),
+                    "{storage} {name}: {error}"
+                );
+            }
+            writer
+                .add_topic(
+                    "/a_1/b",
+                    "std_msgs/msg/String",
+                    "string data\n",
+                    QosProfile::reliable(1),
+                )
+                .unwrap();
+            // A recorded name is copied as it is (another tool recorded it), as rosbag2's
+            // convert copies it.
+            let recorded = TopicInfo {
+                name: "/front-scan".into(),
+                type_name: "sensor_msgs/msg/LaserScan".into(),
+                serialization_format: "cdr".into(),
+                offered_qos: Vec::new(),
+                schema_text: None,
+                schema_encoding: String::new(),
+                type_description_hash: String::new(),
+                message_count: 0,
+                storage_id: 0,
+            };
+            writer.add_topic_like(&recorded).unwrap();
+            assert_eq!(
+                writer
+                    .finish()
+                    .unwrap()
+                    .metadata
+                    .topics_with_message_count
+                    .len(),
+                2
+            );
+        }
     }
 }

@@ -364,6 +364,12 @@ fn a_cut_file_of_a_split_bag_loses_no_message_of_the_others() {
 
         let reader = BagReader::open(&split).unwrap();
         assert!(reader.metadata().truncated);
+        // Which file, and why: a bag of many split files needs it to know which to repair.
+        let damaged = reader.metadata().damaged;
+        assert!(
+            damaged.len() == 1 && damaged[0].contains(cut_name) && damaged[0].contains("truncated"),
+            "{damaged:?}"
+        );
         assert_eq!(reader.metadata().message_count, 31);
         let items: Vec<_> = reader.messages().unwrap().collect();
         assert_eq!(items.len(), 32, "31 messages and one error");

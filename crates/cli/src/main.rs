@@ -52,7 +52,7 @@ fn main() -> ExitCode {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Run(a) => stop_on_signal().and_then(|stop| cmd::run::run(a, stop)),
         Command::RandomScenes(a) => cmd::random_scenes::run(a),
-        Command::Dataset(a) => cmd::dataset::run(a),
+        Command::Dataset(a) => stop_on_signal().and_then(|stop| cmd::dataset::run(a, &stop)),
         Command::Evaluate(a) => cmd::evaluate::run(a),
         Command::Alerts(a) => cmd::alerts::run(a),
         Command::Demo(a) => cmd::demo::run(a),
@@ -77,11 +77,13 @@ fn main() -> ExitCode {
 /// The SIGINT or SIGTERM that asked the command to stop; 0 until one comes.
 static STOP_SIGNAL: AtomicI32 = AtomicI32::new(0);
 
-/// For commands that read bags given by the user (`run`, `bag`): once the command writes its
-/// outputs message by message ([`StopRequest::arm`]), the first SIGINT (Ctrl-C) or SIGTERM
-/// asks it to stop at the next message, so that it finishes the bag it writes (a bag left
-/// without its MCAP footer is refused by other readers) and `run` its `summary.json`; the
-/// process then ends by that signal (the shell sees 130 or 143). Before that (opening a
+/// For commands that read bags given by the user (`run`, `bag`), and `dataset`: once the
+/// command writes its outputs message by message or episode by episode
+/// ([`StopRequest::arm`]), the first SIGINT (Ctrl-C) or SIGTERM asks it to stop at the next
+/// one, so that it finishes the bag it writes (a bag left without its MCAP footer is refused
+/// by other readers) and `run` its `summary.json`, or `dataset` removes its scratch arrays
+/// (gigabytes for a training set) and leaves the dataset already there whole; the process
+/// then ends by that signal (the shell sees 130 or 143). Before that (opening a
 /// large bag, scanning one cut short, `bag info`) the signal ends the process at once. Either
 /// way it deletes the bag reader's temporary copies (a storage file rosbag2 compressed whole,
 /// `.zstd`, is read from a decompressed copy in $TMPDIR as large as the file uncompressed),

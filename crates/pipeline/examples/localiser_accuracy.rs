@@ -232,9 +232,16 @@ fn measure(args: Args) -> Result<(), Box<dyn Error>> {
     }
 
     let mut dump = match &args.dump_points {
-        Some(path) => Some(BufWriter::new(
-            File::create(path).map_err(|e| format!("{}: {e}", path.display()))?,
-        )),
+        Some(path) => {
+            // `out/` (the docs' folder) is not in a fresh checkout.
+            if let Some(folder) = path.parent().filter(|f| !f.as_os_str().is_empty()) {
+                std::fs::create_dir_all(folder)
+                    .map_err(|e| format!("{}: {e}", folder.display()))?;
+            }
+            Some(BufWriter::new(
+                File::create(path).map_err(|e| format!("{}: {e}", path.display()))?,
+            ))
+        }
         None => None,
     };
     let started = Instant::now();

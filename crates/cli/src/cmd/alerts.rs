@@ -17,7 +17,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
+use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lidar_har_core::activity::Activity;
 use lidar_har_core::fall::{AlertKind, FallAlert, FallAlertConfig, FallDetector};
@@ -357,6 +357,22 @@ pub fn run(args: AlertsArgs) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.save_readings {
         super::prepare_output_file(path, "--save-readings")?;
+    }
+    // The report written over the readings would lose hours of simulation.
+    if let Some(out) = &args.out {
+        for (readings, flag) in [
+            (&args.readings, "--readings"),
+            (&args.save_readings, "--save-readings"),
+        ] {
+            if let Some(readings) = readings.as_deref().filter(|r| super::same_file(out, r)) {
+                bail!(
+                    "--out {}: is the file {flag} names ({}); the report would replace the \
+                     readings",
+                    out.display(),
+                    readings.display()
+                );
+            }
+        }
     }
     let mut config =
         super::classifier_config(args.classifier_config.as_deref(), args.model.as_deref())?;

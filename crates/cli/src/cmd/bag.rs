@@ -191,10 +191,8 @@ fn info(path: &Path) -> anyhow::Result<()> {
     outln!("Start:             {}", timestamp(info.start_ns));
     outln!("End:               {}", timestamp(info.end_ns));
     outln!("Messages:          {}", info.message_count);
-    if info.truncated {
-        outln!(
-            "Warning:           a storage file cannot be read to its end (cut short by a killed recorder, or damaged); counts cover the part before"
-        );
+    for warning in damage_warnings(&info) {
+        outln!("Warning:           {warning}");
     }
     if let Some(note) = missing_metadata_note(path, &info) {
         outln!("Metadata:          {note}");
@@ -226,6 +224,20 @@ fn info(path: &Path) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// `info`'s warning for each storage file that cannot be read to its end, naming it and why:
+/// in a bag of many split files, the one to repair.
+fn damage_warnings(info: &BagInfo) -> Vec<String> {
+    info.damaged
+        .iter()
+        .map(|why| {
+            format!(
+                "a storage file cannot be read to its end (cut short by a killed recorder, or \
+                 damaged); counts cover the part before: {why}"
+            )
+        })
+        .collect()
 }
 
 /// What `info` says of a bag directory without metadata.yaml (a killed recorder leaves
@@ -290,28 +302,39 @@ fn convert(
     // Every topic checked before the new bag is created: a refusal leaves nothing behind.
     let mut topics = Vec::new();
     let mut substituted = std::collections::HashSet::new();
+    let mut warnings = Vec::new();
     for topic in reader.topics() {
         if !clip.topics.is_empty() && !clip.topics.contains(&topic.name) {
             continue;
         }
+        BagWriter::check_topic(&topic.name, &topic.type_name)
+            .map_err(|problem| anyhow::anyhow!("{}: {problem}", src.display()))?;
+        // Copied as recorded, as rosbag2's convert copies it (a ROS 1 name such as
+        // `/front-scan` that rosbags-convert kept, say), but said.
+        if let Err(problem) = lidar_har_bag::validate_topic_name(&topic.name) {
+            warnings.push(format!(
+                "{}: {problem}; copied as recorded, but `ros2 bag play` cannot publish it \
+                 (leave it out with --topics)",
+                src.display()
+            ));
+        }
         let mut topic = topic.clone();
-        if topic.schema_text.is_none() {
-            // Older sqlite3 bags (Foxy/Humble) store no definitions: use ours where we know the type.
-            let Some(definition) = lidar_har_msgs::schema::definition(&topic.type_name) else {
-                bail!(
-                    "{}: topic `{}` ({}) has no stored message definition and the type is unknown to lidar-har",
-                    src.display(),
-                    topic.name,
-                    topic.type_name
-                );
-            };
-            topic.schema_text = Some(definition.schema_text());
-            substituted.insert(topic.name.clone());
+        if topic.ros2msg_schema().is_none() {
+            // Older sqlite3 bags (Foxy/Humble) store no definitions, and rosbag2 stores an
+            // empty one for a type whose package the recorder lacked: ours where we know the
+            // type; else the topic is copied with what is stored, as rosbag2's convert does.
+            if let Some(definition) = lidar_har_msgs::schema::definition(&topic.type_name) {
+                topic.schema_text = Some(definition.schema_text());
+                topic.schema_encoding = "ros2msg".to_string();
+                substituted.insert(topic.name.clone());
+            } else {
+                warnings.push(no_ros2msg_warning(&topic, src));
+            }
         }
         // A source that records no type hash (Humble's, or one of ours made before we wrote
         // them) gets ours where the type and its fields are ours; a recorded one is kept.
         if topic.type_description_hash.is_empty()
-            && let Some(schema) = &topic.schema_text
+            && let Some(schema) = topic.ros2msg_schema()
             && let Some(hash) = lidar_har_msgs::schema::type_hash_of(&topic.type_name, schema)
         {
             topic.type_description_hash = hash.to_string();
@@ -319,6 +342,9 @@ fn convert(
         topics.push(topic);
     }
     check_messages_decode(&reader, &substituted, src)?;
+    for warning in warnings {
+        errln!("lidar-har: warning: {warning}");
+    }
     // From here a stop is honoured at the first message, the new bag finished.
     stop.arm();
     let mut writer = BagWriter::create(dst, options)
@@ -359,7 +385,12 @@ fn convert(
             negative_times += 1;
             continue;
         }
-        writer.write(handle, message.log_time_ns, &message.data)?;
+        writer.write_sent_at(
+            handle,
+            message.log_time_ns,
+            message.publish_time_ns,
+            &message.data,
+        )?;
         count += 1;
         *copied_on.entry(message.topic.to_string()).or_default() += 1;
     }
@@ -407,6 +438,24 @@ fn convert(
         summary.metadata.version
     );
     Ok(())
+}
+
+/// The warning for a topic copied without a `ros2msg` definition (a type lidar-har does not
+/// know): the copy is right, but tools that decode by the stored definition cannot decode it.
+fn no_ros2msg_warning(topic: &TopicInfo, src: &Path) -> String {
+    let stored = if topic.schema_text.is_some() {
+        format!("only an `{}` one", topic.schema_encoding)
+    } else {
+        "none".to_string()
+    };
+    format!(
+        "{}: topic `{}` ({}) has no ros2msg message definition (the bag stores {stored}), and \
+         the type is not one lidar-har knows: copied with the definition as stored, as rosbag2's \
+         convert does; rosbags and Foxglove need the type's definition from elsewhere to decode it",
+        src.display(),
+        topic.name,
+        topic.type_name
+    )
 }
 
 /// The read that gives `clip`'s messages, checked against the source before anything is
@@ -982,5 +1031,188 @@ mod tests {
         let bare_file = dir.join("rec_0.mcap");
         let bare = BagReader::open(&bare_file).unwrap();
         assert_eq!(missing_metadata_note(&bare_file, &bare.metadata()), None);
+    }
+
+    /// rosbag2 records a type whose package the recorder lacks with an empty definition, and
+    /// one defined only in .idl as `ros2idl`; `convert` refused the whole recording for either
+    /// (and for a `ros2msg` one with an empty text, after creating DST). Such a topic is now
+    /// copied with what is stored, as rosbag2's convert copies it; a type of ours gets ours.
+    #[test]
+    fn a_topic_without_a_ros2msg_definition_is_copied_as_stored() {
+        const IDL: &str = "module acme_msgs { module msg { struct Gadget { string name; }; }; };\n";
+        let tmp = tempfile::tempdir().unwrap();
+        for storage in [StorageId::Mcap, StorageId::Sqlite3] {
+            let src = tmp.path().join(format!("src_{storage}"));
+            let options = WriterOptions {
+                storage,
+                ..WriterOptions::default()
+            };
+            let mut writer = BagWriter::create(&src, options).unwrap();
+            let qos = QosProfile::reliable(10);
+            let scan = writer
+                .add_topic("/scan", LaserScan::TYPE_NAME, "", qos)
+                .unwrap();
+            let widget = writer
+                .add_topic("/widget", "acme_msgs/msg/Widget", "", qos)
+                .unwrap();
+            writer.flush().unwrap();
+            let mut gadget_topic = BagReader::open(&src)
+                .unwrap()
+                .topic("/widget")
+                .unwrap()
+                .clone();
+            gadget_topic.name = "/gadget".to_string();
+            gadget_topic.type_name = "acme_msgs/msg/Gadget".to_string();
+            gadget_topic.schema_encoding = "ros2idl".to_string();
+            gadget_topic.schema_text = Some(IDL.to_string());
+            let gadget = writer.add_topic_like(&gadget_topic).unwrap();
+            for (i, handle) in [scan, widget, gadget].into_iter().enumerate() {
+                writer
+                    .write(handle, T0 + i as i64, &[0, 1, 0, 0, i as u8])
+                    .unwrap();
+            }
+            writer.finish().unwrap();
+
+            for (i, args) in [&[][..], &["--storage", "sqlite3"], &["--duration", "1"]]
+                .into_iter()
+                .enumerate()
+            {
+                let dst = tmp.path().join(format!("dst_{storage}_{i}"));
+                convert_with(&src, &dst, args)
+                    .unwrap_or_else(|e| panic!("{storage} {args:?}: {e:#}"));
+                assert_eq!(messages_of(&dst), messages_of(&src), "{storage} {args:?}");
+                let copy = BagReader::open(&dst).unwrap();
+                let widget = copy.topic("/widget").unwrap();
+                assert_eq!(
+                    (
+                        widget.schema_encoding.as_str(),
+                        widget.schema_text.as_deref()
+                    ),
+                    ("", None)
+                );
+                let gadget = copy.topic("/gadget").unwrap();
+                assert_eq!(
+                    (
+                        gadget.schema_encoding.as_str(),
+                        gadget.schema_text.as_deref()
+                    ),
+                    ("ros2idl", Some(IDL))
+                );
+                assert_eq!(
+                    copy.topic("/scan").unwrap().ros2msg_schema(),
+                    Some(LaserScan::schema_text().as_str()),
+                    "{storage} {args:?}: ours, for a type of ours"
+                );
+            }
+        }
+        let widget = BagReader::open(tmp.path().join("src_mcap"))
+            .unwrap()
+            .topic("/widget")
+            .unwrap()
+            .clone();
+        let warning = no_ros2msg_warning(&widget, Path::new("src"));
+        assert!(
+            warning.contains("topic `/widget` (acme_msgs/msg/Widget) has no ros2msg message definition (the bag stores none)")
+                && warning.contains("as rosbag2's convert does"),
+            "{warning}"
+        );
+    }
+
+    /// A name rcl refuses that another tool recorded (`/front-scan`, kept by rosbags-convert
+    /// from a ROS 1 bag) is copied as recorded, as rosbag2's convert copies it; refusing it
+    /// refused the whole recording.
+    #[test]
+    fn a_recorded_topic_name_rcl_refuses_is_copied_as_recorded() {
+        let tmp = tempfile::tempdir().unwrap();
+        let src = tmp.path().join("src");
+        let mut writer = BagWriter::create(&src, WriterOptions::default()).unwrap();
+        let scan = writer
+            .add_topic_for::<LaserScan>("/scan", QosProfile::reliable(10))
+            .unwrap();
+        writer.flush().unwrap();
+        let mut front = BagReader::open(&src)
+            .unwrap()
+            .topic("/scan")
+            .unwrap()
+            .clone();
+        front.name = "/front-scan".to_string();
+        let front = writer.add_topic_like(&front).unwrap();
+        for (i, handle) in [scan, front].into_iter().enumerate() {
+            writer.write(handle, T0 + i as i64, &[0, 1, 0, 0]).unwrap();
+        }
+        writer.finish().unwrap();
+        let dst = tmp.path().join("dst");
+        convert_with(&src, &dst, &[]).unwrap();
+        assert_eq!(messages_of(&dst), messages_of(&src));
+        assert!(
+            BagReader::open(&dst)
+                .unwrap()
+                .topic("/front-scan")
+                .is_some()
+        );
+    }
+
+    /// `info` said that "a storage file" was damaged, but not which of a split bag's files nor
+    /// why, which `convert` says.
+    #[test]
+    fn info_names_the_damaged_storage_file_and_why() {
+        let tmp = tempfile::tempdir().unwrap();
+        let whole = tmp.path().join("whole");
+        recording(&whole, StorageId::Mcap);
+        let bytes = std::fs::read(whole.join("whole_0.mcap")).unwrap();
+        let split = tmp.path().join("split");
+        std::fs::create_dir(&split).unwrap();
+        std::fs::write(split.join("split_0.mcap"), &bytes).unwrap();
+        std::fs::write(split.join("split_1.mcap"), &bytes[..200]).unwrap();
+        let info = BagReader::open(&split).unwrap().metadata();
+        let warnings = damage_warnings(&info);
+        assert!(
+            warnings.len() == 1
+                && warnings[0].contains("split_1.mcap")
+                && warnings[0].contains("truncated")
+                && !warnings[0].contains("split_0.mcap"),
+            "{warnings:?}"
+        );
+        assert_eq!(
+            damage_warnings(&BagReader::open(&whole).unwrap().metadata()),
+            Vec::<String>::new()
+        );
+    }
+
+    /// rosbag2's MCAP plugin stores the send time as `publish_time`; `convert` wrote the log
+    /// time in its place. It is kept into MCAP; sqlite3 has no column for it.
+    #[test]
+    fn convert_keeps_the_send_time_where_the_storage_has_one() {
+        let tmp = tempfile::tempdir().unwrap();
+        let src = tmp.path().join("sent");
+        let mut writer = BagWriter::create(&src, WriterOptions::default()).unwrap();
+        let scan = writer
+            .add_topic_for::<LaserScan>("/scan", QosProfile::sensor_data())
+            .unwrap();
+        for k in 0..5 {
+            let t = T0 + k * 100_000_000;
+            writer
+                .write_sent_at(scan, t, t - 3_000_000, &[0, 1, 0, 0])
+                .unwrap();
+        }
+        writer.finish().unwrap();
+        let times = |bag: &Path| -> Vec<(i64, i64)> {
+            BagReader::open(bag)
+                .unwrap()
+                .messages()
+                .unwrap()
+                .map(|m| m.map(|m| (m.log_time_ns, m.publish_time_ns)).unwrap())
+                .collect()
+        };
+        let sent: Vec<(i64, i64)> = (0..5)
+            .map(|k| T0 + k * 100_000_000)
+            .map(|t| (t, t - 3_000_000))
+            .collect();
+        assert_eq!(times(&src), sent);
+        convert_with(&src, &tmp.path().join("mcap"), &[]).unwrap();
+        assert_eq!(times(&tmp.path().join("mcap")), sent);
+        convert_with(&src, &tmp.path().join("db3"), &["--storage", "sqlite3"]).unwrap();
+        let received: Vec<(i64, i64)> = sent.iter().map(|&(t, _)| (t, t)).collect();
+        assert_eq!(times(&tmp.path().join("db3")), received);
     }
 }

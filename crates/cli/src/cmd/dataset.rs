@@ -18,6 +18,7 @@ use lidar_har_core::activity::Activity;
 use lidar_har_core::localiser::{Localiser, LocaliserConfig, Motion, Reference};
 use lidar_har_core::representation::{Framing, Renderer, RepresentationKind, RepresentationSpec};
 use lidar_har_core::scan::Scan;
+use lidar_har_pipeline::bag_run::StopRequest;
 use lidar_har_sim::lidar::ScanGeometry;
 use lidar_har_sim::map::{DEFAULT_RESOLUTION, OccupancyMap as SimMap};
 use lidar_har_sim::scripts::{self, ScriptKind};
@@ -360,7 +361,9 @@ struct EpisodeWindows {
     fixed_lidar_at: Option<[f64; 2]>,
 }
 
-pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
+/// Makes the dataset `args` asks for; a `stop` request ends it between episodes with nothing
+/// written (the scratch arrays removed, a dataset already in `--out` left whole).
+pub fn run(args: DatasetArgs, stop: &StopRequest) -> anyhow::Result<()> {
     validate_args(&args)?;
     let spec = RepresentationSpec::new(
         args.representation,
@@ -396,6 +399,7 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
         .collect::<anyhow::Result<Vec<_>>>()?;
     let mut episodes = Vec::new();
     let period_s = 1.0 / rate_hz;
+    stop.arm();
     run_in_order(
         &plans,
         args.threads,
@@ -405,6 +409,9 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
             result
         },
         |plan, result| {
+            if let Some(reason) = stop.reason() {
+                bail!("{reason}; nothing was written to {}", args.out.display());
+            }
             let windows = match result {
                 Ok(windows) => windows,
                 // A scene too small for a random script (e.g. no room to run) loses that
@@ -440,6 +447,9 @@ pub fn run(args: DatasetArgs) -> anyhow::Result<()> {
 
     // Before anything is renamed: a failed run leaves a dataset already in `--out` whole (the
     // writers remove their files when dropped).
+    if let Some(reason) = stop.reason() {
+        bail!("{reason}; nothing was written to {}", args.out.display());
+    }
     if episodes.is_empty() {
         bail!(
             "no episode could be run (each skipped above); nothing was written to {}",

@@ -55,6 +55,19 @@ pub fn prepare_output_file(path: &Path, flag: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Whether `a` and `b` name one file (links followed), whether it exists yet or not.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    let resolve = |path: &Path| -> Option<std::path::PathBuf> {
+        if let Ok(full) = path.canonicalize() {
+            return Some(full);
+        }
+        let folder = path.parent().filter(|p| !p.as_os_str().is_empty());
+        let folder = folder.unwrap_or(Path::new(".")).canonicalize().ok()?;
+        Some(folder.join(path.file_name()?))
+    };
+    matches!((resolve(a), resolve(b)), (Some(a), Some(b)) if a == b)
+}
+
 /// A path for a message; a relative one says what it is relative to, since configuration
 /// files name models relative to the folder the command runs in, not to themselves.
 pub fn shown_path(path: &Path) -> String {
@@ -69,6 +82,20 @@ pub fn shown_path(path: &Path) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn same_file_sees_one_file_under_two_names_existing_or_not() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("r.zst");
+        let other = dir.path().join("sub/../r.zst");
+        std::fs::create_dir(dir.path().join("sub")).unwrap();
+        assert!(same_file(&file, &other), "not yet written");
+        std::fs::write(&file, b"readings").unwrap();
+        assert!(same_file(&file, &other));
+        std::os::unix::fs::symlink(&file, dir.path().join("link")).unwrap();
+        assert!(same_file(&file, &dir.path().join("link")));
+        assert!(!same_file(&file, &dir.path().join("report.json")));
+    }
 
     #[test]
     fn the_model_is_the_command_lines_else_the_configurations_else_the_default() {
