@@ -631,7 +631,14 @@ impl OdometryBuffer {
             }
             match self.samples.len() {
                 1 => return Ok(last.1),
-                n => (self.samples[n - 2], last),
+                n => {
+                    let before = self.samples[n - 2];
+                    // The first sample after a pause stands alone, as a single one does.
+                    if seconds_between(before.0, last.0) > config.max_interpolation_gap_s {
+                        return Ok(last.1);
+                    }
+                    (before, last)
+                }
             }
         } else {
             let i = self.samples.partition_point(|&(t, _)| t <= stamp_ns);
@@ -1708,6 +1715,27 @@ mod tests {
             ),
             "{:?}",
             result.warnings
+        );
+    }
+
+    #[test]
+    fn a_scan_just_after_odometry_resumes_from_a_pause_is_placed_from_the_new_sample() {
+        let mut loc = map_localiser(Motion::Odometry);
+        let scan_at = |ns: i64| cast(ns, Pose2::IDENTITY, None);
+        loc.add_odometry(10_000_000_000, Pose2::IDENTITY);
+        loc.add_odometry(12_000_000_000, Pose2::IDENTITY);
+        assert!(
+            matches!(
+                loc.process_scan(&scan_at(11_000_000_000)).warnings[..],
+                [Warning::OdometryGap { .. }]
+            ),
+            "inside the pause it is a gap"
+        );
+        let result = loc.process_scan(&scan_at(12_010_000_000));
+        assert_eq!(
+            result.warnings,
+            [],
+            "no gap: the scan is 10 ms past a sample"
         );
     }
 

@@ -62,7 +62,8 @@ pub struct TrackerConfig {
     /// person is under 0.8 m across at ankle height, even in a long stride).
     pub midpoint_length_m: f64,
     /// Such a long body is moved this much farther away from the Lidar than the clusters'
-    /// centroid offset (m): a trunk (radius ~0.13 m) is thicker than a leg, so its near
+    /// centroid offset (m; along that offset, so not with `centroid_offset_m` 0, which gives
+    /// no direction): a trunk (radius ~0.13 m) is thicker than a leg, so its near
     /// surface lies farther in front of its centre. 0.06 = the median radial bias left over
     /// bodies longer than `midpoint_length_m` in the simulator's scenes (0.057 m).
     pub long_body_offset_m: f64,
@@ -346,7 +347,7 @@ impl Tracker {
         if self.person_track().is_none() {
             self.choose_person(stamp_ns);
         }
-        self.drop_tracks_on_person();
+        self.drop_tracks_on_person(stamp_ns);
         self.person_estimate(stamp_ns)
     }
 
@@ -649,9 +650,12 @@ impl Tracker {
             .map(|t| t.id);
     }
 
-    /// Drops the tracks that sit on the person: they are pieces of them, not someone else.
-    fn drop_tracks_on_person(&mut self) {
-        if let Some(p) = self.person_track().map(|t| t.position()) {
+    /// Drops the tracks that sit on the person seen in this scan: they are pieces of them,
+    /// not someone else. A hidden person's place is only a prediction: a track there kept its
+    /// own points against them (an unmapped object the hidden walker's straight line passes).
+    fn drop_tracks_on_person(&mut self, stamp_ns: i64) {
+        let seen = self.person_track().filter(|t| t.last_seen_ns == stamp_ns);
+        if let Some(p) = seen.map(|t| t.position()) {
             let (person, merge) = (self.person, self.config.part_merge_m);
             self.tracks
                 .retain(|t| Some(t.id) == person || t.position().distance(p) > merge);
@@ -743,7 +747,13 @@ fn body_position(points: &[DVec2], centroid: DVec2, config: &TrackerConfig) -> D
     if span.length() <= config.midpoint_length_m {
         return centroid;
     }
-    let away = (centroid - span.mean).normalize_or_zero();
+    // Without a centroid offset the difference is rounding, which has no direction.
+    let offset = centroid - span.mean;
+    let away = if offset.length() > 1e-9 {
+        offset.normalize()
+    } else {
+        DVec2::ZERO
+    };
     // `centroid` is offset from the points' mean (away from the Lidar); keep that offset.
     centroid + (span.midpoint() - span.mean) + away * config.long_body_offset_m
 }
@@ -964,6 +974,46 @@ mod tests {
     }
 
     #[test]
+    fn a_hidden_walkers_prediction_does_not_drop_a_still_objects_track() {
+        // A walker along y = 0.5 at 1 m/s, hidden from x = 1 m on (they turned away behind
+        // furniture), whose straight-line prediction passes 0.58 m from an unmapped object
+        // at (3, 0) 1.7 s later, at 10 Hz (the session 59 review's probe: the object's track
+        // was dropped as a piece of the walker, whose track then took the object's points).
+        const PERIOD_10HZ_NS: i64 = 100_000_000;
+        let object = DVec2::new(3.0, 0.0);
+        let mut tracker = Tracker::new(TrackerConfig::default());
+        let mut object_track = None;
+        for k in 0..40 {
+            let t = k as f64 * 0.1;
+            let mut clusters = Vec::new();
+            if t < 2.0 {
+                clusters.push(blob(DVec2::new(-1.0 + t, 0.5)));
+            }
+            if k >= 10 {
+                clusters.push(blob(object));
+            }
+            let est = tracker.update(k * PERIOD_10HZ_NS, &clusters, &[]);
+            if k == 19 {
+                let on_object = tracker
+                    .tracks
+                    .iter()
+                    .find(|t| t.confirmed && t.position().distance(object) < 0.1);
+                object_track = on_object.map(|t| t.id);
+            }
+            if k >= 2 {
+                let est = est.expect("the walker is tracked");
+                assert_eq!(est.track_id, 1, "t {t:.1}: {est:?}");
+                assert_eq!(est.visible, t < 2.0, "t {t:.1}: {est:?}");
+            }
+        }
+        let object_track = object_track.expect("the object is a confirmed track");
+        assert!(
+            tracker.tracks.iter().any(|t| t.id == object_track),
+            "the object's track was dropped"
+        );
+    }
+
+    #[test]
     fn a_hidden_runner_who_turns_back_is_reacquired_where_they_vanished() {
         let mut tracker = Tracker::new(TrackerConfig::default());
         // Running at 2.5 m/s along x for 1 s.
@@ -1028,7 +1078,8 @@ mod tests {
         let sitting = |config: TrackerConfig| {
             let mut tracker = Tracker::new(config);
             let mut est = None;
-            for k in 0..10 {
+            // 1.5 s: the filter, started on one part, overshoots the middle and comes back.
+            for k in 0..30 {
                 est = tracker.update(k * PERIOD_NS, &parts(DVec2::ZERO), &[]);
             }
             est.expect("tracked")
@@ -1116,15 +1167,15 @@ mod tests {
 
     #[test]
     fn a_still_person_whose_parts_come_and_go_stays_still() {
-        // Sitting: hands and feet 1 m apart; the feet vanish every third scan, so the
-        // measurement jumps by 0.5 m and the filter's velocity swings well above
+        // Sitting: hands and feet 1.1 m apart; the feet vanish every third scan, so the
+        // measurement jumps by 0.55 m and the filter's velocity swings well above
         // still_speed_mps. Averaged, the person is still and both parts keep joining.
         let merged_scans = |still_window_s: f64| {
             let mut tracker = Tracker::new(TrackerConfig {
                 still_window_s,
                 ..TrackerConfig::default()
             });
-            let (hands, feet) = (blob(DVec2::new(-0.5, 0.0)), blob(DVec2::new(0.5, 0.0)));
+            let (hands, feet) = (blob(DVec2::new(-0.55, 0.0)), blob(DVec2::new(0.55, 0.0)));
             let mut merged = 0;
             for k in 0..60 {
                 let clusters = if k % 3 == 0 {
@@ -1186,6 +1237,14 @@ mod tests {
             centroid + shift
         );
         assert_eq!(body_position(&[], shift, &config), shift);
+        // With `centroid_offset_m` 0 the centroid differs from the mean by rounding only:
+        // no direction to move the body in (it went along the rounding's sign).
+        let rounded = centroid + DVec2::new(1e-16, -1e-16);
+        let placed = body_position(&points, rounded, &config);
+        assert!(
+            (placed - DVec2::new(-0.025, centroid.y)).length() < 0.01,
+            "{placed:?}"
+        );
     }
 
     #[test]

@@ -103,6 +103,7 @@ pub enum RunError {
 /// `summary.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct RunSummary {
+    #[serde(serialize_with = "path_as_text")]
     pub input: PathBuf,
     /// `map_file` (a map given with the run), `map_topic` (the bag's /map) or
     /// `learned_background`.
@@ -436,9 +437,9 @@ impl Stages {
             tally
                 .pipeline_times
                 .record(scan.pipeline_time.as_secs_f64() * 1e6);
-            tally
-                .scan_times
-                .record(scan.localise_time.as_secs_f64() * 1e6);
+            if let Some(time) = scan.localise_time {
+                tally.scan_times.record(time.as_secs_f64() * 1e6);
+            }
             if let Some(output) = &scan.output {
                 tally.scans_localised += 1;
                 if let Some(person) = &output.person {
@@ -729,8 +730,19 @@ fn summarise(
 
 fn write_summary(out_dir: &Path, summary: &RunSummary) -> Result<(), RunError> {
     let path = out_dir.join("summary.json");
-    let json = serde_json::to_string_pretty(summary).expect("the summary is plain data");
-    std::fs::write(&path, json + "\n").map_err(|cause| RunError::Summary { path, cause })
+    let written = serde_json::to_string_pretty(summary)
+        .map_err(std::io::Error::other)
+        .and_then(|json| std::fs::write(&path, json + "\n"));
+    written.map_err(|cause| RunError::Summary { path, cause })
+}
+
+/// A path in `summary.json`, as text: serde refuses a path that is not UTF-8, which would
+/// lose the summary of a finished run (the bytes that are not UTF-8 become U+FFFD).
+pub(crate) fn path_as_text<S: serde::Serializer>(
+    path: &Path,
+    serializer: S,
+) -> Result<S::Ok, S::Error> {
+    serializer.serialize_str(&path.to_string_lossy())
 }
 
 /// How much of the bag's /tf (log time from its first message) is searched for
@@ -939,6 +951,22 @@ mod tests {
         run_bag(&input, &dir.path().join("out"), RunOptions::default()).unwrap()
     }
 
+    /// A bag at a path that is not UTF-8 (a name a Linux file system takes) still gets its
+    /// summary, the path written lossily.
+    #[test]
+    fn a_bag_at_a_path_that_is_not_utf8_gets_its_summary() {
+        use std::os::unix::ffi::OsStrExt;
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join(std::ffi::OsStr::from_bytes(b"rec\xff"));
+        robot_bag(&input, &Robot::default());
+        let out = dir.path().join("out");
+        run_bag(&input, &out, RunOptions::default()).expect("the run finishes");
+        let json = std::fs::read_to_string(out.join("summary.json")).unwrap();
+        let summary: serde_json::Value = serde_json::from_str(&json).unwrap();
+        let written = summary["input"].as_str().expect("the input path as text");
+        assert!(written.ends_with("rec\u{fffd}"), "{written}");
+    }
+
     fn median_error(summary: &RunSummary) -> f64 {
         summary
             .position_error_m
@@ -1063,6 +1091,9 @@ mod tests {
         assert_eq!(summary.warnings.get("waiting_for_map_to_odom"), Some(&10));
         assert_eq!(summary.scans_localised, (SCANS - 10) as u64);
         assert!(summary.position_error_m.unwrap().max < 0.25);
+        // The core's time per scan counts only the scans the core saw.
+        let core_times = summary.scan_time_us.expect("scans were localised");
+        assert_eq!(core_times.count, (SCANS - 10) as usize, "{core_times:?}");
     }
 
     /// `map -> odom` is looked for over the whole bag for a robot that moves; a fixed Lidar's

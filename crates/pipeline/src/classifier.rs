@@ -300,10 +300,12 @@ pub enum PoseHeadStatus {
     /// None configured.
     Off,
     Used {
+        #[serde(serialize_with = "crate::bag_run::path_as_text")]
         path: PathBuf,
     },
     /// Configured but unusable; the classifier runs without it.
     NotUsed {
+        #[serde(serialize_with = "crate::bag_run::path_as_text")]
         path: PathBuf,
         reason: String,
     },

@@ -80,8 +80,9 @@ pub struct Step {
 pub struct ProcessedScan {
     /// The localiser's result; `None` when the scan was skipped or learned from.
     pub output: Option<LocaliserOutput>,
-    /// The core's time (conversion and logging excluded).
-    pub localise_time: Duration,
+    /// The core's time (conversion and logging excluded); `None` when the core did not see
+    /// the scan (skipped while waiting for the first `map -> odom`).
+    pub localise_time: Option<Duration>,
     /// Decoding, localising and encoding the outputs (not the wait for odometry).
     pub pipeline_time: Duration,
 }

@@ -582,8 +582,8 @@ impl LocaliserStage {
     }
 
     /// Localises the person in one scan (`None` when the scan was skipped or learned from),
-    /// and the time the core took.
-    fn localise(&mut self, msg: &LaserScan) -> (Option<LocaliserOutput>, Duration) {
+    /// and the time the core took (`None` when the core did not see it).
+    fn localise(&mut self, msg: &LaserScan) -> (Option<LocaliserOutput>, Option<Duration>) {
         let frame = msg.header.frame_id.trim_start_matches('/');
         if self.laser_frame.as_deref() != Some(frame) {
             self.laser_frame = Some(frame.to_string());
@@ -603,7 +603,7 @@ impl LocaliserStage {
                     self.frames.odom
                 );
             }
-            return (None, Duration::ZERO);
+            return (None, None);
         }
         let learning = self.learning();
         let started = Instant::now();
@@ -654,7 +654,7 @@ impl LocaliserStage {
         for w in &result.warnings {
             self.warnings.record(w, scan.stamp_ns);
         }
-        (result.output, localise_time)
+        (result.output, Some(localise_time))
     }
 
     /// Odometry: the pose of the base in the odom frame, unless /tf gives it.

@@ -1845,24 +1845,11 @@ mod tests {
     #[cfg(feature = "fake")]
     mod motor_on_request {
         use super::*;
-        use crate::fake::{FakeConfig, FakeLidar, SyntheticRoom};
+        use crate::fake::{FakeConfig, FakeLidar, SyntheticRoom, driver_config};
         use std::path::Path;
 
         /// How long a test waits for what it expects: only a broken driver takes it.
         const LIMIT: Duration = Duration::from_secs(30);
-
-        /// Timings of `tests/fake_device.rs`, for a loaded 2-core CI machine.
-        fn config(path: &Path) -> Config {
-            Config {
-                request_timeout: Duration::from_secs(20),
-                data_timeout: Duration::from_secs(10),
-                reset_wait: Duration::from_millis(30),
-                reconnect_min: Duration::from_millis(20),
-                reconnect_max: Duration::from_millis(160),
-                diagnostics_period: Duration::from_millis(200),
-                ..Config::new(path.to_str().expect("temp paths are UTF-8"))
-            }
-        }
 
         fn spawn(path: &Path, fake: FakeConfig) -> FakeLidar {
             FakeLidar::spawn(path, fake, SyntheticRoom::default()).expect("fake device starts")
@@ -1924,7 +1911,7 @@ mod tests {
             };
             a2.info.model = 0x28;
             let fake = spawn(&dir.path().join("rplidar"), a2);
-            let mut driver = Driver::new(config(fake.path())).unwrap();
+            let mut driver = Driver::new(driver_config(fake.path())).unwrap();
             run_until(&mut driver, |s, _| s.len() >= 2);
             assert_eq!(fake.log().motor_pwm, Some(DEFAULT_MOTOR_PWM));
             // Scans read before the stop are not the stop's concern.
@@ -1985,7 +1972,7 @@ mod tests {
         fn stop_motor_gives_a_time_of_flight_motor_0_rpm_and_start_motor_its_speed() {
             let dir = tempfile::tempdir().unwrap();
             let fake = spawn(&dir.path().join("rplidar"), FakeConfig::s_series());
-            let mut driver = Driver::new(config(fake.path())).unwrap();
+            let mut driver = Driver::new(driver_config(fake.path())).unwrap();
             run_until(&mut driver, |s, _| !s.is_empty());
             assert_eq!(fake.log().motor_rpm, None, "no motor_rpm configured");
             driver.pending.clear();
@@ -2014,7 +2001,7 @@ mod tests {
             let path = dir.path().join("rplidar");
             let mut driver = Driver::new(Config {
                 motor_rpm: Some(900),
-                ..config(&path)
+                ..driver_config(&path)
             })
             .unwrap();
             run_until(&mut driver, |_, d| {
@@ -2061,7 +2048,7 @@ mod tests {
         fn stop_motor_drops_the_scans_not_yet_taken() {
             let dir = tempfile::tempdir().unwrap();
             let fake = spawn(&dir.path().join("rplidar"), FakeConfig::default());
-            let mut driver = Driver::new(config(fake.path())).unwrap();
+            let mut driver = Driver::new(driver_config(fake.path())).unwrap();
             run_until(&mut driver, |s, _| !s.is_empty());
             // A host late to take them: rotations waiting, as after a stall.
             std::thread::sleep(Duration::from_millis(400));

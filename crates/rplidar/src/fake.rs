@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 
 use serialport::{SerialPort, TTYPort};
 
+use crate::config::Config;
 use crate::driver::DEFAULT_MOTOR_PWM;
 use crate::encode;
 use crate::protocol::{
@@ -265,6 +266,22 @@ struct Control {
 struct Shared {
     control: Mutex<Control>,
     log: Mutex<FakeLog>,
+}
+
+/// A driver configuration for a fake device at `port`, with timings for a loaded 2-core CI
+/// machine: request and data timeouts far longer than any stall a busy scheduler causes, so
+/// that no answer is missed and reset counts are exact (no start comes near the 20 s request
+/// timeout); quick reconnects and diagnostics so that tests of faults stay short.
+pub fn driver_config(port: &Path) -> Config {
+    Config {
+        request_timeout: Duration::from_secs(20),
+        data_timeout: Duration::from_secs(10),
+        reset_wait: Duration::from_millis(30),
+        reconnect_min: Duration::from_millis(20),
+        reconnect_max: Duration::from_millis(160),
+        diagnostics_period: Duration::from_millis(200),
+        ..Config::new(port.to_str().expect("temporary paths are UTF-8"))
+    }
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {

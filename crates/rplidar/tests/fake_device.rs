@@ -7,7 +7,9 @@ use std::time::{Duration, Instant};
 
 use lidar_har_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
 use lidar_har_msgs::sensor_msgs::LaserScan;
-use lidar_har_rplidar::fake::{FakeConfig, FakeLidar, FakeLog, FakeScanMode, SyntheticRoom};
+use lidar_har_rplidar::fake::{
+    FakeConfig, FakeLidar, FakeLog, FakeScanMode, SyntheticRoom, driver_config,
+};
 use lidar_har_rplidar::protocol::HealthStatus;
 use lidar_har_rplidar::{
     Config, DEFAULT_MOTOR_PWM, Driver, Error, Event, ScanFormat, ScanGeometry, ScanModeChoice,
@@ -18,19 +20,10 @@ use nix::sys::termios::{ControlFlags, SetArg, tcgetattr, tcsetattr};
 
 const SAMPLES: usize = 720;
 
-/// Timings for a loaded 2-core CI machine: request and data timeouts far longer than any
-/// stall a busy scheduler causes, so that no answer is missed and reset counts are exact;
-/// tests of hangs and silence shorten them.
 fn config(path: &Path, mode: ScanModeChoice) -> Config {
     Config {
         scan_mode: mode,
-        request_timeout: LONG_REQUEST_TIMEOUT,
-        data_timeout: Duration::from_secs(10),
-        reset_wait: Duration::from_millis(30),
-        reconnect_min: Duration::from_millis(20),
-        reconnect_max: Duration::from_millis(160),
-        diagnostics_period: Duration::from_millis(200),
-        ..Config::new(path.to_str().expect("temp paths are UTF-8"))
+        ..driver_config(path)
     }
 }
 
@@ -74,9 +67,8 @@ fn mismatches(scan: &LaserScan, expected: &[f32], tolerance_m: f32) -> usize {
 /// the tolerated stall and far above the delays of a busy scheduler.
 const HANG_DATA_TIMEOUT: Duration = Duration::from_secs(2);
 
-/// A request timeout no start may come near, even on a machine that stalls a thread for
-/// seconds: a start that waited for one full timeout takes longer than [`QUICK_START`].
-const LONG_REQUEST_TIMEOUT: Duration = Duration::from_secs(20);
+/// A start that waited for one full request timeout of [`driver_config`] (20 s, which no
+/// start comes near, even on a machine that stalls a thread for seconds) takes longer.
 const QUICK_START: Duration = Duration::from_secs(15);
 
 /// How long a test waits for what it expects before failing: only a broken driver takes it.
