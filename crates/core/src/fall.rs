@@ -425,8 +425,10 @@ pub struct FallAlert {
     pub down_since_s: f64,
     /// The person's last seen position, map frame.
     pub position: DVec2,
-    /// Mean probability of the evidence: `falling_down` over the fall's scans, or the summed
-    /// on-floor classes over the visible scans since the person went down.
+    /// Probability of the evidence: for `FallDetected`, the mean of `falling_down` over the
+    /// fall's scans, or, for a fall found by its descent (lying confirmed just after being
+    /// off the floor, no fall run read), the summed on-floor classes of the confirming scan;
+    /// for `PersonDown`, their mean over the visible scans since the person went down.
     pub confidence: f32,
 }
 
@@ -881,8 +883,9 @@ impl FallDetector {
             self.fall_disarmed_at = None;
         }
         // Re-arm once seen upright long enough, counting only uprightness after the alert (an
-        // alert raised while the person was still confirmed upright counts from the alert);
-        // `PersonDown` only once the person is up again, not read upright with doubt.
+        // alert raised while the person was still confirmed upright counts from the alert),
+        // and only once the person is up again, not read upright with doubt: lying next would
+        // otherwise be a new fall, from a person who never got up.
         if let Some(since) = self.upright_since
             && self.posture.is_some_and(|(p, _)| p == Posture::Upright)
         {
@@ -891,11 +894,13 @@ impl FallDetector {
                     seen_now - since.max(at.seen_s) >= self.config.rearm_upright_s
                 })
             };
-            if upright_long_enough(self.fall_disarmed_at) {
-                self.fall_disarmed_at = None;
-            }
-            if self.down.is_none() && upright_long_enough(self.down_disarmed_at) {
-                self.down_disarmed_at = None;
+            if self.down.is_none() {
+                if upright_long_enough(self.fall_disarmed_at) {
+                    self.fall_disarmed_at = None;
+                }
+                if upright_long_enough(self.down_disarmed_at) {
+                    self.down_disarmed_at = None;
+                }
             }
             // Upright a while after a fall run: it was a stagger, or the fall is over.
             if self.pending_fall.is_some_and(|fall| {
@@ -2202,18 +2207,35 @@ mod tests {
     #[test]
     fn being_read_up_with_doubt_after_person_down_does_not_raise_it_again() {
         // Alerted as down, then misread as standing at 0.6 for longer than rearm_upright_s,
-        // then read on the floor again: still the same spell.
-        let script = [
-            (Walking, 5.0, true, None, SURE),
-            (FallingDown, 1.0, true, None, SURE),
-            (LyingDown, 16.0, true, None, SURE),
-            (Standing, 2.0, true, None, 0.6),
-            (SittingOnFloor, 20.0, true, None, SURE),
-        ];
-        let alerts = run_scans(&mut detector(), &script);
+        // then read on the floor again: still the same spell, and no new fall (lying again
+        // after the doubtful standing had passed for a descent until session 59).
+        let script = |standing_p: f32, then: Activity| {
+            [
+                (Walking, 5.0, true, None, SURE),
+                (FallingDown, 1.0, true, None, SURE),
+                (LyingDown, 16.0, true, None, SURE),
+                (Standing, 2.0, true, None, standing_p),
+                (then, 20.0, true, None, SURE),
+            ]
+        };
+        for then in [SittingOnFloor, LyingDown] {
+            let alerts = run_scans(&mut detector(), &script(0.6, then));
+            assert_eq!(
+                kinds(&alerts),
+                [AlertKind::FallDetected, AlertKind::PersonDown],
+                "{then:?}"
+            );
+        }
+        // Surely up for 2 s, then lying at once: a new fall.
+        let alerts = run_scans(&mut detector(), &script(SURE, LyingDown));
         assert_eq!(
             kinds(&alerts),
-            [AlertKind::FallDetected, AlertKind::PersonDown]
+            [
+                AlertKind::FallDetected,
+                AlertKind::PersonDown,
+                AlertKind::FallDetected,
+                AlertKind::PersonDown
+            ]
         );
     }
 
