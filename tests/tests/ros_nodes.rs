@@ -33,7 +33,9 @@ const T0_NS: i64 = 1_700_000_000_000_000_000;
 ///   once SECONDS (whole) have passed;
 /// - `wait_until SECONDS CMD...`: the same, but a timeout is printed and fails the test;
 /// - `has_lines FILE N`: FILE has at least N complete lines;
-/// - `topics_listed TOPIC...`: `lidar-har topic list` (`$LH`, listening 1 s) shows each TOPIC.
+/// - `topics_listed TOPIC...`: `lidar-har topic list` (`$LH`, listening 1 s) shows each TOPIC;
+/// - `echo_count TOPIC N SECONDS NAME [ARG...]`: `lidar-har topic echo` of N messages (fewer
+///   within SECONDS fail) into `$OUT/NAME.jsonl`, then prints `NAME=<its exit status>`.
 const SCRIPT_FUNCTIONS: &str = r#"
 poll() { _end=$(( $(date +%s%N) + $1 * 1000000000 )); shift
   until "$@"; do [ "$(date +%s%N)" -lt "$_end" ] || return 1; sleep 0.05; done; }
@@ -41,6 +43,9 @@ wait_until() { poll "$@" || echo "wait_until timed out: $*"; }
 has_lines() { [ -f "$1" ] && [ "$(wc -l < "$1")" -ge "$2" ]; }
 topics_listed() { _t=$("$LH" topic list --wait 1) || return 1
   for _x in "$@"; do printf '%s\n' "$_t" | grep -qx "$_x" || return 1; done; }
+echo_count() { _t=$1; _n=$2; _s=$3; _f=$4; shift 4
+  "$LH" topic echo "$_t" --count "$_n" --timeout "$_s" --require-count "$@" > "$OUT/$_f.jsonl"
+  echo "$_f=$?"; }
 "#;
 
 /// Whether `unshare -rn` with a multicast loopback works here. Where it does not, the test
@@ -2461,15 +2466,13 @@ exec 3> "$OUT/ctl"
 wait_until 10 has_lines "$OUT/fake.out" 1
 "$DRIVER" --ros-args -p port:="$(head -n 1 "$OUT/fake.out")" -p diagnostics_period:=0.5 \
   -r stop_motor:=lidar/stop_motor 2> "$OUT/driver.err" & D=$!
-echo_n() { "$LH" topic echo "$1" --count "$2" --timeout "$3" --require-count > "$OUT/$4.jsonl"
-  echo "$4=$?"; }
-echo_n /scan 2 20 scanning
+echo_count /scan 2 20 scanning
 cd "$PYDIR"
 "$PY" ros_empty_service_call.py /lidar/stop_motor 20; echo "stop_call=$?"
-echo_n /diagnostics 2 20 stopped
-echo_n /scan 1 3 scan_while_stopped
+echo_count /diagnostics 2 20 stopped
+echo_count /scan 1 3 scan_while_stopped
 "$PY" ros_empty_service_call.py /start_motor 20; echo "start_call=$?"
-echo_n /scan 2 20 restarted
+echo_count /scan 2 20 restarted
 kill -INT $D; wait $D; echo "driver=$?"
 exec 3>&-
 wait $F; echo "fake=$?"
@@ -2552,18 +2555,15 @@ exec 3> "$OUT/ctl"
 wait_until 10 has_lines "$OUT/fake.out" 1
 "$DRIVER" --ros-args -p port:="$(head -n 1 "$OUT/fake.out")" -p frame_id:=e2e_laser \
   -p diagnostics_period:=0.5 2> "$OUT/driver.err" & D=$!
-echo_n() { _t=$1; _n=$2; _f=$3
-  "$LH" topic echo "$_t" --count "$_n" --timeout 20 --require-count --full-length > "$OUT/$_f.jsonl"
-  echo "$_f=$?"; }
-echo_n /scan 5 scan
-echo_n /diagnostics 3 seeing
+echo_count /scan 5 20 scan --full-length
+echo_count /diagnostics 3 20 seeing --full-length
 echo blind >&3
 wait_until 20 grep -q "no return on any beam" "$OUT/driver.err"
-echo_n /scan 2 blind_scan
-echo_n /diagnostics 2 blind
+echo_count /scan 2 20 blind_scan --full-length
+echo_count /diagnostics 2 20 blind --full-length
 echo see >&3
 wait_until 20 grep -q "returns again" "$OUT/driver.err"
-echo_n /diagnostics 2 back
+echo_count /diagnostics 2 20 back --full-length
 kill -INT $D; wait $D; echo "driver=$?"
 exec 3>&-
 wait $F; echo "fake=$?"
