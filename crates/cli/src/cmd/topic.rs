@@ -252,16 +252,26 @@ fn echo(
     let stop = stop_flag()?;
     let mut received = 0u64;
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-    while count.is_none_or(|c| received < c) && !stop.load(std::sync::atomic::Ordering::Relaxed) {
-        let left = match deadline {
-            Some(d) => d.saturating_duration_since(Instant::now()),
-            None => Duration::from_millis(200),
-        };
-        if left.is_zero() {
-            break;
-        }
-        let Some(sample) = sub.take_timeout(&node, left.min(Duration::from_millis(200)))? else {
-            continue;
+    while count.is_none_or(|c| received < c) {
+        // After a signal, the messages that have already arrived are still printed (a
+        // publisher that has finished may count them as delivered); none is waited for.
+        let sample = if stop.load(std::sync::atomic::Ordering::Relaxed) {
+            match sub.try_take()? {
+                Some(sample) => sample,
+                None => break,
+            }
+        } else {
+            let left = match deadline {
+                Some(d) => d.saturating_duration_since(Instant::now()),
+                None => Duration::from_millis(200),
+            };
+            if left.is_zero() {
+                break;
+            }
+            match sub.take_timeout(&node, left.min(Duration::from_millis(200)))? {
+                Some(sample) => sample,
+                None => continue,
+            }
         };
         received += 1;
         let msg = EchoedMessage::new(&type_name, &sample.bytes);
@@ -361,7 +371,7 @@ fn discover_type(node: &Node, topic: &str, deadline: Option<Instant>) -> anyhow:
     }
 }
 
-/// SIGINT/SIGTERM end the echo loop cleanly (stdout flushed, exit 0).
+/// Set by SIGINT/SIGTERM, which end `echo` and `hz` cleanly (stdout flushed, exit 0).
 fn stop_flag() -> anyhow::Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
     let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
