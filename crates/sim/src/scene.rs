@@ -571,6 +571,12 @@ impl Scene {
         Ok(scene)
     }
 
+    /// How many scans the scene's duration holds: one at each whole period from 0, short of
+    /// the end.
+    pub fn frame_count(&self) -> u64 {
+        (self.duration * self.lidar.rate_hz - 1e-9).ceil().max(0.0) as u64
+    }
+
     /// Checks values serde cannot: signs, ranges, and what lies inside what.
     /// Errors are `(key path, message)`.
     pub fn validate(&self) -> Result<(), (String, String)> {

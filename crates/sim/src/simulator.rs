@@ -87,9 +87,7 @@ impl Simulator {
         let lidar = Lidar::new(&scene.lidar);
         let noise_rng =
             (!scene.lidar.noise.is_none()).then(|| ChaCha8Rng::seed_from_u64(mix(base ^ 3)));
-        let frames = (scene.duration * scene.lidar.rate_hz - 1e-9)
-            .ceil()
-            .max(0.0) as u64;
+        let frames = scene.frame_count();
         let start_ns = scene.start_time.saturating_mul(1_000_000_000);
         Ok(Self {
             mount: scene.robot.lidar_mount.to_pose(),

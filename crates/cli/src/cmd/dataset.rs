@@ -373,6 +373,7 @@ pub fn run(args: DatasetArgs, stop: &StopRequest) -> anyhow::Result<()> {
     );
     let renderer = Renderer::new(spec).context("--size/--resolution")?;
     let scenes = with_episode_seconds(load_scenes(&args.scenes)?, args.episode_seconds, 0.0)?;
+    check_window_fits(&args, &scenes)?;
     for name in &args.held_out {
         if !scenes.iter().any(|(_, s)| &s.name == name) {
             bail!(
@@ -453,15 +454,6 @@ pub fn run(args: DatasetArgs, stop: &StopRequest) -> anyhow::Result<()> {
     if episodes.is_empty() {
         bail!(
             "no episode could be run (each skipped above); nothing was written to {}",
-            args.out.display()
-        );
-    }
-    if episodes.iter().all(|e| e.windows == 0) {
-        let longest = episodes.iter().map(|e| e.scans).max().unwrap_or(0);
-        bail!(
-            "no episode gave a window: the longest has {longest} scans, fewer than --window {} \
-             (raise --episode-seconds or lower --window); nothing was written to {}",
-            args.window,
             args.out.display()
         );
     }
@@ -685,7 +677,8 @@ impl<A> Drop for NpyRows<A> {
 /// Runs `work` on each item on `threads` threads and hands the results to `take`, on the
 /// calling thread, in the items' order. A worker does not start an item more than
 /// `2 * threads` ahead of the first one not yet taken, so few results wait at once. The
-/// first error from `take` stops the workers (after their current item) and is returned.
+/// first error from `take` stops the workers (after their current item) and is returned; a
+/// panic in `work` stops them too and becomes an error.
 fn run_in_order<T: Sync, R: Send>(
     items: &[T],
     threads: usize,
@@ -696,12 +689,15 @@ fn run_in_order<T: Sync, R: Send>(
         next: usize,
         taken: usize,
         stop: bool,
+        /// The first item whose work panicked.
+        panicked: Option<usize>,
     }
     let ahead = 2 * threads.max(1);
     let progress = Mutex::new(Progress {
         next: 0,
         taken: 0,
         stop: false,
+        panicked: None,
     });
     let wake = std::sync::Condvar::new();
     let lock = || {
@@ -709,11 +705,15 @@ fn run_in_order<T: Sync, R: Send>(
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner())
     };
+    let stop_workers = || {
+        lock().stop = true;
+        wake.notify_all();
+    };
     let (results, received) = std::sync::mpsc::channel::<(usize, R)>();
     std::thread::scope(|scope| {
         for _ in 0..threads {
             let results = results.clone();
-            let (work, wake, lock) = (&work, &wake, &lock);
+            let (work, wake, lock, stop_workers) = (&work, &wake, &lock, &stop_workers);
             scope.spawn(move || {
                 loop {
                     let i = {
@@ -729,13 +729,24 @@ fn run_in_order<T: Sync, R: Send>(
                         p.next += 1;
                         p.next - 1
                     };
-                    if results.send((i, work(&items[i]))).is_err() {
+                    // A panic (printed by the hook) stops the run: its item never comes.
+                    let Ok(result) =
+                        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(&items[i])))
+                    else {
+                        lock().panicked.get_or_insert(i);
+                        stop_workers();
+                        break;
+                    };
+                    if results.send((i, result)).is_err() {
                         break;
                     }
                 }
             });
         }
         drop(results);
+        // However the calling thread leaves (error, panic in `take`, or done), no worker is
+        // left waiting for it.
+        let _stop_on_exit = StopOnDrop(&stop_workers);
         let mut waiting = std::collections::BTreeMap::new();
         let mut taken = 0;
         let mut outcome = Ok(());
@@ -752,16 +763,22 @@ fn run_in_order<T: Sync, R: Send>(
             }
         }
         if outcome.is_ok() && taken < items.len() {
-            outcome = Err(anyhow::anyhow!(
-                "item {taken} did not run (a worker stopped)"
-            ));
-        }
-        if outcome.is_err() {
-            lock().stop = true;
-            wake.notify_all();
+            outcome = Err(match lock().panicked {
+                Some(i) => anyhow::anyhow!("item {i} did not finish: it panicked (see above)"),
+                None => anyhow::anyhow!("item {taken} did not run (a worker stopped)"),
+            });
         }
         outcome
     })
+}
+
+/// Runs its closure when dropped, unwinding included.
+struct StopOnDrop<'a>(&'a dyn Fn());
+
+impl Drop for StopOnDrop<'_> {
+    fn drop(&mut self) {
+        (self.0)();
+    }
 }
 
 fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
@@ -794,6 +811,25 @@ fn validate_args(args: &DatasetArgs) -> anyhow::Result<()> {
     }
     if args.threads == 0 {
         bail!("--threads 0: must be at least 1 (episodes run on this many threads)");
+    }
+    Ok(())
+}
+
+/// Refuses a window longer than an episode before any episode runs (every episode has the
+/// same scans: the scenes share one rate).
+fn check_window_fits(args: &DatasetArgs, scenes: &[(String, Scene)]) -> anyhow::Result<()> {
+    let Some((_, scene)) = scenes.first() else {
+        return Ok(());
+    };
+    let scans = scene.frame_count();
+    if scans < args.window as u64 {
+        bail!(
+            "--window {} is longer than an episode: --episode-seconds {} at {} Hz gives {scans} \
+             scans (raise --episode-seconds or lower --window)",
+            args.window,
+            args.episode_seconds,
+            scene.lidar.rate_hz
+        );
     }
     Ok(())
 }
@@ -1335,6 +1371,55 @@ mod tests {
         assert!(ran <= 5 + 1 + 4, "{ran} items ran");
     }
 
+    /// Runs `run` on its own thread; fails the test if it has not returned within 20 s.
+    fn returns_in_time<R: Send + 'static>(run: impl FnOnce() -> R + Send + 'static) -> R {
+        let (done, finished) = std::sync::mpsc::channel();
+        std::thread::spawn(move || done.send(run()));
+        finished
+            .recv_timeout(std::time::Duration::from_secs(20))
+            .expect("run_in_order hung")
+    }
+
+    #[test]
+    fn a_panicking_item_stops_the_run_with_an_error_instead_of_hanging_it() {
+        let err = returns_in_time(|| {
+            let items: Vec<usize> = (0..40).collect();
+            run_in_order(
+                &items,
+                2,
+                |&i| {
+                    assert_ne!(i, 3, "a bug in episode {i}");
+                    i
+                },
+                |_, _| Ok(()),
+            )
+            .unwrap_err()
+        });
+        assert_eq!(
+            err.to_string(),
+            "item 3 did not finish: it panicked (see above)"
+        );
+    }
+
+    #[test]
+    fn a_panic_while_taking_a_result_does_not_leave_the_workers_waiting() {
+        let outcome = returns_in_time(|| {
+            std::panic::catch_unwind(|| {
+                let items: Vec<usize> = (0..40).collect();
+                run_in_order(
+                    &items,
+                    2,
+                    |&i| i,
+                    |&i, _| {
+                        assert_ne!(i, 3, "a bug in taking item {i}");
+                        Ok(())
+                    },
+                )
+            })
+        });
+        assert!(outcome.is_err(), "the panic reaches the caller");
+    }
+
     #[test]
     fn an_npy_header_declaring_another_shape_is_refused_before_reading() {
         let dir = tempfile::tempdir().unwrap();
@@ -1489,6 +1574,26 @@ mod tests {
             let error = validate_args(&dataset_args(extra)).unwrap_err().to_string();
             assert!(error.contains(needle), "{extra:?}: {error}");
         }
+    }
+
+    #[test]
+    fn a_window_longer_than_an_episode_is_refused_before_any_episode_runs() {
+        let file = shipped_scene_path("living_room");
+        let scenes = |seconds| {
+            let scene = Scene::load(&file).unwrap();
+            with_episode_seconds(vec![(file.display().to_string(), scene)], seconds, 0.0).unwrap()
+        };
+        // 2.4 s at 20 Hz: 48 scans, one window of 48.
+        let args = dataset_args(&["--window", "48", "--episode-seconds", "2.4"]);
+        check_window_fits(&args, &scenes(2.4)).unwrap();
+        let error = check_window_fits(&args, &scenes(2.35))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            error,
+            "--window 48 is longer than an episode: --episode-seconds 2.4 at 20 Hz gives 47 \
+             scans (raise --episode-seconds or lower --window)"
+        );
     }
 
     #[test]
