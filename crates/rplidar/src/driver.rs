@@ -2051,12 +2051,12 @@ mod tests {
             let mut driver = Driver::new(driver_config(fake.path())).unwrap();
             run_until(&mut driver, |s, _| !s.is_empty());
             // A host late to take them: rotations waiting, as after a stall.
-            std::thread::sleep(Duration::from_millis(400));
-            driver.poll_scan();
-            assert!(
-                driver.pending.iter().any(|e| matches!(e, Event::Scan(_))),
-                "scans waiting before the stop"
-            );
+            let deadline = Instant::now() + LIMIT;
+            while !driver.pending.iter().any(|e| matches!(e, Event::Scan(_))) {
+                assert!(Instant::now() < deadline, "no scan waiting before the stop");
+                std::thread::sleep(Duration::from_millis(100));
+                driver.poll_scan();
+            }
             driver.stop_motor();
             let (scans, _) = run_until(&mut driver, |_, d| d.len() >= 2);
             assert!(scans.is_empty(), "{} scans after the stop", scans.len());
