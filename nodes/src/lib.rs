@@ -268,7 +268,13 @@ fn log_level(args: &[String], default_name: &str) -> Option<log::LevelFilter> {
 /// parameter, 1 otherwise. `--help` prints the node's usage instead.
 pub fn run(node: &NodeInfo, body: impl FnOnce(&Shutdown) -> anyhow::Result<()>) -> ExitCode {
     let name = node.name;
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let args = match lidar_har_ros::utf8_args(std::env::args_os().skip(1)) {
+        Ok(args) => args,
+        Err(e) => {
+            eprintln!("{name}: error: {e}");
+            return ExitCode::from(2);
+        }
+    };
     match program_args(&args) {
         Ok(ProgramArgs::Run) => {}
         Ok(ProgramArgs::Help) => {

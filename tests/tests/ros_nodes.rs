@@ -6,6 +6,7 @@
 //! Scripts wait for conditions (a file's lines, topics on the graph) with `wait_until`, not
 //! for fixed times.
 
+use std::os::unix::ffi::OsStringExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::Duration;
@@ -993,6 +994,21 @@ fn ros_nodes_print_help_and_refuse_stray_arguments() {
         assert_eq!(stray.status.code(), Some(2), "{node}: {err}");
         assert!(
             err.contains("`rate:=2.0`") && err.contains("--ros-args"),
+            "{node}: {err}"
+        );
+        // A path that is not UTF-8 used to panic (status 101) in the standard library.
+        let not_utf8 = output_within(
+            Command::new(workspace_bin(node)).args([
+                "--ros-args".into(),
+                "-p".into(),
+                std::ffi::OsString::from_vec(b"bag:=/caf\xe9".to_vec()),
+            ]),
+            limit,
+        );
+        let err = String::from_utf8_lossy(&not_utf8.stderr);
+        assert_eq!(not_utf8.status.code(), Some(2), "{node}: {err}");
+        assert!(
+            err.contains("`bag:=/caf\u{fffd}`: not UTF-8"),
             "{node}: {err}"
         );
         // A namespace rmw refuses used to fail late, with status 1, once DDS had started.

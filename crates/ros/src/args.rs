@@ -98,6 +98,23 @@ pub struct ParamOverride {
     pub value: GivenValue,
 }
 
+/// A command line as text: an argument that is not UTF-8 (a path in another encoding) is an
+/// error naming it, where `std::env::args` would panic.
+pub fn utf8_args(
+    args: impl IntoIterator<Item = std::ffi::OsString>,
+) -> Result<Vec<String>, RosError> {
+    args.into_iter()
+        .map(|arg| {
+            arg.into_string().map_err(|arg| {
+                RosError::Args(format!(
+                    "`{}`: not UTF-8, which ROS arguments must be",
+                    arg.to_string_lossy()
+                ))
+            })
+        })
+        .collect()
+}
+
 impl RosArgs {
     /// Parses a command line without the program name.
     pub fn parse<I, S>(args: I) -> Result<Self, RosError>
@@ -539,6 +556,24 @@ fn parse_discovery_range(
 mod tests {
     use super::*;
     use crate::params::ParamValue;
+
+    #[test]
+    fn an_argument_that_is_not_utf8_is_an_error_naming_it() {
+        use std::os::unix::ffi::OsStringExt;
+        let line = |bag: Vec<u8>| {
+            utf8_args([
+                "--ros-args".into(),
+                "-p".into(),
+                std::ffi::OsString::from_vec(bag),
+            ])
+        };
+        assert_eq!(
+            line(b"bag:=/data".to_vec()).unwrap(),
+            ["--ros-args", "-p", "bag:=/data"]
+        );
+        let err = line(b"bag:=caf\xe9".to_vec()).unwrap_err().to_string();
+        assert!(err.contains("`bag:=caf\u{fffd}`: not UTF-8"), "{err}");
+    }
 
     #[test]
     fn parses_remaps_node_ns_params_and_files() {

@@ -124,8 +124,10 @@ fn ros2_profile(
         Durability::TransientLocal => r::Durability::TransientLocal,
     };
     let history = match qos.history {
+        // DDS holds the depth as an i32: a larger one (a bag's metadata may say anything)
+        // would wrap negative, announced so to peers, and keep everything.
         History::KeepLast(depth) => r::History::KeepLast {
-            depth: depth.max(1) as usize,
+            depth: depth.clamp(1, i32::MAX as u32) as usize,
         },
         History::KeepAll => r::History::KeepAll,
     };
@@ -713,12 +715,16 @@ struct DdsSubscriber {
     skipped: AtomicU64,
 }
 
-/// RTPS time (seconds and 2^-32 fractions since the epoch) in nanoseconds.
-fn timestamp_ns(t: Timestamp) -> i64 {
+/// RTPS time (seconds and 2^-32 fractions since the epoch) in nanoseconds; `None` for the
+/// reserved "invalid" and "infinite" values, which are no time (they read as the year 2106).
+fn timestamp_ns(t: Timestamp) -> Option<i64> {
+    if t == Timestamp::INVALID || t == Timestamp::INFINITE {
+        return None;
+    }
     let ticks = t.to_ticks();
     let seconds = (ticks >> 32) as i64;
     let nanos = ((ticks & 0xFFFF_FFFF) * 1_000_000_000) >> 32;
-    seconds * 1_000_000_000 + nanos as i64
+    Some(seconds * 1_000_000_000 + nanos as i64)
 }
 
 /// The next sample that `take` gives, passing over those it cannot read: a sample whose
@@ -757,7 +763,7 @@ impl SubscriberBackend for DdsSubscriber {
         self.reader.drain_read_notifications();
         let taken = take_readable(&self.topic, &self.skipped, || self.reader.try_take_one())?;
         Ok(taken.map(|change| {
-            let source_time_ns = change.source_timestamp().map(timestamp_ns);
+            let source_time_ns = change.source_timestamp().and_then(timestamp_ns);
             let raw = change.into_value();
             let mut bytes = Vec::with_capacity(raw.body.len() + 4);
             bytes.extend_from_slice(&raw.representation.to_bytes());
@@ -890,6 +896,20 @@ mod tests {
     #[test]
     fn rtps_time_converts_to_nanoseconds() {
         let t = Timestamp::from_ticks((5u64 << 32) | (1u64 << 31));
-        assert_eq!(timestamp_ns(t), 5_500_000_000);
+        assert_eq!(timestamp_ns(t), Some(5_500_000_000));
+        assert_eq!(timestamp_ns(Timestamp::INVALID), None);
+        assert_eq!(timestamp_ns(Timestamp::INFINITE), None);
+    }
+
+    #[test]
+    fn a_history_deeper_than_dds_can_hold_is_its_deepest() {
+        let qos = QosProfile {
+            history: History::KeepLast(u32::MAX),
+            ..QosProfile::reliable(1)
+        };
+        assert_eq!(
+            qos_policies(&qos).history(),
+            Some(rustdds::policy::History::KeepLast { depth: i32::MAX })
+        );
     }
 }

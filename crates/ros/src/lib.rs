@@ -28,7 +28,7 @@ use lidar_har_msgs::qos::{Durability, QosProfile, Reliability};
 use lidar_har_msgs::topics::{self, TopicSpec};
 use lidar_har_msgs::{CdrError, RosMessage};
 
-pub use args::RosArgs;
+pub use args::{RosArgs, utf8_args};
 pub use params::{ParamDecl, ParamSource, ParamValue, Parameters, node_parameters};
 pub use rosout::{LogEntry, Rosout, logger_name};
 
@@ -96,7 +96,11 @@ impl NodeSetup {
             name: name.to_string(),
             namespace: "/".to_string(),
             parameters: Vec::new(),
-            args: std::env::args().skip(1).collect(),
+            // Lossy, not a panic: a node's `run` has refused a line that is not UTF-8.
+            args: std::env::args_os()
+                .skip(1)
+                .map(|arg| arg.to_string_lossy().into_owned())
+                .collect(),
             backend: Backend::default(),
             parameter_services: true,
         }

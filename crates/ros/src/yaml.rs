@@ -56,10 +56,10 @@ fn is_plain(text: &str, s: &str) -> bool {
         return false;
     }
     let mut props = text[..start].trim_end();
-    if let Some(i) = props.rfind(char::is_whitespace)
-        && props[i + 1..].starts_with('&')
+    if let Some((before, anchor)) = props.rsplit_once(char::is_whitespace)
+        && anchor.starts_with('&')
     {
-        props = props[..i].trim_end();
+        props = before.trim_end();
     }
     !["!!str", "!<tag:yaml.org,2002:str>"].iter().any(|tag| {
         props.strip_suffix(tag).is_some_and(|rest| {
@@ -225,6 +225,20 @@ mod tests {
                 (str("b"), Yaml::Seq(vec![str("no"), Yaml::Bool(false)])),
                 (str("c"), str("x!!str on")),
             ])
+        );
+    }
+
+    /// Wide spaces (a no-break space pasted from a web page) before a plain scalar used to
+    /// panic: the text after the last space was cut inside the space's bytes.
+    #[test]
+    fn multibyte_spaces_before_a_word_are_read_not_a_panic() {
+        assert_eq!(
+            parse("[a\u{a0}b, on]").unwrap(),
+            Yaml::Seq(vec![str("a\u{a0}b"), Yaml::Bool(true)])
+        );
+        assert_eq!(
+            parse("k\u{3000}x: on").unwrap(),
+            Yaml::Map(vec![(str("k\u{3000}x"), Yaml::Bool(true))])
         );
     }
 

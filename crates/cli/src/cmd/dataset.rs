@@ -198,7 +198,10 @@ impl Generator {
     /// its episodes.
     fn of(args: &DatasetArgs, scenes: &[(String, Scene)]) -> Self {
         Self {
-            command: std::env::args().collect::<Vec<_>>().join(" "),
+            command: std::env::args_os()
+                .map(|arg| arg.to_string_lossy().into_owned())
+                .collect::<Vec<_>>()
+                .join(" "),
             scenes: scenes.iter().map(|(_, s)| s.name.clone()).collect(),
             held_out: args.held_out.clone(),
             episodes: args.episodes,
