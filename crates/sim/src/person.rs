@@ -106,6 +106,31 @@ impl Route {
         self.cumulative.last().copied().unwrap_or(0.0)
     }
 
+    /// The points ahead of a walker `s` metres along (back and forth), up to the end it is
+    /// heading for: walked back and forth as a route of their own from there, they keep to
+    /// this route's segments.
+    fn ahead(&self, s: f64) -> Vec<DVec2> {
+        let len = self.length();
+        if len <= 1e-9 {
+            return Vec::new();
+        }
+        let u = s.rem_euclid(2.0 * len);
+        // At an end, the walker turns back.
+        let outward = if u < 1e-9 { true } else { u < len - 1e-9 };
+        if outward {
+            let zip = self.points.iter().zip(&self.cumulative);
+            zip.filter(|&(_, &c)| c > u + 1e-9)
+                .map(|(p, _)| *p)
+                .collect()
+        } else {
+            let back = 2.0 * len - u;
+            let zip = self.points.iter().zip(&self.cumulative).rev();
+            zip.filter(|&(_, &c)| c < back - 1e-9)
+                .map(|(p, _)| *p)
+                .collect()
+        }
+    }
+
     /// Position after walking `s` metres, back and forth along the route.
     fn at(&self, s: f64) -> DVec2 {
         let len = self.length();
@@ -192,7 +217,12 @@ pub struct Person {
     /// Next script step to plan, counting over repeats.
     next_step: usize,
     current: usize,
-    world_check: Option<World>,
+    /// The room, for finding room to fall or lie down in.
+    world: World,
+    /// Once the first pass is planned, steps are planned while simulating, where a refusal
+    /// cannot be reported: what the first pass checked (paths, room to sit or crawl) is not
+    /// checked again, and a fall with no room goes as drawn.
+    first_pass_planned: bool,
 }
 
 fn smoothstep(x: f64) -> f64 {
@@ -481,7 +511,8 @@ impl Person {
             plans: Vec::new(),
             next_step: 0,
             current: 0,
-            world_check: Some(world.clone()),
+            world: world.clone(),
+            first_pass_planned: false,
         };
         let first = person.make_plan(0.0, start.position(), start.theta, None)?;
         person.plans.push(first);
@@ -489,7 +520,7 @@ impl Person {
         while person.next_step < person.steps.len() {
             person.extend()?;
         }
-        person.world_check = None;
+        person.first_pass_planned = true;
         Ok(person)
     }
 
@@ -533,9 +564,16 @@ impl Person {
                 s.activity = activity;
                 s.duration = f64::INFINITY;
                 s.fall = None;
-                if !is_locomotion(activity) {
-                    s.path.clear();
-                }
+                // A walk goes on over the route it was checked on, from where it is; the
+                // script's path from here would cut across to its first point.
+                s.path = match self.plans.last() {
+                    Some(last) if is_locomotion(activity) => {
+                        let walked = last.speed * last.local(last.end);
+                        let ahead = last.route.ahead(walked);
+                        ahead.into_iter().map(|p| [p.x, p.y]).collect()
+                    }
+                    _ => Vec::new(),
+                };
                 (self.steps.len() - 1, s)
             }
         };
@@ -621,9 +659,8 @@ impl Person {
         let mut heading = heading;
         // How far the body turns from the previous step's heading to find room.
         let mut twist = 0.0;
-        if (a == Activity::FallingDown || lies_down_unchecked)
-            && let Some(world) = &self.world_check
-        {
+        if a == Activity::FallingDown || lies_down_unchecked {
+            let world = &self.world;
             let (verb, key) = if a == Activity::FallingDown {
                 ("fall", format!("person.script[{index}].fall"))
             } else {
@@ -639,12 +676,16 @@ impl Person {
                 _ => root,
             };
             let height = self.traits.dims.height;
-            let (lying, turn) = fall_direction(world, feet, heading, height, plan.lying, verb)
-                .map_err(|message| SceneError::Refused { key, message })?;
-            plan.lying = lying;
-            twist = turn;
-            heading += twist;
-            plan.heading0 = heading;
+            match fall_direction(world, feet, heading, height, plan.lying, verb) {
+                Ok((lying, turn)) => {
+                    plan.lying = lying;
+                    twist = turn;
+                    heading += twist;
+                    plan.heading0 = heading;
+                }
+                Err(_) if self.first_pass_planned => {}
+                Err(message) => return Err(SceneError::Refused { key, message }),
+            }
         }
         // Re-anchor the root so the pelvis stays where the previous step left it.
         let nominal_pelvis = plan.raw_pose(&self.traits, start).pelvis;
@@ -654,7 +695,8 @@ impl Person {
         };
         let mut points = vec![root];
         points.extend(step.path.iter().map(|p| DVec2::new(p[0], p[1])));
-        if let Some(world) = &self.world_check {
+        if !self.first_pass_planned {
+            let world = &self.world;
             for (j, w) in points.windows(2).enumerate() {
                 let blocked = world.furniture.iter().enumerate().find(|(_, f)| {
                     f.person_blocks
@@ -726,8 +768,8 @@ impl Person {
             Activity::SittingOnFloor if prev.is_some() => Some("sit"),
             _ => None,
         };
-        if let (Some(verb), Some(world)) = (on_floor, &self.world_check) {
-            check_room_on_floor(world, &self.traits, &plan, index, verb)?;
+        if let Some(verb) = on_floor.filter(|_| !self.first_pass_planned) {
+            check_room_on_floor(&self.world, &self.traits, &plan, index, verb)?;
         }
         Ok(plan)
     }
@@ -1240,6 +1282,47 @@ mod tests {
                     body_clearance(&mut p, &world, t, false) > 0.0,
                     "{later} at {t}"
                 );
+            }
+        }
+    }
+
+    /// A repeating script's later falls find room as the first pass's do: the person may
+    /// stand elsewhere by then, and a fall drawn at random went through the corridor's wall.
+    #[test]
+    fn falls_of_a_repeating_script_land_clear_of_the_walls_in_every_pass() {
+        let text = "duration: 60\nroom: {outline: [[0,0],[8,0],[8,1.4],[0,1.4]]}\nrobot: {start: {x: 7.5, y: 0.7}}\nperson:\n  start: {x: 4, y: 0.7, yaw_deg: 0}\n  repeat: true\n  script:\n    - {activity: standing, duration: 2}\n    - {activity: falling_down, duration: 1}\n    - {activity: lying_down, duration: 3}\n    - {activity: getting_up, duration: 2}\n";
+        let s = Scene::parse(text, "test").unwrap();
+        let world = World::new(&s);
+        for seed in 0..20 {
+            let mut p = Person::new(s.person.as_ref().unwrap(), &world, seed).unwrap();
+            for pass in 0..3 {
+                let t = 5.0 + 8.0 * pass as f64;
+                let clearance = body_clearance(&mut p, &world, t, true);
+                assert!(
+                    clearance > 0.0,
+                    "seed {seed}, pass {pass}: trunk {clearance:.2} m"
+                );
+            }
+        }
+    }
+
+    /// After a script that ends walking, the walk goes on over its own route: it used to go
+    /// from the last point straight back to the first, here through the box in the middle.
+    #[test]
+    fn a_walk_that_goes_on_after_the_script_keeps_to_its_route() {
+        let text = "duration: 40\nroom: {outline: [[0,0],[6,0],[6,6],[0,6]]}\nfurniture: [{kind: box, center: [3, 3], size: [2, 2], height: 0.5}]\nrobot: {start: {x: 0.4, y: 5.6}}\nperson:\n  start: {x: 1, y: 1, yaw_deg: 90}\n  script:\n    - {activity: walking, duration: 12, path: [[1,5],[5,5],[5,1]]}\n";
+        // Fitted to end at the last point; at a given speed, on the way (8.4 m of 12).
+        let at_speed = text.replace("[5,1]]}", "[5,1]], speed: 0.7}");
+        for (text, seed) in [(text, 0), (text, 1), (text, 2), (at_speed.as_str(), 3)] {
+            let s = Scene::parse(text, "test").unwrap();
+            let world = World::new(&s);
+            let mut p = Person::new(s.person.as_ref().unwrap(), &world, seed).unwrap();
+            for step in 0..400 {
+                let t = 0.1 * step as f64;
+                let state = p.state_at(t);
+                assert_eq!(state.activity, Activity::Walking);
+                let (clearance, what) = world.person_clearance(state.position);
+                assert!(clearance > 0.0, "seed {seed}, {t:.1} s: in {what:?}");
             }
         }
     }

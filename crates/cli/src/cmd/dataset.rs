@@ -216,8 +216,11 @@ impl Generator {
 
     /// The (scene name, simulator seed) of every episode a dataset made so trained on: the
     /// training scenes' episodes outside its test split. `None` when its test fraction cannot
-    /// be told.
+    /// be told, or its episode count is more than `dataset` makes (a damaged report).
     pub(crate) fn trained_episodes(&self) -> Option<HashSet<(String, u64)>> {
+        if self.episodes > MAX_EPISODES {
+            return None;
+        }
         let test = test_episodes(self.seed, self.episodes, self.test_fraction()?);
         let seen: Vec<&String> = self
             .scenes
@@ -481,21 +484,14 @@ pub fn run(args: DatasetArgs, stop: &StopRequest) -> anyhow::Result<()> {
         episodes,
         windows: Vec::new(),
     };
-    let mut written = Vec::new();
+    let mut written = PartialFiles::default();
     for writer in writers {
         let split = writer.finish()?;
         index.splits.insert(split.name.to_string(), split.entry);
         index.windows.extend(split.windows);
-        written.extend(split.files);
+        written.0.extend(split.files);
     }
-    for (partial, path) in written {
-        std::fs::rename(&partial, &path).with_context(|| {
-            format!("cannot rename {} to {}", partial.display(), path.display())
-        })?;
-    }
-    let index_path = args.out.join("index.json");
-    std::fs::write(&index_path, serde_json::to_string_pretty(&index)? + "\n")
-        .with_context(|| format!("cannot write {}", index_path.display()))?;
+    written.publish(&args.out, &(serde_json::to_string_pretty(&index)? + "\n"))?;
     print_counts(&index);
     outln!(
         "wrote {} windows to {}",
@@ -503,6 +499,48 @@ pub fn run(args: DatasetArgs, stop: &StopRequest) -> anyhow::Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// Finished arrays under their temporary names, as (temporary, final) paths. Dropped before
+/// [`PartialFiles::publish`] has put them in place (an error, a full disk), they are removed:
+/// each is as large as a split.
+#[derive(Default)]
+struct PartialFiles(Vec<(PathBuf, PathBuf)>);
+
+impl PartialFiles {
+    /// Puts the arrays, then `index.json` (`index_json`), in place in `out`. The old index goes first: a
+    /// dataset cut short here has none, so it reads as not made, never as an index over
+    /// another run's arrays (of the same shapes when only the seed or scenes differ).
+    fn publish(self, out: &Path, index_json: &str) -> anyhow::Result<()> {
+        let index_path = out.join("index.json");
+        match std::fs::remove_file(&index_path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(e).with_context(|| format!("cannot replace {}", index_path.display()));
+            }
+            _ => {}
+        }
+        for (partial, path) in &self.0 {
+            std::fs::rename(partial, path).with_context(|| {
+                format!("cannot rename {} to {}", partial.display(), path.display())
+            })?;
+        }
+        let partial = out.join("index.json.partial");
+        std::fs::write(&partial, index_json)
+            .and_then(|()| std::fs::rename(&partial, &index_path))
+            .with_context(|| format!("cannot write {}", index_path.display()))
+            .inspect_err(|_| {
+                let _ = std::fs::remove_file(&partial);
+            })
+    }
+}
+
+impl Drop for PartialFiles {
+    fn drop(&mut self) {
+        // Those put in place are gone from here already.
+        for (partial, _) in &self.0 {
+            let _ = std::fs::remove_file(partial);
+        }
+    }
 }
 
 /// One split's arrays and index entries, taken an episode at a time as the episodes finish.
@@ -665,7 +703,11 @@ impl<A: ndarray_npy::WritableElement + Clone> NpyRows<A> {
             }
             Ok(())
         };
-        write().with_context(|| format!("cannot write {}", partial.display()))?;
+        write()
+            .with_context(|| format!("cannot write {}", partial.display()))
+            .inspect_err(|_| {
+                let _ = std::fs::remove_file(&partial);
+            })?;
         Ok((partial, self.path.clone()))
     }
 }
@@ -1423,6 +1465,53 @@ mod tests {
         assert!(outcome.is_err(), "the panic reaches the caller");
     }
 
+    /// A dataset written again over an old one, failing half way (here a folder where an
+    /// array goes; a full disk alike), is left without an index rather than with the old
+    /// index over new arrays, and without the temporary arrays.
+    #[test]
+    fn a_dataset_that_fails_to_be_put_in_place_keeps_no_stale_index_nor_partial_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        let files = || {
+            let files: Vec<_> = ["a", "b"]
+                .map(|name| {
+                    (
+                        out.join(format!("{name}.npy.partial")),
+                        out.join(format!("{name}.npy")),
+                    )
+                })
+                .into();
+            for (partial, _) in &files {
+                std::fs::write(partial, "rows").unwrap();
+            }
+            PartialFiles(files)
+        };
+        let names = || {
+            let mut names: Vec<String> = std::fs::read_dir(out)
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            names.sort();
+            names
+        };
+        std::fs::write(out.join("index.json"), "the old run's").unwrap();
+        std::fs::create_dir(out.join("b.npy")).unwrap();
+        let err = files().publish(out, "{}").unwrap_err();
+        assert!(format!("{err:#}").contains("cannot rename"), "{err:#}");
+        assert_eq!(names(), ["a.npy", "b.npy"]);
+        // Dropped before publishing (a later split failed to finish): removed too.
+        drop(files());
+        assert_eq!(names(), ["a.npy", "b.npy"]);
+        std::fs::remove_dir(out.join("b.npy")).unwrap();
+        files().publish(out, "{}").unwrap();
+        assert_eq!(names(), ["a.npy", "b.npy", "index.json"]);
+        assert_eq!(std::fs::read_to_string(out.join("b.npy")).unwrap(), "rows");
+        assert_eq!(
+            std::fs::read_to_string(out.join("index.json")).unwrap(),
+            "{}"
+        );
+    }
+
     #[test]
     fn an_npy_header_declaring_another_shape_is_refused_before_reading() {
         let dir = tempfile::tempdir().unwrap();
@@ -1693,6 +1782,12 @@ mod tests {
         // Another seed: other episodes.
         let (other, _) = planned(&["--seed", "12", "--held-out", "office", "--episodes", "80"]);
         assert!(of(&other, true).is_disjoint(&trained));
+        // A damaged report's episode count is not enumerated (it used to abort on memory).
+        let damaged = Generator {
+            episodes: usize::MAX,
+            ..generator
+        };
+        assert_eq!(damaged.trained_episodes(), None);
     }
 
     #[test]

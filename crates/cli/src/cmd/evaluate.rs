@@ -22,13 +22,14 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use serde::Serialize;
 
-use super::dataset::{DatasetIndex, DatasetSpec, Generator, SplitData};
+use super::dataset::{DatasetIndex, DatasetSpec, EpisodeEntry, Generator, SplitData};
 
 #[derive(clap::Args, Debug)]
 pub struct EvaluateArgs {
     /// The ONNX step model (e.g. models/activity.onnx). Its training report beside it
     /// (`M.training.json`, written by training/train.sh) names the dataset it trained on: a
-    /// dataset whose test episodes it trained on is refused.
+    /// dataset whose test episodes it trained on, or whose unseen rooms it trained in, is
+    /// refused.
     #[arg(long)]
     pub model: PathBuf,
     /// A dataset directory written by `lidar-har dataset`.
@@ -432,6 +433,7 @@ fn check_not_trained_on(model: &Path, index: &DatasetIndex, data: &Path) -> anyh
             return Ok(());
         }
     };
+    check_unseen_rooms_unseen(&trained_on, &index.episodes, data, &report)?;
     let Some(trained) = trained_on.trained_episodes() else {
         return Ok(());
     };
@@ -456,6 +458,37 @@ fn check_not_trained_on(model: &Path, index: &DatasetIndex, data: &Path) -> anyh
             report.display(),
             trained_on.split_options(),
             index.generator.split_options(),
+        );
+    }
+    Ok(())
+}
+
+/// Refuses a dataset whose `test_unseen` episodes are in rooms the model trained in: the
+/// "unseen rooms" accuracy would be a seen room's, whatever the seeds.
+fn check_unseen_rooms_unseen(
+    trained_on: &Generator,
+    episodes: &[EpisodeEntry],
+    data: &Path,
+    report: &Path,
+) -> anyhow::Result<()> {
+    let trained_in =
+        |scene: &String| trained_on.scenes.contains(scene) && !trained_on.held_out.contains(scene);
+    let mut seen: Vec<&str> = episodes
+        .iter()
+        .filter(|e| e.split == "test_unseen" && trained_in(&e.scene))
+        .map(|e| e.scene.as_str())
+        .collect();
+    seen.sort_unstable();
+    seen.dedup();
+    if !seen.is_empty() {
+        bail!(
+            "{}: its unseen rooms ({}) are rooms the model trained in ({}: scenes {:?}, held \
+             out {:?}); make the test data with --held-out naming rooms the model never saw",
+            data.display(),
+            seen.join(", "),
+            report.display(),
+            trained_on.scenes,
+            trained_on.held_out,
         );
     }
     Ok(())
@@ -893,6 +926,49 @@ fn draw_confusion(confusion: &ConfusionMatrix, split: &str, path: &Path) -> anyh
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unseen_rooms_the_model_trained_in_are_refused_by_name() {
+        let trained_on = |scenes: &[&str], held_out: &[&str]| Generator {
+            command: String::new(),
+            scenes: scenes.iter().map(|s| s.to_string()).collect(),
+            held_out: held_out.iter().map(|s| s.to_string()).collect(),
+            episodes: 8,
+            seed: 1,
+            test_fraction: Some(0.25),
+            episode_seconds: 60.0,
+            person_points: String::new(),
+        };
+        let episode = |scene: &str, split: &str| EpisodeEntry {
+            id: 0,
+            scene: scene.into(),
+            scene_file: String::new(),
+            seed: 7,
+            split: split.into(),
+            scans: 1200,
+            person_visible_scans: 1000,
+            windows: 10,
+            fixed_lidar_at: None,
+        };
+        let episodes = [
+            episode("hall", "train"),
+            episode("hall", "test"),
+            episode("office", "test_unseen"),
+            episode("office", "test_unseen"),
+        ];
+        let check = |generator: &Generator| {
+            check_unseen_rooms_unseen(generator, &episodes, Path::new("d"), Path::new("m.json"))
+        };
+        check(&trained_on(&["hall", "office"], &["office"])).unwrap();
+        check(&trained_on(&["hall"], &[])).unwrap();
+        let err = check(&trained_on(&["hall", "office"], &[]))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("d: its unseen rooms (office) are rooms the model trained in (m.json"),
+            "{err}"
+        );
+    }
 
     /// A training report that exists but cannot be read is an error naming it and why (a
     /// bare `NaN`, as train.py wrote a diverged epoch's loss until session 57, used to read as
