@@ -318,12 +318,15 @@ fn a_run_that_gives_no_window_leaves_the_dataset_already_there_whole() {
         .iter()
         .map(|f| (f.to_string(), std::fs::read(dir.path().join(f)).expect(f)))
         .collect();
-    // Episodes of 6 s at 20 Hz have 120 scans: none holds a 400-scan window.
+    // Episodes of 6 s at 20 Hz have 120 scans: none holds a 400-scan window (refused before
+    // any episode runs).
     let out = make_dataset(dir.path(), &["--window", "400", "--stride", "10"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(
-        stderr.contains("--window 400") && stderr.contains("nothing was written"),
+        stderr.contains("--window 400 is longer than an episode")
+            && stderr.contains("gives 120 scans")
+            && stderr.contains("nothing was written"),
         "{stderr}"
     );
     for (file, bytes) in before {

@@ -870,10 +870,11 @@ fn check_window_fits(args: &DatasetArgs, scenes: &[(String, Scene)]) -> anyhow::
     if scans < args.window as u64 {
         bail!(
             "--window {} is longer than an episode: --episode-seconds {} at {} Hz gives {scans} \
-             scans (raise --episode-seconds or lower --window)",
+             scans (raise --episode-seconds or lower --window); nothing was written to {}",
             args.window,
             args.episode_seconds,
-            scene.lidar.rate_hz
+            scene.lidar.rate_hz,
+            args.out.display()
         );
     }
     Ok(())
@@ -1684,7 +1685,7 @@ mod tests {
         assert_eq!(
             error,
             "--window 48 is longer than an episode: --episode-seconds 2.4 at 20 Hz gives 47 \
-             scans (raise --episode-seconds or lower --window)"
+             scans (raise --episode-seconds or lower --window); nothing was written to o"
         );
     }
 
