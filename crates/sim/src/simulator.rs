@@ -142,7 +142,8 @@ impl Simulator {
     }
 
     /// Makes `index` the next frame (clamped to the end). Skipping ahead costs no scans;
-    /// the person's script is planned up to that time on the next step.
+    /// the person's script is planned up to that time on the next step. The range noise
+    /// draws on from where the run is, so its frames are not noised as a full run's are.
     pub fn seek(&mut self, index: u64) {
         self.index = index.min(self.frames);
     }

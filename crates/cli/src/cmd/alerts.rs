@@ -490,7 +490,12 @@ fn simulate(args: &AlertsArgs, config: &ClassifierConfig) -> anyhow::Result<Aler
             match run_episode(id, scene, seed, kind, run_on_s, &mut classifier, trace) {
                 Ok(episode) => episode,
                 Err(e) => {
-                    progress.suspend(|| errln!("alerts: skipping episode {id}: {e:#}"));
+                    progress.suspend(|| {
+                        errln!(
+                            "alerts: skipping episode {id} (scene '{}', seed {seed}): {e:#}",
+                            scene.name
+                        )
+                    });
                     progress.inc(1);
                     continue;
                 }
