@@ -350,6 +350,9 @@ fn check_furniture_in_room(world: &World) -> Check {
     Ok(())
 }
 
+/// How far inside the robot's rim the Lidar must sit, metres.
+const LIDAR_RIM_MARGIN: f64 = 0.02;
+
 /// The robot's own values; where it starts and drives needs the room ([`check_robot_start`]).
 fn check_robot(r: &RobotSpec) -> Check {
     positive("robot.radius", r.radius)?;
@@ -360,14 +363,16 @@ fn check_robot(r: &RobotSpec) -> Check {
     // The Lidar sits on the robot, inside its footprint. The start check and the planner keep
     // that disc clear of walls and furniture, so the scans are then always cast from the
     // floor of the room; a Lidar mounted further out could scan from inside a cupboard or
-    // from beyond a wall.
+    // from beyond a wall. The planner lets the disc graze an obstacle by up to a centimetre
+    // (`robot::ENTRY_TOLERANCE`), hence the margin.
     let offset = r.lidar_mount.x.hypot(r.lidar_mount.y);
-    if offset > r.radius {
+    let reach = (r.radius - LIDAR_RIM_MARGIN).max(0.0);
+    if offset > reach {
         return fail(
             "robot.lidar_mount",
             format!(
                 "({}, {}) is {offset:.3} m from the robot's centre; the Lidar must sit on the \
-                 robot, within its radius ({} m)",
+                 robot, {LIDAR_RIM_MARGIN} m inside its radius ({} m)",
                 r.lidar_mount.x, r.lidar_mount.y, r.radius
             ),
         );
@@ -882,7 +887,7 @@ mod tests {
         ));
         assert!(
             e.starts_with("bad.yaml: robot.lidar_mount: (10, 0) is 10.000 m from the robot's")
-                && e.contains("within its radius (0.17 m)"),
+                && e.contains("0.02 m inside its radius (0.17 m)"),
             "{e}"
         );
         let e = error(&with(
@@ -893,12 +898,22 @@ mod tests {
             e.contains("robot.lidar_mount: (0.08, -0.08) is 0.113 m"),
             "{e}"
         );
+        // On the rim: the disc may graze a wall, and the Lidar would be past it.
+        let e = error(&with(
+            "{start: {x: 1, y: 1}, lidar_mount: {x: 0.17, y: 0}}",
+            "",
+        ));
+        assert!(e.contains("robot.lidar_mount: (0.17, 0) is 0.170 m"), "{e}");
+        accepted(&with(
+            "{start: {x: 1, y: 1}, lidar_mount: {x: 0.15, y: 0}}",
+            "",
+        ));
         accepted(&with(
             "{start: {x: 1, y: 1}, lidar_mount: {x: 0.1, y: 0, yaw_deg: 90}}",
             "",
         ));
         accepted(&with(
-            "{start: {x: 1, y: 1}, lidar_mount: {x: 0, y: -0.17}}",
+            "{start: {x: 1, y: 1}, lidar_mount: {x: 0, y: -0.15}}",
             "",
         ));
     }
