@@ -194,8 +194,21 @@ def pareto(results: list[dict]) -> set[str]:
     return front
 
 
-def write_report(results: list[dict], common: dict, out: Path) -> None:
-    front = pareto(results)
+def stale_rows(results: list[dict], common: dict, names: list[str], failed: list[str]) -> dict[str, str]:
+    """Why each stored result that this sweep's settings would not give is shown, by name."""
+    stale = {}
+    for r in results:
+        if r["name"] not in names:
+            stale[r["name"]] = "no longer in sweep.toml"
+        elif r["name"] in failed:
+            stale[r["name"]] = "failed in this sweep; an earlier run's result"
+        elif r.get("common") != common:
+            stale[r["name"]] = "run with other [common] settings" if "common" in r else "its [common] settings unrecorded"
+    return stale
+
+
+def write_report(results: list[dict], common: dict, out: Path, stale: dict[str, str]) -> None:
+    front = pareto([r for r in results if r["name"] not in stale])
     pct = lambda x: "-" if x is None else f"{100 * x:.1f}"  # noqa: E731
     if all(r.get("timed_by") for r in results):
         timing = ("Per-scan time: rendering, two model steps (streaming runs two staggered lanes) and softmax, "
@@ -223,12 +236,15 @@ def write_report(results: list[dict], common: dict, out: Path) -> None:
     ]
     base_ms = results[0]["scan_ms"] if results else 1.0
     for r in results:
-        mark = " *" if r["name"] in front else ""
+        mark = (" *" if r["name"] in front else "") + (" †" if r["name"] in stale else "")
         lines.append(
             f"| {r['name']}{mark} | {r['representation']} | {r['framing']}{' (fixed Lidar)' if r['fixed_lidar'] else ''} "
             f"| {r['size']} | {r['resolution']} | {r['window']} | {r['hidden']} | {r['parameters']} "
             f"| {pct(r['accuracy'])} | {pct(r['unseen_accuracy'])} | {pct(r['fall_recall'])} "
             f"| {pct(r['running_recall'])} | {r['scan_ms']:.3f} | {r['scan_ms'] / base_ms:.2f} |")
+    if stale:
+        lines += ["", "† Not this sweep's result: " + "; ".join(f"`{n}` {why}" for n, why in stale.items())
+                  + " (`training/sweep.sh --only NAME` runs one again)."]
     for r in results:
         spread = r.get("per_episode")
         if r["fixed_lidar"] and spread:
@@ -274,6 +290,8 @@ def main(argv=None) -> int:
         results_path = args.out / "sweep.json"
         results = json.loads(results_path.read_text()) if results_path.exists() else []
         failed = []
+        # Configurations whose run failed: a result stored for them is an earlier run's.
+        not_run = []
         if args.retime:
             retime(results, args.out)
             results_path.write_text(json.dumps(results, indent=2) + "\n")
@@ -290,7 +308,9 @@ def main(argv=None) -> int:
                     # One failed configuration must not cost the rest of a three-hour sweep.
                     print(f"sweep: {run['name']} failed, going on: {err}", file=sys.stderr, flush=True)
                     failed.append(run["name"])
+                    not_run.append(run["name"])
                     continue
+                result["common"] = common
                 # After `--retime`, a configuration run again is retimed too: one table must not
                 # put the benchmark's times beside those measured during the sweep.
                 if any(r.get("timed_by") for r in results if r["name"] != run["name"]):
@@ -305,7 +325,8 @@ def main(argv=None) -> int:
                 results.sort(key=lambda r: order.index(r["name"]) if r["name"] in order else len(order))
                 results_path.write_text(json.dumps(results, indent=2) + "\n")
                 print(f"  accuracy {100 * result['accuracy']:.1f} %, {result['scan_ms']:.3f} ms/scan", flush=True)
-        write_report(results, common, args.out)
+        stale = stale_rows(results, common, [r["name"] for r in runs], not_run)
+        write_report(results, common, args.out, stale)
         print(f"sweep: wrote {args.out / 'sweep.md'} and {args.out / 'sweep.png'}")
         if failed:
             print(f"sweep: failed configurations (see their log.txt): {', '.join(failed)}", file=sys.stderr)

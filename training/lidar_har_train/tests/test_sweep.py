@@ -87,5 +87,36 @@ class OnlyAfterRetime(unittest.TestCase):
             self.assertIn("the others (narrow) measured by `lidar-har evaluate`", report)
 
 
+class StaleRows(unittest.TestCase):
+    """Stored results this sweep would not give (a configuration that failed now, one gone from
+    sweep.toml, one run with other [common] settings) are marked, not shown as current."""
+
+    def test_results_not_from_this_sweep_are_marked_and_kept_off_the_front(self):
+        common, _ = sweep.load_config(ROOT / "training/sweep.toml")
+
+        def run_one(run, common, args):
+            raise sweep.SweepError("dataset failed (exit 101)")
+
+        current = dict(row("reference", 0.2, False), common=common)
+        other = dict(common, seed=common["seed"] + 1)
+        stored = [current, dict(row("narrow", 0.1, False), common=common, accuracy=0.9),
+                  dict(row("wide", 0.1, False), common=other, accuracy=0.9), row("gone", 0.1, False)]
+        with tempfile.TemporaryDirectory() as d:
+            out = Path(d)
+            (out / "sweep.json").write_text(json.dumps(stored))
+            with mock.patch.object(sweep, "run_one", run_one), mock.patch.object(sweep, "plot", lambda *a: None), \
+                    redirect_stdout(io.StringIO()), redirect_stderr(io.StringIO()):
+                code = sweep.main(["--config", str(ROOT / "training/sweep.toml"), "--out", str(out),
+                                   "--lidar-har", sys.executable, "--only", "narrow"])
+            self.assertEqual(code, 1)
+            report = (out / "sweep.md").read_text()
+            self.assertIn("| reference * |", report)
+            for name in ["narrow", "wide", "gone"]:
+                self.assertIn(f"| {name} † |", report)
+            self.assertIn("`narrow` failed in this sweep; an earlier run's result", report)
+            self.assertIn("`wide` run with other [common] settings", report)
+            self.assertIn("`gone` no longer in sweep.toml", report)
+
+
 if __name__ == "__main__":
     unittest.main()
